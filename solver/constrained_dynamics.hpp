@@ -1,0 +1,40 @@
+// The hidden (acceleration-level) constraint with closed-form sphere-on-plane contacts:
+// contact forces and accelerations at a state (q, q̇), shared by every formulation that
+// needs them (consistent initialization, EDE right-hand side, MDE force recovery, lift-off
+// events of the ODE formulations, output of contact forces).
+//
+//   [ M   −Gᵀ ] [ ν̇ ]   [ Q                          ]
+//   [ G    0  ] [ N ] = [ −κ − 2a φ̇ − b² φ (Baumgarte) ]
+//
+// with a = b = 0 the exact index-reduced constraint φ̈ = 0.
+#pragma once
+
+#include <vector>
+
+#include "solver/dynamics.hpp"
+
+namespace kneedyn {
+
+struct ConstrainedAcceleration {
+  Vector6d nu_dot = Vector6d::Zero();  // (a_F, ẇ_T)
+  Vector6d qdd = Vector6d::Zero();     // q̈
+  std::vector<double> normal_force;    // N_i per active contact, N (may be < 0: lift-off)
+};
+
+struct BaumgarteGains {
+  double alpha = 0.0;  // 1/s, velocity feedback (2a φ̇)
+  double beta = 0.0;   // 1/s, position feedback (b² φ)
+};
+
+// `active` lists indices into model.contacts (each must be a sphere on a plane).
+// Throws SolverError when the constraint rows are dependent.
+ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double t,
+                                                     const Vector6d& q, const Vector6d& qd,
+                                                     const std::vector<int>& active,
+                                                     BaumgarteGains gains = {});
+
+// Closed-form contact geometries of the listed contacts at a pose.
+std::vector<ContactGeometry> ClosedFormContacts(const Model& model, const Pose& pose,
+                                                const std::vector<int>& contacts);
+
+}  // namespace kneedyn

@@ -1,0 +1,105 @@
+// Tibio-femoral contact (chapter Eqs. 1.6–1.13; spec §4), two equivalent descriptions.
+//
+// Chapter form, any smooth height fields. Per contact the unknowns are the contact
+// coordinates c = (xc, yc) on the femur (F) and (x′c, y′c) on the tibia (T):
+//   Xf = (xc, yc, f(xc, yc))  in F,        X′t = (x′c, y′c, g(x′c, y′c))  in T
+//   e  = Xf − (R0 + R X′t)                 (Eq. 1.8; three components: F13–F15)
+//   nf − R n′t, x and y components         (Eq. 1.13; F19, F20), n = (∂x h, ∂y h, −1)/norm
+// Closed form, sphere on plane: the gap φ = n·(C − R0) − d − r with n = R n̂′ (in F);
+// contact point Xc = C − r n. φ > 0 separated, φ < 0 penetrating.
+//
+// Velocity level (both forms): the normal approach velocity of the tibial material point
+// at the contact, written as φ̇ = −n_F · (v_F + w_F × R X′t) = G ν with ν = (v_F, w_T),
+//   G = [−n_Fᵀ, (n′_T × X′t)ᵀ]                 (1×6)
+// and at acceleration level φ̈ = G ν̇ + κ (closed form only; see ContactAccelerationTerm).
+//
+// Contact force on the tibia: −N n_F applied at the tibial contact point (spec §4).
+#pragma once
+
+#include "solver/model.hpp"
+#include "solver/pose.hpp"
+
+namespace kneedyn {
+
+// Where a contact acts on the tibia and its normal; shared by both forms.
+template <typename T>
+struct ContactGeometryTpl {
+  Vector3<T> point_F;   // femoral contact point Xf, m
+  Vector3<T> point_T;   // tibial contact point X′t (tibial coordinates), m
+  Vector3<T> normal_T;  // unit tibial normal n′, towards the femur
+  T gap = T(0.0);       // closed form φ; chapter form: n_F · e (signed distance along n)
+};
+using ContactGeometry = ContactGeometryTpl<double>;
+
+// Chapter-form residuals for one pair. c = (xc, yc, x′c, y′c) in m.
+// residual[0..2] = e (Eq. 1.8), residual[3..4] = x, y of nf − R n′t (Eq. 1.13).
+// Returns false when a surface is evaluated outside its domain (recoverable for solvers).
+template <typename T>
+bool ChapterContactResiduals(const ContactPair& pair, const PoseTpl<T>& pose, const T c[4],
+                             T residual[5], ContactGeometryTpl<T>* geometry = nullptr) {
+  using std::sqrt;
+  T f, g, df[2], dg[2];
+  if (!EvaluateHeight(*pair.femoral_surface, c[0], c[1], &f, df)) return false;
+  if (!EvaluateHeight(*pair.tibial_surface, c[2], c[3], &g, dg)) return false;
+  const Vector3<T> Xf(c[0], c[1], f);
+  const Vector3<T> Xt(c[2], c[3], g);
+  const Vector3<T> e = Xf - pose.PointInF(Xt);
+  const Vector3<T> nf = Vector3<T>(df[0], df[1], T(-1.0)) /
+                        sqrt(df[0] * df[0] + df[1] * df[1] + T(1.0));
+  const Vector3<T> nt = Vector3<T>(dg[0], dg[1], T(-1.0)) /
+                        sqrt(dg[0] * dg[0] + dg[1] * dg[1] + T(1.0));
+  const Vector3<T> colinear = nf - pose.R_FT * nt;
+  residual[0] = e(0);
+  residual[1] = e(1);
+  residual[2] = e(2);
+  residual[3] = colinear(0);
+  residual[4] = colinear(1);
+  if (geometry != nullptr) {
+    geometry->point_F = Xf;
+    geometry->point_T = Xt;
+    geometry->normal_T = -nt;  // chapter normals point away from the femur; flip
+    geometry->gap = -(pose.R_FT * nt).dot(e);
+  }
+  return true;
+}
+
+// Closed-form sphere-on-plane contact at a pose.
+template <typename T>
+ContactGeometryTpl<T> SphereOnPlaneContact(const SphereOnPlane& sop, const PoseTpl<T>& pose) {
+  ContactGeometryTpl<T> out;
+  const Vector3<T> n_F = pose.R_FT * sop.normal_T.template cast<T>();
+  const Vector3<T> C = sop.centre_F.template cast<T>();
+  out.gap = n_F.dot(C - pose.p_FoTo_F) - sop.offset - sop.radius;
+  out.point_F = C - sop.radius * n_F;
+  out.point_T = pose.PointInT(out.point_F);
+  out.normal_T = sop.normal_T.template cast<T>();
+  return out;
+}
+
+// The closed form of a pair, or InputError naming the compartment when the pair is not a
+// sphere on a plane. `caller` names the formulation that needs it.
+const SphereOnPlane& RequireSphereOnPlane(const ContactPair& pair, const char* caller);
+
+// φ̇ = G ν: the 1×6 velocity-constraint row at a contact (see header comment).
+template <typename T>
+Eigen::Matrix<T, 1, 6> ContactConstraintRow(const PoseTpl<T>& pose,
+                                            const ContactGeometryTpl<T>& geometry) {
+  Eigen::Matrix<T, 1, 6> G;
+  G.template head<3>() = -(pose.R_FT * geometry.normal_T).transpose();
+  G.template tail<3>() = geometry.normal_T.cross(geometry.point_T).transpose();
+  return G;
+}
+
+// κ in φ̈ = G ν̇ + κ for the sphere-on-plane gap:
+//   κ = (w_F × (w_F × n)) · (C − R0) − 2 (w_F × n) · v_F.
+double ContactAccelerationTerm(const SphereOnPlane& sop, const Pose& pose, const Vector6d& nu);
+
+// Force (F) and moment about the centre of mass (T) of −N n_F applied at point_T.
+template <typename T>
+void AddContactWrench(const PoseTpl<T>& pose, const ContactGeometryTpl<T>& geometry,
+                      const T& normal_force, Vector3<T>* force_F, Vector3<T>* moment_T) {
+  *force_F -= normal_force * (pose.R_FT * geometry.normal_T);
+  *moment_T -= normal_force * geometry.point_T.cross(geometry.normal_T);
+}
+
+}  // namespace kneedyn

@@ -1,0 +1,85 @@
+// Newton–Euler equations of the tibia (chapter Eqs. 1.17–1.24; spec §8), shared by every
+// formulation. In ν = (v_F, w_T) coordinates the mass matrix is constant:
+//
+//   m a_F                   = W + Fe(t) R d_T + Σ_j F_j û_j − Σ_i N_i n_i     (Eqs. 1.48–1.57)
+//   I ẇ_T + w_T × (I w_T)   = M′ (ligament and contact moments about the COM, T components)
+//
+// i.e.  M ν̇ = Q(t, q, ν) + Σ_i N_i G_iᵀ  with M = diag(m 1, I) and
+//       Q = (F_applied_F, M_applied_T − w_T × I w_T);  G_i from contact.hpp.
+// (The printed Eq. 1.22 repeats the y′ equation; the x′ one is the cyclic one, spec §8.)
+#pragma once
+
+#include <vector>
+
+#include "solver/contact.hpp"
+#include "solver/ligament.hpp"
+#include "solver/loads.hpp"
+
+namespace kneedyn {
+
+// Workspace of the applied-load computation (style.md §1: data apart from model).
+template <typename T>
+struct DataTpl {
+  explicit DataTpl(const Model& model)
+      : ligament_length(model.ligaments.size()), ligament_tension(model.ligaments.size()) {}
+  std::vector<T> ligament_length;   // L_j, m
+  std::vector<T> ligament_tension;  // F_j ≥ 0, N
+  Vector3<T> applied_force_F;       // gravity + pulse + ligaments + constant load, N
+  Vector3<T> applied_moment_T;      // ligaments + constant torque, about the COM, N m
+  double pulse_magnitude = 0.0;     // Fe(t), N
+};
+using Data = DataTpl<double>;
+
+// Fills data with the loads that do not depend on contact: gravity, pulse and constant
+// load at the COM, ligament forces at their tibial attachments.
+template <typename T>
+void ComputeAppliedWrench(const Model& model, double t, const PoseTpl<T>& pose,
+                          DataTpl<T>* data) {
+  data->pulse_magnitude = PulseMagnitude(model.pulse, t);
+  Vector3<T> force = (model.mass * model.gravity_F + model.constant_load.force_F).template cast<T>();
+  force += pose.R_FT * (data->pulse_magnitude * model.pulse.direction_T).template cast<T>();
+  Vector3<T> moment = model.constant_load.torque_T.template cast<T>();
+  const Matrix3<T> R_TF = pose.R_FT.transpose();
+  for (size_t j = 0; j < model.ligaments.size(); ++j) {
+    const Ligament& lig = model.ligaments[j];
+    const Vector3<T> span_F = LigamentSpan_F(lig, pose);
+    const T length = span_F.norm();
+    const T tension = LigamentTension(lig, length);
+    data->ligament_length[j] = length;
+    data->ligament_tension[j] = tension;
+    if (ScalarPart(tension) == 0.0) continue;
+    const Vector3<T> f_F = tension * span_F / length;  // towards the femoral attachment
+    force += f_F;
+    moment += lig.p_ToB_T.template cast<T>().cross(R_TF * f_F);
+  }
+  data->applied_force_F = force;
+  data->applied_moment_T = moment;
+}
+
+// Q(t, q, ν): applied generalized force minus gyroscopic term, ν-coordinates.
+template <typename T>
+Vector6<T> GeneralizedForce(const Model& model, const DataTpl<T>& data, const Vector3<T>& w_T) {
+  const Vector3<T> I = model.inertia_T.template cast<T>();
+  const Vector3<T> Iw = I.cwiseProduct(w_T);
+  Vector6<T> Q;
+  Q.template head<3>() = data.applied_force_F;
+  Q.template tail<3>() = data.applied_moment_T - w_T.cross(Iw);
+  return Q;
+}
+
+// M ν̇ (M constant and diagonal in ν-coordinates).
+template <typename T>
+Vector6<T> MassTimes(const Model& model, const Vector6<T>& nu_dot) {
+  Vector6<T> out;
+  out.template head<3>() = model.mass * nu_dot.template head<3>();
+  out.template tail<3>() = model.inertia_T.template cast<T>().cwiseProduct(nu_dot.template tail<3>());
+  return out;
+}
+
+Matrix6d MassMatrix(const Model& model);
+
+// Kinetic + gravitational + ligament strain energy (J), for conservative scenes.
+// Gravitational potential −m g·R0 (g constant); constant loads add −F·R0.
+double MechanicalEnergy(const Model& model, const Vector6d& q, const Vector6d& qd);
+
+}  // namespace kneedyn

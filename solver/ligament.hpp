@@ -1,0 +1,46 @@
+// Ligament force law (chapter Eqs. 1.14–1.16, Tables 1.1–1.3; spec §5).
+//
+//   ε = (L − L0)/L0,  ε1 = 0.03
+//   F = 0                          ε ≤ 0
+//   F = k_par (L − L0)²            0 < ε ≤ 2 ε1
+//   F = k_lin (L − (1 + ε1) L0)    ε > 2 ε1
+//
+// Departure from the printed Table 1.2 header (spec §5): the first column is k_lin (N/mm),
+// the second k_par (N/mm²). The force acts on the tibia at its attachment, towards the
+// femoral attachment.
+#pragma once
+
+#include <cmath>
+
+#include "solver/model.hpp"
+#include "solver/pose.hpp"
+
+namespace kneedyn {
+
+template <typename T>
+T LigamentTension(const Ligament& lig, const T& length) {
+  const double L0 = lig.slack_length;
+  const T elongation = length - L0;
+  if (ScalarPart(elongation) <= 0.0) return T(0.0);
+  if (ScalarPart(elongation) <= 2.0 * kLigamentToeStrain * L0) {
+    return lig.k_parabolic * elongation * elongation;
+  }
+  return lig.k_linear * (length - (1.0 + kLigamentToeStrain) * L0);
+}
+
+// Strain energy stored in the element at length L (J): the integral of the law above, so
+// that −dV/dL = −F holds piecewise even where the published law jumps.
+double LigamentPotential(const Ligament& lig, double length);
+
+// Strain ε = (L − L0)/L0.
+inline double LigamentStrain(const Ligament& lig, double length) {
+  return (length - lig.slack_length) / lig.slack_length;
+}
+
+// Vector from tibial to femoral attachment, in F (m).
+template <typename T>
+Vector3<T> LigamentSpan_F(const Ligament& lig, const PoseTpl<T>& pose) {
+  return lig.p_FoA_F.template cast<T>() - pose.PointInF(lig.p_ToB_T.template cast<T>());
+}
+
+}  // namespace kneedyn

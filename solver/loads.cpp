@@ -1,0 +1,41 @@
+#include "solver/loads.hpp"
+
+#include <cmath>
+
+#include "solver/error.hpp"
+#include "solver/units.hpp"
+
+namespace kneedyn {
+
+double PulseMagnitude(const Pulse& pulse, double t) {
+  if (t < 0.0) return 0.0;
+  const double s = t / pulse.duration;
+  switch (pulse.shape) {
+    case PulseShape::kNone:
+      return 0.0;
+    case PulseShape::kReconstructed:
+      return pulse.amplitude * s * std::sin(2.0 * kPi * s) * std::exp(-4.73 * s);
+    case PulseShape::kHalfSine:
+      return s <= 1.0 ? pulse.amplitude * std::sin(kPi * s) : 0.0;
+  }
+  return 0.0;
+}
+
+PulseShape ParsePulseShape(const std::string& name) {
+  if (name == "none") return PulseShape::kNone;
+  if (name == "reconstructed") return PulseShape::kReconstructed;
+  if (name == "half_sine") return PulseShape::kHalfSine;
+  Throw<InputError>("ParsePulseShape", "unknown pulse shape '", name,
+                    "'; expected one of: reconstructed, half_sine, none");
+}
+
+const char* PulseShapeName(PulseShape shape) {
+  switch (shape) {
+    case PulseShape::kNone: return "none";
+    case PulseShape::kReconstructed: return "reconstructed";
+    case PulseShape::kHalfSine: return "half_sine";
+  }
+  return "?";
+}
+
+}  // namespace kneedyn

@@ -1,0 +1,93 @@
+// The constant model of one scene (style.md §1: model apart from workspace).
+// Built once from reference-data/ and a scene file (scene.hpp); never modified by a run.
+// All quantities SI. Only what the scene names is present.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "solver/height_field.hpp"
+#include "solver/scalar.hpp"
+
+namespace kneedyn {
+
+// Ligament force law variant (spec §5).
+enum class LigamentLaw {
+  kPublished,     // Table 1.2 values as printed: small jump at ε = 2ε1
+  kC1Continuous,  // k_par recomputed as k_lin / (4 ε1 L0): C¹ at ε = 2ε1
+};
+
+// Strain where the parabolic toe region ends is 2 ε1 (chapter Eq. 1.14).
+constexpr double kLigamentToeStrain = 0.03;  // ε1
+
+// One straight, tension-only spring element (chapter Eqs. 1.14–1.16, Tables 1.1–1.3).
+struct Ligament {
+  std::string name;                // e.g. "ACL anterior"
+  Vector3d p_FoA_F;                // femoral attachment in F, m
+  Vector3d p_ToB_T;                // tibial attachment in T (origin at centre of mass), m
+  double k_linear = 0.0;           // N/m, linear region
+  double k_parabolic = 0.0;        // N/m², toe region (as used; see LigamentLaw)
+  double k_parabolic_published = 0.0;  // N/m², Table 1.2 value
+  double extension_ratio = 1.0;    // e = L_ref / L0 (Table 1.3)
+  double reference_length = 0.0;   // L_ref at the reference pose, m
+  double slack_length = 0.0;       // L0 = L_ref / e, m
+};
+
+// The sphere-on-plane closed form of a contact pair (spec §4), present when the femoral
+// surface is a SphereCap and the tibial one a PlaneSurface.
+struct SphereOnPlane {
+  Vector3d centre_F;  // sphere centre C in F, m
+  double radius = 0.0;  // r, m
+  Vector3d normal_T;  // unit plane normal n̂′ in T, towards the femur
+  double offset = 0.0;  // d: n̂′ · x′ = d on the plane, m
+};
+
+enum class Compartment { kMedial = 0, kLateral = 1 };
+constexpr int kMaxContacts = 2;
+const char* CompartmentName(Compartment c);  // "medial" / "lateral"
+
+struct ContactPair {
+  Compartment compartment = Compartment::kMedial;
+  std::shared_ptr<const HeightField> femoral_surface;  // in F
+  std::shared_ptr<const HeightField> tibial_surface;   // in T
+  std::optional<SphereOnPlane> sphere_on_plane;        // closed form when available
+};
+
+// External pulse at the centre of mass, along a tibial direction (spec §7).
+enum class PulseShape {
+  kNone,
+  kReconstructed,  // A (t/t0) sin(2π t/t0) exp(−4.73 t/t0), Eq. 1.62 as reconstructed
+  kHalfSine,       // A sin(π t/t0) on [0, t0], zero after
+};
+
+struct Pulse {
+  PulseShape shape = PulseShape::kNone;
+  double amplitude = 0.0;  // A, N
+  double duration = 0.1;   // t0, s
+  Vector3d direction_T = Vector3d(0.0, -1.0, 0.0);  // unit, turns with the tibia
+};
+
+// Extra constant force and torque on the tibia, for verification scenes (issue 7).
+struct ConstantLoad {
+  Vector3d force_F = Vector3d::Zero();   // N, at the centre of mass
+  Vector3d torque_T = Vector3d::Zero();  // N m
+};
+
+struct Model {
+  double mass = 0.0;                               // kg
+  Vector3d inertia_T = Vector3d::Zero();           // principal moments about the COM, kg m²
+  Vector3d gravity_F = Vector3d::Zero();           // m/s² (zero when gravity is off)
+  std::vector<Ligament> ligaments;                 // only those the scene names
+  std::vector<ContactPair> contacts;               // only those the scene names
+  Pulse pulse;
+  ConstantLoad constant_load;
+  LigamentLaw ligament_law = LigamentLaw::kPublished;
+
+  // Index of the contact pair for a compartment, or -1 when the scene has none there.
+  int ContactIndex(Compartment c) const;
+};
+
+}  // namespace kneedyn

@@ -1,0 +1,70 @@
+// Pose of the tibia from generalized coordinates, and the generalized-velocity map.
+// Notation: see rotation.hpp.  q = (x0, y0, z0 [m], α, β, γ [rad]).
+// ν = (v_F, w_T): velocity of the centre of mass in F (m/s) and angular velocity in T (rad/s);
+// ν = B(q) q̇ with B = diag(I, E(β, γ)).
+#pragma once
+
+#include "solver/rotation.hpp"
+
+namespace kneedyn {
+
+// Indices into q and q̇.
+enum CoordinateIndex { kX0 = 0, kY0 = 1, kZ0 = 2, kAlpha = 3, kBeta = 4, kGamma = 5 };
+constexpr int kNumCoordinates = 6;
+const char* CoordinateName(int i);  // "x0", ..., "gamma"
+
+template <typename T>
+struct PoseTpl {
+  Vector3<T> p_FoTo_F;  // R0, m
+  Matrix3<T> R_FT;
+
+  // Femoral coordinates of a point given in tibial coordinates: P = R0 + R r (Eq. 1.1).
+  Vector3<T> PointInF(const Vector3<T>& p_T) const { return p_FoTo_F + R_FT * p_T; }
+  Vector3<T> PointInT(const Vector3<T>& p_F) const {
+    return R_FT.transpose() * (p_F - p_FoTo_F);
+  }
+};
+using Pose = PoseTpl<double>;
+
+template <typename T>
+PoseTpl<T> PoseFromCoordinates(const Vector6<T>& q) {
+  PoseTpl<T> pose;
+  pose.p_FoTo_F = q.template head<3>();
+  pose.R_FT = RotationFT(q(kAlpha), q(kBeta), q(kGamma));
+  return pose;
+}
+
+// w_T = E(β, γ) (α̇, β̇, γ̇).
+template <typename T>
+Vector3<T> AngularVelocityT(const Vector6<T>& q, const Vector6<T>& qd) {
+  return AngularVelocityMap(q(kBeta), q(kGamma)) * qd.template tail<3>();
+}
+
+// ν = (v_F, w_T) from (q, q̇).
+template <typename T>
+Vector6<T> GeneralizedVelocity(const Vector6<T>& q, const Vector6<T>& qd) {
+  Vector6<T> nu;
+  nu.template head<3>() = qd.template head<3>();
+  nu.template tail<3>() = AngularVelocityT(q, qd);
+  return nu;
+}
+
+// ν̇ = (a_F, ẇ_T) from (q, q̇, q̈):  ẇ_T = E q̈_ang + Ė q̇_ang.
+template <typename T>
+Vector6<T> GeneralizedAcceleration(const Vector6<T>& q, const Vector6<T>& qd,
+                                   const Vector6<T>& qdd) {
+  Vector6<T> nud;
+  nud.template head<3>() = qdd.template head<3>();
+  const Vector3<T> qd_ang = qd.template tail<3>();
+  nud.template tail<3>() =
+      AngularVelocityMap(q(kBeta), q(kGamma)) * qdd.template tail<3>() +
+      AngularVelocityMapRateTimesRate(q(kBeta), q(kGamma), qd_ang);
+  return nud;
+}
+
+// Inverse of the above: q̈ from ν̇ (q̈_ang = E⁻¹ (ẇ_T − Ė q̇_ang)). Throws at the singularity.
+Vector6d CoordinateAcceleration(const Vector6d& q, const Vector6d& qd, const Vector6d& nu_dot);
+// q̇ from ν (q̇_ang = E⁻¹ w_T).
+Vector6d CoordinateVelocity(const Vector6d& q, const Vector6d& nu);
+
+}  // namespace kneedyn

@@ -1,0 +1,36 @@
+// Scalar-type helpers so that physics templates run on double and on ceres::Jet
+// (forward-mode automatic differentiation, used for every Jacobian in kneedyn).
+#pragma once
+
+#include <ceres/jet.h>
+
+#include <Eigen/Dense>
+
+namespace kneedyn {
+
+inline double ScalarPart(double x) { return x; }
+template <typename T, int N>
+double ScalarPart(const ceres::Jet<T, N>& x) {
+  return ScalarPart(x.a);
+}
+
+template <typename T>
+using Vector3 = Eigen::Matrix<T, 3, 1>;
+template <typename T>
+using Matrix3 = Eigen::Matrix<T, 3, 3>;
+template <typename T>
+using Vector6 = Eigen::Matrix<T, 6, 1>;
+
+using Vector3d = Eigen::Vector3d;
+using Matrix3d = Eigen::Matrix3d;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+using VectorXd = Eigen::VectorXd;
+using MatrixXd = Eigen::MatrixXd;
+
+// Largest unknown count any formulation differentiates with Jets (22 for the chapter's
+// two-point DAE; Newmark with contact coordinates is 6 + 5*2 = 16).
+constexpr int kMaxJetSize = 24;
+using JetD = ceres::Jet<double, kMaxJetSize>;
+
+}  // namespace kneedyn

@@ -1,0 +1,605 @@
+#include "solver/scene.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <Eigen/LU>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "solver/contact.hpp"
+#include "solver/ligament.hpp"
+#include "solver/loads.hpp"
+#include <algorithm>
+#include "solver/error.hpp"
+#include "solver/units.hpp"
+
+#ifndef KNEEDYN_DATA_DIR
+#define KNEEDYN_DATA_DIR "reference-data"
+#endif
+
+namespace kneedyn {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A YAML node with the path that leads to it, so that every message names file and field.
+class Field {
+ public:
+  Field(YAML::Node node, std::string file, std::string path)
+      : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)) {}
+
+  [[noreturn]] void Fail(const std::string& rule) const {
+    Throw<InputError>("LoadScene", file_, ": field '", path_, "'",
+                      node_ && node_.IsScalar() ? " = '" + node_.Scalar() + "'" : std::string(),
+                      ": ", rule);
+  }
+  bool Has(const std::string& key) const { return node_.IsMap() && node_[key]; }
+  Field Child(const std::string& key) const {
+    if (!node_.IsMap()) Fail("must be a mapping");
+    return Field(node_[key], file_, path_.empty() ? key : path_ + "." + key);
+  }
+  Field Required(const std::string& key) const {
+    Field f = Child(key);
+    if (!f.node_) Fail("missing required field '" + key + "'");
+    return f;
+  }
+  Field Item(size_t i) const {
+    return Field(node_[i], file_, StrCat(path_, "[", i, "]"));
+  }
+  size_t Size() const {
+    if (!node_.IsSequence()) Fail("must be a list");
+    return node_.size();
+  }
+  bool IsSequence() const { return node_.IsSequence(); }
+  bool IsScalar() const { return node_.IsScalar(); }
+  const std::string& path() const { return path_; }
+
+  double Double() const {
+    if (!node_ || !node_.IsScalar()) Fail("must be a number");
+    double v;
+    try {
+      v = node_.as<double>();
+    } catch (const YAML::Exception&) {
+      Fail("must be a number");
+    }
+    if (!std::isfinite(v)) Fail("must be finite");
+    return v;
+  }
+  double Positive() const {
+    const double v = Double();
+    if (!(v > 0.0)) Fail("must be > 0");
+    return v;
+  }
+  double NonNegative() const {
+    const double v = Double();
+    if (!(v >= 0.0)) Fail("must be >= 0");
+    return v;
+  }
+  std::string String() const {
+    if (!node_ || !node_.IsScalar()) Fail("must be a string");
+    return node_.Scalar();
+  }
+  bool Bool() const {
+    if (!node_ || !node_.IsScalar()) Fail("must be true or false");
+    try {
+      return node_.as<bool>();
+    } catch (const YAML::Exception&) {
+      Fail("must be true or false");
+    }
+  }
+  Vector3d Vec3() const {
+    if (!node_.IsSequence() || node_.size() != 3) Fail("must be a list of 3 numbers");
+    return Vector3d(Item(0).Double(), Item(1).Double(), Item(2).Double());
+  }
+  std::array<double, 2> Vec2() const {
+    if (!node_.IsSequence() || node_.size() != 2) Fail("must be a list of 2 numbers");
+    return {Item(0).Double(), Item(1).Double()};
+  }
+
+ private:
+  YAML::Node node_;
+  std::string file_;
+  std::string path_;
+};
+
+YAML::Node ParseYaml(const std::string& text, const std::string& label) {
+  try {
+    YAML::Node root = YAML::Load(text);
+    if (!root.IsMap()) {
+      Throw<InputError>("LoadScene", label, ": the top level must be a mapping");
+    }
+    return root;
+  } catch (const YAML::Exception& e) {
+    Throw<InputError>("LoadScene", label, ": not valid YAML: ", e.what());
+  }
+}
+
+std::string ReadFile(const std::string& path, const char* what) {
+  std::ifstream in(path);
+  if (!in) Throw<InputError>("LoadScene", "cannot open ", what, " '", path, "'");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+struct RawLigament {
+  Ligament lig;  // attachments and stiffness in SI; lengths filled later
+};
+
+struct CompartmentData {
+  std::shared_ptr<const HeightField> femoral, tibial;
+};
+
+struct ChapterGuess {
+  bool present = false;
+  std::array<double, 2> femoral_xy{}, tibial_xy{};
+  bool has_tibial = false;
+  double normal_force = 0.0;
+};
+
+struct ParameterSet {
+  std::string name;
+  double mass = 0.0;
+  Vector3d inertia;
+  double g = 0.0;
+  Vector3d gravity_direction;
+  std::map<std::string, CompartmentData> compartments;
+  std::vector<Ligament> ligaments;
+  Vector6d reference_q = Vector6d::Zero();
+  std::map<std::string, ChapterGuess> guesses;
+};
+
+std::shared_ptr<const HeightField> ParseSurface(const Field& f) {
+  const std::string type = f.Required("type").String();
+  // Surface factory: a new height field type is one more branch here.
+  if (type == "sphere_cap") {
+    const Vector3d centre = f.Required("centre_mm").Vec3() * kMPerMm;
+    return std::make_shared<SphereCap>(centre, MmToM(f.Required("radius_mm").Positive()));
+  }
+  if (type == "plane") {
+    return std::make_shared<PlaneSurface>(
+        f.Required("slope_x").Double(), f.Has("slope_y") ? f.Required("slope_y").Double() : 0.0,
+        MmToM(f.Required("offset_mm").Double()));
+  }
+  f.Required("type").Fail("unknown surface type; expected sphere_cap or plane");
+}
+
+CompartmentData ParseCompartment(const Field& f) {
+  CompartmentData c;
+  c.femoral = ParseSurface(f.Required("femoral_surface"));
+  c.tibial = ParseSurface(f.Required("tibial_surface"));
+  return c;
+}
+
+std::optional<SphereOnPlane> MakeSphereOnPlane(const CompartmentData& c) {
+  const auto* sphere = dynamic_cast<const SphereCap*>(c.femoral.get());
+  const auto* plane = dynamic_cast<const PlaneSurface*>(c.tibial.get());
+  if (sphere == nullptr || plane == nullptr) return std::nullopt;
+  SphereOnPlane sop;
+  sop.centre_F = sphere->centre();
+  sop.radius = sphere->radius();
+  sop.normal_T = plane->UnitNormal();
+  sop.offset = plane->NormalOffset();
+  return sop;
+}
+
+const char* kCoordinateUnits[kNumCoordinates] = {"mm", "mm", "mm", "deg", "deg", "deg"};
+double CoordinateToSi(int i, double v) { return i < 3 ? MmToM(v) : DegToRad(v); }
+
+int CoordinateIndexByName(const Field& f) {
+  const std::string name = f.String();
+  for (int i = 0; i < kNumCoordinates; ++i) {
+    if (name == CoordinateName(i)) return i;
+  }
+  f.Fail("unknown coordinate; expected one of x0, y0, z0, alpha, beta, gamma");
+}
+
+// x0, z0 from the two contact conditions at given angles and y0 (spec §6).
+Vector6d SolveReferencePose(const ParameterSet& ps, const std::string& file) {
+  const auto med = ps.compartments.find("medial");
+  const auto lat = ps.compartments.find("lateral");
+  if (med == ps.compartments.end() || lat == ps.compartments.end()) {
+    Throw<InputError>("LoadScene", file,
+                      ": parameter set needs both 'compartments.medial' and "
+                      "'compartments.lateral' to define the reference pose");
+  }
+  const auto m = MakeSphereOnPlane(med->second), l = MakeSphereOnPlane(lat->second);
+  if (!m || !l) {
+    Throw<InputError>("LoadScene", file,
+                      ": the reference pose is defined for sphere-on-plane compartments only");
+  }
+  Vector6d q = ps.reference_q;
+  const Matrix3d R = RotationFT(q(kAlpha), q(kBeta), q(kGamma));
+  Eigen::Matrix2d A;
+  Eigen::Vector2d b;
+  int row = 0;
+  for (const SphereOnPlane* s : {&*m, &*l}) {
+    const Vector3d n = R * s->normal_T;
+    A(row, 0) = n.x();
+    A(row, 1) = n.z();
+    b(row) = n.dot(s->centre_F) - s->offset - s->radius - n.y() * q(kY0);
+    ++row;
+  }
+  const Eigen::Vector2d xz = A.fullPivLu().solve(b);
+  q(kX0) = xz(0);
+  q(kZ0) = xz(1);
+  return q;
+}
+
+ParameterSet LoadParameterSet(const std::string& path) {
+  const YAML::Node root = ParseYaml(ReadFile(path, "parameter set"), path);
+  const Field top(root, path, "");
+  ParameterSet ps;
+  ps.name = top.Required("name").String();
+  const Field body = top.Required("body");
+  ps.mass = body.Required("mass_kg").Positive();
+  ps.inertia = body.Required("principal_inertia_kg_m2").Vec3();
+  for (int i = 0; i < 3; ++i) {
+    if (!(ps.inertia(i) > 0.0)) body.Required("principal_inertia_kg_m2").Item(i).Fail("must be > 0");
+  }
+  const Field grav = top.Required("gravity");
+  ps.g = grav.Required("magnitude_m_s2").NonNegative();
+  ps.gravity_direction = grav.Required("direction_F").Vec3();
+  const Field comps = top.Required("compartments");
+  for (const char* name : {"medial", "lateral"}) {
+    if (comps.Has(name)) ps.compartments[name] = ParseCompartment(comps.Required(name));
+  }
+  const Field ligs = top.Required("ligaments");
+  for (size_t i = 0; i < ligs.Size(); ++i) {
+    const Field f = ligs.Item(i);
+    Ligament lig;
+    lig.name = f.Required("name").String();
+    lig.p_FoA_F = f.Required("femoral_mm").Vec3() * kMPerMm;
+    lig.p_ToB_T = f.Required("tibial_mm").Vec3() * kMPerMm;
+    lig.k_linear = f.Required("k_linear_N_mm").Positive() * kMmPerM;  // N/mm -> N/m
+    lig.k_parabolic_published =
+        f.Required("k_parabolic_N_mm2").Positive() * kMmPerM * kMmPerM;  // N/mm² -> N/m²
+    lig.extension_ratio = f.Required("extension_ratio").Positive();
+    for (const Ligament& other : ps.ligaments) {
+      if (other.name == lig.name) f.Required("name").Fail("duplicate ligament name");
+    }
+    ps.ligaments.push_back(lig);
+  }
+  const Field ref = top.Required("reference_pose");
+  ps.reference_q(kAlpha) = DegToRad(ref.Required("alpha_deg").Double());
+  ps.reference_q(kBeta) = DegToRad(ref.Required("beta_deg").Double());
+  ps.reference_q(kGamma) = DegToRad(ref.Required("gamma_deg").Double());
+  ps.reference_q(kY0) = MmToM(ref.Required("y0_mm").Double());
+  ps.reference_q = SolveReferencePose(ps, path);
+  if (top.Has("chapter_initial_guesses")) {
+    const Field g = top.Required("chapter_initial_guesses");
+    for (const char* name : {"medial", "lateral"}) {
+      if (!g.Has(name)) continue;
+      const Field c = g.Required(name);
+      ChapterGuess cg;
+      cg.present = true;
+      cg.femoral_xy = c.Required("femoral_xy_mm").Vec2();
+      if (c.Has("tibial_xy_mm")) {
+        cg.tibial_xy = c.Required("tibial_xy_mm").Vec2();
+        cg.has_tibial = true;
+      }
+      cg.normal_force = c.Required("normal_force_N").Double();
+      ps.guesses[name] = cg;
+    }
+  }
+  return ps;
+}
+
+void FillLigamentLengths(const Vector6d& reference_q, LigamentLaw law, Ligament* lig) {
+  const Pose pose = PoseFromCoordinates(reference_q);
+  lig->reference_length = LigamentSpan_F(*lig, pose).norm();
+  lig->slack_length = lig->reference_length / lig->extension_ratio;
+  lig->k_parabolic = law == LigamentLaw::kC1Continuous
+                         ? lig->k_linear / (4.0 * kLigamentToeStrain * lig->slack_length)
+                         : lig->k_parabolic_published;
+}
+
+Compartment CompartmentByName(const Field& f) {
+  const std::string n = f.String();
+  if (n == "medial") return Compartment::kMedial;
+  if (n == "lateral") return Compartment::kLateral;
+  f.Fail("unknown compartment; expected medial or lateral");
+}
+
+}  // namespace
+
+std::string ReferenceDataDir() {
+  if (const char* env = std::getenv("KNEEDYN_DATA_DIR")) return env;
+  return KNEEDYN_DATA_DIR;
+}
+
+Scene LoadScene(const std::string& path) {
+  const std::string text = ReadFile(path, "scene file");
+  return ParseScene(text, path, fs::path(path).parent_path().string());
+}
+
+Scene ParseScene(const std::string& yaml_text, const std::string& label,
+                 const std::string& base_dir) {
+  const YAML::Node root = ParseYaml(yaml_text, label);
+  const Field top(root, label, "");
+  Scene scene;
+  scene.path = label;
+  scene.name = top.Required("name").String();
+  scene.description = top.Has("description") ? top.Required("description").String() : "";
+
+  // Parameter set: relative to the scene file, else to the reference-data directory.
+  const Field psf = top.Required("parameter_set");
+  std::string ps_path = psf.String();
+  if (!fs::path(ps_path).is_absolute()) {
+    const fs::path near_scene = fs::path(base_dir) / ps_path;
+    ps_path = fs::exists(near_scene) ? near_scene.string()
+                                     : (fs::path(ReferenceDataDir()) / ps_path).string();
+  }
+  if (!fs::exists(ps_path)) psf.Fail("parameter set file not found (looked for '" + ps_path + "')");
+  const ParameterSet ps = LoadParameterSet(ps_path);
+  scene.parameter_set = ps.name;
+  scene.reference_q = ps.reference_q;
+
+  Model& model = scene.model;
+  model.mass = ps.mass;
+  model.inertia_T = ps.inertia;
+  if (top.Has("body")) {
+    const Field body = top.Required("body");
+    if (body.Has("mass_kg")) model.mass = body.Required("mass_kg").Positive();
+    if (body.Has("principal_inertia_kg_m2")) {
+      const Field f = body.Required("principal_inertia_kg_m2");
+      model.inertia_T = f.Vec3();
+      for (int i = 0; i < 3; ++i) {
+        if (!(model.inertia_T(i) > 0.0)) f.Item(i).Fail("must be > 0");
+      }
+    }
+  }
+
+  // Ligament law.
+  if (top.Has("ligament_law")) {
+    const Field f = top.Required("ligament_law");
+    const std::string law = f.String();
+    if (law == "published") {
+      model.ligament_law = LigamentLaw::kPublished;
+    } else if (law == "c1_continuous") {
+      model.ligament_law = LigamentLaw::kC1Continuous;
+    } else {
+      f.Fail("unknown ligament law; expected published or c1_continuous");
+    }
+  }
+  // Ligaments: "all", "none", or a list of names.
+  {
+    const Field f = top.Required("ligaments");
+    std::vector<std::string> names;
+    if (f.IsScalar()) {
+      const std::string s = f.String();
+      if (s == "all") {
+        for (const Ligament& l : ps.ligaments) names.push_back(l.name);
+      } else if (s != "none") {
+        f.Fail("must be 'all', 'none' or a list of element names");
+      }
+    } else {
+      for (size_t i = 0; i < f.Size(); ++i) names.push_back(f.Item(i).String());
+    }
+    double stiffness_scale = 1.0;
+    if (top.Has("ligament_stiffness_scale")) {
+      stiffness_scale = top.Required("ligament_stiffness_scale").Positive();
+    }
+    for (size_t i = 0; i < names.size(); ++i) {
+      auto it = std::find_if(ps.ligaments.begin(), ps.ligaments.end(),
+                             [&](const Ligament& l) { return l.name == names[i]; });
+      if (it == ps.ligaments.end()) {
+        std::string known;
+        for (const Ligament& l : ps.ligaments) known += (known.empty() ? "" : ", ") + l.name;
+        f.Item(i).Fail("unknown ligament name; the parameter set has: " + known);
+      }
+      for (const Ligament& l : model.ligaments) {
+        if (l.name == names[i]) f.Item(i).Fail("ligament listed twice");
+      }
+      Ligament lig = *it;
+      lig.k_linear *= stiffness_scale;
+      lig.k_parabolic_published *= stiffness_scale;
+      FillLigamentLengths(ps.reference_q, model.ligament_law, &lig);
+      model.ligaments.push_back(lig);
+    }
+  }
+
+  // Contacts: list of compartments; a scene may replace a compartment's surfaces.
+  {
+    const Field f = top.Required("contacts");
+    for (size_t i = 0; i < f.Size(); ++i) {
+      const Field item = f.Item(i);
+      const Compartment c = CompartmentByName(item);
+      if (model.ContactIndex(c) >= 0) item.Fail("compartment listed twice");
+      CompartmentData data;
+      const std::string name = CompartmentName(c);
+      if (top.Has("surfaces") && top.Required("surfaces").Has(name)) {
+        data = ParseCompartment(top.Required("surfaces").Required(name));
+      } else {
+        auto it = ps.compartments.find(name);
+        if (it == ps.compartments.end()) {
+          item.Fail("the parameter set has no surfaces for this compartment");
+        }
+        data = it->second;
+      }
+      ContactPair pair;
+      pair.compartment = c;
+      pair.femoral_surface = data.femoral;
+      pair.tibial_surface = data.tibial;
+      pair.sphere_on_plane = MakeSphereOnPlane(data);
+      model.contacts.push_back(pair);
+    }
+  }
+
+  // Gravity.
+  {
+    const Field f = top.Required("gravity");
+    const bool enabled = f.Required("enabled").Bool();
+    Vector3d dir = ps.gravity_direction;
+    double g = ps.g;
+    if (f.Has("direction_F")) dir = f.Required("direction_F").Vec3();
+    if (f.Has("magnitude_m_s2")) g = f.Required("magnitude_m_s2").NonNegative();
+    if (enabled) {
+      if (!(dir.norm() > 0.0)) f.Required("direction_F").Fail("must be a non-zero vector");
+      model.gravity_F = g * dir.normalized();
+    }
+  }
+
+  // Pulse.
+  {
+    const Field f = top.Required("pulse");
+    const Field shape = f.Required("shape");
+    try {
+      model.pulse.shape = ParsePulseShape(shape.String());
+    } catch (const InputError&) {
+      shape.Fail("unknown pulse shape; expected reconstructed, half_sine or none");
+    }
+    if (model.pulse.shape != PulseShape::kNone) {
+      model.pulse.amplitude = f.Required("amplitude_N").NonNegative();
+      model.pulse.duration = f.Required("duration_s").Positive();
+    }
+    if (f.Has("direction_T")) {
+      const Vector3d d = f.Required("direction_T").Vec3();
+      if (!(d.norm() > 0.0)) f.Required("direction_T").Fail("must be a non-zero vector");
+      model.pulse.direction_T = d.normalized();
+    }
+  }
+
+  if (top.Has("constant_load")) {
+    const Field f = top.Required("constant_load");
+    if (f.Has("force_F_N")) model.constant_load.force_F = f.Required("force_F_N").Vec3();
+    if (f.Has("torque_T_N_m")) model.constant_load.torque_T = f.Required("torque_T_N_m").Vec3();
+  }
+
+  // Initial state.
+  {
+    InitialState& init = scene.initial;
+    const Field f = top.Required("initial_state");
+    const std::string from = f.Required("pose").String();
+    if (from == "reference") {
+      init.q = ps.reference_q;
+    } else if (from == "explicit") {
+      init.q = ps.reference_q;  // overridden below; all six required
+      for (int i = 0; i < kNumCoordinates; ++i) {
+        const std::string key = StrCat(CoordinateName(i), "_", kCoordinateUnits[i]);
+        init.q(i) = CoordinateToSi(i, f.Required("coordinates").Required(key).Double());
+      }
+    } else {
+      f.Required("pose").Fail("must be 'reference' or 'explicit'");
+    }
+    if (from == "reference" && f.Has("coordinates")) {
+      const Field c = f.Required("coordinates");
+      for (int i = 0; i < kNumCoordinates; ++i) {
+        const std::string key = StrCat(CoordinateName(i), "_", kCoordinateUnits[i]);
+        if (c.Has(key)) init.q(i) = CoordinateToSi(i, c.Required(key).Double());
+      }
+    }
+    if (f.Has("velocities")) {
+      const Field v = f.Required("velocities");
+      for (int i = 0; i < kNumCoordinates; ++i) {
+        const std::string key = StrCat(CoordinateName(i), "_", kCoordinateUnits[i], "_s");
+        if (v.Has(key)) init.qd(i) = CoordinateToSi(i, v.Required(key).Double());
+      }
+    }
+    CheckJcsRegular(init.q(kBeta), "LoadScene");
+    if (f.Has("hold")) {
+      const Field h = f.Required("hold");
+      for (size_t i = 0; i < h.Size(); ++i) init.held.push_back(CoordinateIndexByName(h.Item(i)));
+    } else {
+      init.held = {kAlpha, kBeta, kGamma, kY0};
+    }
+    init.guesses_source = f.Has("guesses") ? f.Required("guesses").String() : "pose";
+    if (init.guesses_source != "chapter" && init.guesses_source != "pose") {
+      f.Required("guesses").Fail("must be 'chapter' or 'pose'");
+    }
+    const Pose pose = PoseFromCoordinates(init.q);
+    for (const ContactPair& pair : model.contacts) {
+      ContactGuess guess;
+      if (pair.sphere_on_plane) {
+        const ContactGeometry geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+        if (std::abs(geo.gap) > MmToM(10.0)) {
+          Throw<InputError>("LoadScene", label, ": field 'contacts' names the ",
+                            CompartmentName(pair.compartment),
+                            " compartment, but its surfaces are not in contact at the initial "
+                            "pose (gap = ", MToMm(geo.gap), " mm; more than 10 mm)");
+        }
+        guess.coordinates = {geo.point_F.x(), geo.point_F.y(), geo.point_T.x(), geo.point_T.y()};
+      }
+      init.contact_guesses.push_back(guess);
+    }
+    if (init.guesses_source == "chapter") {
+      // Section 1.4: R0 from the medial guesses (Eq. 1.8 with R = I), lateral tibial
+      // coordinates from Eq. 1.8 "one more time".
+      auto med = ps.guesses.find("medial");
+      if (med == ps.guesses.end() || !med->second.has_tibial) {
+        f.Required("guesses").Fail("the parameter set has no chapter guesses with medial tibial coordinates");
+      }
+      const ChapterGuess& mg = med->second;
+      const auto& mpair = ps.compartments.at("medial");
+      HeightSample fs, gs;
+      const double xc = MmToM(mg.femoral_xy[0]), yc = MmToM(mg.femoral_xy[1]);
+      const double xt = MmToM(mg.tibial_xy[0]), yt = MmToM(mg.tibial_xy[1]);
+      if (!mpair.femoral->Evaluate(xc, yc, &fs) || !mpair.tibial->Evaluate(xt, yt, &gs)) {
+        f.Required("guesses").Fail("chapter guesses lie outside the medial surfaces");
+      }
+      const Matrix3d R = RotationFT(init.q(kAlpha), init.q(kBeta), init.q(kGamma));
+      const Vector3d R0 = Vector3d(xc, yc, fs.value) - R * Vector3d(xt, yt, gs.value);
+      for (int i = 0; i < 3; ++i) {
+        if (std::find(init.held.begin(), init.held.end(), i) == init.held.end()) init.q(i) = R0(i);
+      }
+      for (size_t k = 0; k < model.contacts.size(); ++k) {
+        const std::string name = CompartmentName(model.contacts[k].compartment);
+        auto it = ps.guesses.find(name);
+        if (it == ps.guesses.end()) continue;
+        const ChapterGuess& g = it->second;
+        ContactGuess& guess = init.contact_guesses[k];
+        guess.coordinates[0] = MmToM(g.femoral_xy[0]);
+        guess.coordinates[1] = MmToM(g.femoral_xy[1]);
+        if (g.has_tibial) {
+          guess.coordinates[2] = MmToM(g.tibial_xy[0]);
+          guess.coordinates[3] = MmToM(g.tibial_xy[1]);
+        } else {
+          const Vector3d p_T = R.transpose() * (Vector3d(guess.coordinates[0], guess.coordinates[1], 0.0) - init.q.head<3>());
+          guess.coordinates[2] = p_T.x();
+          guess.coordinates[3] = p_T.y();
+        }
+        guess.normal_force = g.normal_force;
+      }
+    }
+    if (f.Has("normal_force_guesses_N")) {
+      const Field nf = f.Required("normal_force_guesses_N");
+      for (size_t k = 0; k < model.contacts.size(); ++k) {
+        const std::string name = CompartmentName(model.contacts[k].compartment);
+        if (nf.Has(name)) init.contact_guesses[k].normal_force = nf.Required(name).Double();
+      }
+    }
+    if (f.Has("contact_guess_offset_mm")) {
+      // Perturbs every chapter-form coordinate guess by this amount (sensitivity studies).
+      const double d = MmToM(f.Required("contact_guess_offset_mm").Double());
+      for (ContactGuess& g : init.contact_guesses) {
+        for (double& c : g.coordinates) c += d;
+      }
+    }
+  }
+
+  // End condition.
+  {
+    const Field f = top.Required("end");
+    if (!f.Has("flexion_deg") && !f.Has("time_s")) {
+      f.Fail("needs flexion_deg, time_s or both");
+    }
+    if (f.Has("flexion_deg")) {
+      const double deg = f.Required("flexion_deg").Double();
+      if (!(deg > RadToDeg(scene.initial.q(kAlpha)) && deg < 180.0)) {
+        f.Required("flexion_deg").Fail("must lie above the initial flexion and below 180");
+      }
+      scene.end.flexion = DegToRad(deg);
+    }
+    if (f.Has("time_s")) scene.end.time = f.Required("time_s").Positive();
+  }
+  if (top.Has("output")) {
+    const Field f = top.Required("output");
+    if (f.Has("interval_s")) scene.output_interval = f.Required("interval_s").Positive();
+  }
+  return scene;
+}
+
+}  // namespace kneedyn

@@ -1,0 +1,65 @@
+// Scenes: what one run models (issue 2, item 4). A scene file (YAML, human-written) names
+// a parameter set under reference-data/ and selects ligaments, contacts, loads, gravity,
+// the ligament-law variant, the initial state and the end condition. Only what a scene
+// names is built. See reference-data/scenes/README.md for the format.
+//
+// Every rule a scene can break is reported as InputError naming the file, the field, the
+// value and the rule.
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "solver/model.hpp"
+#include "solver/pose.hpp"
+
+namespace kneedyn {
+
+// Chapter-form unknowns of one contact: c = (xc, yc, x′c, y′c) in m, and N in newtons.
+struct ContactGuess {
+  std::array<double, 4> coordinates = {0.0, 0.0, 0.0, 0.0};
+  double normal_force = 0.0;
+};
+
+struct InitialState {
+  Vector6d q = Vector6d::Zero();   // SI
+  Vector6d qd = Vector6d::Zero();  // SI
+  // Coordinates the consistent initialization keeps fixed (indices into q); velocities
+  // are held unless a velocity constraint needs them (see consistent_init.hpp).
+  std::vector<int> held;
+  // Per model.contacts entry: starting guesses for the chapter-form unknowns.
+  std::vector<ContactGuess> contact_guesses;
+  std::string guesses_source;  // "chapter" or "pose"
+};
+
+struct EndCondition {
+  std::optional<double> flexion;  // rad: stop when α reaches it (event flexion_<deg>)
+  double time = 2.0;              // s: stop at this time at the latest
+};
+
+struct Scene {
+  std::string path;         // file it was read from
+  std::string name;
+  std::string description;
+  std::string parameter_set;  // name of the parameter set
+  Model model;
+  Vector6d reference_q = Vector6d::Zero();  // full extension, SI (spec §6)
+  InitialState initial;
+  EndCondition end;
+  double output_interval = 0.005;  // s
+};
+
+// Reads and validates a scene file; throws InputError.
+Scene LoadScene(const std::string& path);
+
+// Same, from text; `label` stands for the file name in messages and `base_dir` resolves
+// the relative parameter-set path.
+Scene ParseScene(const std::string& yaml_text, const std::string& label,
+                 const std::string& base_dir);
+
+// Directory of the installed reference data (for tools and tests).
+std::string ReferenceDataDir();
+
+}  // namespace kneedyn
