@@ -20,10 +20,12 @@ std::vector<ContactGeometry> ClosedFormContacts(const Model& model, const Pose& 
 ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double t,
                                                      const Vector6d& q, const Vector6d& qd,
                                                      const std::vector<int>& active,
-                                                     BaumgarteGains gains) {
+                                                     BaumgarteGains gains,
+                                                     const std::vector<signed char>* ligament_branch) {
   const Pose pose = PoseFromCoordinates(q);
   const Vector6d nu = GeneralizedVelocity(q, qd);
   Data data(model);
+  data.ligament_branch = ligament_branch;
   ComputeAppliedWrench(model, t, pose, &data);
   const Vector6d Q = GeneralizedForce(model, data, Vector3d(nu.tail<3>()));
 

@@ -31,7 +31,8 @@ struct BaumgarteGains {
 ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double t,
                                                      const Vector6d& q, const Vector6d& qd,
                                                      const std::vector<int>& active,
-                                                     BaumgarteGains gains = {});
+                                                     BaumgarteGains gains = {},
+                                                     const std::vector<signed char>* ligament_branch = nullptr);
 
 // Closed-form contact geometries of the listed contacts at a pose.
 std::vector<ContactGeometry> ClosedFormContacts(const Model& model, const Pose& pose,

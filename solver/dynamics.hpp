@@ -27,6 +27,8 @@ struct DataTpl {
   Vector3<T> applied_force_F;       // gravity + pulse + ligaments + constant load, N
   Vector3<T> applied_moment_T;      // ligaments + constant torque, about the COM, N m
   double pulse_magnitude = 0.0;     // Fe(t), N
+  // Optional branch per ligament (ligament.hpp, discontinuity locking); null = by length.
+  const std::vector<signed char>* ligament_branch = nullptr;
 };
 using Data = DataTpl<double>;
 
@@ -44,7 +46,11 @@ void ComputeAppliedWrench(const Model& model, double t, const PoseTpl<T>& pose,
     const Ligament& lig = model.ligaments[j];
     const Vector3<T> span_F = LigamentSpan_F(lig, pose);
     const T length = span_F.norm();
-    const T tension = LigamentTension(lig, length);
+    const LigamentBranch branch =
+        data->ligament_branch && !data->ligament_branch->empty()
+            ? static_cast<LigamentBranch>((*data->ligament_branch)[j])
+            : kBranchAuto;
+    const T tension = LigamentTension(lig, length, branch);
     data->ligament_length[j] = length;
     data->ligament_tension[j] = tension;
     if (ScalarPart(tension) == 0.0) continue;
@@ -77,6 +83,10 @@ Vector6<T> MassTimes(const Model& model, const Vector6<T>& nu_dot) {
 }
 
 Matrix6d MassMatrix(const Model& model);
+
+// The branch each ligament is on just after (q, q̇): by length, except at the kink itself
+// (within 1e-12 m), where the direction of motion decides. For phase starts.
+std::vector<signed char> LigamentBranchesAt(const Model& model, const Vector6d& q, const Vector6d& qd);
 
 // Kinetic + gravitational + ligament strain energy (J), for conservative scenes.
 // Gravitational potential −m g·R0 (g constant); constant loads add −F·R0.

@@ -17,15 +17,33 @@
 
 namespace kneedyn {
 
+// Discontinuity locking: the published law jumps at ε = 2ε1, which no Newton iteration
+// can straddle. Within a solver phase each element's branch is frozen (its formula
+// continued smoothly past the kink); the crossing is an event (events.hpp) after which
+// the phase restarts on the other branch.
+enum LigamentBranch : signed char {
+  kBranchAuto = -1,  // choose by length (the law as written)
+  kBranchToe = 0,    // slack or parabolic: F = k_par (L − L0)² for L > L0, else 0
+  kBranchLinear = 1  // F = k_lin (L − (1 + ε1) L0)
+};
+
 template <typename T>
-T LigamentTension(const Ligament& lig, const T& length) {
+T LigamentTension(const Ligament& lig, const T& length, LigamentBranch branch = kBranchAuto) {
   const double L0 = lig.slack_length;
   const T elongation = length - L0;
-  if (ScalarPart(elongation) <= 0.0) return T(0.0);
-  if (ScalarPart(elongation) <= 2.0 * kLigamentToeStrain * L0) {
+  if (branch == kBranchAuto) {
+    branch = ScalarPart(elongation) <= 2.0 * kLigamentToeStrain * L0 ? kBranchToe : kBranchLinear;
+  }
+  if (branch == kBranchToe) {
+    if (ScalarPart(elongation) <= 0.0) return T(0.0);
     return lig.k_parabolic * elongation * elongation;
   }
   return lig.k_linear * (length - (1.0 + kLigamentToeStrain) * L0);
+}
+
+// Length at the kink, (1 + 2ε1) L0 (m).
+inline double LigamentKinkLength(const Ligament& lig) {
+  return (1.0 + 2.0 * kLigamentToeStrain) * lig.slack_length;
 }
 
 // Strain energy stored in the element at length L (J): the integral of the law above, so

@@ -189,12 +189,11 @@ std::optional<SphereOnPlane> MakeSphereOnPlane(const CompartmentData& c) {
 const char* kCoordinateUnits[kNumCoordinates] = {"mm", "mm", "mm", "deg", "deg", "deg"};
 double CoordinateToSi(int i, double v) { return i < 3 ? MmToM(v) : DegToRad(v); }
 
-int CoordinateIndexByName(const Field& f) {
-  const std::string name = f.String();
+int CoordinateIndexByName(const Field& f, const std::string& name) {
   for (int i = 0; i < kNumCoordinates; ++i) {
     if (name == CoordinateName(i)) return i;
   }
-  f.Fail("unknown coordinate; expected one of x0, y0, z0, alpha, beta, gamma");
+  f.Fail("unknown quantity; expected x0, y0, z0, alpha, beta, gamma, one of those with _dot, or velocities");
 }
 
 // x0, z0 from the two contact conditions at given angles and y0 (spec §6).
@@ -502,9 +501,19 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
     CheckJcsRegular(init.q(kBeta), "LoadScene");
     if (f.Has("hold")) {
       const Field h = f.Required("hold");
-      for (size_t i = 0; i < h.Size(); ++i) init.held.push_back(CoordinateIndexByName(h.Item(i)));
+      for (size_t i = 0; i < h.Size(); ++i) {
+        const std::string name = h.Item(i).String();
+        if (name == "velocities") {
+          init.held_velocities = {0, 1, 2, 3, 4, 5};
+        } else if (name.size() > 4 && name.compare(name.size() - 4, 4, "_dot") == 0) {
+          init.held_velocities.push_back(CoordinateIndexByName(h.Item(i), name.substr(0, name.size() - 4)));
+        } else {
+          init.held.push_back(CoordinateIndexByName(h.Item(i), name));
+        }
+      }
     } else {
       init.held = {kAlpha, kBeta, kGamma, kY0};
+      init.held_velocities = {0, 1, 2, 3, 4, 5};
     }
     init.guesses_source = f.Has("guesses") ? f.Required("guesses").String() : "pose";
     if (init.guesses_source != "chapter" && init.guesses_source != "pose") {
@@ -588,7 +597,8 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
     }
     if (f.Has("flexion_deg")) {
       const double deg = f.Required("flexion_deg").Double();
-      if (!(deg > RadToDeg(scene.initial.q(kAlpha)) && deg < 180.0)) {
+      // Compare in radians, as the event will: a degree round trip can let end == initial pass.
+      if (!(DegToRad(deg) > scene.initial.q(kAlpha) && deg < 180.0)) {
         f.Required("flexion_deg").Fail("must lie above the initial flexion and below 180");
       }
       scene.end.flexion = DegToRad(deg);

@@ -26,9 +26,11 @@ struct ContactGuess {
 struct InitialState {
   Vector6d q = Vector6d::Zero();   // SI
   Vector6d qd = Vector6d::Zero();  // SI
-  // Coordinates the consistent initialization keeps fixed (indices into q); velocities
-  // are held unless a velocity constraint needs them (see consistent_init.hpp).
+  // What the consistent initialization keeps fixed (consistent_init.hpp): coordinates
+  // (indices into q) and rates (indices into q̇). Scene key initial_state.hold lists names:
+  // x0 … gamma, x0_dot … gamma_dot, or 'velocities' for all six rates.
   std::vector<int> held;
+  std::vector<int> held_velocities;  // indices into q̇ held by the velocity level
   // Per model.contacts entry: starting guesses for the chapter-form unknowns.
   std::vector<ContactGuess> contact_guesses;
   std::string guesses_source;  // "chapter" or "pose"

@@ -1,0 +1,86 @@
+#include "formulations/formulation.hpp"
+
+#include <cmath>
+
+#include "solver/error.hpp"
+
+namespace kneedyn {
+
+SolverStats& SolverStats::operator+=(const SolverStats& o) {
+  steps += o.steps;
+  residual_evaluations += o.residual_evaluations;
+  jacobian_evaluations += o.jacobian_evaluations;
+  linear_solver_setups += o.linear_solver_setups;
+  nonlinear_iterations += o.nonlinear_iterations;
+  error_test_failures += o.error_test_failures;
+  convergence_failures += o.convergence_failures;
+  step_halvings += o.step_halvings;
+  root_evaluations += o.root_evaluations;
+  projections += o.projections;
+  restarts += o.restarts;
+  return *this;
+}
+
+bool FormulationOptions::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(std::isfinite(rtol) && rtol > 0.0 && rtol < 1.0)) {
+    return fail(StrCat("--rtol = ", rtol, "; must be finite and in (0, 1)"));
+  }
+  if (!(std::isfinite(atol) && atol > 0.0)) {
+    return fail(StrCat("--atol = ", atol, "; must be finite and > 0"));
+  }
+  if (!(std::isfinite(step) && step >= 0.0)) {
+    return fail(StrCat("--step = ", step, " s; must be finite and >= 0 (0: method default)"));
+  }
+  if (!(std::isfinite(max_step) && max_step >= 0.0)) {
+    return fail(StrCat("--max-step = ", max_step, " s; must be finite and >= 0 (0: none)"));
+  }
+  if (max_steps < 1) return fail(StrCat("--max-steps = ", max_steps, "; must be >= 1"));
+  if (stabilization != "none" && stabilization != "baumgarte" && stabilization != "projection") {
+    return fail("--stabilization = '" + stabilization + "'; must be none, baumgarte or projection");
+  }
+  if (!(baumgarte_alpha >= 0.0) || !(baumgarte_beta >= 0.0)) {
+    return fail(StrCat("Baumgarte gains (", baumgarte_alpha, ", ", baumgarte_beta, "); must be >= 0"));
+  }
+  if (constraint_level != "velocity" && constraint_level != "position") {
+    return fail("--constraint-level = '" + constraint_level + "'; must be velocity or position");
+  }
+  return true;
+}
+
+const FormulationInfo& FindFormulation(const std::string& name) {
+  std::string known;
+  for (const FormulationInfo& info : RegisteredFormulations()) {
+    if (info.name == name) return info;
+    known += (known.empty() ? "" : ", ") + info.name;
+  }
+  Throw<InputError>("FindFormulation", "unknown formulation '", name, "'; registered: ", known);
+}
+
+std::unique_ptr<Formulation> CreateFormulation(const std::string& name, const Scene& scene,
+                                               const FormulationOptions& options) {
+  const FormulationInfo& info = FindFormulation(name);
+  std::string why;
+  if (!options.IsValid(&why)) Throw<InputError>("CreateFormulation", why);
+  if (!info.integrators.empty() && !options.integrator.empty()) {
+    bool ok = false;
+    std::string list;
+    for (const std::string& i : info.integrators) {
+      ok = ok || i == options.integrator;
+      list += (list.empty() ? "" : ", ") + i;
+    }
+    if (!ok) {
+      Throw<InputError>("CreateFormulation", "--integrator = '", options.integrator,
+                        "' is not available for formulation '", name, "'; choose one of: ", list);
+    }
+  } else if (info.integrators.empty() && !options.integrator.empty()) {
+    Throw<InputError>("CreateFormulation", "--integrator = '", options.integrator,
+                      "': formulation '", name, "' has a fixed integrator and takes no --integrator");
+  }
+  return info.create(scene, options);
+}
+
+}  // namespace kneedyn

@@ -1,0 +1,99 @@
+// One interface for every formulation (style.md §6). A formulation integrates the knee
+// from a consistent MechanicalState in one contact mode and stops at the first event of
+// that phase; the run driver (run.hpp) owns everything that must behave the same for all
+// formulations: consistent initialization, contact switching (lift-off, re-contact, both
+// separated), the end condition, output times and files.
+//
+// Adding a formulation: one new file defining a Formulation subclass and one line in
+// registry.cpp. It then appears in `kneedyn run --formulation`, the conformance tests,
+// the benchmarks and the reports.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "solver/consistent_init.hpp"
+#include "solver/events.hpp"
+#include "solver/state.hpp"
+
+namespace kneedyn {
+
+// Solver statistics with the solvers' own counter names (style.md §3). Cumulative over
+// all phases of a run. Counters a method does not have stay 0.
+struct SolverStats {
+  long steps = 0;                   // accepted steps
+  long residual_evaluations = 0;    // DAE residual / ODE right-hand-side evaluations
+  long jacobian_evaluations = 0;
+  long linear_solver_setups = 0;    // LU factorizations
+  long nonlinear_iterations = 0;    // Newton iterations
+  long error_test_failures = 0;
+  long convergence_failures = 0;    // nonlinear solver convergence failures
+  long step_halvings = 0;           // Newmark: step halved after a Newton failure
+  long root_evaluations = 0;        // event-function evaluations
+  long projections = 0;             // EDE: projections onto the constraints
+  long restarts = 0;                // solver (re)starts: one per contact phase
+
+  SolverStats& operator+=(const SolverStats& o);
+  long rejected_steps() const { return error_test_failures + convergence_failures + step_halvings; }
+};
+
+// Options every formulation understands; each uses the ones that apply to it and
+// rejects, in its factory, values that make no sense for it.
+struct FormulationOptions {
+  double rtol = 1.0e-6;           // relative tolerance (adaptive methods)
+  double atol = 1.0e-8;           // absolute tolerance (SI units of each state)
+  std::string integrator;         // mde/ede: euler|rk4|dopri5|verner65|fehlberg78|cvode-bdf|cvode-adams
+  double step = 0.0;              // s: fixed step (euler, rk4, newmark); 0 = method default
+  double max_step = 0.0;          // s: cap on adaptive steps; 0 = none
+  long max_steps = 200000;        // per phase
+  std::string stabilization = "none";  // ede: none|baumgarte|projection
+  double baumgarte_alpha = 20.0;  // 1/s
+  double baumgarte_beta = 20.0;   // 1/s
+  std::string constraint_level = "velocity";  // dae: velocity (index 2) | position (index 3)
+
+  // Ceres Solver::Options::IsValid style: names the option, its value and the rule.
+  bool IsValid(std::string* error) const;
+};
+
+enum class AdvanceStatus { kReachedTime, kEvent };
+
+struct AdvanceResult {
+  AdvanceStatus status = AdvanceStatus::kReachedTime;
+  std::vector<int> events;  // indices into the phase's EventSpec list that fired
+};
+
+class Formulation {
+ public:
+  virtual ~Formulation() = default;
+  // The contact description its initialization must satisfy.
+  virtual ContactForm contact_form() const = 0;
+  // Prepares a phase from a consistent state (positions, velocities, hidden constraint)
+  // with the contacts in state.active; `events` are the roots to watch in this phase.
+  virtual void Start(const MechanicalState& state, const std::vector<EventSpec>& events) = 0;
+  // Integrates towards t_out (> state->t). Stops at t_out or at the first event root,
+  // whichever comes first, and writes the state reached (including normal forces of the
+  // active contacts and qdd). Throws SolverError with the solver's reason, t and h.
+  virtual AdvanceResult Advance(double t_out, MechanicalState* state) = 0;
+  // Cumulative statistics.
+  virtual SolverStats stats() const = 0;
+};
+
+using FormulationFactory =
+    std::function<std::unique_ptr<Formulation>(const Scene&, const FormulationOptions&)>;
+
+struct FormulationInfo {
+  std::string name;
+  std::string summary;
+  std::vector<std::string> integrators;  // values --integrator accepts; empty: none
+  FormulationFactory create;
+};
+
+// The registry (registry.cpp), in a stable order.
+const std::vector<FormulationInfo>& RegisteredFormulations();
+const FormulationInfo& FindFormulation(const std::string& name);  // throws InputError
+std::unique_ptr<Formulation> CreateFormulation(const std::string& name, const Scene& scene,
+                                               const FormulationOptions& options);
+
+}  // namespace kneedyn

@@ -1,0 +1,185 @@
+#include "formulations/run.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <Eigen/LU>
+
+#include "solver/constrained_dynamics.hpp"
+#include "solver/error.hpp"
+
+namespace kneedyn {
+
+void ConstraintResiduals(const Model& model, const MechanicalState& state,
+                         std::vector<double>* gap, std::vector<double>* gap_rate) {
+  const Pose pose = PoseFromCoordinates(state.q);
+  const Vector6d nu = GeneralizedVelocity(state.q, state.qd);
+  gap->assign(model.contacts.size(), std::nan(""));
+  gap_rate->assign(model.contacts.size(), std::nan(""));
+  for (size_t i = 0; i < model.contacts.size(); ++i) {
+    if (!model.contacts[i].sphere_on_plane) continue;
+    const ContactGeometry g = SphereOnPlaneContact(*model.contacts[i].sphere_on_plane, pose);
+    (*gap)[i] = g.gap;
+    (*gap_rate)[i] = ContactConstraintRow(pose, g).dot(nu);
+  }
+}
+
+namespace {
+
+// Perfectly plastic impact of the contacts in `active` (spec §4): the impulse along the
+// normals that zeroes their normal approach velocity, M Δν = Gᵀ P, G (ν + Δν) = 0.
+void ApplyPlasticImpact(const Model& model, MechanicalState* state) {
+  const Pose pose = PoseFromCoordinates(state->q);
+  const int k = static_cast<int>(state->active.size());
+  MatrixXd A = MatrixXd::Zero(6 + k, 6 + k);
+  VectorXd b = VectorXd::Zero(6 + k);
+  A.topLeftCorner<6, 6>() = MassMatrix(model);
+  const Vector6d nu = GeneralizedVelocity(state->q, state->qd);
+  for (int r = 0; r < k; ++r) {
+    const auto& sop = RequireSphereOnPlane(model.contacts[state->active[r]], "ApplyPlasticImpact");
+    const Eigen::Matrix<double, 1, 6> G = ContactConstraintRow(pose, SphereOnPlaneContact(sop, pose));
+    A.block<1, 6>(6 + r, 0) = G;
+    A.block<6, 1>(0, 6 + r) = -G.transpose();
+    b(6 + r) = -G.dot(nu);
+  }
+  const VectorXd x = A.fullPivLu().solve(b);
+  state->qd = CoordinateVelocity(state->q, nu + x.head<6>());
+}
+
+}  // namespace
+
+RunResult RunScene(const Scene& scene, const RunSettings& settings) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  const Model& model = scene.model;
+  RunResult result;
+  std::unique_ptr<Formulation> formulation =
+      CreateFormulation(settings.formulation, scene, settings.options);
+  const double dt = settings.output_interval > 0.0 ? settings.output_interval : scene.output_interval;
+  if (!(dt > 0.0) || !std::isfinite(dt)) {
+    Throw<InputError>("RunScene", "output interval = ", dt, " s; must be finite and > 0");
+  }
+
+  ConsistentInitOptions init_options = settings.init;
+  init_options.form = formulation->contact_form();
+  std::vector<int> active;
+  for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
+  MechanicalState state = ConsistentInitialize(scene, active, init_options, &result.init);
+
+  auto record = [&](const MechanicalState& s, bool is_event) {
+    result.samples.push_back(s);
+    result.sample_is_event.push_back(is_event);
+    std::vector<double> gap, rate;
+    ConstraintResiduals(model, s, &gap, &rate);
+    for (int i : s.active) {
+      if (std::isfinite(gap[i])) result.max_position_residual = std::max(result.max_position_residual, std::abs(gap[i]));
+      if (std::isfinite(rate[i])) result.max_velocity_residual = std::max(result.max_velocity_residual, std::abs(rate[i]));
+    }
+    if (settings.progress) settings.progress(s.t, s.q(kAlpha));
+  };
+  record(state, false);
+
+  const double t_end = scene.end.time;
+  long next_index = 1;  // next uniform output time = next_index * dt
+  bool done = false;
+  try {
+    while (!done) {
+      // Re-contact hysteresis: ten times the drift level (observed gap residuals, and the
+      // adaptive methods' position tolerance).
+      const double gap_tolerance =
+          10.0 * std::max(result.max_position_residual,
+                          settings.options.rtol * state.q.head<3>().norm() + settings.options.atol);
+      const std::vector<EventSpec> specs = EventsForPhase(scene, state, gap_tolerance);
+      if (model.ligament_law == LigamentLaw::kPublished) {
+        state.ligament_branch = LigamentBranchesAt(model, state.q, state.qd);
+        CompleteHiddenConstraint(scene, &state);  // forces on the locked branches
+      }
+      formulation->Start(state, specs);
+      bool phase_over = false;
+      while (!phase_over) {
+        const double t_next = std::min(next_index * dt, t_end);
+        const AdvanceResult adv = formulation->Advance(t_next, &state);
+        if (adv.status == AdvanceStatus::kReachedTime) {
+          record(state, false);
+          if (t_next >= t_end) {
+            result.end_reason = "end_time";
+            done = phase_over = true;
+          }
+          ++next_index;
+          continue;
+        }
+        // A ligament crossing the published law's jump only restarts the formulation.
+        const bool only_kinks = std::all_of(adv.events.begin(), adv.events.end(), [&](int k) {
+          return specs[k].kind == EventKind::kLigamentKink;
+        });
+        if (only_kinks) {
+          ++result.ligament_kink_crossings;
+          phase_over = true;
+          break;
+        }
+        // Events: record them, then switch mode. A uniform output time that coincides
+        // with the event is skipped so that times stay strictly increasing.
+        if (std::abs(state.t - next_index * dt) < 1e-12) ++next_index;
+        record(state, true);
+        std::vector<int> new_active = state.active;
+        bool impact = false;
+        for (int k : adv.events) {
+          const EventSpec& e = specs[k];
+          result.events.push_back({e.name, state.t, state.q(kAlpha)});
+          switch (e.kind) {
+            case EventKind::kFlexionEnd:
+              result.end_reason = e.name;
+              done = true;
+              break;
+            case EventKind::kLiftoff:
+              new_active.erase(std::remove(new_active.begin(), new_active.end(), e.contact), new_active.end());
+              state.contact[e.contact].normal_force = 0.0;
+              break;
+            case EventKind::kRecontact:
+              new_active.push_back(e.contact);
+              impact = true;
+              break;
+            case EventKind::kLigamentKink:
+              ++result.ligament_kink_crossings;
+              break;
+          }
+        }
+        phase_over = true;
+        if (done) break;
+        std::sort(new_active.begin(), new_active.end());
+        state.active = new_active;
+        if (impact) ApplyPlasticImpact(model, &state);
+        CompleteHiddenConstraint(scene, &state);
+        // A contact whose consistent force would pull (N < 0) separates at once: drop the
+        // most negative one and solve again (e.g. a re-contact that bounces off, or the
+        // second compartment unloading as the first lifts off).
+        for (;;) {
+          int worst = -1;
+          for (int i : state.active) {
+            if (state.contact[i].normal_force < 0.0 &&
+                (worst < 0 || state.contact[i].normal_force < state.contact[worst].normal_force)) {
+              worst = i;
+            }
+          }
+          if (worst < 0) break;
+          result.events.push_back({StrCat("liftoff_", CompartmentName(model.contacts[worst].compartment)),
+                                   state.t, state.q(kAlpha)});
+          state.active.erase(std::remove(state.active.begin(), state.active.end(), worst), state.active.end());
+          state.contact[worst].normal_force = 0.0;
+          CompleteHiddenConstraint(scene, &state);
+        }
+      }
+    }
+    result.completed = true;
+  } catch (const SolverError& e) {
+    result.completed = false;
+    result.failure = e.what();
+  }
+  result.stats = formulation->stats();
+  result.wall_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  return result;
+}
+
+}  // namespace kneedyn

@@ -1,0 +1,54 @@
+// The run driver shared by every formulation (issue 3 `kneedyn run`, issue 4 "one
+// interface"): consistent initialization, phases between contact-mode switches, events
+// (lift-off, re-contact as a perfectly plastic impact, end condition), output at a uniform
+// interval plus every event, and the run's statistics.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "formulations/formulation.hpp"
+
+namespace kneedyn {
+
+struct RunSettings {
+  std::string formulation = "dae";
+  FormulationOptions options;
+  ConsistentInitOptions init;       // init.form is set from the formulation
+  double output_interval = 0.0;     // s; 0 = the scene's output.interval_s
+  // Called after every output row with (t, flexion in rad); may be empty.
+  std::function<void(double, double)> progress;
+};
+
+struct EventRecord {
+  std::string name;    // liftoff_medial, recontact_lateral, flexion_90, ...
+  double time = 0.0;   // s
+  double flexion = 0.0;  // rad
+};
+
+struct RunResult {
+  bool completed = false;       // false: solver failure, see failure
+  std::string failure;          // the solver's reason, t and h
+  std::string end_reason;       // event name that ended the run, or "end_time"
+  InitReport init;
+  std::vector<EventRecord> events;
+  std::vector<MechanicalState> samples;  // output rows, in time order
+  std::vector<bool> sample_is_event;     // parallel to samples
+  SolverStats stats;
+  double wall_time_s = 0.0;
+  double max_position_residual = 0.0;  // max |φ_i| over active contacts and samples, m
+  double max_velocity_residual = 0.0;  // max |φ̇_i|, m/s
+  long ligament_kink_crossings = 0;    // restarts at the published law's jump
+};
+
+// Runs a scene. Input errors (options, scene) throw InputError before anything runs;
+// solver failures during integration are caught and returned (completed = false) with
+// what was computed up to there.
+RunResult RunScene(const Scene& scene, const RunSettings& settings);
+
+// Constraint residuals (closed form) of a state: per model.contacts, φ (m) and φ̇ (m/s).
+void ConstraintResiduals(const Model& model, const MechanicalState& state,
+                         std::vector<double>* gap, std::vector<double>* gap_rate);
+
+}  // namespace kneedyn

@@ -1,0 +1,250 @@
+#include "formulations/run_output.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include <ceres/version.h>
+#include <sundials/sundials_config.h>
+
+#include "solver/constrained_dynamics.hpp"
+#include "solver/error.hpp"
+#include "solver/units.hpp"
+
+namespace kneedyn {
+namespace fs = std::filesystem;
+
+std::string ColumnSafeName(const std::string& name) {
+  std::string out = name;
+  for (char& c : out) {
+    if (c == ' ' || c == '-' || c == '/') c = '_';
+  }
+  return out;
+}
+
+TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result) {
+  const Model& model = scene.model;
+  TrajectoryTable table;
+  auto& cols = table.columns;
+  cols = {"time_s", "flexion_deg", "valgus_deg", "external_rotation_deg", "x0_mm", "y0_mm",
+          "z0_mm", "vx_mm_s", "vy_mm_s", "vz_mm_s", "flexion_rate_deg_s", "valgus_rate_deg_s",
+          "external_rotation_rate_deg_s", "omega_x_T_deg_s", "omega_y_T_deg_s", "omega_z_T_deg_s",
+          "pulse_N", "contacts_active", "is_event"};
+  const char* comps[2] = {"medial", "lateral"};
+  for (const char* c : comps) {
+    for (const char* frame : {"femoral", "tibial"}) {
+      for (const char* axis : {"x", "y", "z"}) cols.push_back(StrCat(frame, "_", c, "_", axis, "_mm"));
+    }
+  }
+  cols.push_back("N_medial_N");
+  cols.push_back("N_lateral_N");
+  for (const Ligament& lig : model.ligaments) cols.push_back("F_" + ColumnSafeName(lig.name) + "_N");
+  for (const char* c : comps) cols.push_back(StrCat("gap_", c, "_mm"));
+  for (const char* c : comps) cols.push_back(StrCat("gap_rate_", c, "_mm_s"));
+
+  const double nan = std::nan("");
+  for (size_t s = 0; s < result.samples.size(); ++s) {
+    const MechanicalState& st = result.samples[s];
+    std::vector<double> row;
+    const Vector6d& q = st.q;
+    const Vector6d& qd = st.qd;
+    row = {st.t, RadToDeg(q(kAlpha)), RadToDeg(q(kBeta)) - 90.0, RadToDeg(q(kGamma)),
+           MToMm(q(kX0)), MToMm(q(kY0)), MToMm(q(kZ0)), MToMm(qd(kX0)), MToMm(qd(kY0)),
+           MToMm(qd(kZ0)), RadToDeg(qd(kAlpha)), RadToDeg(qd(kBeta)), RadToDeg(qd(kGamma))};
+    const Vector3d w = AngularVelocityT(q, qd);
+    for (int i = 0; i < 3; ++i) row.push_back(RadToDeg(w(i)));
+    row.push_back(PulseMagnitude(model.pulse, st.t));
+    row.push_back(static_cast<double>(st.active.size()));
+    row.push_back(result.sample_is_event[s] ? 1.0 : 0.0);
+    const Pose pose = PoseFromCoordinates(q);
+    double N[2] = {0.0, 0.0};
+    for (int ci = 0; ci < 2; ++ci) {
+      const int idx = model.ContactIndex(static_cast<Compartment>(ci));
+      if (idx >= 0 && st.IsActive(idx)) {
+        const auto& c = st.contact[idx].coordinates;
+        ContactGeometry geo;
+        double r[5];
+        if (ChapterContactResiduals(model.contacts[idx], pose, c.data(), r, &geo)) {
+          for (int a = 0; a < 3; ++a) row.push_back(MToMm(geo.point_F(a)));
+          for (int a = 0; a < 3; ++a) row.push_back(MToMm(geo.point_T(a)));
+        } else {
+          row.insert(row.end(), 6, nan);
+        }
+        N[ci] = st.contact[idx].normal_force;
+      } else {
+        row.insert(row.end(), 6, nan);
+      }
+    }
+    row.push_back(N[0]);
+    row.push_back(N[1]);
+    Data data(model);
+    ComputeAppliedWrench(model, st.t, pose, &data);
+    for (double f : data.ligament_tension) row.push_back(f);
+    std::vector<double> gap, rate;
+    ConstraintResiduals(model, st, &gap, &rate);
+    for (int ci = 0; ci < 2; ++ci) {
+      const int idx = model.ContactIndex(static_cast<Compartment>(ci));
+      row.push_back(idx >= 0 ? MToMm(gap[idx]) : nan);
+    }
+    for (int ci = 0; ci < 2; ++ci) {
+      const int idx = model.ContactIndex(static_cast<Compartment>(ci));
+      row.push_back(idx >= 0 ? MToMm(rate[idx]) : nan);
+    }
+    table.rows.push_back(std::move(row));
+  }
+  return table;
+}
+
+nlohmann::json StatsJson(const SolverStats& s) {
+  return {{"steps", s.steps},
+          {"residual_evaluations", s.residual_evaluations},
+          {"jacobian_evaluations", s.jacobian_evaluations},
+          {"linear_solver_setups", s.linear_solver_setups},
+          {"nonlinear_iterations", s.nonlinear_iterations},
+          {"error_test_failures", s.error_test_failures},
+          {"convergence_failures", s.convergence_failures},
+          {"step_halvings", s.step_halvings},
+          {"rejected_steps", s.rejected_steps()},
+          {"root_evaluations", s.root_evaluations},
+          {"projections", s.projections},
+          {"restarts", s.restarts}};
+}
+
+namespace {
+
+nlohmann::json LevelJson(const InitLevelReport& r) {
+  return {{"residual_before", r.residual_before}, {"residual_after", r.residual_after},
+          {"iterations", r.iterations}};
+}
+
+nlohmann::json StateJson(const Scene& scene, const MechanicalState& st) {
+  nlohmann::json j;
+  j["time_s"] = st.t;
+  j["flexion_deg"] = RadToDeg(st.q(kAlpha));
+  j["valgus_deg"] = RadToDeg(st.q(kBeta)) - 90.0;
+  j["external_rotation_deg"] = RadToDeg(st.q(kGamma));
+  j["R0_mm"] = {MToMm(st.q(0)), MToMm(st.q(1)), MToMm(st.q(2))};
+  j["v_mm_s"] = {MToMm(st.qd(0)), MToMm(st.qd(1)), MToMm(st.qd(2))};
+  j["angle_rates_deg_s"] = {RadToDeg(st.qd(3)), RadToDeg(st.qd(4)), RadToDeg(st.qd(5))};
+  nlohmann::json contacts = nlohmann::json::object();
+  for (size_t i = 0; i < scene.model.contacts.size(); ++i) {
+    const std::string name = CompartmentName(scene.model.contacts[i].compartment);
+    contacts[name] = {{"active", st.IsActive(static_cast<int>(i))},
+                      {"normal_force_N", st.IsActive(static_cast<int>(i)) ? st.contact[i].normal_force : 0.0}};
+  }
+  j["contacts"] = contacts;
+  return j;
+}
+
+std::string FormatDouble(double v) {
+  if (!std::isfinite(v)) return "";
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.12g", v);
+  return buf;
+}
+
+// Writes `text` to dir/name via a temporary file and rename.
+void WriteAtomically(const fs::path& dir, const std::string& name, const std::string& text) {
+  const fs::path tmp = dir / ("." + name + ".tmp");
+  {
+    std::ofstream out(tmp);
+    if (!out) Throw<InputError>("WriteRunOutputs", "cannot write '", tmp.string(), "'");
+    out << text;
+    out.close();
+    if (!out) {
+      fs::remove(tmp);
+      Throw<InputError>("WriteRunOutputs", "failed writing '", tmp.string(), "'");
+    }
+  }
+  fs::rename(tmp, dir / name);
+}
+
+}  // namespace
+
+nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
+                           const RunResult& result) {
+  nlohmann::json j;
+  j["kneedyn_version"] = "0.1.0";
+  j["status"] = result.completed ? "completed" : "partial";
+  if (!result.completed) j["failure"] = result.failure;
+  j["end_reason"] = result.end_reason;
+  j["scene"] = {{"name", scene.name}, {"path", scene.path}, {"parameter_set", scene.parameter_set},
+                {"ligaments", scene.model.ligaments.size()},
+                {"contacts", scene.model.contacts.size()},
+                {"pulse", {{"shape", PulseShapeName(scene.model.pulse.shape)},
+                           {"amplitude_N", scene.model.pulse.amplitude},
+                           {"duration_s", scene.model.pulse.duration}}},
+                {"ligament_law", scene.model.ligament_law == LigamentLaw::kPublished ? "published" : "c1_continuous"}};
+  const FormulationOptions& o = settings.options;
+  j["formulation"] = settings.formulation;
+  j["settings"] = {{"rtol", o.rtol}, {"atol", o.atol}, {"integrator", o.integrator},
+                   {"step_s", o.step}, {"max_step_s", o.max_step},
+                   {"stabilization", o.stabilization}, {"constraint_level", o.constraint_level},
+                   {"output_interval_s", settings.output_interval > 0 ? settings.output_interval : scene.output_interval}};
+  const InitReport& ir = result.init;
+  nlohmann::json forces_guess = nlohmann::json::object(), forces = nlohmann::json::object();
+  for (size_t i = 0; i < scene.model.contacts.size() && i < ir.normal_force.size(); ++i) {
+    const std::string name = CompartmentName(scene.model.contacts[i].compartment);
+    forces_guess[name] = ir.normal_force_guess[i];
+    forces[name] = ir.normal_force[i];
+  }
+  j["initialization"] = {{"form", ir.form}, {"held", ir.held},
+                         {"position", LevelJson(ir.position)},
+                         {"velocity", LevelJson(ir.velocity)},
+                         {"hidden_constraint", LevelJson(ir.hidden)},
+                         {"normal_force_guess_N", forces_guess},
+                         {"normal_force_N", forces}};
+  nlohmann::json events = nlohmann::json::array();
+  for (const EventRecord& e : result.events) {
+    events.push_back({{"name", e.name}, {"time", e.time}, {"flexion_deg", RadToDeg(e.flexion)}});
+  }
+  j["events"] = events;
+  if (!result.samples.empty()) j["final_state"] = StateJson(scene, result.samples.back());
+  j["statistics"] = StatsJson(result.stats);
+  j["statistics"]["ligament_kink_crossings"] = result.ligament_kink_crossings;
+  j["constraint_residuals"] = {{"max_gap_mm", MToMm(result.max_position_residual)},
+                               {"max_gap_rate_mm_s", MToMm(result.max_velocity_residual)}};
+  j["wall_time_s"] = result.wall_time_s;
+  j["versions"] = {{"sundials", SUNDIALS_VERSION}, {"ceres", CERES_VERSION_STRING},
+                   {"eigen", StrCat(EIGEN_WORLD_VERSION, ".", EIGEN_MAJOR_VERSION, ".", EIGEN_MINOR_VERSION)}};
+  return j;
+}
+
+void WriteRunOutputs(const std::string& dir_name, const Scene& scene, const RunSettings& settings,
+                     const RunResult& result) {
+  const fs::path dir(dir_name);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir)) {
+    Throw<InputError>("WriteRunOutputs", "--out = '", dir_name, "': cannot create directory (",
+                      ec.message(), ")");
+  }
+  const TrajectoryTable table = MakeTrajectoryTable(scene, result);
+  std::ostringstream csv, sto;
+  for (size_t c = 0; c < table.columns.size(); ++c) csv << (c ? "," : "") << table.columns[c];
+  csv << "\n";
+  sto << "kneedyn_" << scene.name << "\nversion=1\nnRows=" << table.rows.size()
+      << "\nnColumns=" << table.columns.size() << "\ninDegrees=yes\n"
+      << "// lengths in mm, forces in N, angles in deg; formulation " << settings.formulation
+      << (result.completed ? "" : "; PARTIAL: solver failed") << "\nendheader\n";
+  for (size_t c = 0; c < table.columns.size(); ++c) {
+    sto << (c ? "\t" : "") << (c == 0 ? std::string("time") : table.columns[c]);
+  }
+  sto << "\n";
+  for (const auto& row : table.rows) {
+    for (size_t c = 0; c < row.size(); ++c) {
+      csv << (c ? "," : "") << FormatDouble(row[c]);
+      sto << (c ? "\t" : "") << (std::isfinite(row[c]) ? FormatDouble(row[c]) : "NaN");
+    }
+    csv << "\n";
+    sto << "\n";
+  }
+  WriteAtomically(dir, "trajectory.csv", csv.str());
+  WriteAtomically(dir, "trajectory.sto", sto.str());
+  WriteAtomically(dir, "summary.json", SummaryJson(scene, settings, result).dump(2) + "\n");
+}
+
+}  // namespace kneedyn

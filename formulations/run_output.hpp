@@ -1,0 +1,37 @@
+// Files of `kneedyn run` (issue 3), written completely or not at all (write, then rename):
+//   trajectory.csv  one row per output time plus every event; named columns with units
+//   trajectory.sto  the same as an OpenSim storage file (inDegrees=yes, tab-separated)
+//   summary.json    scene, formulation, settings, initialization, events, final state,
+//                   solver statistics, wall time, status (partial when the solver failed)
+// Column names and JSON fields are a contract for reports and benchmarks: extend, never
+// rename. See reports/README.md for their meaning.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "formulations/run.hpp"
+
+namespace kneedyn {
+
+struct TrajectoryTable {
+  std::vector<std::string> columns;        // with units, e.g. "flexion_deg"
+  std::vector<std::vector<double>> rows;   // NaN = empty (e.g. contact point when separated)
+};
+
+TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result);
+
+nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
+                           const RunResult& result);
+nlohmann::json StatsJson(const SolverStats& stats);
+
+// Writes the three files into `dir` (created if needed). Throws InputError if the
+// directory cannot be written; never leaves a partial file behind.
+void WriteRunOutputs(const std::string& dir, const Scene& scene, const RunSettings& settings,
+                     const RunResult& result);
+
+// "ACL anterior" -> "ACL_anterior".
+std::string ColumnSafeName(const std::string& name);
+
+}  // namespace kneedyn

@@ -1,0 +1,286 @@
+#include "solver/consistent_init.hpp"
+
+#include <ceres/ceres.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "solver/constrained_dynamics.hpp"
+#include "solver/error.hpp"
+
+namespace kneedyn {
+namespace {
+
+constexpr int kStride = 4;  // Jet size used by DynamicAutoDiffCostFunction passes
+
+// Position level, chapter form: unknowns = free coordinates + 4 per active contact.
+struct ChapterPositionResidual {
+  const Model* model;
+  Vector6d q_fixed;
+  std::vector<int> free;    // coordinate indices
+  std::vector<int> active;  // contact indices
+
+  template <typename T>
+  bool operator()(T const* const* x, T* r) const {
+    Vector6<T> q = q_fixed.cast<T>();
+    for (size_t i = 0; i < free.size(); ++i) q(free[i]) = x[0][i];
+    const PoseTpl<T> pose = PoseFromCoordinates(q);
+    for (size_t k = 0; k < active.size(); ++k) {
+      const T* c = x[0] + free.size() + 4 * k;
+      if (!ChapterContactResiduals(model->contacts[active[k]], pose, c, r + 5 * k)) return false;
+    }
+    return true;
+  }
+};
+
+// Position level, closed form: unknowns = free coordinates; residual φ_i per contact.
+struct ClosedPositionResidual {
+  const Model* model;
+  Vector6d q_fixed;
+  std::vector<int> free;
+  std::vector<int> active;
+
+  template <typename T>
+  bool operator()(T const* const* x, T* r) const {
+    Vector6<T> q = q_fixed.cast<T>();
+    for (size_t i = 0; i < free.size(); ++i) q(free[i]) = x[0][i];
+    const PoseTpl<T> pose = PoseFromCoordinates(q);
+    for (size_t k = 0; k < active.size(); ++k) {
+      r[k] = SphereOnPlaneContact(*model->contacts[active[k]].sphere_on_plane, pose).gap;
+    }
+    return true;
+  }
+};
+
+// Hidden level: unknowns (ν̇, N); residuals M ν̇ − Q − Gᵀ N (6) and G ν̇ + κ (k).
+struct HiddenResidual {
+  Matrix6d M;
+  Vector6d Q;
+  MatrixXd G;  // k×6
+  VectorXd kappa;
+
+  template <typename T>
+  bool operator()(T const* const* x, T* r) const {
+    const int k = static_cast<int>(G.rows());
+    for (int i = 0; i < 6; ++i) {
+      T s = T(-Q(i));
+      for (int j = 0; j < 6; ++j) s += M(i, j) * x[0][j];
+      for (int c = 0; c < k; ++c) s -= G(c, i) * x[0][6 + c];
+      r[i] = s;
+    }
+    for (int c = 0; c < k; ++c) {
+      T s = T(kappa(c));
+      for (int j = 0; j < 6; ++j) s += G(c, j) * x[0][j];
+      r[6 + c] = s;
+    }
+    return true;
+  }
+};
+
+template <typename Functor>
+double MaxResidual(const Functor& f, const std::vector<double>& x, int num_residuals) {
+  std::vector<double> r(num_residuals);
+  const double* params[] = {x.data()};
+  if (!f(params, r.data())) return std::numeric_limits<double>::infinity();
+  double m = 0.0;
+  for (double v : r) m = std::max(m, std::abs(v));
+  return m;
+}
+
+template <typename Functor>
+InitLevelReport SolveLevel(const char* level, Functor* functor, std::vector<double>* x,
+                           int num_residuals, double tolerance, int max_iterations) {
+  InitLevelReport rep;
+  rep.residual_before = MaxResidual(*functor, *x, num_residuals);
+  if (rep.residual_before > tolerance) {
+    auto* cost = new ceres::DynamicAutoDiffCostFunction<Functor, kStride>(
+        functor, ceres::DO_NOT_TAKE_OWNERSHIP);
+    cost->AddParameterBlock(static_cast<int>(x->size()));
+    cost->SetNumResiduals(num_residuals);
+    ceres::Problem problem;
+    problem.AddResidualBlock(cost, nullptr, x->data());
+    ceres::Solver::Options opts;
+    opts.linear_solver_type = ceres::DENSE_QR;
+    opts.max_num_iterations = max_iterations;
+    opts.function_tolerance = 1e-30;
+    opts.gradient_tolerance = 1e-30;
+    opts.parameter_tolerance = 1e-16;
+    opts.logging_type = ceres::SILENT;
+    ceres::Solver::Summary summary;
+    ceres::Solve(opts, &problem, &summary);
+    rep.iterations = static_cast<int>(summary.iterations.size());
+  }
+  rep.residual_after = MaxResidual(*functor, *x, num_residuals);
+  if (!(rep.residual_after <= tolerance)) {
+    Throw<SolverError>("ConsistentInitialize", level, " level: residual ", rep.residual_after,
+                       " after ", rep.iterations, " iterations exceeds the tolerance ",
+                       tolerance, " (started at ", rep.residual_before, ")");
+  }
+  return rep;
+}
+
+double MaxAbs(const VectorXd& v) { return v.size() ? v.cwiseAbs().maxCoeff() : 0.0; }
+
+}  // namespace
+
+bool ConsistentInitOptions::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(position_tolerance > 0.0)) return fail(StrCat("position_tolerance = ", position_tolerance, "; must be > 0"));
+  if (!(velocity_tolerance > 0.0)) return fail(StrCat("velocity_tolerance = ", velocity_tolerance, "; must be > 0"));
+  if (!(hidden_tolerance > 0.0)) return fail(StrCat("hidden_tolerance = ", hidden_tolerance, "; must be > 0"));
+  if (max_iterations < 1) return fail(StrCat("max_iterations = ", max_iterations, "; must be >= 1"));
+  return true;
+}
+
+void FillContactCoordinatesFromClosedForm(const Model& model, MechanicalState* state) {
+  const Pose pose = PoseFromCoordinates(state->q);
+  for (int i : state->active) {
+    if (!model.contacts[i].sphere_on_plane) continue;
+    const ContactGeometry g = SphereOnPlaneContact(*model.contacts[i].sphere_on_plane, pose);
+    state->contact[i].coordinates = {g.point_F.x(), g.point_F.y(), g.point_T.x(), g.point_T.y()};
+  }
+}
+
+namespace {
+
+// Levels 2–3 with given velocity holds. Returns the two level reports.
+std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
+    const Scene& scene, const std::vector<int>& held_velocities,
+    const ConsistentInitOptions& options, MechanicalState* state) {
+  const Model& model = scene.model;
+  const int k = static_cast<int>(state->active.size());
+  const Pose pose = PoseFromCoordinates(state->q);
+  MatrixXd G(k, 6);
+  VectorXd kappa(k);
+  for (int c = 0; c < k; ++c) {
+    const SphereOnPlane& sop =
+        RequireSphereOnPlane(model.contacts[state->active[c]], "ConsistentInitialize");
+    G.row(c) = ContactConstraintRow(pose, SphereOnPlaneContact(sop, pose));
+  }
+  // Velocity level: φ̇ = G B(q) q̇ = 0, minimum-norm correction of the free rates.
+  InitLevelReport vel;
+  {
+    Matrix6d B = Matrix6d::Identity();
+    B.bottomRightCorner<3, 3>() = AngularVelocityMap(state->q(kBeta), state->q(kGamma));
+    const MatrixXd A = G * B;
+    vel.residual_before = MaxAbs(A * state->qd);
+    if (vel.residual_before > options.velocity_tolerance) {
+      std::vector<int> free;
+      for (int i = 0; i < 6; ++i) {
+        if (std::find(held_velocities.begin(), held_velocities.end(), i) == held_velocities.end()) free.push_back(i);
+      }
+      if (free.empty()) {
+        Throw<SolverError>("ConsistentInitialize", "velocity level: residual ", vel.residual_before,
+                           " m/s exceeds the tolerance ", options.velocity_tolerance,
+                           " and every velocity is held; free some (initial_state.hold)");
+      }
+      MatrixXd Af(k, free.size());
+      for (size_t j = 0; j < free.size(); ++j) Af.col(j) = A.col(free[j]);
+      const VectorXd delta = Af.completeOrthogonalDecomposition().solve(-(A * state->qd));
+      for (size_t j = 0; j < free.size(); ++j) state->qd(free[j]) += delta(j);
+    }
+    vel.residual_after = MaxAbs(A * state->qd);
+    if (!(vel.residual_after <= options.velocity_tolerance)) {
+      Throw<SolverError>("ConsistentInitialize", "velocity level: residual ", vel.residual_after,
+                         " m/s exceeds the tolerance ", options.velocity_tolerance,
+                         " (the held velocities violate the contact constraints; free some)");
+    }
+  }
+  // Hidden level (Ceres), from the guesses in state->contact[].normal_force.
+  const Vector6d nu = GeneralizedVelocity(state->q, state->qd);
+  for (int c = 0; c < k; ++c) {
+    kappa(c) = ContactAccelerationTerm(*model.contacts[state->active[c]].sphere_on_plane, pose, nu);
+  }
+  Data data(model);
+  data.ligament_branch = &state->ligament_branch;
+  ComputeAppliedWrench(model, state->t, pose, &data);
+  auto* hidden = new HiddenResidual{MassMatrix(model),
+                                    GeneralizedForce(model, data, Vector3d(nu.tail<3>())), G, kappa};
+  std::unique_ptr<HiddenResidual> hidden_owner(hidden);
+  std::vector<double> x(6 + k, 0.0);
+  for (int c = 0; c < k; ++c) x[6 + c] = state->contact[state->active[c]].normal_force;
+  const InitLevelReport hid =
+      SolveLevel("hidden-constraint", hidden, &x, 6 + k, options.hidden_tolerance, options.max_iterations);
+  Vector6d nu_dot;
+  for (int i = 0; i < 6; ++i) nu_dot(i) = x[i];
+  state->qdd = CoordinateAcceleration(state->q, state->qd, nu_dot);
+  for (int c = 0; c < k; ++c) state->contact[state->active[c]].normal_force = x[6 + c];
+  return {vel, hid};
+}
+
+}  // namespace
+
+MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>& active,
+                                     const ConsistentInitOptions& options, InitReport* report) {
+  std::string why;
+  if (!options.IsValid(&why)) Throw<InputError>("ConsistentInitialize", why);
+  const Model& model = scene.model;
+  const InitialState& init = scene.initial;
+  MechanicalState state;
+  state.t = 0.0;
+  state.q = init.q;
+  state.qd = init.qd;
+  state.active = active;
+  state.contact = init.contact_guesses;
+  InitReport rep;
+  rep.form = options.form == ContactForm::kChapter ? "chapter" : "closed_form";
+  for (int i : init.held) rep.held.push_back(CoordinateName(i));
+  for (int i : init.held_velocities) rep.held.push_back(std::string(CoordinateName(i)) + "_dot");
+  for (const ContactGuess& g : state.contact) rep.normal_force_guess.push_back(g.normal_force);
+
+  std::vector<int> free;
+  for (int i = 0; i < kNumCoordinates; ++i) {
+    if (std::find(init.held.begin(), init.held.end(), i) == init.held.end()) free.push_back(i);
+  }
+  const int k = static_cast<int>(active.size());
+  if (k > 0) {
+    if (options.form == ContactForm::kChapter) {
+      auto* f = new ChapterPositionResidual{&model, state.q, free, active};
+      std::unique_ptr<ChapterPositionResidual> owner(f);
+      std::vector<double> x;
+      for (int i : free) x.push_back(state.q(i));
+      for (int c : active) {
+        for (double v : state.contact[c].coordinates) x.push_back(v);
+      }
+      rep.position = SolveLevel("position", f, &x, 5 * k, options.position_tolerance,
+                                options.max_iterations);
+      for (size_t i = 0; i < free.size(); ++i) state.q(free[i]) = x[i];
+      for (int c = 0; c < k; ++c) {
+        for (int j = 0; j < 4; ++j) state.contact[active[c]].coordinates[j] = x[free.size() + 4 * c + j];
+      }
+    } else {
+      for (int c : active) RequireSphereOnPlane(model.contacts[c], "ConsistentInitialize");
+      auto* f = new ClosedPositionResidual{&model, state.q, free, active};
+      std::unique_ptr<ClosedPositionResidual> owner(f);
+      std::vector<double> x;
+      for (int i : free) x.push_back(state.q(i));
+      rep.position = SolveLevel("position", f, &x, k, options.position_tolerance,
+                                options.max_iterations);
+      for (size_t i = 0; i < free.size(); ++i) state.q(free[i]) = x[i];
+      FillContactCoordinatesFromClosedForm(model, &state);
+    }
+  }
+  CheckJcsRegular(state.q(kBeta), "ConsistentInitialize");
+  std::tie(rep.velocity, rep.hidden) =
+      SolveVelocityAndHidden(scene, init.held_velocities, options, &state);
+  for (const ContactGuess& g : state.contact) rep.normal_force.push_back(g.normal_force);
+  for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) {
+    if (!state.IsActive(i)) rep.normal_force[i] = 0.0;
+  }
+  if (report) *report = rep;
+  return state;
+}
+
+void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state) {
+  // After a mode switch the remaining velocity constraints hold to the integrator's
+  // tolerance (lift-off) or exactly (after the impact impulse): the minimum-norm
+  // correction over all rates removes that residual before the restart.
+  const ConsistentInitOptions options;
+  SolveVelocityAndHidden(scene, {}, options, state);
+  FillContactCoordinatesFromClosedForm(scene.model, state);
+}
+
+}  // namespace kneedyn

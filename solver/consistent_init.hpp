@@ -1,0 +1,57 @@
+// Consistent initialization, shared by all formulations (issue 3). Takes a partial or
+// inconsistent state and returns one that satisfies, in order:
+//   1. position level: the contact conditions of the active contacts — chapter form
+//      (Eqs. 1.8, 1.13: five residuals per contact, contact coordinates free) or closed form
+//      (gap φ_i = 0) — over the coordinates not held (Ceres, Levenberg–Marquardt, AD);
+//   2. velocity level: φ̇_i = G_i ν = 0 over the velocities not held (minimum-norm
+//      correction);
+//   3. the hidden constraint: N_i and ν̇ from the Newton–Euler equations and φ̈_i = 0
+//      (Ceres, starting from the scene's contact-force guesses; the problem is linear in
+//      them, which is why the chapter found their initial values do not matter).
+// Each level reports its residual norm before and after; a level that cannot reach its
+// tolerance throws SolverError naming the level, the residual and the tolerance.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "solver/state.hpp"
+
+namespace kneedyn {
+
+struct ConsistentInitOptions {
+  ContactForm form = ContactForm::kChapter;
+  double position_tolerance = 1.0e-11;  // max |residual| (m; normals dimensionless)
+  double velocity_tolerance = 1.0e-11;  // max |φ̇| (m/s)
+  double hidden_tolerance = 1.0e-7;     // max |residual| (N, N m, m/s²)
+  int max_iterations = 200;             // Ceres iterations per level
+
+  bool IsValid(std::string* error) const;
+};
+
+struct InitLevelReport {
+  double residual_before = 0.0;  // max |residual| at the start
+  double residual_after = 0.0;
+  int iterations = 0;            // Ceres iterations (0 for the linear velocity level)
+};
+
+struct InitReport {
+  InitLevelReport position, velocity, hidden;
+  std::vector<std::string> held;                // names of held quantities
+  std::vector<double> normal_force_guess;       // per model.contacts, N
+  std::vector<double> normal_force;             // consistent, per model.contacts, N
+  std::string form;                             // "chapter" / "closed_form"
+};
+
+// `active`: contacts in contact at the start (indices into model.contacts).
+MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>& active,
+                                     const ConsistentInitOptions& options, InitReport* report);
+
+// Levels 2–3 only, at a state whose positions are consistent (after a mode switch):
+// fills qdd, normal forces and (from the closed form) contact coordinates.
+void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state);
+
+// Chapter-form contact coordinates of the active contacts from the closed form.
+void FillContactCoordinatesFromClosedForm(const Model& model, MechanicalState* state);
+
+}  // namespace kneedyn

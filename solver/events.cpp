@@ -1,0 +1,79 @@
+#include "solver/events.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "solver/contact.hpp"
+#include "solver/ligament.hpp"
+#include "solver/error.hpp"
+#include "solver/units.hpp"
+
+namespace kneedyn {
+
+bool MechanicalState::IsActive(int i) const {
+  return std::find(active.begin(), active.end(), i) != active.end();
+}
+
+std::string FlexionEventName(double flexion_rad) {
+  const double deg = RadToDeg(flexion_rad);
+  const double whole = std::round(deg);
+  if (std::abs(deg - whole) < 1e-9) return StrCat("flexion_", static_cast<long>(whole));
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "flexion_%.1f", deg);
+  return buf;
+}
+
+std::vector<EventSpec> EventsForPhase(const Scene& scene, const MechanicalState& state,
+                                      double gap_tolerance) {
+  std::vector<EventSpec> specs;
+  const Model& model = scene.model;
+  const Pose pose = PoseFromCoordinates(state.q);
+  for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) {
+    const std::string comp = CompartmentName(model.contacts[i].compartment);
+    if (state.IsActive(i)) {
+      specs.push_back({EventKind::kLiftoff, i, -1, -1, 0.0, "liftoff_" + comp});
+    } else if (model.contacts[i].sphere_on_plane) {
+      const double gap = SphereOnPlaneContact(*model.contacts[i].sphere_on_plane, pose).gap;
+      specs.push_back({EventKind::kRecontact, i, -1, -1,
+                       std::min(gap, 0.0) - std::max(gap_tolerance, kMinRecontactHysteresis), "recontact_" + comp});
+    }
+  }
+  if (scene.end.flexion) {
+    specs.push_back({EventKind::kFlexionEnd, -1, -1, +1, 0.0, FlexionEventName(*scene.end.flexion)});
+  }
+  if (model.ligament_law == LigamentLaw::kPublished) {
+    for (int j = 0; j < static_cast<int>(model.ligaments.size()); ++j) {
+      const Ligament& lig = model.ligaments[j];
+      specs.push_back({EventKind::kLigamentKink, -1, j, 0,
+                       LigamentKinkLength(lig), "kink_" + lig.name});
+    }
+  }
+  return specs;
+}
+
+void EvaluateEvents(const Scene& scene, const std::vector<EventSpec>& specs, const Vector6d& q,
+                    const std::vector<double>& normal_force, double* g) {
+  const Pose pose = PoseFromCoordinates(q);
+  for (size_t k = 0; k < specs.size(); ++k) {
+    const EventSpec& s = specs[k];
+    switch (s.kind) {
+      case EventKind::kLiftoff:
+        g[k] = normal_force[s.contact];
+        break;
+      case EventKind::kRecontact:
+        g[k] = SphereOnPlaneContact(*scene.model.contacts[s.contact].sphere_on_plane, pose).gap -
+               s.offset;
+        break;
+      case EventKind::kFlexionEnd:
+        g[k] = q(kAlpha) - *scene.end.flexion;
+        break;
+      case EventKind::kLigamentKink: {
+        const Ligament& lig = scene.model.ligaments[s.ligament];
+        g[k] = LigamentSpan_F(lig, pose).norm() - s.offset;
+        break;
+      }
+    }
+  }
+}
+
+}  // namespace kneedyn

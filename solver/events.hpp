@@ -1,0 +1,46 @@
+// Event functions shared by every formulation (issue 3): contact lift-off (N_i crosses zero
+// decreasing), re-contact of a separated compartment (gap φ_i crosses zero decreasing) and
+// the end condition (α reaches the scene's flexion), plus the internal events where the
+// published ligament law jumps (ε_j = 2ε1, spec §5): a solver must not step across a
+// discontinuity, so the driver restarts the formulation there. Each formulation locates their roots
+// with its own machinery (IDA/CVODE/ARKODE root finding, Newmark step bisection); the
+// definitions live here so that every formulation stops at the same events.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "solver/state.hpp"
+
+namespace kneedyn {
+
+enum class EventKind { kLiftoff, kRecontact, kFlexionEnd, kLigamentKink };
+
+struct EventSpec {
+  EventKind kind;
+  int contact = -1;   // index into model.contacts (lift-off / re-contact)
+  int ligament = -1;  // index into model.ligaments (kink)
+  int direction = 0;  // −1: root only while decreasing; +1: increasing (SUNDIALS convention)
+  double offset = 0.0;  // g = value − offset (re-contact hysteresis, kink length)
+  std::string name;   // "liftoff_lateral", "recontact_medial", "flexion_90"
+};
+
+// A separated compartment re-contacts when its gap falls `gap_tolerance` below its value
+// at separation (or below zero): keeps integration error from re-closing a contact that
+// has just lifted off. The driver sets it from the drift it has observed (≥ 1 nm).
+constexpr double kMinRecontactHysteresis = 1.0e-9;  // m
+
+// The events watched during a phase starting at `state` (its active contacts).
+std::vector<EventSpec> EventsForPhase(const Scene& scene, const MechanicalState& state,
+                                      double gap_tolerance = kMinRecontactHysteresis);
+
+// g_k(state) for each spec, in order: N_i (lift-off), φ_i − offset (re-contact; closed
+// form), α − α_end (flexion), L_j − (1 + 2ε1) L0_j (kink). `normal_force` is indexed like model.contacts.
+// Returns false if a gap cannot be evaluated (contact pair without a closed form).
+void EvaluateEvents(const Scene& scene, const std::vector<EventSpec>& specs, const Vector6d& q,
+                    const std::vector<double>& normal_force, double* g);
+
+// "flexion_90" for 90°; integer degrees when whole, else one decimal.
+std::string FlexionEventName(double flexion_rad);
+
+}  // namespace kneedyn

@@ -1,0 +1,36 @@
+// The mechanical state every formulation exchanges with the run driver: pose and rates in
+// generalized coordinates plus, per contact pair, the chapter-form contact coordinates and
+// the normal force. Formulations keep their own internal state (minimal coordinates,
+// Newmark accelerations, IDA vectors) and convert to and from this one.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "solver/scene.hpp"
+
+namespace kneedyn {
+
+// Which contact description a formulation carries (and so what initialization must solve).
+enum class ContactForm {
+  kChapter,     // contact coordinates are unknowns (Eqs. 1.8, 1.13)
+  kClosedForm,  // sphere-on-plane gap φ(q)
+};
+
+struct MechanicalState {
+  double t = 0.0;                   // s
+  Vector6d q = Vector6d::Zero();    // (x0, y0, z0 [m], α, β, γ [rad])
+  Vector6d qd = Vector6d::Zero();   // q̇
+  Vector6d qdd = Vector6d::Zero();  // q̈
+  std::vector<int> active;          // indices into model.contacts in contact, ascending
+  // Per model.contacts entry (index-aligned): chapter coordinates c = (xc, yc, x′c, y′c) [m]
+  // and normal force N [N]; meaningful for active contacts only.
+  std::vector<ContactGuess> contact;
+  // Per model.ligaments entry: the branch locked for the current phase (ligament.hpp);
+  // empty = choose by length. Set by the run driver at every phase start.
+  std::vector<signed char> ligament_branch;
+
+  bool IsActive(int contact_index) const;
+};
+
+}  // namespace kneedyn

@@ -1,0 +1,289 @@
+// Tests of scene reading and validation (solver/scene.hpp).
+//
+// Validates: every kind of bad input is refused with InputError whose message names the
+// file label, the field path and the offending value (style.md §2); a scene builds exactly
+// the ligaments and contacts it names, in its order; every shipped scene loads.
+// Does not validate: the numbers a scene produces (expected_values_test.cpp).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "solver/error.hpp"
+#include "solver/scene.hpp"
+#include "solver/units.hpp"
+
+namespace kneedyn {
+namespace {
+
+std::string ScenesDir() { return ReferenceDataDir() + "/scenes"; }
+
+// Top-level keys of a valid scene, each with a YAML (flow-style) value.
+using SceneFields = std::map<std::string, std::string>;
+
+SceneFields ValidFields() {
+  return {
+      {"name", "inline_test"},
+      {"parameter_set", "../chapter_knee.yaml"},
+      {"ligaments", "all"},
+      {"contacts", "[medial, lateral]"},
+      {"gravity", "{enabled: true}"},
+      {"pulse", "{shape: reconstructed, amplitude_N: 100.0, duration_s: 0.1}"},
+      {"initial_state", "{pose: reference}"},
+      {"end", "{flexion_deg: 90.0, time_s: 2.0}"},
+  };
+}
+
+std::string Text(const SceneFields& fields) {
+  std::string text;
+  for (const auto& [key, value] : fields) text += key + ": " + value + "\n";
+  return text;
+}
+
+Scene Parse(const std::string& text, const std::string& label = "inline.yaml") {
+  return ParseScene(text, label, ScenesDir());
+}
+
+// Expects InputError whose message contains the label and every one of `needles`.
+void ExpectRefused(const std::string& text, const std::string& label,
+                   const std::vector<std::string>& needles) {
+  try {
+    (void)Parse(text, label);
+    ADD_FAILURE() << label << ": accepted, expected InputError\n" << text;
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(label), std::string::npos) << "label missing: " << what;
+    for (const std::string& n : needles) {
+      EXPECT_NE(what.find(n), std::string::npos) << "'" << n << "' missing: " << what;
+    }
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << label << ": wrong exception type: " << e.what();
+  }
+}
+
+void ExpectRefused(const SceneFields& fields, const std::string& label,
+                   const std::vector<std::string>& needles) {
+  ExpectRefused(Text(fields), label, needles);
+}
+
+TEST(Scene, ValidInlineSceneLoads) {
+  const Scene scene = Parse(Text(ValidFields()));
+  EXPECT_EQ(scene.name, "inline_test");
+  EXPECT_EQ(scene.path, "inline.yaml");
+  EXPECT_EQ(scene.model.ligaments.size(), 12u);
+  EXPECT_EQ(scene.model.contacts.size(), 2u);
+  EXPECT_DOUBLE_EQ(scene.model.mass, 4.0);
+  EXPECT_NEAR(scene.model.gravity_F.y(), -9.81, 1e-15);
+  EXPECT_EQ(scene.model.pulse.shape, PulseShape::kReconstructed);
+  EXPECT_DOUBLE_EQ(scene.model.pulse.amplitude, 100.0);
+  ASSERT_TRUE(scene.end.flexion.has_value());
+  EXPECT_NEAR(*scene.end.flexion, kPi / 2.0, 1e-15);
+}
+
+TEST(Scene, RefusesMissingRequiredField) {
+  SceneFields f = ValidFields();
+  f.erase("pulse");
+  ExpectRefused(f, "missing_pulse.yaml", {"'pulse'", "missing"});
+  f = ValidFields();
+  f.erase("contacts");
+  ExpectRefused(f, "missing_contacts.yaml", {"'contacts'", "missing"});
+  f = ValidFields();
+  f["pulse"] = "{shape: half_sine, duration_s: 0.1}";
+  ExpectRefused(f, "missing_amplitude.yaml", {"pulse", "'amplitude_N'", "missing"});
+}
+
+TEST(Scene, RefusesWrongType) {
+  SceneFields f = ValidFields();
+  f["pulse"] = "{shape: reconstructed, amplitude_N: \"abc\", duration_s: 0.1}";
+  ExpectRefused(f, "wrong_type.yaml", {"pulse.amplitude_N", "abc", "number"});
+  f = ValidFields();
+  f["gravity"] = "{enabled: sometimes}";
+  ExpectRefused(f, "wrong_bool.yaml", {"gravity.enabled", "sometimes"});
+}
+
+TEST(Scene, RefusesUnknownLigamentName) {
+  SceneFields f = ValidFields();
+  f["ligaments"] = "[LCL, ACL middle]";
+  ExpectRefused(f, "unknown_ligament.yaml", {"ligaments[1]", "ACL middle"});
+}
+
+TEST(Scene, RefusesDuplicateLigament) {
+  SceneFields f = ValidFields();
+  f["ligaments"] = "[LCL, ACL anterior, LCL]";
+  ExpectRefused(f, "duplicate_ligament.yaml", {"ligaments[2]", "LCL"});
+}
+
+TEST(Scene, RefusesNegativeMass) {
+  SceneFields f = ValidFields();
+  f["body"] = "{mass_kg: -4}";
+  ExpectRefused(f, "negative_mass.yaml", {"body.mass_kg", "-4"});
+  f["body"] = "{mass_kg: 0}";
+  ExpectRefused(f, "zero_mass.yaml", {"body.mass_kg", "0"});
+  f["body"] = "{principal_inertia_kg_m2: [0.0672, -0.0672, 0.005334]}";
+  ExpectRefused(f, "negative_inertia.yaml", {"body.principal_inertia_kg_m2[1]", "-0.0672"});
+}
+
+TEST(Scene, RefusesNonPositiveStiffnessScale) {
+  SceneFields f = ValidFields();
+  f["ligament_stiffness_scale"] = "-1";
+  ExpectRefused(f, "negative_scale.yaml", {"ligament_stiffness_scale", "-1"});
+  f["ligament_stiffness_scale"] = "0";
+  ExpectRefused(f, "zero_scale.yaml", {"ligament_stiffness_scale", "'0'"});
+}
+
+TEST(Scene, RefusesNonFiniteValues) {
+  SceneFields f = ValidFields();
+  f["pulse"] = "{shape: reconstructed, amplitude_N: .nan, duration_s: 0.1}";
+  ExpectRefused(f, "nan.yaml", {"pulse.amplitude_N", ".nan", "finite"});
+  f["pulse"] = "{shape: reconstructed, amplitude_N: 100, duration_s: .inf}";
+  ExpectRefused(f, "inf.yaml", {"pulse.duration_s", ".inf", "finite"});
+  f = ValidFields();
+  f["body"] = "{mass_kg: -.inf}";
+  ExpectRefused(f, "minus_inf.yaml", {"body.mass_kg", "-.inf"});
+  f = ValidFields();
+  f["initial_state"] = "{pose: reference, coordinates: {gamma_deg: .NaN}}";
+  ExpectRefused(f, "nan_coordinate.yaml", {"initial_state.coordinates.gamma_deg", ".NaN"});
+}
+
+TEST(Scene, RefusesUnknownPulseShape) {
+  SceneFields f = ValidFields();
+  f["pulse"] = "{shape: square, amplitude_N: 100.0, duration_s: 0.1}";
+  ExpectRefused(f, "pulse_shape.yaml", {"pulse.shape", "square"});
+}
+
+TEST(Scene, RefusesUnknownSurfaceType) {
+  SceneFields f = ValidFields();
+  f["surfaces"] =
+      "{medial: {femoral_surface: {type: ellipsoid, radius_mm: 21.0, centre_mm: [-23.75, "
+      "-18.0, 12.0]}, tibial_surface: {type: plane, slope_x: 0.358, offset_mm: 213.0}}}";
+  ExpectRefused(f, "surface_type.yaml", {"surfaces.medial.femoral_surface.type", "ellipsoid"});
+}
+
+TEST(Scene, RefusesSurfacePairWithOneSurface) {
+  SceneFields f = ValidFields();
+  f["surfaces"] =
+      "{lateral: {femoral_surface: {type: sphere_cap, radius_mm: 20.0, centre_mm: [23.0, "
+      "-16.0, 11.5]}}}";
+  ExpectRefused(f, "one_surface.yaml", {"surfaces.lateral", "tibial_surface"});
+}
+
+TEST(Scene, RefusesContactWhoseSurfacesAreFarApartAtTheInitialPose) {
+  // Medial sphere centred 100 mm higher than the parameter set's: gap = 100 mm · n_z with
+  // n = (−m, 0, 1)/sqrt(1 + m²), m = 0.358 (spec §3), at the reference pose (R = I).
+  SceneFields f = ValidFields();
+  f["surfaces"] =
+      "{medial: {femoral_surface: {type: sphere_cap, radius_mm: 21.0, centre_mm: [-23.75, "
+      "-18.0, 112.0]}, tibial_surface: {type: plane, slope_x: 0.358, offset_mm: 213.0}}}";
+  const std::string label = "far_apart.yaml";
+  try {
+    (void)Parse(Text(f), label);
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(label), std::string::npos) << what;
+    EXPECT_NE(what.find("contacts"), std::string::npos) << what;
+    EXPECT_NE(what.find("medial"), std::string::npos) << what;
+    const size_t at = what.find("gap = ");
+    ASSERT_NE(at, std::string::npos) << what;
+    const double gap_mm = std::strtod(what.c_str() + at + 6, nullptr);
+    EXPECT_NEAR(gap_mm, 100.0 / std::sqrt(1.0 + 0.358 * 0.358), 1e-6) << what;
+  }
+  // The lateral compartment alone is still fine with that override in place.
+  f["contacts"] = "[lateral]";
+  EXPECT_NO_THROW((void)Parse(Text(f)));
+}
+
+TEST(Scene, RefusesFlexionEndBelowInitialFlexion) {
+  SceneFields f = ValidFields();
+  f["end"] = "{flexion_deg: -5.0}";
+  ExpectRefused(f, "end_negative.yaml", {"end.flexion_deg", "-5.0"});
+  // 30° of flexion at the reference R0 penetrates the condyles: no contacts here, the
+  // rule under test is the end condition's.
+  f["contacts"] = "[]";
+  f["initial_state"] = "{pose: reference, coordinates: {alpha_deg: 30.0}}";
+  f["end"] = "{flexion_deg: 20.0}";
+  ExpectRefused(f, "end_below_initial.yaml", {"end.flexion_deg", "20.0"});
+  f["end"] = "{flexion_deg: 30.0}";
+  ExpectRefused(f, "end_at_initial.yaml", {"end.flexion_deg", "30.0"});
+  f["end"] = "{flexion_deg: 45.0}";
+  EXPECT_NO_THROW((void)Parse(Text(f)));
+}
+
+TEST(Scene, RefusesMalformedYaml) {
+  ExpectRefused("name: [unclosed\nligaments: all\n", "malformed.yaml", {"YAML"});
+  ExpectRefused("- just\n- a list\n", "not_a_mapping.yaml", {"mapping"});
+}
+
+TEST(Scene, BuildsExactlyTheNamedLigamentsInOrder) {
+  SceneFields f = ValidFields();
+  f["ligaments"] = "[LCL, ACL anterior]";
+  const Scene scene = Parse(Text(f));
+  ASSERT_EQ(scene.model.ligaments.size(), 2u);
+  EXPECT_EQ(scene.model.ligaments[0].name, "LCL");
+  EXPECT_EQ(scene.model.ligaments[1].name, "ACL anterior");
+  // Table 1.2 / 1.3 values for the two (typed from spec §5), in SI.
+  EXPECT_NEAR(scene.model.ligaments[0].k_linear, 72.22e3, 1e-9);
+  EXPECT_NEAR(scene.model.ligaments[0].extension_ratio, 1.050, 1e-15);
+  EXPECT_NEAR(scene.model.ligaments[1].k_linear, 83.15e3, 1e-9);
+  EXPECT_NEAR(scene.model.ligaments[1].extension_ratio, 1.000, 1e-15);
+  // Table 1.1 attachments (mm -> m).
+  EXPECT_LT((scene.model.ligaments[0].p_FoA_F - Vector3d(35.25, -15.0, 21.25) * 1e-3).norm(),
+            1e-15);
+  EXPECT_LT((scene.model.ligaments[1].p_ToB_T - Vector3d(-7.0, 5.0, 211.25) * 1e-3).norm(),
+            1e-15);
+
+  f["ligaments"] = "none";
+  EXPECT_TRUE(Parse(Text(f)).model.ligaments.empty());
+}
+
+TEST(Scene, StiffnessScaleMultipliesBothCoefficients) {
+  SceneFields f = ValidFields();
+  f["ligaments"] = "[LCL]";
+  f["ligament_stiffness_scale"] = "2.5";
+  const Scene scene = Parse(Text(f));
+  ASSERT_EQ(scene.model.ligaments.size(), 1u);
+  EXPECT_NEAR(scene.model.ligaments[0].k_linear, 2.5 * 72.22e3, 1e-9);
+  EXPECT_NEAR(scene.model.ligaments[0].k_parabolic, 2.5 * 10.0e6, 1e-6);
+}
+
+TEST(Scene, EmptyContactListBuildsNoContacts) {
+  SceneFields f = ValidFields();
+  f["contacts"] = "[]";
+  const Scene scene = Parse(Text(f));
+  EXPECT_TRUE(scene.model.contacts.empty());
+  EXPECT_TRUE(scene.initial.contact_guesses.empty());
+  EXPECT_EQ(scene.model.ContactIndex(Compartment::kMedial), -1);
+  EXPECT_EQ(scene.model.ContactIndex(Compartment::kLateral), -1);
+
+  f["contacts"] = "[lateral]";
+  const Scene lateral = Parse(Text(f));
+  ASSERT_EQ(lateral.model.contacts.size(), 1u);
+  EXPECT_EQ(lateral.model.contacts[0].compartment, Compartment::kLateral);
+  EXPECT_EQ(lateral.model.ContactIndex(Compartment::kLateral), 0);
+  EXPECT_EQ(lateral.model.ContactIndex(Compartment::kMedial), -1);
+}
+
+TEST(Scene, AllShippedScenesLoad) {
+  namespace fs = std::filesystem;
+  int count = 0;
+  for (const auto& entry : fs::directory_iterator(ScenesDir())) {
+    if (entry.path().extension() != ".yaml") continue;
+    ++count;
+    EXPECT_NO_THROW({
+      const Scene s = LoadScene(entry.path().string());
+      EXPECT_FALSE(s.name.empty()) << entry.path();
+    }) << entry.path();
+  }
+  EXPECT_GE(count, 4) << "no scenes found under " << ScenesDir();
+}
+
+TEST(Scene, LoadSceneRefusesMissingFile) {
+  EXPECT_THROW((void)LoadScene(ScenesDir() + "/does_not_exist.yaml"), InputError);
+}
+
+}  // namespace
+}  // namespace kneedyn
