@@ -279,6 +279,24 @@ void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state) {
   // tolerance (lift-off) or exactly (after the impact impulse): the minimum-norm
   // correction over all rates removes that residual before the restart.
   const ConsistentInitOptions options;
+  const Model& model = scene.model;
+  for (int iter = 0; iter < 20 && !state->active.empty(); ++iter) {
+    const Pose pose = PoseFromCoordinates(state->q);
+    const int k = static_cast<int>(state->active.size());
+    MatrixXd J(k, 6);
+    VectorXd phi(k);
+    Matrix6d B = Matrix6d::Identity();
+    B.bottomRightCorner<3, 3>() = AngularVelocityMap(state->q(kBeta), state->q(kGamma));
+    for (int c = 0; c < k; ++c) {
+      const SphereOnPlane& sop =
+          RequireSphereOnPlane(model.contacts[state->active[c]], "CompleteHiddenConstraint");
+      const ContactGeometry g = SphereOnPlaneContact(sop, pose);
+      phi(c) = g.gap;
+      J.row(c) = ContactConstraintRow(pose, g) * B;  // ∂φ/∂q = G B
+    }
+    if (phi.cwiseAbs().maxCoeff() <= options.position_tolerance) break;
+    state->q -= J.completeOrthogonalDecomposition().solve(phi);
+  }
   SolveVelocityAndHidden(scene, {}, options, state);
   FillContactCoordinatesFromClosedForm(scene.model, state);
 }

@@ -47,8 +47,10 @@ struct InitReport {
 MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>& active,
                                      const ConsistentInitOptions& options, InitReport* report);
 
-// Levels 2–3 only, at a state whose positions are consistent (after a mode switch):
-// fills qdd, normal forces and (from the closed form) contact coordinates.
+// After a mode switch: projects the positions onto the active contacts' gaps φ_i = 0
+// (Gauss–Newton, minimum-norm corrections; removes the drift of velocity-level
+// formulations and the hysteresis penetration of a re-contact), then levels 2–3; fills
+// qdd, normal forces and (from the closed form) contact coordinates.
 void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state);
 
 // Chapter-form contact coordinates of the active contacts from the closed form.
