@@ -1,0 +1,44 @@
+#!/usr/bin/python3
+"""One command for the whole chapter report: families + sensitivity runs, figures, claims, HTML.
+
+  report.py --kneedyn PATH --out DIR [--quick] [--bench JSON]
+
+Exit status: 0 when every run completed (possibly with a documented fallback tolerance) and
+the report was written; 1 when a run failed (the report is still written); 2 on bad input.
+"""
+import argparse
+import os
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.dont_write_bytecode = True  # keep the source tree clean
+sys.path.insert(0, HERE)
+import claims  # noqa: E402
+import figures  # noqa: E402
+import make_report  # noqa: E402
+import run_families  # noqa: E402
+
+
+def main(argv=None):
+  ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+  ap.add_argument("--kneedyn", required=True, help="path to the kneedyn binary")
+  ap.add_argument("--out", required=True, help="output directory")
+  ap.add_argument("--quick", action="store_true", help="reduced families (tests)")
+  ap.add_argument("--bench", help="benchmark JSON for the work-precision diagrams")
+  args = ap.parse_args(argv)
+  if args.bench and not os.path.exists(args.bench):
+    print(f"report: --bench = '{args.bench}': file not found", file=sys.stderr)
+    return 2
+  fam_args = ["--kneedyn", args.kneedyn, "--out", args.out] + (["--quick"] if args.quick else [])
+  rc = run_families.main(fam_args)
+  if rc == 2 or not os.path.exists(os.path.join(args.out, "families.json")):
+    return 2
+  figures.main(["--out", args.out])
+  claims.build_claims(args.out)
+  path = make_report.make_report(args.out, args.bench, os.path.abspath(args.kneedyn), args.quick)
+  print(f"report: {path}")
+  return 1 if rc else 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())

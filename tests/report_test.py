@@ -1,0 +1,107 @@
+#!/usr/bin/python3
+"""Builds the chapter report with --quick into a temporary directory and checks its outputs:
+every figure of reports/figures.FIGURES is a valid PNG (> 1 kB), index.html references them,
+and the claims table has exactly one row per claim id of chapter-trends.md.
+
+  report_test.py --kneedyn PATH [--spec chapter-trends.md] [--keep DIR]
+"""
+import argparse
+import csv
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.dont_write_bytecode = True  # keep the source tree clean
+sys.path.insert(0, os.path.join(ROOT, "reports"))
+import figures  # noqa: E402
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+# The claims spec lives in shared/ beside the repository (as in CI: a clone with shared/ next to it).
+DEFAULT_SPEC = os.path.join(os.path.dirname(ROOT), "shared", "spec", "chapter-trends.md")
+
+
+def claim_ids(spec_path):
+  """Ids from the first column of the markdown tables: | K1 | ... |."""
+  ids = []
+  with open(spec_path, encoding="utf-8") as f:
+    for line in f:
+      m = re.match(r"^\|\s*([A-Z]\d+)\s*\|", line)
+      if m:
+        ids.append(m.group(1))
+  return ids
+
+
+def main():
+  ap = argparse.ArgumentParser()
+  ap.add_argument("--kneedyn", required=True)
+  ap.add_argument("--spec", default=DEFAULT_SPEC)
+  ap.add_argument("--keep", help="build into this directory instead of a temporary one")
+  args = ap.parse_args()
+  errors = []
+  spec_ids = claim_ids(args.spec)
+  if len(spec_ids) < 30:
+    print(f"report_test: only {len(spec_ids)} claim ids parsed from {args.spec}", file=sys.stderr)
+    return 1
+
+  with tempfile.TemporaryDirectory(prefix="kneedyn_report_") as tmp:
+    out = args.keep or tmp
+    cmd = ["/usr/bin/python3" if os.path.exists("/usr/bin/python3") else sys.executable,
+           os.path.join(ROOT, "reports", "report.py"), "--kneedyn", args.kneedyn, "--out", out, "--quick"]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=110)
+    print(p.stdout)
+    print(p.stderr, file=sys.stderr)
+    index = os.path.join(out, "index.html")
+    if not os.path.exists(index):
+      print("report_test: index.html not written", file=sys.stderr)
+      return 1
+    # A failed run still produces the report (exit 1); the run itself is not under test here,
+    # but it must be reported in the page.
+    if p.returncode not in (0, 1):
+      errors.append(f"report.py exited with {p.returncode}")
+    page = open(index, encoding="utf-8").read()
+
+    for fname, _ in figures.FIGURES:
+      path = os.path.join(out, "figures", fname)
+      if not os.path.exists(path):
+        errors.append(f"missing figure {fname}")
+        continue
+      with open(path, "rb") as f:
+        head = f.read(8)
+      size = os.path.getsize(path)
+      if head != PNG_SIGNATURE:
+        errors.append(f"{fname}: not a PNG (signature {head!r})")
+      if size <= 1024:
+        errors.append(f"{fname}: only {size} bytes")
+      if f"figures/{fname}" not in page:
+        errors.append(f"index.html does not reference figures/{fname}")
+
+    with open(os.path.join(out, "claims.csv"), newline="", encoding="utf-8") as f:
+      rows = list(csv.DictReader(f))
+    row_ids = [r["id"] for r in rows]
+    for cid in spec_ids:
+      n = row_ids.count(cid)
+      if n != 1:
+        errors.append(f"claim {cid}: {n} rows in claims.csv (expected 1)")
+      elif f">{cid}<" not in page:
+        errors.append(f"claim {cid} not in the index.html table")
+    for r in rows:
+      if r["verdict"] not in ("reproduced", "not reproduced", "not checkable"):
+        errors.append(f"claim {r['id']}: bad verdict '{r['verdict']}'")
+      if r["verdict"] != "not checkable" and not r["measured"]:
+        errors.append(f"claim {r['id']}: verdict without a measured value")
+    for extra in ("claims.md", "sensitivity.json"):
+      if not os.path.exists(os.path.join(out, extra)):
+        errors.append(f"missing {extra}")
+
+  for e in errors:
+    print("report_test: FAIL:", e, file=sys.stderr)
+  if not errors:
+    print(f"report_test: ok ({len(figures.FIGURES)} figures, {len(spec_ids)} claims)")
+  return 1 if errors else 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())
