@@ -5,11 +5,19 @@ namespace kneedyn {
 
 std::unique_ptr<Formulation> CreateDae(const Scene&, const FormulationOptions&);
 std::unique_ptr<Formulation> CreateDaeReduced(const Scene&, const FormulationOptions&);
+std::unique_ptr<Formulation> CreateNewmark(const Scene&, const FormulationOptions&);
+std::unique_ptr<Formulation> CreateNewmarkReduced(const Scene&, const FormulationOptions&);
+std::unique_ptr<Formulation> CreateMde(const Scene&, const FormulationOptions&);
+std::unique_ptr<Formulation> CreateEde(const Scene&, const FormulationOptions&);
 
 const std::vector<FormulationInfo>& RegisteredFormulations() {
   static const std::vector<FormulationInfo> kRegistry = {
       {"dae", "chapter's index-2 DAE (modified reverse EDE), contact coordinates, IDA", {}, CreateDae},
       {"dae-reduced", "index-2 DAE with closed-form sphere-on-plane contact, IDA", {}, CreateDaeReduced},
+      {"newmark", "chapter's reverse EDE: Newmark average acceleration, position-level contact coordinates, Newton", {}, CreateNewmark},
+      {"newmark-reduced", "reverse EDE with closed-form sphere-on-plane gap, Newmark average acceleration", {}, CreateNewmarkReduced},
+      {"mde", "minimal ODE: closed-form elimination of the contact translations, projected Newton-Euler", {"euler", "rk4", "dopri5", "verner65", "fehlberg78", "cvode-bdf", "cvode-adams"}, CreateMde},
+      {"ede", "excess ODE in (q, qdot) with the hidden constraint; --stabilization none|baumgarte|projection", {"euler", "rk4", "dopri5", "verner65", "fehlberg78", "cvode-bdf", "cvode-adams"}, CreateEde},
   };
   return kRegistry;
 }

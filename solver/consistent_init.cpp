@@ -92,7 +92,8 @@ InitLevelReport SolveLevel(const char* level, Functor* functor, std::vector<doub
                            int num_residuals, double tolerance, int max_iterations) {
   InitLevelReport rep;
   rep.residual_before = MaxResidual(*functor, *x, num_residuals);
-  if (rep.residual_before > tolerance) {
+  // Nothing free (every coordinate held, closed form): nothing to solve; Ceres would abort.
+  if (rep.residual_before > tolerance && !x->empty()) {
     auto* cost = new ceres::DynamicAutoDiffCostFunction<Functor, kStride>(
         functor, ceres::DO_NOT_TAKE_OWNERSHIP);
     cost->AddParameterBlock(static_cast<int>(x->size()));

@@ -41,6 +41,12 @@ void ComputeAppliedWrench(const Model& model, double t, const PoseTpl<T>& pose,
   Vector3<T> force = (model.mass * model.gravity_F + model.constant_load.force_F).template cast<T>();
   force += pose.R_FT * (data->pulse_magnitude * model.pulse.direction_T).template cast<T>();
   Vector3<T> moment = model.constant_load.torque_T.template cast<T>();
+  if (model.manufactured_load) {  // verification hook (model.hpp); empty in scenes
+    Vector3d extra_force_F = Vector3d::Zero(), extra_torque_T = Vector3d::Zero();
+    model.manufactured_load(t, &extra_force_F, &extra_torque_T);
+    force += extra_force_F.template cast<T>();
+    moment += extra_torque_T.template cast<T>();
+  }
   const Matrix3<T> R_TF = pose.R_FT.transpose();
   for (size_t j = 0; j < model.ligaments.size(); ++j) {
     const Ligament& lig = model.ligaments[j];

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -84,6 +85,10 @@ struct Model {
   std::vector<ContactPair> contacts;               // only those the scene names
   Pulse pulse;
   ConstantLoad constant_load;
+  // Verification only (issue 7, manufactured solutions): an extra time-dependent force at
+  // the COM (N, F components) and torque (N m, T components), added to the constant load.
+  // Never set by a scene; empty = none.
+  std::function<void(double t, Vector3d* force_F, Vector3d* torque_T)> manufactured_load;
   LigamentLaw ligament_law = LigamentLaw::kPublished;
 
   // Index of the contact pair for a compartment, or -1 when the scene has none there.

@@ -1,0 +1,192 @@
+// make_reference — reference solution of a scene (issue 5).
+//   make_reference --scene FILE --out FILE.json [--formulation dae-reduced --check dae
+//                  --integrator I --check-integrator I --rtol 1e-10 --atol 1e-12
+//                  --check-rtol R --check-atol A --interval 0.02 --conservative]
+//   make_reference --scene FILE --verify STORED.json
+// Runs the primary formulation at the tightest tolerance IDA survives (rtol 1e-10; 1e-12
+// fails at the index-2 round-off limit) and an independent second one at the same
+// setting; stores the primary's values at the comparison times (metrics.hpp), both
+// formulations' settings and commands, their agreement (scd, digits per class, event
+// errors), library versions and the date. The stated accuracy (accuracy_scd) is the
+// agreement, rounded down to 0.1 digit.
+// --verify regenerates the primary and exits 1 if it differs from the stored solution by
+// more than the stated accuracy (scd below accuracy_scd, or a class's digits below the
+// stored agreement digits, or an event time further than the stored event agreement).
+// Exit codes: 0 ok, 1 drift or solver failure, 2 bad input (nothing written).
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include "benchmarks/bench_run.hpp"
+#include "solver/error.hpp"
+
+using namespace kneedyn;
+using namespace kneedyn::bench;
+
+namespace {
+
+double Digits(double mixed) { return mixed > 0.0 ? -std::log10(mixed) : 16.0; }
+double RoundDown(double v) { return std::isfinite(v) ? std::floor(v * 10.0) / 10.0 : 16.0; }
+
+nlohmann::json AgreementJson(const Metrics& m) {
+  nlohmann::json j;
+  j["scd"] = std::isfinite(m.scd) ? m.scd : 16.0;
+  for (const auto& [c, v] : m.mixed) j["digits"][c] = std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(Digits(v));
+  for (const auto& [e, v] : m.event_time) j["event_time_difference_s"][e] = v;
+  for (const auto& [e, v] : m.event_angle) j["event_angle_difference_deg"][e] = v;
+  return j;
+}
+
+std::string RunCommand(const std::string& scene_path, const BenchConfig& c) {
+  char tol[64];
+  std::snprintf(tol, sizeof tol, " --rtol %g --atol %g", c.rtol, c.atol);
+  return StrCat("kneedyn run ", scene_path, " --formulation ", c.formulation,
+                c.integrator.empty() ? "" : " --integrator " + c.integrator, tol, " --quiet");
+}
+
+int Verify(const Scene& scene, const std::string& stored_path) {
+  const Reference ref = LoadReference(stored_path);
+  BenchConfig c;
+  c.formulation = ref.json.at("primary").at("formulation").get<std::string>();
+  c.integrator = ref.json.at("primary").value("integrator", "");
+  c.rtol = ref.json.at("primary").at("rtol").get<double>();
+  c.atol = ref.json.at("primary").at("atol").get<double>();
+  const Outcome out = RunConfig(scene, c, ref.comparison_interval);
+  if (out.status != "ok") {
+    std::cerr << "make_reference --verify: " << c.Name() << " failed: " << out.reason << "\n";
+    return 1;
+  }
+  const Metrics m = Compare(out.solution, ref.solution);
+  const nlohmann::json& agreement = ref.json.at("agreement");
+  const double stated = ref.json.at("accuracy_scd").get<double>();
+  bool ok = m.missing_times == 0 && m.scd >= stated;
+  std::printf("regenerated %s vs stored: scd %.2f (stated accuracy %.1f)\n", c.Name().c_str(), m.scd, stated);
+  for (const auto& [cls, v] : m.mixed) {
+    const auto& d = agreement.at("digits").at(cls);
+    if (d.is_null()) continue;
+    const double need = RoundDown(d.get<double>());
+    std::printf("  %-16s %.2f digits (stated %.1f)\n", cls.c_str(), Digits(v), need);
+    if (Digits(v) < need) ok = false;
+  }
+  for (const auto& [e, v] : m.event_time) {
+    const double allowed = agreement.at("event_time_difference_s").at(e).get<double>();
+    std::printf("  event %-16s |dt| = %.3g s (stated %.3g s)\n", e.c_str(), v, allowed);
+    if (!(v <= std::max(allowed, 1e-12))) ok = false;
+  }
+  std::printf("%s\n", ok ? "reference reproduced" : "DRIFT: reference not reproduced");
+  return ok ? 0 : 1;
+}
+
+int Generate(const Scene& scene, const std::string& scene_path, const std::string& out_path,
+             const BenchConfig& primary, const BenchConfig& check, double interval,
+             bool conservative, const std::string& command_line) {
+  const Outcome p = RunConfig(scene, primary, interval);
+  const Outcome k = RunConfig(scene, check, interval);
+  for (const Outcome* o : {&p, &k}) {
+    if (o->status != "ok") {
+      std::cerr << "make_reference: " << (o == &p ? primary.Name() : check.Name())
+                << " failed: " << o->reason << "\n";
+      return 1;
+    }
+  }
+  Reference as_ref;
+  as_ref.solution = p.solution;
+  as_ref.conservative = conservative;
+  Metrics agreement = Compare(k.solution, p.solution);
+  nlohmann::json j;
+  j["scene"] = scene.name;
+  j["scene_file"] = scene_path;
+  j["conservative"] = conservative;
+  j["comparison_interval_s"] = interval;
+  j["primary"] = {{"formulation", primary.formulation}, {"integrator", primary.integrator}, {"rtol", primary.rtol}, {"atol", primary.atol},
+                  {"command", RunCommand(scene_path, primary)},
+                  {"counters", CountersJson(p.result.stats)},
+                  {"max_position_residual_m", p.result.max_position_residual},
+                  {"max_velocity_residual_m_s", p.result.max_velocity_residual}};
+  j["check"] = {{"formulation", check.formulation}, {"integrator", check.integrator}, {"rtol", check.rtol}, {"atol", check.atol},
+                {"command", RunCommand(scene_path, check)},
+                {"counters", CountersJson(k.result.stats)}};
+  if (conservative) {
+    j["primary"]["energy_error"] = EnergyError(scene, p.result);
+    j["check"]["energy_error"] = EnergyError(scene, k.result);
+  }
+  j["agreement"] = AgreementJson(agreement);
+  j["accuracy_scd"] = RoundDown(std::isfinite(agreement.scd) ? agreement.scd : 16.0);
+  j["metrics_definition"] = "benchmarks/metrics.hpp";
+  j["generator"] = command_line;
+  j["versions"] = LibraryVersionsJson();
+  j["machine"] = MachineJson();
+  const std::time_t now = std::time(nullptr);
+  char date[32];
+  std::strftime(date, sizeof date, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
+  j["date"] = date;
+  j["solution"] = SolutionJson(p.solution);
+
+  const std::filesystem::path out(out_path);
+  if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
+  const std::string tmp = out_path + ".tmp";
+  {
+    std::ofstream f(tmp);
+    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
+    f << j.dump(1) << "\n";
+    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
+  }
+  std::filesystem::rename(tmp, out);
+  std::printf("%s: %s vs %s agree to scd %.2f; events:", scene.name.c_str(), primary.Name().c_str(),
+              check.Name().c_str(), agreement.scd);
+  for (const EventRecord& e : p.solution.events) std::printf(" %s t=%.9f s", e.name.c_str(), e.time);
+  std::printf("\nwrote %s\n", out_path.c_str());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"kneedyn reference solutions"};
+  std::string scene_path, out_path, verify_path;
+  BenchConfig primary, check;
+  primary.formulation = "dae-reduced";
+  check.formulation = "dae";
+  primary.rtol = check.rtol = 1e-10;
+  primary.atol = check.atol = 1e-12;
+  double interval = kDefaultComparisonInterval;
+  bool conservative = false;
+  app.add_option("--scene", scene_path, "scene file")->required();
+  auto* out_opt = app.add_option("--out", out_path, "reference JSON to write");
+  app.add_option("--verify", verify_path, "stored reference to reproduce")->excludes(out_opt);
+  app.add_option("--formulation", primary.formulation, "primary formulation")->capture_default_str();
+  app.add_option("--check", check.formulation, "independent second formulation")->capture_default_str();
+  app.add_option("--integrator", primary.integrator, "primary's integrator (mde, ede)");
+  app.add_option("--check-integrator", check.integrator, "second formulation's integrator");
+  app.add_option("--rtol", primary.rtol, "relative tolerance of both")->capture_default_str();
+  app.add_option("--atol", primary.atol, "absolute tolerance of both")->capture_default_str();
+  double check_rtol = 0.0, check_atol = 0.0;
+  app.add_option("--check-rtol", check_rtol, "second formulation's rtol (default: --rtol)");
+  app.add_option("--check-atol", check_atol, "second formulation's atol (default: --atol)");
+  app.add_option("--interval", interval, "comparison interval, s")->capture_default_str();
+  app.add_flag("--conservative", conservative, "record the energy error (conservative scene)");
+  CLI11_PARSE(app, argc, argv);
+  check.rtol = check_rtol > 0.0 ? check_rtol : primary.rtol;
+  check.atol = check_atol > 0.0 ? check_atol : primary.atol;
+  std::string command_line;
+  for (int i = 0; i < argc; ++i) command_line += (i ? " " : "") + std::string(i ? argv[i] : "make_reference");
+  try {
+    if (out_path.empty() && verify_path.empty()) {
+      Throw<InputError>("make_reference", "one of --out or --verify is required");
+    }
+    const Scene scene = LoadScene(scene_path);
+    if (!verify_path.empty()) return Verify(scene, verify_path);
+    return Generate(scene, scene_path, out_path, primary, check, interval, conservative, command_line);
+  } catch (const InputError& e) {
+    std::cerr << "make_reference: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "make_reference: " << e.what() << "\n";
+    return 1;
+  }
+}

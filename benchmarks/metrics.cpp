@@ -1,0 +1,279 @@
+#include "benchmarks/metrics.hpp"
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <ceres/version.h>
+#include <cmath>
+#include <limits>
+#include <sundials/sundials_config.h>
+
+#include "solver/contact.hpp"
+#include "solver/dynamics.hpp"
+#include "solver/error.hpp"
+#include "solver/pose.hpp"
+#include "solver/units.hpp"
+
+namespace kneedyn {
+namespace bench {
+
+namespace {
+
+constexpr double kTimeMatch = 1e-9;  // s
+const double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Row of every class at one sample.
+void AppendRow(const Scene& scene, ContactForm form, const MechanicalState& st, Solution* s) {
+  const Model& model = scene.model;
+  const Vector6d& q = st.q;
+  const Vector6d& qd = st.qd;
+  s->values["positions"].push_back({MToMm(q(kX0)), MToMm(q(kY0)), MToMm(q(kZ0)),
+                                    RadToDeg(q(kAlpha)), RadToDeg(q(kBeta)) - 90.0,
+                                    RadToDeg(q(kGamma))});
+  s->values["velocities"].push_back({MToMm(qd(kX0)), MToMm(qd(kY0)), MToMm(qd(kZ0)),
+                                     RadToDeg(qd(kAlpha)), RadToDeg(qd(kBeta)),
+                                     RadToDeg(qd(kGamma))});
+  const Pose pose = PoseFromCoordinates(q);
+  std::vector<double> points, forces;
+  for (size_t i = 0; i < model.contacts.size(); ++i) {
+    const ContactPair& pair = model.contacts[i];
+    const bool active = st.IsActive(static_cast<int>(i));
+    ContactGeometry geo;
+    bool ok = false;
+    if (active && form == ContactForm::kClosedForm && pair.sphere_on_plane) {
+      geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+      ok = true;
+    } else if (active) {
+      double r[5];
+      ok = ChapterContactResiduals(pair, pose, st.contact[i].coordinates.data(), r, &geo);
+    }
+    for (int a = 0; a < 3; ++a) points.push_back(ok ? MToMm(geo.point_F(a)) : kNaN);
+    for (int a = 0; a < 3; ++a) points.push_back(ok ? MToMm(geo.point_T(a)) : kNaN);
+    forces.push_back(active ? st.contact[i].normal_force : 0.0);
+  }
+  s->values["contact_points"].push_back(points);
+  s->values["contact_forces"].push_back(forces);
+  Data data(model);
+  ComputeAppliedWrench(model, st.t, pose, &data);
+  s->values["ligament_forces"].push_back(data.ligament_tension);
+}
+
+double JsonNumber(const nlohmann::json& j) {
+  return j.is_null() ? kNaN : j.get<double>();
+}
+
+nlohmann::json Finite(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
+}  // namespace
+
+const std::vector<std::string>& VariableClasses() {
+  static const std::vector<std::string> kClasses = {
+      "positions", "velocities", "contact_points", "contact_forces", "ligament_forces"};
+  return kClasses;
+}
+
+Solution ExtractSolution(const Scene& scene, ContactForm form, const RunResult& result,
+                         double interval) {
+  if (!(interval > 0.0)) {
+    Throw<InputError>("ExtractSolution", "comparison interval = ", interval, " s; must be > 0");
+  }
+  const Model& model = scene.model;
+  Solution s;
+  s.names["positions"] = {"x0_mm", "y0_mm", "z0_mm", "flexion_deg", "valgus_deg",
+                          "external_rotation_deg"};
+  s.names["velocities"] = {"vx_mm_s", "vy_mm_s", "vz_mm_s", "flexion_rate_deg_s",
+                           "valgus_rate_deg_s", "external_rotation_rate_deg_s"};
+  for (const ContactPair& pair : model.contacts) {
+    for (const char* frame : {"femoral", "tibial"}) {
+      for (const char* axis : {"x", "y", "z"}) {
+        s.names["contact_points"].push_back(
+            StrCat(frame, "_", CompartmentName(pair.compartment), "_", axis, "_mm"));
+      }
+    }
+    s.names["contact_forces"].push_back(StrCat("N_", CompartmentName(pair.compartment), "_N"));
+  }
+  for (const Ligament& lig : model.ligaments) s.names["ligament_forces"].push_back("F_" + lig.name + "_N");
+  for (const std::string& c : VariableClasses()) s.values[c];  // present even when empty
+
+  for (size_t k = 0; k < result.samples.size(); ++k) {
+    const MechanicalState& st = result.samples[k];
+    if (result.sample_is_event[k]) continue;
+    const double n = std::round(st.t / interval);
+    if (std::abs(st.t - n * interval) > kTimeMatch) continue;
+    s.times.push_back(st.t);
+    AppendRow(scene, form, st, &s);
+  }
+  const bool ended_on_event = result.completed && !result.samples.empty() &&
+                              result.sample_is_event.back() && result.end_reason != "end_time";
+  if (ended_on_event) {
+    s.times.push_back(result.samples.back().t);
+    AppendRow(scene, form, result.samples.back(), &s);
+    s.end_is_event = true;
+  }
+  s.events = result.events;
+  return s;
+}
+
+double ScdFromErrors(const std::vector<double>& x, const std::vector<double>& x_ref,
+                     const std::vector<double>& floors) {
+  if (x.size() != x_ref.size() || x.size() != floors.size()) {
+    Throw<InputError>("ScdFromErrors", "sizes ", x.size(), ", ", x_ref.size(), ", ", floors.size(),
+                      "; must be equal");
+  }
+  double worst = 0.0;
+  for (size_t j = 0; j < x.size(); ++j) {
+    if (std::isnan(x[j]) || std::isnan(x_ref[j])) continue;
+    worst = std::max(worst, std::abs(x[j] - x_ref[j]) / (std::abs(x_ref[j]) + floors[j]));
+  }
+  return -std::log10(worst);  // +inf for an exact match
+}
+
+double MixedError(const std::vector<double>& x, const std::vector<double>& x_ref) {
+  if (x.size() != x_ref.size()) {
+    Throw<InputError>("MixedError", "sizes ", x.size(), " and ", x_ref.size(), "; must be equal");
+  }
+  double worst = 0.0;
+  for (size_t j = 0; j < x.size(); ++j) {
+    if (std::isnan(x[j]) || std::isnan(x_ref[j])) continue;
+    worst = std::max(worst, std::abs(x[j] - x_ref[j]) / (1.0 + std::abs(x_ref[j])));
+  }
+  return worst;
+}
+
+Metrics Compare(const Solution& run, const Solution& reference) {
+  Metrics m;
+  // Pairs (run row, reference row) to compare.
+  std::vector<std::pair<size_t, size_t>> pairs;
+  const size_t n_ref_uniform = reference.times.size() - (reference.end_is_event ? 1 : 0);
+  const size_t n_run_uniform = run.times.size() - (run.end_is_event ? 1 : 0);
+  for (size_t i = 0; i < n_ref_uniform; ++i) {
+    size_t k = 0;
+    while (k < n_run_uniform && std::abs(run.times[k] - reference.times[i]) > kTimeMatch) ++k;
+    if (k < n_run_uniform) {
+      pairs.push_back({k, i});
+    } else {
+      ++m.missing_times;
+    }
+  }
+  if (reference.end_is_event) {
+    if (run.end_is_event) {
+      pairs.push_back({run.times.size() - 1, reference.times.size() - 1});
+    } else {
+      ++m.missing_times;
+    }
+  }
+  m.compared_times = static_cast<int>(pairs.size());
+
+  double worst_scd = std::numeric_limits<double>::infinity();
+  for (const std::string& c : VariableClasses()) {
+    double mixed = 0.0;
+    const auto& rv = run.values.at(c);
+    const auto& fv = reference.values.at(c);
+    for (const auto& [k, i] : pairs) {
+      mixed = std::max(mixed, MixedError(rv[k], fv[i]));
+      if (c == "positions") {
+        const std::vector<double> floors = {kScdFloorMm, kScdFloorMm, kScdFloorMm,
+                                            kScdFloorDeg, kScdFloorDeg, kScdFloorDeg};
+        worst_scd = std::min(worst_scd, ScdFromErrors(rv[k], fv[i], floors));
+      }
+    }
+    m.mixed[c] = pairs.empty() ? kNaN : mixed;
+  }
+  // A run that misses comparison times (it failed) has no scd; its mixed errors cover
+  // the times it has.
+  m.scd = pairs.empty() || m.missing_times > 0 ? kNaN : worst_scd;
+  m.scd_compared = pairs.empty() ? kNaN : worst_scd;
+
+  for (const EventRecord& e : reference.events) {
+    if (m.event_time.count(e.name)) continue;  // first occurrence only
+    auto it = std::find_if(run.events.begin(), run.events.end(),
+                           [&](const EventRecord& r) { return r.name == e.name; });
+    m.event_time[e.name] = it == run.events.end() ? kNaN : std::abs(it->time - e.time);
+    m.event_angle[e.name] =
+        it == run.events.end() ? kNaN : RadToDeg(std::abs(it->flexion - e.flexion));
+  }
+  return m;
+}
+
+double EnergyError(const Scene& scene, const RunResult& result) {
+  if (result.samples.empty()) return kNaN;
+  const MechanicalState& s0 = result.samples.front();
+  const double e0 = MechanicalEnergy(scene.model, s0.q, s0.qd);
+  double worst = 0.0;
+  for (const MechanicalState& s : result.samples) {
+    worst = std::max(worst, std::abs(MechanicalEnergy(scene.model, s.q, s.qd) - e0));
+  }
+  return worst / std::abs(e0);
+}
+
+void AddRunMetrics(const Scene& scene, const RunResult& result, bool conservative, Metrics* m) {
+  m->max_position_residual = result.max_position_residual;
+  m->max_velocity_residual = result.max_velocity_residual;
+  if (conservative) m->energy_error = EnergyError(scene, result);
+}
+
+nlohmann::json SolutionJson(const Solution& s) {
+  nlohmann::json j;
+  j["times_s"] = s.times;
+  j["end_is_event"] = s.end_is_event;
+  for (const std::string& c : VariableClasses()) {
+    nlohmann::json rows = nlohmann::json::array();
+    for (const auto& row : s.values.at(c)) {
+      nlohmann::json r = nlohmann::json::array();
+      for (double v : row) r.push_back(Finite(v));
+      rows.push_back(r);
+    }
+    j["classes"][c] = {{"names", s.names.at(c)}, {"values", rows}};
+  }
+  j["events"] = nlohmann::json::array();
+  for (const EventRecord& e : s.events) {
+    j["events"].push_back({{"name", e.name}, {"time_s", e.time}, {"flexion_deg", RadToDeg(e.flexion)}});
+  }
+  return j;
+}
+
+Solution SolutionFromJson(const nlohmann::json& j) {
+  Solution s;
+  s.times = j.at("times_s").get<std::vector<double>>();
+  s.end_is_event = j.at("end_is_event").get<bool>();
+  for (const std::string& c : VariableClasses()) {
+    const nlohmann::json& jc = j.at("classes").at(c);
+    s.names[c] = jc.at("names").get<std::vector<std::string>>();
+    auto& rows = s.values[c];
+    for (const auto& r : jc.at("values")) {
+      std::vector<double> row;
+      for (const auto& v : r) row.push_back(JsonNumber(v));
+      rows.push_back(row);
+    }
+  }
+  for (const auto& e : j.at("events")) {
+    s.events.push_back({e.at("name").get<std::string>(), e.at("time_s").get<double>(),
+                        DegToRad(e.at("flexion_deg").get<double>())});
+  }
+  return s;
+}
+
+nlohmann::json MetricsJson(const Metrics& m) {
+  nlohmann::json j;
+  j["scd"] = Finite(m.scd);
+  j["scd_compared"] = Finite(m.scd_compared);
+  for (const auto& [c, v] : m.mixed) j["mixed_error"][c] = Finite(v);
+  for (const auto& [e, v] : m.event_time) j["event_time_error_s"][e] = Finite(v);
+  for (const auto& [e, v] : m.event_angle) j["event_angle_error_deg"][e] = Finite(v);
+  j["max_position_residual_m"] = Finite(m.max_position_residual);
+  j["max_velocity_residual_m_s"] = Finite(m.max_velocity_residual);
+  j["energy_error"] = m.energy_error < 0.0 ? nlohmann::json(nullptr) : Finite(m.energy_error);
+  j["compared_times"] = m.compared_times;
+  j["missing_times"] = m.missing_times;
+  return j;
+}
+
+nlohmann::json LibraryVersionsJson() {
+  return {{"sundials", SUNDIALS_VERSION},
+          {"ceres", CERES_VERSION_STRING},
+          {"eigen", StrCat(EIGEN_WORLD_VERSION, ".", EIGEN_MAJOR_VERSION, ".", EIGEN_MINOR_VERSION)}};
+}
+
+}  // namespace bench
+}  // namespace kneedyn

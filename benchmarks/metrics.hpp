@@ -1,0 +1,100 @@
+// Accuracy metrics of a run against a reference solution (issue 5), in one place.
+//
+// A Solution holds a run's values at fixed comparison times (multiples of a comparison
+// interval, e.g. 0.02 s, plus the state of the end event) in five variable classes, in
+// the user units of trajectory.csv:
+//   positions        x0, y0, z0 [mm], flexion, valgus, external rotation [deg]
+//   velocities       their rates [mm/s, deg/s]
+//   contact_points   femoral and tibial contact points, per active contact [mm]
+//                    (chapter coordinates for ContactForm::kChapter, closed-form
+//                    sphere-on-plane points from q for kClosedForm)
+//   contact_forces   N per contact [N] (0 when separated)
+//   ligament_forces  F_j per element [N]
+// A value is NaN where it does not exist (contact point of a separated contact); NaN in
+// either solution skips the entry.
+//
+// Formulas (e = x − x_ref, over all comparison times i and components j of a class):
+//   scd   = −log10( max_ij |e_ij| / (|x_ref,ij| + floor_j) )        positions only;
+//           NaN (null in JSON) when the run lacks a comparison time (failed run, or a
+//           run that reached the end event early); scd_compared: over the times it has
+//           (IVP Test Set: significant correct digits). floor_j keeps near-zero
+//           components from dominating: kScdFloorMm = 1 mm for x0, y0, z0 and
+//           kScdFloorDeg = 1 deg for the angles — an absolute error of 1e-k mm or deg
+//           on a near-zero component counts as k digits.
+//   mixed = max_ij |e_ij| / (1 + |x_ref,ij|)                          per class
+//   event errors: |t − t_ref| [s] and |α − α_ref| [deg] per reference event name (first
+//           occurrence); NaN when the run does not have the event.
+//   residuals: RunResult.max_position_residual [m], max_velocity_residual [m/s].
+//   energy: max_i |E(t_i) − E(0)| / |E(0)| over all samples (solver/dynamics.hpp
+//           MechanicalEnergy), meaningful on conservative scenes only.
+#pragma once
+
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "formulations/run.hpp"
+
+namespace kneedyn {
+namespace bench {
+
+constexpr double kScdFloorMm = 1.0;   // mm, x0 y0 z0
+constexpr double kScdFloorDeg = 1.0;  // deg, α β γ
+constexpr double kDefaultComparisonInterval = 0.02;  // s
+
+// Class names, in report order.
+const std::vector<std::string>& VariableClasses();
+
+struct Solution {
+  std::vector<double> times;  // s; the last one is the end state when end_is_event
+  bool end_is_event = false;
+  // Per class: names of the components and values[i][j] at times[i].
+  std::map<std::string, std::vector<std::string>> names;
+  std::map<std::string, std::vector<std::vector<double>>> values;
+  std::vector<EventRecord> events;
+};
+
+// Values of `result` at the uniform output times that are multiples of `interval`
+// (within 1e-9 s) plus, when the run ended on an event, the last sample.
+Solution ExtractSolution(const Scene& scene, ContactForm form, const RunResult& result,
+                         double interval = kDefaultComparisonInterval);
+
+struct Metrics {
+  double scd = 0.0;                          // digits; +inf for an exact match; NaN: times missing
+  double scd_compared = 0.0;                 // the same over the times compared only
+  std::map<std::string, double> mixed;       // per class
+  std::map<std::string, double> event_time;  // s, per reference event name
+  std::map<std::string, double> event_angle; // deg
+  double max_position_residual = 0.0;        // m
+  double max_velocity_residual = 0.0;        // m/s
+  double energy_error = -1.0;                // relative; < 0: not computed
+  int compared_times = 0;                    // comparison times found in both
+  int missing_times = 0;                     // reference times the run lacks (failure)
+};
+
+// scd of positions: −log10 max |e| / (|ref| + floor). Exposed for tests.
+double ScdFromErrors(const std::vector<double>& x, const std::vector<double>& x_ref,
+                     const std::vector<double>& floors);
+// max |e| / (1 + |ref|), skipping NaN pairs; 0 when nothing compared.
+double MixedError(const std::vector<double>& x, const std::vector<double>& x_ref);
+
+// Compares at the reference's times (matching within 1e-9 s; the reference's end-event
+// state against the run's end-event state when both ended on an event).
+Metrics Compare(const Solution& run, const Solution& reference);
+
+// Fills the residuals and the energy error from a run.
+void AddRunMetrics(const Scene& scene, const RunResult& result, bool conservative, Metrics* m);
+
+// Maximum relative energy error over a run's samples.
+double EnergyError(const Scene& scene, const RunResult& result);
+
+nlohmann::json SolutionJson(const Solution& s);
+Solution SolutionFromJson(const nlohmann::json& j);
+nlohmann::json MetricsJson(const Metrics& m);  // non-finite numbers as null
+
+// "SUNDIALS 6.4.1, Ceres 2.1.0, Eigen 3.4.0" as a JSON object.
+nlohmann::json LibraryVersionsJson();
+
+}  // namespace bench
+}  // namespace kneedyn

@@ -1,0 +1,309 @@
+// work_precision — work-precision sweep of every registered formulation (issue 5).
+//
+//   work_precision [--short] [--scene FILE] [--reference FILE] [--json OUT] [--csv OUT]
+//                  [--repetitions N] [--only SUBSTRING] [--rtol-min R] [--include-broken]
+//                  [--benchmark_* flags]
+//
+// For every formulation in RegisteredFormulations() (and each of its integrators):
+//   adaptive    rtol = 10^(−k/4), atol = 1e-2 rtol: 1e-2 … 1e-7 (21 settings; --short 3);
+//               --rtol-min extends the grid (keep it ≥ 3 decades above the reference's)
+//   fixed step  h = 4e-3 / 2^i s, i = 0 … 5: 4e-3 … 1.25e-4 (6 settings; --short 2);
+//               newmark Newton tolerance rtol 1e-9, atol 1e-11
+// Each setting is run once untimed for its metrics (metrics.hpp, against the stored
+// reference) and its deterministic solver counters, then timed by Google Benchmark
+// (RegisterBenchmark, 5 repetitions (--short 3), aggregates only: median, min, max CPU time). The
+// counters go to state.counters too. A run that fails is a result: status failed with the
+// solver's reason (its partial metrics and time are kept). --include-broken adds one
+// deliberately broken setting (dae with max_steps = 3) for the tests.
+//
+// Output: one JSON per sweep {header: {machine, scene, reference, mode, date, ...},
+// results: [{formulation, integrator, setting, status, reason, metrics, cpu_time_s
+// {median, min, max}, counters}]} and a compact CSV with one row per result.
+// Written completely or not at all. Exit 0 when the sweep ran (failed runs included),
+// 2 on bad input.
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <cmath>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+
+#include "benchmarks/bench_run.hpp"
+#include "solver/error.hpp"
+
+using namespace kneedyn;
+using namespace kneedyn::bench;
+
+namespace {
+
+struct Entry {
+  BenchConfig config;
+  Outcome outcome;
+  Metrics metrics;
+  std::map<std::string, double> cpu;  // median, min, max (s)
+};
+
+// Collects the aggregates while printing them like the console reporter.
+class CollectingReporter : public benchmark::ConsoleReporter {
+ public:
+  explicit CollectingReporter(std::map<std::string, Entry*>* by_name) : by_name_(by_name) {}
+  void ReportRuns(const std::vector<Run>& runs) override {
+    for (const Run& run : runs) {
+      if (run.run_type != Run::RT_Aggregate) continue;
+      auto it = by_name_->find(run.run_name.function_name);
+      if (it == by_name_->end()) continue;
+      const std::string& agg = run.aggregate_name;
+      if (agg == "median" || agg == "min" || agg == "max") {
+        it->second->cpu[agg] = run.GetAdjustedCPUTime();  // unit: kSecond
+      }
+    }
+    ConsoleReporter::ReportRuns(runs);
+  }
+
+ private:
+  std::map<std::string, Entry*>* by_name_;
+};
+
+double MinOf(const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); }
+double MaxOf(const std::vector<double>& v) { return *std::max_element(v.begin(), v.end()); }
+
+std::vector<BenchConfig> Grid(bool short_mode, double rtol_min, const std::string& only,
+                              bool include_broken) {
+  std::vector<BenchConfig> grid;
+  std::vector<double> rtols, steps;
+  if (short_mode) {
+    rtols = {1e-3, 1e-5, 1e-7};
+    steps = {2e-3, 5e-4};
+  } else {
+    const int k_max = static_cast<int>(std::lround(-4.0 * std::log10(rtol_min)));
+    for (int k = 8; k <= k_max; ++k) rtols.push_back(std::pow(10.0, -k / 4.0));
+    for (int i = 0; i <= 5; ++i) steps.push_back(4e-3 / std::pow(2.0, i));
+  }
+  for (const FormulationInfo& info : RegisteredFormulations()) {
+    std::vector<std::string> integrators = info.integrators;
+    if (integrators.empty()) integrators.push_back("");
+    for (const std::string& integ : integrators) {
+      BenchConfig c;
+      c.formulation = info.name;
+      c.integrator = integ;
+      c.fixed_step = IsFixedStep(info.name, integ);
+      if (c.fixed_step) {
+        if (info.name.rfind("newmark", 0) == 0) {
+          c.rtol = 1e-9;
+          c.atol = 1e-11;
+        }
+        for (double h : steps) {
+          c.step = h;
+          grid.push_back(c);
+        }
+      } else {
+        for (double r : rtols) {
+          c.rtol = r;
+          c.atol = 1e-2 * r;
+          grid.push_back(c);
+        }
+      }
+    }
+  }
+  if (!only.empty()) {
+    grid.erase(std::remove_if(grid.begin(), grid.end(),
+                              [&](const BenchConfig& c) { return c.Name().find(only) == std::string::npos; }),
+               grid.end());
+  }
+  if (include_broken) {
+    BenchConfig c;
+    c.formulation = "dae";
+    c.rtol = 1e-6;
+    c.atol = 1e-8;
+    c.max_steps = 3;
+    grid.push_back(c);
+  }
+  return grid;
+}
+
+nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+void WriteAtomically(const std::string& path, const std::string& text) {
+  const std::filesystem::path p(path);
+  if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp);
+    f << text;
+    if (!f) Throw<InputError>("work_precision", "output '", path, "' cannot be written");
+  }
+  std::filesystem::rename(tmp, p);
+}
+
+std::string CsvCell(const nlohmann::json& v) {
+  if (v.is_null()) return "";
+  if (v.is_string()) {
+    std::string s = v.get<std::string>();
+    std::replace(s.begin(), s.end(), '"', '\'');
+    return "\"" + s + "\"";
+  }
+  return v.dump();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bool short_mode = false, include_broken = false;
+  std::string scene_path = ReferenceDataDir() + "/scenes/chapter_impact.yaml";
+  std::string reference_path;
+  std::string json_path = "work_precision.json", csv_path;
+  std::string only;
+  int repetitions = 0;  // default: 3 (--short), 5 (full)
+  double rtol_min = 1e-7;
+  // Own flags first; the rest goes to Google Benchmark.
+  std::vector<char*> rest = {argv[0]};
+  try {
+    for (int i = 1; i < argc; ++i) {
+      const std::string a = argv[i];
+      auto value = [&]() -> std::string {
+        if (i + 1 >= argc) Throw<InputError>("work_precision", a, " needs a value");
+        return argv[++i];
+      };
+      if (a == "--short") short_mode = true;
+      else if (a == "--include-broken") include_broken = true;
+      else if (a == "--scene") scene_path = value();
+      else if (a == "--reference") reference_path = value();
+      else if (a == "--json") json_path = value();
+      else if (a == "--csv") csv_path = value();
+      else if (a == "--only") only = value();
+      else if (a == "--rtol-min") {
+        const std::string v = value();
+        rtol_min = std::atof(v.c_str());
+        if (!(rtol_min > 0.0 && rtol_min <= 1e-2)) {
+          Throw<InputError>("work_precision", "--rtol-min = ", v, "; must be in (0, 1e-2]");
+        }
+      }
+      else if (a == "--repetitions") {
+        const std::string v = value();
+        repetitions = std::atoi(v.c_str());
+        if (repetitions < 2) Throw<InputError>("work_precision", "--repetitions = ", v, "; must be >= 2 (aggregates)");
+      } else if (a.rfind("--benchmark_", 0) == 0) rest.push_back(argv[i]);
+      else Throw<InputError>("work_precision", "unknown argument '", a, "'");
+    }
+    if (repetitions == 0) repetitions = short_mode ? 3 : 5;
+    if (csv_path.empty()) {
+      csv_path = json_path.size() > 5 && json_path.substr(json_path.size() - 5) == ".json"
+                     ? json_path.substr(0, json_path.size() - 5) + ".csv"
+                     : json_path + ".csv";
+    }
+    const Scene scene = LoadScene(scene_path);
+    if (reference_path.empty()) reference_path = ReferenceDataDir() + "/references/" + scene.name + ".json";
+    const Reference reference = LoadReference(reference_path);
+
+    std::vector<Entry> entries;
+    for (const BenchConfig& c : Grid(short_mode, rtol_min, only, include_broken)) entries.push_back({c, {}, {}, {}});
+    std::map<std::string, Entry*> by_name;
+    for (Entry& e : entries) {
+      e.outcome = RunConfig(scene, e.config, reference.comparison_interval);
+      e.metrics = Evaluate(scene, e.outcome, reference);
+      std::fprintf(stderr, "%-40s %-6s scd %6.2f  %s\n", e.config.Name().c_str(), e.outcome.status.c_str(),
+                   e.metrics.scd, e.outcome.reason.c_str());
+      by_name[e.config.Name()] = &e;
+      Entry* ep = &e;
+      benchmark::RegisterBenchmark(e.config.Name().c_str(),
+                                   [ep, &scene](benchmark::State& state) {
+                                     RunSettings settings;
+                                     settings.formulation = ep->config.formulation;
+                                     settings.options = ep->config.Options();
+                                     for (auto _ : state) {
+                                       RunResult r;
+                                       if (ep->outcome.status == "ok" || !ep->outcome.result.samples.empty()) {
+                                         r = RunScene(scene, settings);
+                                       }
+                                       benchmark::DoNotOptimize(r);
+                                     }
+                                     const SolverStats& s = ep->outcome.result.stats;
+                                     state.counters["residual_evaluations"] = s.residual_evaluations;
+                                     state.counters["jacobian_evaluations"] = s.jacobian_evaluations;
+                                     state.counters["linear_solver_setups"] = s.linear_solver_setups;
+                                     state.counters["nonlinear_iterations"] = s.nonlinear_iterations;
+                                     state.counters["steps"] = s.steps;
+                                     state.counters["rejected_steps"] = s.rejected_steps();
+                                     state.counters["scd"] = std::isfinite(ep->metrics.scd) ? ep->metrics.scd : 0.0;
+                                   })
+          ->Unit(benchmark::kSecond)
+          ->MinTime(short_mode ? 0.005 : 0.05)
+          ->Repetitions(repetitions)
+          ->ReportAggregatesOnly(true)
+          ->ComputeStatistics("min", MinOf)
+          ->ComputeStatistics("max", MaxOf);
+    }
+
+    int bargc = static_cast<int>(rest.size());
+    benchmark::Initialize(&bargc, rest.data());
+    CollectingReporter reporter(&by_name);
+    benchmark::RunSpecifiedBenchmarks(&reporter);
+    benchmark::Shutdown();
+
+    nlohmann::json out;
+    nlohmann::json& h = out["header"];
+    h["machine"] = MachineJson();
+    h["scene"] = scene.name;
+    h["scene_file"] = scene_path;
+    h["reference"] = reference_path;
+    h["reference_primary"] = reference.json.at("primary");
+    h["reference_accuracy_scd"] = reference.json.at("accuracy_scd");
+    h["mode"] = short_mode ? "short" : "full";
+    h["repetitions"] = repetitions;
+    h["rtol_min"] = rtol_min;
+    h["metrics_definition"] = "benchmarks/metrics.hpp";
+    const std::time_t now = std::time(nullptr);
+    char date[32];
+    std::strftime(date, sizeof date, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
+    h["date"] = date;
+    out["results"] = nlohmann::json::array();
+    std::string csv =
+        "formulation,integrator,rtol,atol,step,status,scd,mixed_positions,mixed_velocities,"
+        "mixed_contact_points,mixed_contact_forces,mixed_ligament_forces,max_position_residual_m,"
+        "cpu_median_s,cpu_min_s,cpu_max_s,residual_evaluations,jacobian_evaluations,"
+        "linear_solver_setups,nonlinear_iterations,steps,rejected_steps,reason\n";
+    for (const Entry& e : entries) {
+      nlohmann::json r;
+      r["formulation"] = e.config.formulation;
+      r["integrator"] = e.config.integrator;
+      r["setting"] = e.config.SettingJson();
+      r["status"] = e.outcome.status;
+      r["reason"] = e.outcome.reason;
+      r["metrics"] = MetricsJson(e.metrics);
+      for (const char* k : {"median", "min", "max"}) {
+        r["cpu_time_s"][k] = e.cpu.count(k) ? Finite(e.cpu.at(k)) : nlohmann::json(nullptr);
+      }
+      r["counters"] = CountersJson(e.outcome.result.stats);
+      r["events"] = nlohmann::json::array();
+      for (const EventRecord& ev : e.outcome.result.events) {  // contact and end events, first 20
+        if (ev.name.rfind("kink_", 0) == 0 || r["events"].size() >= 20) continue;
+        r["events"].push_back({{"name", ev.name}, {"time_s", ev.time}});
+      }
+      const nlohmann::json& m = r["metrics"];
+      const nlohmann::json& s = r["setting"];
+      const nlohmann::json& c = r["counters"];
+      std::vector<nlohmann::json> cells = {
+          r["formulation"], r["integrator"], s.value("rtol", nlohmann::json(nullptr)),
+          s.value("atol", nlohmann::json(nullptr)), s.value("step", nlohmann::json(nullptr)), r["status"],
+          m["scd"], m["mixed_error"]["positions"], m["mixed_error"]["velocities"],
+          m["mixed_error"]["contact_points"], m["mixed_error"]["contact_forces"],
+          m["mixed_error"]["ligament_forces"], m["max_position_residual_m"], r["cpu_time_s"]["median"],
+          r["cpu_time_s"]["min"], r["cpu_time_s"]["max"], c["residual_evaluations"],
+          c["jacobian_evaluations"], c["linear_solver_setups"], c["nonlinear_iterations"], c["steps"],
+          c["rejected_steps"], r["reason"]};
+      for (size_t i = 0; i < cells.size(); ++i) csv += (i ? "," : "") + CsvCell(cells[i]);
+      csv += "\n";
+      out["results"].push_back(r);
+    }
+    WriteAtomically(json_path, out.dump(1) + "\n");
+    WriteAtomically(csv_path, csv);
+    std::fprintf(stderr, "wrote %s and %s (%zu results)\n", json_path.c_str(), csv_path.c_str(), entries.size());
+    return 0;
+  } catch (const InputError& e) {
+    std::cerr << "work_precision: " << e.what() << "\n";
+    return 2;
+  }
+}

@@ -1,0 +1,388 @@
+// kneedyn_catalog — the hard-case catalog (issue 7): every case under
+// reference-data/scenes/hard/ (README.md there says what makes each hard) × every
+// registered formulation, failures caught as results.
+//
+//   kneedyn_catalog --out DIR [--case NAME]... [--formulation NAME]... [--check]
+//
+// Writes DIR/hard_cases.md and DIR/hard_cases.csv (complete or not at all). Per run:
+// status (ok | solver_failure | error), the reason (RunResult.failure or the exception
+// text), how far it got, events, error against a reference (dae at rtol 1e-10, atol 1e-12
+// on the same scene, over the common uniform output times), energy drift for conservative
+// cases, the largest |∇f| of the femoral surface at an active contact point (conditioning
+// near the condyle's edge), solver counters and wall time.
+// Default options per formulation: adaptive methods rtol 1e-8, atol 1e-10 (mde/ede with
+// their default integrator); fixed-step methods (newmark*) h = 1e-4 s. Nothing is loosened
+// per case. Exit: 0 when the catalog ran (and, with --check, every run met its case's
+// expectation); 1 when --check found a mismatch; 2 on bad input.
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include "formulations/run.hpp"
+#include "solver/dynamics.hpp"
+#include "solver/error.hpp"
+#include "solver/units.hpp"
+
+using namespace kneedyn;
+namespace fs = std::filesystem;
+
+namespace {
+
+// What a case is expected to do (for --check and the table).
+enum class Expect {
+  kComplete,     // reach its end condition
+  kClearError,   // be refused or stop with an error naming the cause (message contains `needle`)
+  kAny,          // exploratory: any outcome is recorded, none is asserted
+};
+
+struct CaseSpec {
+  std::string file;              // stem under scenes/hard/
+  std::string constraint_level;  // "" = default (velocity)
+  bool dae_only = false;         // the option only exists for the dae formulations
+  bool conservative = false;     // report energy drift
+  Expect expect = Expect::kAny;
+  std::string needle;            // for kClearError
+};
+
+const std::vector<CaseSpec>& Cases() {
+  static const std::vector<CaseSpec> kCases = {
+      {"c1_law", "", false, false, Expect::kComplete, ""},
+      {"pulse_2000N", "", false, false, Expect::kAny, ""},
+      {"pulse_1000N_5ms", "", false, false, Expect::kAny, ""},
+      {"pulse_2000N_5ms", "", false, false, Expect::kAny, ""},
+      {"stiff_ligaments_10x", "", false, false, Expect::kAny, ""},
+      {"stiff_ligaments_100x", "", false, false, Expect::kAny, ""},
+      {"guess_offset_1e-6mm", "", false, false, Expect::kAny, ""},
+      {"guess_offset_1e-3mm", "", false, false, Expect::kAny, ""},
+      {"guess_offset_1e-1mm", "", false, false, Expect::kAny, ""},
+      {"force_guess_plus100", "", false, false, Expect::kAny, ""},
+      {"force_guess_minus100", "", false, false, Expect::kAny, ""},
+      {"lateral_pulse_recontact", "", false, false, Expect::kAny, ""},
+      {"distal_pulse_both_separate", "", false, false, Expect::kAny, ""},
+      {"long_conservative_no_contact", "", false, true, Expect::kAny, ""},
+      {"long_conservative_contact", "", false, true, Expect::kAny, ""},
+      {"condyle_edge", "", false, false, Expect::kAny, ""},
+      {"index3_position_level", "position", true, false, Expect::kAny, ""},
+      {"jcs_singular_pose", "", false, false, Expect::kClearError, "JCS singularity"},
+      {"jcs_crossing", "", false, true, Expect::kAny, ""},
+      {"jcs_near_pass", "", false, true, Expect::kAny, ""},
+  };
+  return kCases;
+}
+
+bool IsFixedStep(const std::string& name) { return name.rfind("newmark", 0) == 0; }
+
+RunSettings DefaultSettings(const std::string& formulation, const CaseSpec& c) {
+  RunSettings s;
+  s.formulation = formulation;
+  s.options.rtol = 1.0e-8;
+  s.options.atol = 1.0e-10;
+  if (IsFixedStep(formulation)) s.options.step = 1.0e-4;
+  if (!c.constraint_level.empty()) s.options.constraint_level = c.constraint_level;
+  return s;
+}
+
+struct Row {
+  std::string case_name, formulation, status, reason, end_reason, events, expectation;
+  bool met = true;
+  double t_reached = NAN, flexion_deg = NAN;
+  double err_alpha_deg = NAN, err_R0_mm = NAN, err_alpha_1s_deg = NAN, err_R0_1s_mm = NAN;
+  std::string ref_status;   // reference run: ok / failed at t / none
+  double energy_window_s = NAN;  // energy drift measured on [0, this] (first impact or end)
+  double max_gap_mm = NAN, energy_drift_J = NAN, max_grad_f = NAN;
+  SolverStats stats;
+  double wall_s = NAN;
+};
+
+// Largest |∇f| of the femoral surface at the (closed-form) contact points of active contacts.
+double MaxFemoralGradient(const Model& model, const std::vector<MechanicalState>& samples) {
+  double g = NAN;
+  for (const MechanicalState& s : samples) {
+    const Pose pose = PoseFromCoordinates(s.q);
+    for (int i : s.active) {
+      const ContactPair& pair = model.contacts[i];
+      if (!pair.sphere_on_plane) continue;
+      const ContactGeometry geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+      HeightSample hs;
+      double v = INFINITY;  // outside the surface's domain: at/over the edge
+      if (pair.femoral_surface->Evaluate(geo.point_F.x(), geo.point_F.y(), &hs)) {
+        v = std::hypot(hs.gradient[0], hs.gradient[1]);
+      }
+      g = std::isnan(g) ? v : std::max(g, v);
+    }
+  }
+  return g;
+}
+
+// Max |Δα| (deg) and |ΔR0| (mm) over uniform output times present in both runs.
+void CompareToReference(const RunResult& r, const RunResult& ref, double t_max,
+                        double* err_alpha_deg, double* err_R0_mm) {
+  std::map<long long, const MechanicalState*> by_time;
+  for (size_t i = 0; i < ref.samples.size(); ++i) {
+    if (ref.sample_is_event[i]) continue;
+    by_time[std::llround(ref.samples[i].t * 1e9)] = &ref.samples[i];
+  }
+  double ea = NAN, er = NAN;
+  for (size_t i = 0; i < r.samples.size(); ++i) {
+    if (r.sample_is_event[i] || r.samples[i].t > t_max + 1e-12) continue;
+    auto it = by_time.find(std::llround(r.samples[i].t * 1e9));
+    if (it == by_time.end()) continue;
+    const double a = RadToDeg(std::abs(r.samples[i].q(kAlpha) - it->second->q(kAlpha)));
+    const double p = MToMm((r.samples[i].q.head<3>() - it->second->q.head<3>()).norm());
+    ea = std::isnan(ea) ? a : std::max(ea, a);
+    er = std::isnan(er) ? p : std::max(er, p);
+  }
+  *err_alpha_deg = ea;
+  *err_R0_mm = er;
+}
+
+std::string Fmt(double v, const char* f = "%.3g") {
+  if (std::isnan(v)) return "";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+std::string OneLine(std::string s) {
+  for (char& c : s) {
+    if (c == '\n' || c == '\r') c = ' ';
+    if (c == '|') c = '/';
+  }
+  return s;
+}
+
+std::string CsvQuote(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return out + "\"";
+}
+
+void WriteAtomically(const fs::path& path, const std::string& text) {
+  const fs::path tmp = path.string() + ".tmp";
+  {
+    std::ofstream out(tmp);
+    if (!out) Throw<InputError>("kneedyn_catalog", "cannot write '", tmp.string(), "'");
+    out << text;
+    if (!out) Throw<InputError>("kneedyn_catalog", "cannot write '", tmp.string(), "'");
+  }
+  fs::rename(tmp, path);
+}
+
+Row RunOne(const CaseSpec& c, const Scene* scene, const std::string& load_error,
+           const std::string& formulation, const RunResult* reference) {
+  Row row;
+  row.case_name = c.file;
+  row.formulation = formulation;
+  if (scene == nullptr) {
+    row.status = "error";
+    row.reason = load_error;
+  } else {
+    const RunSettings settings = DefaultSettings(formulation, c);
+    const auto start = std::chrono::steady_clock::now();
+    try {
+      const RunResult r = RunScene(*scene, settings);
+      row.status = r.completed ? "ok" : "solver_failure";
+      row.reason = r.failure;
+      row.end_reason = r.end_reason;
+      row.stats = r.stats;
+      if (!r.samples.empty()) {
+        row.t_reached = r.samples.back().t;
+        row.flexion_deg = RadToDeg(r.samples.back().q(kAlpha));
+        row.max_grad_f = MaxFemoralGradient(scene->model, r.samples);
+        if (c.conservative) {
+          // Plastic impacts at re-contact dissipate energy: measure up to the first one.
+          double t_window = r.samples.back().t;
+          for (const EventRecord& e : r.events) {
+            if (e.name.rfind("recontact", 0) == 0) {
+              t_window = std::min(t_window, e.time);
+              break;
+            }
+          }
+          const double e0 = MechanicalEnergy(scene->model, r.samples[0].q, r.samples[0].qd);
+          double d = 0.0;
+          for (const MechanicalState& s : r.samples) {
+            if (s.t > t_window) break;
+            d = std::max(d, std::abs(MechanicalEnergy(scene->model, s.q, s.qd) - e0));
+          }
+          row.energy_drift_J = d;
+          row.energy_window_s = t_window;
+        }
+      }
+      if (!scene->model.contacts.empty()) row.max_gap_mm = MToMm(r.max_position_residual);
+      for (const EventRecord& e : r.events) {
+        row.events += (row.events.empty() ? "" : " ") + e.name + "@" + Fmt(e.time, "%.4f");
+      }
+      if (reference != nullptr) {
+        CompareToReference(r, *reference, INFINITY, &row.err_alpha_deg, &row.err_R0_mm);
+        CompareToReference(r, *reference, 1.0, &row.err_alpha_1s_deg, &row.err_R0_1s_mm);
+        row.ref_status = reference->completed
+                             ? "ok"
+                             : "failed at t = " + Fmt(reference->samples.empty() ? NAN : reference->samples.back().t, "%.4f");
+      } else {
+        row.ref_status = "none";
+      }
+    } catch (const std::exception& e) {
+      row.status = "error";
+      row.reason = e.what();
+    }
+    row.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  switch (c.expect) {
+    case Expect::kComplete:
+      row.expectation = "complete";
+      row.met = row.status == "ok";
+      break;
+    case Expect::kClearError:
+      row.expectation = "clear error";
+      row.met = row.status != "ok" && row.reason.find(c.needle) != std::string::npos;
+      break;
+    case Expect::kAny:
+      row.expectation = "(recorded)";
+      row.met = true;
+      break;
+  }
+  return row;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"kneedyn_catalog: hard cases x registered formulations (issue 7)"};
+  std::string out_dir, cases_dir = ReferenceDataDir() + "/scenes/hard";
+  std::vector<std::string> only_cases, only_formulations;
+  bool check = false, no_reference = false;
+  app.add_option("--out", out_dir, "output directory for hard_cases.md and hard_cases.csv")->required();
+  app.add_option("--cases-dir", cases_dir, "directory of the case scene files")->capture_default_str();
+  app.add_option("--case", only_cases, "run only this case (repeatable)");
+  app.add_option("--formulation", only_formulations, "run only this formulation (repeatable)");
+  app.add_flag("--check", check, "exit 1 unless every run meets its case's expectation");
+  app.add_flag("--no-reference", no_reference, "skip the tight-tolerance dae reference runs");
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    for (const std::string& n : only_formulations) (void)FindFormulation(n);
+    for (const std::string& n : only_cases) {
+      const auto& cs = Cases();
+      if (std::none_of(cs.begin(), cs.end(), [&](const CaseSpec& c) { return c.file == n; })) {
+        Throw<InputError>("kneedyn_catalog", "--case = '", n, "': no such case in the catalog");
+      }
+    }
+    std::vector<Row> rows;
+    for (const CaseSpec& c : Cases()) {
+      if (!only_cases.empty() &&
+          std::find(only_cases.begin(), only_cases.end(), c.file) == only_cases.end()) {
+        continue;
+      }
+      const std::string path = (fs::path(cases_dir) / (c.file + ".yaml")).string();
+      std::optional<Scene> scene;
+      std::string load_error;
+      try {
+        scene = LoadScene(path);
+      } catch (const std::exception& e) {
+        load_error = e.what();
+      }
+      // Reference: dae at tight tolerances, same constraint level as the default (velocity).
+      std::optional<RunResult> reference;
+      if (scene && !no_reference) {
+        RunSettings ref;
+        ref.formulation = "dae";
+        ref.options.rtol = 1.0e-10;
+        ref.options.atol = 1.0e-12;
+        try {
+          reference = RunScene(*scene, ref);
+        } catch (const std::exception&) {
+        }
+      }
+      for (const FormulationInfo& info : RegisteredFormulations()) {
+        if (!only_formulations.empty() &&
+            std::find(only_formulations.begin(), only_formulations.end(), info.name) ==
+                only_formulations.end()) {
+          continue;
+        }
+        if (c.dae_only && info.name.rfind("dae", 0) != 0) continue;
+        Row row = RunOne(c, scene ? &*scene : nullptr, load_error, info.name,
+                         reference ? &*reference : nullptr);
+        std::fprintf(stderr, "%-30s %-16s %-15s t=%-8s %s\n", row.case_name.c_str(),
+                     row.formulation.c_str(), row.status.c_str(), Fmt(row.t_reached, "%.4f").c_str(),
+                     OneLine(row.reason).substr(0, 160).c_str());
+        rows.push_back(row);
+      }
+    }
+
+    // CSV.
+    std::ostringstream csv;
+    csv << "case,formulation,status,expectation,met,end_reason,t_reached_s,flexion_deg,"
+           "err_alpha_deg,err_R0_mm,err_alpha_1s_deg,err_R0_1s_mm,reference,max_gap_mm,"
+           "energy_drift_J,energy_window_s,max_grad_f,steps,"
+           "residual_evaluations,jacobian_evaluations,nonlinear_iterations,rejected_steps,"
+           "restarts,wall_s,events,reason\n";
+    for (const Row& r : rows) {
+      csv << r.case_name << ',' << r.formulation << ',' << r.status << ',' << r.expectation << ','
+          << (r.met ? "yes" : "no") << ',' << r.end_reason << ',' << Fmt(r.t_reached, "%.6f") << ','
+          << Fmt(r.flexion_deg, "%.4f") << ',' << Fmt(r.err_alpha_deg, "%.3e") << ','
+          << Fmt(r.err_R0_mm, "%.3e") << ',' << Fmt(r.err_alpha_1s_deg, "%.3e") << ','
+          << Fmt(r.err_R0_1s_mm, "%.3e") << ',' << r.ref_status << ',' << Fmt(r.max_gap_mm, "%.3e") << ','
+          << Fmt(r.energy_drift_J, "%.3e") << ',' << Fmt(r.energy_window_s, "%.4f") << ',' << Fmt(r.max_grad_f, "%.4g") << ','
+          << r.stats.steps << ',' << r.stats.residual_evaluations << ','
+          << r.stats.jacobian_evaluations << ',' << r.stats.nonlinear_iterations << ','
+          << r.stats.rejected_steps() << ',' << r.stats.restarts << ',' << Fmt(r.wall_s, "%.4f")
+          << ',' << CsvQuote(r.events) << ',' << CsvQuote(OneLine(r.reason)) << '\n';
+    }
+    // Markdown.
+    std::ostringstream md;
+    md << "# Hard-case catalog\n\n"
+       << "Generated by `kneedyn_catalog` (formulations/hard_case_catalog.cpp); cases in "
+          "reference-data/scenes/hard/ (README.md there). Options: adaptive rtol 1e-8, atol "
+          "1e-10; newmark* h = 1e-4 s. Errors are against dae at rtol 1e-10, atol 1e-12 on the "
+          "same scene (max over common output times). |∇f|: largest femoral-surface slope at an "
+          "active contact point (inf = outside the surface).\n\n"
+       << "| case | formulation | status | expect | met | end | t (s) | flexion (deg) | "
+          "err α (deg) | err R0 (mm) | err α t≤1 s (deg) | reference | max gap (mm) | energy drift (J) on [0, t] | max abs grad f | steps | "
+          "res evals | rejected | wall (s) | events | reason |\n"
+       << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    for (const Row& r : rows) {
+      md << "| " << r.case_name << " | " << r.formulation << " | " << r.status << " | "
+         << r.expectation << " | " << (r.met ? "yes" : "**no**") << " | " << r.end_reason << " | "
+         << Fmt(r.t_reached, "%.4f") << " | " << Fmt(r.flexion_deg, "%.2f") << " | "
+         << Fmt(r.err_alpha_deg, "%.2e") << " | " << Fmt(r.err_R0_mm, "%.2e") << " | "
+         << Fmt(r.err_alpha_1s_deg, "%.2e") << " | " << r.ref_status << " | "
+         << Fmt(r.max_gap_mm, "%.1e") << " | "
+         << (std::isnan(r.energy_drift_J) ? std::string() : Fmt(r.energy_drift_J, "%.2e") + " on [0, " + Fmt(r.energy_window_s, "%.3f") + "]")
+         << " | "
+         << Fmt(r.max_grad_f, "%.3g") << " | " << r.stats.steps << " | "
+         << r.stats.residual_evaluations << " | " << r.stats.rejected_steps() << " | "
+         << Fmt(r.wall_s, "%.3f") << " | " << OneLine(r.events) << " | "
+         << OneLine(r.reason).substr(0, 300) << " |\n";
+    }
+    fs::create_directories(out_dir);
+    WriteAtomically(fs::path(out_dir) / "hard_cases.csv", csv.str());
+    WriteAtomically(fs::path(out_dir) / "hard_cases.md", md.str());
+    std::fprintf(stderr, "wrote %s/hard_cases.md and hard_cases.csv (%zu runs)\n", out_dir.c_str(),
+                 rows.size());
+    if (check) {
+      bool ok = true;
+      for (const Row& r : rows) {
+        if (!r.met) {
+          ok = false;
+          std::fprintf(stderr, "EXPECTATION NOT MET: %s / %s: expected %s, got %s: %s\n",
+                       r.case_name.c_str(), r.formulation.c_str(), r.expectation.c_str(),
+                       r.status.c_str(), OneLine(r.reason).c_str());
+        }
+      }
+      return ok ? 0 : 1;
+    }
+    return 0;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  }
+}

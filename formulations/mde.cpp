@@ -1,0 +1,284 @@
+// `mde`: minimal differential equations. With sphere-on-plane contacts the contact
+// conditions φ_i(q) = n_i·(C_i − R0) − d_i − r_i = 0, n_i = R(α, β, γ) n̂′_i, are linear in
+// R0 = (x0, y0, z0) for a fixed rotation, so k active contacts eliminate k translations in
+// closed form and the state is y = (s, ṡ) with the 6 − k free coordinates s:
+//   two-point  s = (y0, α, β, γ): x0, z0 from the 2×2 solve of φ1 = φ2 = 0 (the admissible
+//              R0 lie on a line along n1 × n2, parameterised by y0);
+//   one-point  s = (x0, y0, α, β, γ): z0 from φ = 0;
+//   none       s = q.
+// (The eliminated pair/component is the one with the best-conditioned solve at the phase
+// start, x0, z0 resp. z0 at the chapter's start poses; at output times the chart is
+// switched — integrator restart — when another choice is better conditioned by 2x.)
+// Velocities by the chain rule: φ̇ = J q̇ = 0 with J = ∂φ/∂q = G B (contact.hpp, pose.hpp)
+// gives q̇ = P ṡ, P = [I; −J_D⁻¹ J_F] (D eliminated, F free columns).
+// Accelerations without second derivatives of the elimination: φ̈ = G ν̇ + κ = 0 with
+// ν̇ = B q̈ + (0, Ė θ̇) gives J q̈ + c = 0, c = G_w Ė θ̇ + κ, so q̈ = P s̈ + p with
+// p_D = −J_D⁻¹ c, and ν̇ = A s̈ + b with A = B P, b = B p + (0, Ė θ̇). Projecting the
+// Newton–Euler equations M ν̇ = Q + Σ N_i G_iᵀ onto the admissible motions (G A = J P = 0):
+//   (Aᵀ M A) s̈ = Aᵀ (Q − M b)                                 (Kane / Maggi form)
+// Contact forces afterwards from the full equations: Gᵀ N = M ν̇ − Q (least squares).
+// The constraints hold by construction (no drift); lift-off root g = N_i.
+#include <Eigen/LU>
+#include <algorithm>
+#include <Eigen/QR>
+#include <cmath>
+#include <memory>
+
+#include "formulations/formulation.hpp"
+#include "formulations/ode_integrator.hpp"
+#include "solver/consistent_init.hpp"
+#include "solver/constrained_dynamics.hpp"
+
+namespace kneedyn {
+namespace {
+
+// |det| of the elimination solve below which the pose is treated as degenerate.
+constexpr double kMinEliminationDeterminant = 1.0e-8;
+
+struct MdeKinematics {
+  Vector6d q, qd, qdd;
+  std::vector<double> normal_force;  // per active contact, N
+};
+
+class MdeFormulation final : public Formulation, public OdeProblem {
+ public:
+  MdeFormulation(const Scene& scene, const FormulationOptions& options)
+      : scene_(scene), model_(scene.model), options_(options), integrator_(options, "mde") {
+    for (const ContactPair& p : model_.contacts) RequireSphereOnPlane(p, "mde");
+    if (options.stabilization != "none") {
+      Throw<InputError>("MdeFormulation", "--stabilization = '", options.stabilization,
+                        "' applies to ede only (mde has no drift)");
+    }
+  }
+
+  ContactForm contact_form() const override { return ContactForm::kClosedForm; }
+
+  void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
+    active_ = state.active;
+    events_ = events;
+    state_contact_ = state.contact;
+    ligament_branch_ = state.ligament_branch;
+    elim_.clear();
+    ChooseEliminated(state.q);
+    StartIntegrator(state);
+  }
+
+  // (Re)starts the integrator from a state in the current chart.
+  void StartIntegrator(const MechanicalState& state) {
+    const int m = static_cast<int>(free_.size());
+    y_.resize(2 * m);
+    for (int j = 0; j < m; ++j) {
+      y_(j) = state.q(free_[j]);
+      y_(m + j) = state.qd(free_[j]);
+    }
+    t_ = state.t;
+    std::vector<int> dirs;
+    for (const EventSpec& e : events_) dirs.push_back(e.direction);
+    integrator_.Start(this, t_, y_, dirs);
+  }
+
+  AdvanceResult Advance(double t_out, MechanicalState* state) override {
+    std::vector<int> found;
+    const bool root = integrator_.Evolve(t_out, false, &t_, &y_, &found);
+    const MdeKinematics kin = Evaluate(t_, y_.data(), nullptr);
+    if (!root && !active_.empty()) {
+      // Chart switch: when the eliminated translations become ill-conditioned (e.g. z0 of
+      // a one-point contact as flexion approaches 90°), restart with a better pair.
+      const std::vector<int> before = elim_;
+      ChooseEliminated(kin.q);
+      if (elim_ != before) {
+        MechanicalState at;
+        at.t = t_;
+        at.q = kin.q;
+        at.qd = kin.qd;
+        StartIntegrator(at);
+      }
+    }
+    state->t = t_;
+    state->q = kin.q;
+    state->qd = kin.qd;
+    state->qdd = kin.qdd;
+    state->contact = state_contact_;
+    state->ligament_branch = ligament_branch_;
+    for (size_t c = 0; c < active_.size(); ++c) state->contact[active_[c]].normal_force = kin.normal_force[c];
+    FillContactCoordinatesFromClosedForm(model_, state);
+    AdvanceResult result;
+    if (root) {
+      result.status = AdvanceStatus::kEvent;
+      for (size_t i = 0; i < found.size(); ++i) {
+        if (found[i] != 0) result.events.push_back(static_cast<int>(i));
+      }
+    }
+    return result;
+  }
+
+  SolverStats stats() const override { return integrator_.stats(); }
+
+  bool Rhs(double t, const double* y, double* ydot) override {
+    const int m = static_cast<int>(free_.size());
+    VectorXd sdd(m);
+    Evaluate(t, y, &sdd);
+    for (int j = 0; j < m; ++j) {
+      ydot[j] = y[m + j];
+      ydot[m + j] = sdd(j);
+    }
+    return true;
+  }
+
+  void Roots(double t, const double* y, double* g) override {
+    const MdeKinematics kin = Evaluate(t, y, nullptr);
+    std::vector<double> normal(model_.contacts.size(), 0.0);
+    for (size_t c = 0; c < active_.size(); ++c) normal[active_[c]] = kin.normal_force[c];
+    EvaluateEvents(scene_, events_, kin.q, normal, g);
+  }
+
+ private:
+  // Picks the k translations to eliminate: the best-conditioned k×k block of the normals.
+  void ChooseEliminated(const Vector6d& q) {
+    const int k = static_cast<int>(active_.size());
+    if (k > 2) Throw<SolverError>("MdeFormulation::Start", k, " active contacts; at most 2 supported");
+    const Matrix3d R = RotationFT(q(kAlpha), q(kBeta), q(kGamma));
+    MatrixXd normals(k, 3);
+    for (int r = 0; r < k; ++r) {
+      normals.row(r) = (R * model_.contacts[active_[r]].sphere_on_plane->normal_T).transpose();
+    }
+    const std::vector<int> current = elim_;
+    double current_det = -1.0;
+    elim_.clear();
+    double best = -1.0;
+    const std::vector<std::vector<int>> candidates =
+        k == 0 ? std::vector<std::vector<int>>{{}}
+        : k == 1 ? std::vector<std::vector<int>>{{kZ0}, {kX0}, {kY0}}
+                 : std::vector<std::vector<int>>{{kX0, kZ0}, {kY0, kZ0}, {kX0, kY0}};
+    for (const std::vector<int>& cand : candidates) {
+      MatrixXd block(k, k);
+      for (int c = 0; c < k; ++c) block.col(c) = normals.col(cand[c]);
+      const double det = k == 0 ? 1.0 : std::abs(block.determinant());
+      if (cand == current) current_det = det;
+      if (det > best * 1.5) {  // keep the documented order unless clearly worse
+        best = det;
+        elim_ = cand;
+      }
+    }
+    // Keep the chart in use while it stays within a factor 2 of the best one.
+    if (!current.empty() && current.size() == static_cast<size_t>(k) && current_det >= 0.5 * best) {
+      elim_ = current;
+      best = current_det;
+    }
+    if (best < kMinEliminationDeterminant) {
+      Throw<SolverError>("MdeFormulation::Start", "contact normals are (nearly) dependent: |det| = ", best);
+    }
+    free_.clear();
+    for (int i = 0; i < 6; ++i) {
+      if (std::find(elim_.begin(), elim_.end(), i) == elim_.end()) free_.push_back(i);
+    }
+  }
+
+  // q from s (closed-form elimination); qd = P ṡ; s̈ (if sdd) and q̈, N.
+  MdeKinematics Evaluate(double t, const double* y, VectorXd* sdd_out) const {
+    const int m = static_cast<int>(free_.size());
+    const int k = static_cast<int>(elim_.size());
+    MdeKinematics kin;
+    kin.q.setZero();
+    for (int j = 0; j < m; ++j) kin.q(free_[j]) = y[j];
+    const Matrix3d R = RotationFT(kin.q(kAlpha), kin.q(kBeta), kin.q(kGamma));
+    if (k > 0) {
+      // n_i · R0 = n_i · C_i − d_i − r_i, solved for the eliminated components.
+      MatrixXd ND(k, k);
+      VectorXd rhs(k);
+      for (int r = 0; r < k; ++r) {
+        const SphereOnPlane& sop = *model_.contacts[active_[r]].sphere_on_plane;
+        const Vector3d n = R * sop.normal_T;
+        rhs(r) = n.dot(sop.centre_F) - sop.offset - sop.radius;
+        for (int j = 0; j < m; ++j) {
+          if (free_[j] < 3) rhs(r) -= n(free_[j]) * kin.q(free_[j]);
+        }
+        for (int c = 0; c < k; ++c) ND(r, c) = n(elim_[c]);
+      }
+      const VectorXd x = ND.partialPivLu().solve(rhs);
+      for (int c = 0; c < k; ++c) kin.q(elim_[c]) = x(c);
+    }
+    const Pose pose = PoseFromCoordinates(kin.q);
+    const Matrix3d E = AngularVelocityMap(kin.q(kBeta), kin.q(kGamma));
+    // J = ∂φ/∂q = G B, and P = ∂q/∂s.
+    MatrixXd J(k, 6), G(k, 6);
+    std::vector<ContactGeometry> geo;
+    for (int r = 0; r < k; ++r) {
+      geo.push_back(SphereOnPlaneContact(*model_.contacts[active_[r]].sphere_on_plane, pose));
+      G.row(r) = ContactConstraintRow(pose, geo.back());
+      J.block(r, 0, 1, 3) = G.block(r, 0, 1, 3);
+      J.block(r, 3, 1, 3) = G.block(r, 3, 1, 3) * E;
+    }
+    MatrixXd P = MatrixXd::Zero(6, m);
+    for (int j = 0; j < m; ++j) P(free_[j], j) = 1.0;
+    Eigen::PartialPivLU<MatrixXd> JD_lu;
+    if (k > 0) {
+      MatrixXd JD(k, k), JF(k, m);
+      for (int c = 0; c < k; ++c) JD.col(c) = J.col(elim_[c]);
+      for (int j = 0; j < m; ++j) JF.col(j) = J.col(free_[j]);
+      JD_lu.compute(JD);
+      const MatrixXd PD = -JD_lu.solve(JF);
+      for (int c = 0; c < k; ++c) P.row(elim_[c]) = PD.row(c);
+    }
+    const VectorXd sd = Eigen::Map<const VectorXd>(y + m, m);
+    kin.qd = P * sd;
+    const Vector6d nu = GeneralizedVelocity(kin.q, kin.qd);
+    const Vector3d qd_ang = kin.qd.tail<3>();
+    const Vector3d Edot_thetadot = AngularVelocityMapRateTimesRate(kin.q(kBeta), kin.q(kGamma), qd_ang);
+    // q̈ = P s̈ + p;  c_i = G_w,i Ė θ̇ + κ_i.
+    Vector6d p = Vector6d::Zero();
+    if (k > 0) {
+      VectorXd c(k);
+      for (int r = 0; r < k; ++r) {
+        c(r) = (G.block(r, 3, 1, 3) * Edot_thetadot)(0) +
+               ContactAccelerationTerm(*model_.contacts[active_[r]].sphere_on_plane, pose, nu);
+      }
+      const VectorXd pD = -JD_lu.solve(c);
+      for (int r = 0; r < k; ++r) p(elim_[r]) = pD(r);
+    }
+    // ν̇ = A s̈ + b.
+    MatrixXd A(6, m);
+    A.topRows(3) = P.topRows(3);
+    A.bottomRows(3) = E * P.bottomRows(3);
+    Vector6d b;
+    b.head<3>() = p.head<3>();
+    b.tail<3>() = E * p.tail<3>() + Edot_thetadot;
+    Data data(model_);
+    data.ligament_branch = &ligament_branch_;
+    ComputeAppliedWrench(model_, t, pose, &data);
+    const Vector6d Q = GeneralizedForce(model_, data, Vector3d(nu.tail<3>()));
+    const Matrix6d M = MassMatrix(model_);
+    const MatrixXd AtMA = A.transpose() * M * A;
+    const VectorXd sdd = AtMA.ldlt().solve(A.transpose() * (Q - M * b));
+    if (sdd_out) *sdd_out = sdd;
+    kin.qdd = P * sdd + p;
+    // Gᵀ N = M ν̇ − Q.
+    if (k > 0) {
+      const Vector6d residual = M * (A * sdd + b) - Q;
+      const VectorXd N = G.transpose().colPivHouseholderQr().solve(residual);
+      kin.normal_force.assign(N.data(), N.data() + k);
+    }
+    return kin;
+  }
+
+  const Scene& scene_;
+  const Model& model_;
+  FormulationOptions options_;
+  OdeIntegrator integrator_;
+  double t_ = 0.0;
+  VectorXd y_;
+  std::vector<int> active_;
+  std::vector<int> free_;  // indices into q of s, ascending
+  std::vector<int> elim_;  // eliminated translations (one per active contact)
+  std::vector<EventSpec> events_;
+  std::vector<ContactGuess> state_contact_;
+  std::vector<signed char> ligament_branch_;
+};
+
+}  // namespace
+
+std::unique_ptr<Formulation> CreateMde(const Scene& scene, const FormulationOptions& options) {
+  return std::make_unique<MdeFormulation>(scene, options);
+}
+
+}  // namespace kneedyn

@@ -1,0 +1,401 @@
+// `newmark` and `newmark-reduced`: the chapter's reverse EDE (Abdel-Rahman & Hefzy), the
+// Newton–Euler equations with the contact conditions at position level, integrated by the
+// Newmark average-acceleration rule (β = 1/4, γ = 1/2; trapezoidal, unconditionally stable,
+// second order, no numerical damping).
+//
+// One step of size h from t_n to t_{n+1} = t_n + h, unknowns x at t_{n+1}:
+//   `newmark`          x = (q, c_1 … c_k, N_1 … N_k), c_i = (xc, yc, x′c, y′c)  (6 + 5k)
+//   `newmark-reduced`  x = (q, N_1 … N_k)                                      (6 + k)
+// with the Newmark formulas
+//   q̈_{n+1} = 4/h² (q_{n+1} − q_n − h q̇_n) − q̈_n
+//   q̇_{n+1} = q̇_n + h/2 (q̈_n + q̈_{n+1})
+// and the equations at t_{n+1}:
+//   h²/4 [Q(t, q, ν) + Σ_i N_i G_iᵀ − M ν̇] = 0, ν̇ = GeneralizedAcceleration(q, q̇, q̈)
+//                                          (Eqs. 1.48–1.61, as dae.cpp rows F7–F12;
+//                                           scaled by h²/4 so rows are ~ M Δq)
+//   chapter form: the five ChapterContactResiduals per contact (Eqs. 1.8, 1.13)
+//   closed form:  φ_i(q) = 0 (sphere on plane)
+// solved by Newton–Raphson with the exact tangent from forward AD (ceres::Jet) and a
+// full-pivoting LU (Eigen). Convergence (weighted max norm of the Newton update):
+//   |Δx_i| ≤ rtol |x_i| + atol_i,  atol_i = atol (m, rad) for q and c, 1e4 atol (N) for N;
+// N is a multiplier whose Newton update carries O(ε M/h²) round-off, so it is also
+// accepted once the q and c updates are below 1e-3 of their tolerance. At most 20
+// iterations; on failure the step is halved (at most 20 times below the nominal step,
+// then SolverError with t and h) and regrows by doubling after each accepted step.
+//
+// Events (solver/events.hpp) are evaluated after each accepted step; N is an unknown, so
+// lift-off uses it directly. A sign change (respecting EventSpec::direction) is located on
+// the step's interpolant (cubic Hermite q, linear q̈ and N) by the Illinois variant of the
+// secant rule until the bracket is 1e-12 s wide; the state returned is the interpolated
+// one just past the root (a retaken step of size h′ ≪ h would amplify the Newton
+// tolerance in q̈ and N by 4/h′²). The driver re-solves the hidden constraint at restart.
+// Output times: the last steps before t_out are shortened (Newmark with variable h).
+// The ligament branch is locked for a phase (state.ligament_branch, set by the driver),
+// and the driver restarts the phase at the law's kinks, which are among the events.
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "formulations/formulation.hpp"
+#include "solver/consistent_init.hpp"
+#include "solver/dynamics.hpp"
+
+namespace kneedyn {
+namespace {
+
+constexpr double kDefaultStep = 1.0e-4;           // s, when --step is 0
+constexpr int kMaxNewtonIterations = 20;
+constexpr int kMaxHalvings = 20;                  // below the nominal step
+constexpr double kForceAtolScale = 1.0e4;         // N per unit --atol (as dae.cpp)
+constexpr double kMultiplierAcceptFactor = 1.0e-3;  // see header: N round-off
+constexpr double kEventTimeResolution = 1.0e-12;  // s
+constexpr int kMaxEventIterations = 100;
+
+// The integrator state at one time: what Newmark needs to take the next step.
+struct StepState {
+  double t = 0.0;
+  Vector6d q = Vector6d::Zero();
+  Vector6d qd = Vector6d::Zero();
+  Vector6d qdd = Vector6d::Zero();
+  VectorXd extra;  // (c_1 … c_k, N_1 … N_k) chapter form, (N_1 … N_k) closed form
+};
+
+class NewmarkFormulation final : public Formulation {
+ public:
+  NewmarkFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
+      : scene_(scene), model_(scene.model), options_(options), form_(form) {
+    const char* name = form == ContactForm::kChapter ? "newmark" : "newmark-reduced";
+    if (form == ContactForm::kClosedForm) {
+      for (const ContactPair& p : model_.contacts) RequireSphereOnPlane(p, name);
+    }
+    if (options.stabilization != "none") {
+      Throw<InputError>("NewmarkFormulation", "--stabilization = '", options.stabilization,
+                        "' applies to ede only; ", name, " enforces the contacts at position level");
+    }
+    if (options.max_step != 0.0) {
+      Throw<InputError>("NewmarkFormulation", "--max-step = ", options.max_step, " s: ", name,
+                        " takes fixed steps; use --step");
+    }
+    step_ = options.step > 0.0 ? options.step : kDefaultStep;
+    if (step_ > scene.end.time) {
+      Throw<InputError>("NewmarkFormulation", "--step = ", step_, " s exceeds the scene's end time ",
+                        scene.end.time, " s");
+    }
+  }
+
+  ContactForm contact_form() const override { return form_; }
+
+  void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
+    active_ = state.active;
+    events_ = events;
+    per_contact_ = form_ == ContactForm::kChapter ? 4 : 0;
+    const int k = static_cast<int>(active_.size());
+    n_ = 6 + (per_contact_ + 1) * k;
+    if (n_ > kMaxJetSize) Throw<SolverError>("NewmarkFormulation::Start", "system size ", n_, " exceeds ", kMaxJetSize);
+    state_contact_ = state.contact;
+    ligament_branch_ = state.ligament_branch;
+    current_.t = state.t;
+    current_.q = state.q;
+    current_.qd = state.qd;
+    current_.qdd = state.qdd;
+    current_.extra.resize(n_ - 6);
+    for (int c = 0; c < k; ++c) {
+      for (int j = 0; j < per_contact_; ++j) {
+        current_.extra(per_contact_ * c + j) = state.contact[active_[c]].coordinates[j];
+      }
+      current_.extra(per_contact_ * k + c) = state.contact[active_[c]].normal_force;
+    }
+    g_current_ = Events(current_);
+    h_ = step_;
+    phase_steps_ = 0;
+    ++stats_.restarts;
+  }
+
+  AdvanceResult Advance(double t_out, MechanicalState* state) override {
+    AdvanceResult result;
+    while (current_.t < t_out) {
+      // Shorten the last steps so that t_out is hit exactly without a sliver step.
+      const double remaining = t_out - current_.t;
+      double h = h_;
+      bool lands = false;
+      if (remaining <= h * (1.0 + 1e-9)) {
+        h = remaining;
+        lands = true;
+      } else if (remaining < 2.0 * h) {
+        h = 0.5 * remaining;
+      }
+      StepState next;
+      const double h_taken = StepWithHalving(current_, h, &next);
+      if (lands && h_taken == h) next.t = t_out;  // exact landing despite round-off in t + h
+      const std::vector<double> g_next = Events(next);
+      std::vector<int> fired = Crossed(g_current_, g_next);
+      if (!fired.empty()) {
+        LocateEvent(current_, h_taken, next, g_next, &next, &fired);
+        current_ = next;
+        g_current_ = Events(current_);
+        ++stats_.steps;
+        result.status = AdvanceStatus::kEvent;
+        result.events = fired;
+        break;
+      }
+      current_ = next;
+      g_current_ = g_next;
+      ++stats_.steps;
+      if (++phase_steps_ > options_.max_steps) {
+        Throw<SolverError>("NewmarkFormulation::Advance", "more than --max-steps = ", options_.max_steps,
+                           " steps in one phase at t = ", current_.t, " s with step h = ", h_taken, " s");
+      }
+      // After a halving, regrow towards the nominal step.
+      h_ = h_taken < h ? h_taken : std::min(step_, 2.0 * h_);
+    }
+    WriteState(current_, state);
+    return result;
+  }
+
+  SolverStats stats() const override { return stats_; }
+
+  // Newmark step residual F(x) for any scalar type; false when a surface is evaluated
+  // outside its domain (recoverable: the step is halved).
+  template <typename T>
+  bool StepResidual(const StepState& from, double h, const T* x, T* F) const {
+    const int k = static_cast<int>(active_.size());
+    Vector6<T> q, qd, qdd;
+    for (int i = 0; i < 6; ++i) {
+      q(i) = x[i];
+      qdd(i) = (4.0 / (h * h)) * (x[i] - from.q(i) - h * from.qd(i)) - from.qdd(i);
+      qd(i) = from.qd(i) + 0.5 * h * (from.qdd(i) + qdd(i));
+    }
+    const PoseTpl<T> pose = PoseFromCoordinates(q);
+    DataTpl<T> data(model_);
+    data.ligament_branch = &ligament_branch_;
+    ComputeAppliedWrench(model_, from.t + h, pose, &data);
+    const T* N = x + 6 + per_contact_ * k;
+    for (int c = 0; c < k; ++c) {
+      const ContactPair& pair = model_.contacts[active_[c]];
+      ContactGeometryTpl<T> geo;
+      if (form_ == ContactForm::kChapter) {
+        if (!ChapterContactResiduals(pair, pose, x + 6 + 4 * c, F + 6 + 5 * c, &geo)) return false;
+      } else {
+        geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+        F[6 + c] = geo.gap;  // φ_i = 0
+      }
+      AddContactWrench(pose, geo, N[c], &data.applied_force_F, &data.applied_moment_T);
+    }
+    const Vector6<T> nu = GeneralizedVelocity(q, qd);
+    const Vector6<T> residual =
+        GeneralizedForce(model_, data, Vector3<T>(nu.template tail<3>())) -
+        MassTimes(model_, GeneralizedAcceleration(q, qd, qdd));
+    for (int i = 0; i < 6; ++i) F[i] = (0.25 * h * h) * residual(i);
+    return true;
+  }
+
+ private:
+  // Newton–Raphson for one step; false on failure (no convergence, bad evaluation,
+  // singular tangent). Counts its work in stats_.
+  bool SolveStep(const StepState& from, double h, StepState* to) {
+    const int k = static_cast<int>(active_.size());
+    VectorXd x(n_);
+    x.head<6>() = from.q + h * from.qd + 0.5 * h * h * from.qdd;  // predictor: q̈ constant
+    x.tail(n_ - 6) = from.extra;
+    std::vector<JetD> xj(n_), Fj(n_);
+    MatrixXd J(n_, n_);
+    VectorXd F(n_);
+    const int first_force = 6 + per_contact_ * k;
+    for (int iter = 0; iter < kMaxNewtonIterations; ++iter) {
+      for (int i = 0; i < n_; ++i) {
+        xj[i] = JetD(x(i), i);
+      }
+      bool ok = false;
+      try {
+        ok = StepResidual(from, h, xj.data(), Fj.data());
+      } catch (const SolverError&) {
+        ok = false;  // e.g. the JCS singularity at a Newton iterate
+      }
+      ++stats_.residual_evaluations;  // one Jet pass gives F and ∂F/∂x
+      ++stats_.jacobian_evaluations;
+      if (!ok) return false;
+      for (int r = 0; r < n_; ++r) {
+        F(r) = Fj[r].a;
+        for (int c = 0; c < n_; ++c) J(r, c) = Fj[r].v[c];
+      }
+      if (!F.allFinite() || !J.allFinite()) return false;
+      // Column equilibration: the force columns are h²/4 G; solve for (h²/4) ΔN instead.
+      for (int c = first_force; c < n_; ++c) J.col(c) *= 4.0 / (h * h);
+      const Eigen::FullPivLU<MatrixXd> lu(J);
+      ++stats_.linear_solver_setups;
+      ++stats_.nonlinear_iterations;
+      if (!lu.isInvertible()) return false;
+      VectorXd dx = lu.solve(-F);
+      dx.tail(n_ - first_force) *= 4.0 / (h * h);
+      x += dx;
+      if (!x.allFinite()) return false;
+      double norm_positions = 0.0, norm_forces = 0.0;
+      for (int i = 0; i < n_; ++i) {
+        const bool force = i >= first_force;
+        const double tol = options_.rtol * std::abs(x(i)) +
+                           (force ? kForceAtolScale * options_.atol : options_.atol);
+        double& norm = force ? norm_forces : norm_positions;
+        norm = std::max(norm, std::abs(dx(i)) / tol);
+      }
+      if (norm_positions <= 1.0 &&
+          (norm_forces <= 1.0 || norm_positions <= kMultiplierAcceptFactor)) {
+        to->t = from.t + h;
+        to->q = x.head<6>();
+        to->qdd = (4.0 / (h * h)) * (to->q - from.q - h * from.qd) - from.qdd;
+        to->qd = from.qd + 0.5 * h * (from.qdd + to->qdd);
+        to->extra = x.tail(n_ - 6);
+        return true;
+      }
+    }
+    return false;
+  }
+
+  // Takes one step from `from`, halving h on Newton failure; returns the step taken.
+  double StepWithHalving(const StepState& from, double h, StepState* to) {
+    for (;;) {
+      if (SolveStep(from, h, to)) return h;
+      ++stats_.convergence_failures;
+      if (h <= 1.000001 * step_ * std::ldexp(1.0, -kMaxHalvings)) {
+        Throw<SolverError>("NewmarkFormulation::Step", "Newton–Raphson did not converge in ",
+                           kMaxNewtonIterations, " iterations at t = ", from.t, " s with step h = ", h,
+                           " s after ", kMaxHalvings, " halvings below the nominal step ", step_,
+                           " s (rtol = ", options_.rtol, ", atol = ", options_.atol, ")");
+      }
+      h *= 0.5;
+      ++stats_.step_halvings;
+    }
+  }
+
+  std::vector<double> Events(const StepState& s) {
+    std::vector<double> g(events_.size());
+    if (events_.empty()) return g;
+    std::vector<double> normal(model_.contacts.size(), 0.0);
+    const int k = static_cast<int>(active_.size());
+    for (int c = 0; c < k; ++c) normal[active_[c]] = s.extra(per_contact_ * k + c);
+    EvaluateEvents(scene_, events_, s.q, normal, g.data());
+    ++stats_.root_evaluations;
+    return g;
+  }
+
+  // Whether g went from a to b through zero in the spec's direction. A start exactly on
+  // zero does not fire (the driver restarts phases on the root just passed).
+  static bool Crosses(int direction, double a, double b) {
+    const bool down = a > 0.0 && b <= 0.0;
+    const bool up = a < 0.0 && b >= 0.0;
+    return direction < 0 ? down : direction > 0 ? up : (down || up);
+  }
+  std::vector<int> Crossed(const std::vector<double>& a, const std::vector<double>& b) const {
+    std::vector<int> out;
+    for (size_t i = 0; i < events_.size(); ++i) {
+      if (Crosses(events_[i].direction, a[i], b[i])) out.push_back(static_cast<int>(i));
+    }
+    return out;
+  }
+
+  // The state at t_n + s inside an accepted step: cubic Hermite in (q, q̇) at both ends
+  // (exact at the ends, O(h⁴)), q̇ its derivative, q̈ and (c, N) linear.
+  static StepState Interpolate(const StepState& a, const StepState& b, double s) {
+    const double h = b.t - a.t;
+    const double u = s / h;
+    const double h00 = (1 + 2 * u) * (1 - u) * (1 - u), h10 = u * (1 - u) * (1 - u);
+    const double h01 = u * u * (3 - 2 * u), h11 = u * u * (u - 1);
+    const double d00 = 6 * u * (u - 1) / h, d10 = (1 - u) * (1 - 3 * u), d01 = -d00, d11 = u * (3 * u - 2);
+    StepState out;
+    out.t = a.t + s;
+    out.q = h00 * a.q + h10 * h * a.qd + h01 * b.q + h11 * h * b.qd;
+    out.qd = d00 * a.q + d10 * a.qd + d01 * b.q + d11 * b.qd;
+    out.qdd = (1 - u) * a.qdd + u * b.qdd;
+    out.extra = (1 - u) * a.extra + u * b.extra;
+    return out;
+  }
+
+  // Brackets the earliest root in s ∈ (0, h] of the events evaluated on the step's
+  // interpolant and narrows it with the Illinois rule to kEventTimeResolution; returns the
+  // interpolated state at the right end (just past the root) and the events that fired.
+  // (Retaking the step with a small h′ instead would amplify the Newton tolerance in q̈
+  // and N by 4/h′², the index-3 ill-conditioning of position-level constraints.)
+  void LocateEvent(const StepState& from, double h, const StepState& at_h, const std::vector<double>& g_h,
+                   StepState* out, std::vector<int>* fired) {
+    double lo = 0.0, hi = h;
+    std::vector<double> g_lo = g_current_, g_hi = g_h;
+    StepState s_hi = at_h;
+    double w_lo = 1.0, w_hi = 1.0;  // Illinois weights on the retained end
+    int last_moved = 0;             // −1 lo moved, +1 hi moved
+    for (int iter = 0; iter < kMaxEventIterations && hi - lo > kEventTimeResolution; ++iter) {
+      double fraction = 1.0;
+      for (int e : Crossed(g_lo, g_hi)) {
+        const double a = w_lo * g_lo[e], b = w_hi * g_hi[e];
+        fraction = std::min(fraction, a / (a - b));
+      }
+      double s_mid = lo + fraction * (hi - lo);
+      s_mid = std::clamp(s_mid, lo + 0.5 * kEventTimeResolution, hi - 0.5 * kEventTimeResolution);
+      const StepState mid = Interpolate(from, at_h, s_mid);
+      const std::vector<double> g_mid = Events(mid);
+      if (!Crossed(g_lo, g_mid).empty()) {
+        hi = s_mid;
+        g_hi = g_mid;
+        s_hi = mid;
+        w_hi = 1.0;
+        if (last_moved == +1) w_lo *= 0.5;
+        last_moved = +1;
+      } else {
+        lo = s_mid;
+        g_lo = g_mid;
+        w_lo = 1.0;
+        if (last_moved == -1) w_hi *= 0.5;
+        last_moved = -1;
+      }
+    }
+    *out = s_hi;
+    *fired = Crossed(g_current_, g_hi);
+  }
+
+  void WriteState(const StepState& s, MechanicalState* state) const {
+    const int k = static_cast<int>(active_.size());
+    state->t = s.t;
+    state->q = s.q;
+    state->qd = s.qd;
+    state->qdd = s.qdd;
+    state->active = active_;
+    state->contact = state_contact_;
+    state->ligament_branch = ligament_branch_;
+    for (int c = 0; c < k; ++c) {
+      for (int j = 0; j < per_contact_; ++j) {
+        state->contact[active_[c]].coordinates[j] = s.extra(per_contact_ * c + j);
+      }
+      state->contact[active_[c]].normal_force = s.extra(per_contact_ * k + c);
+    }
+    if (per_contact_ == 0) FillContactCoordinatesFromClosedForm(model_, state);
+  }
+
+  const Scene& scene_;
+  const Model& model_;
+  FormulationOptions options_;
+  ContactForm form_;
+  double step_ = kDefaultStep;  // s, nominal
+  double h_ = kDefaultStep;     // s, next step to try
+  int n_ = 6;
+  int per_contact_ = 4;
+  long phase_steps_ = 0;
+  std::vector<int> active_;
+  std::vector<EventSpec> events_;
+  std::vector<ContactGuess> state_contact_;
+  std::vector<signed char> ligament_branch_;  // locked for the phase
+  StepState current_;
+  std::vector<double> g_current_;
+  SolverStats stats_;
+};
+
+}  // namespace
+
+std::unique_ptr<Formulation> CreateNewmark(const Scene& scene, const FormulationOptions& options) {
+  return std::make_unique<NewmarkFormulation>(scene, options, ContactForm::kChapter);
+}
+std::unique_ptr<Formulation> CreateNewmarkReduced(const Scene& scene, const FormulationOptions& options) {
+  return std::make_unique<NewmarkFormulation>(scene, options, ContactForm::kClosedForm);
+}
+
+}  // namespace kneedyn

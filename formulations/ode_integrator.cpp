@@ -1,0 +1,319 @@
+#include "formulations/ode_integrator.hpp"
+
+#include <arkode/arkode_arkstep.h>
+#include <arkode/arkode_butcher_erk.h>
+#include <cvode/cvode.h>
+#include <cvode/cvode_proj.h>
+#include <sunlinsol/sunlinsol_dense.h>
+#include <sunmatrix/sunmatrix_dense.h>
+#include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
+
+#include <cmath>
+#include <cstdlib>
+
+#include "solver/error.hpp"
+
+namespace kneedyn {
+namespace {
+
+SolverStats Minus(SolverStats a, const SolverStats& b) {
+  a.steps -= b.steps;
+  a.residual_evaluations -= b.residual_evaluations;
+  a.jacobian_evaluations -= b.jacobian_evaluations;
+  a.linear_solver_setups -= b.linear_solver_setups;
+  a.nonlinear_iterations -= b.nonlinear_iterations;
+  a.error_test_failures -= b.error_test_failures;
+  a.convergence_failures -= b.convergence_failures;
+  a.root_evaluations -= b.root_evaluations;
+  return a;
+}
+
+// Forward Euler (order 1) and the classical RK4 (order 4), no embedding (fixed step).
+ARKodeButcherTable FixedStepTable(const std::string& name) {
+  if (name == "euler") {
+    double c[1] = {0.0}, A[1] = {0.0}, b[1] = {1.0};
+    return ARKodeButcherTable_Create(1, 1, 0, c, A, b, nullptr);
+  }
+  double c[4] = {0.0, 0.5, 0.5, 1.0};
+  double A[16] = {0.0, 0.0, 0.0, 0.0,  //
+                  0.5, 0.0, 0.0, 0.0,  //
+                  0.0, 0.5, 0.0, 0.0,  //
+                  0.0, 0.0, 1.0, 0.0};
+  double b[4] = {1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0};
+  return ARKodeButcherTable_Create(4, 4, 0, c, A, b, nullptr);
+}
+
+}  // namespace
+
+const std::vector<std::string>& OdeIntegrator::Names() {
+  static const std::vector<std::string> kNames = {"euler",      "rk4",       "dopri5",     "verner65",
+                                                  "fehlberg78", "cvode-bdf", "cvode-adams"};
+  return kNames;
+}
+
+OdeIntegrator::OdeIntegrator(const FormulationOptions& options, std::string owner)
+    : options_(options), owner_(std::move(owner)), name_(options.integrator.empty() ? "dopri5" : options.integrator) {
+  bool known = false;
+  for (const std::string& n : Names()) known = known || n == name_;
+  if (!known) {
+    Throw<InputError>("OdeIntegrator", "--integrator = '", name_, "' for ", owner_,
+                      "; must be euler, rk4, dopri5, verner65, fehlberg78, cvode-bdf or cvode-adams");
+  }
+  if (fixed_step()) {
+    step_ = options.step > 0.0 ? options.step : kDefaultFixedStep;
+  } else if (options.step != 0.0) {
+    Throw<InputError>("OdeIntegrator", "--step = ", options.step, " s with --integrator ", name_,
+                      " (", owner_, "): only euler and rk4 take a fixed step; use --max-step");
+  }
+}
+
+OdeIntegrator::~OdeIntegrator() { Free(); }
+
+void OdeIntegrator::Check(int flag, const char* call) const {
+  if (is_cvode()) {
+    CheckSundials(flag, call, "OdeIntegrator", CVodeGetReturnFlagName);
+  } else {
+    CheckSundials(flag, call, "OdeIntegrator", ARKStepGetReturnFlagName);
+  }
+}
+
+int OdeIntegrator::RhsCallback(double t, N_Vector y, N_Vector ydot, void* user) {
+  auto* self = static_cast<OdeIntegrator*>(user);
+  try {
+    return self->problem_->Rhs(t, NvData(y), NvData(ydot)) ? 0 : 1;
+  } catch (const std::exception& e) {
+    self->failure_ = e.what();
+    return -1;
+  }
+}
+
+int OdeIntegrator::RootCallback(double t, N_Vector y, double* g, void* user) {
+  auto* self = static_cast<OdeIntegrator*>(user);
+  try {
+    self->problem_->Roots(t, NvData(y), g);
+    return 0;
+  } catch (const std::exception& e) {
+    self->failure_ = e.what();
+    return -1;
+  }
+}
+
+int OdeIntegrator::ProjCallback(double t, N_Vector y, N_Vector corr, double, N_Vector, void* user) {
+  auto* self = static_cast<OdeIntegrator*>(user);
+  try {
+    self->problem_->ProjectionCorrection(t, NvData(y), NvData(corr));
+    return 0;
+  } catch (const std::exception& e) {
+    self->failure_ = e.what();
+    return -1;
+  }
+}
+
+void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
+                          const std::vector<int>& root_directions, bool solver_projection) {
+  if (solver_projection && !supports_solver_projection()) {
+    Throw<InputError>("OdeIntegrator::Start", "solver projection with --integrator ", name_,
+                      ": CVODE projects only with BDF (cvode-bdf)");
+  }
+  const double previous_step = LastStep();
+  Free();
+  problem_ = problem;
+  n_ = static_cast<int>(y0.size());
+  num_roots_ = static_cast<int>(root_directions.size());
+  y_ = N_VNew_Serial(n_, ctx_);
+  for (int i = 0; i < n_; ++i) NvData(y_)[i] = y0(i);
+  std::vector<int> dirs = root_directions;
+  if (is_cvode()) {
+    mem_ = CVodeCreate(name_ == "cvode-bdf" ? CV_BDF : CV_ADAMS, ctx_);
+    if (mem_ == nullptr) Throw<SolverError>("OdeIntegrator::Start", "CVodeCreate failed");
+    Check(CVodeInit(mem_, &OdeIntegrator::RhsCallback, t0, y_), "CVodeInit");
+    Check(CVodeSetUserData(mem_, this), "CVodeSetUserData");
+    Check(CVodeSStolerances(mem_, options_.rtol, options_.atol), "CVodeSStolerances");
+    Check(CVodeSetMaxNumSteps(mem_, options_.max_steps), "CVodeSetMaxNumSteps");
+    if (options_.max_step > 0.0) Check(CVodeSetMaxStep(mem_, options_.max_step), "CVodeSetMaxStep");
+    if (name_ == "cvode-bdf") {
+      // Dense LU; no Jacobian function: CVODE's difference-quotient Jacobian.
+      A_ = SUNDenseMatrix(n_, n_, ctx_);
+      LS_ = SUNLinSol_Dense(y_, A_, ctx_);
+      Check(CVodeSetLinearSolver(mem_, LS_, A_), "CVodeSetLinearSolver");
+      if (solver_projection) Check(CVodeSetProjFn(mem_, &OdeIntegrator::ProjCallback), "CVodeSetProjFn");
+    } else {
+      NLS_ = SUNNonlinSol_FixedPoint(y_, 0, ctx_);
+      Check(CVodeSetNonlinearSolver(mem_, NLS_), "CVodeSetNonlinearSolver");
+    }
+    if (num_roots_ > 0) {
+      Check(CVodeRootInit(mem_, num_roots_, &OdeIntegrator::RootCallback), "CVodeRootInit");
+      Check(CVodeSetRootDirection(mem_, dirs.data()), "CVodeSetRootDirection");
+      Check(CVodeSetNoInactiveRootWarn(mem_), "CVodeSetNoInactiveRootWarn");
+    }
+    if (previous_step > 0.0) Check(CVodeSetInitStep(mem_, 0.25 * previous_step), "CVodeSetInitStep");
+  } else {
+    mem_ = ARKStepCreate(&OdeIntegrator::RhsCallback, nullptr, t0, y_, ctx_);
+    if (mem_ == nullptr) Throw<SolverError>("OdeIntegrator::Start", "ARKStepCreate failed");
+    Check(ARKStepSetUserData(mem_, this), "ARKStepSetUserData");
+    // Hermite interpolant (ARKODE's default), also for euler/rk4: it needs no step history,
+    // so root states stay accurate right after a projection restart (the Lagrange one
+    // drops to low degree there). Outputs do not use it: the stop time puts them on steps.
+    Check(ARKStepSetInterpolantType(mem_, ARK_INTERP_HERMITE), "ARKStepSetInterpolantType");
+    Check(ARKStepSetMaxNumSteps(mem_, options_.max_steps), "ARKStepSetMaxNumSteps");
+    ARKodeButcherTable table = nullptr;
+    int q = 0, p = 0;
+    if (fixed_step()) {
+      Check(ARKStepSetFixedStep(mem_, step_), "ARKStepSetFixedStep");
+      table = FixedStepTable(name_);
+      q = name_ == "euler" ? 1 : 4;
+    } else {
+      Check(ARKStepSStolerances(mem_, options_.rtol, options_.atol), "ARKStepSStolerances");
+      if (options_.max_step > 0.0) Check(ARKStepSetMaxStep(mem_, options_.max_step), "ARKStepSetMaxStep");
+      if (name_ == "dopri5") {
+        table = ARKodeButcherTable_LoadERK(ARKODE_DORMAND_PRINCE_7_4_5), q = 5, p = 4;
+      } else if (name_ == "verner65") {
+        table = ARKodeButcherTable_LoadERK(ARKODE_VERNER_8_5_6), q = 6, p = 5;
+      } else {
+        table = ARKodeButcherTable_LoadERK(ARKODE_FEHLBERG_13_7_8), q = 8, p = 7;
+      }
+      if (previous_step > 0.0) Check(ARKStepSetInitStep(mem_, 0.25 * previous_step), "ARKStepSetInitStep");
+    }
+    if (table == nullptr) Throw<SolverError>("OdeIntegrator::Start", "Butcher table for ", name_, " not created");
+    const int flag = ARKStepSetTables(mem_, q, p, nullptr, table);
+    ARKodeButcherTable_Free(table);
+    Check(flag, "ARKStepSetTables");
+    if (num_roots_ > 0) {
+      Check(ARKStepRootInit(mem_, num_roots_, &OdeIntegrator::RootCallback), "ARKStepRootInit");
+      Check(ARKStepSetRootDirection(mem_, dirs.data()), "ARKStepSetRootDirection");
+      Check(ARKStepSetNoInactiveRootWarn(mem_), "ARKStepSetNoInactiveRootWarn");
+    }
+  }
+  baseline_ = SolverStats();
+  ++accumulated_.restarts;
+}
+
+bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, std::vector<int>* roots) {
+  failure_.clear();
+  double t_reached = *t;
+  int flag = 0;
+  bool root = false;
+  if (is_cvode()) {
+    Check(CVodeSetStopTime(mem_, t_out), "CVodeSetStopTime");
+    flag = CVode(mem_, t_out, y_, &t_reached, one_step ? CV_ONE_STEP : CV_NORMAL);
+    root = flag == CV_ROOT_RETURN;
+  } else {
+    Check(ARKStepSetStopTime(mem_, t_out), "ARKStepSetStopTime");
+    flag = ARKStepEvolve(mem_, t_out, y_, &t_reached, one_step ? ARK_ONE_STEP : ARK_NORMAL);
+    root = flag == ARK_ROOT_RETURN;
+  }
+  if (flag < 0) {
+    double h = 0.0, t_cur = 0.0;
+    char* name = nullptr;
+    if (is_cvode()) {
+      CVodeGetCurrentStep(mem_, &h);
+      CVodeGetCurrentTime(mem_, &t_cur);
+      name = CVodeGetReturnFlagName(flag);
+    } else {
+      ARKStepGetCurrentStep(mem_, &h);
+      ARKStepGetCurrentTime(mem_, &t_cur);
+      name = ARKStepGetReturnFlagName(flag);
+    }
+    const std::string text = name ? name : "?";
+    free(name);
+    Throw<SolverError>("OdeIntegrator::Evolve", owner_, " (", name_, "): ", text, " at t = ", t_cur, " s with step h = ", h, " s",
+                       failure_.empty() ? "" : " (" + failure_ + ")");
+  }
+  *t = t_reached;
+  y->resize(n_);
+  for (int i = 0; i < n_; ++i) (*y)(i) = NvData(y_)[i];
+  roots->assign(num_roots_, 0);
+  if (root) {
+    if (is_cvode()) {
+      Check(CVodeGetRootInfo(mem_, roots->data()), "CVodeGetRootInfo");
+    } else {
+      Check(ARKStepGetRootInfo(mem_, roots->data()), "ARKStepGetRootInfo");
+    }
+  }
+  return root;
+}
+
+void OdeIntegrator::Reset(double t, const VectorXd& y) {
+  // The step the controller proposed next (not the last one taken, which may have been cut
+  // by a stop time): restarting from it keeps the step-size history across projections.
+  double h = 0.0;
+  if (is_cvode()) {
+    CVodeGetCurrentStep(mem_, &h);
+  } else {
+    ARKStepGetCurrentStep(mem_, &h);
+  }
+  h = std::abs(h);
+  for (int i = 0; i < n_; ++i) NvData(y_)[i] = y(i);
+  // Reinitialization may zero the counters: bank them and take a fresh baseline.
+  accumulated_ += Minus(CurrentCounters(), baseline_);
+  if (is_cvode()) {
+    Check(CVodeReInit(mem_, t, y_), "CVodeReInit");
+    if (h > 0.0) Check(CVodeSetInitStep(mem_, h), "CVodeSetInitStep");
+  } else {
+    Check(ARKStepReset(mem_, t, y_), "ARKStepReset");
+    if (h > 0.0 && !fixed_step()) Check(ARKStepSetInitStep(mem_, h), "ARKStepSetInitStep");
+  }
+  baseline_ = CurrentCounters();
+}
+
+double OdeIntegrator::LastStep() const {
+  double h = 0.0;
+  if (mem_ == nullptr) return 0.0;
+  if (is_cvode()) {
+    CVodeGetLastStep(mem_, &h);
+  } else {
+    ARKStepGetLastStep(mem_, &h);
+  }
+  return std::abs(h);
+}
+
+SolverStats OdeIntegrator::CurrentCounters() const {
+  SolverStats s;
+  if (mem_ == nullptr) return s;
+  long v = 0;
+  if (is_cvode()) {
+    CVodeGetNumSteps(mem_, &v); s.steps = v;
+    CVodeGetNumRhsEvals(mem_, &v); s.residual_evaluations = v;
+    CVodeGetNumErrTestFails(mem_, &v); s.error_test_failures = v;
+    CVodeGetNumNonlinSolvIters(mem_, &v); s.nonlinear_iterations = v;
+    CVodeGetNumNonlinSolvConvFails(mem_, &v); s.convergence_failures = v;
+    if (name_ == "cvode-bdf") {
+      CVodeGetNumJacEvals(mem_, &v); s.jacobian_evaluations = v;
+      CVodeGetNumLinSolvSetups(mem_, &v); s.linear_solver_setups = v;
+      CVodeGetNumLinRhsEvals(mem_, &v); s.residual_evaluations += v;  // difference quotients
+    }
+    if (num_roots_ > 0) { CVodeGetNumGEvals(mem_, &v); s.root_evaluations = v; }
+  } else {
+    long nfe = 0, nfi = 0;
+    ARKStepGetNumSteps(mem_, &v); s.steps = v;
+    ARKStepGetNumRhsEvals(mem_, &nfe, &nfi); s.residual_evaluations = nfe + nfi;
+    ARKStepGetNumErrTestFails(mem_, &v); s.error_test_failures = v;
+    if (num_roots_ > 0) { ARKStepGetNumGEvals(mem_, &v); s.root_evaluations = v; }
+  }
+  return s;
+}
+
+SolverStats OdeIntegrator::stats() const {
+  SolverStats s = accumulated_;
+  s += Minus(CurrentCounters(), baseline_);
+  return s;
+}
+
+void OdeIntegrator::Free() {
+  if (mem_ != nullptr) {
+    accumulated_ += Minus(CurrentCounters(), baseline_);
+    baseline_ = SolverStats();
+    if (is_cvode()) {
+      CVodeFree(&mem_);
+    } else {
+      ARKStepFree(&mem_);
+    }
+    mem_ = nullptr;
+  }
+  if (NLS_) { SUNNonlinSolFree(NLS_); NLS_ = nullptr; }
+  if (LS_) { SUNLinSolFree(LS_); LS_ = nullptr; }
+  if (A_) { SUNMatDestroy(A_); A_ = nullptr; }
+  if (y_) { N_VDestroy(y_); y_ = nullptr; }
+}
+
+}  // namespace kneedyn

@@ -1,0 +1,104 @@
+// Explicit-ODE driver y' = f(t, y) with root functions, shared by `mde` and `ede` (the one
+// place for their SUNDIALS glue). Integrators (the --integrator names are a contract):
+//   euler, rk4         fixed step --step H (default 1e-4 s), ARKODE ARKStep explicit with
+//                      Butcher tables built here (ARKODE 6.4 has no Euler/RK4 table). The
+//                      stop time is set to every output time, so outputs lie on step
+//                      boundaries (the true discrete solution, not an interpolant): an output
+//                      time that is not a multiple of H makes the last step before it shorter.
+//                      (Root states come from the Hermite interpolant: history-free, so valid
+//                      right after an ede projection restart; Lagrange is not.)
+//   dopri5, verner65,  adaptive embedded ERK (ARKODE_DORMAND_PRINCE_7_4_5,
+//   fehlberg78         ARKODE_VERNER_8_5_6, ARKODE_FEHLBERG_13_7_8), --rtol/--atol.
+//   cvode-bdf          CVODE BDF, Newton with dense LU, difference-quotient Jacobian.
+//   cvode-adams        CVODE Adams–Moulton with fixed-point (functional) iteration.
+// Default (empty --integrator): dopri5. Roots located by ARKODE/CVODE root finding with the
+// EventSpec directions; a root's state is the solver's interpolant at the root.
+#pragma once
+
+#include <nvector/nvector_serial.h>
+#include <sundials/sundials_linearsolver.h>
+#include <sundials/sundials_matrix.h>
+#include <sundials/sundials_nonlinearsolver.h>
+
+#include <string>
+#include <vector>
+
+#include "formulations/formulation.hpp"
+#include "formulations/sundials_util.hpp"
+#include "solver/scalar.hpp"
+
+namespace kneedyn {
+
+// The problem an OdeIntegrator integrates.
+class OdeProblem {
+ public:
+  virtual ~OdeProblem() = default;
+  // ẏ = f(t, y). Returns false on a recoverable failure (the solver retries with a smaller
+  // step when it can); throws on an unrecoverable one (its message is kept for the error).
+  virtual bool Rhs(double t, const double* y, double* ydot) = 0;
+  // g_k(t, y), one per root direction given to Start.
+  virtual void Roots(double t, const double* y, double* g) = 0;
+  // Projection onto the constraint manifold for CVODE's own projection (cvode-bdf):
+  // writes corr with y + corr on the manifold. Only called when enabled in Start.
+  virtual void ProjectionCorrection(double t, const double* y, double* corr) {
+    (void)t, (void)y, (void)corr;
+  }
+};
+
+class OdeIntegrator {
+ public:
+  static constexpr double kDefaultFixedStep = 1.0e-4;  // s
+  static const std::vector<std::string>& Names();
+
+  // Validates options.integrator (empty: dopri5) and options.step; `owner` names the
+  // formulation in messages.
+  OdeIntegrator(const FormulationOptions& options, std::string owner);
+  ~OdeIntegrator();
+  OdeIntegrator(const OdeIntegrator&) = delete;
+  OdeIntegrator& operator=(const OdeIntegrator&) = delete;
+
+  const std::string& name() const { return name_; }
+  bool fixed_step() const { return name_ == "euler" || name_ == "rk4"; }
+
+  // Builds the solver for a phase (sizes may change between phases). `solver_projection`:
+  // use CVODE's projection after each step (CVodeSetProjFn; cvode-bdf only) instead of the
+  // caller's own project-and-Reset loop (which restarts a multistep method at order 1).
+  void Start(OdeProblem* problem, double t0, const VectorXd& y0, const std::vector<int>& root_directions,
+             bool solver_projection = false);
+  bool supports_solver_projection() const { return name_ == "cvode-bdf"; }
+  // Integrates towards t_out (stop time t_out): to t_out, or one step if `one_step`, or to a
+  // root. Writes t and y reached; returns true when roots were found (`roots`: their flags).
+  bool Evolve(double t_out, bool one_step, double* t, VectorXd* y, std::vector<int>* roots);
+  // Restarts from a modified state (after a projection), keeping the step size and counters.
+  void Reset(double t, const VectorXd& y);
+  SolverStats stats() const;
+
+ private:
+  static int RhsCallback(double t, N_Vector y, N_Vector ydot, void* user);
+  static int RootCallback(double t, N_Vector y, double* g, void* user);
+  static int ProjCallback(double t, N_Vector y, N_Vector corr, double eps, N_Vector err, void* user);
+  bool is_cvode() const { return name_ == "cvode-bdf" || name_ == "cvode-adams"; }
+  void Check(int flag, const char* call) const;
+  SolverStats CurrentCounters() const;
+  double LastStep() const;
+  void Free();
+
+  FormulationOptions options_;
+  std::string owner_;
+  std::string name_;
+  double step_ = 0.0;  // s, fixed-step methods
+  SundialsContext ctx_;
+  OdeProblem* problem_ = nullptr;
+  void* mem_ = nullptr;
+  N_Vector y_ = nullptr;
+  SUNMatrix A_ = nullptr;
+  SUNLinearSolver LS_ = nullptr;
+  SUNNonlinearSolver NLS_ = nullptr;
+  int n_ = 0;
+  int num_roots_ = 0;
+  SolverStats accumulated_;  // finished solver instances and pre-reset segments
+  SolverStats baseline_;     // counters of the live instance at its last reset
+  std::string failure_;
+};
+
+}  // namespace kneedyn

@@ -1,0 +1,245 @@
+// Tests of the command line `kneedyn run` (formulations/kneedyn_main.cpp, issue 3).
+//
+// Validates: a chapter run exits 0 and writes trajectory.csv (named columns with units),
+// trajectory.sto (OpenSim storage: endheader, inDegrees=yes, tab-separated) and
+// summary.json (status, events, statistics, initialization, wall time); bad input exits
+// with code 2, names the field and value and writes nothing; a solver failure exits 1 and
+// writes results marked partial with the failure; no temporary files are left behind.
+// Does not validate: the numbers in the files (dae_test.cpp, conformance_test.cpp).
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "solver/scene.hpp"
+
+namespace kneedyn {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string ChapterScenePath() { return ReferenceDataDir() + "/scenes/chapter_impact.yaml"; }
+
+struct CommandResult {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr
+};
+
+// Runs `kneedyn <args>` with stderr merged into stdout.
+CommandResult RunKneedyn(const std::string& args) {
+  const std::string command = std::string("'") + KNEEDYN_EXE + "' " + args + " 2>&1";
+  CommandResult result;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return result;
+  char buffer[4096];
+  size_t n = 0;
+  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) result.output.append(buffer, n);
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+// A fresh, empty temporary directory per test; removed at the end.
+class CliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() /
+           (std::string("kneedyn_cli_test_") + info->name() + "_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string Out() const { return (dir_ / "out").string(); }
+
+  // Files anywhere under the directory, excluding `keep` (inputs the test wrote).
+  std::vector<std::string> FilesUnder(const fs::path& where, const std::string& keep = "") const {
+    std::vector<std::string> files;
+    if (!fs::exists(where)) return files;
+    for (const auto& e : fs::recursive_directory_iterator(where)) {
+      if (e.is_regular_file() && e.path().filename() != keep) files.push_back(e.path().string());
+    }
+    return files;
+  }
+
+  void ExpectNoTempFiles() const {
+    for (const std::string& f : FilesUnder(dir_)) {
+      EXPECT_EQ(f.find(".tmp"), std::string::npos) << "leftover " << f;
+    }
+  }
+
+  // Bad input: exit code 2, a message with every needle, and nothing written.
+  void ExpectRefused(const std::string& args, const std::vector<std::string>& needles,
+                     const std::string& keep = "") {
+    const CommandResult r = RunKneedyn(args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    for (const std::string& n : needles) {
+      EXPECT_NE(r.output.find(n), std::string::npos) << "'" << n << "' missing from: " << r.output;
+    }
+    EXPECT_TRUE(FilesUnder(dir_, keep).empty()) << args << " left files behind";
+  }
+
+  fs::path dir_;
+};
+
+std::string ReadText(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::vector<std::string> Split(const std::string& line, char sep) {
+  std::vector<std::string> out;
+  std::stringstream ss(line);
+  std::string item;
+  while (std::getline(ss, item, sep)) out.push_back(item);
+  return out;
+}
+
+bool Contains(const std::vector<std::string>& v, const std::string& s) {
+  return std::find(v.begin(), v.end(), s) != v.end();
+}
+
+TEST_F(CliTest, ChapterRunWritesTrajectoryStorageAndSummary) {
+  const CommandResult r = RunKneedyn("run '" + ChapterScenePath() + "' --formulation dae --quiet --out '" + Out() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+
+  // trajectory.csv: header with units.
+  const std::string csv = ReadText(fs::path(Out()) / "trajectory.csv");
+  ASSERT_FALSE(csv.empty());
+  const std::string header = csv.substr(0, csv.find('\n'));
+  const std::vector<std::string> cols = Split(header, ',');
+  const std::vector<std::string> expected = {
+      "time_s", "flexion_deg", "N_medial_N", "N_lateral_N", "gap_medial_mm", "gap_lateral_mm",
+      "F_ACL_anterior_N", "F_ACL_posterior_N", "F_PCL_anterior_N", "F_PCL_posterior_N",
+      "F_MCL_anterior_N", "F_MCL_oblique_N", "F_MCL_deep_N", "F_LCL_N", "F_capsule_medial_N",
+      "F_capsule_lateral_N", "F_oblique_popliteal_N", "F_arcuate_popliteal_N"};
+  for (const std::string& c : expected) EXPECT_TRUE(Contains(cols, c)) << c << " missing in: " << header;
+  EXPECT_EQ(cols.front(), "time_s");
+  // Data rows have as many fields as the header.
+  std::stringstream lines(csv);
+  std::string line;
+  std::getline(lines, line);
+  int rows = 0;
+  while (std::getline(lines, line)) {
+    if (line.empty()) continue;
+    ++rows;
+    EXPECT_EQ(Split(line + ",", ',').size(), cols.size()) << "row " << rows;
+  }
+  EXPECT_GT(rows, 50);
+
+  // trajectory.sto: OpenSim storage.
+  const std::string sto = ReadText(fs::path(Out()) / "trajectory.sto");
+  EXPECT_NE(sto.find("inDegrees=yes"), std::string::npos);
+  const size_t end_header = sto.find("endheader\n");
+  ASSERT_NE(end_header, std::string::npos);
+  const std::string sto_cols_line =
+      sto.substr(end_header + 10, sto.find('\n', end_header + 10) - (end_header + 10));
+  const std::vector<std::string> sto_cols = Split(sto_cols_line, '\t');
+  EXPECT_EQ(sto_cols.size(), cols.size()) << sto_cols_line;
+  EXPECT_EQ(sto_cols.front(), "time");
+  EXPECT_TRUE(Contains(sto_cols, "flexion_deg"));
+
+  // summary.json.
+  const nlohmann::json j = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
+  EXPECT_EQ(j.at("status"), "completed");
+  const auto& events = j.at("events");
+  ASSERT_GE(events.size(), 2u);
+  std::vector<std::string> names;
+  for (const auto& e : events) {
+    names.push_back(e.at("name").get<std::string>());
+    EXPECT_TRUE(e.at("time").is_number());
+    EXPECT_TRUE(e.at("flexion_deg").is_number());
+  }
+  EXPECT_EQ(names.front(), "liftoff_lateral");
+  EXPECT_EQ(names.back(), "flexion_90");
+  EXPECT_NEAR(events.back().at("flexion_deg").get<double>(), 90.0, 1e-6);
+  const auto& stats = j.at("statistics");
+  for (const char* k : {"steps", "residual_evaluations", "jacobian_evaluations", "nonlinear_iterations"}) {
+    EXPECT_GT(stats.at(k).get<long>(), 0) << k;
+  }
+  for (const char* k : {"error_test_failures", "convergence_failures"}) {
+    EXPECT_GE(stats.at(k).get<long>(), 0) << k;
+  }
+  const auto& init = j.at("initialization");
+  for (const char* level : {"position", "velocity", "hidden_constraint"}) {
+    EXPECT_TRUE(init.at(level).at("residual_before").is_number()) << level;
+    EXPECT_TRUE(init.at(level).at("residual_after").is_number()) << level;
+  }
+  EXPECT_GT(init.at("position").at("residual_before").get<double>(),
+            init.at("position").at("residual_after").get<double>());
+  // Spec §10 consistent forces, N_medial ≈ 233.35 N, N_lateral ≈ 243.33 N.
+  const auto& forces = init.at("normal_force_N");
+  EXPECT_NEAR(forces.at("medial").get<double>(), 233.35, 0.0051);
+  EXPECT_NEAR(forces.at("lateral").get<double>(), 243.33, 0.0051);
+  EXPECT_EQ(init.at("normal_force_guess_N").size(), 2u);
+  EXPECT_GT(j.at("wall_time_s").get<double>(), 0.0);
+  ExpectNoTempFiles();
+}
+
+TEST_F(CliTest, UnknownFormulationIsRefusedWithoutOutput) {
+  ExpectRefused("run '" + ChapterScenePath() + "' --formulation nosuch --quiet --out '" + Out() + "'",
+                {"nosuch"});
+}
+
+TEST_F(CliTest, NegativeRtolIsRefusedWithoutOutput) {
+  ExpectRefused("run '" + ChapterScenePath() + "' --rtol -1 --quiet --out '" + Out() + "'", {"rtol", "-1"});
+}
+
+TEST_F(CliTest, NanRtolIsRefusedWithoutOutput) {
+  ExpectRefused("run '" + ChapterScenePath() + "' --rtol nan --quiet --out '" + Out() + "'", {"rtol", "nan"});
+}
+
+TEST_F(CliTest, MalformedSceneIsRefusedWithoutOutput) {
+  std::string text = ReadText(ChapterScenePath());
+  const std::string from = "amplitude_N: 100.0";
+  ASSERT_NE(text.find(from), std::string::npos);
+  text.replace(text.find(from), from.size(), "amplitude_N: abc");
+  // The temp dir is elsewhere: point the parameter set at its absolute path.
+  const std::string ps = "parameter_set: ../chapter_knee.yaml";
+  ASSERT_NE(text.find(ps), std::string::npos);
+  text.replace(text.find(ps), ps.size(), "parameter_set: " + ReferenceDataDir() + "/chapter_knee.yaml");
+  const fs::path bad = dir_ / "bad_scene.yaml";
+  {
+    std::ofstream out(bad);
+    out << text;
+  }
+  ExpectRefused("run '" + bad.string() + "' --quiet --out '" + Out() + "'", {"amplitude_N", "abc"},
+                "bad_scene.yaml");
+}
+
+TEST_F(CliTest, MissingSceneFileIsRefusedWithoutOutput) {
+  const std::string missing = (dir_ / "no_such_scene.yaml").string();
+  ExpectRefused("run '" + missing + "' --quiet --out '" + Out() + "'", {"no_such_scene.yaml"});
+}
+
+TEST_F(CliTest, SolverFailureExitsOneWithPartialSummary) {
+  const CommandResult r =
+      RunKneedyn("run '" + ChapterScenePath() + "' --max-steps 5 --quiet --out '" + Out() + "'");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  const fs::path summary = fs::path(Out()) / "summary.json";
+  ASSERT_TRUE(fs::exists(summary));
+  const nlohmann::json j = nlohmann::json::parse(ReadText(summary));
+  EXPECT_EQ(j.at("status"), "partial");
+  const std::string failure = j.at("failure").get<std::string>();
+  EXPECT_NE(failure.find("IDA"), std::string::npos) << failure;
+  EXPECT_NE(failure.find("t ="), std::string::npos) << failure;
+  EXPECT_TRUE(fs::exists(fs::path(Out()) / "trajectory.csv"));
+  EXPECT_NE(ReadText(fs::path(Out()) / "trajectory.sto").find("PARTIAL"), std::string::npos);
+  ExpectNoTempFiles();
+}
+
+}  // namespace
+}  // namespace kneedyn

@@ -1,0 +1,251 @@
+// mde and ede (issue 4) against a second formulation (dae), the full constrained equations,
+// and an exact solution (torque-free symmetric top in free fall) for the integrator orders.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <map>
+
+#include "formulations/run.hpp"
+#include "solver/constrained_dynamics.hpp"
+#include "solver/scene.hpp"
+
+namespace kneedyn {
+namespace {
+
+Scene ChapterScene() { return LoadScene(ReferenceDataDir() + "/scenes/chapter_impact.yaml"); }
+
+RunResult RunWith(const Scene& scene, const std::string& formulation, FormulationOptions options) {
+  RunSettings settings;
+  settings.formulation = formulation;
+  settings.options = options;
+  RunResult r = RunScene(scene, settings);
+  EXPECT_TRUE(r.completed) << formulation << ": " << r.failure;
+  return r;
+}
+
+FormulationOptions Tight() {
+  FormulationOptions o;
+  o.rtol = 1.0e-10;
+  o.atol = 1.0e-12;
+  return o;
+}
+
+const EventRecord* FindEvent(const RunResult& r, const std::string& name) {
+  for (const EventRecord& e : r.events) {
+    if (e.name == name) return &e;
+  }
+  return nullptr;
+}
+
+// Measured (rtol 1e-10): dae lift-off 0.216294133603 s / 52.597259832°, 90° at
+// 0.299192187834 s; mde 0.216294134060 s / 52.597260032°, 0.299192187771 s; ede-projection
+// 0.216294134063 s / 52.597260034°, 0.299192187767 s: differences ≤ 4.6e-10 s, 2.0e-7°.
+// Tolerances 1e-7 s, 1e-5° (≥ 50x margin).
+TEST(MdeEde, ChapterEventsAgreeWithDae) {
+  const Scene scene = ChapterScene();
+  const RunResult dae = RunWith(scene, "dae", Tight());
+  FormulationOptions ede_options = Tight();
+  ede_options.stabilization = "projection";
+  const std::map<std::string, RunResult> runs = {{"mde", RunWith(scene, "mde", Tight())},
+                                                 {"ede", RunWith(scene, "ede", ede_options)}};
+  for (const auto& [name, r] : runs) {
+    for (const char* event : {"liftoff_lateral", "flexion_90"}) {
+      const EventRecord* ref = FindEvent(dae, event);
+      const EventRecord* got = FindEvent(r, event);
+      ASSERT_NE(ref, nullptr) << event;
+      ASSERT_NE(got, nullptr) << name << " " << event;
+      std::printf("%s %s: t = %.12f s (dae %.12f), flexion = %.9f deg (dae %.9f)\n", name.c_str(), event,
+                  got->time, ref->time, got->flexion * 180.0 / M_PI, ref->flexion * 180.0 / M_PI);
+      EXPECT_NEAR(got->time, ref->time, 1.0e-7) << name << " " << event;
+      EXPECT_NEAR(got->flexion * 180.0 / M_PI, ref->flexion * 180.0 / M_PI, 1.0e-5) << name << " " << event;
+    }
+  }
+  // mde holds the constraints by construction: round-off only (measured 1e-16 m).
+  EXPECT_LT(runs.at("mde").max_position_residual, 1.0e-13);
+}
+
+// mde's forces come from its projected (minimal) dynamics, Gᵀ N = M ν̇ − Q; they must equal
+// the full constrained equations at the same state, and dae's N at the same output time.
+// Measured: vs SolveConstrainedAcceleration 1.5e-14 relative (59 rows); vs dae 8.9e-7
+// relative (59 rows). Tolerances 1e-8 and 1e-4.
+TEST(MdeEde, MdeForcesEqualFullEquations) {
+  const Scene scene = ChapterScene();
+  const RunResult mde = RunWith(scene, "mde", Tight());
+  const RunResult dae = RunWith(scene, "dae", Tight());
+  std::map<long, const MechanicalState*> dae_at;  // by output time in µs
+  for (size_t i = 0; i < dae.samples.size(); ++i) {
+    if (!dae.sample_is_event[i]) dae_at[std::lround(dae.samples[i].t * 1e6)] = &dae.samples[i];
+  }
+  int checked = 0, compared_with_dae = 0;
+  double worst_full = 0.0, worst_dae = 0.0;
+  for (size_t s = 1; s < mde.samples.size(); ++s) {
+    const MechanicalState& st = mde.samples[s];
+    if (st.active.empty() || mde.sample_is_event[s]) continue;
+    const ConstrainedAcceleration full =
+        SolveConstrainedAcceleration(scene.model, st.t, st.q, st.qd, st.active, {}, &st.ligament_branch);
+    for (size_t c = 0; c < st.active.size(); ++c) {
+      const double n = st.contact[st.active[c]].normal_force;
+      const double rel = std::abs(n - full.normal_force[c]) / std::max(1.0, std::abs(full.normal_force[c]));
+      worst_full = std::max(worst_full, rel);
+      EXPECT_LT(rel, 1.0e-8) << "t = " << st.t << " contact " << st.active[c];
+    }
+    EXPECT_LT((st.qdd - full.qdd).norm(), 1.0e-8 * std::max(1.0, full.qdd.norm())) << "t = " << st.t;
+    ++checked;
+    const auto it = dae_at.find(std::lround(st.t * 1e6));
+    if (it != dae_at.end() && it->second->active == st.active) {
+      for (int i : st.active) {
+        const double ref = it->second->contact[i].normal_force;
+        const double rel = std::abs(st.contact[i].normal_force - ref) / std::max(1.0, std::abs(ref));
+        worst_dae = std::max(worst_dae, rel);
+        EXPECT_LT(rel, 1.0e-4) << "t = " << st.t << " contact " << i;
+      }
+      ++compared_with_dae;
+    }
+  }
+  std::printf("mde N vs full equations: worst rel %.3e over %d rows; vs dae: %.3e over %d rows\n", worst_full,
+              checked, worst_dae, compared_with_dae);
+  EXPECT_GT(checked, 40);
+  EXPECT_GT(compared_with_dae, 40);
+}
+
+// EDE drift at a loose setting (rk4, h = 1 ms): without stabilization |φ| grows over the
+// run; projection keeps it at round-off. Measured: none 2.4e-10 m (first third of the
+// two-contact phase) vs 7.2e-10 m (last third); projection 7e-15 m over the run.
+TEST(MdeEde, EdeDriftWithoutStabilizationGrowsAndProjectionRemovesIt) {
+  const Scene scene = ChapterScene();
+  FormulationOptions o;
+  o.integrator = "rk4";
+  o.step = 1.0e-3;
+  const RunResult none = RunWith(scene, "ede", o);
+  o.stabilization = "projection";
+  const RunResult projected = RunWith(scene, "ede", o);
+  // Drift over the two-contact phase (before lift-off): max |φ| in the first and last thirds.
+  std::vector<double> drift;
+  for (const MechanicalState& s : none.samples) {
+    if (s.active.size() != 2) break;
+    std::vector<double> gap, rate;
+    ConstraintResiduals(scene.model, s, &gap, &rate);
+    drift.push_back(std::max(std::abs(gap[0]), std::abs(gap[1])));
+  }
+  ASSERT_GT(drift.size(), 30u);
+  const size_t third = drift.size() / 3;
+  const double early = *std::max_element(drift.begin(), drift.begin() + third);
+  const double late = *std::max_element(drift.end() - third, drift.end());
+  std::printf("ede rk4 1 ms: drift early %.3e m, late %.3e m, run max none %.3e m, projection %.3e m\n", early,
+              late, none.max_position_residual, projected.max_position_residual);
+  EXPECT_GT(late, 2.0 * early);
+  EXPECT_GT(none.max_position_residual, 100.0 * projected.max_position_residual);
+  EXPECT_GT(projected.stats.projections, 0);
+}
+
+// Convergence orders on an exact solution: no contacts, no ligaments, gravity on. The tibia
+// (I_xx = I_yy ≠ I_zz) is a torque-free symmetric top in free fall. Body-frame angular
+// velocity: w_z constant, (w_x, w_y) rotating at λ = (I_zz − I)/I · w_z:
+//   w_x = w0x cos λt − w0y sin λt,  w_y = w0x sin λt + w0y cos λt.
+// R0 = ½ g t² (RK4 integrates that quadratic exactly, so the measure is the w_T error,
+// which both methods integrate with a truncation error). Slopes from 4 step sizes.
+// Measured slopes: euler 1.000 (errors 5e-2 .. 6e-3 rad/s), rk4 4.009, 4.006, 4.002
+// (7e-9 .. 1.7e-12 rad/s, above round-off).
+Scene TopScene() {
+  const std::string yaml = R"(
+name: symmetric_top
+description: torque-free symmetric tibia in free fall (exact solution)
+parameter_set: ../chapter_knee.yaml
+ligaments: none
+contacts: []
+gravity: {enabled: true}
+pulse: {shape: none}
+initial_state: {pose: reference}
+end: {time_s: 0.2}
+)";
+  return ParseScene(yaml, "symmetric_top (inline)", ReferenceDataDir() + "/scenes");
+}
+
+double TopError(const Scene& scene, const std::string& formulation, const std::string& integrator, double h) {
+  const Model& model = scene.model;
+  const Vector3d w0(1.5, -1.0, 30.0);  // rad/s, T (precession λ ≈ −28 rad/s)
+  MechanicalState state;
+  state.q << 0.0, 0.0, 0.0, 0.0, M_PI / 2.0, 0.0;
+  Vector6d nu;
+  nu << 0.0, 0.0, 0.0, w0;
+  state.qd = CoordinateVelocity(state.q, nu);
+  FormulationOptions o;
+  o.integrator = integrator;
+  o.step = h;
+  std::unique_ptr<Formulation> f = CreateFormulation(formulation, scene, o);
+  f->Start(state, {});
+  const double t_end = 0.2;
+  const AdvanceResult r = f->Advance(t_end, &state);
+  EXPECT_EQ(r.status, AdvanceStatus::kReachedTime);
+  EXPECT_NEAR(state.t, t_end, 1e-14);
+  const double I = model.inertia_T(0);
+  EXPECT_DOUBLE_EQ(model.inertia_T(1), I);
+  const double lambda = (model.inertia_T(2) - I) / I * w0(2);
+  const double c = std::cos(lambda * t_end), s = std::sin(lambda * t_end);
+  const Vector3d w_exact(w0(0) * c - w0(1) * s, w0(0) * s + w0(1) * c, w0(2));
+  const Vector3d R0_exact = 0.5 * model.gravity_F * t_end * t_end;
+  const double w_error = (AngularVelocityT(state.q, state.qd) - w_exact).norm();
+  if (integrator == "rk4") EXPECT_LT((state.q.head<3>() - R0_exact).norm(), 1e-12);  // quadratic: exact
+  return w_error;
+}
+
+void ExpectOrder(const std::string& formulation, const std::string& integrator, std::vector<double> steps,
+                 double order) {
+  const Scene scene = TopScene();
+  std::vector<double> err;
+  for (double h : steps) err.push_back(TopError(scene, formulation, integrator, h));
+  for (size_t i = 1; i < steps.size(); ++i) {
+    const double slope = std::log(err[i - 1] / err[i]) / std::log(steps[i - 1] / steps[i]);
+    std::printf("%s %s: h %.2e err %.3e -> h %.2e err %.3e, slope %.3f\n", formulation.c_str(), integrator.c_str(),
+                steps[i - 1], err[i - 1], steps[i], err[i], slope);
+    EXPECT_NEAR(slope, order, 0.2) << formulation << " " << integrator << " h = " << steps[i];
+  }
+}
+
+TEST(MdeEde, EulerIsFirstOrderOnExactSolution) {
+  ExpectOrder("ede", "euler", {2e-3, 1e-3, 5e-4, 2.5e-4}, 1.0);
+  ExpectOrder("mde", "euler", {2e-3, 1e-3, 5e-4, 2.5e-4}, 1.0);
+}
+
+TEST(MdeEde, Rk4IsFourthOrderOnExactSolution) {
+  ExpectOrder("ede", "rk4", {1e-2, 5e-3, 2.5e-3, 1.25e-3}, 4.0);
+  ExpectOrder("mde", "rk4", {1e-2, 5e-3, 2.5e-3, 1.25e-3}, 4.0);
+}
+
+// Output times that are not multiples of H end on a step boundary (shortened last step).
+TEST(MdeEde, FixedStepHitsOutputTimesExactly) {
+  const Scene scene = TopScene();
+  MechanicalState state;
+  state.q << 0.0, 0.0, 0.0, 0.0, M_PI / 2.0, 0.0;
+  FormulationOptions o;
+  o.integrator = "rk4";
+  o.step = 3.0e-3;
+  std::unique_ptr<Formulation> f = CreateFormulation("ede", scene, o);
+  f->Start(state, {});
+  for (double t : {0.005, 0.0101, 0.02}) {
+    f->Advance(t, &state);
+    EXPECT_DOUBLE_EQ(state.t, t);
+    // Free fall from rest: RK4 is exact for the quadratic R0(t) at every step boundary.
+    EXPECT_NEAR((state.q.head<3>() - 0.5 * scene.model.gravity_F * t * t).norm(), 0.0, 1e-14);
+  }
+}
+
+TEST(MdeEde, RejectsBadIntegratorOptions) {
+  const Scene scene = ChapterScene();
+  FormulationOptions o;
+  o.integrator = "dopri5";
+  o.step = 1e-3;
+  EXPECT_THROW(CreateFormulation("mde", scene, o), InputError);
+  o = FormulationOptions();
+  o.stabilization = "projection";
+  EXPECT_THROW(CreateFormulation("mde", scene, o), InputError);
+  o = FormulationOptions();
+  o.integrator = "rk5";
+  EXPECT_THROW(CreateFormulation("ede", scene, o), InputError);
+}
+
+}  // namespace
+}  // namespace kneedyn
