@@ -9,6 +9,7 @@
 
 #include "solver/constrained_dynamics.hpp"
 #include "solver/error.hpp"
+#include "solver/units.hpp"
 
 namespace kneedyn {
 
@@ -48,6 +49,29 @@ void ApplyPlasticImpact(const Model& model, MechanicalState* state) {
   state->qd = CoordinateVelocity(state->q, nu + x.head<6>());
 }
 
+// The femoral surfaces are height fields over a footprint (for the chapter, the lower
+// half of each sphere). Closed-form formulations would carry a contact past the rim
+// silently; the chapter form cannot. Both stop there: the model is not defined beyond.
+void CheckContactsOnSurfaces(const Model& model, const MechanicalState& s) {
+  const Pose pose = PoseFromCoordinates(s.q);
+  for (int i : s.active) {
+    const ContactPair& pair = model.contacts[i];
+    double x = s.contact[i].coordinates[0], y = s.contact[i].coordinates[1];
+    if (pair.sphere_on_plane) {
+      const ContactGeometry g = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+      x = g.point_F.x();
+      y = g.point_F.y();
+    }
+    HeightSample sample;
+    if (!pair.femoral_surface->Evaluate(x, y, &sample)) {
+      Throw<SolverError>("RunScene", "the ", CompartmentName(pair.compartment),
+                         " contact point left the femoral surface (", pair.femoral_surface->Describe(),
+                         ") at t = ", s.t, " s, flexion = ", s.q(kAlpha) * 180.0 / kPi,
+                         " deg: the model is not defined beyond its rim");
+    }
+  }
+}
+
 }  // namespace
 
 RunResult RunScene(const Scene& scene, const RunSettings& settings) {
@@ -68,6 +92,7 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
   MechanicalState state = ConsistentInitialize(scene, active, init_options, &result.init);
 
   auto record = [&](const MechanicalState& s, bool is_event) {
+    CheckContactsOnSurfaces(model, s);
     result.samples.push_back(s);
     result.sample_is_event.push_back(is_event);
     std::vector<double> gap, rate;
