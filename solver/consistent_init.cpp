@@ -13,18 +13,26 @@ namespace {
 
 constexpr int kStride = 4;  // Jet size used by DynamicAutoDiffCostFunction passes
 
-// Position level, chapter form: unknowns = free coordinates + 4 per active contact.
-struct ChapterPositionResidual {
+// Position level: the pose with the free coordinates taken from the unknowns x[0].
+struct PositionUnknowns {
   const Model* model;
   Vector6d q_fixed;
   std::vector<int> free;    // coordinate indices
   std::vector<int> active;  // contact indices
 
   template <typename T>
-  bool operator()(T const* const* x, T* r) const {
+  PoseTpl<T> PoseOf(T const* x) const {
     Vector6<T> q = q_fixed.cast<T>();
-    for (size_t i = 0; i < free.size(); ++i) q(free[i]) = x[0][i];
-    const PoseTpl<T> pose = PoseFromCoordinates(q);
+    for (size_t i = 0; i < free.size(); ++i) q(free[i]) = x[i];
+    return PoseFromCoordinates(q);
+  }
+};
+
+// Chapter form: unknowns = free coordinates + 4 per active contact; 5 residuals each.
+struct ChapterPositionResidual : PositionUnknowns {
+  template <typename T>
+  bool operator()(T const* const* x, T* r) const {
+    const PoseTpl<T> pose = PoseOf(x[0]);
     for (size_t k = 0; k < active.size(); ++k) {
       const T* c = x[0] + free.size() + 4 * k;
       if (!ChapterContactResiduals(model->contacts[active[k]], pose, c, r + 5 * k)) return false;
@@ -33,18 +41,11 @@ struct ChapterPositionResidual {
   }
 };
 
-// Position level, closed form: unknowns = free coordinates; residual φ_i per contact.
-struct ClosedPositionResidual {
-  const Model* model;
-  Vector6d q_fixed;
-  std::vector<int> free;
-  std::vector<int> active;
-
+// Closed form: unknowns = free coordinates; residual φ_i per contact.
+struct ClosedPositionResidual : PositionUnknowns {
   template <typename T>
   bool operator()(T const* const* x, T* r) const {
-    Vector6<T> q = q_fixed.cast<T>();
-    for (size_t i = 0; i < free.size(); ++i) q(free[i]) = x[0][i];
-    const PoseTpl<T> pose = PoseFromCoordinates(q);
+    const PoseTpl<T> pose = PoseOf(x[0]);
     for (size_t k = 0; k < active.size(); ++k) {
       r[k] = SphereOnPlaneContact(*model->contacts[active[k]].sphere_on_plane, pose).gap;
     }
@@ -239,7 +240,7 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
   const int k = static_cast<int>(active.size());
   if (k > 0) {
     if (options.form == ContactForm::kChapter) {
-      auto* f = new ChapterPositionResidual{&model, state.q, free, active};
+      auto* f = new ChapterPositionResidual{{&model, state.q, free, active}};
       std::unique_ptr<ChapterPositionResidual> owner(f);
       std::vector<double> x;
       for (int i : free) x.push_back(state.q(i));
@@ -254,7 +255,7 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
       }
     } else {
       for (int c : active) RequireSphereOnPlane(model.contacts[c], "ConsistentInitialize");
-      auto* f = new ClosedPositionResidual{&model, state.q, free, active};
+      auto* f = new ClosedPositionResidual{{&model, state.q, free, active}};
       std::unique_ptr<ClosedPositionResidual> owner(f);
       std::vector<double> x;
       for (int i : free) x.push_back(state.q(i));
