@@ -26,7 +26,7 @@ std::string Num(double v) {
 }  // namespace
 
 bool IsFixedStep(const std::string& formulation, const std::string& integrator) {
-  return integrator == "euler" || integrator == "rk4" || formulation.rfind("newmark", 0) == 0;
+  return IsFixedStep(FindFormulation(formulation), integrator);
 }
 
 std::string BenchConfig::Name() const {
@@ -41,7 +41,7 @@ nlohmann::json BenchConfig::SettingJson() const {
   nlohmann::json j;
   if (fixed_step) {
     j["step"] = step;
-    if (formulation.rfind("newmark", 0) == 0) {
+    if (FindFormulation(formulation).fixed_step) {  // tolerances drive its Newton test
       j["newton_rtol"] = rtol;
       j["newton_atol"] = atol;
     }

@@ -51,6 +51,10 @@ bool FormulationOptions::IsValid(std::string* error) const {
   return true;
 }
 
+bool IsFixedStep(const FormulationInfo& info, const std::string& integrator) {
+  return info.fixed_step || integrator == "euler" || integrator == "rk4";
+}
+
 const FormulationInfo& FindFormulation(const std::string& name) {
   std::string known;
   for (const FormulationInfo& info : RegisteredFormulations()) {

@@ -88,7 +88,16 @@ struct FormulationInfo {
   std::string summary;
   std::vector<std::string> integrators;  // values --integrator accepts; empty: none
   FormulationFactory create;
+  bool fixed_step = false;  // steps only with --step (its tolerances drive a Newton test)
 };
+
+// Step a fixed-step method takes when --step is 0 (s).
+constexpr double kDefaultFixedStep = 1.0e-4;
+
+// Whether (formulation, integrator) advances with a fixed --step rather than error control:
+// a fixed-step formulation, or the fixed-step integrators euler and rk4. Drivers (tests,
+// catalog, benchmarks) use it to choose a step grid or a tolerance grid.
+bool IsFixedStep(const FormulationInfo& info, const std::string& integrator);
 
 // The registry (registry.cpp), in a stable order.
 const std::vector<FormulationInfo>& RegisteredFormulations();

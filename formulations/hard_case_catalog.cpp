@@ -79,14 +79,14 @@ const std::vector<CaseSpec>& Cases() {
   return kCases;
 }
 
-bool IsFixedStep(const std::string& name) { return name.rfind("newmark", 0) == 0; }
+bool IsFixedStep(const std::string& name) { return IsFixedStep(FindFormulation(name), ""); }
 
 RunSettings DefaultSettings(const std::string& formulation, const CaseSpec& c) {
   RunSettings s;
   s.formulation = formulation;
   s.options.rtol = 1.0e-8;
   s.options.atol = 1.0e-10;
-  if (IsFixedStep(formulation)) s.options.step = 1.0e-4;
+  if (IsFixedStep(formulation)) s.options.step = kDefaultFixedStep;
   if (!c.constraint_level.empty()) s.options.constraint_level = c.constraint_level;
   return s;
 }

@@ -7,8 +7,11 @@
 //   one-point  s = (x0, y0, α, β, γ): z0 from φ = 0;
 //   none       s = q.
 // (The eliminated pair/component is the one with the best-conditioned solve at the phase
-// start, x0, z0 resp. z0 at the chapter's start poses; at output times the chart is
-// switched — integrator restart — when another choice is better conditioned by 2x.)
+// start, x0, z0 resp. z0 at the chapter's start poses; after every accepted step the chart
+// is switched — integrator restart — when another choice is better conditioned by 2x. A
+// chart that lost a factor kMaxChartDegradation within one step is refused with a
+// SolverError: the elimination would silently return garbage, e.g. z0 of a one-point
+// contact as its normal turns horizontal near 90° flexion.)
 // Velocities by the chain rule: φ̇ = J q̇ = 0 with J = ∂φ/∂q = G B (contact.hpp, pose.hpp)
 // gives q̇ = P ṡ, P = [I; −J_D⁻¹ J_F] (D eliminated, F free columns).
 // Accelerations without second derivatives of the elimination: φ̈ = G ν̇ + κ = 0 with
@@ -28,12 +31,16 @@
 #include "formulations/ode_integrator.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
+#include "solver/units.hpp"
 
 namespace kneedyn {
 namespace {
 
 // |det| of the elimination solve below which the pose is treated as degenerate.
 constexpr double kMinEliminationDeterminant = 1.0e-8;
+// Largest loss of conditioning of the chart in use, best |det| / its |det|, tolerated
+// inside a step (charts are switched at 2x after each step).
+constexpr double kMaxChartDegradation = 1.0e3;
 
 struct MdeKinematics {
   Vector6d q, qd, qdd;
@@ -59,6 +66,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     state_contact_ = state.contact;
     ligament_branch_ = state.ligament_branch;
     elim_.clear();
+    phase_steps_ = 0;
     ChooseEliminated(state.q);
     StartIntegrator(state);
   }
@@ -79,21 +87,18 @@ class MdeFormulation final : public Formulation, public OdeProblem {
 
   AdvanceResult Advance(double t_out, MechanicalState* state) override {
     std::vector<int> found;
-    const bool root = integrator_.Evolve(t_out, false, &t_, &y_, &found);
-    const MdeKinematics kin = Evaluate(t_, y_.data(), nullptr);
-    if (!root && !active_.empty()) {
-      // Chart switch: when the eliminated translations become ill-conditioned (e.g. z0 of
-      // a one-point contact as flexion approaches 90°), restart with a better pair.
-      const std::vector<int> before = elim_;
-      ChooseEliminated(kin.q);
-      if (elim_ != before) {
-        MechanicalState at;
-        at.t = t_;
-        at.q = kin.q;
-        at.qd = kin.qd;
-        StartIntegrator(at);
+    bool root = false;
+    do {
+      // One step at a time: the chart is checked after every step, not only at output
+      // times (whose spacing must not change the physics).
+      root = integrator_.Evolve(t_out, true, &t_, &y_, &found);
+      if (++phase_steps_ > options_.max_steps) {  // the budget ARKODE applies per call only
+        Throw<SolverError>("MdeFormulation::Advance", "more than --max-steps = ", options_.max_steps,
+                           " steps in this contact phase at t = ", t_, " s");
       }
-    }
+      if (!root && !active_.empty()) SwitchChartIfBetter();
+    } while (!root && t_ < t_out);
+    const MdeKinematics kin = Evaluate(t_, y_.data(), nullptr);
     state->t = t_;
     state->q = kin.q;
     state->qd = kin.qd;
@@ -133,27 +138,71 @@ class MdeFormulation final : public Formulation, public OdeProblem {
   }
 
  private:
-  // Picks the k translations to eliminate: the best-conditioned k×k block of the normals.
-  void ChooseEliminated(const Vector6d& q) {
+  // After an accepted step: restart in a better chart when the one in use lost a factor 2.
+  void SwitchChartIfBetter() {
+    const std::vector<int> before = elim_;
+    Vector6d q_angles = Vector6d::Zero();  // the angles are always free coordinates
+    for (size_t j = 0; j < free_.size(); ++j) q_angles(free_[j]) = y_(j);
+    ChooseEliminated(q_angles);
+    if (elim_ == before) return;
+    // The new chart's state from the full q, q̇ of the old one (exact: same point).
+    std::vector<int> after = elim_;
+    elim_ = before;
+    SetFree();
+    const MdeKinematics kin = Evaluate(t_, y_.data(), nullptr);
+    elim_ = after;
+    SetFree();
+    MechanicalState at;
+    at.t = t_;
+    at.q = kin.q;
+    at.qd = kin.qd;
+    StartIntegrator(at);
+  }
+
+  void SetFree() {
+    free_.clear();
+    for (int i = 0; i < 6; ++i) {
+      if (std::find(elim_.begin(), elim_.end(), i) == elim_.end()) free_.push_back(i);
+    }
+  }
+
+  // Candidate eliminated sets for k active contacts, in the documented order.
+  static const std::vector<std::vector<int>>& Candidates(int k) {
+    static const std::vector<std::vector<int>> kNone = {{}};
+    static const std::vector<std::vector<int>> kOne = {{kZ0}, {kX0}, {kY0}};
+    static const std::vector<std::vector<int>> kTwo = {{kX0, kZ0}, {kY0, kZ0}, {kX0, kY0}};
+    return k == 0 ? kNone : k == 1 ? kOne : kTwo;
+  }
+
+  // |det| of the elimination block of `cand` for the normals n_i = R n̂′_i (rows).
+  static double BlockDeterminant(const MatrixXd& normals, const std::vector<int>& cand) {
+    const int k = static_cast<int>(cand.size());
+    if (k == 0) return 1.0;
+    MatrixXd block(k, k);
+    for (int c = 0; c < k; ++c) block.col(c) = normals.col(cand[c]);
+    return std::abs(block.determinant());
+  }
+
+  MatrixXd RotatedNormals(const Matrix3d& R) const {
     const int k = static_cast<int>(active_.size());
-    if (k > 2) Throw<SolverError>("MdeFormulation::Start", k, " active contacts; at most 2 supported");
-    const Matrix3d R = RotationFT(q(kAlpha), q(kBeta), q(kGamma));
     MatrixXd normals(k, 3);
     for (int r = 0; r < k; ++r) {
       normals.row(r) = (R * model_.contacts[active_[r]].sphere_on_plane->normal_T).transpose();
     }
+    return normals;
+  }
+
+  // Picks the k translations to eliminate: the best-conditioned k×k block of the normals.
+  void ChooseEliminated(const Vector6d& q) {
+    const int k = static_cast<int>(active_.size());
+    if (k > 2) Throw<SolverError>("MdeFormulation::Start", k, " active contacts; at most 2 supported");
+    const MatrixXd normals = RotatedNormals(RotationFT(q(kAlpha), q(kBeta), q(kGamma)));
     const std::vector<int> current = elim_;
     double current_det = -1.0;
     elim_.clear();
     double best = -1.0;
-    const std::vector<std::vector<int>> candidates =
-        k == 0 ? std::vector<std::vector<int>>{{}}
-        : k == 1 ? std::vector<std::vector<int>>{{kZ0}, {kX0}, {kY0}}
-                 : std::vector<std::vector<int>>{{kX0, kZ0}, {kY0, kZ0}, {kX0, kY0}};
-    for (const std::vector<int>& cand : candidates) {
-      MatrixXd block(k, k);
-      for (int c = 0; c < k; ++c) block.col(c) = normals.col(cand[c]);
-      const double det = k == 0 ? 1.0 : std::abs(block.determinant());
+    for (const std::vector<int>& cand : Candidates(k)) {
+      const double det = BlockDeterminant(normals, cand);
       if (cand == current) current_det = det;
       if (det > best * 1.5) {  // keep the documented order unless clearly worse
         best = det;
@@ -168,10 +217,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     if (best < kMinEliminationDeterminant) {
       Throw<SolverError>("MdeFormulation::Start", "contact normals are (nearly) dependent: |det| = ", best);
     }
-    free_.clear();
-    for (int i = 0; i < 6; ++i) {
-      if (std::find(elim_.begin(), elim_.end(), i) == elim_.end()) free_.push_back(i);
-    }
+    SetFree();
   }
 
   // q from s (closed-form elimination); qd = P ṡ; s̈ (if sdd) and q̈, N.
@@ -183,6 +229,17 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     for (int j = 0; j < m; ++j) kin.q(free_[j]) = y[j];
     const Matrix3d R = RotationFT(kin.q(kAlpha), kin.q(kBeta), kin.q(kGamma));
     if (k > 0) {
+      // The chart in use must still be usable here (see kMaxChartDegradation).
+      const MatrixXd normals = RotatedNormals(R);
+      double best = 0.0;
+      for (const std::vector<int>& cand : Candidates(k)) best = std::max(best, BlockDeterminant(normals, cand));
+      const double det = BlockDeterminant(normals, elim_);
+      if (!(det * kMaxChartDegradation >= best)) {
+        Throw<SolverError>("MdeFormulation::Evaluate", "the eliminated coordinates became ill-conditioned within one step at t = ", t,
+                           " s, flexion = ", RadToDeg(kin.q(kAlpha)), " deg: |det| = ", det,
+                           " of the eliminated block vs ", best, " of the best one (rule: within a factor ",
+                           kMaxChartDegradation, "; reduce --rtol or --max-step)");
+      }
       // n_i · R0 = n_i · C_i − d_i − r_i, solved for the eliminated components.
       MatrixXd ND(k, k);
       VectorXd rhs(k);
@@ -270,6 +327,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
   std::vector<int> active_;
   std::vector<int> free_;  // indices into q of s, ascending
   std::vector<int> elim_;  // eliminated translations (one per active contact)
+  long phase_steps_ = 0;   // steps since Start (the --max-steps budget is per phase)
   std::vector<EventSpec> events_;
   std::vector<ContactGuess> state_contact_;
   std::vector<signed char> ligament_branch_;

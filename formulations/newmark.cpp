@@ -21,7 +21,8 @@
 // N is a multiplier whose Newton update carries O(ε M/h²) round-off, so it is also
 // accepted once the q and c updates are below 1e-3 of their tolerance. At most 20
 // iterations; on failure the step is halved (at most 20 times below the nominal step,
-// then SolverError with t and h) and regrows by doubling after each accepted step.
+// then SolverError with t, h and the distinct reasons of the failed solves, e.g. the JCS
+// singularity thrown by solver/rotation.hpp) and regrows by doubling after each accepted step.
 //
 // Events (solver/events.hpp) are evaluated after each accepted step; N is an unknown, so
 // lift-off uses it directly. A sign change (respecting EventSpec::direction) is located on
@@ -37,6 +38,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "formulations/formulation.hpp"
@@ -46,7 +48,6 @@
 namespace kneedyn {
 namespace {
 
-constexpr double kDefaultStep = 1.0e-4;           // s, when --step is 0
 constexpr int kMaxNewtonIterations = 20;
 constexpr int kMaxHalvings = 20;                  // below the nominal step
 constexpr double kForceAtolScale = 1.0e4;         // N per unit --atol (as dae.cpp)
@@ -79,7 +80,7 @@ class NewmarkFormulation final : public Formulation {
       Throw<InputError>("NewmarkFormulation", "--max-step = ", options.max_step, " s: ", name,
                         " takes fixed steps; use --step");
     }
-    step_ = options.step > 0.0 ? options.step : kDefaultStep;
+    step_ = options.step > 0.0 ? options.step : kDefaultFixedStep;
     if (step_ > scene.end.time) {
       Throw<InputError>("NewmarkFormulation", "--step = ", step_, " s exceeds the scene's end time ",
                         scene.end.time, " s");
@@ -211,8 +212,10 @@ class NewmarkFormulation final : public Formulation {
       bool ok = false;
       try {
         ok = StepResidual(from, h, xj.data(), Fj.data());
-      } catch (const SolverError&) {
-        ok = false;  // e.g. the JCS singularity at a Newton iterate
+        if (!ok) NoteFailure("a contact surface evaluated outside its domain");
+      } catch (const SolverError& e) {
+        ok = false;  // e.g. the JCS singularity at a Newton iterate: kept for the final error
+        NoteFailure(e.what());
       }
       ++stats_.residual_evaluations;  // one Jet pass gives F and ∂F/∂x
       ++stats_.jacobian_evaluations;
@@ -221,17 +224,17 @@ class NewmarkFormulation final : public Formulation {
         F(r) = Fj[r].a;
         for (int c = 0; c < n_; ++c) J(r, c) = Fj[r].v[c];
       }
-      if (!F.allFinite() || !J.allFinite()) return false;
+      if (!F.allFinite() || !J.allFinite()) return NoteFailure("non-finite residual or tangent");
       // Column equilibration: the force columns are h²/4 G; solve for (h²/4) ΔN instead.
       for (int c = first_force; c < n_; ++c) J.col(c) *= 4.0 / (h * h);
       const Eigen::FullPivLU<MatrixXd> lu(J);
       ++stats_.linear_solver_setups;
       ++stats_.nonlinear_iterations;
-      if (!lu.isInvertible()) return false;
+      if (!lu.isInvertible()) return NoteFailure("singular tangent matrix");
       VectorXd dx = lu.solve(-F);
       dx.tail(n_ - first_force) *= 4.0 / (h * h);
       x += dx;
-      if (!x.allFinite()) return false;
+      if (!x.allFinite()) return NoteFailure("non-finite Newton iterate");
       double norm_positions = 0.0, norm_forces = 0.0;
       for (int i = 0; i < n_; ++i) {
         const bool force = i >= first_force;
@@ -250,19 +253,41 @@ class NewmarkFormulation final : public Formulation {
         return true;
       }
     }
+    return NoteFailure(StrCat("no convergence in ", kMaxNewtonIterations, " iterations"));
+  }
+
+  // Records why a Newton solve failed, for the error after the last halving: one entry per
+  // kind (the text before its first " = ", so values do not split a kind), with its last
+  // text and a count, in order of first occurrence. Returns false.
+  bool NoteFailure(const std::string& reason) {
+    const std::string kind = reason.substr(0, reason.find(" = "));
+    for (FailureReason& f : failure_reasons_) {
+      if (f.kind == kind) {
+        f.text = reason;
+        ++f.count;
+        return false;
+      }
+    }
+    failure_reasons_.push_back({kind, reason, 1});
     return false;
   }
 
   // Takes one step from `from`, halving h on Newton failure; returns the step taken.
   double StepWithHalving(const StepState& from, double h, StepState* to) {
+    failure_reasons_.clear();
     for (;;) {
       if (SolveStep(from, h, to)) return h;
       ++stats_.convergence_failures;
       if (h <= 1.000001 * step_ * std::ldexp(1.0, -kMaxHalvings)) {
+        // The underlying reasons (e.g. the JCS singularity thrown by the rotation map).
+        std::string reasons;
+        for (const FailureReason& f : failure_reasons_) {
+          reasons += StrCat(reasons.empty() ? "" : "; ", f.text, " [", f.count, f.count == 1 ? " attempt]" : " attempts]");
+        }
         Throw<SolverError>("NewmarkFormulation::Step", "Newton–Raphson did not converge in ",
                            kMaxNewtonIterations, " iterations at t = ", from.t, " s with step h = ", h,
                            " s after ", kMaxHalvings, " halvings below the nominal step ", step_,
-                           " s (rtol = ", options_.rtol, ", atol = ", options_.atol, ")");
+                           " s (rtol = ", options_.rtol, ", atol = ", options_.atol, "); failures: ", reasons);
       }
       h *= 0.5;
       ++stats_.step_halvings;
@@ -375,8 +400,8 @@ class NewmarkFormulation final : public Formulation {
   const Model& model_;
   FormulationOptions options_;
   ContactForm form_;
-  double step_ = kDefaultStep;  // s, nominal
-  double h_ = kDefaultStep;     // s, next step to try
+  double step_ = kDefaultFixedStep;  // s, nominal
+  double h_ = kDefaultFixedStep;     // s, next step to try
   int n_ = 6;
   int per_contact_ = 4;
   long phase_steps_ = 0;
@@ -387,6 +412,11 @@ class NewmarkFormulation final : public Formulation {
   StepState current_;
   std::vector<double> g_current_;
   SolverStats stats_;
+  struct FailureReason {
+    std::string kind, text;
+    int count = 0;
+  };
+  std::vector<FailureReason> failure_reasons_;  // this step's failed Newton solves
 };
 
 }  // namespace

@@ -14,8 +14,8 @@ const std::vector<FormulationInfo>& RegisteredFormulations() {
   static const std::vector<FormulationInfo> kRegistry = {
       {"dae", "chapter's index-2 DAE (modified reverse EDE), contact coordinates, IDA", {}, CreateDae},
       {"dae-reduced", "index-2 DAE with closed-form sphere-on-plane contact, IDA", {}, CreateDaeReduced},
-      {"newmark", "chapter's reverse EDE: Newmark average acceleration, position-level contact coordinates, Newton", {}, CreateNewmark},
-      {"newmark-reduced", "reverse EDE with closed-form sphere-on-plane gap, Newmark average acceleration", {}, CreateNewmarkReduced},
+      {"newmark", "chapter's reverse EDE: Newmark average acceleration, position-level contact coordinates, Newton", {}, CreateNewmark, /*fixed_step=*/true},
+      {"newmark-reduced", "reverse EDE with closed-form sphere-on-plane gap, Newmark average acceleration", {}, CreateNewmarkReduced, /*fixed_step=*/true},
       {"mde", "minimal ODE: closed-form elimination of the contact translations, projected Newton-Euler", {"euler", "rk4", "dopri5", "verner65", "fehlberg78", "cvode-bdf", "cvode-adams"}, CreateMde},
       {"ede", "excess ODE in (q, qdot) with the hidden constraint; --stabilization none|baumgarte|projection", {"euler", "rk4", "dopri5", "verner65", "fehlberg78", "cvode-bdf", "cvode-adams"}, CreateEde},
   };

@@ -37,14 +37,13 @@ std::string EventList(const RunResult& r) {
   return s;
 }
 
-bool StartsWith(const std::string& s, const std::string& prefix) { return s.rfind(prefix, 0) == 0; }
 
 // Default settings that make sense for each kind of formulation.
 RunSettings SettingsFor(const std::string& name) {
   RunSettings settings;
   settings.formulation = name;
-  if (StartsWith(name, "newmark")) {
-    settings.options.step = 1e-4;
+  if (IsFixedStep(FindFormulation(name), "")) {
+    settings.options.step = kDefaultFixedStep;
   } else if (name == "mde" || name == "ede") {
     settings.options.rtol = 1e-8;  // default (adaptive) integrator
   } else {

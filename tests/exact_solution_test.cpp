@@ -42,7 +42,7 @@
 namespace kneedyn {
 namespace {
 
-bool IsFixedStep(const std::string& name) { return name.rfind("newmark", 0) == 0; }
+bool IsFixedStep(const std::string& name) { return IsFixedStep(FindFormulation(name), ""); }
 
 // Sensible options per formulation: fixed-step methods get h = 1e-4 s, adaptive ones
 // (dae*, mde, ede with their default integrator) tight tolerances.
@@ -51,7 +51,7 @@ RunSettings SettingsFor(const std::string& name) {
   s.formulation = name;
   s.options.rtol = 1.0e-10;
   s.options.atol = 1.0e-12;
-  if (IsFixedStep(name)) s.options.step = 1.0e-4;
+  if (IsFixedStep(name)) s.options.step = kDefaultFixedStep;
   return s;
 }
 

@@ -10,6 +10,7 @@
 
 #include "formulations/run.hpp"
 #include "solver/constrained_dynamics.hpp"
+#include "solver/dynamics.hpp"
 #include "solver/scene.hpp"
 
 namespace kneedyn {
@@ -230,6 +231,66 @@ TEST(MdeEde, FixedStepHitsOutputTimesExactly) {
     EXPECT_DOUBLE_EQ(state.t, t);
     // Free fall from rest: RK4 is exact for the quadratic R0(t) at every step boundary.
     EXPECT_NEAR((state.q.head<3>() - 0.5 * scene.model.gravity_F * t * t).norm(), 0.0, 1e-14);
+  }
+}
+
+// Hard case long_conservative_contact (C¹ law, gravity, both contacts, no pulse) up to just
+// before the first re-contact (0.3266 s): conservative (workless contacts, lift-off at
+// 0.218 s without impact), and the medial one-point phase passes 90° flexion, where z0 can
+// no longer be eliminated (n_z → 0). One output interval over the whole run: mde must
+// switch charts inside it, not only at output times. Checks: energy conserved, and the
+// end state equal to ede's (second formulation). Old code (chart switched at outputs
+// only) ended far off with energy drift of order 1e2 J. Measured after the fix: drift
+// ~2e-8 J, |Δα| vs ede ~1e-7°; tolerances 1e-5 J, 1e-4°.
+TEST(MdeEde, MdeSwitchesChartsInsideAnOutputInterval) {
+  Scene scene = LoadScene(ReferenceDataDir() + "/scenes/hard/long_conservative_contact.yaml");
+  scene.end.time = 0.32;
+  FormulationOptions o;
+  o.rtol = 1.0e-8;
+  o.atol = 1.0e-10;
+  std::map<std::string, RunResult> runs;
+  for (const char* name : {"mde", "ede"}) {
+    for (double interval : {0.32, 0.01}) {
+      scene.output_interval = interval;
+      const std::string key = std::string(name) + (interval > 0.1 ? "_coarse" : "_fine");
+      runs.emplace(key, RunWith(scene, name, o));
+    }
+  }
+  for (const auto& [key, r] : runs) {
+    ASSERT_FALSE(r.samples.empty()) << key;
+    ASSERT_NE(FindEvent(r, "liftoff_lateral"), nullptr) << key;
+    EXPECT_NEAR(r.samples.back().t, 0.32, 1e-12) << key;
+    const double e0 = MechanicalEnergy(scene.model, r.samples.front().q, r.samples.front().qd);
+    double drift = 0.0;
+    for (const MechanicalState& s : r.samples) {
+      drift = std::max(drift, std::abs(MechanicalEnergy(scene.model, s.q, s.qd) - e0));
+    }
+    const double da = std::abs(r.samples.back().q(kAlpha) - runs.at("ede_fine").samples.back().q(kAlpha));
+    std::printf("%s: end flexion %.9f deg, energy drift %.3e J, |dalpha| vs ede %.3e deg\n", key.c_str(),
+                r.samples.back().q(kAlpha) * 180.0 / M_PI, drift, da * 180.0 / M_PI);
+    EXPECT_LT(drift, 1.0e-5) << key;
+    EXPECT_LT(da * 180.0 / M_PI, 1.0e-4) << key;
+  }
+  // Passed 90° in the one-point phase (so the z0 chart had to be left).
+  EXPECT_GT(runs.at("mde_coarse").samples.back().q(kAlpha), M_PI / 2.0);
+}
+
+// The same run twice gives bit-identical results (no uninitialized or stale state).
+TEST(MdeEde, MdeIsDeterministic) {
+  Scene scene = LoadScene(ReferenceDataDir() + "/scenes/hard/long_conservative_contact.yaml");
+  scene.end.time = 0.5;
+  scene.output_interval = 0.05;
+  FormulationOptions o;
+  o.rtol = 1.0e-8;
+  o.atol = 1.0e-10;
+  const RunResult a = RunWith(scene, "mde", o), b = RunWith(scene, "mde", o);
+  ASSERT_EQ(a.samples.size(), b.samples.size());
+  for (size_t i = 0; i < a.samples.size(); ++i) {
+    EXPECT_EQ(a.samples[i].t, b.samples[i].t) << i;
+    for (int j = 0; j < 6; ++j) {
+      EXPECT_EQ(a.samples[i].q(j), b.samples[i].q(j)) << i << " " << j;
+      EXPECT_EQ(a.samples[i].qd(j), b.samples[i].qd(j)) << i << " " << j;
+    }
   }
 }
 

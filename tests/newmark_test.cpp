@@ -142,6 +142,29 @@ TEST(Newmark, NewtonFailureHalvesThenReportsTandH) {
   EXPECT_EQ(r.stats.step_halvings, 20);
   EXPECT_NE(r.failure.find("t = "), std::string::npos) << r.failure;
   EXPECT_NE(r.failure.find("step h = "), std::string::npos) << r.failure;
+  EXPECT_NE(r.failure.find("no convergence in 20 iterations"), std::string::npos) << r.failure;
+}
+
+// Near the JCS singularity every Newton solve throws the rotation map's SolverError; the
+// final error must carry that reason, not only "did not converge after 20 halvings".
+// jcs_crossing's exact motion is β(t) = 1° − 1 rad/s · t, so |sin β| < 1e-3 (the
+// threshold of solver/rotation.hpp) from t* = (1° − asin 1e-3) / (1 rad/s) = 0.016453 s;
+// jcs_near_pass adds α̇ = 0.2 rad/s and reaches it at about the same time.
+TEST(Newmark, JcsSingularityFailureNamesTheReason) {
+  const double t_star = (1.0 * M_PI / 180.0 - std::asin(1.0e-3)) / 1.0;
+  for (const char* case_name : {"jcs_crossing", "jcs_near_pass"}) {
+    const Scene scene = LoadScene(ReferenceDataDir() + "/scenes/hard/" + case_name + ".yaml");
+    for (const char* name : {"newmark", "newmark-reduced"}) {
+      const RunResult r = RunWith(scene, name, 1e-4, 1e-6, 1e-8);
+      EXPECT_FALSE(r.completed) << case_name << " " << name;
+      EXPECT_NE(r.failure.find("halvings"), std::string::npos) << r.failure;
+      EXPECT_NE(r.failure.find("JCS singularity"), std::string::npos) << case_name << " " << name << ": " << r.failure;
+      ASSERT_FALSE(r.samples.empty());
+      // It got as far as the last output before t*, and not past t*.
+      EXPECT_GE(r.samples.back().t, t_star - scene.output_interval) << case_name << " " << name;
+      EXPECT_LT(r.samples.back().t, t_star + 1e-4) << case_name << " " << name;
+    }
+  }
 }
 
 TEST(Newmark, RejectsOptionsItDoesNotUse) {
