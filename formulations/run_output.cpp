@@ -44,6 +44,8 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
   for (const Ligament& lig : model.ligaments) cols.push_back("F_" + ColumnSafeName(lig.name) + "_N");
   for (const char* c : comps) cols.push_back(StrCat("gap_", c, "_mm"));
   for (const char* c : comps) cols.push_back(StrCat("gap_rate_", c, "_mm_s"));
+  for (const Ligament& lig : model.ligaments) cols.push_back("L_" + ColumnSafeName(lig.name) + "_mm");
+  for (const Ligament& lig : model.ligaments) cols.push_back("strain_" + ColumnSafeName(lig.name));
 
   const double nan = std::nan("");
   for (size_t s = 0; s < result.samples.size(); ++s) {
@@ -92,6 +94,10 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
     for (int ci = 0; ci < 2; ++ci) {
       const int idx = model.ContactIndex(static_cast<Compartment>(ci));
       row.push_back(idx >= 0 ? MToMm(rate[idx]) : nan);
+    }
+    for (double L : data.ligament_length) row.push_back(MToMm(L));
+    for (size_t j = 0; j < model.ligaments.size(); ++j) {
+      row.push_back(LigamentStrain(model.ligaments[j], data.ligament_length[j]));
     }
     table.rows.push_back(std::move(row));
   }

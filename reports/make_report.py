@@ -197,6 +197,35 @@ def bench_section(outdir, bench):
   return "\n".join(parts)
 
 
+def hard_cases_section(hard_cases):
+  """The hard-case catalog (kneedyn_catalog's hard_cases.md), its tables rendered as HTML."""
+  parts = ["<h2 id='hard-cases'>Hard cases</h2>"]
+  if not hard_cases or not os.path.exists(hard_cases):
+    parts.append("<p>No hard-case table given (<code>--hard-cases hard_cases.md</code>, written by "
+                 "<code>kneedyn_catalog --out DIR</code>); section omitted.</p>")
+    return "\n".join(parts)
+  rows, text = [], []
+
+  def flush_table():
+    if rows:
+      body = [r for r in rows[1:] if not all(set(c) <= set("-: ") for c in r)]
+      parts.append("<div style='overflow-x:auto'>" + table(rows[0], body) + "</div>")
+      rows.clear()
+
+  with open(hard_cases, encoding="utf-8") as f:
+    for line in f:
+      line = line.rstrip("\n")
+      if line.startswith("|"):
+        rows.append([c.strip() for c in line.strip().strip("|").split("|")])
+        continue
+      flush_table()
+      if line.strip() and not line.startswith("#"):
+        parts.append(f"<p>{esc(line)}</p>")
+  flush_table()
+  parts.append(f"<p>Source: <code>{esc(hard_cases)}</code>.</p>")
+  return "\n".join(parts)
+
+
 def commands_section(outdir, kneedyn, quick, bench, fam):
   kd = kneedyn or "build/formulations/kneedyn"
   cmd = f"/usr/bin/python3 reports/report.py --kneedyn {kd} --out {outdir}" + (" --quick" if quick else "") + (
@@ -213,7 +242,7 @@ def commands_section(outdir, kneedyn, quick, bench, fam):
   return "<h2 id='reproduce'>Reproduction</h2>\n<pre>" + esc("\n".join(lines)) + "</pre>"
 
 
-def make_report(outdir, bench=None, kneedyn=None, quick=False):
+def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None):
   fam, members = load_families(outdir)
   with open(os.path.join(outdir, "claims.json")) as f:
     rows = json.load(f)
@@ -222,9 +251,10 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False):
           "(Figs. 1.6–1.25) with the reference solver, the chapter's claims checked automatically.</p>",
           "<nav><a href='#summary'>Summary</a><a href='#claims'>Claims</a><a href='#figures'>Figures</a>"
           "<a href='#sensitivity'>Sensitivity</a><a href='#work-precision'>Work-precision</a>"
+          "<a href='#hard-cases'>Hard cases</a>"
           "<a href='#reproduce'>Reproduction</a></nav>",
           summary_section(fam, members), claims_section(rows), figures_section(outdir),
-          sensitivity_section(outdir), bench_section(outdir, bench),
+          sensitivity_section(outdir), bench_section(outdir, bench), hard_cases_section(hard_cases),
           commands_section(outdir, kneedyn, quick, bench, fam)]
   page = ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
           "<title>kneedyn chapter report</title><style>" + CSS + "</style></head><body>\n"
@@ -243,8 +273,9 @@ def main(argv=None):
   ap.add_argument("--bench")
   ap.add_argument("--kneedyn")
   ap.add_argument("--quick", action="store_true")
+  ap.add_argument("--hard-cases")
   args = ap.parse_args(argv)
-  print("make_report:", make_report(args.out, args.bench, args.kneedyn, args.quick))
+  print("make_report:", make_report(args.out, args.bench, args.kneedyn, args.quick, args.hard_cases))
   return 0
 
 

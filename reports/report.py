@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """One command for the whole chapter report: families + sensitivity runs, figures, claims, HTML.
 
-  report.py --kneedyn PATH --out DIR [--quick] [--bench JSON]
+  report.py --kneedyn PATH --out DIR [--quick] [--bench JSON] [--hard-cases MD]
 
 Exit status: 0 when every run completed (possibly with a documented fallback tolerance) and
 the report was written; 1 when a run failed (the report is still written); 2 on bad input.
@@ -25,17 +25,20 @@ def main(argv=None):
   ap.add_argument("--out", required=True, help="output directory")
   ap.add_argument("--quick", action="store_true", help="reduced families (tests)")
   ap.add_argument("--bench", help="benchmark JSON for the work-precision diagrams")
+  ap.add_argument("--hard-cases", help="hard_cases.md from kneedyn_catalog")
   args = ap.parse_args(argv)
-  if args.bench and not os.path.exists(args.bench):
-    print(f"report: --bench = '{args.bench}': file not found", file=sys.stderr)
-    return 2
+  for flag, path in (("--bench", args.bench), ("--hard-cases", args.hard_cases)):
+    if path and not os.path.exists(path):
+      print(f"report: {flag} = '{path}': file not found", file=sys.stderr)
+      return 2
   fam_args = ["--kneedyn", args.kneedyn, "--out", args.out] + (["--quick"] if args.quick else [])
   rc = run_families.main(fam_args)
   if rc == 2 or not os.path.exists(os.path.join(args.out, "families.json")):
     return 2
   figures.main(["--out", args.out])
   claims.build_claims(args.out)
-  path = make_report.make_report(args.out, args.bench, os.path.abspath(args.kneedyn), args.quick)
+  path = make_report.make_report(args.out, args.bench, os.path.abspath(args.kneedyn), args.quick,
+                                 args.hard_cases)
   print(f"report: {path}")
   return 1 if rc else 0
 

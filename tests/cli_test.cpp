@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -139,6 +140,25 @@ TEST_F(CliTest, ChapterRunWritesTrajectoryStorageAndSummary) {
     EXPECT_EQ(Split(line + ",", ',').size(), cols.size()) << "row " << rows;
   }
   EXPECT_GT(rows, 50);
+
+  // First row (reference pose): element lengths and strains as spec §10 gives them, e.g.
+  // LCL L_ref = 62.572977 mm, L0 = 59.593311 mm, strain = e − 1 = 0.05 (Table 1.3).
+  {
+    std::stringstream again(csv);
+    std::string first;
+    std::getline(again, first);
+    std::getline(again, first);
+    const std::vector<std::string> v = Split(first + ",", ',');
+    auto value = [&](const std::string& col) {
+      const auto it = std::find(cols.begin(), cols.end(), col);
+      EXPECT_NE(it, cols.end()) << col;
+      return it == cols.end() ? std::nan("") : std::stod(v[it - cols.begin()]);
+    };
+    EXPECT_NEAR(value("L_LCL_mm"), 62.572977, 1e-6);
+    EXPECT_NEAR(value("strain_LCL"), 1.050 - 1.0, 1e-9);  // e − 1 exactly (L0 = L_ref / e)
+    EXPECT_NEAR(value("L_MCL_anterior_mm"), 71.324532, 1e-6);
+    EXPECT_NEAR(value("strain_MCL_anterior"), 0.94 - 1.0, 1e-9);  // slack at extension
+  }
 
   // trajectory.sto: OpenSim storage.
   const std::string sto = ReadText(fs::path(Out()) / "trajectory.sto");

@@ -164,6 +164,27 @@ const RunResult& DaeReduced() {
   return r;
 }
 
+// Issue 3: a femoral height field evaluated outside its domain during a Newton iteration
+// (here the medial femoral contact coordinate moved beyond the sphere's footprint, r = 21 mm
+// around (−23.75, −18) mm) is a recoverable failure: the residual reports false (IDA's
+// "return 1"), never NaN, never a crash; the same point inside the footprint evaluates.
+TEST(DaeResidual, SurfaceOutsideItsDomainIsARecoverableFailure) {
+  const Scene& scene = ChapterScene();
+  const FormulationOptions options;
+  Point p = PerturbedPoint(ContactForm::kChapter);
+  std::vector<double> F;
+  ASSERT_TRUE(DaeResidualAndJacobianForTesting(scene, options, ContactForm::kChapter, p.state,
+                                               p.state.t, p.y, p.yp, 850.0, &F, nullptr, nullptr));
+  for (double f : F) EXPECT_TRUE(std::isfinite(f));
+  p.y[12] = MmToM(-23.75 + 25.0);  // xc of the medial contact: 25 mm from the centre > r
+  F.clear();
+  MatrixXd J;
+  EXPECT_FALSE(DaeResidualAndJacobianForTesting(scene, options, ContactForm::kChapter, p.state,
+                                                p.state.t, p.y, p.yp, 850.0, &F, nullptr, nullptr));
+  EXPECT_FALSE(DaeResidualAndJacobianForTesting(scene, options, ContactForm::kChapter, p.state,
+                                                p.state.t, p.y, p.yp, 850.0, nullptr, &J, nullptr));
+}
+
 TEST(DaeChapter, ReachesNinetyDegreesWithLateralLiftoffFirst) {
   const RunResult& r = Dae();
   ASSERT_TRUE(r.completed) << r.failure;
