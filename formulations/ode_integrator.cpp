@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 
 #include "solver/error.hpp"
 
@@ -32,7 +33,14 @@ SolverStats Minus(SolverStats a, const SolverStats& b) {
 ARKodeButcherTable FixedStepTable(const std::string& name) {
   if (name == "euler") {
     double c[1] = {0.0}, A[1] = {0.0}, b[1] = {1.0};
-    return ARKodeButcherTable_Create(1, 1, 0, c, A, b, nullptr);
+    // Table order field 2, not 1: ARKODE 6.4 caps the Hermite interpolant degree at the
+    // table's q − 1, and degree 0 is the constant (y_old + y_new)/2 over the step, so roots
+    // were reported just after the step start with that average state (one step of time
+    // lost per event) and tstop outputs were the average too. Degree 1 is the chord
+    // y_n + (t − t_n) f(t_n, y_n), Euler's own continuous extension (exact for it). With
+    // a fixed step the field drives nothing else (no error control). SUNDIALS 6.6 made the
+    // linear interpolant the default for first-order methods.
+    return ARKodeButcherTable_Create(1, 2, 0, c, A, b, nullptr);
   }
   double c[4] = {0.0, 0.5, 0.5, 1.0};
   double A[16] = {0.0, 0.0, 0.0, 0.0,  //
@@ -190,6 +198,20 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
 
 bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, std::vector<int>* roots) {
   failure_.clear();
+  roots->assign(num_roots_, 0);
+  // Already at t_out: a restart at a root that ARKODE located at the end of a step that
+  // ended on the stop time t_out (the driver then asks for t_out again). ARKODE would fail
+  // with ARK_ILL_INPUT ("tstop is behind current t"), CVODE with CV_ILL_INPUT. Same
+  // round-off window as ARKODE's own stop-time snap (FUZZ_FACTOR 100).
+  const double t_roundoff = 100.0 * std::numeric_limits<double>::epsilon() * (std::abs(*t) + std::abs(t_out));
+  if (t_out - *t <= t_roundoff) {
+    if (*t - t_out > t_roundoff) {
+      Throw<SolverError>("OdeIntegrator::Evolve", owner_, " (", name_, "): t_out = ", t_out,
+                         " s is behind the current time t = ", *t, " s; must be >= t");
+    }
+    *t = t_out;
+    return false;
+  }
   double t_reached = *t;
   int flag = 0;
   bool root = false;
@@ -221,8 +243,13 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
   }
   *t = t_reached;
   y->resize(n_);
-  for (int i = 0; i < n_; ++i) (*y)(i) = NvData(y_)[i];
-  roots->assign(num_roots_, 0);
+  N_Vector y_out = y_;
+  if (!is_cvode() && !root) {
+    // ARKODE 6.4 returns the interpolant at a stop time; its own step state there (tcur
+    // is snapped onto tstop) is the true discrete solution, also for the shortened step.
+    Check(ARKStepGetCurrentState(mem_, &y_out), "ARKStepGetCurrentState");
+  }
+  for (int i = 0; i < n_; ++i) (*y)(i) = NvData(y_out)[i];
   if (root) {
     if (is_cvode()) {
       Check(CVodeGetRootInfo(mem_, roots->data()), "CVodeGetRootInfo");

@@ -1,10 +1,12 @@
 // Explicit-ODE driver y' = f(t, y) with root functions, shared by `mde` and `ede` (the one
 // place for their SUNDIALS glue). Integrators (the --integrator names are a contract):
-//   euler, rk4         fixed step --step H (default 1e-4 s), ARKODE ARKStep explicit with
-//                      Butcher tables built here (ARKODE 6.4 has no Euler/RK4 table). The
-//                      stop time is set to every output time, so outputs lie on step
-//                      boundaries (the true discrete solution, not an interpolant): an output
-//                      time that is not a multiple of H makes the last step before it shorter.
+//   euler, rk4         fixed step --step H (default kDefaultFixedStep), ARKODE ARKStep
+//                      explicit with Butcher tables built here (ARKODE 6.4 has no Euler/RK4
+//                      table). The stop time is set to every output time, so outputs lie on
+//                      step boundaries (the true discrete solution, not an interpolant): an
+//                      output time that is not a multiple of H makes the last step before it
+//                      shorter (ARKODE snaps a step ending within round-off of the stop time
+//                      onto it). The next step has H again.
 //                      (Root states come from the Hermite interpolant: history-free, so valid
 //                      right after an ede projection restart; Lagrange is not.)
 //   dopri5, verner65,  adaptive embedded ERK (ARKODE_DORMAND_PRINCE_7_4_5,
@@ -47,7 +49,6 @@ class OdeProblem {
 
 class OdeIntegrator {
  public:
-  static constexpr double kDefaultFixedStep = 1.0e-4;  // s
   static const std::vector<std::string>& Names();
 
   // Validates options.integrator (empty: dopri5) and options.step; `owner` names the
@@ -67,7 +68,12 @@ class OdeIntegrator {
              bool solver_projection = false);
   bool supports_solver_projection() const { return name_ == "cvode-bdf"; }
   // Integrates towards t_out (stop time t_out): to t_out, or one step if `one_step`, or to a
-  // root. Writes t and y reached; returns true when roots were found (`roots`: their flags).
+  // root. On entry *t is the current time (of the last Start, Reset or Evolve). Writes t and
+  // y reached; returns true when roots were found (`roots`: their flags). t_out equal to *t
+  // (within ARKODE's stop-time round-off, 100 ε (|t| + |t_out|)) is already reached: no
+  // step, *t = t_out, y unchanged (ARKODE rejects a stop time at the current time, e.g. after
+  // a restart at a root found at the end of a step that ended on an output time).
+  // t_out < *t throws.
   bool Evolve(double t_out, bool one_step, double* t, VectorXd* y, std::vector<int>* roots);
   // Restarts from a modified state (after a projection), keeping the step size and counters.
   void Reset(double t, const VectorXd& y);
