@@ -206,8 +206,9 @@ class DaeFormulation final : public Formulation {
     DataTpl<T> data(model_);
     data.ligament_branch = &ligament_branch_;
     ComputeAppliedWrench(model_, t, pose, &data);
-    Vector3<T> force = data.applied_force_F;
-    Vector3<T> moment = data.applied_moment_T;
+    // Contact wrenches are added to the applied loads (Eqs. 1.48–1.57 sum both).
+    Vector3<T>& force = data.applied_force_F;
+    Vector3<T>& moment = data.applied_moment_T;
     const Vector6<T> nu = GeneralizedVelocity(q, u);
     const int k = static_cast<int>(active_.size());
     for (int c = 0; c < k; ++c) {
@@ -230,12 +231,7 @@ class DaeFormulation final : public Formulation {
       }
       AddContactWrench(pose, geo, y[NormalIndex(c)], &force, &moment);
     }
-    Vector6<T> Q;
-    Q.template head<3>() = force;
-    Q.template tail<3>() = moment;
-    const Vector3<T> w = nu.template tail<3>();
-    const Vector3<T> Iw = model_.inertia_T.template cast<T>().cwiseProduct(w);
-    Q.template tail<3>() -= w.cross(Iw);
+    const Vector6<T> Q = GeneralizedForce(model_, data, Vector3<T>(nu.template tail<3>()));
     const Vector6<T> residual = Q - MassTimes(model_, GeneralizedAcceleration(q, u, udot));
     for (int i = 0; i < 6; ++i) F[6 + i] = residual(i);  // F7–F12
     return true;
