@@ -18,6 +18,9 @@ import sys
 import numpy as np
 import yaml
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from family_data import load_csv  # noqa: E402  (one CSV reader for all report scripts)
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 BASE_SCENE = os.path.join(ROOT, "reference-data", "scenes", "chapter_impact.yaml")
@@ -109,15 +112,6 @@ def run_one(kneedyn, scene_path, run_dir):
       return r
   # Nothing worked: rerun the reference so the partial output on disk is the reference one.
   return dict(run_once(kneedyn, scene_path, run_dir, SOLVER_ARGS), fallback=None)
-
-
-def load_csv(path):
-  """Trajectory as {column: np.array}; empty cells -> NaN."""
-  with open(path) as f:
-    header = f.readline().strip().split(",")
-    rows = [[float(x) if x else np.nan for x in line.strip().split(",")] for line in f if line.strip()]
-  data = np.array(rows, dtype=float).reshape(-1, len(header))
-  return {h: data[:, i] for i, h in enumerate(header)}
 
 
 def trajectory_difference(ref_dir, run_dir):

@@ -20,14 +20,12 @@
 #include "formulations/run.hpp"
 #include "solver/scene.hpp"
 #include "solver/units.hpp"
+#include "tests/test_support.hpp"
 
 namespace kneedyn {
 namespace {
 
-const Scene& ChapterScene() {
-  static const Scene scene = LoadScene(ReferenceDataDir() + "/scenes/chapter_impact.yaml");
-  return scene;
-}
+using test_support::ChapterScene;
 
 std::string EventList(const RunResult& r) {
   std::string s;
@@ -139,20 +137,9 @@ TEST_P(Conformance, KeepsConstraintDriftBoundedAndCountsWork) {
   EXPECT_GE(r.stats.restarts, 2);  // the start and the lift-off phase
 }
 
-std::vector<std::string> RegisteredNames() {
-  std::vector<std::string> names;
-  for (const FormulationInfo& f : RegisteredFormulations()) names.push_back(f.name);
-  return names;
-}
 
-INSTANTIATE_TEST_SUITE_P(Registered, Conformance, ::testing::ValuesIn(RegisteredNames()),
-                         [](const ::testing::TestParamInfo<std::string>& info) {
-                           std::string n = info.param;
-                           for (char& c : n) {
-                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-                           }
-                           return n;
-                         });
+INSTANTIATE_TEST_SUITE_P(Registered, Conformance, ::testing::ValuesIn(test_support::RegisteredFormulationNames()),
+                         test_support::FormulationParamName());
 
 }  // namespace
 }  // namespace kneedyn

@@ -21,17 +21,14 @@
 #include "solver/pose.hpp"
 #include "solver/rotation.hpp"
 #include "solver/scene.hpp"
+#include "tests/test_support.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
 namespace {
 
-std::string ScenesDir() { return ReferenceDataDir() + "/scenes"; }
-
-const Scene& ChapterScene() {
-  static const Scene scene = LoadScene(ScenesDir() + "/chapter_impact.yaml");
-  return scene;
-}
+using test_support::ChapterScene;
+using test_support::ScenesDir;
 
 // The chapter scene with its initial_state replaced by `initial_state` (YAML flow map).
 Scene ChapterVariant(const std::string& initial_state) {

@@ -24,17 +24,14 @@
 #include "solver/consistent_init.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/scene.hpp"
+#include "tests/test_support.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
 namespace {
 
-std::string ScenesDir() { return ReferenceDataDir() + "/scenes"; }
-
-const Scene& ChapterScene() {
-  static const Scene scene = LoadScene(ScenesDir() + "/chapter_impact.yaml");
-  return scene;
-}
+using test_support::ChapterScene;
+using test_support::ScenesDir;
 
 // ---------------------------------------------------------------- Jacobian vs FD
 

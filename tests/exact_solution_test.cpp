@@ -38,6 +38,7 @@
 #include "solver/error.hpp"
 #include "solver/ligament.hpp"
 #include "solver/units.hpp"
+#include "tests/test_support.hpp"
 
 namespace kneedyn {
 namespace {
@@ -55,11 +56,6 @@ RunSettings SettingsFor(const std::string& name) {
   return s;
 }
 
-std::vector<std::string> FormulationNames() {
-  std::vector<std::string> names;
-  for (const FormulationInfo& info : RegisteredFormulations()) names.push_back(info.name);
-  return names;
-}
 
 Scene Parse(const std::string& text, const std::string& label) {
   return ParseScene(text, label, ReferenceDataDir() + "/scenes");
@@ -402,14 +398,8 @@ TEST_P(ExactSolution, ManufacturedKneeConvergesAtTheoreticalOrder) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(AllFormulations, ExactSolution, ::testing::ValuesIn(FormulationNames()),
-                         [](const ::testing::TestParamInfo<std::string>& info) {
-                           std::string n = info.param;
-                           for (char& c : n) {
-                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-                           }
-                           return n;
-                         });
+INSTANTIATE_TEST_SUITE_P(AllFormulations, ExactSolution, ::testing::ValuesIn(test_support::RegisteredFormulationNames()),
+                         test_support::FormulationParamName());
 
 }  // namespace
 }  // namespace kneedyn

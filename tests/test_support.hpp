@@ -1,0 +1,42 @@
+// Helpers shared by the GoogleTest suites: where the scenes are, the chapter scene, and the
+// registered formulations as test parameters (so a new formulation enters every
+// parameterized suite through its registry line alone).
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cctype>
+#include <string>
+#include <vector>
+
+#include "formulations/formulation.hpp"
+#include "solver/scene.hpp"
+
+namespace kneedyn::test_support {
+
+inline std::string ScenesDir() { return ReferenceDataDir() + "/scenes"; }
+
+// reference-data/scenes/chapter_impact.yaml, loaded once.
+inline const Scene& ChapterScene() {
+  static const Scene scene = LoadScene(ScenesDir() + "/chapter_impact.yaml");
+  return scene;
+}
+
+inline std::vector<std::string> RegisteredFormulationNames() {
+  std::vector<std::string> names;
+  for (const FormulationInfo& info : RegisteredFormulations()) names.push_back(info.name);
+  return names;
+}
+
+// GoogleTest parameter names allow [A-Za-z0-9_]: "dae-reduced" -> "dae_reduced".
+struct FormulationParamName {
+  std::string operator()(const ::testing::TestParamInfo<std::string>& info) const {
+    std::string n = info.param;
+    for (char& c : n) {
+      if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+    }
+    return n;
+  }
+};
+
+}  // namespace kneedyn::test_support
