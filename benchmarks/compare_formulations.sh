@@ -30,7 +30,7 @@ def ev(s, n):
     e = [x for x in s.get("events", []) if x["name"] == n]
     return e[-1] if e else None
 rf = ref["final_state"]
-print("| formulation (setting) | status | lift-off lateral t (s), angle (°) | Δt lift-off (s) | Δ angle (°) | Δt 90° (s) | max |ΔR0| at 90° (mm) | max |Δangles| at 90° (°) | ΔN_medial at 90° (N) | steps | RHS/res evals | Jac | LU | Newton | max gap (mm) | wall (s) |")
+print("| formulation (setting) | status | lift-off lateral t (s), angle (°) | Δt lift-off (s) | Δ angle (°) | Δt 90° (s) | max abs ΔR0 at 90° (mm) | max abs Δangle at 90° (°) | ΔN_medial at 90° (N) | steps | RHS/res evals | Jac | LU | Newton | max gap (mm) | wall (s) |")
 print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
 for line in open(f"{O}/index"):
     name, args = line.strip().split("|", 1)
