@@ -174,8 +174,8 @@ def make_family_figures(outdir, members):
 def load_bench(path):
   with open(path) as f:
     data = json.load(f)
-  if isinstance(data, dict):
-    data = data.get("runs", [])
+  if isinstance(data, dict):  # benchmarks/work_precision.cpp: {"header": ..., "results": [...]}
+    data = data.get("results", data.get("runs", []))
   return [r for r in data if isinstance(r, dict)]
 
 
@@ -204,11 +204,14 @@ def make_work_precision(outdir, bench_path):
   for fname, xi, xlabel in (("work_precision_cpu.png", 1, "CPU time (median) [s]"),
                             ("work_precision_residuals.png", 2, "Residual evaluations")):
     fig, ax = plt.subplots(figsize=(9, 6))
-    for key, pts in sorted(lines.items()):
+    colors = plt.get_cmap("tab20").colors  # one distinct colour per formulation × integrator
+    markers = "os^Dv<>pP*X"
+    for i, (key, pts) in enumerate(sorted(lines.items())):
       pts = [p for p in pts if p[xi] is not None and p[xi] > 0]
       pts.sort(key=lambda p: p[xi])
       if pts:
-        ax.loglog([p[xi] for p in pts], [10.0 ** -p[0] for p in pts], "o-", label=key)
+        ax.loglog([p[xi] for p in pts], [10.0 ** -p[0] for p in pts], "-", marker=markers[i % len(markers)],
+                  markersize=4, color=colors[i % len(colors)], label=key)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("Error 10^-scd")
     ax.grid(alpha=0.3, which="both")

@@ -39,6 +39,8 @@ def main():
   ap.add_argument("--kneedyn", required=True)
   ap.add_argument("--spec", default=DEFAULT_SPEC)
   ap.add_argument("--keep", help="build into this directory instead of a temporary one")
+  ap.add_argument("--work-precision", help="work_precision binary: also check the work-precision "
+                  "diagrams against a real (short, one-formulation) sweep")
   args = ap.parse_args()
   errors = []
   spec_ids = claim_ids(args.spec)
@@ -50,6 +52,17 @@ def main():
     out = args.keep or tmp
     cmd = ["/usr/bin/python3" if os.path.exists("/usr/bin/python3") else sys.executable,
            os.path.join(ROOT, "reports", "report.py"), "--kneedyn", args.kneedyn, "--out", out, "--quick"]
+    bench = None
+    if args.work_precision:
+      bench = os.path.join(out, "wp.json")
+      w = subprocess.run([args.work_precision, "--short", "--only", "dae-reduced", "--json", bench,
+                          "--csv", os.path.join(out, "wp.csv")], capture_output=True, text=True,
+                         timeout=60, cwd=ROOT)
+      if w.returncode != 0 or not os.path.exists(bench):
+        errors.append(f"work_precision failed ({w.returncode}): {w.stderr[-500:]}")
+        bench = None
+      else:
+        cmd += ["--bench", bench]
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=110)
     print(p.stdout)
     print(p.stderr, file=sys.stderr)
@@ -92,6 +105,17 @@ def main():
         errors.append(f"claim {r['id']}: bad verdict '{r['verdict']}'")
       if r["verdict"] != "not checkable" and not r["measured"]:
         errors.append(f"claim {r['id']}: verdict without a measured value")
+    if bench:
+      # The diagrams read the benchmark's own JSON: every successful run must be plotted.
+      runs = figures.load_bench(bench)
+      _, failed = figures.make_work_precision(os.path.join(out, "wp_check"), bench)
+      if not runs:
+        errors.append(f"{bench}: no runs read by figures.load_bench")
+      elif len(failed) >= len(runs):
+        errors.append(f"work-precision: all {len(runs)} runs unplotted ({failed[:2]})")
+      for fname, _ in figures.WORK_PRECISION_FIGURES:
+        if f"figures/{fname}" not in page:
+          errors.append(f"index.html does not reference figures/{fname}")
     for extra in ("claims.md", "sensitivity.json"):
       if not os.path.exists(os.path.join(out, extra)):
         errors.append(f"missing {extra}")
