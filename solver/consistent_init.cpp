@@ -281,6 +281,11 @@ void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state) {
   // tolerance (lift-off) or exactly (after the impact impulse): the minimum-norm
   // correction over all rates removes that residual before the restart.
   const ConsistentInitOptions options;
+  // Gaps to round-off, not to the init's 1e-11 m: the chapter-form contact coordinates
+  // filled below from the closed form satisfy Eqs. 1.8 and the velocity rows only at
+  // φ = 0. At a 4e-12 m gap `dae` restarted off them and its first step moved u by
+  // ~3e-11 m/s at any step size (gravity_only, rtol 1e-10: IDA_ERR_FAIL after a kink).
+  constexpr double kGapTolerance = 1.0e-14;  // m
   const Model& model = scene.model;
   for (int iter = 0; iter < 20 && !state->active.empty(); ++iter) {
     const Pose pose = PoseFromCoordinates(state->q);
@@ -296,7 +301,7 @@ void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state) {
       phi(c) = g.gap;
       J.row(c) = ContactConstraintRow(pose, g) * B;  // ∂φ/∂q = G B
     }
-    if (phi.cwiseAbs().maxCoeff() <= options.position_tolerance) break;
+    if (phi.cwiseAbs().maxCoeff() <= kGapTolerance) break;
     state->q -= J.completeOrthogonalDecomposition().solve(phi);
   }
   SolveVelocityAndHidden(scene, {}, options, state);
