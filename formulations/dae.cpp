@@ -131,8 +131,7 @@ class DaeFormulation final : public Formulation {
     Check(IDASetJacFn(mem_, &DaeFormulation::Jacobian), "IDASetJacFn");
     if (!events_.empty()) {
       Check(IDARootInit(mem_, static_cast<int>(events_.size()), &DaeFormulation::Roots), "IDARootInit");
-      std::vector<int> dir;
-      for (const EventSpec& e : events_) dir.push_back(e.direction);
+      std::vector<int> dir = RootDirections(events_);
       Check(IDASetRootDirection(mem_, dir.data()), "IDASetRootDirection");
       Check(IDASetNoInactiveRootWarn(mem_), "IDASetNoInactiveRootWarn");
     }
@@ -176,10 +175,7 @@ class DaeFormulation final : public Formulation {
     if (flag == IDA_ROOT_RETURN) {
       std::vector<int> found(events_.size());
       Check(IDAGetRootInfo(mem_, found.data()), "IDAGetRootInfo");
-      result.status = AdvanceStatus::kEvent;
-      for (size_t i = 0; i < found.size(); ++i) {
-        if (found[i] != 0) result.events.push_back(static_cast<int>(i));
-      }
+      result = EventResult(found);
     }
     return result;
   }

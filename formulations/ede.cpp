@@ -57,13 +57,11 @@ class EdeFormulation final : public Formulation, public OdeProblem {
     t_ = state.t;
     y_.resize(12);
     y_ << state.q, state.qd;
-    std::vector<int> dirs;
-    for (const EventSpec& e : events_) dirs.push_back(e.direction);
+    const std::vector<int> dirs = RootDirections(events_);
     integrator_.Start(this, t_, y_, dirs, project_ && integrator_.supports_solver_projection());
   }
 
   AdvanceResult Advance(double t_out, MechanicalState* state) override {
-    AdvanceResult result;
     std::vector<int> found;
     bool root = false;
     if (!project_ || integrator_.supports_solver_projection()) {
@@ -88,13 +86,7 @@ class EdeFormulation final : public Formulation, public OdeProblem {
     state->ligament_branch = ligament_branch_;
     for (size_t c = 0; c < active_.size(); ++c) state->contact[active_[c]].normal_force = acc.normal_force[c];
     FillContactCoordinatesFromClosedForm(model_, state);
-    if (root) {
-      result.status = AdvanceStatus::kEvent;
-      for (size_t i = 0; i < found.size(); ++i) {
-        if (found[i] != 0) result.events.push_back(static_cast<int>(i));
-      }
-    }
-    return result;
+    return root ? EventResult(found) : AdvanceResult{};
   }
 
   SolverStats stats() const override {

@@ -51,6 +51,21 @@ bool FormulationOptions::IsValid(std::string* error) const {
   return true;
 }
 
+std::vector<int> RootDirections(const std::vector<EventSpec>& events) {
+  std::vector<int> directions;
+  for (const EventSpec& e : events) directions.push_back(e.direction);
+  return directions;
+}
+
+AdvanceResult EventResult(const std::vector<int>& root_flags) {
+  AdvanceResult result;
+  result.status = AdvanceStatus::kEvent;
+  for (size_t i = 0; i < root_flags.size(); ++i) {
+    if (root_flags[i] != 0) result.events.push_back(static_cast<int>(i));
+  }
+  return result;
+}
+
 bool IsFixedStep(const FormulationInfo& info, const std::string& integrator) {
   return info.fixed_step || integrator == "euler" || integrator == "rk4";
 }

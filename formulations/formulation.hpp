@@ -64,6 +64,12 @@ struct AdvanceResult {
   std::vector<int> events;  // indices into the phase's EventSpec list that fired
 };
 
+// SUNDIALS glue shared by the formulations that locate events with a root finder:
+// the root directions of a phase's events (−1, 0, +1, in order), and the AdvanceResult for
+// the root flags the solver reports (kEvent with every index whose flag is nonzero).
+std::vector<int> RootDirections(const std::vector<EventSpec>& events);
+AdvanceResult EventResult(const std::vector<int>& root_flags);
+
 class Formulation {
  public:
   virtual ~Formulation() = default;

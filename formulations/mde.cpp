@@ -80,8 +80,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
       y_(m + j) = state.qd(free_[j]);
     }
     t_ = state.t;
-    std::vector<int> dirs;
-    for (const EventSpec& e : events_) dirs.push_back(e.direction);
+    const std::vector<int> dirs = RootDirections(events_);
     integrator_.Start(this, t_, y_, dirs);
   }
 
@@ -107,14 +106,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     state->ligament_branch = ligament_branch_;
     for (size_t c = 0; c < active_.size(); ++c) state->contact[active_[c]].normal_force = kin.normal_force[c];
     FillContactCoordinatesFromClosedForm(model_, state);
-    AdvanceResult result;
-    if (root) {
-      result.status = AdvanceStatus::kEvent;
-      for (size_t i = 0; i < found.size(); ++i) {
-        if (found[i] != 0) result.events.push_back(static_cast<int>(i));
-      }
-    }
-    return result;
+    return root ? EventResult(found) : AdvanceResult{};
   }
 
   SolverStats stats() const override { return integrator_.stats(); }
