@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <Eigen/LU>
 
 #include "solver/constrained_dynamics.hpp"
@@ -72,12 +70,9 @@ void CheckSampleIsPhysical(const Model& model, const MechanicalState& s) {
       const ContactGeometry g = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
       x = g.point_F.x();
       y = g.point_F.y();
-    }
-    if (pair.sphere_on_plane) {
-      const double gap = SphereOnPlaneContact(*pair.sphere_on_plane, pose).gap;
-      if (std::abs(gap) > kMaxConstraintViolation) {
+      if (std::abs(g.gap) > kMaxConstraintViolation) {
         Throw<SolverError>("RunScene", "the ", CompartmentName(pair.compartment),
-                           " contact constraint is violated by ", MToMm(gap), " mm at t = ", s.t,
+                           " contact constraint is violated by ", MToMm(g.gap), " mm at t = ", s.t,
                            " s (limit ", MToMm(kMaxConstraintViolation),
                            " mm): the run has diverged");
       }
@@ -86,7 +81,7 @@ void CheckSampleIsPhysical(const Model& model, const MechanicalState& s) {
     if (!pair.femoral_surface->Evaluate(x, y, &sample)) {
       Throw<SolverError>("RunScene", "the ", CompartmentName(pair.compartment),
                          " contact point left the femoral surface (", pair.femoral_surface->Describe(),
-                         ") at t = ", s.t, " s, flexion = ", s.q(kAlpha) * 180.0 / kPi,
+                         ") at t = ", s.t, " s, flexion = ", RadToDeg(s.q(kAlpha)),
                          " deg: the model is not defined beyond its rim");
     }
   }
