@@ -127,33 +127,14 @@ class EdeFormulation final : public Formulation, public OdeProblem {
 
  private:
   // φ (k) and J = ∂φ/∂q = G B(q) (k×6) of the active contacts.
-  void Constraints(const Vector6d& q, VectorXd* phi, MatrixXd* J) const {
-    const Pose pose = PoseFromCoordinates(q);
-    const int k = static_cast<int>(active_.size());
-    phi->resize(k);
-    J->resize(k, 6);
-    const Matrix3d E = AngularVelocityMap(q(kBeta), q(kGamma));
-    for (int r = 0; r < k; ++r) {
-      const ContactGeometry geo = SphereOnPlaneContact(*model_.contacts[active_[r]].sphere_on_plane, pose);
-      const Eigen::Matrix<double, 1, 6> G = ContactConstraintRow(pose, geo);
-      (*phi)(r) = geo.gap;
-      J->block<1, 3>(r, 0) = G.head<3>();
-      J->block<1, 3>(r, 3) = G.tail<3>() * E;
-    }
-  }
-
   // Projects y = (q, q̇) onto φ = 0, J q̇ = 0. Returns true when y changed.
   bool Project(VectorXd* y) {
     if (active_.empty()) return false;
     Vector6d q = y->head<6>(), qd = y->tail<6>();
+    ProjectOntoContacts(model_, active_, kProjectionTolerance, kMaxProjectionIterations, &q);
     VectorXd phi;
     MatrixXd J;
-    for (int it = 0; it < kMaxProjectionIterations; ++it) {
-      Constraints(q, &phi, &J);
-      if (phi.cwiseAbs().maxCoeff() <= kProjectionTolerance) break;
-      q -= Eigen::CompleteOrthogonalDecomposition<MatrixXd>(J).solve(phi);
-    }
-    Constraints(q, &phi, &J);
+    ContactGapsAndJacobian(model_, q, active_, &phi, &J);
     qd -= Eigen::CompleteOrthogonalDecomposition<MatrixXd>(J).solve(VectorXd(J * qd));
     y->head<6>() = q;
     y->tail<6>() = qd;

@@ -286,24 +286,7 @@ void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state) {
   // φ = 0. At a 4e-12 m gap `dae` restarted off them and its first step moved u by
   // ~3e-11 m/s at any step size (gravity_only, rtol 1e-10: IDA_ERR_FAIL after a kink).
   constexpr double kGapTolerance = 1.0e-14;  // m
-  const Model& model = scene.model;
-  for (int iter = 0; iter < 20 && !state->active.empty(); ++iter) {
-    const Pose pose = PoseFromCoordinates(state->q);
-    const int k = static_cast<int>(state->active.size());
-    MatrixXd J(k, 6);
-    VectorXd phi(k);
-    Matrix6d B = Matrix6d::Identity();
-    B.bottomRightCorner<3, 3>() = AngularVelocityMap(state->q(kBeta), state->q(kGamma));
-    for (int c = 0; c < k; ++c) {
-      const SphereOnPlane& sop =
-          RequireSphereOnPlane(model.contacts[state->active[c]], "CompleteHiddenConstraint");
-      const ContactGeometry g = SphereOnPlaneContact(sop, pose);
-      phi(c) = g.gap;
-      J.row(c) = ContactConstraintRow(pose, g) * B;  // ∂φ/∂q = G B
-    }
-    if (phi.cwiseAbs().maxCoeff() <= kGapTolerance) break;
-    state->q -= J.completeOrthogonalDecomposition().solve(phi);
-  }
+  ProjectOntoContacts(scene.model, state->active, kGapTolerance, 20, &state->q);
   SolveVelocityAndHidden(scene, {}, options, state);
   FillContactCoordinatesFromClosedForm(scene.model, state);
 }

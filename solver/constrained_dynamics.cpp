@@ -17,6 +17,34 @@ std::vector<ContactGeometry> ClosedFormContacts(const Model& model, const Pose& 
   return out;
 }
 
+void ContactGapsAndJacobian(const Model& model, const Vector6d& q, const std::vector<int>& contacts,
+                            VectorXd* phi, MatrixXd* J) {
+  const Pose pose = PoseFromCoordinates(q);
+  const int k = static_cast<int>(contacts.size());
+  phi->resize(k);
+  J->resize(k, 6);
+  Matrix6d B = Matrix6d::Identity();
+  B.bottomRightCorner<3, 3>() = AngularVelocityMap(q(kBeta), q(kGamma));
+  for (int c = 0; c < k; ++c) {
+    const SphereOnPlane& sop = RequireSphereOnPlane(model.contacts[contacts[c]], "ContactGapsAndJacobian");
+    const ContactGeometry g = SphereOnPlaneContact(sop, pose);
+    (*phi)(c) = g.gap;
+    J->row(c) = ContactConstraintRow(pose, g) * B;
+  }
+}
+
+void ProjectOntoContacts(const Model& model, const std::vector<int>& contacts, double tolerance,
+                         int max_iterations, Vector6d* q) {
+  if (contacts.empty()) return;
+  VectorXd phi;
+  MatrixXd J;
+  for (int iter = 0; iter < max_iterations; ++iter) {
+    ContactGapsAndJacobian(model, *q, contacts, &phi, &J);
+    if (phi.cwiseAbs().maxCoeff() <= tolerance) break;
+    *q -= J.completeOrthogonalDecomposition().solve(phi);
+  }
+}
+
 ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double t,
                                                      const Vector6d& q, const Vector6d& qd,
                                                      const std::vector<int>& active,

@@ -34,6 +34,17 @@ ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double 
                                                      BaumgarteGains gains = {},
                                                      const std::vector<signed char>* ligament_branch = nullptr);
 
+// Closed-form gaps φ_i (m) of the listed contacts at q and their Jacobian
+// ∂φ/∂q = G B(q) (k×6; G from contact.hpp, B = diag(1, E)).
+void ContactGapsAndJacobian(const Model& model, const Vector6d& q, const std::vector<int>& contacts,
+                            VectorXd* phi, MatrixXd* J);
+
+// Moves q onto φ_i(q) = 0 for the listed contacts: Gauss–Newton with minimum-norm steps,
+// until max |φ_i| ≤ tolerance (m) or max_iterations steps. Used by EDE's projection and by
+// the driver's restarts.
+void ProjectOntoContacts(const Model& model, const std::vector<int>& contacts, double tolerance,
+                         int max_iterations, Vector6d* q);
+
 // Closed-form contact geometries of the listed contacts at a pose.
 std::vector<ContactGeometry> ClosedFormContacts(const Model& model, const Pose& pose,
                                                 const std::vector<int>& contacts);

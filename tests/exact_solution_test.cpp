@@ -73,7 +73,9 @@ RunResult RunToEnd(const Scene& scene, const std::string& name) {
   EXPECT_TRUE(r.completed) << name << ": " << r.failure;
   EXPECT_EQ(r.end_reason, "end_time");
   EXPECT_FALSE(r.samples.empty());
-  if (!r.samples.empty()) EXPECT_NEAR(r.samples.back().t, scene.end.time, 1e-12);
+  if (!r.samples.empty()) {
+    EXPECT_NEAR(r.samples.back().t, scene.end.time, 1e-12);
+  }
   return r;
 }
 

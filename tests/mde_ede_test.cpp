@@ -190,7 +190,9 @@ double TopError(const Scene& scene, const std::string& formulation, const std::s
   const Vector3d w_exact(w0(0) * c - w0(1) * s, w0(0) * s + w0(1) * c, w0(2));
   const Vector3d R0_exact = 0.5 * model.gravity_F * t_end * t_end;
   const double w_error = (AngularVelocityT(state.q, state.qd) - w_exact).norm();
-  if (integrator == "rk4") EXPECT_LT((state.q.head<3>() - R0_exact).norm(), 1e-12);  // quadratic: exact
+  if (integrator == "rk4") {
+    EXPECT_LT((state.q.head<3>() - R0_exact).norm(), 1e-12);  // quadratic: exact
+  }
   return w_error;
 }
 
