@@ -105,11 +105,12 @@ def claims_section(rows):
   parts = ["<h2 id='claims'>Chapter claims</h2>",
            f"<p>{n['reproduced']} reproduced, {n['not reproduced']} not reproduced, {n['not checkable']} not checkable "
            f"(of {len(rows)}). Checks on the reference member (A = 100 N, t0 = 0.1 s) unless the claim is about "
-           "the families. Claims from <code>chapter-trends.md</code>; S1/S2 are the sensitivity statements. "
-           "Tolerance bands are in the <i>check</i> column (and in <code>reports/claims.py</code>). "
+           "the families. Claims, checks and the justification of every tolerance band: "
+           "<code>reports/claims.yaml</code> (S1/S2 are the sensitivity statements). "
            "Also as <a href='claims.csv'>claims.csv</a> and <a href='claims.md'>claims.md</a>.</p>"]
-  parts.append(table(["id", "claim", "check (tolerance band)", "measured", "verdict", "reason"],
-                     [[r["id"], r["claim"], r["check"], r["measured"], r["verdict"], r["reason"]] for r in rows],
+  parts.append(table(["id", "claim (source)", "check (tolerance band)", "measured", "verdict", "reason"],
+                     [[r["id"], f"{r['claim']} ({r.get('source', '')})", r["check"], r["measured"], r["verdict"],
+                       r["reason"]] for r in rows],
                      row_classes=[r["verdict"].replace(" ", "-") for r in rows],
                      cell_classes=["id", None, None, None, "verdict", None]))
   return "\n".join(parts)

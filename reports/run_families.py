@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Runs the chapter's pulse families (spec chapter-trends.md, section 1.4 / Fig. 1.6) and the two
+"""Runs the chapter's pulse families (reports/claims.yaml, section 1.4 / Figs. 1.4-1.6) and the two
 sensitivity studies with the reference solver, in parallel.
 
   run_families.py --kneedyn PATH --out OUTDIR [--quick]
@@ -39,7 +39,7 @@ QUICK_DURATIONS_S = [0.05, 0.2]
 BASE_AMPLITUDE_N = 100.0
 BASE_DURATION_S = 0.1
 
-# Sensitivity studies (chapter-trends.md, "Not a claim to reproduce, but to report").
+# Sensitivity studies (claims S1, S2 of reports/claims.yaml).
 # Chapter guesses: medial 150 N, lateral 130 N.
 FORCE_GUESSES_N = [(1.0, 1.0), (10.0, 10.0), (150.0, 130.0), (500.0, 500.0), (1000.0, 50.0),
                    (50.0, 1000.0), (5000.0, 5000.0)]

@@ -2,7 +2,7 @@
 //
 // Validates: from the chapter's published guesses (scene chapter_impact.yaml) both forms
 // (chapter, closed form) reach the spec §10 reference pose, contact points and consistent
-// contact forces (values typed in from shared/spec/knee-model.md); each level reports a
+// contact forces (values typed in from the model spec, docs/model.md); each level reports a
 // residual above its tolerance before and below it after; held quantities are unchanged;
 // the forces do not depend on their guesses (the hidden level is linear in them); an
 // impossible position request and a velocity-inconsistent start with every velocity held

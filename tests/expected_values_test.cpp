@@ -1,4 +1,4 @@
-// Spec §10 expected values, typed in from shared/spec/knee-model.md (the independent
+// Spec §10 expected values, typed in from the model spec, docs/model.md (the independent
 // source), compared with what the library computes for the chapter's knee
 // (scene chapter_impact.yaml).
 //

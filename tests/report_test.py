@@ -1,14 +1,13 @@
 #!/usr/bin/python3
 """Builds the chapter report with --quick into a temporary directory and checks its outputs:
 every figure of reports/figures.FIGURES is a valid PNG (> 1 kB), index.html references them,
-and the claims table has exactly one row per claim id of chapter-trends.md.
+and the claims table has exactly one row per claim id of reports/claims.yaml.
 
-  report_test.py --kneedyn PATH [--spec chapter-trends.md] [--keep DIR]
+  report_test.py --kneedyn PATH [--keep DIR]
 """
 import argparse
 import csv
 import os
-import re
 import subprocess
 import sys
 import tempfile
@@ -16,36 +15,28 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.join(ROOT, "reports"))
+import claims  # noqa: E402
 import figures  # noqa: E402
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-# The claims spec lives in shared/ beside the repository (as in CI: a clone with shared/ next to it).
-DEFAULT_SPEC = os.path.join(os.path.dirname(ROOT), "shared", "spec", "chapter-trends.md")
 
 
-def claim_ids(spec_path):
-  """Ids from the first column of the markdown tables: | K1 | ... |."""
-  ids = []
-  with open(spec_path, encoding="utf-8") as f:
-    for line in f:
-      m = re.match(r"^\|\s*([A-Z]\d+)\s*\|", line)
-      if m:
-        ids.append(m.group(1))
-  return ids
+def claim_ids():
+  """Ids of reports/claims.yaml (the repository's own claims file)."""
+  return [c["id"] for c in claims.load_claims()[1]]
 
 
 def main():
   ap = argparse.ArgumentParser()
   ap.add_argument("--kneedyn", required=True)
-  ap.add_argument("--spec", default=DEFAULT_SPEC)
   ap.add_argument("--keep", help="build into this directory instead of a temporary one")
   ap.add_argument("--work-precision", help="work_precision binary: also check the work-precision "
                   "diagrams against a real (short, one-formulation) sweep")
   args = ap.parse_args()
   errors = []
-  spec_ids = claim_ids(args.spec)
+  spec_ids = claim_ids()
   if len(spec_ids) < 30:
-    print(f"report_test: only {len(spec_ids)} claim ids parsed from {args.spec}", file=sys.stderr)
+    print(f"report_test: only {len(spec_ids)} claim ids in claims.yaml", file=sys.stderr)
     return 1
 
   with tempfile.TemporaryDirectory(prefix="kneedyn_report_") as tmp:
