@@ -7,7 +7,7 @@ repository (issue 10 item 1): a clone must build, test and run with nothing besi
 Flags, per line:
   - any mention of the reading material kept beside the clone (a `shared` directory one
     level up, or its `spec/`, `seed/` sub-directories);
-  - absolute paths into home or work directories (/home/<user>, /root/, /Users/, /work/, ~/);
+  - absolute paths into home or work directories (home, root's home, macOS Users, work, tilde);
   - relative paths ("../x") that, resolved against the file's own directory, leave the root.
 System paths (/usr/bin/python3, /usr/bin/chromium, /dev/null, /proc/...) are allowed.
 Before scanning, the scanner is run on a few planted bad lines and must flag each one, so
@@ -65,7 +65,7 @@ def scan_text(root, rel, text):
 def self_check(root):
   """The scanner must flag each planted line (and not a clean one)."""
   bad = ["spec = '../" + _SH + "/spec/chapter-trends.md'", "open('/wo" + "rk/main/x')",
-         "DATA=/ho" + "me/alice/kneedyn", "p = '~/" + "data'", "f = '../../../outside.txt'",
+         "DATA=/ho" + "me/alice/kneedyn", "p = '~/" + "data'", "f = '" + "../" * 3 + "outside.txt'",
          "// values from " + _SH + "/spec/knee-model.md"]
   missed = [b for b in bad if not scan_text(root, "tests/planted.py", b)]
   clean = "parameter_set: ../chapter_knee.yaml  # python /usr/bin/python3"
