@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The chapter's figure set (Figs. 1.6-1.25) from the family runs, plus work-precision diagrams.
+"""The chapter's figure set (Figs. 1.4-1.25) from the family runs, plus work-precision diagrams.
 
   figures.py --out OUTDIR [--bench JSON]
 
@@ -31,22 +31,39 @@ def ligament_figure(name):
   return "ligament_" + name.replace(" ", "_") + ".png"
 
 
-# Stable file names, in report order: (file, caption).
+# The chapter's figure for each element (captions of Figs. 1.18-1.25); the four capsular
+# elements have no figure in the chapter: kneedyn-only.
+LIGAMENT_CHAPTER_FIGURE = {"ACL anterior": "Fig. 1.18", "ACL posterior": "Fig. 1.19",
+                           "PCL anterior": "Fig. 1.20", "PCL posterior": "Fig. 1.21",
+                           "MCL oblique": "Fig. 1.22", "MCL anterior": "Fig. 1.23",
+                           "MCL deep": "Fig. 1.24", "LCL": "Fig. 1.25"}
+
+
+def ligament_caption(name):
+  fig = LIGAMENT_CHAPTER_FIGURE.get(name)
+  if fig:
+    return f"Force in the {name} element vs flexion ({fig}; the chapter shows the amplitude family)"
+  return f"Force in the {name} element vs flexion (kneedyn only: the chapter has no figure for this element)"
+
+
+# Stable file names, in report order: (file, caption). Chapter figure numbers from the
+# chapter's captions; "the chapter shows ..." names the family the chapter plots.
+LIFTOFF_NOTE = "; star and dotted line: lateral lift-off (the chapter's point A)"
 FIGURES = [
-    ("pulses.png", "Posterior impact pulses (Eq. 1.62) vs time, both families (Fig. 1.6)"),
-    ("flexion_vs_time.png", "Flexion angle vs time (Fig. 1.6)"),
-    ("varus_valgus.png", "Varus-valgus rotation vs flexion (Fig. 1.7)"),
-    ("tibial_rotation.png", "Internal-external tibial rotation vs flexion (Fig. 1.8)"),
-    ("femoral_contact_pathways.png", "Femoral contact points (femoral frame) vs flexion, medial and lateral (Fig. 1.9)"),
-    ("tibial_contact_pathways.png", "Tibial contact points (tibial frame) vs flexion, medial and lateral (Fig. 1.10)"),
-    ("ml_shift_velocity.png", "Medial-lateral shift velocity of the tibia vs flexion (Fig. 1.11)"),
-    ("ap_velocity.png", "Posterior velocity of the tibia vs flexion (Fig. 1.12)"),
-    ("flexion_velocity.png", "Flexion angular velocity vs flexion (Fig. 1.13)"),
-    ("varus_valgus_velocity.png", "Varus-valgus angular velocity vs flexion (Fig. 1.14)"),
-    ("tibial_rotation_velocity.png", "Internal-external rotation velocity vs flexion (Fig. 1.15)"),
-    ("contact_force_medial.png", "Medial contact force vs flexion (Fig. 1.16)"),
-    ("contact_force_lateral.png", "Lateral contact force vs flexion (Fig. 1.17)"),
-] + [(ligament_figure(n), f"Force in the {n} element vs flexion (Figs. 1.18-1.25)") for n in LIGAMENTS]
+    ("pulses.png", "Posterior impact pulses vs time: amplitude family (Fig. 1.4), duration family (Fig. 1.5)"),
+    ("flexion_vs_time.png", "Flexion angle vs time (Fig. 1.6; the chapter shows the duration family)" + LIFTOFF_NOTE),
+    ("varus_valgus.png", "Varus-valgus rotation vs flexion (Fig. 1.7; the chapter shows the duration family)" + LIFTOFF_NOTE),
+    ("tibial_rotation.png", "Internal-external tibial rotation vs flexion (Fig. 1.8; the chapter shows the duration family)" + LIFTOFF_NOTE),
+    ("femoral_contact_pathways.png", "Femoral contact points (femoral frame) vs flexion, medial and lateral (Fig. 1.9; the chapter shows A = 100 N, t0 = 0.1 s)" + LIFTOFF_NOTE),
+    ("tibial_contact_pathways.png", "Tibial contact points (tibial frame) vs flexion, medial and lateral (Fig. 1.10; the chapter shows A = 100 N, t0 = 0.1 s)" + LIFTOFF_NOTE),
+    ("ml_shift_velocity.png", "Medial-lateral shift velocity of the tibia vs flexion, femoral axes (Fig. 1.11; the chapter shows the duration family)" + LIFTOFF_NOTE),
+    ("ap_velocity.png", "Posterior velocity of the tibia vs flexion, femoral axes (Fig. 1.12; the chapter shows the duration family)" + LIFTOFF_NOTE),
+    ("flexion_velocity.png", "Flexion angular velocity vs flexion (Fig. 1.13; the chapter shows the duration family)" + LIFTOFF_NOTE),
+    ("varus_valgus_velocity.png", "Varus-valgus angular velocity vs flexion (Fig. 1.14; the chapter shows the duration family)" + LIFTOFF_NOTE),
+    ("tibial_rotation_velocity.png", "Internal-external rotation velocity vs flexion (Fig. 1.15; the chapter shows the duration family)" + LIFTOFF_NOTE),
+    ("contact_force_medial.png", "Medial contact force vs flexion (Fig. 1.16; the chapter shows the amplitude family)" + LIFTOFF_NOTE),
+    ("contact_force_lateral.png", "Lateral contact force vs flexion (Fig. 1.17; the chapter shows the amplitude family)" + LIFTOFF_NOTE),
+] + [(ligament_figure(n), ligament_caption(n) + LIFTOFF_NOTE) for n in LIGAMENTS]
 
 WORK_PRECISION_FIGURES = [
     ("work_precision_cpu.png", "Work-precision: error (10^-scd) vs CPU time"),
@@ -59,17 +76,36 @@ def colors(n):
   return [cmap(0.85 * i / max(1, n - 1)) for i in range(n)]
 
 
+def liftoff_point(m, x_col, y):
+  """(x, y) of the lateral lift-off (the chapter's point A) on a member's curve, or None."""
+  e = m.events.get("liftoff_lateral")
+  if not e:
+    return None
+  x = m.col(x_col)
+  xe = e["flexion_deg"] if x_col == "flexion_deg" else e["time"] if x_col == "time_s" else None
+  if xe is None:
+    return None
+  ok = np.isfinite(x) & np.isfinite(y)
+  if not np.any(ok):
+    return None
+  i = int(np.argmin(np.abs(np.where(ok, x, np.inf) - xe)))
+  return xe, y[i]
+
+
 def family_panels(members, ylabel, fn, title, xlabel="Flexion angle [deg]", x_col="flexion_deg",
-                  mark_liftoff=False, hline0=False):
-  """Two panels (amplitude, duration families), one curve per member; fn(member) -> y."""
+                  mark_liftoff=True, hline0=False):
+  """Two panels (amplitude, duration families), one curve per member; fn(member) -> y.
+  mark_liftoff: star at the lateral lift-off on each curve plus a dotted vertical."""
   fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), sharey=True)
   for ax, (family, ftitle) in zip(axes, FAMILIES):
     ms = by_family(members, family)
     for m, c in zip(ms, colors(len(ms))):
       y = fn(m)
       ax.plot(m.col(x_col), y, color=c, label=m.label, lw=1.6)
-      if mark_liftoff and m.liftoff_deg is not None:
-        ax.axvline(m.liftoff_deg, color=c, ls=":", lw=1)
+      p = liftoff_point(m, x_col, y) if mark_liftoff else None
+      if p is not None:
+        ax.axvline(p[0], color=c, ls=":", lw=1)
+        ax.plot([p[0]], [p[1]], marker="*", ms=11, color=c, mec="k", mew=0.5, ls="none")
     if hline0:
       ax.axhline(0, color="k", lw=0.6)
     ax.set_title(ftitle, fontsize=10)
@@ -94,9 +130,12 @@ def pathway_figure(members, frame, title):
       for ri, axis in enumerate(("x", "y", "z")):
         ax = axes[ri, col]
         for m, c in zip(ms, colors(len(ms))):
-          ax.plot(m.col("flexion_deg"), m.col(f"{frame}_{comp}_{axis}_mm"), color=c, label=m.label, lw=1.4)
-          if m.liftoff_deg is not None:
-            ax.axvline(m.liftoff_deg, color=c, ls=":", lw=1)
+          y = m.col(f"{frame}_{comp}_{axis}_mm")
+          ax.plot(m.col("flexion_deg"), y, color=c, label=m.label, lw=1.4)
+          p = liftoff_point(m, "flexion_deg", y)
+          if p is not None:
+            ax.axvline(p[0], color=c, ls=":", lw=1)
+            ax.plot([p[0]], [p[1]], marker="*", ms=10, color=c, mec="k", mew=0.5, ls="none")
         ax.grid(alpha=0.3)
         if col == 0:
           ax.set_ylabel(axis_names[axis])
@@ -106,7 +145,7 @@ def pathway_figure(members, frame, title):
           ax.set_xlabel("Flexion angle [deg]")
       if ms:
         axes[0, col].legend(fontsize=7)
-  fig.suptitle(title + " (dotted: lateral lift-off)")
+  fig.suptitle(title + " (star / dotted: lateral lift-off, point A)")
   fig.tight_layout()
   return fig
 
@@ -130,7 +169,7 @@ def make_family_figures(outdir, members):
   figs = _SavingDict(figdir)
   figs["pulses.png"] = family_panels(members, "Pulse force [N]", lambda m: m.col("pulse_N"),
                                      "Posterior impact pulse at the tibial centre of mass",
-                                     xlabel="Time [s]", x_col="time_s")
+                                     xlabel="Time [s]", x_col="time_s", mark_liftoff=False)
   figs["flexion_vs_time.png"] = family_panels(members, "Flexion angle [deg]", lambda m: m.col("flexion_deg"),
                                               "Flexion vs time", xlabel="Time [s]", x_col="time_s")
   figs["varus_valgus.png"] = family_panels(members, "Valgus (+) / varus (-) [deg]",
@@ -156,16 +195,15 @@ def make_family_figures(outdir, members):
       members, "External (+) / internal (-) rotation velocity [deg/s]",
       lambda m: m.col("external_rotation_rate_deg_s"), "Tibial rotation velocity", hline0=True)
   figs["contact_force_medial.png"] = family_panels(members, "Medial contact force [N]",
-                                                   lambda m: m.col("N_medial_N"), "Medial contact force",
-                                                   mark_liftoff=True)
+                                                   lambda m: m.col("N_medial_N"), "Medial contact force")
   figs["contact_force_lateral.png"] = family_panels(members, "Lateral contact force [N]",
                                                     lambda m: m.col("N_lateral_N"),
-                                                    "Lateral contact force (dotted: lift-off)",
-                                                    mark_liftoff=True)
+                                                    "Lateral contact force")
   for n in LIGAMENTS:
     col = ligament_column(n)
+    fig_no = LIGAMENT_CHAPTER_FIGURE.get(n, "kneedyn only, no chapter figure")
     figs[ligament_figure(n)] = family_panels(members, f"{n} force [N]",
-                                             lambda m, col=col: m.col(col), f"Force in the {n} element")
+                                             lambda m, col=col: m.col(col), f"Force in the {n} element ({fig_no})")
   missing = [f for f, _ in FIGURES if f not in figs]
   assert not missing, missing
   return [f for f, _ in FIGURES]

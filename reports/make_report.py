@@ -119,7 +119,7 @@ def claims_section(rows):
 def figures_section(outdir):
   parts = ["<h2 id='figures'>Figures</h2>",
            "<p>Frames: x lateral, y anterior, z proximal (femoral frame F, tibial frame T). "
-           "Valgus = β − 90° (+), external tibial rotation = γ (+). Dotted verticals: lateral lift-off.</p>"]
+           "Valgus = β − 90° (+), external tibial rotation = γ (+). Star and dotted vertical on every curve against flexion: lateral lift-off (the chapter marks it as point A on Figs. 1.7 and 1.8 only). Figure numbers are the chapter's; the four capsular elements have no chapter figure (kneedyn only).</p>"]
   in_grid = False
   for fname, caption in figures.FIGURES:
     rel = f"figures/{fname}"
@@ -249,7 +249,7 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None):
     rows = json.load(f)
   body = [f"<h1>kneedyn: chapter reproduction report</h1>",
           "<p>Hefzy &amp; Abdel-Rahman, 3D dynamic knee model: pulse families of section 1.4 "
-          "(Figs. 1.6–1.25) with the reference solver, the chapter's claims checked automatically.</p>",
+          "(Figs. 1.4–1.25) with the reference solver, the chapter's claims checked automatically.</p>",
           "<nav><a href='#summary'>Summary</a><a href='#claims'>Claims</a><a href='#figures'>Figures</a>"
           "<a href='#sensitivity'>Sensitivity</a><a href='#work-precision'>Work-precision</a>"
           "<a href='#hard-cases'>Hard cases</a>"
