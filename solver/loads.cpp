@@ -17,6 +17,10 @@ double PulseMagnitude(const Pulse& pulse, double t) {
       return pulse.amplitude * s * std::sin(2.0 * kPi * s) * std::exp(-4.73 * s);
     case PulseShape::kHalfSine:
       return s <= 1.0 ? pulse.amplitude * std::sin(kPi * s) : 0.0;
+    case PulseShape::kReconstructedPeak:
+      return pulse.amplitude * s * std::sin(2.0 * kPi * s) * std::exp(-4.73 * s) / kReconstructedPeakValue;
+    case PulseShape::kDampedSine:
+      return pulse.amplitude * std::sin(2.0 * kPi * s) * std::exp(-4.73 * s);
   }
   return 0.0;
 }
@@ -25,8 +29,10 @@ PulseShape ParsePulseShape(const std::string& name) {
   if (name == "none") return PulseShape::kNone;
   if (name == "reconstructed") return PulseShape::kReconstructed;
   if (name == "half_sine") return PulseShape::kHalfSine;
+  if (name == "reconstructed_peak") return PulseShape::kReconstructedPeak;
+  if (name == "damped_sine") return PulseShape::kDampedSine;
   Throw<InputError>("ParsePulseShape", "unknown pulse shape '", name,
-                    "'; expected one of: reconstructed, half_sine, none");
+                    "'; expected one of: reconstructed, half_sine, reconstructed_peak, damped_sine, none");
 }
 
 const char* PulseShapeName(PulseShape shape) {
@@ -34,6 +40,8 @@ const char* PulseShapeName(PulseShape shape) {
     case PulseShape::kNone: return "none";
     case PulseShape::kReconstructed: return "reconstructed";
     case PulseShape::kHalfSine: return "half_sine";
+    case PulseShape::kReconstructedPeak: return "reconstructed_peak";
+    case PulseShape::kDampedSine: return "damped_sine";
   }
   return "?";
 }

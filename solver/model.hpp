@@ -62,6 +62,8 @@ enum class PulseShape {
   kNone,
   kReconstructed,  // A (t/t0) sin(2π t/t0) exp(−4.73 t/t0), Eq. 1.62 as reconstructed
   kHalfSine,       // A sin(π t/t0) on [0, t0], zero after
+  kReconstructedPeak,  // kReconstructed scaled so that its peak is A (reconstruction study)
+  kDampedSine,         // A sin(2π t/t0) exp(−4.73 t/t0), another reading of Eq. 1.62
 };
 
 struct Pulse {
