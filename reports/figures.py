@@ -66,10 +66,10 @@ FIGURES = [
 ] + [(ligament_figure(n), ligament_caption(n) + LIFTOFF_NOTE) for n in LIGAMENTS]
 
 WORK_PRECISION_FIGURES = [
-    ("work_precision_cpu.png", "Work-precision: error (10^-scd) vs CPU time"),
-    ("work_precision_residuals.png", "Work-precision: error (10^-scd) vs residual evaluations"),
+    ("work_precision_cpu.png", "Work-precision: significant correct digits of the positions (scd) vs CPU time"),
+    ("work_precision_residuals.png", "Work-precision: scd of the positions vs residual (right-hand-side) evaluations"),
+    ("work_precision_events.png", "Work-precision: event-time digits vs CPU time"),
 ]
-
 
 def colors(n):
   cmap = plt.get_cmap("viridis")
@@ -209,12 +209,139 @@ def make_family_figures(outdir, members):
   return [f for f, _ in FIGURES]
 
 
+# ---------------------------------------------------------------- work-precision
+# A run is drawn as a failure (not a point) when it failed, lacks a reference event, has
+# contact events the reference lacks, or misses an event time by more than this. 1 ms is
+# 0.5° of flexion at the end of the chapter run (α̇ ≈ 460°/s): any run whose positions
+# carry 2 or more digits must place its events closer than that.
+WRONG_EVENT_TIME_S = 1e-3
+UNIT_TO_S = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
+
+
+def _parse_name(name):
+  """Google-Benchmark name 'formulation[:integrator]/rtol=X[/...]' or '/step=X' -> parts."""
+  parts = name.split("/")
+  form, _, integ = parts[0].partition(":")
+  setting = {}
+  for p in parts[1:]:
+    k, _, v = p.partition("=")
+    if k in ("rtol", "atol", "step"):
+      try:
+        setting[k] = float(v)
+      except ValueError:
+        pass
+  return form, integ, setting
+
+
 def load_bench(path):
-  with open(path) as f:
+  """Benchmark JSON -> (header, [run dicts]) in one normalized form. Accepts
+    (a) benchmarks/work_precision.cpp's layout {"header", "results": [{formulation, integrator,
+        setting, status, reason, metrics{scd, event_time_error_s}, cpu_time_s{median}, counters,
+        events}]} (or a bare list of such results), and
+    (b) Google Benchmark's own layout {"context", "benchmarks": [{name, run_name, run_type,
+        aggregate_name, cpu_time, time_unit, <counters>, ...}]}: one run per run_name (the
+        median aggregate if present, else the mean of the iterations); formulation, integrator
+        and setting from the fields of the same name, else from the benchmark name; scd and
+        event errors from fields `scd`, `metrics` or `event_time_error_s[.<event>]`.
+  A top-level "provenance" {command, commit, date} is passed through in the header."""
+  with open(path, encoding="utf-8") as f:
     data = json.load(f)
-  if isinstance(data, dict):  # benchmarks/work_precision.cpp: {"header": ..., "results": [...]}
+  header = {}
+  if isinstance(data, dict):
+    header = dict(data.get("header") or data.get("context") or {})
+    if "provenance" in data:
+      header["provenance"] = data["provenance"]
+    if isinstance(data.get("benchmarks"), list):
+      return header, _from_google_benchmark(data["benchmarks"])
     data = data.get("results", data.get("runs", []))
-  return [r for r in data if isinstance(r, dict)]
+  runs = []
+  for r in data:
+    if not isinstance(r, dict):
+      continue
+    m = r.get("metrics") or {}
+    cpu = r.get("cpu_time_s")
+    cpu = cpu.get("median") if isinstance(cpu, dict) else cpu
+    runs.append({"formulation": r.get("formulation", "?"), "integrator": r.get("integrator") or "",
+                 "setting": r.get("setting") or {}, "status": r.get("status", "ok"),
+                 "reason": r.get("reason") or "", "scd": m.get("scd"),
+                 "event_time_error_s": m.get("event_time_error_s") or {},
+                 "cpu_s": cpu, "residual_evaluations": (r.get("counters") or {}).get("residual_evaluations"),
+                 "events": r.get("events")})
+  return header, runs
+
+
+def _from_google_benchmark(entries):
+  groups = {}
+  for e in entries:
+    if isinstance(e, dict) and e.get("name"):
+      groups.setdefault(e.get("run_name") or e["name"], []).append(e)
+  runs = []
+  for name, es in groups.items():
+    med = [e for e in es if e.get("run_type") == "aggregate" and e.get("aggregate_name") == "median"]
+    its = [e for e in es if e.get("run_type", "iteration") == "iteration"]
+    e = med[0] if med else (its[0] if its else es[0])
+    unit = UNIT_TO_S.get(e.get("time_unit", "ns"), 1e-9)
+    if med:
+      cpu = e.get("cpu_time")
+      cpu = cpu * unit if isinstance(cpu, (int, float)) else None
+    else:
+      ts = [x["cpu_time"] * UNIT_TO_S.get(x.get("time_unit", "ns"), 1e-9) for x in its
+            if isinstance(x.get("cpu_time"), (int, float))]
+      cpu = float(np.mean(ts)) if ts else None
+    form, integ, setting = _parse_name(name)
+    metrics = e.get("metrics") if isinstance(e.get("metrics"), dict) else {}
+    ev = dict(metrics.get("event_time_error_s") or e.get("event_time_error_s") or {})
+    for k, v in e.items():
+      if k.startswith("event_time_error_s.") or k.startswith("event_time_error_s_"):
+        ev[k[len("event_time_error_s") + 1:]] = v
+    failed = bool(e.get("error_occurred")) or str(e.get("status", "ok")) not in ("ok", "completed")
+    runs.append({"formulation": e.get("formulation", form), "integrator": e.get("integrator", integ) or "",
+                 "setting": e.get("setting") if isinstance(e.get("setting"), dict) else setting,
+                 "status": "failed" if failed else "ok",
+                 "reason": e.get("error_message") or e.get("reason") or e.get("label") or "",
+                 "scd": metrics.get("scd", e.get("scd")), "event_time_error_s": ev, "cpu_s": cpu,
+                 "residual_evaluations": e.get("residual_evaluations"), "events": e.get("events")})
+  return runs
+
+
+def setting_str(s):
+  if "step" in s:
+    return f"h = {s['step']:.3g} s"
+  if "rtol" in s:
+    return f"rtol = {s['rtol']:.3g}"
+  return json.dumps(s)
+
+
+def classify_run(r):
+  """'ok', or the reason the run is drawn as a failure. The reference's events are the keys
+  of event_time_error_s (one per reference event)."""
+  if r["status"] != "ok":
+    return f"failed: {r['reason'] or r['status']}"
+  scd = r.get("scd")
+  if scd is None or not math.isfinite(float(scd)):
+    return "no scd (comparison times missing: ended early or failed)"
+  ev = r.get("event_time_error_s") or {}
+  missing = [k for k, v in ev.items() if v is None or not math.isfinite(float(v))]
+  if missing:
+    return f"wrong events: reference event(s) {', '.join(missing)} missing"
+  late = {k: float(v) for k, v in ev.items() if float(v) > WRONG_EVENT_TIME_S}
+  if late:
+    k = max(late, key=late.get)
+    return f"wrong event time: {k} off by {late[k] * 1e3:.1f} ms (> {WRONG_EVENT_TIME_S * 1e3:g} ms)"
+  if ev and r.get("events") is not None:
+    extra = sorted({e["name"] for e in r["events"]} - set(ev) - {"flexion_90"})
+    if extra:
+      return f"wrong events: {', '.join(extra)} not in the reference"
+  return "ok"
+
+
+def event_digits(r):
+  """Event-time digits: −log10 of the largest |t − t_ref| [s] over the reference's events."""
+  ev = [float(v) for v in (r.get("event_time_error_s") or {}).values() if v is not None]
+  if not ev:
+    return None
+  worst = max(ev)
+  return 16.0 if worst <= 0 else -math.log10(worst)
 
 
 def bench_key(r):
@@ -222,45 +349,72 @@ def bench_key(r):
 
 
 def make_work_precision(outdir, bench_path):
-  """Returns (figure files, failed-run rows [(key, setting, reason)])."""
-  runs = load_bench(bench_path)
-  lines, failed = {}, []
+  """Returns (figure files, not-plotted rows [(key, setting, reason)], header)."""
+  header, runs = load_bench(bench_path)
+  ok_runs, failed = [], []
   for r in runs:
-    metrics = r.get("metrics") or {}
-    scd = metrics.get("scd")
-    cpu = r.get("cpu_time_s") or {}
-    cpu = cpu.get("median") if isinstance(cpu, dict) else cpu
-    res = (r.get("counters") or {}).get("residual_evaluations")
-    if r.get("status", "ok") != "ok" or scd is None or not math.isfinite(float(scd)):
-      why = r.get("reason") or (f"status {r['status']}" if r.get("status", "ok") != "ok" else "no metrics.scd")
-      failed.append((bench_key(r), r.get("setting"), why))
-      continue
-    lines.setdefault(bench_key(r), []).append((float(scd), cpu, res, r.get("setting")))
+    why = classify_run(r)
+    if why == "ok":
+      ok_runs.append(r)
+    else:
+      failed.append((bench_key(r), setting_str(r["setting"]), why, r))
+  forms = sorted({r["formulation"] for r in runs})
+  integs = sorted({r["integrator"] or "-" for r in runs})
+  palette = plt.get_cmap("tab10").colors
+  fcol = {f: palette[i % len(palette)] for i, f in enumerate(forms)}
+  markers = "osD^v<>pP*Xh"
+  imark = {g: markers[i % len(markers)] for i, g in enumerate(integs)}
   figdir = os.path.join(outdir, "figures")
   os.makedirs(figdir, exist_ok=True)
   files = []
-  for fname, xi, xlabel in (("work_precision_cpu.png", 1, "CPU time (median) [s]"),
-                            ("work_precision_residuals.png", 2, "Residual evaluations")):
-    fig, ax = plt.subplots(figsize=(9, 6))
-    colors = plt.get_cmap("tab20").colors  # one distinct colour per formulation × integrator
-    markers = "os^Dv<>pP*X"
-    for i, (key, pts) in enumerate(sorted(lines.items())):
-      pts = [p for p in pts if p[xi] is not None and p[xi] > 0]
-      pts.sort(key=lambda p: p[xi])
-      if pts:
-        ax.loglog([p[xi] for p in pts], [10.0 ** -p[0] for p in pts], "-", marker=markers[i % len(markers)],
-                  markersize=4, color=colors[i % len(colors)], label=key)
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel("Error 10^-scd")
-    ax.grid(alpha=0.3, which="both")
-    if lines:
-      ax.legend(fontsize=8)
-    ax.set_title("Work-precision" + ("" if lines else " (no successful runs)"))
+  specs = [("work_precision_cpu.png", "cpu_s", "CPU time per run (median) [s]", lambda r: r["scd"],
+            "scd of positions vs reference\n−log10 max|e|/(|ref| + 1 mm or 1°)"),
+           ("work_precision_residuals.png", "residual_evaluations", "Residual (right-hand-side) evaluations",
+            lambda r: r["scd"], "scd of positions vs reference\n−log10 max|e|/(|ref| + 1 mm or 1°)"),
+           ("work_precision_events.png", "cpu_s", "CPU time per run (median) [s]", event_digits,
+            "event-time digits\n−log10 max over events |t − t_ref| [s]")]
+  def order(r):  # tolerance / step order along a series
+    st = r["setting"]
+    return -(st.get("rtol") or st.get("step") or 0.0)
+
+  FAIL_Y = -0.6  # the failure row below each panel's data
+  for fname, xkey, xlabel, yfn, ylabel in specs:
+    ncol = min(3, max(1, len(forms)))
+    nrow = max(1, math.ceil(len(forms) / ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol, 3.6 * nrow + 0.8), sharex=True, sharey=True,
+                             squeeze=False)
+    ys = [yfn(r) for r in ok_runs if yfn(r) is not None]
+    top = max(ys) + 0.5 if ys else 10.0
+    for ax, f in zip(axes.flat, forms):
+      for g in integs:
+        pts = sorted((r for r in ok_runs if r["formulation"] == f and (r["integrator"] or "-") == g
+                      and r.get(xkey) and yfn(r) is not None), key=order)
+        if pts:
+          ax.semilogx([r[xkey] for r in pts], [yfn(r) for r in pts], "-", color=fcol[f], marker=imark[g],
+                      ms=5, mfc="none", lw=0.8, label=g if g != "-" else "built-in (IDA / Newmark)")
+      bad = [row[3] for row in failed if row[3]["formulation"] == f and row[3].get(xkey)]
+      if bad:
+        ax.semilogx([r[xkey] for r in bad], [FAIL_Y] * len(bad), "x", color=fcol[f], ms=7, ls="none")
+      ax.axhline(FAIL_Y + 0.45, color="k", lw=0.5, ls="--")
+      ax.set_title(f"{f}  ({len(bad)} failed / wrong event)", color=fcol[f], fontsize=10, fontweight="bold")
+      ax.grid(alpha=0.3, which="both")
+      ax.set_ylim(FAIL_Y - 0.5, top)
+      if ax.get_legend_handles_labels()[0]:
+        ax.legend(title="integrator (marker)", fontsize=7, title_fontsize=7, loc="upper left")
+    for ax in axes.flat[len(forms):]:
+      ax.set_visible(False)
+    for ax in axes[-1, :]:
+      ax.set_xlabel(xlabel)
+    for ax in axes[:, 0]:
+      ax.set_ylabel(ylabel, fontsize=9)
+    fig.suptitle(f"Work-precision, scene {header.get('scene', '?')}, {header.get('mode', '?')} sweep: "
+                 f"{len(ok_runs)} runs plotted; {len(failed)} failed or wrong event (× on the bottom row)",
+                 fontsize=11)
     fig.tight_layout()
-    fig.savefig(os.path.join(figdir, fname), dpi=90)
+    fig.savefig(os.path.join(figdir, fname), dpi=80)
     plt.close(fig)
     files.append(fname)
-  return files, failed
+  return files, [row[:3] for row in failed], header
 
 
 def main(argv=None):
@@ -272,7 +426,7 @@ def main(argv=None):
   files = make_family_figures(args.out, members)
   print(f"figures: {len(files)} family figures -> {os.path.join(args.out, 'figures')}")
   if args.bench and os.path.exists(args.bench):
-    wp, failed = make_work_precision(args.out, args.bench)
+    wp, failed, _ = make_work_precision(args.out, args.bench)
     print(f"figures: {len(wp)} work-precision figures, {len(failed)} failed runs listed")
   return 0
 

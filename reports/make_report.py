@@ -37,11 +37,25 @@ dl.kv { display: grid; grid-template-columns: max-content auto; gap: 2px 16px; }
 dl.kv dt { font-weight: bold; } dl.kv dd { margin: 0; }
 nav a { margin-right: 12px; }
 .grid2 { display: grid; grid-template-columns: 1fr 1fr; gap: 0 16px; }
+.scroll { overflow-x: auto; max-width: 100%; }
+table.hard td.hc { white-space: nowrap; font-size: 0.9em; }
+table.hard td.ok { background: #e6f4e6; } table.hard td.fail { background: #f8dcdc; }
+table.hard td.err { background: #eee; } table.hard td.ref { font-size: 0.8em; max-width: 18em; }
+details { margin: 4px 0; } summary { cursor: pointer; }
+td { overflow-wrap: anywhere; }
+table.matrix { width: auto; } table.matrix td.m { text-align: center; min-width: 2.2em; }
+table.matrix td.reproduced { background: #d8f0d8; } table.matrix td.not-reproduced { background: #f6d5d5; }
+table.matrix tr.varies td.id { background: #fff4d6; }
+div.why { color: #666; font-size: 0.9em; margin-top: 3px; }
 """
 
 
 def esc(x):
   return html.escape(str(x))
+
+
+class Raw(str):
+  """A table cell that is already HTML."""
 
 
 def table(headers, rows, row_classes=None, cell_classes=None):
@@ -51,7 +65,7 @@ def table(headers, rows, row_classes=None, cell_classes=None):
     cells = []
     for j, c in enumerate(r):
       cc = f' class="{cell_classes[j]}"' if cell_classes and cell_classes[j] else ""
-      cells.append(f"<td{cc}>{esc(c)}</td>")
+      cells.append(f"<td{cc}>{c if isinstance(c, Raw) else esc(c)}</td>")
     out.append(f"<tr{cls}>" + "".join(cells) + "</tr>")
   out.append("</tbody></table>")
   return "\n".join(out)
@@ -109,8 +123,9 @@ def claims_section(rows):
            "<code>reports/claims.yaml</code> (S1/S2 are the sensitivity statements). "
            "Also as <a href='claims.csv'>claims.csv</a> and <a href='claims.md'>claims.md</a>.</p>"]
   parts.append(table(["id", "claim (source)", "check (tolerance band)", "measured", "verdict", "reason"],
-                     [[r["id"], f"{r['claim']} ({r.get('source', '')})", r["check"], r["measured"], r["verdict"],
-                       r["reason"]] for r in rows],
+                     [[r["id"], f"{r['claim']} ({r.get('source', '')})",
+                       Raw(f"{esc(r['check'])}<div class='why'>why: {esc(r.get('justification', ''))}</div>"),
+                       r["measured"], r["verdict"], r["reason"]] for r in rows],
                      row_classes=[r["verdict"].replace(" ", "-") for r in rows],
                      cell_classes=["id", None, None, None, "verdict", None]))
   return "\n".join(parts)
@@ -180,50 +195,245 @@ def sensitivity_section(outdir):
   return "\n".join(parts)
 
 
+LEG_WEIGHT_N = 4.0 * 9.81  # m g of the chapter's leg (parameter set: 4.0 kg)
+VERDICT_MARK = {"reproduced": "✓", "not reproduced": "✗", "not checkable": "–"}
+
+
+def reconstruction_section(outdir):
+  path = os.path.join(outdir, "reconstruction", "reconstruction.json")
+  parts = ["<h2 id='reconstruction'>Reconstruction study</h2>"]
+  if not os.path.exists(path):
+    parts.append("<p>Not run (<code>report.py --reconstruction</code>).</p>")
+    return "\n".join(parts)
+  with open(path, encoding="utf-8") as f:
+    rec = json.load(f)
+  rd = rec["readings"]
+  ids = rec["claims"]
+  parts.append(
+      "<p>The printed chapter leaves parts of the model uncertain: Eq. 1.62 (the pulse) is garbled, the "
+      "direction of the weight is not stated, and the published ligament law has a force jump the chapter does "
+      "not discuss. The project's reading (first column) is one hypothesis. Here every claim is re-evaluated "
+      "under each plausible reading (the same families, solver and checks; only the scene changes). A claim "
+      "whose verdict changes across columns rests on the reading; one that does not is robust to it."
+      + (" <b>Quick mode: reduced families.</b>" if rec.get("quick") else "") + "</p>")
+  labels = [f"R{i + 1}" for i in range(len(rd))]
+  rows = []
+  for lab, r in zip(labels, rd):
+    cr = r.get("crossing_deg") or {}
+    keys = sorted(cr, key=float)
+    cross = " → ".join(f"{cr[k]:.1f}°" if cr[k] is not None else "none" for k in keys)
+    rows.append([lab, r["label"], f"{r['peak_pulse_N']:.1f}" if r.get("peak_pulse_N") is not None else "–",
+                 f"{r['liftoff_lateral_deg']:.1f}°" if r.get("liftoff_lateral_deg") is not None else "none",
+                 cross + (f" (t0 {keys[0]}→{keys[-1]} s)" if keys else ""),
+                 f"{r['counts']['reproduced']} / {len(ids)}",
+                 ", ".join(r.get("failed_members") or []) or "–"])
+  parts.append(table(["", "reading", "peak pulse at A = 100 N [N]", "lateral lift-off (chapter ≈ 66°)",
+                      "valgus→varus crossing (chapter 25° → 45°)", "claims reproduced", "failed runs"], rows))
+  # Matrix: claims × readings.
+  head = "<tr><th>claim</th>" + "".join(f"<th title='{esc(r['label'])}'>{lab}</th>" for lab, r in zip(labels, rd)) \
+      + "</tr>"
+  body = []
+  for cid in ids:
+    vs = [r["verdicts"].get(cid, "not checkable") for r in rd]
+    varies = len(set(vs)) > 1
+    cells = "".join(f"<td class='m {v.replace(' ', '-')}' title='{esc(r['reasons'].get(cid, ''))[:300]}'>"
+                    f"{VERDICT_MARK.get(v, '?')}</td>" for v, r in zip(vs, rd))
+    body.append(f"<tr{' class=varies' if varies else ''}><td class='id' title='{esc(rec['claim_text'].get(cid, ''))}'>"
+                f"{esc(cid)}{' *' if varies else ''}</td>{cells}</tr>")
+  body.append("<tr><td class='id'>count ✓</td>" + "".join(f"<td class='m'><b>{r['counts']['reproduced']}</b></td>"
+                                                          for r in rd) + "</tr>")
+  body.append("<tr><td class='id'>lift-off</td>" + "".join(
+      f"<td class='m'>{r['liftoff_lateral_deg']:.1f}°</td>" if r.get("liftoff_lateral_deg") is not None else
+      "<td class='m'>none</td>" for r in rd) + "</tr>")
+  n_vary = sum(len({r["verdicts"].get(c) for r in rd}) > 1 for c in ids)
+  parts.append(f"<p>Reading × claim (✓ reproduced, ✗ not reproduced, – not checkable; * = the verdict depends on "
+               f"the reading: {n_vary} of {len(ids)} claims). Hover a cell for the failed sub-checks. S1/S2 "
+               "(sensitivity statements) do not depend on the reading and are not re-run.</p>")
+  parts.append("<div class='scroll'><table class='matrix'><thead>" + head + "</thead><tbody>" + "\n".join(body)
+               + "</tbody></table></div>")
+  parts.append(calibration_part(outdir))
+  parts.append(
+      "<h3>What this can and cannot establish</h3><ul>"
+      "<li>It <b>can</b> show which verdicts depend on the uncertain readings and which hold under all of them, "
+      "and whether any reading (or any pulse scale and weight direction within the bounds searched) reaches the "
+      "chapter's quantitative statements.</li>"
+      "<li>It <b>cannot</b> identify the chapter's actual pulse or weight direction: five targets read off plots "
+      "to about ±5°, two fitted parameters, and other unknowns the study does not vary (typos in the printed "
+      "parameter tables, the frame of the pulse direction, the surfaces) could compensate one another. A good "
+      "fit is consistency, not proof; a bad fit says that these two quantities alone do not explain the "
+      "difference.</li></ul>")
+  return "\n".join(parts)
+
+
+def calibration_part(outdir):
+  path = os.path.join(outdir, "reconstruction", "calibration.json")
+  parts = ["<h3>Calibration (Ceres)</h3>"]
+  if not os.path.exists(path):
+    parts.append("<p>Not run (<code>report.py --reconstruction --calibrate build/reports/calibrate_reconstruction"
+                 "</code>).</p>")
+    return "\n".join(parts)
+  with open(path, encoding="utf-8") as f:
+    cal = json.load(f)
+  best = cal["best"]
+  res = best["result"]
+  parts.append(
+      "<p><code>reports/calibrate_reconstruction.cpp</code> fits two continuous quantities, the pulse scale s "
+      "(amplitude s × A, shape as in the scene) and the angle θ of the weight in the sagittal plane "
+      "(g<sub>F</sub> = g (0, −cos θ, −sin θ); θ = 0 is the project's reading, weight posterior with the thigh "
+      "horizontal; θ = 90° weight distal), to five statements of the chapter, each residual (measured − target) / "
+      "5°: a coarse grid picks the start, Ceres Levenberg–Marquardt (central differences, bounds s ∈ [0.5, 200], "
+      f"θ ∈ [−90°, 90°]) refines it. Runs: {esc(cal['settings']['formulation'])}, rtol {cal['settings']['rtol']:g}."
+      f" Pulse shape {esc(cal.get('pulse_shape'))}, A = {cal.get('amplitude_N'):g} N.</p>")
+  names = [("liftoff_lateral_deg", "lateral lift-off (C1, Fig. 1.9)"),
+           ("crossing_t0_0.05_deg", "valgus→varus crossing, t0 = 0.05 s (K4/K6, Fig. 1.7)"),
+           ("crossing_t0_0.2_deg", "valgus→varus crossing, t0 = 0.2 s (K6, Fig. 1.7)"),
+           ("external_rotation_peak_deg", "peak external rotation (K7, Fig. 1.8)"),
+           ("max_varus_deg", "maximum varus (K5, Fig. 1.7)")]
+  start = cal.get("start", {})
+  base = next((g["result"] for g in cal.get("grid", []) if abs(g["scale"] - 1.0) < 1e-9 and abs(g["theta_deg"]) < 1e-9),
+              None)
+  rows = []
+  for k, label in names:
+    rows.append([label, f"{res[k]['target']:g}°", f"{base[k]['measured']:.1f}°" if base else "–",
+                 f"{res[k]['measured']:.1f}°", f"{res[k]['residual']:+.2f}"])
+  parts.append(table(["statement", "chapter", "project's reading (s = 1, θ = 0)", "best fit", "residual [×5°]"], rows))
+  peak = best["pulse_amplitude_N"] * (0.0769927 if cal.get("pulse_shape") == "reconstructed" else 1.0)
+  worst = max(abs(res[k]["residual"]) for k, _ in names)
+  verdict = ("every statement within 5°" if worst <= 1.0 else
+             f"the worst statement is {worst * 5:.0f}° away")
+  parts.append(
+      f"<p><b>Best fit:</b> s = {best['scale']:.2f} (A = {best['pulse_amplitude_N']:.0f} N, pulse peak ≈ {peak:.0f} N, "
+      f"{peak / LEG_WEIGHT_N:.1f}× the leg's weight of {LEG_WEIGHT_N:.0f} N), θ = {best['theta_deg']:.1f}°; cost "
+      f"{res['cost']:.2f} (start {start.get('cost', float('nan')):.2f} at s = {start.get('scale', float('nan')):.2f}, "
+      f"θ = {start.get('theta_deg', float('nan')):.0f}°); {verdict}. "
+      + (f"Ceres: {esc(cal['ceres']['brief_report'])}." if cal.get("ceres") else "") + "</p>")
+  plaus = []
+  plaus.append("a pulse peak of a few leg weights is physically plausible for an impact"
+               if 1.0 <= peak / LEG_WEIGHT_N <= 50 else "the fitted pulse peak is outside 1–50 leg weights: implausible")
+  plaus.append("the weight direction stays within 30° of the project's reading" if abs(best["theta_deg"]) <= 30 else
+               f"the weight direction differs from the stated posterior direction by {abs(best['theta_deg']):.0f}°, "
+               "which the chapter's 'component of the weight along the posterior axis decreased with knee flexion' "
+               "does not support")
+  parts.append("<p><b>Plausibility:</b> " + "; ".join(plaus) + ".</p>")
+  return "\n".join(parts)
+
+
 def bench_section(outdir, bench):
   parts = ["<h2 id='work-precision'>Work-precision</h2>"]
   if not bench or not os.path.exists(bench):
     parts.append("<p>No benchmark JSON given (<code>--bench JSON</code>); diagrams omitted.</p>")
     return "\n".join(parts)
-  files, failed = figures.make_work_precision(outdir, bench)
+  files, failed, header = figures.make_work_precision(outdir, bench)
+  prov = header.get("provenance") or {}
+  kv = [("Source", os.path.basename(bench)), ("Scene", header.get("scene", "?")),
+        ("Sweep", f"{header.get('mode', '?')} (repetitions {header.get('repetitions', '?')}, tightest rtol "
+                  f"{header.get('rtol_min', '?')})"),
+        ("Reference", f"{header.get('reference', '?')} (accuracy {header.get('reference_accuracy_scd', '?')} digits)"),
+        ("Swept", header.get("date", "?")),
+        ("Recorded", f"{prov.get('date', '?')}, sweep binary built from commit {prov.get('commit', '?')}"),
+        ("Command", prov.get("command", "?")),
+        ("Machine", (header.get("machine") or {}).get("uname", "?") if isinstance(header.get("machine"), dict) else "?")]
+  parts.append("<dl class='kv'>" + "".join(f"<dt>{esc(k)}</dt><dd>{esc(v)}</dd>" for k, v in kv) + "</dl>")
+  parts.append("<p>Error metrics (<code>benchmarks/metrics.hpp</code>): <b>scd</b> = −log10 max |x − x_ref| / "
+               "(|x_ref| + floor) over the positions x0, y0, z0 (floor 1 mm) and α, β, γ (floor 1°) at every 0.02 s "
+               "and at the end event; <b>event-time digits</b> = −log10 of the largest |t − t_ref| in seconds over "
+               "the reference's events (lateral lift-off, 90°). Colour = formulation, marker = integrator; runs that "
+               f"failed, lack a reference event, add a contact event, or miss an event by more than "
+               f"{figures.WRONG_EVENT_TIME_S * 1e3:g} ms are not points: they are the crosses in the strip below each "
+               "diagram and are listed underneath.</p>")
   for (fname, caption) in figures.WORK_PRECISION_FIGURES:
     if fname in files:
       parts.append(f"<figure><img src='figures/{esc(fname)}' alt='{esc(caption)}'>"
-                   f"<figcaption>{esc(caption)} (source: {esc(bench)})</figcaption></figure>")
+                   f"<figcaption>{esc(caption)}</figcaption></figure>")
   if failed:
-    parts.append("<h3>Failed runs</h3>")
-    parts.append(table(["formulation / integrator", "setting", "reason"], [list(map(str, f)) for f in failed]))
+    parts.append(f"<details><summary>{len(failed)} runs drawn as failures (failed or wrong event)</summary>")
+    parts.append(table(["formulation / integrator", "setting", "why"], [list(map(str, f)) for f in failed]))
+    parts.append("</details>")
   else:
     parts.append("<p>No failed runs.</p>")
   return "\n".join(parts)
 
 
+STATUS_MARK = {"ok": "✓", "solver_failure": "✗", "error": "⊘"}
+
+
+def read_hard_cases_csv(path):
+  import csv
+  with open(path, newline="", encoding="utf-8") as f:
+    return list(csv.DictReader(f))
+
+
 def hard_cases_section(hard_cases):
-  """The hard-case catalog (kneedyn_catalog's hard_cases.md), its tables rendered as HTML."""
+  """The hard-case catalog (kneedyn_catalog's hard_cases.csv beside hard_cases.md) as a compact
+  case × formulation table (status, time reached, error vs the case's reference) with the
+  details of each case on demand."""
   parts = ["<h2 id='hard-cases'>Hard cases</h2>"]
-  if not hard_cases or not os.path.exists(hard_cases):
-    parts.append("<p>No hard-case table given (<code>--hard-cases hard_cases.md</code>, written by "
+  path = hard_cases
+  if path and path.endswith(".md"):
+    path = path[:-3] + ".csv"
+  if not path or not os.path.exists(path):
+    parts.append("<p>No hard-case table given (<code>--hard-cases hard_cases.csv</code>, written by "
                  "<code>kneedyn_catalog --out DIR</code>); section omitted.</p>")
     return "\n".join(parts)
-  rows, text = [], []
-
-  def flush_table():
-    if rows:
-      body = [r for r in rows[1:] if not all(set(c) <= set("-: ") for c in r)]
-      parts.append("<div style='overflow-x:auto'>" + table(rows[0], body) + "</div>")
-      rows.clear()
-
-  with open(hard_cases, encoding="utf-8") as f:
-    for line in f:
-      line = line.rstrip("\n")
-      if line.startswith("|"):
-        rows.append([c.strip() for c in line.strip().strip("|").split("|")])
+  rows = read_hard_cases_csv(path)
+  cases = list(dict.fromkeys(r["case"] for r in rows))
+  forms = list(dict.fromkeys(r["formulation"] for r in rows))
+  by = {(r["case"], r["formulation"]): r for r in rows}
+  parts.append("<p>Every case of <code>reference-data/scenes/hard/</code> with every formulation at the same "
+               "default options (adaptive rtol 1e-8, atol 1e-10; newmark* h = 1e-4 s). Cell: status "
+               "(✓ completed, ✗ solver failure, ⊘ refused / error), time reached [s], and the largest flexion "
+               "error |Δα| [deg] against the case's reference over the output times both reached. The reference of "
+               "each case is the first of dae, mde, ede at rtol 1e-10 that <i>completed</i> (stated per case; a "
+               "failed run is never a reference). Open a case for its events, failure reasons and counters.</p>")
+  head = "<tr><th>case</th><th>reference</th>" + "".join(f"<th>{esc(f)}</th>" for f in forms) + "</tr>"
+  body = []
+  for c in cases:
+    ref = next((by[(c, f)]["reference"] for f in forms if (c, f) in by), "")
+    cells = []
+    for f in forms:
+      r = by.get((c, f))
+      if r is None:
+        cells.append("<td class='na'>–</td>")
         continue
-      flush_table()
-      if line.strip() and not line.startswith("#"):
-        parts.append(f"<p>{esc(line)}</p>")
-  flush_table()
-  parts.append(f"<p>Source: <code>{esc(hard_cases)}</code>.</p>")
+      mark = STATUS_MARK.get(r["status"], r["status"])
+      t = r["t_reached_s"] or "–"
+      try:
+        t = f"{float(t):.3g}"
+      except ValueError:
+        pass
+      err = r["err_alpha_deg"]
+      try:
+        # No error for a run that stopped at t = 0: nothing was compared.
+        err = f"{float(err):.1e}°" if float(r["t_reached_s"] or 0) > 0 and float(err) == float(err) else ""
+      except ValueError:
+        err = ""
+      cls = {"ok": "ok", "solver_failure": "fail", "error": "err"}.get(r["status"], "")
+      met = " <b>expectation not met</b>" if r.get("met") == "no" else ""
+      cells.append(f"<td class='hc {cls}' title='{esc(r['reason'][:300])}'>{mark} {esc(t)}"
+                   f"{'<br>' + esc(err) if err else ''}{met}</td>")
+    body.append(f"<tr><td class='id'>{esc(c)}</td><td class='ref'>{esc(ref)}</td>" + "".join(cells) + "</tr>")
+  parts.append("<div class='scroll'><table class='hard'><thead>" + head + "</thead><tbody>" + "\n".join(body)
+               + "</tbody></table></div>")
+  parts.append("<h3>Details per case</h3>")
+  for c in cases:
+    detail_rows = []
+    for f in forms:
+      r = by.get((c, f))
+      if r is None:
+        continue
+      ev = r.get("events", "")
+      n_ev = len(ev.split()) if ev else 0
+      ev_short = " ".join(ev.split()[:6]) + (f" … ({n_ev} events)" if n_ev > 6 else "")
+      detail_rows.append([f, r["status"], r.get("end_reason", ""), r["t_reached_s"], r["flexion_deg"],
+                          r["err_alpha_deg"], r["err_R0_mm"], r["max_gap_mm"], r["energy_drift_J"], r["steps"],
+                          r["residual_evaluations"], r["wall_s"], ev_short, r["reason"][:400]])
+    parts.append(f"<details><summary>{esc(c)} — reference: {esc(by.get((c, forms[0]), {}).get('reference', ''))}"
+                 "</summary><div class='scroll'>"
+                 + table(["formulation", "status", "end", "t [s]", "flexion [deg]", "err α [deg]", "err R0 [mm]",
+                          "max gap [mm]", "energy drift [J]", "steps", "res. evals", "wall [s]", "events",
+                          "reason"], detail_rows) + "</div></details>")
+  parts.append(f"<p>Source: <code>{esc(os.path.basename(path))}</code> (full table: hard_cases.md / .csv "
+               "beside it).</p>")
   return "\n".join(parts)
 
 
@@ -251,11 +461,12 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None):
           "<p>Hefzy &amp; Abdel-Rahman, 3D dynamic knee model: pulse families of section 1.4 "
           "(Figs. 1.4–1.25) with the reference solver, the chapter's claims checked automatically.</p>",
           "<nav><a href='#summary'>Summary</a><a href='#claims'>Claims</a><a href='#figures'>Figures</a>"
-          "<a href='#sensitivity'>Sensitivity</a><a href='#work-precision'>Work-precision</a>"
+          "<a href='#sensitivity'>Sensitivity</a><a href='#reconstruction'>Reconstruction</a>"
+          "<a href='#work-precision'>Work-precision</a>"
           "<a href='#hard-cases'>Hard cases</a>"
           "<a href='#reproduce'>Reproduction</a></nav>",
           summary_section(fam, members), claims_section(rows), figures_section(outdir),
-          sensitivity_section(outdir), bench_section(outdir, bench), hard_cases_section(hard_cases),
+          sensitivity_section(outdir), reconstruction_section(outdir), bench_section(outdir, bench), hard_cases_section(hard_cases),
           commands_section(outdir, kneedyn, quick, bench, fam)]
   page = ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
           "<title>kneedyn chapter report</title><style>" + CSS + "</style></head><body>\n"

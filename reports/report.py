@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """One command for the whole chapter report: families + sensitivity runs, figures, claims, HTML.
 
-  report.py --kneedyn PATH --out DIR [--quick] [--bench JSON] [--hard-cases MD]
+  report.py --kneedyn PATH --out DIR [--quick] [--bench JSON] [--hard-cases CSV]
+            [--reconstruction [--calibrate BIN]]
 
 Exit status: 0 when every run completed (possibly with a documented fallback tolerance) and
 the report was written; 1 when a run failed (the report is still written); 2 on bad input.
@@ -16,6 +17,7 @@ sys.path.insert(0, HERE)
 import claims  # noqa: E402
 import figures  # noqa: E402
 import make_report  # noqa: E402
+import reconstruction  # noqa: E402
 import run_families  # noqa: E402
 
 
@@ -25,9 +27,11 @@ def main(argv=None):
   ap.add_argument("--out", required=True, help="output directory")
   ap.add_argument("--quick", action="store_true", help="reduced families (tests)")
   ap.add_argument("--bench", help="benchmark JSON for the work-precision diagrams")
-  ap.add_argument("--hard-cases", help="hard_cases.md from kneedyn_catalog")
+  ap.add_argument("--hard-cases", help="hard_cases.csv (or .md beside it) from kneedyn_catalog")
+  ap.add_argument("--reconstruction", action="store_true", help="run the reconstruction study")
+  ap.add_argument("--calibrate", help="calibrate_reconstruction binary: also the Ceres calibration")
   args = ap.parse_args(argv)
-  for flag, path in (("--bench", args.bench), ("--hard-cases", args.hard_cases)):
+  for flag, path in (("--bench", args.bench), ("--hard-cases", args.hard_cases), ("--calibrate", args.calibrate)):
     if path and not os.path.exists(path):
       print(f"report: {flag} = '{path}': file not found", file=sys.stderr)
       return 2
@@ -35,6 +39,11 @@ def main(argv=None):
   rc = run_families.main(fam_args)
   if rc == 2 or not os.path.exists(os.path.join(args.out, "families.json")):
     return 2
+  if args.reconstruction or args.calibrate:
+    rec = reconstruction.main(["--kneedyn", args.kneedyn, "--out", args.out] + (["--quick"] if args.quick else [])
+                              + (["--calibrate", args.calibrate] if args.calibrate else [])
+                              + (["--calibrate-grid", "2", "--calibrate-iterations", "2"] if args.quick else []))
+    rc = rc or (rec if rec != 2 else 1)
   figures.main(["--out", args.out])
   claims.build_claims(args.out)
   path = make_report.make_report(args.out, args.bench, os.path.abspath(args.kneedyn), args.quick,

@@ -70,8 +70,15 @@ def load_base_scene():
   return scene
 
 
-def write_scene(outdir, name, amplitude_N, duration_s, init_extra=None):
+def write_scene(outdir, name, amplitude_N, duration_s, init_extra=None, patch=None):
+  """patch: {key: value or dict} merged into the base scene (dicts one level deep), e.g.
+  {"pulse": {"shape": "half_sine"}, "gravity": {"enabled": False}} (reconstruction study)."""
   scene = load_base_scene()
+  for k, v in (patch or {}).items():
+    if isinstance(v, dict) and isinstance(scene.get(k), dict):
+      scene[k].update(v)
+    else:
+      scene[k] = v
   scene["name"] = name
   scene["pulse"]["amplitude_N"] = float(amplitude_N)
   scene["pulse"]["duration_s"] = float(duration_s)

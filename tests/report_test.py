@@ -7,7 +7,9 @@ and the claims table has exactly one row per claim id of reports/claims.yaml.
 """
 import argparse
 import csv
+import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -32,6 +34,9 @@ def main():
   ap.add_argument("--keep", help="build into this directory instead of a temporary one")
   ap.add_argument("--work-precision", help="work_precision binary: also check the work-precision "
                   "diagrams against a real (short, one-formulation) sweep")
+  ap.add_argument("--catalog", help="kneedyn_catalog binary: add a two-case hard-case section")
+  ap.add_argument("--calibrate", help="calibrate_reconstruction binary: run the reconstruction study "
+                  "(quick families) and a two-iteration calibration, and check their section")
   args = ap.parse_args()
   errors = []
   spec_ids = claim_ids()
@@ -41,6 +46,9 @@ def main():
 
   with tempfile.TemporaryDirectory(prefix="kneedyn_report_") as tmp:
     out = args.keep or tmp
+    if args.keep:  # start clean: a stale page from an earlier run must not pass
+      shutil.rmtree(out, ignore_errors=True)
+      os.makedirs(out)
     cmd = ["/usr/bin/python3" if os.path.exists("/usr/bin/python3") else sys.executable,
            os.path.join(ROOT, "reports", "report.py"), "--kneedyn", args.kneedyn, "--out", out, "--quick"]
     bench = None
@@ -54,7 +62,17 @@ def main():
         bench = None
       else:
         cmd += ["--bench", bench]
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=110)
+    if args.catalog:
+      hc = os.path.join(out, "hard_cases")
+      c = subprocess.run([args.catalog, "--out", hc, "--case", "c1_law", "--case", "jcs_singular_pose"],
+                         capture_output=True, text=True, timeout=120, cwd=ROOT)
+      if c.returncode != 0:
+        errors.append(f"kneedyn_catalog failed ({c.returncode}): {c.stderr[-500:]}")
+      else:
+        cmd += ["--hard-cases", os.path.join(hc, "hard_cases.csv")]
+    if args.calibrate:
+      cmd += ["--reconstruction", "--calibrate", args.calibrate]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=280)
     print(p.stdout)
     print(p.stderr, file=sys.stderr)
     index = os.path.join(out, "index.html")
@@ -98,8 +116,8 @@ def main():
         errors.append(f"claim {r['id']}: verdict without a measured value")
     if bench:
       # The diagrams read the benchmark's own JSON: every successful run must be plotted.
-      runs = figures.load_bench(bench)
-      _, failed = figures.make_work_precision(os.path.join(out, "wp_check"), bench)
+      _, runs = figures.load_bench(bench)
+      _, failed, _ = figures.make_work_precision(os.path.join(out, "wp_check"), bench)
       if not runs:
         errors.append(f"{bench}: no runs read by figures.load_bench")
       elif len(failed) >= len(runs):
@@ -107,6 +125,25 @@ def main():
       for fname, _ in figures.WORK_PRECISION_FIGURES:
         if f"figures/{fname}" not in page:
           errors.append(f"index.html does not reference figures/{fname}")
+    if args.catalog and "<table class='hard'>" not in page:
+      errors.append("index.html has no compact hard-case table")
+    if args.calibrate:
+      rec_path = os.path.join(out, "reconstruction", "reconstruction.json")
+      if not os.path.exists(rec_path):
+        errors.append("reconstruction.json not written")
+      else:
+        with open(rec_path, encoding="utf-8") as f:
+          rec = json.load(f)
+        want = len(claims.load_claims()[1]) - 2  # S1/S2 are not re-run per reading
+        for r in rec["readings"]:
+          if len(r["verdicts"]) != want:
+            errors.append(f"reading {r['key']}: {len(r['verdicts'])} verdicts (expected {want})")
+        if len(rec["readings"]) < 9:
+          errors.append(f"only {len(rec['readings'])} readings")
+      if "<table class='matrix'>" not in page or "Calibration (Ceres)" not in page:
+        errors.append("index.html lacks the reconstruction matrix or the calibration")
+      if not os.path.exists(os.path.join(out, "reconstruction", "calibration.json")):
+        errors.append("calibration.json not written")
     for extra in ("claims.md", "sensitivity.json"):
       if not os.path.exists(os.path.join(out, extra)):
         errors.append(f"missing {extra}")

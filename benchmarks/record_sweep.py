@@ -1,0 +1,99 @@
+#!/usr/bin/python3
+"""Records a full work-precision sweep in the repository, with its provenance, for the
+report's work-precision section (the main job reads the recorded file instead of sweeping).
+
+  record_sweep.py --work-precision BIN --out FILE [-- extra work_precision arguments]
+  record_sweep.py --from SWEEP.json --command "the command that wrote it" [--commit SHA] --out FILE
+
+Writes FILE = the sweep's JSON unchanged plus a top-level "provenance": {command, commit
+(git HEAD, "+dirty" when the tree had changes), date (UTC), recorded_by}. Works with either
+benchmark JSON layout (work_precision's {header, results} or Google Benchmark's
+{context, benchmarks}). Regenerate with `cmake --build build --target bench_record`.
+Exit 2 on bad input (nothing written).
+"""
+import argparse
+import datetime
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def git_commit():
+  try:
+    head = subprocess.run(["git", "-C", ROOT, "rev-parse", "HEAD"], capture_output=True, text=True,
+                          check=True).stdout.strip()
+    dirty = subprocess.run(["git", "-C", ROOT, "status", "--porcelain", "--untracked-files=no"],
+                           capture_output=True, text=True, check=True).stdout.strip()
+    return head + ("+dirty" if dirty else "")
+  except (OSError, subprocess.CalledProcessError):
+    return "unknown (not a git checkout)"
+
+
+def relative_paths(x):
+  """Paths inside the checkout -> relative to it (a recorded file names no machine path)."""
+  if isinstance(x, dict):
+    return {k: relative_paths(v) for k, v in x.items()}
+  if isinstance(x, list):
+    return [relative_paths(v) for v in x]
+  if isinstance(x, str) and x.startswith(ROOT + os.sep):
+    return os.path.relpath(x, ROOT)
+  return x
+
+
+def main(argv=None):
+  ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+  ap.add_argument("--work-precision", help="work_precision binary (runs the full sweep)")
+  ap.add_argument("--from", dest="src", help="an existing sweep JSON to record instead")
+  ap.add_argument("--command", help="with --from: the command that wrote it")
+  ap.add_argument("--commit", help="with --from: the commit the sweep's binary was built from "
+                  "(default: the checkout's HEAD)")
+  ap.add_argument("--out", required=True)
+  ap.add_argument("extra", nargs="*", help="arguments passed to work_precision")
+  args = ap.parse_args(argv)
+  if bool(args.work_precision) == bool(args.src):
+    print("record_sweep: give exactly one of --work-precision BIN or --from JSON", file=sys.stderr)
+    return 2
+  if args.src and not args.command:
+    print("record_sweep: --from needs --command (the command that wrote the sweep)", file=sys.stderr)
+    return 2
+  commit = args.commit if (args.src and args.commit) else git_commit()
+  with tempfile.TemporaryDirectory(prefix="kneedyn_sweep_") as tmp:
+    if args.work_precision:
+      src = os.path.join(tmp, "sweep.json")
+      cmd = [args.work_precision, "--json", src, "--csv", os.path.join(tmp, "sweep.csv")] + args.extra
+      if subprocess.run(cmd, cwd=ROOT).returncode != 0:
+        print(f"record_sweep: {' '.join(cmd)} failed", file=sys.stderr)
+        return 1
+      command = " ".join([os.path.relpath(args.work_precision, ROOT), "--json FILE"] + args.extra)
+    else:
+      src, command = args.src, args.command
+    try:
+      with open(src, encoding="utf-8") as f:
+        doc = json.load(f)
+    except (OSError, ValueError) as e:
+      print(f"record_sweep: --from = '{src}': {e}", file=sys.stderr)
+      return 2
+    if not isinstance(doc, dict) or not ("results" in doc or "benchmarks" in doc):
+      print(f"record_sweep: '{src}': neither a 'results' nor a 'benchmarks' array", file=sys.stderr)
+      return 2
+    for key in ("header", "context"):
+      if key in doc:
+        doc[key] = relative_paths(doc[key])
+    doc["provenance"] = {"command": command, "commit": commit,
+                         "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+                         "recorded_by": "benchmarks/record_sweep.py"}
+    tmp_out = args.out + ".tmp"
+    with open(tmp_out, "w", encoding="utf-8") as f:
+      json.dump(doc, f, separators=(",", ":"))
+      f.write("\n")
+    os.replace(tmp_out, args.out)
+  print(f"record_sweep: {args.out} ({command}, commit {commit})")
+  return 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())

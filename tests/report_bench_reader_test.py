@@ -1,0 +1,92 @@
+#!/usr/bin/python3
+"""The report's benchmark reader (reports/figures.py load_bench / classify_run) on hand-made
+files: the work_precision layout ({header, results}) and Google Benchmark's own layout
+({context, benchmarks}) must give the same runs, and failed / wrong-event runs must not be
+plotted as points. Values are typed in here, not copied from a run.
+"""
+import json
+import os
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.dont_write_bytecode = True
+sys.path.insert(0, os.path.join(ROOT, "reports"))
+import figures  # noqa: E402
+
+RESULTS = {
+    "header": {"scene": "chapter_impact", "mode": "full"},
+    "provenance": {"command": "cmake --build build --target bench_record", "commit": "abc123", "date": "2026-01-01"},
+    "results": [
+        {"formulation": "mde", "integrator": "dopri5", "setting": {"rtol": 1e-6, "atol": 1e-8}, "status": "ok",
+         "metrics": {"scd": 6.5, "event_time_error_s": {"liftoff_lateral": 2e-7, "flexion_90": 1e-7}},
+         "cpu_time_s": {"median": 0.02, "min": 0.019, "max": 0.03}, "counters": {"residual_evaluations": 900}},
+        {"formulation": "mde", "integrator": "euler", "setting": {"step": 5e-4}, "status": "ok",
+         "metrics": {"scd": 1.2, "event_time_error_s": {"liftoff_lateral": 3e-3, "flexion_90": 0.017}},
+         "cpu_time_s": {"median": 0.01}, "counters": {"residual_evaluations": 600}},
+        {"formulation": "dae", "integrator": "", "setting": {"rtol": 1e-12}, "status": "failed",
+         "reason": "IDASolve: error test failed", "metrics": {"scd": None, "event_time_error_s": {}},
+         "cpu_time_s": {"median": 0.5}, "counters": {"residual_evaluations": 10}},
+        {"formulation": "ede", "integrator": "rk4", "setting": {"step": 1e-3}, "status": "ok",
+         "metrics": {"scd": 3.0, "event_time_error_s": {"liftoff_lateral": None, "flexion_90": 1e-5}},
+         "cpu_time_s": {"median": 0.004}, "counters": {"residual_evaluations": 1200}},
+    ]}
+
+GOOGLE = {
+    "context": {"scene": "chapter_impact", "mode": "full"},
+    "provenance": RESULTS["provenance"],
+    "benchmarks": [
+        {"name": "mde:dopri5/rtol=1e-06/repeats:3", "run_name": "mde:dopri5/rtol=1e-06", "run_type": "iteration",
+         "cpu_time": 21.0, "time_unit": "ms", "scd": 6.5, "residual_evaluations": 900},
+        {"name": "mde:dopri5/rtol=1e-06_median", "run_name": "mde:dopri5/rtol=1e-06", "run_type": "aggregate",
+         "aggregate_name": "median", "cpu_time": 20.0, "time_unit": "ms", "scd": 6.5, "residual_evaluations": 900,
+         "event_time_error_s.liftoff_lateral": 2e-7, "event_time_error_s.flexion_90": 1e-7},
+        {"name": "mde:euler/step=0.0005_median", "run_name": "mde:euler/step=0.0005", "run_type": "aggregate",
+         "aggregate_name": "median", "cpu_time": 10000.0, "time_unit": "us", "scd": 1.2,
+         "residual_evaluations": 600, "event_time_error_s": {"liftoff_lateral": 3e-3, "flexion_90": 0.017}},
+        {"name": "dae/rtol=1e-12", "run_name": "dae/rtol=1e-12", "run_type": "iteration", "cpu_time": 5e8,
+         "time_unit": "ns", "error_occurred": True, "error_message": "IDASolve: error test failed"},
+        {"name": "ede:rk4/step=0.001_median", "run_name": "ede:rk4/step=0.001", "run_type": "aggregate",
+         "aggregate_name": "median", "cpu_time": 4.0, "time_unit": "ms", "scd": 3.0, "residual_evaluations": 1200,
+         "event_time_error_s.liftoff_lateral": None, "event_time_error_s.flexion_90": 1e-5},
+    ]}
+
+
+def summary(runs):
+  return sorted((r["formulation"], r["integrator"], round(r["cpu_s"], 9), figures.classify_run(r).split(":")[0])
+                for r in runs)
+
+
+def main():
+  errors = []
+  with tempfile.TemporaryDirectory(prefix="kneedyn_bench_reader_") as tmp:
+    got = {}
+    for name, doc in (("results", RESULTS), ("google", GOOGLE)):
+      path = os.path.join(tmp, name + ".json")
+      with open(path, "w") as f:
+        json.dump(doc, f)
+      header, runs = figures.load_bench(path)
+      got[name] = summary(runs)
+      if header.get("provenance", {}).get("commit") != "abc123":
+        errors.append(f"{name}: provenance not passed through: {header}")
+      files, failed, _ = figures.make_work_precision(os.path.join(tmp, name), path)
+      if len(files) != len(figures.WORK_PRECISION_FIGURES):
+        errors.append(f"{name}: {len(files)} diagrams")
+      whys = sorted(f[2].split(":")[0] for f in failed)
+      # dopri5 is the only valid point: euler misses 90° by 17 ms, dae failed, rk4 lacks lift-off.
+      if whys != ["failed", "wrong event time", "wrong events"]:
+        errors.append(f"{name}: failures classified as {whys}")
+    if got["results"] != got["google"]:
+      errors.append(f"layouts disagree:\n  {got['results']}\n  {got['google']}")
+    expected = [("dae", "", 0.5, "failed"), ("ede", "rk4", 0.004, "wrong events"),
+                ("mde", "dopri5", 0.02, "ok"), ("mde", "euler", 0.01, "wrong event time")]
+    if got["results"] != expected:
+      errors.append(f"results layout: {got['results']} != {expected}")
+  for e in errors:
+    print("report_bench_reader_test: FAIL:", e, file=sys.stderr)
+  print("report_bench_reader_test:", "ok" if not errors else f"{len(errors)} failures")
+  return 1 if errors else 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())
