@@ -36,9 +36,9 @@ struct CommandResult {
   std::string output;  // stdout and stderr
 };
 
-// Runs `kneedyn <args>` with stderr merged into stdout.
-CommandResult RunKneedyn(const std::string& args) {
-  const std::string command = std::string("'") + KNEEDYN_EXE + "' " + args + " 2>&1";
+// Runs a shell command with stderr merged into stdout.
+CommandResult RunShell(const std::string& shell_command) {
+  const std::string command = shell_command + " 2>&1";
   CommandResult result;
   FILE* pipe = popen(command.c_str(), "r");
   if (pipe == nullptr) return result;
@@ -48,6 +48,11 @@ CommandResult RunKneedyn(const std::string& args) {
   const int status = pclose(pipe);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return result;
+}
+
+// Runs `kneedyn <args>` with stderr merged into stdout.
+CommandResult RunKneedyn(const std::string& args) {
+  return RunShell(std::string("'") + KNEEDYN_EXE + "' " + args);
 }
 
 // A fresh, empty temporary directory per test; removed at the end.
@@ -259,6 +264,31 @@ TEST_F(CliTest, SolverFailureExitsOneWithPartialSummary) {
   EXPECT_TRUE(fs::exists(fs::path(Out()) / "trajectory.csv"));
   EXPECT_NE(ReadText(fs::path(Out()) / "trajectory.sto").find("PARTIAL"), std::string::npos);
   ExpectNoTempFiles();
+}
+
+
+// Issue 10: reference-data/ is found at run time beside the executable (no source path in
+// the binary); KNEEDYN_DATA_DIR overrides it. A scene naming its parameter set by a bare
+// file name that is not beside the scene resolves it in the data directory.
+TEST_F(CliTest, DataDirectoryIsFoundBesideTheExecutableAndOverriddenByEnvironment) {
+  const fs::path scene = dir_ / "bare_parameter_set.yaml";
+  {
+    std::string text = ReadText(ChapterScenePath());
+    const std::string ps = "parameter_set: ../chapter_knee.yaml";
+    ASSERT_NE(text.find(ps), std::string::npos);
+    text.replace(text.find(ps), ps.size(), "parameter_set: chapter_knee.yaml");
+    std::ofstream(scene) << text;
+  }
+  // From an unrelated working directory with the override unset: found beside the binary.
+  const std::string in_tmp = "cd '" + dir_.string() + "' && env -u KNEEDYN_DATA_DIR ";
+  CommandResult r = RunShell(in_tmp + "'" + KNEEDYN_EXE + "' info '" + scene.string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("consistent normal force"), std::string::npos) << r.output;
+  // The override wins, and a wrong one is named in the message.
+  const std::string bogus = (dir_ / "no_data_here").string();
+  r = RunShell("KNEEDYN_DATA_DIR='" + bogus + "' '" + KNEEDYN_EXE + "' info '" + scene.string() + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find(bogus), std::string::npos) << r.output;
 }
 
 }  // namespace
