@@ -27,7 +27,9 @@
 #include <optional>
 #include <sstream>
 
+#include "formulations/cli.hpp"
 #include "formulations/run.hpp"
+#include "formulations/version.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -266,7 +268,8 @@ int main(int argc, char** argv) {
   app.add_option("--formulation", only_formulations, "run only this formulation (repeatable)");
   app.add_flag("--check", check, "exit 1 unless every run meets its case's expectation");
   app.add_flag("--no-reference", no_reference, "skip the tight-tolerance dae reference runs");
-  CLI11_PARSE(app, argc, argv);
+  app.set_version_flag("--version", VersionReport("kneedyn_catalog"));
+  if (const int code = ParseCommandLine(app, argc, argv, "kneedyn_catalog"); code >= 0) return code;
 
   try {
     for (const std::string& n : only_formulations) (void)FindFormulation(n);

@@ -10,8 +10,10 @@
 #include <cstdio>
 #include <iostream>
 
+#include "formulations/cli.hpp"
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
+#include "formulations/version.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -61,6 +63,7 @@ int Info(const std::string& path) {
 int main(int argc, char** argv) {
   CLI::App app{"kneedyn: 3D dynamic knee model (Hefzy & Abdel-Rahman) — verification and benchmark suite"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", VersionReport("kneedyn"), "print the version, git commit and library versions");
 
   std::string scene_path, out_dir = "out/run";
   RunSettings settings;
@@ -89,7 +92,7 @@ int main(int argc, char** argv) {
 
   CLI::App* list = app.add_subcommand("formulations", "list the registered formulations");
 
-  CLI11_PARSE(app, argc, argv);
+  if (const int code = ParseCommandLine(app, argc, argv, "kneedyn"); code >= 0) return code;
   try {
     if (*info) return Info(info_scene);
     if (*list) {

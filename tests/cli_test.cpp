@@ -22,6 +22,9 @@
 #include <string>
 #include <vector>
 
+#include <ceres/version.h>
+#include <sundials/sundials_config.h>
+
 #include "solver/scene.hpp"
 
 namespace kneedyn {
@@ -289,6 +292,69 @@ TEST_F(CliTest, DataDirectoryIsFoundBesideTheExecutableAndOverriddenByEnvironmen
   r = RunShell("KNEEDYN_DATA_DIR='" + bogus + "' '" + KNEEDYN_EXE + "' info '" + scene.string() + "'");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find(bogus), std::string::npos) << r.output;
+}
+
+
+// Issue 10: --version names kneedyn's version (CMake's project version), the git commit the
+// build came from (when the source tree is a git repository: git's own answer) and the
+// library versions of the headers this test was compiled against.
+TEST_F(CliTest, VersionNamesVersionCommitAndLibraries) {
+  const CommandResult r = RunKneedyn("--version");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(std::string("kneedyn ") + KNEEDYN_PROJECT_VERSION), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(std::string("SUNDIALS ") + SUNDIALS_VERSION), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(std::string("Ceres ") + CERES_VERSION_STRING), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("Eigen 3."), std::string::npos) << r.output;
+  const CommandResult git =
+      RunShell(std::string("git -C '") + KNEEDYN_SOURCE_DIR + "' rev-parse --short=12 HEAD");
+  if (git.exit_code == 0 && fs::exists(fs::path(KNEEDYN_SOURCE_DIR) / ".git")) {
+    const std::string commit = git.output.substr(0, 12);
+    EXPECT_NE(r.output.find("git " + commit), std::string::npos) << r.output << " vs HEAD " << commit;
+  } else {
+    EXPECT_NE(r.output.find("not built from git"), std::string::npos) << r.output;
+  }
+}
+
+// Issue 10: every argument error exits 2, names the offending argument and writes nothing.
+TEST_F(CliTest, ArgumentErrorsExitTwoAndNameTheArgument) {
+  const std::string scene = "'" + ChapterScenePath() + "'";
+  const std::string out = " --out '" + Out() + "'";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"rnu " + scene + out, "'rnu'"},                      // mistyped subcommand
+      {"run " + scene + " --rtol abc" + out, "--rtol"},     // not a number
+      {"run " + scene + " --max-steps 1.5" + out, "--max-steps"},
+      {"run " + scene + " --bogus" + out, "--bogus"},       // unknown option
+      {"run " + scene + " --rtol" , "--rtol"},              // missing value
+      {"run" + out, "scene"},                               // missing positional
+      {"info", "scene"},
+      {"", "subcommand"},
+  };
+  for (const auto& [args, named] : cases) {
+    const CommandResult r = RunKneedyn(args);
+    EXPECT_EQ(r.exit_code, 2) << "kneedyn " << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(named), std::string::npos) << "kneedyn " << args << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(Out())) << "kneedyn " << args;
+  }
+}
+
+// Issue 10: the other tools keep the same contract; work_precision --help works.
+TEST_F(CliTest, CatalogAndWorkPrecisionKeepTheContract) {
+  CommandResult r = RunShell(std::string("'") + KNEEDYN_WORK_PRECISION_EXE + "' --help");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("--short"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--repetitions"), std::string::npos) << r.output;
+  r = RunShell(std::string("'") + KNEEDYN_WORK_PRECISION_EXE + "' --shrot");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--shrot"), std::string::npos) << r.output;
+  r = RunShell(std::string("'") + KNEEDYN_WORK_PRECISION_EXE + "' --repetitions 1");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--repetitions"), std::string::npos) << r.output;
+  r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --case");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--case"), std::string::npos) << r.output;
+  r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --version");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(KNEEDYN_PROJECT_VERSION), std::string::npos) << r.output;
 }
 
 }  // namespace
