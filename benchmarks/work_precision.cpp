@@ -36,6 +36,7 @@
 
 #include "benchmarks/bench_run.hpp"
 #include "formulations/cli.hpp"
+#include "formulations/progress.hpp"
 #include "formulations/version.hpp"
 #include "solver/error.hpp"
 
@@ -205,10 +206,11 @@ int main(int argc, char** argv) {
     std::vector<Entry> entries;
     for (const BenchConfig& c : Grid(short_mode, rtol_min, only, include_broken)) entries.push_back({c, {}, {}, {}});
     std::map<std::string, Entry*> by_name;
+    ProgressCounter progress(static_cast<long>(entries.size()));
     for (Entry& e : entries) {
       e.outcome = RunConfig(scene, e.config, reference.comparison_interval);
       e.metrics = Evaluate(scene, e.outcome, reference);
-      std::fprintf(stderr, "%-40s %-6s scd %6.2f  %s\n", e.config.Name().c_str(), e.outcome.status.c_str(),
+      std::fprintf(stderr, "%s %-40s %-6s scd %6.2f  %s\n", progress.Next().c_str(), e.config.Name().c_str(), e.outcome.status.c_str(),
                    e.metrics.scd, e.outcome.reason.c_str());
       by_name[e.config.Name()] = &e;
       Entry* ep = &e;

@@ -28,6 +28,7 @@
 #include <sstream>
 
 #include "formulations/cli.hpp"
+#include "formulations/progress.hpp"
 #include "formulations/run.hpp"
 #include "formulations/version.hpp"
 #include "solver/dynamics.hpp"
@@ -279,6 +280,23 @@ int main(int argc, char** argv) {
         Throw<InputError>("kneedyn_catalog", "--case = '", n, "': no such case in the catalog");
       }
     }
+    // What will run (for i/N progress): the same filters as the loop below.
+    auto selected_case = [&](const CaseSpec& c) {
+      return only_cases.empty() || std::find(only_cases.begin(), only_cases.end(), c.file) != only_cases.end();
+    };
+    auto selected_formulation = [&](const CaseSpec& c, const std::string& name) {
+      if (!only_formulations.empty() &&
+          std::find(only_formulations.begin(), only_formulations.end(), name) == only_formulations.end()) {
+        return false;
+      }
+      return !(c.dae_only && name.rfind("dae", 0) != 0);
+    };
+    long total_runs = 0;
+    for (const CaseSpec& c : Cases()) {
+      if (!selected_case(c)) continue;
+      for (const FormulationInfo& info : RegisteredFormulations()) total_runs += selected_formulation(c, info.name);
+    }
+    ProgressCounter progress(total_runs);
     std::vector<Row> rows;
     for (const CaseSpec& c : Cases()) {
       if (!only_cases.empty() &&
@@ -314,7 +332,7 @@ int main(int argc, char** argv) {
         if (c.dae_only && info.name.rfind("dae", 0) != 0) continue;
         Row row = RunOne(c, scene ? &*scene : nullptr, load_error, info.name,
                          reference ? &*reference : nullptr);
-        std::fprintf(stderr, "%-30s %-16s %-15s t=%-8s %s\n", row.case_name.c_str(),
+        std::fprintf(stderr, "%s %-30s %-16s %-15s t=%-8s %s\n", progress.Next().c_str(), row.case_name.c_str(),
                      row.formulation.c_str(), row.status.c_str(), Fmt(row.t_reached, "%.4f").c_str(),
                      OneLine(row.reason).substr(0, 160).c_str());
         rows.push_back(row);

@@ -11,6 +11,7 @@
 #include <iostream>
 
 #include "formulations/cli.hpp"
+#include "formulations/progress.hpp"
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
 #include "formulations/version.hpp"
@@ -108,7 +109,9 @@ int main(int argc, char** argv) {
       return 0;
     }
     const Scene scene = LoadScene(scene_path);
-    if (!quiet) {
+    // `\r` progress only on a terminal (logs and pipes get the summary lines alone).
+    const bool show_progress = !quiet && StderrIsTerminal();
+    if (show_progress) {
       double last = -1.0;
       settings.progress = [&](double t, double alpha) {
         if (t - last < 0.05 && last >= 0.0) return;
@@ -117,7 +120,7 @@ int main(int argc, char** argv) {
       };
     }
     const RunResult result = RunScene(scene, settings);
-    if (!quiet) std::fprintf(stderr, "\n");
+    if (show_progress) std::fprintf(stderr, "\n");
     WriteRunOutputs(out_dir, scene, settings, result);
     const SolverStats& s = result.stats;
     std::printf("%s: %s with %s in %.3f s wall\n", scene.name.c_str(),

@@ -84,7 +84,7 @@ class OdeIntegrator {
   static int RootCallback(double t, N_Vector y, double* g, void* user);
   static int ProjCallback(double t, N_Vector y, N_Vector corr, double eps, N_Vector err, void* user);
   bool is_cvode() const { return name_ == "cvode-bdf" || name_ == "cvode-adams"; }
-  void Check(int flag, const char* call) const;
+  void Check(int flag, const char* call);
   SolverStats CurrentCounters() const;
   double LastStep() const;
   void Free();
@@ -105,6 +105,7 @@ class OdeIntegrator {
   SolverStats accumulated_;  // finished solver instances and pre-reset segments
   SolverStats baseline_;     // counters of the live instance at its last reset
   std::string failure_;
+  SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason
 };
 
 }  // namespace kneedyn

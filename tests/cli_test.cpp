@@ -357,5 +357,40 @@ TEST_F(CliTest, CatalogAndWorkPrecisionKeepTheContract) {
   EXPECT_NE(r.output.find(KNEEDYN_PROJECT_VERSION), std::string::npos) << r.output;
 }
 
+
+// Issue 10: SUNDIALS prints nothing itself; its own message (here IDA's, CVODE's and
+// ARKODE's "mxstep steps taken before reaching tout") is in the failure reason and in
+// summary.json. Without a terminal there are no `\r` progress updates.
+TEST_F(CliTest, SundialsMessagesGoIntoTheFailureReasonNotToStderr) {
+  const std::vector<std::pair<std::string, std::string>> runs = {
+      {"--formulation dae", "IDA"},
+      {"--formulation ede --integrator cvode-adams", "CVODE"},
+      {"--formulation ede --integrator dopri5", "ARKODE"}};
+  for (const auto& [options, module] : runs) {
+    fs::remove_all(Out());
+    const CommandResult r =
+        RunKneedyn("run '" + ChapterScenePath() + "' " + options + " --max-steps 5 --out '" + Out() + "'");
+    EXPECT_EQ(r.exit_code, 1) << options << "\n" << r.output;
+    EXPECT_EQ(r.output.find("[" + module + " ERROR]"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find('\r'), std::string::npos) << "progress written to a pipe: " << r.output;
+    ASSERT_TRUE(fs::exists(fs::path(Out()) / "summary.json")) << options;
+    const nlohmann::json j = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
+    const std::string failure = j.at("failure").get<std::string>();
+    EXPECT_NE(failure.find("[" + module + " "), std::string::npos) << failure;
+    EXPECT_NE(failure.find("mxstep steps taken before reaching tout"), std::string::npos) << failure;
+    EXPECT_NE(r.output.find("mxstep steps taken"), std::string::npos) << r.output;  // the reason printed
+  }
+}
+
+// Issue 10: the catalog prints i/N progress with elapsed time and time left.
+TEST_F(CliTest, CatalogPrintsCountedProgress) {
+  const CommandResult r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --case c1_law --formulation dae" +
+                                   " --formulation mde --no-reference --out '" + Out() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("[1/2, "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("[2/2, "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("elapsed, ~0.0s left]"), std::string::npos) << r.output;  // nothing left after 2/2
+}
+
 }  // namespace
 }  // namespace kneedyn
