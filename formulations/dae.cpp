@@ -181,6 +181,8 @@ class DaeFormulation final : public Formulation {
     return result;
   }
 
+  std::string integrator() const override { return "ida"; }  // variable-order BDF, adaptive
+
   SolverStats stats() const override {
     SolverStats s = accumulated_;
     if (mem_ != nullptr) s += CurrentStats();

@@ -109,6 +109,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     const Scene scene = LoadScene(scene_path);
+    settings.command_line.assign(argv, argv + argc);
     // `\r` progress only on a terminal (logs and pipes get the summary lines alone).
     const bool show_progress = !quiet && StderrIsTerminal();
     if (show_progress) {

@@ -60,6 +60,7 @@ class OdeIntegrator {
 
   const std::string& name() const { return name_; }
   bool fixed_step() const { return name_ == "euler" || name_ == "rk4"; }
+  double step() const { return fixed_step() ? step_ : 0.0; }  // s; 0: adaptive
 
   // Builds the solver for a phase (sizes may change between phases). `solver_projection`:
   // use CVODE's projection after each step (CVodeSetProjFn; cvode-bdf only) instead of the

@@ -392,5 +392,40 @@ TEST_F(CliTest, CatalogPrintsCountedProgress) {
   EXPECT_NE(r.output.find("elapsed, ~0.0s left]"), std::string::npos) << r.output;  // nothing left after 2/2
 }
 
+
+// Issue 10: summary.json describes the run: schema version, command line, version and
+// commit, and the integrator and step actually used (rk4 with the default step: the
+// registry's documented kDefaultFixedStep; dae: IDA, adaptive, with a mean step that
+// spans the simulated time in the counted steps).
+TEST_F(CliTest, SummaryRecordsWhatActuallyRan) {
+  CommandResult r = RunKneedyn("run '" + ChapterScenePath() + "' --formulation mde --integrator rk4 --quiet --out '" +
+                               Out() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  nlohmann::json j = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
+  EXPECT_EQ(j.at("schema_version").get<int>(), 2);
+  EXPECT_EQ(j.at("kneedyn_version").get<std::string>(), KNEEDYN_PROJECT_VERSION);
+  EXPECT_TRUE(j.at("git_commit").is_string());
+  const auto& argv = j.at("command_line");
+  ASSERT_GE(argv.size(), 4u);
+  EXPECT_EQ(argv.at(1), "run");
+  EXPECT_EQ(argv.at(2), ChapterScenePath());
+  EXPECT_EQ(j.at("settings").at("integrator"), "rk4");
+  EXPECT_EQ(j.at("settings").at("step_mode"), "fixed");
+  EXPECT_DOUBLE_EQ(j.at("settings").at("step_s").get<double>(), 1.0e-4);  // kDefaultFixedStep
+  EXPECT_EQ(j.at("settings").at("requested").at("step_s").get<double>(), 0.0);
+
+  fs::remove_all(Out());
+  r = RunKneedyn("run '" + ChapterScenePath() + "' --quiet --out '" + Out() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  j = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
+  const auto& s = j.at("settings");
+  EXPECT_EQ(s.at("integrator"), "ida");
+  EXPECT_EQ(s.at("step_mode"), "adaptive");
+  EXPECT_TRUE(s.at("step_s").is_null());
+  const double span = j.at("events").back().at("time").get<double>();  // run starts at t = 0
+  const long steps = j.at("statistics").at("steps").get<long>();
+  EXPECT_NEAR(s.at("mean_step_s").get<double>() * static_cast<double>(steps), span, 1e-9 * span);
+}
+
 }  // namespace
 }  // namespace kneedyn
