@@ -18,6 +18,8 @@
 // Exit codes: 0 pass, 1 regression, 2 bad input.
 #include <CLI/CLI.hpp>
 
+#include "formulations/cli.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -72,7 +74,7 @@ int main(int argc, char** argv) {
   bool write = false;
   app.add_option("--baseline", baseline_path, "baseline JSON")->capture_default_str();
   app.add_flag("--write", write, "rerun and rewrite the baseline");
-  CLI11_PARSE(app, argc, argv);
+  if (const int code = ParseCommandLine(app, argc, argv, "compare_counters"); code >= 0) return code;
   try {
     nlohmann::json base;
     {

@@ -19,6 +19,8 @@
 // Exit codes: 0 ok, 1 drift or solver failure, 2 bad input (nothing written).
 #include <CLI/CLI.hpp>
 
+#include "formulations/cli.hpp"
+
 #include <chrono>
 #include <cmath>
 #include <ctime>
@@ -179,7 +181,7 @@ int main(int argc, char** argv) {
   app.add_option("--check-atol", check_atol, "second formulation's atol (0: --atol)")->capture_default_str();
   app.add_option("--interval", interval, "comparison interval, s")->capture_default_str();
   app.add_flag("--conservative", conservative, "record the energy error (conservative scene)");
-  CLI11_PARSE(app, argc, argv);
+  if (const int code = ParseCommandLine(app, argc, argv, "make_reference"); code >= 0) return code;
   check.rtol = check_rtol > 0.0 ? check_rtol : primary.rtol;
   check.atol = check_atol > 0.0 ? check_atol : primary.atol;
   std::string command_line;

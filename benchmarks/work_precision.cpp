@@ -24,6 +24,7 @@
 // Written completely or not at all. Exit 0 when the sweep ran (failed runs included),
 // 2 on bad input.
 #include <benchmark/benchmark.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -34,6 +35,9 @@
 #include <map>
 
 #include "benchmarks/bench_run.hpp"
+#include "formulations/cli.hpp"
+#include "formulations/progress.hpp"
+#include "formulations/version.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -160,36 +164,35 @@ int main(int argc, char** argv) {
   std::string only;
   int repetitions = 0;  // default: 3 (--short), 5 (full)
   double rtol_min = 1e-11;  // reference at rtol 1e-14: three decades tighter (issue 5)
-  // Own flags first; the rest goes to Google Benchmark.
+  CLI::App app{"work_precision: accuracy (scd) against the stored reference and CPU time of every "
+                "formulation and setting on one scene (benchmarks/README.md). Options --benchmark_*=V "
+                "go to Google Benchmark."};
+  app.add_flag("--short", short_mode, "the short sweep (CI): fewer settings, 3 repetitions");
+  app.add_flag("--include-broken", include_broken, "also settings known to fail");
+  app.add_option("--scene", scene_path, "scene file")->capture_default_str();
+  app.add_option("--reference", reference_path, "reference JSON (default: references/<scene>.json)");
+  app.add_option("--json", json_path, "output JSON (Google Benchmark's format)")->capture_default_str();
+  app.add_option("--csv", csv_path, "output CSV (default: the JSON's name with .csv)");
+  app.add_option("--only", only, "only configurations whose name contains this");
+  app.add_option("--rtol-min", rtol_min, "tightest rtol of the sweep")
+      ->check(CLI::Range(1e-300, 1e-2))->capture_default_str();
+  app.add_option("--repetitions", repetitions, "repetitions per setting (default 3 short, 5 full)")
+      ->check(CLI::Range(2, 1000));
+  app.set_version_flag("--version", VersionReport("work_precision"));
+  app.allow_extras();
+  if (const int code = ParseCommandLine(app, argc, argv, "work_precision"); code >= 0) return code;
+  // The rest goes to Google Benchmark; anything else is an error naming the argument.
+  std::vector<std::string> extras = app.remaining();
   std::vector<char*> rest = {argv[0]};
-  try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string a = argv[i];
-      auto value = [&]() -> std::string {
-        if (i + 1 >= argc) Throw<InputError>("work_precision", a, " needs a value");
-        return argv[++i];
-      };
-      if (a == "--short") short_mode = true;
-      else if (a == "--include-broken") include_broken = true;
-      else if (a == "--scene") scene_path = value();
-      else if (a == "--reference") reference_path = value();
-      else if (a == "--json") json_path = value();
-      else if (a == "--csv") csv_path = value();
-      else if (a == "--only") only = value();
-      else if (a == "--rtol-min") {
-        const std::string v = value();
-        rtol_min = std::atof(v.c_str());
-        if (!(rtol_min > 0.0 && rtol_min <= 1e-2)) {
-          Throw<InputError>("work_precision", "--rtol-min = ", v, "; must be in (0, 1e-2]");
-        }
-      }
-      else if (a == "--repetitions") {
-        const std::string v = value();
-        repetitions = std::atoi(v.c_str());
-        if (repetitions < 2) Throw<InputError>("work_precision", "--repetitions = ", v, "; must be >= 2 (aggregates)");
-      } else if (a.rfind("--benchmark_", 0) == 0) rest.push_back(argv[i]);
-      else Throw<InputError>("work_precision", "unknown argument '", a, "'");
+  for (const std::string& a : extras) {
+    if (a.rfind("--benchmark_", 0) != 0) {
+      std::fprintf(stderr, "work_precision: error: unknown argument '%s'\nRun 'work_precision --help' for the arguments.\n",
+                   a.c_str());
+      return 2;
     }
+    rest.push_back(const_cast<char*>(a.c_str()));
+  }
+  try {
     if (repetitions == 0) repetitions = short_mode ? 3 : 5;
     if (csv_path.empty()) {
       csv_path = json_path.size() > 5 && json_path.substr(json_path.size() - 5) == ".json"
@@ -203,10 +206,11 @@ int main(int argc, char** argv) {
     std::vector<Entry> entries;
     for (const BenchConfig& c : Grid(short_mode, rtol_min, only, include_broken)) entries.push_back({c, {}, {}, {}});
     std::map<std::string, Entry*> by_name;
+    ProgressCounter progress(static_cast<long>(entries.size()));
     for (Entry& e : entries) {
       e.outcome = RunConfig(scene, e.config, reference.comparison_interval);
       e.metrics = Evaluate(scene, e.outcome, reference);
-      std::fprintf(stderr, "%-40s %-6s scd %6.2f  %s\n", e.config.Name().c_str(), e.outcome.status.c_str(),
+      std::fprintf(stderr, "%s %-40s %-6s scd %6.2f  %s\n", progress.Next().c_str(), e.config.Name().c_str(), e.outcome.status.c_str(),
                    e.metrics.scd, e.outcome.reason.c_str());
       by_name[e.config.Name()] = &e;
       Entry* ep = &e;

@@ -108,6 +108,7 @@ class DaeFormulation final : public Formulation {
     }
     mem_ = IDACreate(ctx_);
     if (mem_ == nullptr) Throw<SolverError>("DaeFormulation::Start", "IDACreate failed");
+    Check(IDASetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "IDASetErrHandlerFn");
     Check(IDAInit(mem_, &DaeFormulation::Residual, state.t, y_, yp_), "IDAInit");
     Check(IDASetUserData(mem_, this), "IDASetUserData");
     Check(IDASVtolerances(mem_, options_.rtol, atol), "IDASVtolerances");
@@ -153,7 +154,7 @@ class DaeFormulation final : public Formulation {
       const std::string text = name ? name : "?";
       free(name);
       Throw<SolverError>("IDASolve", text, " at t = ", t_cur, " s with step h = ", h, " s",
-                         failure_.empty() ? "" : " (" + failure_ + ")");
+                         failure_.empty() ? "" : " (" + failure_ + ")", sundials_messages_.Take());
     }
     const double* y = NvData(y_);
     const double* yp = NvData(yp_);
@@ -179,6 +180,8 @@ class DaeFormulation final : public Formulation {
     }
     return result;
   }
+
+  std::string integrator() const override { return "ida"; }  // variable-order BDF, adaptive
 
   SolverStats stats() const override {
     SolverStats s = accumulated_;
@@ -325,8 +328,8 @@ class DaeFormulation final : public Formulation {
     }
   }
 
-  void Check(int flag, const char* call) const {
-    CheckSundials(flag, call, "DaeFormulation", IDAGetReturnFlagName);
+  void Check(int flag, const char* call) {
+    CheckSundials(flag, call, "DaeFormulation", IDAGetReturnFlagName, &sundials_messages_);
   }
 
   SolverStats CurrentStats() const {
@@ -374,6 +377,7 @@ class DaeFormulation final : public Formulation {
   std::vector<signed char> ligament_branch_;  // locked for the phase
   SolverStats accumulated_;
   mutable std::string failure_;
+  SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason
 };
 
 }  // namespace

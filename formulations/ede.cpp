@@ -89,6 +89,9 @@ class EdeFormulation final : public Formulation, public OdeProblem {
     return root ? EventResult(found) : AdvanceResult{};
   }
 
+  std::string integrator() const override { return integrator_.name(); }
+  double fixed_step() const override { return integrator_.step(); }
+
   SolverStats stats() const override {
     SolverStats s = integrator_.stats();
     s.projections += projections_;

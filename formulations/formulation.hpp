@@ -84,6 +84,10 @@ class Formulation {
   virtual AdvanceResult Advance(double t_out, MechanicalState* state) = 0;
   // Cumulative statistics.
   virtual SolverStats stats() const = 0;
+  // The integrator actually run ("ida", "dopri5", "newmark-average-acceleration", ...) and
+  // its fixed step in s (0: adaptive), for summary.json. Defaults: not stated.
+  virtual std::string integrator() const { return ""; }
+  virtual double fixed_step() const { return 0.0; }
 };
 
 using FormulationFactory =

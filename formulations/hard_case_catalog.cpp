@@ -28,7 +28,10 @@
 #include <optional>
 #include <sstream>
 
+#include "formulations/cli.hpp"
+#include "formulations/progress.hpp"
 #include "formulations/run.hpp"
+#include "formulations/version.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -262,7 +265,8 @@ int main(int argc, char** argv) {
   app.add_option("--formulation", only_formulations, "run only this formulation (repeatable)");
   app.add_flag("--check", check, "exit 1 unless every run meets its case's expectation");
   app.add_flag("--no-reference", no_reference, "skip the tight-tolerance dae reference runs");
-  CLI11_PARSE(app, argc, argv);
+  app.set_version_flag("--version", VersionReport("kneedyn_catalog"));
+  if (const int code = ParseCommandLine(app, argc, argv, "kneedyn_catalog"); code >= 0) return code;
 
   try {
     for (const std::string& n : only_formulations) (void)FindFormulation(n);
@@ -272,6 +276,23 @@ int main(int argc, char** argv) {
         Throw<InputError>("kneedyn_catalog", "--case = '", n, "': no such case in the catalog");
       }
     }
+    // What will run (for i/N progress): the same filters as the loop below.
+    auto selected_case = [&](const CaseSpec& c) {
+      return only_cases.empty() || std::find(only_cases.begin(), only_cases.end(), c.file) != only_cases.end();
+    };
+    auto selected_formulation = [&](const CaseSpec& c, const std::string& name) {
+      if (!only_formulations.empty() &&
+          std::find(only_formulations.begin(), only_formulations.end(), name) == only_formulations.end()) {
+        return false;
+      }
+      return !(c.dae_only && name.rfind("dae", 0) != 0);
+    };
+    long total_runs = 0;
+    for (const CaseSpec& c : Cases()) {
+      if (!selected_case(c)) continue;
+      for (const FormulationInfo& info : RegisteredFormulations()) total_runs += selected_formulation(c, info.name);
+    }
+    ProgressCounter progress(total_runs);
     std::vector<Row> rows;
     for (const CaseSpec& c : Cases()) {
       if (!only_cases.empty() &&
@@ -325,7 +346,7 @@ int main(int argc, char** argv) {
         Row row = RunOne(c, scene ? &*scene : nullptr, load_error, info.name,
                          reference ? &*reference : nullptr);
         if (scene) row.ref_status = reference_name;
-        std::fprintf(stderr, "%-30s %-16s %-15s t=%-8s %s\n", row.case_name.c_str(),
+        std::fprintf(stderr, "%s %-30s %-16s %-15s t=%-8s %s\n", progress.Next().c_str(), row.case_name.c_str(),
                      row.formulation.c_str(), row.status.c_str(), Fmt(row.t_reached, "%.4f").c_str(),
                      OneLine(row.reason).substr(0, 160).c_str());
         rows.push_back(row);

@@ -10,8 +10,11 @@
 #include <cstdio>
 #include <iostream>
 
+#include "formulations/cli.hpp"
+#include "formulations/progress.hpp"
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
+#include "formulations/version.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -61,6 +64,7 @@ int Info(const std::string& path) {
 int main(int argc, char** argv) {
   CLI::App app{"kneedyn: 3D dynamic knee model (Hefzy & Abdel-Rahman) — verification and benchmark suite"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", VersionReport("kneedyn"), "print the version, git commit and library versions");
 
   std::string scene_path, out_dir = "out/run";
   RunSettings settings;
@@ -89,7 +93,7 @@ int main(int argc, char** argv) {
 
   CLI::App* list = app.add_subcommand("formulations", "list the registered formulations");
 
-  CLI11_PARSE(app, argc, argv);
+  if (const int code = ParseCommandLine(app, argc, argv, "kneedyn"); code >= 0) return code;
   try {
     if (*info) return Info(info_scene);
     if (*list) {
@@ -105,7 +109,10 @@ int main(int argc, char** argv) {
       return 0;
     }
     const Scene scene = LoadScene(scene_path);
-    if (!quiet) {
+    settings.command_line.assign(argv, argv + argc);
+    // `\r` progress only on a terminal (logs and pipes get the summary lines alone).
+    const bool show_progress = !quiet && StderrIsTerminal();
+    if (show_progress) {
       double last = -1.0;
       settings.progress = [&](double t, double alpha) {
         if (t - last < 0.05 && last >= 0.0) return;
@@ -114,7 +121,7 @@ int main(int argc, char** argv) {
       };
     }
     const RunResult result = RunScene(scene, settings);
-    if (!quiet) std::fprintf(stderr, "\n");
+    if (show_progress) std::fprintf(stderr, "\n");
     WriteRunOutputs(out_dir, scene, settings, result);
     const SolverStats& s = result.stats;
     std::printf("%s: %s with %s in %.3f s wall\n", scene.name.c_str(),

@@ -110,6 +110,8 @@ class MdeFormulation final : public Formulation, public OdeProblem {
   }
 
   SolverStats stats() const override { return integrator_.stats(); }
+  std::string integrator() const override { return integrator_.name(); }
+  double fixed_step() const override { return integrator_.step(); }
 
   bool Rhs(double t, const double* y, double* ydot) override {
     const int m = static_cast<int>(free_.size());

@@ -157,6 +157,8 @@ class NewmarkFormulation final : public Formulation {
   }
 
   SolverStats stats() const override { return stats_; }
+  std::string integrator() const override { return "newmark-average-acceleration"; }
+  double fixed_step() const override { return step_; }
 
   // Newmark step residual F(x) for any scalar type; false when a surface is evaluated
   // outside its domain (recoverable: the step is halved).

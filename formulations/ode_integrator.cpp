@@ -77,11 +77,11 @@ OdeIntegrator::OdeIntegrator(const FormulationOptions& options, std::string owne
 
 OdeIntegrator::~OdeIntegrator() { Free(); }
 
-void OdeIntegrator::Check(int flag, const char* call) const {
+void OdeIntegrator::Check(int flag, const char* call) {
   if (is_cvode()) {
-    CheckSundials(flag, call, "OdeIntegrator", CVodeGetReturnFlagName);
+    CheckSundials(flag, call, "OdeIntegrator", CVodeGetReturnFlagName, &sundials_messages_);
   } else {
-    CheckSundials(flag, call, "OdeIntegrator", ARKStepGetReturnFlagName);
+    CheckSundials(flag, call, "OdeIntegrator", ARKStepGetReturnFlagName, &sundials_messages_);
   }
 }
 
@@ -134,6 +134,7 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
   if (is_cvode()) {
     mem_ = CVodeCreate(name_ == "cvode-bdf" ? CV_BDF : CV_ADAMS, ctx_);
     if (mem_ == nullptr) Throw<SolverError>("OdeIntegrator::Start", "CVodeCreate failed");
+    Check(CVodeSetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "CVodeSetErrHandlerFn");
     Check(CVodeInit(mem_, &OdeIntegrator::RhsCallback, t0, y_), "CVodeInit");
     Check(CVodeSetUserData(mem_, this), "CVodeSetUserData");
     Check(CVodeSStolerances(mem_, options_.rtol, options_.atol), "CVodeSStolerances");
@@ -158,6 +159,7 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
   } else {
     mem_ = ARKStepCreate(&OdeIntegrator::RhsCallback, nullptr, t0, y_, ctx_);
     if (mem_ == nullptr) Throw<SolverError>("OdeIntegrator::Start", "ARKStepCreate failed");
+    Check(ARKStepSetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "ARKStepSetErrHandlerFn");
     Check(ARKStepSetUserData(mem_, this), "ARKStepSetUserData");
     // Hermite interpolant (ARKODE's default), also for euler/rk4: it needs no step history,
     // so root states stay accurate right after a projection restart (the Lagrange one
@@ -239,7 +241,7 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
     const std::string text = name ? name : "?";
     free(name);
     Throw<SolverError>("OdeIntegrator::Evolve", owner_, " (", name_, "): ", text, " at t = ", t_cur, " s with step h = ", h, " s",
-                       failure_.empty() ? "" : " (" + failure_ + ")");
+                       failure_.empty() ? "" : " (" + failure_ + ")", sundials_messages_.Take());
   }
   *t = t_reached;
   y->resize(n_);

@@ -60,6 +60,7 @@ class OdeIntegrator {
 
   const std::string& name() const { return name_; }
   bool fixed_step() const { return name_ == "euler" || name_ == "rk4"; }
+  double step() const { return fixed_step() ? step_ : 0.0; }  // s; 0: adaptive
 
   // Builds the solver for a phase (sizes may change between phases). `solver_projection`:
   // use CVODE's projection after each step (CVodeSetProjFn; cvode-bdf only) instead of the
@@ -84,7 +85,7 @@ class OdeIntegrator {
   static int RootCallback(double t, N_Vector y, double* g, void* user);
   static int ProjCallback(double t, N_Vector y, N_Vector corr, double eps, N_Vector err, void* user);
   bool is_cvode() const { return name_ == "cvode-bdf" || name_ == "cvode-adams"; }
-  void Check(int flag, const char* call) const;
+  void Check(int flag, const char* call);
   SolverStats CurrentCounters() const;
   double LastStep() const;
   void Free();
@@ -105,6 +106,7 @@ class OdeIntegrator {
   SolverStats accumulated_;  // finished solver instances and pre-reset segments
   SolverStats baseline_;     // counters of the live instance at its last reset
   std::string failure_;
+  SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason
 };
 
 }  // namespace kneedyn

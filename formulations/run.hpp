@@ -19,6 +19,8 @@ struct RunSettings {
   double output_interval = 0.0;     // s; 0 = the scene's output.interval_s
   // Called after every output row with (t, flexion in rad); may be empty.
   std::function<void(double, double)> progress;
+  // The command that asked for the run (argv), recorded in summary.json; may be empty.
+  std::vector<std::string> command_line;
 };
 
 struct EventRecord {
@@ -36,6 +38,8 @@ struct RunResult {
   std::vector<MechanicalState> samples;  // output rows, in time order
   std::vector<bool> sample_is_event;     // parallel to samples
   SolverStats stats;
+  std::string integrator;   // the integrator actually run (Formulation::integrator())
+  double fixed_step = 0.0;  // s, the fixed step actually used; 0: adaptive
   double wall_time_s = 0.0;
   double max_position_residual = 0.0;  // max |φ_i| over active contacts and samples, m
   double max_velocity_residual = 0.0;  // max |φ̇_i|, m/s

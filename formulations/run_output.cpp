@@ -10,6 +10,7 @@
 #include <ceres/version.h>
 #include <sundials/sundials_config.h>
 
+#include "formulations/version.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -173,7 +174,10 @@ void WriteAtomically(const fs::path& dir, const std::string& name, const std::st
 nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
                            const RunResult& result) {
   nlohmann::json j;
-  j["kneedyn_version"] = "0.1.0";
+  j["schema_version"] = kSummarySchemaVersion;  // docs/outputs.md
+  j["kneedyn_version"] = KneedynVersion();
+  j["git_commit"] = KneedynGitCommit();
+  j["command_line"] = settings.command_line;
   j["status"] = result.completed ? "completed" : "partial";
   if (!result.completed) j["failure"] = result.failure;
   j["end_reason"] = result.end_reason;
@@ -186,8 +190,16 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
                 {"ligament_law", scene.model.ligament_law == LigamentLaw::kPublished ? "published" : "c1_continuous"}};
   const FormulationOptions& o = settings.options;
   j["formulation"] = settings.formulation;
-  j["settings"] = {{"rtol", o.rtol}, {"atol", o.atol}, {"integrator", o.integrator},
-                   {"step_s", o.step}, {"max_step_s", o.max_step},
+  // What ran: the integrator and step actually used; adaptive runs record their mean step.
+  const double span = result.samples.size() > 1 ? result.samples.back().t - result.samples.front().t : 0.0;
+  j["settings"] = {{"rtol", o.rtol}, {"atol", o.atol}, {"integrator", result.integrator},
+                   {"step_mode", result.fixed_step > 0.0 ? "fixed" : "adaptive"},
+                   {"step_s", result.fixed_step > 0.0 ? nlohmann::json(result.fixed_step) : nlohmann::json(nullptr)},
+                   {"mean_step_s", result.stats.steps > 0 && span > 0.0
+                                       ? nlohmann::json(span / static_cast<double>(result.stats.steps))
+                                       : nlohmann::json(nullptr)},
+                   {"requested", {{"integrator", o.integrator}, {"step_s", o.step}}},
+                   {"max_step_s", o.max_step},
                    {"stabilization", o.stabilization}, {"constraint_level", o.constraint_level},
                    {"output_interval_s", settings.output_interval > 0 ? settings.output_interval : scene.output_interval}};
   const InitReport& ir = result.init;

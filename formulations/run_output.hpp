@@ -4,7 +4,7 @@
 //   summary.json    scene, formulation, settings, initialization, events, final state,
 //                   solver statistics, wall time, status (partial when the solver failed)
 // Column names and JSON fields are a contract for reports and benchmarks: extend, never
-// rename. See reports/README.md for their meaning.
+// rename; a change of meaning raises kSummarySchemaVersion. docs/outputs.md documents them.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -14,6 +14,12 @@
 #include "formulations/run.hpp"
 
 namespace kneedyn {
+
+// summary.json "schema_version" (docs/outputs.md). 1: files without the field (before
+// issue 10); 2: adds schema_version, git_commit, command_line, settings.step_mode,
+// settings.mean_step_s, settings.requested; settings.integrator and settings.step_s
+// become the integrator and fixed step actually used (step_s null when adaptive).
+constexpr int kSummarySchemaVersion = 2;
 
 struct TrajectoryTable {
   std::vector<std::string> columns;        // with units, e.g. "flexion_deg"

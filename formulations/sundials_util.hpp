@@ -1,6 +1,7 @@
 // SUNDIALS 6.4 glue shared by the IDA, CVODE and ARKODE formulations: one checked-call
-// helper (style.md §4: return codes converted in one place), a RAII context, and
-// N_Vector views.
+// helper (style.md §4: return codes converted in one place), one error handler (SUNDIALS
+// prints nothing; its message goes into the failure reason), a RAII context, and N_Vector
+// views.
 #pragma once
 
 #include <nvector/nvector_serial.h>
@@ -12,15 +13,47 @@
 
 namespace kneedyn {
 
+// The error handler every IDA, CVODE and ARKODE instance gets (XSetErrHandlerFn(mem,
+// &SundialsMessages::Handler, &messages) right after XCreate; the three share the
+// signature). Nothing reaches stderr; the latest error message is kept until the caller
+// puts it into the failure reason (Take). Warnings are counted, not printed.
+class SundialsMessages {
+ public:
+  static void Handler(int error_code, const char* module, const char* function, char* msg,
+                      void* user_data) {
+    auto* self = static_cast<SundialsMessages*>(user_data);
+    if (error_code > 0) {
+      ++self->warnings_;
+      return;
+    }
+    self->last_ = std::string(module ? module : "SUNDIALS") + " " + (function ? function : "") +
+                  ": " + (msg ? msg : "");
+  }
+  // " [IDA IDASolve: At t = ..., mxstep steps taken before reaching tout.]" or "", then clears.
+  std::string Take() {
+    std::string text = last_.empty() ? std::string() : " [" + last_ + "]";
+    last_.clear();
+    return text;
+  }
+  long warnings() const { return warnings_; }
+
+ private:
+  std::string last_;
+  long warnings_ = 0;
+};
+
 // Throws SolverError "caller(): call failed with flag NAME (code)". `name_of` converts the
 // flag to its name (IDAGetReturnFlagName, CVodeGetReturnFlagName, ARKStepGetReturnFlagName).
+// With `messages`, SUNDIALS' own message for the failure is appended.
 template <typename NameFn>
-void CheckSundials(int flag, const char* call, const char* caller, NameFn name_of) {
+void CheckSundials(int flag, const char* call, const char* caller, NameFn name_of,
+                   SundialsMessages* messages = nullptr) {
   if (flag >= 0) return;
   char* name = name_of(flag);
   const std::string text = name ? name : "unknown";
   free(name);
-  Throw<SolverError>(caller, call, " failed with ", text, " (", flag, ")");
+  Throw<SolverError>(caller, call, " failed with ", text, " (", flag, ")",
+                     messages ? messages->Take() : std::string());
 }
 
 // Owns a SUNContext (required by SUNDIALS 6).

@@ -5,6 +5,7 @@
 #include <Eigen/LU>
 #include <cmath>
 #include <filesystem>
+#include <cstdlib>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -16,9 +17,6 @@
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 
-#ifndef KNEEDYN_DATA_DIR
-#define KNEEDYN_DATA_DIR "reference-data"
-#endif
 
 namespace kneedyn {
 namespace {
@@ -305,9 +303,25 @@ Compartment CompartmentByName(const Field& f) {
 
 }  // namespace
 
+// Found at run time, never baked in: $KNEEDYN_DATA_DIR, else share/kneedyn beside the
+// running executable (<prefix>/bin/kneedyn -> <prefix>/share/kneedyn; in a build tree,
+// <build>/share/kneedyn is a link to the source tree's reference-data/ made by CMake),
+// else ./reference-data (a source checkout's top directory).
 std::string ReferenceDataDir() {
-  if (const char* env = std::getenv("KNEEDYN_DATA_DIR")) return env;
-  return KNEEDYN_DATA_DIR;
+  if (const char* env = std::getenv("KNEEDYN_DATA_DIR"); env && *env) return env;
+  static const std::string beside_executable = [] {
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (ec) return std::string();
+    fs::path dir = exe.parent_path();
+    for (int up = 0; up < 3 && !dir.empty(); ++up, dir = dir.parent_path()) {
+      const fs::path candidate = dir / "share" / "kneedyn";
+      if (fs::is_directory(candidate / "scenes", ec)) return candidate.string();
+      if (dir == dir.root_path()) break;
+    }
+    return std::string();
+  }();
+  return beside_executable.empty() ? std::string("reference-data") : beside_executable;
 }
 
 Scene LoadScene(const std::string& path) {

@@ -22,6 +22,9 @@
 #include <string>
 #include <vector>
 
+#include <ceres/version.h>
+#include <sundials/sundials_config.h>
+
 #include "solver/scene.hpp"
 
 namespace kneedyn {
@@ -36,9 +39,9 @@ struct CommandResult {
   std::string output;  // stdout and stderr
 };
 
-// Runs `kneedyn <args>` with stderr merged into stdout.
-CommandResult RunKneedyn(const std::string& args) {
-  const std::string command = std::string("'") + KNEEDYN_EXE + "' " + args + " 2>&1";
+// Runs a shell command with stderr merged into stdout.
+CommandResult RunShell(const std::string& shell_command) {
+  const std::string command = shell_command + " 2>&1";
   CommandResult result;
   FILE* pipe = popen(command.c_str(), "r");
   if (pipe == nullptr) return result;
@@ -48,6 +51,11 @@ CommandResult RunKneedyn(const std::string& args) {
   const int status = pclose(pipe);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return result;
+}
+
+// Runs `kneedyn <args>` with stderr merged into stdout.
+CommandResult RunKneedyn(const std::string& args) {
+  return RunShell(std::string("'") + KNEEDYN_EXE + "' " + args);
 }
 
 // A fresh, empty temporary directory per test; removed at the end.
@@ -259,6 +267,164 @@ TEST_F(CliTest, SolverFailureExitsOneWithPartialSummary) {
   EXPECT_TRUE(fs::exists(fs::path(Out()) / "trajectory.csv"));
   EXPECT_NE(ReadText(fs::path(Out()) / "trajectory.sto").find("PARTIAL"), std::string::npos);
   ExpectNoTempFiles();
+}
+
+
+// Issue 10: reference-data/ is found at run time beside the executable (no source path in
+// the binary); KNEEDYN_DATA_DIR overrides it. A scene naming its parameter set by a bare
+// file name that is not beside the scene resolves it in the data directory.
+TEST_F(CliTest, DataDirectoryIsFoundBesideTheExecutableAndOverriddenByEnvironment) {
+  const fs::path scene = dir_ / "bare_parameter_set.yaml";
+  {
+    std::string text = ReadText(ChapterScenePath());
+    const std::string ps = "parameter_set: ../chapter_knee.yaml";
+    ASSERT_NE(text.find(ps), std::string::npos);
+    text.replace(text.find(ps), ps.size(), "parameter_set: chapter_knee.yaml");
+    std::ofstream(scene) << text;
+  }
+  // From an unrelated working directory with the override unset: found beside the binary.
+  const std::string in_tmp = "cd '" + dir_.string() + "' && env -u KNEEDYN_DATA_DIR ";
+  CommandResult r = RunShell(in_tmp + "'" + KNEEDYN_EXE + "' info '" + scene.string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("consistent normal force"), std::string::npos) << r.output;
+  // The override wins, and a wrong one is named in the message.
+  const std::string bogus = (dir_ / "no_data_here").string();
+  r = RunShell("KNEEDYN_DATA_DIR='" + bogus + "' '" + KNEEDYN_EXE + "' info '" + scene.string() + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find(bogus), std::string::npos) << r.output;
+}
+
+
+// Issue 10: --version names kneedyn's version (CMake's project version), the git commit the
+// build came from (when the source tree is a git repository: git's own answer) and the
+// library versions of the headers this test was compiled against.
+TEST_F(CliTest, VersionNamesVersionCommitAndLibraries) {
+  const CommandResult r = RunKneedyn("--version");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(std::string("kneedyn ") + KNEEDYN_PROJECT_VERSION), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(std::string("SUNDIALS ") + SUNDIALS_VERSION), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(std::string("Ceres ") + CERES_VERSION_STRING), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("Eigen 3."), std::string::npos) << r.output;
+  const CommandResult git =
+      RunShell(std::string("git -C '") + KNEEDYN_SOURCE_DIR + "' rev-parse --short=12 HEAD");
+  if (git.exit_code == 0 && fs::exists(fs::path(KNEEDYN_SOURCE_DIR) / ".git")) {
+    const std::string commit = git.output.substr(0, 12);
+    EXPECT_NE(r.output.find("git " + commit), std::string::npos) << r.output << " vs HEAD " << commit;
+  } else {
+    EXPECT_NE(r.output.find("not built from git"), std::string::npos) << r.output;
+  }
+}
+
+// Issue 10: every argument error exits 2, names the offending argument and writes nothing.
+TEST_F(CliTest, ArgumentErrorsExitTwoAndNameTheArgument) {
+  const std::string scene = "'" + ChapterScenePath() + "'";
+  const std::string out = " --out '" + Out() + "'";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"rnu " + scene + out, "'rnu'"},                      // mistyped subcommand
+      {"run " + scene + " --rtol abc" + out, "--rtol"},     // not a number
+      {"run " + scene + " --max-steps 1.5" + out, "--max-steps"},
+      {"run " + scene + " --bogus" + out, "--bogus"},       // unknown option
+      {"run " + scene + " --rtol" , "--rtol"},              // missing value
+      {"run" + out, "scene"},                               // missing positional
+      {"info", "scene"},
+      {"", "subcommand"},
+  };
+  for (const auto& [args, named] : cases) {
+    const CommandResult r = RunKneedyn(args);
+    EXPECT_EQ(r.exit_code, 2) << "kneedyn " << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(named), std::string::npos) << "kneedyn " << args << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(Out())) << "kneedyn " << args;
+  }
+}
+
+// Issue 10: the other tools keep the same contract; work_precision --help works.
+TEST_F(CliTest, CatalogAndWorkPrecisionKeepTheContract) {
+  CommandResult r = RunShell(std::string("'") + KNEEDYN_WORK_PRECISION_EXE + "' --help");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("--short"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--repetitions"), std::string::npos) << r.output;
+  r = RunShell(std::string("'") + KNEEDYN_WORK_PRECISION_EXE + "' --shrot");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--shrot"), std::string::npos) << r.output;
+  r = RunShell(std::string("'") + KNEEDYN_WORK_PRECISION_EXE + "' --repetitions 1");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--repetitions"), std::string::npos) << r.output;
+  r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --case");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--case"), std::string::npos) << r.output;
+  r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --version");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(KNEEDYN_PROJECT_VERSION), std::string::npos) << r.output;
+}
+
+
+// Issue 10: SUNDIALS prints nothing itself; its own message (here IDA's, CVODE's and
+// ARKODE's "mxstep steps taken before reaching tout") is in the failure reason and in
+// summary.json. Without a terminal there are no `\r` progress updates.
+TEST_F(CliTest, SundialsMessagesGoIntoTheFailureReasonNotToStderr) {
+  const std::vector<std::pair<std::string, std::string>> runs = {
+      {"--formulation dae", "IDA"},
+      {"--formulation ede --integrator cvode-adams", "CVODE"},
+      {"--formulation ede --integrator dopri5", "ARKODE"}};
+  for (const auto& [options, module] : runs) {
+    fs::remove_all(Out());
+    const CommandResult r =
+        RunKneedyn("run '" + ChapterScenePath() + "' " + options + " --max-steps 5 --out '" + Out() + "'");
+    EXPECT_EQ(r.exit_code, 1) << options << "\n" << r.output;
+    EXPECT_EQ(r.output.find("[" + module + " ERROR]"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find('\r'), std::string::npos) << "progress written to a pipe: " << r.output;
+    ASSERT_TRUE(fs::exists(fs::path(Out()) / "summary.json")) << options;
+    const nlohmann::json j = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
+    const std::string failure = j.at("failure").get<std::string>();
+    EXPECT_NE(failure.find("[" + module + " "), std::string::npos) << failure;
+    EXPECT_NE(failure.find("mxstep steps taken before reaching tout"), std::string::npos) << failure;
+    EXPECT_NE(r.output.find("mxstep steps taken"), std::string::npos) << r.output;  // the reason printed
+  }
+}
+
+// Issue 10: the catalog prints i/N progress with elapsed time and time left.
+TEST_F(CliTest, CatalogPrintsCountedProgress) {
+  const CommandResult r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --case c1_law --formulation dae" +
+                                   " --formulation mde --no-reference --out '" + Out() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("[1/2, "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("[2/2, "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("elapsed, ~0.0s left]"), std::string::npos) << r.output;  // nothing left after 2/2
+}
+
+
+// Issue 10: summary.json describes the run: schema version, command line, version and
+// commit, and the integrator and step actually used (rk4 with the default step: the
+// registry's documented kDefaultFixedStep; dae: IDA, adaptive, with a mean step that
+// spans the simulated time in the counted steps).
+TEST_F(CliTest, SummaryRecordsWhatActuallyRan) {
+  CommandResult r = RunKneedyn("run '" + ChapterScenePath() + "' --formulation mde --integrator rk4 --quiet --out '" +
+                               Out() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  nlohmann::json j = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
+  EXPECT_EQ(j.at("schema_version").get<int>(), 2);
+  EXPECT_EQ(j.at("kneedyn_version").get<std::string>(), KNEEDYN_PROJECT_VERSION);
+  EXPECT_TRUE(j.at("git_commit").is_string());
+  const auto& argv = j.at("command_line");
+  ASSERT_GE(argv.size(), 4u);
+  EXPECT_EQ(argv.at(1), "run");
+  EXPECT_EQ(argv.at(2), ChapterScenePath());
+  EXPECT_EQ(j.at("settings").at("integrator"), "rk4");
+  EXPECT_EQ(j.at("settings").at("step_mode"), "fixed");
+  EXPECT_DOUBLE_EQ(j.at("settings").at("step_s").get<double>(), 1.0e-4);  // kDefaultFixedStep
+  EXPECT_EQ(j.at("settings").at("requested").at("step_s").get<double>(), 0.0);
+
+  fs::remove_all(Out());
+  r = RunKneedyn("run '" + ChapterScenePath() + "' --quiet --out '" + Out() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  j = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
+  const auto& s = j.at("settings");
+  EXPECT_EQ(s.at("integrator"), "ida");
+  EXPECT_EQ(s.at("step_mode"), "adaptive");
+  EXPECT_TRUE(s.at("step_s").is_null());
+  const double span = j.at("events").back().at("time").get<double>();  // run starts at t = 0
+  const long steps = j.at("statistics").at("steps").get<long>();
+  EXPECT_NEAR(s.at("mean_step_s").get<double>() * static_cast<double>(steps), span, 1e-9 * span);
 }
 
 }  // namespace

@@ -1,0 +1,36 @@
+# `cmake --install BUILD --prefix P` (issue 10): the kneedyn and kneedyn_catalog tools in
+# P/bin, the libraries in P/lib, the headers in P/include/kneedyn/{solver,formulations},
+# reference-data/ as P/share/kneedyn (found there by the installed tools at run time), the
+# CMake package kneedyn (find_package(kneedyn CONFIG REQUIRED); targets kneedyn::solver,
+# kneedyn::formulations) and pkg-config's kneedyn.pc.
+include(GNUInstallDirs)
+include(CMakePackageConfigHelpers)
+
+set(KNEEDYN_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/kneedyn)
+
+install(TARGETS kneedyn_solver kneedyn_formulations EXPORT kneedynTargets
+  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn)
+install(TARGETS kneedyn kneedyn_catalog RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+foreach(dir solver formulations)
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/
+          DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn/${dir}
+          FILES_MATCHING PATTERN "*.hpp")
+endforeach()
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/reference-data/ DESTINATION ${CMAKE_INSTALL_DATADIR}/kneedyn)
+
+install(EXPORT kneedynTargets NAMESPACE kneedyn:: DESTINATION ${KNEEDYN_CMAKE_DIR})
+configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/kneedynConfig.cmake.in
+  ${PROJECT_BINARY_DIR}/kneedynConfig.cmake INSTALL_DESTINATION ${KNEEDYN_CMAKE_DIR}
+  PATH_VARS CMAKE_INSTALL_DATADIR)
+write_basic_package_version_file(${PROJECT_BINARY_DIR}/kneedynConfigVersion.cmake
+  COMPATIBILITY SameMinorVersion)
+install(FILES ${PROJECT_BINARY_DIR}/kneedynConfig.cmake ${PROJECT_BINARY_DIR}/kneedynConfigVersion.cmake
+        DESTINATION ${KNEEDYN_CMAKE_DIR})
+
+# Relocatable: the prefix is found from the .pc file's own directory.
+file(RELATIVE_PATH KNEEDYN_PC_TO_PREFIX "/${CMAKE_INSTALL_LIBDIR}/pkgconfig" "/")
+string(REGEX REPLACE "/$" "" KNEEDYN_PC_TO_PREFIX "${KNEEDYN_PC_TO_PREFIX}")
+configure_file(${PROJECT_SOURCE_DIR}/cmake/kneedyn.pc.in ${PROJECT_BINARY_DIR}/kneedyn.pc @ONLY)
+install(FILES ${PROJECT_BINARY_DIR}/kneedyn.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)

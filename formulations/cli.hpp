@@ -1,0 +1,40 @@
+// Command-line parsing shared by kneedyn's tools (issue 10 "CLI contracts"): one place that
+// maps CLI11's parse errors to the suite's exit codes. --help and --version exit 0; every
+// argument error exits 2 with a message on stderr that names the offending argument.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <string>
+#include <vector>
+
+namespace kneedyn {
+
+// Parses argv into `app`. Returns -1 when the program should go on, else the exit code the
+// program must return (0 after --help/--version, 2 after an argument error).
+inline int ParseCommandLine(CLI::App& app, int argc, char** argv, const std::string& program) {
+  try {
+    app.parse(argc, argv);
+    return -1;
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
+    std::string message = e.what();
+    // A mistyped subcommand: CLI11 only says that one is required; name the word given.
+    const std::vector<CLI::App*> all = app.get_subcommands([](CLI::App*) { return true; });
+    if (!all.empty() && app.get_subcommands().empty()) {
+      for (int i = 1; i < argc; ++i) {
+        const std::string word = argv[i];
+        if (word.empty() || word[0] == '-') continue;
+        message = "unknown subcommand '" + word + "'; expected one of:";
+        for (const CLI::App* sub : all) message += " " + sub->get_name();
+        break;
+      }
+    }
+    std::fprintf(stderr, "%s: error: %s\nRun '%s --help' for the arguments.\n", program.c_str(),
+                 message.c_str(), program.c_str());
+    return 2;
+  }
+}
+
+}  // namespace kneedyn

@@ -1,0 +1,65 @@
+# ctest install_consumer (issue 10): installs the build into a fresh prefix, then configures,
+# builds and runs tests/consumer (find_package(kneedyn CONFIG REQUIRED), kneedyn::formulations)
+# against it, runs the installed kneedyn from an unrelated directory (data found in
+# share/kneedyn), and checks the pkg-config file.
+#   cmake -DBUILD=<build dir> -DSOURCE=<source dir> -DWORK=<scratch dir> -P install_consumer.cmake
+foreach(v BUILD SOURCE WORK)
+  if(NOT DEFINED ${v})
+    message(FATAL_ERROR "install_consumer.cmake: -D${v}=... is required")
+  endif()
+endforeach()
+file(REMOVE_RECURSE ${WORK})
+set(prefix ${WORK}/prefix)
+
+function(run)
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "failed (${rc}): ${ARGN}\n${out}\n${err}")
+  endif()
+  set(out "${out}" PARENT_SCOPE)
+endfunction()
+
+run(${CMAKE_COMMAND} --install ${BUILD} --prefix ${prefix})
+foreach(f bin/kneedyn bin/kneedyn_catalog share/kneedyn/scenes/chapter_impact.yaml
+          share/kneedyn/chapter_knee.yaml include/kneedyn/formulations/run.hpp
+          include/kneedyn/solver/scene.hpp)
+  if(NOT EXISTS ${prefix}/${f})
+    message(FATAL_ERROR "not installed: ${prefix}/${f}")
+  endif()
+endforeach()
+file(GLOB_RECURSE config ${prefix}/*/kneedynConfig.cmake)
+file(GLOB_RECURSE pc ${prefix}/*/kneedyn.pc)
+if(NOT config OR NOT pc)
+  message(FATAL_ERROR "no kneedynConfig.cmake ('${config}') or kneedyn.pc ('${pc}') under ${prefix}")
+endif()
+
+run(${CMAKE_COMMAND} -S ${SOURCE}/tests/consumer -B ${WORK}/consumer-build
+    -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix})
+run(${CMAKE_COMMAND} --build ${WORK}/consumer-build)
+run(${WORK}/consumer-build/consumer)
+message(STATUS "consumer: ${out}")
+
+# The installed tool finds its data beside itself, from elsewhere, without the override.
+file(MAKE_DIRECTORY ${WORK}/elsewhere)
+execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=KNEEDYN_DATA_DIR
+                ${prefix}/bin/kneedyn_catalog --case c1_law --out ${WORK}/elsewhere/catalog
+                WORKING_DIRECTORY ${WORK}/elsewhere RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0 OR NOT EXISTS ${WORK}/elsewhere/catalog/hard_cases.md)
+  message(FATAL_ERROR "installed kneedyn_catalog failed (${rc}):\n${out}\n${err}")
+endif()
+
+find_program(PKG_CONFIG pkg-config)
+if(PKG_CONFIG)
+  get_filename_component(pcdir ${pc} DIRECTORY)
+  execute_process(COMMAND ${CMAKE_COMMAND} -E env PKG_CONFIG_PATH=${pcdir} ${PKG_CONFIG} --variable=includedir kneedyn
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE got ERROR_VARIABLE err)
+  file(REAL_PATH ${prefix}/include/kneedyn want)
+  string(STRIP "${got}" got)
+  if(rc EQUAL 0)
+    file(REAL_PATH "${got}" got)
+  endif()
+  if(NOT rc EQUAL 0 OR NOT got STREQUAL want)
+    message(FATAL_ERROR "pkg-config --variable=includedir kneedyn: '${got}' (${rc}, ${err}); expected ${want}")
+  endif()
+endif()
+file(REMOVE_RECURSE ${WORK})
