@@ -378,7 +378,7 @@ class Knee {
   void Liftoff(State& s, int i) {
     events_.push_back({StrCat("liftoff_", CompartmentName(model_.contacts[i].compartment)), s.getTime(), Flexion(s)});
     system_.realize(s, Stage::Position);
-    recontact_level_[i] = Gap(s, i) - kRecontactHysteresis;
+    recontact_level_[i] = std::min(Gap(s, i), 0.0) - kRecontactHysteresis;  // as kneedyn's events
     contacts_[i].disable(s);
   }
 
