@@ -51,7 +51,7 @@ int main(int argc, char** argv) {
       std::printf("%s: %s with Simbody %s (accuracy %g) in %.3f s wall\n", scene.name.c_str(),
                   r.completed ? ("completed (" + r.end_reason + ")").c_str() : "FAILED",
                   options.integrator.c_str(), options.accuracy, r.wall_time_s);
-      std::printf("  init: gap %.3e -> %.3e m; N =", r.init.position.residual_before,
+      std::printf("  init (Assembler): gap %.3e -> %.3e m; N =", r.init.position.residual_before,
                   r.init.position.residual_after);
       for (double n : r.init.normal_force) std::printf(" %.6f", n);
       std::printf(" N\n");

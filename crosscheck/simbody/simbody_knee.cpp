@@ -266,7 +266,7 @@ class Knee {
     return ~(w % n) * (c - o) - ~n * (v + w % (o - p));
   }
 
-  // Initial state: scene pose, the constraints solved with the held coordinates fixed, velocities
+  // Initial state: scene pose, Simbody's Assembler with the held coordinates locked, velocities
   // from the scene projected onto the constraints.
   State Assemble(InitReport* report) {
     State s = system_.getDefaultState();
@@ -277,7 +277,7 @@ class Knee {
       for (int c = 0; c < 3; ++c) R(r, c) = pose.R_FT(r, c);
     tibia_.setQToFitTransform(s, SimTK::Transform(SimTK::Rotation(R, true), ToVec3(pose.p_FoTo_F)));
     system_.realize(s, Stage::Position);
-    report->form = "simbody";
+    report->form = "simbody_assembler";
     report->position.residual_before = MaxGap(s);
     const std::vector<int>& held = scene_.initial.held;
     auto is_held = [&](int i) { return std::find(held.begin(), held.end(), i) != held.end(); };
@@ -289,34 +289,21 @@ class Knee {
     }
     for (int i : held) report->held.push_back(CoordinateName(i));
     for (int i : scene_.initial.held_velocities) report->held.push_back(StrCat(CoordinateName(i), "_dot"));
-    if (!contacts_.empty() && held_angles == 3) {
-      // Orientation held: the gaps are affine in the free translations p (∂gap_i/∂p =
-      // −n_i, Simbody's plane normal in G), so Gauss–Newton on Simbody's own separations
-      // converges in one or two steps (minimum-norm correction when underdetermined).
-      // Simbody's Assembler was tried first and rejected: with the quaternion locked its
-      // Ipopt solve fails on this problem ("Restoration failed") without moving.
-      std::vector<int> free_p;
-      for (int i = kX0; i <= kZ0; ++i)
-        if (!is_held(i)) free_p.push_back(i);
-      for (int it = 0; it < 10 && !free_p.empty() && MaxGap(s) > 1e-15; ++it) {
-        const size_t m = contacts_.size();
-        Eigen::MatrixXd J(m, free_p.size());
-        Eigen::VectorXd r(m);
-        for (size_t i = 0; i < m; ++i) {
-          const Vec3 n_G = tibia_.getBodyRotation(s) * ToVec3(model_.contacts[i].sphere_on_plane->normal_T);
-          r(i) = Gap(s, i);
-          for (size_t c = 0; c < free_p.size(); ++c) J(i, c) = -n_G[free_p[c]];
-        }
-        const Eigen::VectorXd dp = J.completeOrthogonalDecomposition().solve(-r);
-        Vec3 p = tibia_.getBodyOriginLocation(s);
-        for (size_t c = 0; c < free_p.size(); ++c) p[free_p[c]] += dp(c);
-        tibia_.setQToFitTranslation(s, p);
-        system_.realize(s, Stage::Position);
-        report->position.iterations = it + 1;
+    if (!contacts_.empty()) {
+      // Simbody's Assembler: the enabled constraints as assembly errors, the held
+      // coordinates locked. The Assembler works on a copy of the state in Euler angles,
+      // so a Free mobilizer's q there is (three rotation angles, x, y, z).
+      SimTK::Assembler assembler(system_);
+      assembler.setErrorTolerance(1e-15).setAccuracy(1e-14);
+      const SimTK::MobilizedBodyIndex mbx = tibia_.getMobilizedBodyIndex();
+      if (held_angles == 3) {
+        for (int k = 0; k < 3; ++k) assembler.lockQ(mbx, SimTK::MobilizerQIndex(k));
       }
-    } else if (!contacts_.empty()) {
-      // Nothing held: Simbody's own projection (minimum weighted change of all q).
-      system_.projectQ(s, 1e-14);
+      for (int i = kX0; i <= kZ0; ++i) {
+        if (is_held(i)) assembler.lockQ(mbx, SimTK::MobilizerQIndex(3 + i));
+      }
+      assembler.assemble(s);  // throws (SimTK::Exception) when it cannot assemble
+      report->position.iterations = assembler.getNumAssemblySteps();
     }
     system_.realize(s, Stage::Position);
     report->position.residual_after = MaxGap(s);

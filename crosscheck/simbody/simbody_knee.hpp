@@ -17,8 +17,7 @@
 //               by a triggered handler), so no step straddles it.
 //   gravity     Force::UniformGravity.
 //   pulse       Force::Custom at the centre of mass along R·d_T (turns with the tibia).
-//   start       scene pose; the free translations solved on Simbody's separations (the
-//               Assembler fails here, see Assemble()), or projectQ; then projectU.
+//   start       Simbody's Assembler (held coordinates locked), then projectU.
 //   events      triggered handlers: lift-off when a normal force falls to 0 (the
 //               constraint is disabled), re-contact when a separated gap falls 1 nm below
 //               its value at separation (the constraint is enabled; perfectly plastic
