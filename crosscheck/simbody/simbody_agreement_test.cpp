@@ -22,7 +22,7 @@
 #include <map>
 
 #include "benchmarks/bench_run.hpp"
-#include "crosscheck/simbody/simbody_knee.hpp"
+#include "crosscheck/simbody/simbody_solution.hpp"
 #include "solver/scene.hpp"
 
 namespace kneedyn {

@@ -11,9 +11,9 @@
 #include <fstream>
 #include <limits>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "formulations/run_output.hpp"
 #include "solver/error.hpp"
 #include "solver/pose.hpp"  // JCS output conversion only (CoordinateVelocity/Acceleration)
 #include "solver/units.hpp"
@@ -677,6 +677,15 @@ Result Run(const Scene& scene, const Options& options) {
 
 namespace {
 
+// "ACL anterior" -> "ACL_anterior" (column names as formulations/run_output.cpp).
+std::string ColumnSafeName(const std::string& name) {
+  std::string out = name;
+  for (char& c : out) {
+    if (c == ' ' || c == '-' || c == '/') c = '_';
+  }
+  return out;
+}
+
 std::string Format(double v) {
   if (!std::isfinite(v)) return "";
   char buf[40];
@@ -787,76 +796,89 @@ void WriteOutputs(const std::string& dir_name, const Scene& scene, const Options
     csv << "\n";
     sto << "\n";
   }
-  // summary.json: kneedyn's layout (formatting only), then the engine's own settings.
-  RunSettings settings;
-  settings.formulation = "simbody";
-  settings.options.rtol = options.accuracy;
-  settings.options.atol = options.constraint_tolerance > 0 ? options.constraint_tolerance : options.accuracy;
-  settings.options.integrator = options.integrator;
-  settings.options.step = options.fixed_step;
-  settings.options.stabilization = "simbody-projection";
-  settings.options.constraint_level = "position";
-  settings.output_interval = options.output_interval;
-  nlohmann::json j = SummaryJson(scene, settings, result.run);
+  // summary.json: the fields of `kneedyn run`'s summary (formulations/run_output.cpp),
+  // written here so that this program links no SUNDIALS (see CMakeLists.txt), plus the
+  // engine's own settings.
+  const RunResult& run = result.run;
+  nlohmann::json j;
+  j["kneedyn_version"] = "0.1.0";
+  j["status"] = run.completed ? "completed" : "partial";
+  if (!run.completed) j["failure"] = run.failure;
+  j["end_reason"] = run.end_reason;
+  j["scene"] = {{"name", scene.name}, {"path", scene.path}, {"parameter_set", scene.parameter_set},
+                {"ligaments", model.ligaments.size()}, {"contacts", model.contacts.size()},
+                {"pulse", {{"shape", model.pulse.shape == PulseShape::kNone ? "none"
+                                     : model.pulse.shape == PulseShape::kReconstructed ? "reconstructed" : "half_sine"},
+                           {"amplitude_N", model.pulse.amplitude}, {"duration_s", model.pulse.duration}}},
+                {"ligament_law", model.ligament_law == LigamentLaw::kPublished ? "published" : "c1_continuous"}};
+  const double cons_tol = options.constraint_tolerance > 0 ? options.constraint_tolerance : options.accuracy;
+  j["formulation"] = "simbody";
+  j["settings"] = {{"rtol", options.accuracy}, {"atol", cons_tol}, {"integrator", options.integrator},
+                   {"step_s", options.fixed_step}, {"max_step_s", 0.0},
+                   {"stabilization", "simbody-projection"}, {"constraint_level", "position"},
+                   {"output_interval_s", options.output_interval > 0 ? options.output_interval : scene.output_interval}};
+  auto level = [](const InitLevelReport& r) {
+    return nlohmann::json{{"residual_before", r.residual_before}, {"residual_after", r.residual_after},
+                          {"iterations", r.iterations}};
+  };
+  nlohmann::json guess = nlohmann::json::object(), force = nlohmann::json::object();
+  for (size_t i = 0; i < model.contacts.size() && i < run.init.normal_force.size(); ++i) {
+    guess[CompartmentName(model.contacts[i].compartment)] = nullptr;  // no guesses: multipliers
+    force[CompartmentName(model.contacts[i].compartment)] = run.init.normal_force[i];
+  }
+  j["initialization"] = {{"form", run.init.form}, {"held", run.init.held},
+                         {"position", level(run.init.position)}, {"velocity", level(run.init.velocity)},
+                         {"hidden_constraint", level(run.init.hidden)},
+                         {"normal_force_guess_N", guess}, {"normal_force_N", force}};
+  nlohmann::json events = nlohmann::json::array();
+  for (const EventRecord& e : run.events) {
+    events.push_back({{"name", e.name}, {"time", e.time}, {"flexion_deg", RadToDeg(e.flexion)}});
+  }
+  j["events"] = events;
+  if (!result.samples.empty()) {
+    const MechanicalState& st = result.samples.back().state;
+    nlohmann::json f;
+    f["time_s"] = st.t;
+    f["flexion_deg"] = RadToDeg(st.q(kAlpha));
+    f["valgus_deg"] = RadToDeg(st.q(kBeta)) - 90.0;
+    f["external_rotation_deg"] = RadToDeg(st.q(kGamma));
+    f["R0_mm"] = {MToMm(st.q(0)), MToMm(st.q(1)), MToMm(st.q(2))};
+    f["v_mm_s"] = {MToMm(st.qd(0)), MToMm(st.qd(1)), MToMm(st.qd(2))};
+    f["angle_rates_deg_s"] = {RadToDeg(st.qd(3)), RadToDeg(st.qd(4)), RadToDeg(st.qd(5))};
+    nlohmann::json contacts = nlohmann::json::object();
+    for (size_t i = 0; i < model.contacts.size(); ++i) {
+      const bool active = st.IsActive(static_cast<int>(i));
+      contacts[CompartmentName(model.contacts[i].compartment)] = {
+          {"active", active}, {"normal_force_N", active ? st.contact[i].normal_force : 0.0}};
+    }
+    f["contacts"] = contacts;
+    j["final_state"] = f;
+  }
+  const SolverStats& st = run.stats;
+  j["statistics"] = {{"steps", st.steps}, {"residual_evaluations", st.residual_evaluations},
+                     {"jacobian_evaluations", st.jacobian_evaluations},
+                     {"linear_solver_setups", st.linear_solver_setups},
+                     {"nonlinear_iterations", st.nonlinear_iterations},
+                     {"error_test_failures", st.error_test_failures},
+                     {"convergence_failures", st.convergence_failures}, {"step_halvings", st.step_halvings},
+                     {"rejected_steps", st.error_test_failures + st.convergence_failures + st.step_halvings},
+                     {"root_evaluations", st.root_evaluations}, {"projections", st.projections},
+                     {"restarts", st.restarts}, {"ligament_kink_crossings", run.ligament_kink_crossings}};
+  j["constraint_residuals"] = {{"max_gap_mm", MToMm(run.max_position_residual)},
+                               {"max_gap_rate_mm_s", MToMm(run.max_velocity_residual)}};
+  j["wall_time_s"] = run.wall_time_s;
+  j["versions"] = {{"eigen", StrCat(EIGEN_WORLD_VERSION, ".", EIGEN_MAJOR_VERSION, ".", EIGEN_MINOR_VERSION)}};
   j["engine"] = {{"name", "simbody"},
                  {"version", KNEEDYN_SIMBODY_VERSION},
                  {"integrator", options.integrator},
                  {"accuracy", options.accuracy},
-                 {"constraint_tolerance", settings.options.atol},
+                 {"constraint_tolerance", cons_tol},
                  {"fixed_step_s", options.fixed_step}};
   j["versions"]["simbody"] = j["engine"]["version"];
   j["energy_drift_relative"] = EnergyDrift(result);
   WriteAtomically(dir, "trajectory.csv", csv.str());
   WriteAtomically(dir, "trajectory.sto", sto.str());
   WriteAtomically(dir, "summary.json", j.dump(2) + "\n");
-}
-
-bench::Solution ToSolution(const Scene& scene, const Result& result, double interval) {
-  const Model& model = scene.model;
-  bench::Solution s;
-  s.names["positions"] = {"x0_mm", "y0_mm", "z0_mm", "flexion_deg", "valgus_deg", "external_rotation_deg"};
-  s.names["velocities"] = {"vx_mm_s", "vy_mm_s", "vz_mm_s", "flexion_rate_deg_s", "valgus_rate_deg_s",
-                           "external_rotation_rate_deg_s"};
-  for (const ContactPair& pair : model.contacts) {
-    for (const char* frame : {"femoral", "tibial"})
-      for (const char* axis : {"x", "y", "z"})
-        s.names["contact_points"].push_back(StrCat(frame, "_", CompartmentName(pair.compartment), "_", axis, "_mm"));
-    s.names["contact_forces"].push_back(StrCat("N_", CompartmentName(pair.compartment), "_N"));
-  }
-  for (const Ligament& lig : model.ligaments) s.names["ligament_forces"].push_back("F_" + lig.name + "_N");
-  for (const std::string& c : bench::VariableClasses()) s.values[c];
-  auto append = [&](const Sample& smp) {
-    const Vector6d& q = smp.state.q;
-    const Vector6d& qd = smp.state.qd;
-    s.times.push_back(smp.t);
-    s.values["positions"].push_back({MToMm(q(kX0)), MToMm(q(kY0)), MToMm(q(kZ0)), RadToDeg(q(kAlpha)),
-                                     RadToDeg(q(kBeta)) - 90.0, RadToDeg(q(kGamma))});
-    s.values["velocities"].push_back({MToMm(qd(kX0)), MToMm(qd(kY0)), MToMm(qd(kZ0)), RadToDeg(qd(kAlpha)),
-                                      RadToDeg(qd(kBeta)), RadToDeg(qd(kGamma))});
-    std::vector<double> points, forces;
-    for (size_t i = 0; i < model.contacts.size(); ++i) {
-      const bool active = smp.state.IsActive(static_cast<int>(i));
-      for (int a = 0; a < 3; ++a) points.push_back(active ? MToMm(smp.point_F[i](a)) : kNaN);
-      for (int a = 0; a < 3; ++a) points.push_back(active ? MToMm(smp.point_T[i](a)) : kNaN);
-      forces.push_back(active ? smp.state.contact[i].normal_force : 0.0);
-    }
-    s.values["contact_points"].push_back(points);
-    s.values["contact_forces"].push_back(forces);
-    s.values["ligament_forces"].push_back(smp.ligament_tension);
-  };
-  for (const Sample& smp : result.samples) {
-    if (smp.is_event) continue;
-    const double n = std::round(smp.t / interval);
-    if (std::abs(smp.t - n * interval) > 1e-9) continue;
-    append(smp);
-  }
-  const RunResult& run = result.run;
-  if (run.completed && !result.samples.empty() && result.samples.back().is_event && run.end_reason != "end_time") {
-    append(result.samples.back());
-    s.end_is_event = true;
-  }
-  s.events = run.events;
-  return s;
 }
 
 double EnergyDrift(const Result& result) {

@@ -28,7 +28,6 @@
 #include <string>
 #include <vector>
 
-#include "benchmarks/metrics.hpp"
 #include "formulations/run.hpp"
 #include "solver/scene.hpp"
 
@@ -78,10 +77,6 @@ Result Run(const Scene& scene, const Options& options);
 // Writes trajectory.csv, trajectory.sto and summary.json in the layout of `kneedyn run`.
 void WriteOutputs(const std::string& dir, const Scene& scene, const Options& options,
                   const Result& result);
-
-// The five metric classes of benchmarks/metrics.hpp, from this run's own values.
-bench::Solution ToSolution(const Scene& scene, const Result& result,
-                           double interval = bench::kDefaultComparisonInterval);
 
 // Maximum relative change of Simbody's total energy over the samples.
 double EnergyDrift(const Result& result);
