@@ -1,7 +1,7 @@
 // Agreement of the Simbody port (an engine that shares none of kneedyn's physics) with
 // kneedyn's references (issue 16).
 //
-// What this validates: on five scenes, event times, the trajectory (positions, velocities,
+// What this validates: on five scenes (and the c1_continuous law variant), event times, the trajectory (positions, velocities,
 // contact points and forces, ligament forces, benchmarks/metrics.hpp's classes and scd)
 // and, on the conservative scene, energy conservation, computed by Simbody's multibody
 // formulation (free mobilizer with quaternions, constraint projection, Simbody's
@@ -143,6 +143,16 @@ TEST(SimbodyAgreement, ConservativeEnergyAndTrajectory) {
   // same samples (two independent energy functions agreeing on conservation).
   EXPECT_LT(a.energy_drift, 1e-9);
   EXPECT_LT(a.energy_drift_kneedyn, 1e-9);
+}
+
+// The c1_continuous law (reference-data/scenes/hard/c1_law.yaml): the other variant of the
+// ligament law, no jump, so no kink events.
+TEST(SimbodyAgreement, C1ContinuousLawEvents) {
+  const Agreement a = Compare("hard/c1_law", 1e-11);
+  ExpectSameEvents(a, "hard/c1_law");
+  EXPECT_EQ(a.result.run.ligament_kink_crossings, 0);
+  for (const auto& [name, digits] : a.event_digits) EXPECT_GE(digits, 8.0) << name;
+  EXPECT_GE(a.metrics.scd, 7.5);
 }
 
 // Tight settings (label slow): the digits Simbody reaches.

@@ -3,6 +3,7 @@
 #include <Simbody.h>
 
 #include <Eigen/Dense>
+#include <ceres/version.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -867,7 +868,8 @@ void WriteOutputs(const std::string& dir_name, const Scene& scene, const Options
   j["constraint_residuals"] = {{"max_gap_mm", MToMm(run.max_position_residual)},
                                {"max_gap_rate_mm_s", MToMm(run.max_velocity_residual)}};
   j["wall_time_s"] = run.wall_time_s;
-  j["versions"] = {{"eigen", StrCat(EIGEN_WORLD_VERSION, ".", EIGEN_MAJOR_VERSION, ".", EIGEN_MINOR_VERSION)}};
+  j["versions"] = {{"ceres", CERES_VERSION_STRING},  // scene loading only; no SUNDIALS linked
+                   {"eigen", StrCat(EIGEN_WORLD_VERSION, ".", EIGEN_MAJOR_VERSION, ".", EIGEN_MINOR_VERSION)}};
   j["engine"] = {{"name", "simbody"},
                  {"version", KNEEDYN_SIMBODY_VERSION},
                  {"integrator", options.integrator},
