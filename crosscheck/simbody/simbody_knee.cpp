@@ -221,7 +221,7 @@ class Knee {
     }
     if (ligaments_->locks_branches()) {
       for (size_t j = 0; j < m.ligaments.size(); ++j) {
-        Add(KneeHandler::kKink, static_cast<int>(j), Stage::Position, true, true);
+        Add(KneeHandler::kKink, static_cast<int>(j), Stage::Position, false, true);
       }
     }
     if (scene.end.flexion) Add(KneeHandler::kEnd, 0, Stage::Position, true, false);
@@ -344,6 +344,22 @@ class Knee {
     std::vector<int>& b = ligaments_->UpdBranches(s);
     for (size_t j = 0; j < model_.ligaments.size(); ++j) {
       b[j] = BranchByLength(model_.ligaments[j], ligaments_->Length(s, j));
+    }
+  }
+
+  // Far from its kink (more than 1e-6 L0) an element's branch is decided by its length:
+  // every handler re-checks, so that a crossing an integrator failed to report cannot
+  // leave an element on the wrong branch past the next event.
+  void ResyncBranches(State& s) {
+    if (!ligaments_->locks_branches()) return;
+    system_.realize(s, Stage::Position);
+    const std::vector<int>& current = ligaments_->Branches(s);
+    for (size_t j = 0; j < model_.ligaments.size(); ++j) {
+      const Ligament& lig = model_.ligaments[j];
+      const double L = ligaments_->Length(s, j);
+      if (std::abs(L - KinkLength(lig)) > 1e-6 * lig.slack_length && current[j] != BranchByLength(lig, L)) {
+        ligaments_->UpdBranches(s)[j] = BranchByLength(lig, L);
+      }
     }
   }
 
@@ -471,8 +487,12 @@ Real KneeHandler::getValue(const State& s) const {
       return knee_->Active(s, index_) ? knee_->NormalForce(s, index_) : 1.0;
     case kRecontact:
       return knee_->Active(s, index_) ? 1.0 : knee_->Gap(s, index_) - knee_->recontact_level_[index_];
-    case kKink:
-      return knee_->ligaments_->Length(s, index_) - KinkLength(knee_->model_.ligaments[index_]);
+    case kKink: {
+      // Signed so that it is positive while the locked branch matches the length and
+      // falls through zero when the element leaves its branch's region.
+      const double d = knee_->ligaments_->Length(s, index_) - KinkLength(knee_->model_.ligaments[index_]);
+      return knee_->ligaments_->Branches(s)[index_] == kLinear ? d : -d;
+    }
     case kEnd:
       return knee_->Flexion(s) - *knee_->scene_.end.flexion;
   }
@@ -485,14 +505,18 @@ void KneeHandler::handleEvent(State& s, Real, bool& terminate) const {
     case kKink: {
       k.system_.realize(s, Stage::Position);
       const Ligament& lig = k.model_.ligaments[index_];
-      // Each crossing toggles the branch: the handler's state lies within Simbody's
-      // localization window, possibly still on the old side of the kink, so its length
-      // alone cannot decide (it did, once, and left an element on the wrong branch).
-      // Far from the kink the length decides (a crossing pair inside one step).
-      const double L = k.ligaments_->Length(s, index_);
+      const double d = k.ligaments_->Length(s, index_) - KinkLength(lig);
       int& branch = k.ligaments_->UpdBranches(s)[index_];
-      branch = std::abs(L - KinkLength(lig)) > 1e-6 * lig.slack_length ? BranchByLength(lig, L) : 1 - branch;
-      ++k.kink_crossings_;
+      const double w = branch == kLinear ? d : -d;
+      // The handler's state lies within the localization window, possibly still on the
+      // old side of the kink: a witness at or below a small margin means the element is
+      // crossing, so the branch toggles; well above it the report is spurious (seen with
+      // CPodes) and is ignored.
+      if (w <= 1e-6 * lig.slack_length) {
+        branch = 1 - branch;
+        ++k.kink_crossings_;
+      }
+      k.ResyncBranches(s);
       return;
     }
     case kEnd: {
@@ -515,6 +539,7 @@ void KneeHandler::handleEvent(State& s, Real, bool& terminate) const {
       k.Record(s, true);
       ++k.mode_switches_;
       k.Liftoff(s, index_);
+      k.ResyncBranches(s);
       k.DropPullingContacts(s);
       return;
     }
@@ -527,6 +552,7 @@ void KneeHandler::handleEvent(State& s, Real, bool& terminate) const {
       k.contacts_[index_].enable(s);
       k.PlasticImpact(s);
       k.Project(s);
+      k.ResyncBranches(s);
       k.DropPullingContacts(s);
       return;
     }
