@@ -94,7 +94,7 @@ TEST(SimbodyAgreement, ChapterImpactEventsAndTrajectory) {
   // Spec §6 / README: consistent initial normal forces 233.35 N medial, 243.33 N lateral.
   EXPECT_NEAR(a.result.run.init.normal_force.at(0), 233.35, 0.005);
   EXPECT_NEAR(a.result.run.init.normal_force.at(1), 243.33, 0.005);
-  // Measured (rkm, 1e-11): lift-off 8.8 digits, 90° 10.4, scd 7.75.
+  // Measured (rkm, 1e-11): lift-off 8.8 digits, 90° 10.4, scd 7.74.
   for (const auto& [name, digits] : a.event_digits) EXPECT_GE(digits, 8.0) << name;
   EXPECT_GE(a.metrics.scd, 7.5);
   EXPECT_LT(a.metrics.mixed.at("velocities"), 1e-6);
@@ -120,7 +120,7 @@ TEST(SimbodyAgreement, OneLigamentLiftoffsAndRecontact) {
 TEST(SimbodyAgreement, NoContactLigamentsOnly) {
   const Agreement a = Compare("no_contact", 1e-11);
   EXPECT_TRUE(a.result.run.events.empty());
-  EXPECT_GE(a.metrics.scd, 8.0);  // measured 8.5
+  EXPECT_GE(a.metrics.scd, 7.8);  // measured 8.2 (24 kink crossings, as kneedyn)
   EXPECT_LT(a.metrics.mixed.at("ligament_forces"), 1e-6);
 }
 
