@@ -628,7 +628,6 @@ Result Run(const Scene& scene, const Options& options) {
   Result result;
   RunResult& run = result.run;
   std::unique_ptr<SimTK::Integrator> integ;
-  long integ_steps = 0;
   try {
     State s = knee.Assemble(&run.init);
     run.init.hidden.residual_after = 0.0;
@@ -675,7 +674,7 @@ Result Run(const Scene& scene, const Options& options) {
   }
   if (integ) {
     SolverStats& st = run.stats;
-    st.steps = integ_steps = integ->getNumStepsTaken();
+    st.steps = integ->getNumStepsTaken();
     st.residual_evaluations = integ->getNumRealizations();
     st.error_test_failures = integ->getNumErrorTestFailures();
     st.convergence_failures = integ->getNumConvergenceTestFailures();
