@@ -348,8 +348,9 @@ def bench_key(r):
   return f"{r.get('formulation', '?')} / {r.get('integrator') or '-'}"
 
 
-def make_work_precision(outdir, bench_path):
-  """Returns (figure files, not-plotted rows [(key, setting, reason)], header)."""
+def make_work_precision(outdir, bench_path, prefix=""):
+  """Returns (figure files, not-plotted rows [(key, setting, reason)], header). `prefix` keeps a
+  second diagram set (e.g. the Simbody peer sweep) from overwriting the first."""
   header, runs = load_bench(bench_path)
   ok_runs, failed = [], []
   for r in runs:
@@ -411,9 +412,9 @@ def make_work_precision(outdir, bench_path):
                  f"{len(ok_runs)} runs plotted; {len(failed)} failed or wrong event (× on the bottom row)",
                  fontsize=11)
     fig.tight_layout()
-    fig.savefig(os.path.join(figdir, fname), dpi=80)
+    fig.savefig(os.path.join(figdir, prefix + fname), dpi=80)
     plt.close(fig)
-    files.append(fname)
+    files.append(prefix + fname)
   return files, [row[:3] for row in failed], header
 
 

@@ -333,12 +333,14 @@ def calibration_part(outdir):
   return "\n".join(parts)
 
 
-def bench_section(outdir, bench):
-  parts = ["<h2 id='work-precision'>Work-precision</h2>"]
+def bench_section(outdir, bench, prefix="", title="Work-precision", anchor="work-precision", intro=""):
+  parts = [f"<h2 id='{anchor}'>{esc(title)}</h2>"]
+  if intro:
+    parts.append(intro)
   if not bench or not os.path.exists(bench):
     parts.append("<p>No benchmark JSON given (<code>--bench JSON</code>); diagrams omitted.</p>")
     return "\n".join(parts)
-  files, failed, header = figures.make_work_precision(outdir, bench)
+  files, failed, header = figures.make_work_precision(outdir, bench, prefix)
   prov = header.get("provenance") or {}
   kv = [("Source", os.path.basename(bench)), ("Scene", header.get("scene", "?")),
         ("Sweep", f"{header.get('mode', '?')} (repetitions {header.get('repetitions', '?')}, tightest rtol "
@@ -357,8 +359,8 @@ def bench_section(outdir, bench):
                f"{figures.WRONG_EVENT_TIME_S * 1e3:g} ms are not points: they are the crosses on the bottom row of each "
                "panel and are listed underneath.</p>")
   for (fname, caption) in figures.WORK_PRECISION_FIGURES:
-    if fname in files:
-      parts.append(f"<figure><img src='figures/{esc(fname)}' alt='{esc(caption)}'>"
+    if prefix + fname in files:
+      parts.append(f"<figure><img src='figures/{esc(prefix + fname)}' alt='{esc(caption)}'>"
                    f"<figcaption>{esc(caption)}</figcaption></figure>")
   if failed:
     parts.append(f"<details><summary>{len(failed)} runs drawn as failures (failed or wrong event)</summary>")
@@ -468,7 +470,13 @@ def commands_section(outdir, kneedyn, quick, bench, fam):
   return "<h2 id='reproduce'>Reproduction</h2>\n<pre>" + esc("\n".join(lines)) + "</pre>"
 
 
-def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None):
+PEER_INTRO = ("<p>Simbody's integrators (<code>crosscheck/simbody</code>, the chapter knee rebuilt in "
+              "Simbody's own terms) beside kneedyn's formulations, all timed in the same process run "
+              "(<code>simbody_work_precision --short --merge</code> over the main job's short kneedyn sweep), so CPU "
+              "times compare as ratios. Same reference and metrics as above.</p>")
+
+
+def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, peer_bench=None):
   fam, members = load_families(outdir)
   with open(os.path.join(outdir, "claims.json")) as f:
     rows = json.load(f)
@@ -481,7 +489,9 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None):
           "<a href='#hard-cases'>Hard cases</a>"
           "<a href='#reproduce'>Reproduction</a></nav>",
           summary_section(fam, members), claims_section(rows), figures_section(outdir),
-          sensitivity_section(outdir), reconstruction_section(outdir), bench_section(outdir, bench), hard_cases_section(hard_cases),
+          sensitivity_section(outdir), reconstruction_section(outdir), bench_section(outdir, bench), \
+          *([bench_section(outdir, peer_bench, "peer_", "kneedyn and Simbody, same run", "peer-work-precision",
+                           PEER_INTRO)] if peer_bench else []), hard_cases_section(hard_cases),
           commands_section(outdir, kneedyn, quick, bench, fam)]
   page = ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
           "<title>kneedyn chapter report</title><style>" + CSS + "</style></head><body>\n"

@@ -29,11 +29,13 @@ def main(argv=None):
   ap.add_argument("--out", required=True, help="output directory")
   ap.add_argument("--quick", action="store_true", help="reduced families (tests)")
   ap.add_argument("--bench", help="benchmark JSON for the work-precision diagrams")
+  ap.add_argument("--peer-bench", help="work-precision JSON with Simbody's integrators beside kneedyn's, "
+                  "measured in one run (crosscheck/simbody/simbody_work_precision --merge)")
   ap.add_argument("--hard-cases", help="hard_cases.csv (or .md beside it) from kneedyn_catalog")
   ap.add_argument("--reconstruction", action="store_true", help="run the reconstruction study")
   ap.add_argument("--calibrate", help="calibrate_reconstruction binary: also the Ceres calibration")
   args = ap.parse_args(argv)
-  for flag, path in (("--bench", args.bench), ("--hard-cases", args.hard_cases), ("--calibrate", args.calibrate)):
+  for flag, path in (("--bench", args.bench), ("--peer-bench", args.peer_bench), ("--hard-cases", args.hard_cases), ("--calibrate", args.calibrate)):
     if path and not os.path.exists(path):
       print(f"report: {flag} = '{path}': file not found", file=sys.stderr)
       return 2
@@ -52,7 +54,7 @@ def main(argv=None):
   figures.main(["--out", args.out])
   claims.build_claims(args.out)
   path = make_report.make_report(args.out, args.bench, os.path.abspath(args.kneedyn), args.quick,
-                                 args.hard_cases)
+                                 args.hard_cases, args.peer_bench)
   print(f"report: {path}")
   return 1 if rc else 0
 

@@ -1,0 +1,202 @@
+// Agreement of the Simbody port (an engine that shares none of kneedyn's physics) with
+// kneedyn's references (issue 16).
+//
+// What this validates: on five scenes (and the c1_continuous law variant), event times, the trajectory (positions, velocities,
+// contact points and forces, ligament forces, benchmarks/metrics.hpp's classes and scd)
+// and, on the conservative scene, energy conservation, computed by Simbody's multibody
+// formulation (free mobilizer with quaternions, constraint projection, Simbody's
+// integrators and event localization) against kneedyn's references (stored
+// reference-data/references/*.json where they exist, else kneedyn's mde with CVODE-Adams
+// at rtol 1e-14 run here, as make_reference does). The tolerances are the digits Simbody reaches at the accuracy
+// used, measured once and stated with each assertion; they are not kneedyn output.
+// What it does not validate: the model reconstruction (parameters, equations as read from
+// the chapter) — both engines read the same Scene, so a shared misreading passes.
+//
+// Default runs use accuracy 1e-11 (well under a second per scene); the tight runs
+// (accuracy 1e-12) carry the `slow` label (SimbodyAgreementTight.*).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+
+#include "benchmarks/bench_run.hpp"
+#include "crosscheck/simbody/simbody_solution.hpp"
+#include "solver/scene.hpp"
+
+namespace kneedyn {
+namespace {
+
+std::string ScenePath(const std::string& name) { return ReferenceDataDir() + "/scenes/" + name + ".yaml"; }
+
+// kneedyn's reference solution of a scene: the stored one, or mde + CVODE-Adams here.
+bench::Solution KneedynReference(const Scene& scene) {
+  const std::string stored = ReferenceDataDir() + "/references/" + scene.name + ".json";
+  if (std::filesystem::exists(stored)) return bench::LoadReference(stored).solution;
+  bench::BenchConfig config;
+  config.formulation = "mde";
+  config.integrator = "cvode-adams";
+  config.rtol = 1e-14;  // make_reference's setting (benchmarks/README.md)
+  config.atol = 1e-16;
+  const bench::Outcome out = bench::RunConfig(scene, config);
+  EXPECT_EQ(out.status, "ok") << out.reason;
+  return out.solution;
+}
+
+struct Agreement {
+  bench::Metrics metrics;
+  std::map<std::string, double> event_digits;  // −log10 |Δt| / t per reference event
+  double energy_drift = 0.0;                   // Simbody's own energy
+  double energy_drift_kneedyn = 0.0;           // kneedyn's MechanicalEnergy of the same samples
+  simbody::Result result;
+};
+
+Agreement Compare(const std::string& scene_name, double accuracy) {
+  const Scene scene = LoadScene(ScenePath(scene_name));
+  simbody::Options options;
+  options.integrator = "rkm";
+  options.accuracy = accuracy;
+  options.constraint_tolerance = accuracy;
+  Agreement a;
+  a.result = simbody::Run(scene, options);
+  EXPECT_TRUE(a.result.run.completed) << a.result.run.failure;
+  const bench::Solution reference = KneedynReference(scene);
+  a.metrics = bench::Compare(simbody::ToSolution(scene, a.result), reference);
+  for (const EventRecord& e : reference.events) {
+    if (a.event_digits.count(e.name)) continue;
+    a.event_digits[e.name] = -std::log10(a.metrics.event_time.at(e.name) / e.time);
+  }
+  a.energy_drift = simbody::EnergyDrift(a.result);
+  a.energy_drift_kneedyn = bench::EnergyError(scene, a.result.run);
+  // The digits of agreement, for the README and the report.
+  std::printf("[simbody %s accuracy %g] scd %.2f", scene_name.c_str(), accuracy, a.metrics.scd);
+  for (const auto& [c, v] : a.metrics.mixed) std::printf("  %s %.1e", c.c_str(), v);
+  for (const auto& [n, d] : a.event_digits) std::printf("  %s %.2f digits", n.c_str(), d);
+  std::printf("  energy drift %.1e (kneedyn's energy of these samples %.1e)\n", a.energy_drift,
+              a.energy_drift_kneedyn);
+  return a;
+}
+
+// Same event sequence as kneedyn (names in order).
+void ExpectSameEvents(const Agreement& a, const std::string& scene_name) {
+  const Scene scene = LoadScene(ScenePath(scene_name));
+  const bench::Solution reference = KneedynReference(scene);
+  ASSERT_EQ(a.result.run.events.size(), reference.events.size());
+  for (size_t i = 0; i < reference.events.size(); ++i) {
+    EXPECT_EQ(a.result.run.events[i].name, reference.events[i].name) << i;
+  }
+}
+
+TEST(SimbodyAgreement, ChapterImpactEventsAndTrajectory) {
+  const Agreement a = Compare("chapter_impact", 1e-11);
+  ExpectSameEvents(a, "chapter_impact");
+  // Spec §6 / README: consistent initial normal forces 233.35 N medial, 243.33 N lateral.
+  EXPECT_NEAR(a.result.run.init.normal_force.at(0), 233.35, 0.005);
+  EXPECT_NEAR(a.result.run.init.normal_force.at(1), 243.33, 0.005);
+  // Measured (rkm, 1e-11): lift-off 8.8 digits, 90° 10.4, scd 7.74.
+  for (const auto& [name, digits] : a.event_digits) EXPECT_GE(digits, 8.0) << name;
+  EXPECT_GE(a.metrics.scd, 7.5);
+  EXPECT_LT(a.metrics.mixed.at("velocities"), 1e-6);
+  EXPECT_LT(a.metrics.mixed.at("contact_forces"), 1e-6);
+  EXPECT_LT(a.metrics.mixed.at("ligament_forces"), 1e-6);
+  EXPECT_LT(a.metrics.mixed.at("contact_points"), 1e-7);
+  // The published law's jump crossed as often as kneedyn's driver reports (11).
+  EXPECT_EQ(a.result.run.ligament_kink_crossings, 11);
+}
+
+TEST(SimbodyAgreement, OneLigamentLiftoffsAndRecontact) {
+  const Agreement a = Compare("one_ligament", 1e-11);
+  ExpectSameEvents(a, "one_ligament");
+  // Measured (rkm, 1e-11): events ≥ 8.9 digits; scd 8.58, set by the re-contact: before
+  // it the trajectories agree to 11-12 digits, after it to ~2.6e-9 — both engines remove
+  // the 1 nm hysteresis penetration by projection, in different metrics (kneedyn: minimum
+  // norm in JCS coordinates; Simbody: projectQ in its quaternion coordinates).
+  for (const auto& [name, digits] : a.event_digits) EXPECT_GE(digits, 8.0) << name;
+  EXPECT_GE(a.metrics.scd, 8.0);
+  EXPECT_LT(a.metrics.mixed.at("contact_forces"), 1e-5);
+}
+
+TEST(SimbodyAgreement, NoContactLigamentsOnly) {
+  const Agreement a = Compare("no_contact", 1e-11);
+  EXPECT_TRUE(a.result.run.events.empty());
+  EXPECT_GE(a.metrics.scd, 7.8);  // measured 8.2 (24 kink crossings, as kneedyn)
+  EXPECT_LT(a.metrics.mixed.at("ligament_forces"), 1e-6);
+}
+
+TEST(SimbodyAgreement, GravityOnlyEvents) {
+  const Agreement a = Compare("gravity_only", 1e-11);
+  ExpectSameEvents(a, "gravity_only");
+  // Measured (rkm, 1e-11): lift-off 8.7 digits, 90° 10.7, scd 7.96.
+  for (const auto& [name, digits] : a.event_digits) EXPECT_GE(digits, 8.0) << name;
+  EXPECT_GE(a.metrics.scd, 7.5);
+  // Gravity, elastic elements and frictionless constraints: conservative up to the
+  // lift-off (no re-contact here, so no impact).
+  EXPECT_LT(a.energy_drift, 1e-8);
+}
+
+TEST(SimbodyAgreement, ConservativeEnergyAndTrajectory) {
+  const Agreement a = Compare("conservative", 1e-11);
+  EXPECT_TRUE(a.result.run.events.empty());
+  EXPECT_GE(a.metrics.scd, 8.5);  // measured 9.2
+  // Energy to Simbody's accuracy, in Simbody's energy and in kneedyn's definition of the
+  // same samples (two independent energy functions agreeing on conservation).
+  EXPECT_LT(a.energy_drift, 1e-9);
+  EXPECT_LT(a.energy_drift_kneedyn, 1e-9);
+}
+
+// The c1_continuous law (reference-data/scenes/hard/c1_law.yaml): the other variant of the
+// ligament law, no jump, so no kink events.
+TEST(SimbodyAgreement, C1ContinuousLawEvents) {
+  const Agreement a = Compare("hard/c1_law", 1e-11);
+  ExpectSameEvents(a, "hard/c1_law");
+  EXPECT_EQ(a.result.run.ligament_kink_crossings, 0);
+  for (const auto& [name, digits] : a.event_digits) EXPECT_GE(digits, 8.0) << name;
+  EXPECT_GE(a.metrics.scd, 7.5);
+}
+
+// Tight settings (label slow): the digits Simbody reaches.
+TEST(SimbodyAgreementTight, ChapterImpact) {
+  const Agreement a = Compare("chapter_impact", 1e-12);
+  // Measured: lift-off 9.8 digits, 90° 11.4, scd 8.7.
+  for (const auto& [name, digits] : a.event_digits) EXPECT_GE(digits, 9.0) << name;
+  EXPECT_GE(a.metrics.scd, 8.5);
+}
+
+TEST(SimbodyAgreementTight, OneLigament) {
+  const Agreement a = Compare("one_ligament", 1e-12);
+  for (const auto& [name, digits] : a.event_digits) EXPECT_GE(digits, 9.0) << name;
+}
+
+TEST(SimbodyAgreementTight, GravityOnly) {
+  const Agreement a = Compare("gravity_only", 1e-12);
+  // Measured: lift-off 9.7 digits, 90° 11.8, scd 9.0.
+  for (const auto& [name, digits] : a.event_digits) EXPECT_GE(digits, 9.0) << name;
+  EXPECT_GE(a.metrics.scd, 8.5);
+}
+
+// The command's input contract: bad option → exit 2, nothing written.
+TEST(SimbodyCli, BadAccuracyExitsTwoAndWritesNothing) {
+  const std::string out = (std::filesystem::temp_directory_path() / "kneedyn_simbody_bad_input").string();
+  std::filesystem::remove_all(out);
+  const std::string cmd = std::string(KNEEDYN_SIMBODY_EXE) + " run " + ScenePath("chapter_impact") +
+                          " --accuracy -1 --quiet --out " + out + " 2>/dev/null";
+  const int status = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+  EXPECT_FALSE(std::filesystem::exists(out));
+}
+
+TEST(SimbodyCli, RunWritesTheThreeFiles) {
+  const std::string out = (std::filesystem::temp_directory_path() / "kneedyn_simbody_cli_run").string();
+  std::filesystem::remove_all(out);
+  const std::string cmd = std::string(KNEEDYN_SIMBODY_EXE) + " run " + ScenePath("conservative") +
+                          " --accuracy 1e-6 --quiet --out " + out;
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  for (const char* f : {"trajectory.csv", "trajectory.sto", "summary.json"}) {
+    EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(out) / f)) << f;
+  }
+}
+
+}  // namespace
+}  // namespace kneedyn
