@@ -2,6 +2,7 @@
 //   kneedyn run SCENE --formulation NAME [--rtol R] [--atol A] [--out DIR] ...
 //   kneedyn info SCENE          reference pose, contact points, slack lengths and forces
 //   kneedyn formulations        the registered formulations and their integrators
+//   kneedyn sweep SPEC          an ensemble of runs (ensembles/sweep_cli.hpp)
 // Exit codes: 0 success; 1 solver failure (partial results written, marked partial);
 // 2 bad input (nothing written).
 #include <CLI/CLI.hpp>
@@ -10,6 +11,7 @@
 #include <cstdio>
 #include <iostream>
 
+#include "ensembles/sweep_cli.hpp"
 #include "formulations/cli.hpp"
 #include "formulations/progress.hpp"
 #include "formulations/run.hpp"
@@ -93,7 +95,10 @@ int main(int argc, char** argv) {
 
   CLI::App* list = app.add_subcommand("formulations", "list the registered formulations");
 
+  ensembles::SweepCommand sweep(app);  // kneedyn sweep (ensembles/sweep_cli.hpp)
+
   if (const int code = ParseCommandLine(app, argc, argv, "kneedyn"); code >= 0) return code;
+  if (sweep.parsed()) return sweep.Run();
   try {
     if (*info) return Info(info_scene);
     if (*list) {

@@ -14,6 +14,7 @@ import sys
 sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import figures  # noqa: E402
+import global_sensitivity  # noqa: E402  (issue 14: Sobol' indices section)
 from family_data import load_families  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -489,7 +490,7 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, 
           "<a href='#hard-cases'>Hard cases</a>"
           "<a href='#reproduce'>Reproduction</a></nav>",
           summary_section(fam, members), claims_section(rows), figures_section(outdir),
-          sensitivity_section(outdir), reconstruction_section(outdir), bench_section(outdir, bench), \
+          sensitivity_section(outdir), reconstruction_section(outdir), global_sensitivity.section(outdir), bench_section(outdir, bench), \
           *([bench_section(outdir, peer_bench, "peer_", "kneedyn and Simbody, same run", "peer-work-precision",
                            PEER_INTRO)] if peer_bench else []), hard_cases_section(hard_cases),
           commands_section(outdir, kneedyn, quick, bench, fam)]

@@ -1,0 +1,140 @@
+#include "ensembles/sweep_cli.hpp"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <thread>
+
+#include "ensembles/sweep.hpp"
+#include "ensembles/sweep_mpi.hpp"
+#include "ensembles/sweep_output.hpp"
+#include "solver/error.hpp"
+
+namespace kneedyn::ensembles {
+
+namespace {
+
+void ParseShard(const std::string& text, long* shard, long* shards) {
+  const size_t slash = text.find('/');
+  char* end1 = nullptr;
+  char* end2 = nullptr;
+  if (slash != std::string::npos) {
+    const std::string a = text.substr(0, slash), b = text.substr(slash + 1);
+    *shard = std::strtol(a.c_str(), &end1, 10);
+    *shards = std::strtol(b.c_str(), &end2, 10);
+    if (!a.empty() && !b.empty() && *end1 == '\0' && *end2 == '\0' && *shards >= 1 && *shard >= 0 &&
+        *shard < *shards) {
+      return;
+    }
+  }
+  Throw<InputError>("kneedyn sweep", "--shard = '", text, "': expected i/n with integers 0 <= i < n");
+}
+
+std::string Duration(double s) {
+  char buf[32];
+  if (s >= 3600) std::snprintf(buf, sizeof buf, "%dh%02dm", static_cast<int>(s / 3600), static_cast<int>(s / 60) % 60);
+  else if (s >= 60) std::snprintf(buf, sizeof buf, "%dm%02ds", static_cast<int>(s / 60), static_cast<int>(s) % 60);
+  else std::snprintf(buf, sizeof buf, "%.0fs", s);
+  return buf;
+}
+
+}  // namespace
+
+SweepCommand::SweepCommand(CLI::App& app) {
+  cmd_ = app.add_subcommand("sweep", "run an ensemble (grid, lhs, sobol, saltelli) of a scene: one row per run");
+  cmd_->add_option("spec", spec_path_, "sweep spec (YAML, ensembles/README.md)");
+  cmd_->add_option("--threads", threads_, "worker threads (0: all cores)")->capture_default_str();
+  cmd_->add_option("--out", out_dir_, "output directory (sweep.csv, sweep.h5, or part files)")
+      ->capture_default_str();
+  cmd_->add_option("--shard", shard_, "run only shard i of n (index % n == i): writes DIR/part-i-of-n.json");
+  cmd_->add_option("--merge", merge_, "combine part files into DIR/sweep.{csv,h5}")->expected(1, -1);
+  cmd_->add_flag("--quiet", quiet_, "no progress on stderr");
+}
+
+int SweepCommand::Run() {
+  try {
+    if (!merge_.empty()) {
+      if (!spec_path_.empty()) Throw<InputError>("kneedyn sweep", "--merge takes part files, not a spec ('", spec_path_, "')");
+      std::vector<SweepTable> parts;
+      for (const std::string& p : merge_) parts.push_back(ReadPart(p));
+      const SweepTable all = MergeParts(parts);
+      WriteSweepResults(out_dir_, all);
+      std::printf("merged %zu parts: %zu runs -> %s/sweep.{csv,h5}\n", parts.size(), all.rows.size(), out_dir_.c_str());
+      return 0;
+    }
+    if (spec_path_.empty()) Throw<InputError>("kneedyn sweep", "a spec file is required (or --merge PART...)");
+    if (threads_ < 0 || threads_ > 4096) Throw<InputError>("kneedyn sweep", "--threads = ", threads_, ": must be in [0, 4096]");
+    long shard = 0, shards = 1;
+    if (!shard_.empty()) ParseShard(shard_, &shard, &shards);
+
+    MpiSession mpi;  // a no-op unless launched by mpirun
+    if (mpi.active() && !shard_.empty()) {
+      Throw<InputError>("kneedyn sweep", "--shard and mpirun exclude each other: ranks already split the runs");
+    }
+    const SweepSpec spec = LoadSweepSpec(spec_path_);
+    int threads = threads_;
+    if (threads == 0) {
+      const int cores = std::max(1u, std::thread::hardware_concurrency());
+      threads = std::max(1, cores / std::max(1, mpi.ranks_on_node()));
+    }
+    if (mpi.active()) {
+      shard = mpi.rank();
+      shards = mpi.size();
+    }
+    const std::vector<long> indices = ShardIndices(spec, shard, shards);
+    const bool tty = !quiet_ && isatty(STDERR_FILENO) && mpi.rank() == 0;
+    auto last = std::chrono::steady_clock::now() - std::chrono::seconds(1);
+    std::function<void(const SweepProgress&)> progress;
+    if (tty) {
+      progress = [&](const SweepProgress& p) {
+        const auto now = std::chrono::steady_clock::now();
+        if (now - last < std::chrono::milliseconds(200) && p.done < p.total) return;
+        last = now;
+        const double rate = p.elapsed_s > 0 ? p.done / p.elapsed_s : 0.0;
+        const double eta = rate > 0 ? (p.total - p.done) / rate : 0.0;
+        std::fprintf(stderr, "\r[sweep] %ld/%ld runs (%ld failed)  %.1f runs/s  time left %s   ", p.done, p.total,
+                     p.failed, rate, Duration(eta).c_str());
+      };
+    }
+    const auto start = std::chrono::steady_clock::now();
+    SweepTable table = RunSweep(spec, indices, threads, progress);
+    if (tty) std::fprintf(stderr, "\n");
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    long failed = 0;
+    for (const RunRow& r : table.rows) failed += !r.completed;
+    if (mpi.active()) {
+      const MpiGathered g = mpi.Gather(&table, wall, failed);
+      if (mpi.rank() != 0) return 0;
+      WriteSweepResults(out_dir_, table);
+      std::printf("sweep %s: %zu runs (%ld failed) on %d MPI ranks x %d threads in %.3f s wall (%.2f runs/s)\n",
+                  spec.path.c_str(), table.rows.size(), g.failed, mpi.size(), threads, g.wall_s,
+                  table.rows.size() / g.wall_s);
+      std::printf("  wrote %s/sweep.{csv,h5}\n", out_dir_.c_str());
+      return 0;
+    }
+    if (!shard_.empty()) {
+      const std::string part = (std::filesystem::path(out_dir_) /
+                                ("part-" + std::to_string(shard) + "-of-" + std::to_string(shards) + ".json")).string();
+      WritePart(part, table, shard, shards);
+      std::printf("sweep %s shard %ld/%ld: %zu runs (%ld failed) on %d threads in %.3f s wall\n  wrote %s\n",
+                  spec.path.c_str(), shard, shards, table.rows.size(), failed, threads, wall, part.c_str());
+      return 0;
+    }
+    WriteSweepResults(out_dir_, table);
+    std::printf("sweep %s: %zu runs (%ld failed) on %d threads in %.3f s wall (%.2f runs/s)\n",
+                spec.path.c_str(), table.rows.size(), failed, threads, wall, table.rows.size() / wall);
+    std::printf("  wrote %s/sweep.{csv,h5}\n", out_dir_.c_str());
+    return 0;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "kneedyn sweep: error: %s\n", e.what());
+    return 2;
+  } catch (const Error& e) {
+    std::fprintf(stderr, "kneedyn sweep: error: %s\n", e.what());
+    return 1;
+  }
+}
+
+}  // namespace kneedyn::ensembles

@@ -1,0 +1,298 @@
+#include "ensembles/sweep_output.hpp"
+
+#include <hdf5.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <set>
+
+#include "solver/error.hpp"
+
+namespace kneedyn::ensembles {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string Number(double v) {
+  if (std::isnan(v)) return "nan";
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+std::string Quoted(const std::string& s) {
+  std::string out = "\"";
+  for (char c : s) {
+    if (c == '"') out += '"';
+    out += (c == '\n' || c == '\r') ? ' ' : c;
+  }
+  return out + "\"";
+}
+
+void Publish(const std::string& tmp, const std::string& path) {
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) Throw<Error>("WriteSweepResults", "cannot rename '", tmp, "' to '", path, "': ", ec.message());
+}
+
+// HDF5 calls return < 0 on failure; one checked-call helper (style.md §4).
+template <typename T>
+T H5Check(T value, const char* call, const std::string& path) {
+  if (value < 0) Throw<Error>("WriteHdf5", call, " failed for '", path, "'");
+  return value;
+}
+
+}  // namespace
+
+void WriteCsv(const std::string& path, const SweepTable& table) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    if (!out) Throw<Error>("WriteCsv", "cannot write '", tmp, "'");
+    out << "index";
+    for (const std::string& c : table.parameter_columns) out << ',' << c;
+    for (const std::string& c : table.outcome_columns) out << ',' << c;
+    out << ",status,end_reason,steps,failure\n";
+    for (const RunRow& r : table.rows) {
+      out << r.index;
+      for (double v : r.parameters) out << ',' << Number(v);
+      for (double v : r.outcomes) out << ',' << Number(v);
+      out << ',' << (r.completed ? "completed" : "failed") << ',' << r.end_reason << ',' << r.steps << ','
+          << Quoted(r.failure) << '\n';
+    }
+    if (!out) Throw<Error>("WriteCsv", "write to '", tmp, "' failed");
+  }
+  Publish(tmp, path);
+}
+
+void WriteHdf5(const std::string& path, const SweepTable& table) {
+  const std::string tmp = path + ".tmp";
+  const hsize_t n = table.rows.size();
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors become exceptions, not stderr dumps
+  const hid_t file = H5Check(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), "H5Fcreate", tmp);
+  // No modification times in the object headers: equal tables → equal bytes.
+  const hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+  H5Pset_obj_track_times(dcpl, false);
+  const hid_t gcpl = H5Pcreate(H5P_GROUP_CREATE);
+  H5Pset_obj_track_times(gcpl, false);
+  const hid_t space = H5Screate_simple(1, &n, nullptr);
+  auto write = [&](hid_t where, const std::string& name, hid_t type, const void* data) {
+    const hid_t ds = H5Check(H5Dcreate2(where, name.c_str(), type, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
+                             "H5Dcreate2", tmp);
+    if (n > 0) H5Check(H5Dwrite(ds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), "H5Dwrite", tmp);
+    H5Dclose(ds);
+  };
+  std::vector<long long> ints(n);
+  for (hsize_t i = 0; i < n; ++i) ints[i] = table.rows[i].index;
+  write(file, "index", H5T_NATIVE_LLONG, ints.data());
+  std::vector<double> col(n);
+  auto columns = [&](const char* group, const std::vector<std::string>& names, bool params) {
+    const hid_t g = H5Check(H5Gcreate2(file, group, H5P_DEFAULT, gcpl, H5P_DEFAULT), "H5Gcreate2", tmp);
+    for (size_t k = 0; k < names.size(); ++k) {
+      for (hsize_t i = 0; i < n; ++i) col[i] = params ? table.rows[i].parameters[k] : table.rows[i].outcomes[k];
+      write(g, names[k], H5T_NATIVE_DOUBLE, col.data());
+    }
+    H5Gclose(g);
+  };
+  columns("parameters", table.parameter_columns, true);
+  columns("outcomes", table.outcome_columns, false);
+  const hid_t str = H5Tcopy(H5T_C_S1);
+  H5Tset_size(str, H5T_VARIABLE);
+  H5Tset_cset(str, H5T_CSET_UTF8);
+  std::vector<const char*> text(n);
+  for (hsize_t i = 0; i < n; ++i) text[i] = table.rows[i].completed ? "completed" : "failed";
+  write(file, "status", str, text.data());
+  for (hsize_t i = 0; i < n; ++i) text[i] = table.rows[i].end_reason.c_str();
+  write(file, "end_reason", str, text.data());
+  for (hsize_t i = 0; i < n; ++i) ints[i] = table.rows[i].steps;
+  write(file, "steps", H5T_NATIVE_LLONG, ints.data());
+  for (hsize_t i = 0; i < n; ++i) text[i] = table.rows[i].failure.c_str();
+  write(file, "failure", str, text.data());
+  H5Tclose(str);
+  H5Sclose(space);
+  H5Pclose(dcpl);
+  H5Pclose(gcpl);
+  H5Check(H5Fclose(file), "H5Fclose", tmp);
+  Publish(tmp, path);
+}
+
+void WriteSweepResults(const std::string& dir, const SweepTable& table) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) Throw<Error>("WriteSweepResults", "cannot create directory '", dir, "': ", ec.message());
+  WriteCsv((fs::path(dir) / "sweep.csv").string(), table);
+  WriteHdf5((fs::path(dir) / "sweep.h5").string(), table);
+}
+
+namespace {
+
+nlohmann::json Nums(const std::vector<double>& v) {
+  nlohmann::json a = nlohmann::json::array();
+  for (double x : v) a.push_back(std::isnan(x) ? nlohmann::json(nullptr) : nlohmann::json(x));
+  return a;
+}
+
+}  // namespace
+
+void WritePart(const std::string& path, const SweepTable& table, long shard, long shards) {
+  nlohmann::json j;
+  j["kind"] = "kneedyn_sweep_part";
+  j["fingerprint"] = std::to_string(table.fingerprint);
+  j["total_runs"] = table.total_runs;
+  j["shard"] = shard;
+  j["shards"] = shards;
+  j["parameter_columns"] = table.parameter_columns;
+  j["outcome_columns"] = table.outcome_columns;
+  nlohmann::json rows = nlohmann::json::array();
+  for (const RunRow& r : table.rows) {
+    rows.push_back({{"index", r.index}, {"parameters", Nums(r.parameters)}, {"outcomes", Nums(r.outcomes)},
+                    {"completed", r.completed}, {"end_reason", r.end_reason}, {"steps", r.steps},
+                    {"failure", r.failure}});
+  }
+  j["rows"] = rows;
+  const fs::path parent = fs::path(path).parent_path();
+  std::error_code ec;
+  if (!parent.empty()) fs::create_directories(parent, ec);
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    if (!out) Throw<Error>("WritePart", "cannot write '", tmp, "'");
+    out << j.dump() << '\n';  // shortest round-trip doubles
+  }
+  Publish(tmp, path);
+}
+
+SweepTable ReadPart(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) Throw<InputError>("ReadPart", "cannot read part file '", path, "'");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+    if (j.at("kind") != "kneedyn_sweep_part") {
+      Throw<InputError>("ReadPart", path, ": field 'kind' = ", j.at("kind").dump(),
+                        ": not a kneedyn sweep part");
+    }
+    SweepTable t;
+    t.fingerprint = std::stoull(j.at("fingerprint").get<std::string>());
+    t.total_runs = j.at("total_runs").get<long>();
+    t.parameter_columns = j.at("parameter_columns").get<std::vector<std::string>>();
+    t.outcome_columns = j.at("outcome_columns").get<std::vector<std::string>>();
+    auto nums = [](const nlohmann::json& a) {
+      std::vector<double> v;
+      for (const auto& x : a) v.push_back(x.is_null() ? std::numeric_limits<double>::quiet_NaN() : x.get<double>());
+      return v;
+    };
+    for (const auto& r : j.at("rows")) {
+      RunRow row;
+      row.index = r.at("index").get<long>();
+      row.parameters = nums(r.at("parameters"));
+      row.outcomes = nums(r.at("outcomes"));
+      row.completed = r.at("completed").get<bool>();
+      row.end_reason = r.at("end_reason").get<std::string>();
+      row.steps = r.at("steps").get<long>();
+      row.failure = r.at("failure").get<std::string>();
+      if (row.parameters.size() != t.parameter_columns.size() || row.outcomes.size() != t.outcome_columns.size()) {
+        Throw<InputError>("ReadPart", path, ": row ", row.index, " has the wrong number of values");
+      }
+      t.rows.push_back(std::move(row));
+    }
+    return t;
+  } catch (const nlohmann::json::exception& e) {
+    Throw<InputError>("ReadPart", path, ": not a valid part file: ", e.what());
+  }
+}
+
+SweepTable MergeParts(const std::vector<SweepTable>& parts) {
+  if (parts.empty()) Throw<InputError>("MergeParts", "no part files given");
+  SweepTable all = parts[0];
+  all.rows.clear();
+  for (size_t p = 0; p < parts.size(); ++p) {
+    const SweepTable& t = parts[p];
+    if (t.fingerprint != all.fingerprint || t.total_runs != all.total_runs ||
+        t.parameter_columns != all.parameter_columns || t.outcome_columns != all.outcome_columns) {
+      Throw<InputError>("MergeParts", "part ", p + 1, " comes from a different spec (fingerprint ", t.fingerprint,
+                        " vs ", all.fingerprint, ")");
+    }
+    all.rows.insert(all.rows.end(), t.rows.begin(), t.rows.end());
+  }
+  std::sort(all.rows.begin(), all.rows.end(), [](const RunRow& a, const RunRow& b) { return a.index < b.index; });
+  for (long i = 0; i < static_cast<long>(all.rows.size()); ++i) {
+    if (all.rows[i].index != i) {
+      Throw<InputError>("MergeParts", "run index ", i, all.rows[i].index < i ? " appears twice" : " is missing",
+                        " (", all.total_runs, " runs expected)");
+    }
+  }
+  if (static_cast<long>(all.rows.size()) != all.total_runs) {
+    Throw<InputError>("MergeParts", "runs ", all.rows.size(), " to ", all.total_runs - 1, " are missing");
+  }
+  return all;
+}
+
+namespace {
+
+void PutBytes(std::string* out, const void* p, size_t n) { out->append(static_cast<const char*>(p), n); }
+template <typename T>
+void Put(std::string* out, T v) { PutBytes(out, &v, sizeof v); }
+void PutString(std::string* out, const std::string& s) {
+  Put<std::uint64_t>(out, s.size());
+  out->append(s);
+}
+template <typename T>
+T Get(const std::string& in, size_t* pos) {
+  T v;
+  if (*pos + sizeof v > in.size()) Throw<Error>("DeserializeRows", "truncated buffer");
+  std::memcpy(&v, in.data() + *pos, sizeof v);
+  *pos += sizeof v;
+  return v;
+}
+std::string GetString(const std::string& in, size_t* pos) {
+  const auto n = Get<std::uint64_t>(in, pos);
+  if (*pos + n > in.size()) Throw<Error>("DeserializeRows", "truncated buffer");
+  std::string s = in.substr(*pos, n);
+  *pos += n;
+  return s;
+}
+
+}  // namespace
+
+std::string SerializeRows(const std::vector<RunRow>& rows) {
+  std::string out;
+  Put<std::uint64_t>(&out, rows.size());
+  for (const RunRow& r : rows) {
+    Put<std::int64_t>(&out, r.index);
+    Put<std::uint64_t>(&out, r.parameters.size());
+    for (double v : r.parameters) Put(&out, v);
+    Put<std::uint64_t>(&out, r.outcomes.size());
+    for (double v : r.outcomes) Put(&out, v);
+    Put<std::uint8_t>(&out, r.completed ? 1 : 0);
+    PutString(&out, r.end_reason);
+    Put<std::int64_t>(&out, r.steps);
+    PutString(&out, r.failure);
+  }
+  return out;
+}
+
+std::vector<RunRow> DeserializeRows(const std::string& bytes) {
+  size_t pos = 0;
+  std::vector<RunRow> rows(Get<std::uint64_t>(bytes, &pos));
+  for (RunRow& r : rows) {
+    r.index = Get<std::int64_t>(bytes, &pos);
+    r.parameters.resize(Get<std::uint64_t>(bytes, &pos));
+    for (double& v : r.parameters) v = Get<double>(bytes, &pos);
+    r.outcomes.resize(Get<std::uint64_t>(bytes, &pos));
+    for (double& v : r.outcomes) v = Get<double>(bytes, &pos);
+    r.completed = Get<std::uint8_t>(bytes, &pos) != 0;
+    r.end_reason = GetString(bytes, &pos);
+    r.steps = Get<std::int64_t>(bytes, &pos);
+    r.failure = GetString(bytes, &pos);
+  }
+  return rows;
+}
+
+}  // namespace kneedyn::ensembles

@@ -1,0 +1,34 @@
+// Sweep result files (issue 14, items 2–3): one row per run, failed runs kept.
+//   sweep.csv  index, parameters, outcomes, status, end_reason, steps, failure
+//              (numbers as %.17g: they read back to the same doubles; NaN as "nan")
+//   sweep.h5   the same columns as HDF5 datasets: /index, /parameters/<col>,
+//              /outcomes/<col>, /status, /end_reason, /steps, /failure; no timestamps, so
+//              equal tables give equal bytes
+//   part-<i>-of-<n>.json  one shard's rows (--shard i/n), for `kneedyn sweep --merge`
+// Every file is written to a temporary name and renamed: complete or absent.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "ensembles/sweep.hpp"
+
+namespace kneedyn::ensembles {
+
+void WriteCsv(const std::string& path, const SweepTable& table);
+void WriteHdf5(const std::string& path, const SweepTable& table);
+// Both of the above into dir (created if needed): dir/sweep.csv, dir/sweep.h5.
+void WriteSweepResults(const std::string& dir, const SweepTable& table);
+
+void WritePart(const std::string& path, const SweepTable& table, long shard, long shards);
+SweepTable ReadPart(const std::string& path);  // throws InputError naming file and field
+
+// Combines parts of one spec into the whole table; throws InputError unless they come
+// from the same spec and cover every run index exactly once.
+SweepTable MergeParts(const std::vector<SweepTable>& parts);
+
+// Flat binary form of rows for MPI gathering (sweep_mpi.cpp); exact for doubles.
+std::string SerializeRows(const std::vector<RunRow>& rows);
+std::vector<RunRow> DeserializeRows(const std::string& bytes);
+
+}  // namespace kneedyn::ensembles

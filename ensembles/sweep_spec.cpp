@@ -1,0 +1,486 @@
+#include "ensembles/sweep_spec.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <set>
+#include <sstream>
+
+#include "solver/error.hpp"
+#include "solver/ligament.hpp"
+#include "solver/pose.hpp"
+#include "solver/units.hpp"
+
+namespace kneedyn::ensembles {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// A YAML node with its path for messages "SPEC: field 'a.b[2]' = 'v': rule".
+class Node {
+ public:
+  Node(YAML::Node n, const std::string* file, std::string path)
+      : n_(std::move(n)), file_(file), path_(std::move(path)) {}
+  [[noreturn]] void Fail(const std::string& rule) const {
+    Throw<InputError>("LoadSweepSpec", *file_, ": field '", path_, "'",
+                      n_ && n_.IsScalar() ? " = '" + n_.Scalar() + "'" : std::string(), ": ", rule);
+  }
+  bool Has(const std::string& key) const { return n_.IsMap() && n_[key]; }
+  Node Child(const std::string& key) const {
+    if (!n_.IsMap()) Fail("must be a mapping");
+    return Node(n_[key], file_, path_.empty() ? key : path_ + "." + key);
+  }
+  Node Required(const std::string& key) const {
+    Node c = Child(key);
+    if (!c.n_) Fail("missing required field '" + key + "'");
+    return c;
+  }
+  // Rejects keys outside `allowed` (a misspelt key must not be ignored silently).
+  void OnlyKeys(std::initializer_list<const char*> allowed) const {
+    if (!n_.IsMap()) Fail("must be a mapping");
+    for (const auto& kv : n_) {
+      const std::string key = kv.first.as<std::string>();
+      if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; })) {
+        std::string list;
+        for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+        Node(kv.first, file_, path_.empty() ? key : path_ + "." + key)
+            .Fail("unknown key '" + key + "'; expected one of: " + list);
+      }
+    }
+  }
+  size_t Size() const {
+    if (!n_.IsSequence()) Fail("must be a list");
+    return n_.size();
+  }
+  Node Item(size_t i) const { return Node(n_[i], file_, StrCat(path_, "[", i, "]")); }
+  bool IsScalar() const { return n_.IsScalar(); }
+  std::string String() const {
+    if (!n_.IsScalar()) Fail("must be a string");
+    return n_.Scalar();
+  }
+  double Double() const {
+    if (!n_.IsScalar()) Fail("must be a number");
+    const std::string s = n_.Scalar();
+    char* end = nullptr;
+    const double v = std::strtod(s.c_str(), &end);
+    if (s.empty() || *end != '\0') Fail("must be a number");
+    if (!std::isfinite(v)) Fail("must be finite");
+    return v;
+  }
+  long Integer(long lo, long hi) const {
+    const double v = Double();
+    if (v != std::floor(v) || v < static_cast<double>(lo) || v > static_cast<double>(hi)) {
+      Fail(StrCat("must be an integer in [", lo, ", ", hi, "]"));
+    }
+    return static_cast<long>(v);
+  }
+  const std::string& path() const { return path_; }
+
+ private:
+  YAML::Node n_;
+  const std::string* file_;
+  std::string path_;
+};
+
+std::string Sanitize(const std::string& s) {
+  std::string out = s;
+  std::replace(out.begin(), out.end(), ' ', '_');
+  return out;
+}
+
+std::uint64_t Fnv1a(const std::string& bytes) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (unsigned char c : bytes) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+// Resolves the name of one parameter against the base scene; sets kind, ligament, axis,
+// nominal and column.
+void ResolveParameter(const Node& where, const SweepSpec& spec, ParameterSpec* p) {
+  if (spec.analytic == AnalyticModel::kIshigami) {
+    if (p->name != "x1" && p->name != "x2" && p->name != "x3") {
+      where.Fail("unknown parameter of the Ishigami function; expected x1, x2 or x3");
+    }
+    p->kind = ParameterKind::kAnalytic;
+    p->axis = p->name[1] - '1';
+    p->column = p->name;
+    return;
+  }
+  const Model& m = spec.base.model;
+  if (p->name == "pulse.amplitude") {
+    p->kind = ParameterKind::kPulseAmplitude;
+    p->nominal = m.pulse.amplitude;
+    p->column = "pulse.amplitude_N";
+    return;
+  }
+  if (p->name == "pulse.duration") {
+    p->kind = ParameterKind::kPulseDuration;
+    p->nominal = m.pulse.duration;
+    p->column = "pulse.duration_s";
+    return;
+  }
+  if (p->name == "mass") {
+    p->kind = ParameterKind::kMass;
+    p->nominal = m.mass;
+    p->column = "mass_kg";
+    return;
+  }
+  const size_t dot = p->name.rfind('.');
+  if (dot == std::string::npos) {
+    where.Fail("unknown parameter; expected pulse.amplitude, pulse.duration, mass or "
+               "'<element>.<property>'");
+  }
+  const std::string element = p->name.substr(0, dot), prop = p->name.substr(dot + 1);
+  int idx = -1;
+  for (size_t j = 0; j < m.ligaments.size(); ++j) {
+    if (m.ligaments[j].name == element || Sanitize(m.ligaments[j].name) == element) idx = static_cast<int>(j);
+  }
+  if (idx < 0) {
+    std::string names;
+    for (const Ligament& l : m.ligaments) names += (names.empty() ? "" : ", ") + l.name;
+    where.Fail("no element '" + element + "' in the base scene; its elements: " + names);
+  }
+  const Ligament& l = m.ligaments[idx];
+  p->ligament = idx;
+  const std::string base = Sanitize(l.name) + "." + prop;
+  if (prop == "k_linear") {
+    p->kind = ParameterKind::kLigamentLinearStiffness;
+    p->nominal = l.k_linear / 1e3;  // N/m → N/mm
+    p->column = base + "_N_mm";
+  } else if (prop == "k_parabolic") {
+    if (m.ligament_law != LigamentLaw::kPublished) {
+      where.Fail("k_parabolic is derived from k_linear under ligament_law c1_continuous; "
+                 "vary k_linear or use the published law");
+    }
+    p->kind = ParameterKind::kLigamentParabolicStiffness;
+    p->nominal = l.k_parabolic_published / 1e6;  // N/m² → N/mm²
+    p->column = base + "_N_mm2";
+  } else if (prop == "slack_length") {
+    p->kind = ParameterKind::kLigamentSlackLength;
+    p->nominal = MToMm(l.slack_length);
+    p->column = base + "_mm";
+  } else if (prop == "extension_ratio") {
+    p->kind = ParameterKind::kLigamentExtensionRatio;
+    p->nominal = l.extension_ratio;
+    p->column = base;
+  } else if (prop.size() == 9 && prop.rfind("femoral_", 0) == 0 && prop[8] >= 'x' && prop[8] <= 'z') {
+    p->kind = ParameterKind::kLigamentFemoralAttachment;
+    p->axis = prop[8] - 'x';
+    p->nominal = MToMm(l.p_FoA_F(p->axis));
+    p->column = base + "_mm";
+  } else if (prop.size() == 8 && prop.rfind("tibial_", 0) == 0 && prop[7] >= 'x' && prop[7] <= 'z') {
+    p->kind = ParameterKind::kLigamentTibialAttachment;
+    p->axis = prop[7] - 'x';
+    p->nominal = MToMm(l.p_ToB_T(p->axis));
+    p->column = base + "_mm";
+  } else {
+    where.Fail("unknown property '" + prop + "' of element '" + l.name +
+               "'; expected k_linear, k_parabolic, slack_length, extension_ratio, "
+               "femoral_x|y|z or tibial_x|y|z");
+  }
+}
+
+// Physical lower bounds: a sampled value at or below them makes no model.
+bool MustBePositive(ParameterKind k) {
+  switch (k) {
+    case ParameterKind::kLigamentLinearStiffness:
+    case ParameterKind::kLigamentParabolicStiffness:
+    case ParameterKind::kLigamentSlackLength:
+    case ParameterKind::kLigamentExtensionRatio:
+    case ParameterKind::kPulseDuration:
+    case ParameterKind::kMass: return true;
+    default: return false;
+  }
+}
+
+const std::set<std::string>& OutcomeGroups() {
+  static const std::set<std::string> kGroups = {
+      "liftoff_time", "liftoff_flexion", "peak_ligament_force", "peak_contact_force",
+      "time_at_90", "ligament_force_at_90", "contact_force_at_90"};
+  return kGroups;
+}
+
+}  // namespace
+
+double InverseNormalCdf(double p) {
+  if (!(p > 0.0 && p < 1.0)) {
+    if (p == 0.0) return -std::numeric_limits<double>::infinity();
+    if (p == 1.0) return std::numeric_limits<double>::infinity();
+    Throw<InputError>("InverseNormalCdf", "p = ", p, "; must be in [0, 1]");
+  }
+  static const double a[] = {-3.969683028665376e+01, 2.209460984245205e+02, -2.759285104469687e+02,
+                             1.383577518672690e+02, -3.066479806614716e+01, 2.506628277459239e+00};
+  static const double b[] = {-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
+                             6.680131188771972e+01, -1.328068155288572e+01};
+  static const double c[] = {-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
+                             -2.549732539343734e+00, 4.374664141464968e+00, 2.938163982698783e+00};
+  static const double d[] = {7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
+                             3.754408661907416e+00};
+  const double plow = 0.02425;
+  double x;
+  if (p < plow) {
+    const double q = std::sqrt(-2 * std::log(p));
+    x = (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) /
+        ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1);
+  } else if (p <= 1 - plow) {
+    const double q = p - 0.5, r = q * q;
+    x = (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q /
+        (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1);
+  } else {
+    const double q = std::sqrt(-2 * std::log(1 - p));
+    x = -(((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) /
+        ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1);
+  }
+  // One Halley step on Φ(x) − p.
+  const double e = 0.5 * std::erfc(-x / std::sqrt(2.0)) - p;
+  const double u = e * std::sqrt(2 * M_PI) * std::exp(x * x / 2);
+  return x - u / (1 + x * u / 2);
+}
+
+double ParameterSpec::FromUnit(double u) const {
+  if (distribution == Distribution::kUniform) return a + u * (b - a);
+  const double tiny = std::ldexp(1.0, -53);
+  return a + b * InverseNormalCdf(std::clamp(u, tiny, 1.0 - tiny));
+}
+
+SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
+                         const std::string& base_dir) {
+  SweepSpec spec;
+  spec.path = label;
+  spec.fingerprint = Fnv1a(yaml_text);
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    Throw<InputError>("LoadSweepSpec", label, ": not valid YAML: ", e.what());
+  }
+  const Node top(root, &spec.path, "");
+  if (!root.IsMap()) top.Fail("the spec must be a YAML mapping");
+  top.OnlyKeys({"scene", "analytic", "parameters", "design", "outcomes", "solver"});
+
+  // Base scene or analytic model.
+  if (top.Has("scene") == top.Has("analytic")) {
+    top.Fail("give exactly one of 'scene' (a scene file) and 'analytic' (ishigami)");
+  }
+  if (top.Has("analytic")) {
+    const Node a = top.Required("analytic");
+    if (a.String() != "ishigami") a.Fail("unknown analytic model; expected ishigami");
+    spec.analytic = AnalyticModel::kIshigami;
+  } else {
+    const Node s = top.Required("scene");
+    fs::path p = s.String();
+    if (p.is_relative()) p = fs::path(base_dir) / p;
+    spec.scene_path = p.lexically_normal().string();
+    if (!fs::exists(p)) s.Fail("no such file: " + spec.scene_path);
+    spec.base = LoadScene(spec.scene_path);
+  }
+
+  // Parameters.
+  const Node params = top.Required("parameters");
+  if (params.Size() == 0) params.Fail("must list at least one parameter");
+  std::set<std::string> seen;
+  for (size_t i = 0; i < params.Size(); ++i) {
+    const Node item = params.Item(i);
+    item.OnlyKeys({"name", "uniform", "relative", "normal"});
+    ParameterSpec p;
+    const Node name = item.Required("name");
+    p.name = name.String();
+    ResolveParameter(name, spec, &p);
+    if (!seen.insert(p.column).second) name.Fail("parameter listed twice");
+    const int given = item.Has("uniform") + item.Has("relative") + item.Has("normal");
+    if (given != 1) item.Fail("give exactly one of uniform: [low, high], relative: r, normal: [mean, sd]");
+    if (item.Has("uniform")) {
+      const Node u = item.Required("uniform");
+      if (u.Size() != 2) u.Fail("must be [low, high]");
+      p.a = u.Item(0).Double();
+      p.b = u.Item(1).Double();
+      if (!(p.a < p.b)) u.Item(1).Fail(StrCat("high must exceed low = ", p.a));
+    } else if (item.Has("relative")) {
+      const Node r = item.Required("relative");
+      const double rel = r.Double();
+      if (!(rel > 0.0 && rel < 1.0)) r.Fail("must be in (0, 1): nominal × [1 − r, 1 + r]");
+      if (p.nominal == 0.0) r.Fail(StrCat("the nominal value of ", p.name, " is 0; give uniform: [low, high]"));
+      p.a = std::min(p.nominal * (1 - rel), p.nominal * (1 + rel));
+      p.b = std::max(p.nominal * (1 - rel), p.nominal * (1 + rel));
+    } else {
+      const Node n = item.Required("normal");
+      if (n.Size() != 2) n.Fail("must be [mean, sd]");
+      p.distribution = Distribution::kNormal;
+      p.a = n.Item(0).Double();
+      p.b = n.Item(1).Double();
+      if (!(p.b > 0.0)) n.Item(1).Fail("standard deviation must be > 0");
+      if (MustBePositive(p.kind)) n.Fail(StrCat(p.name, " must stay > 0; a normal distribution is unbounded: use uniform or relative"));
+    }
+    if (p.distribution == Distribution::kUniform && MustBePositive(p.kind) && !(p.a > 0.0)) {
+      item.Fail(StrCat(p.name, " must stay > 0; its range starts at ", p.a));
+    }
+    spec.parameters.push_back(p);
+  }
+  const int d = static_cast<int>(spec.parameters.size());
+
+  // Design.
+  const Node design = top.Required("design");
+  design.OnlyKeys({"type", "samples", "levels", "seed"});
+  const Node type = design.Required("type");
+  spec.design.type = DesignTypeByName(type.String(), spec.path + ": field 'design.type'");
+  constexpr long kMaxRuns = 100000000;
+  if (spec.design.type == DesignType::kGrid) {
+    if (design.Has("samples")) design.Required("samples").Fail("a grid takes 'levels', not 'samples'");
+    spec.design.levels = static_cast<int>(design.Required("levels").Integer(1, 1000));
+    double rows = std::pow(static_cast<double>(spec.design.levels), d);
+    if (rows > kMaxRuns) design.Required("levels").Fail(StrCat("levels^parameters = ", rows, " runs; at most ", kMaxRuns));
+    for (const ParameterSpec& p : spec.parameters) {
+      if (p.distribution == Distribution::kNormal) {
+        design.Required("type").Fail("a grid needs bounded ranges; parameter " + p.name + " is normal");
+      }
+    }
+  } else {
+    if (design.Has("levels")) design.Required("levels").Fail("only a grid takes 'levels'");
+    spec.design.samples = design.Required("samples").Integer(1, kMaxRuns);
+    if (spec.design.type == DesignType::kSaltelli) {
+      if (2 * d > kMaxSobolDimension) {
+        type.Fail(StrCat("the Saltelli design supports at most ", kMaxSobolDimension / 2,
+                         " parameters; the spec has ", d));
+      }
+      if (spec.design.samples * (d + 2) > kMaxRuns) design.Required("samples").Fail("too many runs");
+    }
+    if (spec.design.type == DesignType::kSobol && d > kMaxSobolDimension) {
+      type.Fail(StrCat("the Sobol' design supports at most ", kMaxSobolDimension, " parameters"));
+    }
+  }
+  if (design.Has("seed")) {
+    spec.design.seed = static_cast<std::uint64_t>(design.Required("seed").Integer(0, 1L << 53));
+  }
+
+  // Outcomes.
+  const Node outcomes = top.Required("outcomes");
+  if (spec.analytic != AnalyticModel::kNone) {
+    if (outcomes.Size() != 1 || outcomes.Item(0).String() != "value") {
+      outcomes.Fail("an analytic model has one outcome: [value]");
+    }
+    spec.outcome_groups = {"value"};
+  } else {
+    if (outcomes.Size() == 0) outcomes.Fail("must list at least one outcome");
+    for (size_t i = 0; i < outcomes.Size(); ++i) {
+      const Node o = outcomes.Item(i);
+      const std::string g = o.String();
+      if (!OutcomeGroups().count(g)) {
+        std::string list;
+        for (const std::string& k : OutcomeGroups()) list += (list.empty() ? "" : ", ") + k;
+        o.Fail("unknown outcome; expected one of: " + list);
+      }
+      if (std::find(spec.outcome_groups.begin(), spec.outcome_groups.end(), g) != spec.outcome_groups.end()) {
+        o.Fail("outcome listed twice");
+      }
+      spec.outcome_groups.push_back(g);
+    }
+  }
+
+  // Solver.
+  spec.run.output_interval = 0.001;
+  if (top.Has("solver")) {
+    const Node s = top.Required("solver");
+    s.OnlyKeys({"formulation", "rtol", "atol", "integrator", "max_steps", "output_interval_s"});
+    if (s.Has("formulation")) {
+      const Node f = s.Required("formulation");
+      spec.run.formulation = f.String();
+      bool known = false;
+      for (const FormulationInfo& info : RegisteredFormulations()) known |= info.name == spec.run.formulation;
+      if (!known) f.Fail("not a registered formulation (see `kneedyn formulations`)");
+    }
+    if (s.Has("rtol")) spec.run.options.rtol = s.Required("rtol").Double();
+    if (s.Has("atol")) spec.run.options.atol = s.Required("atol").Double();
+    if (s.Has("integrator")) spec.run.options.integrator = s.Required("integrator").String();
+    if (s.Has("max_steps")) spec.run.options.max_steps = s.Required("max_steps").Integer(1, 1L << 40);
+    if (s.Has("output_interval_s")) {
+      const Node oi = s.Required("output_interval_s");
+      spec.run.output_interval = oi.Double();
+      if (!(spec.run.output_interval > 0.0)) oi.Fail("must be > 0");
+    }
+    std::string why;
+    if (!spec.run.options.IsValid(&why)) s.Fail(why);
+    if (spec.analytic == AnalyticModel::kNone) {
+      // The formulation's own factory checks the options that apply to it.
+      try {
+        CreateFormulation(spec.run.formulation, spec.base, spec.run.options);
+      } catch (const InputError& e) {
+        s.Fail(e.what());
+      }
+    }
+  }
+  return spec;
+}
+
+SweepSpec LoadSweepSpec(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) Throw<InputError>("LoadSweepSpec", "cannot read the spec file '", path, "'");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ParseSweepSpec(ss.str(), path, fs::path(path).parent_path().string());
+}
+
+Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values) {
+  Scene scene = spec.base;
+  Model& m = scene.model;
+  const Pose reference = PoseFromCoordinates(scene.reference_q);
+  std::vector<bool> geometry_changed(m.ligaments.size(), false);
+  // Attachments and stiffnesses first; slack lengths (which depend on L_ref) after.
+  for (size_t k = 0; k < spec.parameters.size(); ++k) {
+    const ParameterSpec& p = spec.parameters[k];
+    const double v = values[k];
+    switch (p.kind) {
+      case ParameterKind::kLigamentLinearStiffness: m.ligaments[p.ligament].k_linear = v * 1e3; break;
+      case ParameterKind::kLigamentParabolicStiffness:
+        m.ligaments[p.ligament].k_parabolic_published = v * 1e6;
+        break;
+      case ParameterKind::kLigamentFemoralAttachment:
+        m.ligaments[p.ligament].p_FoA_F(p.axis) = MmToM(v);
+        geometry_changed[p.ligament] = true;
+        break;
+      case ParameterKind::kLigamentTibialAttachment:
+        m.ligaments[p.ligament].p_ToB_T(p.axis) = MmToM(v);
+        geometry_changed[p.ligament] = true;
+        break;
+      case ParameterKind::kLigamentExtensionRatio:
+        m.ligaments[p.ligament].extension_ratio = v;
+        geometry_changed[p.ligament] = true;
+        break;
+      case ParameterKind::kPulseAmplitude: m.pulse.amplitude = v; break;
+      case ParameterKind::kPulseDuration: m.pulse.duration = v; break;
+      case ParameterKind::kMass: m.mass = v; break;
+      case ParameterKind::kLigamentSlackLength:
+      case ParameterKind::kAnalytic: break;
+    }
+  }
+  // L_ref, L0 = L_ref / e and the law's k_par (Eq. 1.14, spec §5) of every element touched.
+  for (size_t j = 0; j < m.ligaments.size(); ++j) {
+    Ligament& l = m.ligaments[j];
+    if (geometry_changed[j]) {
+      l.reference_length = LigamentSpan_F(l, reference).norm();
+      l.slack_length = l.reference_length / l.extension_ratio;
+    }
+  }
+  for (size_t k = 0; k < spec.parameters.size(); ++k) {
+    const ParameterSpec& p = spec.parameters[k];
+    if (p.kind != ParameterKind::kLigamentSlackLength) continue;
+    Ligament& l = m.ligaments[p.ligament];
+    l.slack_length = MmToM(values[k]);
+    l.extension_ratio = l.reference_length / l.slack_length;
+  }
+  for (Ligament& l : m.ligaments) {
+    l.k_parabolic = m.ligament_law == LigamentLaw::kC1Continuous
+                        ? l.k_linear / (4.0 * kLigamentToeStrain * l.slack_length)
+                        : l.k_parabolic_published;
+  }
+  return scene;
+}
+
+}  // namespace kneedyn::ensembles

@@ -1,0 +1,79 @@
+// The sweep specification (issue 14, item 2): `kneedyn sweep SPEC.yaml`. A spec names a
+// base scene, the parameters with their ranges or distributions, the design, the outcomes
+// to record and the formulation with its tolerances. Format: ensembles/README.md.
+//
+// Validation is strict and happens before anything runs: every rule a spec can break is
+// an InputError naming the spec file, the field, its value and the rule.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "ensembles/design.hpp"
+#include "formulations/run.hpp"
+#include "solver/scene.hpp"
+
+namespace kneedyn::ensembles {
+
+// What a parameter changes. Values are in the spec's units (those of the parameter-set
+// file): N/mm, N/mm², mm, N, s, kg.
+enum class ParameterKind {
+  kLigamentLinearStiffness,     // <element>.k_linear, N/mm
+  kLigamentParabolicStiffness,  // <element>.k_parabolic, N/mm² (published law only)
+  kLigamentSlackLength,         // <element>.slack_length, mm (L0; e = L_ref / L0)
+  kLigamentExtensionRatio,      // <element>.extension_ratio, − (e; L0 = L_ref / e)
+  kLigamentFemoralAttachment,   // <element>.femoral_{x,y,z}, mm in F
+  kLigamentTibialAttachment,    // <element>.tibial_{x,y,z}, mm in T
+  kPulseAmplitude,              // pulse.amplitude, N
+  kPulseDuration,               // pulse.duration, s
+  kMass,                        // mass, kg
+  kAnalytic,                    // x1, x2, x3 of an analytic test function
+};
+
+enum class Distribution { kUniform, kNormal };
+
+struct ParameterSpec {
+  std::string name;    // as written: "PCL anterior.k_linear", "pulse.amplitude", "mass"
+  std::string column;  // result column: spaces → '_', unit suffix ("PCL_anterior.k_linear_N_mm")
+  ParameterKind kind = ParameterKind::kMass;
+  int ligament = -1;   // index into the base scene's model.ligaments
+  int axis = 0;        // attachments: 0, 1, 2 = x, y, z
+  double nominal = 0.0;  // value in the base scene (spec units)
+  Distribution distribution = Distribution::kUniform;
+  double a = 0.0, b = 0.0;  // uniform: [a, b]; normal: mean a, standard deviation b
+
+  // The parameter value at unit-cube coordinate u ∈ [0, 1] (inverse CDF).
+  double FromUnit(double u) const;
+};
+
+// Analytic test functions that stand in for a scene to verify the sensitivity pipeline.
+enum class AnalyticModel { kNone, kIshigami };
+
+struct SweepSpec {
+  std::string path;          // spec file
+  std::uint64_t fingerprint = 0;  // FNV-1a of the spec file's bytes (shards must agree)
+  std::string scene_path;    // base scene (resolved); empty for an analytic model
+  Scene base;
+  AnalyticModel analytic = AnalyticModel::kNone;
+  std::vector<ParameterSpec> parameters;
+  DesignSettings design;
+  std::vector<std::string> outcome_groups;  // as written, validated
+  RunSettings run;           // formulation, tolerances, output interval
+};
+
+// Reads and validates a spec; relative scene paths are relative to the spec file.
+SweepSpec LoadSweepSpec(const std::string& path);
+SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
+                         const std::string& base_dir);
+
+// The base scene with the parameter values of one run (spec units) applied. Attachments
+// and slack lengths keep the chapter's definition L0 = L_ref / e at the reference pose
+// (spec §5), so moving an attachment with e fixed moves L0 with it.
+Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values);
+
+// Inverse of the standard normal CDF (Acklam's rational approximation refined by one
+// Halley step; |error| < 1e-15 relative in double precision).
+double InverseNormalCdf(double p);
+
+}  // namespace kneedyn::ensembles

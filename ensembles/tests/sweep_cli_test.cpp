@@ -1,0 +1,126 @@
+// `kneedyn sweep` end to end (ensembles/sweep_cli.hpp). Validates the contract:
+// the same bytes (sweep.csv and sweep.h5) with 1 and 2 threads, with two shards merged,
+// and with 2 MPI ranks; bad input exits 2 and writes nothing; no progress output when
+// stderr is not a terminal.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+using namespace std::string_literals;
+namespace fs = std::filesystem;
+
+namespace {
+
+// Each test has its own directory: ctest -j runs them concurrently.
+fs::path WorkDir() {
+  return fs::temp_directory_path() / "kneedyn_sweep_cli_test" /
+         ::testing::UnitTest::GetInstance()->current_test_info()->name();
+}
+
+int Sh(const std::string& command) {
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string Slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Seven runs of the chapter scene (a Sobol' design over three parameters).
+fs::path WriteSpec(const fs::path& work) {
+  fs::create_directories(work);
+  const fs::path spec = work / "spec.yaml";
+  std::ofstream(spec) << "scene: " << KNEEDYN_SOURCE_DIR << "/reference-data/scenes/chapter_impact.yaml\n"
+                      << "parameters:\n"
+                         "  - {name: pulse.amplitude, uniform: [70, 130]}\n"
+                         "  - {name: PCL anterior.k_linear, relative: 0.3}\n"
+                         "  - {name: MCL anterior.femoral_y, uniform: [-3, 1]}\n"
+                         "design: {type: sobol, samples: 7}\n"
+                         "outcomes: [liftoff_time, liftoff_flexion, peak_ligament_force, peak_contact_force]\n"
+                         "solver: {formulation: dae-reduced, rtol: 1.0e-6, atol: 1.0e-8}\n";
+  return spec;
+}
+
+std::string Kneedyn() { return KNEEDYN_EXE; }
+
+}  // namespace
+
+TEST(SweepCli, SameBytesWithOneAndTwoThreadsAndFromMergedShards) {
+  const fs::path work = WorkDir();
+  fs::remove_all(work);
+  const fs::path spec = WriteSpec(work);
+  ASSERT_EQ(Sh(Kneedyn() + " sweep " + spec.string() + " --threads 1 --out " + (work / "t1").string() +
+               " > /dev/null 2> " + (work / "t1.err").string()), 0);
+  ASSERT_EQ(Sh(Kneedyn() + " sweep " + spec.string() + " --threads 2 --out " + (work / "t2").string() + " > /dev/null"), 0);
+  for (const char* f : {"sweep.csv", "sweep.h5"}) {
+    const std::string a = Slurp(work / "t1" / f);
+    ASSERT_FALSE(a.empty()) << f;
+    EXPECT_EQ(a, Slurp(work / "t2" / f)) << f << " differs between 1 and 2 threads";
+  }
+  EXPECT_EQ(Slurp(work / "t1.err"), "");  // not a terminal: no progress line
+  const std::string csv = Slurp(work / "t1" / "sweep.csv");
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 8);  // header + 7 runs
+  EXPECT_EQ(csv.rfind("index,pulse.amplitude_N,PCL_anterior.k_linear_N_mm,MCL_anterior.femoral_y_mm,"
+                      "liftoff_time_s,liftoff_flexion_deg,peak_F_ACL_anterior_N", 0), 0u);
+
+  for (const char* shard : {"0/2", "1/2"}) {
+    ASSERT_EQ(Sh(Kneedyn() + " sweep " + spec.string() + " --threads 1 --shard " + shard + " --out " +
+                 (work / "parts").string() + " > /dev/null"), 0);
+  }
+  ASSERT_EQ(Sh(Kneedyn() + " sweep --merge " + (work / "parts/part-1-of-2.json").string() + " " +
+               (work / "parts/part-0-of-2.json").string() + " --out " + (work / "merged").string() + " > /dev/null"), 0);
+  for (const char* f : {"sweep.csv", "sweep.h5"}) {
+    EXPECT_EQ(Slurp(work / "t1" / f), Slurp(work / "merged" / f)) << f << " differs after merging shards";
+  }
+  // One part alone is refused (runs missing): exit 2, nothing written.
+  EXPECT_EQ(Sh(Kneedyn() + " sweep --merge " + (work / "parts/part-1-of-2.json").string() + " --out " +
+               (work / "half").string() + " > /dev/null 2>&1"), 2);
+  EXPECT_FALSE(fs::exists(work / "half"));
+}
+
+TEST(SweepCli, TwoMpiRanksGiveTheSameBytes) {
+  const std::string mpiexec = KNEEDYN_MPIEXEC;
+  if (mpiexec.empty()) GTEST_SKIP() << "built without MPI (KNEEDYN_WITH_MPI off)";
+  const fs::path work = WorkDir();
+  const fs::path spec = WriteSpec(work);
+  fs::remove_all(work / "t1");
+  fs::remove_all(work / "mpi");
+  ASSERT_EQ(Sh(Kneedyn() + " sweep " + spec.string() + " --threads 1 --out " + (work / "t1").string() + " > /dev/null"), 0);
+  // CI runs as root; Open MPI refuses root unless told otherwise: only for this command.
+  const std::string env = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 ";
+  ASSERT_EQ(Sh(env + mpiexec + " -n 2 --oversubscribe " + Kneedyn() + " sweep " + spec.string() +
+               " --threads 1 --out " + (work / "mpi").string() + " > " + (work / "mpi.log").string() + " 2>&1"), 0)
+      << Slurp(work / "mpi.log");
+  for (const char* f : {"sweep.csv", "sweep.h5"}) {
+    EXPECT_EQ(Slurp(work / "t1" / f), Slurp(work / "mpi" / f)) << f << " differs under 2 MPI ranks";
+  }
+  EXPECT_NE(Slurp(work / "mpi.log").find("on 2 MPI ranks"), std::string::npos) << Slurp(work / "mpi.log");
+}
+
+TEST(SweepCli, BadInputExitsTwoNamingFieldAndValueAndWritesNothing) {
+  const fs::path work = WorkDir();
+  fs::create_directories(work);
+  const fs::path bad = work / "bad.yaml";
+  std::ofstream(bad) << "scene: " << KNEEDYN_SOURCE_DIR << "/reference-data/scenes/chapter_impact.yaml\n"
+                     << "parameters: [{name: mass, uniform: [4, 3]}]\ndesign: {type: sobol, samples: 2}\n"
+                        "outcomes: [liftoff_time]\n";
+  const fs::path out = work / "bad_out";
+  fs::remove_all(out);
+  EXPECT_EQ(Sh(Kneedyn() + " sweep " + bad.string() + " --out " + out.string() + " > /dev/null 2> " +
+               (work / "bad.err").string()), 2);
+  const std::string err = Slurp(work / "bad.err");
+  EXPECT_NE(err.find("parameters[0].uniform[1]' = '3'"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_EQ(Sh(Kneedyn() + " sweep " + bad.string() + " --shard 2/2 --out " + out.string() + " > /dev/null 2> " +
+               (work / "shard.err").string()), 2);
+  EXPECT_NE(Slurp(work / "shard.err").find("--shard = '2/2'"), std::string::npos) << Slurp(work / "shard.err");
+  EXPECT_FALSE(fs::exists(out));
+}

@@ -1,0 +1,144 @@
+// Sweep specs (ensembles/sweep_spec.hpp). Validates: strict validation (every rejected
+// spec names the field and the value), parameter resolution against the base scene, the
+// parameter-to-model mapping (an attachment moved with e fixed gives L0 = |AB| / e at the
+// reference pose, computed here from the coordinates), and the inverse normal CDF against
+// SciPy's norm.ppf. Does not run sweeps (sweep_test.cpp).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "ensembles/sweep_spec.hpp"
+#include "solver/error.hpp"
+#include "solver/pose.hpp"
+
+using namespace kneedyn;
+using namespace kneedyn::ensembles;
+
+namespace {
+
+const std::string kScenes = std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes";
+
+std::string Spec(const std::string& parameters, const std::string& design = "{type: sobol, samples: 4}",
+                 const std::string& extra = "") {
+  return "scene: chapter_impact.yaml\nparameters:\n" + parameters + "\ndesign: " + design +
+         "\noutcomes: [liftoff_time, peak_ligament_force]\n" + extra;
+}
+
+SweepSpec Parse(const std::string& text) { return ParseSweepSpec(text, "spec.yaml", kScenes); }
+
+// The message of the InputError the text raises ("" if none).
+std::string Rejection(const std::string& text) {
+  try {
+    Parse(text);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(SweepSpec, ResolvesParametersWithTheBaseScenesNominalValues) {
+  const SweepSpec s = Parse(Spec(
+      "  - {name: PCL anterior.k_linear, relative: 0.3}\n"
+      "  - {name: MCL_deep.tibial_y, uniform: [-2, 2]}\n"
+      "  - {name: pulse.amplitude, normal: [100, 10]}\n"
+      "  - {name: pulse.duration, uniform: [0.08, 0.12]}\n"
+      "  - {name: LCL.slack_length, relative: 0.05}",
+      "{type: lhs, samples: 10, seed: 3}", ""));
+  ASSERT_EQ(s.parameters.size(), 5u);
+  EXPECT_EQ(s.parameters[0].column, "PCL_anterior.k_linear_N_mm");
+  EXPECT_DOUBLE_EQ(s.parameters[0].nominal, 125.0);  // Table 1.2
+  EXPECT_DOUBLE_EQ(s.parameters[0].a, 87.5);
+  EXPECT_DOUBLE_EQ(s.parameters[0].b, 162.5);
+  EXPECT_EQ(s.parameters[1].column, "MCL_deep.tibial_y_mm");
+  EXPECT_DOUBLE_EQ(s.parameters[1].nominal, 0.0);  // Table 1.1
+  EXPECT_EQ(s.parameters[2].distribution, Distribution::kNormal);
+  EXPECT_EQ(s.parameters[3].column, "pulse.duration_s");
+  EXPECT_EQ(s.design.type, DesignType::kLatinHypercube);
+  EXPECT_EQ(s.design.seed, 3u);
+  EXPECT_EQ(s.run.formulation, "dae");
+}
+
+TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
+  struct Case {
+    std::string text, must_contain;
+  };
+  const std::vector<Case> cases = {
+      {Spec("  - {name: PCL middle.k_linear, relative: 0.3}"), "'PCL middle.k_linear'"},
+      {Spec("  - {name: PCL anterior.k_lin, relative: 0.3}"), "unknown property 'k_lin'"},
+      {Spec("  - {name: mass, uniform: [5, 4]}"), "parameters[0].uniform[1]' = '4'"},
+      {Spec("  - {name: mass, uniform: [-1, 4]}"), "must stay > 0"},
+      {Spec("  - {name: mass, relative: 1.5}"), "parameters[0].relative' = '1.5'"},
+      {Spec("  - {name: mass, relative: 0.1, uniform: [1, 2]}"), "exactly one of"},
+      {Spec("  - {name: mass, relativ: 0.1}"), "unknown key 'relativ'"},
+      {Spec("  - {name: MCL deep.tibial_y, relative: 0.1}"), "nominal value"},
+      {Spec("  - {name: mass, relative: 0.1}\n  - {name: mass, relative: 0.2}"), "listed twice"},
+      {Spec("  - {name: mass, relative: 0.1}", "{type: halton, samples: 4}"), "'halton'"},
+      {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 0}"), "design.samples' = '0'"},
+      {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 2.5}"), "'2.5'"},
+      {Spec("  - {name: mass, relative: 0.1}", "{type: grid, samples: 4}"), "takes 'levels'"},
+      {Spec("  - {name: pulse.amplitude, normal: [100, 5]}", "{type: grid, levels: 3}"), "bounded"},
+      {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 4}", "solver: {rtol: -1}\n"), "rtol"},
+      {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 4}", "solver: {formulation: magic}\n"),
+       "'magic'"},
+      {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 4}", "extra_key: 1\n"), "unknown key 'extra_key'"},
+      {"scene: nowhere.yaml\nparameters: [{name: mass, relative: 0.1}]\ndesign: {type: sobol, samples: 2}\n"
+       "outcomes: [liftoff_time]\n",
+       "nowhere.yaml"},
+      {"scene: chapter_impact.yaml\nparameters: [{name: mass, relative: 0.1}]\ndesign: {type: sobol, samples: 2}\n"
+       "outcomes: [liftoff_angle]\n",
+       "'liftoff_angle'"},
+      {"analytic: ishigami\nparameters: [{name: x4, uniform: [0, 1]}]\ndesign: {type: sobol, samples: 2}\n"
+       "outcomes: [value]\n",
+       "'x4'"},
+  };
+  for (const Case& c : cases) {
+    const std::string why = Rejection(c.text);
+    EXPECT_NE(why.find(c.must_contain), std::string::npos) << "spec:\n" << c.text << "\nmessage: " << why;
+    EXPECT_NE(why.find("spec.yaml"), std::string::npos) << why;
+  }
+}
+
+TEST(SweepSpec, SaltelliRefusesMoreParametersThanTheSobolTableCovers) {
+  std::string params;  // 33 distinct parameters
+  const char* elements[] = {"ACL anterior", "ACL posterior", "PCL anterior", "PCL posterior", "MCL anterior",
+                            "MCL oblique", "MCL deep", "LCL", "capsule medial", "capsule lateral",
+                            "oblique popliteal"};
+  for (const char* e : elements) {
+    for (const char* p : {"k_linear", "k_parabolic", "extension_ratio"}) {
+      params += "  - {name: " + std::string(e) + "." + p + ", relative: 0.1}\n";
+    }
+  }
+  EXPECT_NE(Rejection(Spec(params, "{type: saltelli, samples: 4}")).find("at most 32 parameters"), std::string::npos);
+}
+
+TEST(SweepSpec, SceneForRunMovesSlackLengthWithTheAttachment) {
+  const SweepSpec s = Parse(Spec(
+      "  - {name: PCL anterior.femoral_x, uniform: [-10, 0]}\n"
+      "  - {name: PCL anterior.k_linear, relative: 0.3}\n"
+      "  - {name: LCL.slack_length, relative: 0.05}\n"
+      "  - {name: pulse.duration, uniform: [0.05, 0.15]}"));
+  const Scene scene = SceneForRun(s, {-6.0, 100.0, 50.0, 0.12});
+  const Model& m = scene.model;
+  const Ligament& pcl = m.ligaments[s.parameters[0].ligament];
+  EXPECT_DOUBLE_EQ(pcl.p_FoA_F.x(), -0.006);
+  EXPECT_DOUBLE_EQ(pcl.k_linear, 100.0e3);
+  // L0 = |A_F − (R0 + R_FT B_T)| / e at the reference pose, e = 1.004 (Table 1.3).
+  const Pose ref = PoseFromCoordinates(scene.reference_q);
+  const Vector3d span = pcl.p_FoA_F - (ref.p_FoTo_F + ref.R_FT * pcl.p_ToB_T);
+  EXPECT_NEAR(pcl.slack_length, span.norm() / 1.004, 1e-15);
+  const Ligament& lcl = m.ligaments[s.parameters[2].ligament];
+  EXPECT_DOUBLE_EQ(lcl.slack_length, 0.050);
+  EXPECT_NEAR(lcl.extension_ratio, lcl.reference_length / 0.050, 1e-15);
+  EXPECT_DOUBLE_EQ(m.pulse.duration, 0.12);
+  // Untouched elements keep the base scene's values.
+  EXPECT_EQ(m.ligaments[0].slack_length, s.base.model.ligaments[0].slack_length);
+}
+
+TEST(SweepSpec, InverseNormalCdfMatchesScipy) {
+  EXPECT_NEAR(InverseNormalCdf(0.975), 1.959963984540054, 1e-15);
+  EXPECT_NEAR(InverseNormalCdf(0.3), -0.5244005127080409, 1e-15);
+  EXPECT_NEAR(InverseNormalCdf(1e-10), -6.361340902404056, 1e-13);
+  EXPECT_EQ(InverseNormalCdf(0.5), 0.0);
+}

@@ -1,0 +1,184 @@
+#!/usr/bin/python3
+"""Global sensitivity (issue 14, item 4): first-order and total Sobol' indices with bootstrap
+confidence intervals from a Saltelli sweep (`kneedyn sweep`, design type saltelli), computed
+with OpenTURNS (Debian python3-openturns), and a ranked bar chart per outcome.
+
+  global_sensitivity.py --sweep DIR/sweep.csv --spec SPEC.yaml --out OUTDIR
+                        [--outcomes COL ...] [--bootstrap 300] [--confidence 0.95]
+                        [--estimator saltelli|jansen|martinez|mauntz-kucherenko] [--seed 1]
+
+Writes OUTDIR/sobol.json and OUTDIR/sobol_<outcome>.png. The report shows them when they are
+in REPORT_OUT/global_sensitivity/ (section(), hooked into make_report.py).
+
+Failed runs: a base sample j is used only if all d + 2 runs of its pick-freeze group
+(A_j, B_j, A_j with column k from B_j) gave a value; the number dropped is recorded.
+Exit status: 0 written; 2 bad input (nothing written).
+"""
+import argparse
+import csv
+import html
+import json
+import math
+import os
+import sys
+
+ESTIMATORS = {"saltelli": "SaltelliSensitivityAlgorithm", "jansen": "JansenSensitivityAlgorithm",
+              "martinez": "MartinezSensitivityAlgorithm",
+              "mauntz-kucherenko": "MauntzKucherenkoSensitivityAlgorithm"}
+
+
+def fail(msg):
+  print(f"global_sensitivity: error: {msg}", file=sys.stderr)
+  sys.exit(2)
+
+
+def read_sweep(csv_path, d):
+  with open(csv_path, newline="") as f:
+    rows = list(csv.reader(f))
+  if not rows or rows[0][0] != "index":
+    fail(f"--sweep = '{csv_path}': not a kneedyn sweep.csv (first column must be 'index')")
+  header = rows[0]
+  status = header.index("status")
+  params = header[1:1 + d]
+  outcomes = header[1 + d:status]
+  X = [[float(v) for v in r[1:1 + d]] for r in rows[1:]]
+  Y = {o: [float(r[1 + d + k]) if r[status] == "completed" or r[1 + d + k] != "nan" else float("nan")
+           for r in rows[1:]] for k, o in enumerate(outcomes)}
+  return params, outcomes, X, Y
+
+
+def sobol_indices(X, y, n, d, bootstrap, confidence, estimator, seed):
+  """Indices of one outcome from the Saltelli layout (rows: A, B, A_B^1 .. A_B^d, each n)."""
+  import openturns as ot
+  keep = [j for j in range(n) if all(math.isfinite(y[b * n + j]) for b in range(d + 2))]
+  m = len(keep)
+  if m < 8:
+    return {"status": f"only {m} complete pick-freeze groups of {n}"}
+  xs = [X[b * n + j] for b in range(d + 2) for j in keep]
+  ys = [[y[b * n + j]] for b in range(d + 2) for j in keep]
+  values = [v[0] for v in ys[:2 * m]]
+  mean = sum(values) / len(values)
+  if sum((v - mean) ** 2 for v in values) <= 1e-300 * len(values):
+    return {"status": "no variance"}
+  ot.RandomGenerator.SetSeed(seed)
+  ot.ResourceMap.SetAsUnsignedInteger("SobolIndicesAlgorithm-DefaultBootstrapSize", bootstrap)
+  algo = getattr(ot, ESTIMATORS[estimator])(ot.Sample(xs), ot.Sample(ys), m)
+  algo.setBootstrapSize(bootstrap)
+  algo.setConfidenceLevel(confidence)
+  s1, st = algo.getFirstOrderIndices(), algo.getTotalOrderIndices()
+  i1, it = algo.getFirstOrderIndicesInterval(), algo.getTotalOrderIndicesInterval()
+  lo1, hi1, lot, hit = i1.getLowerBound(), i1.getUpperBound(), it.getLowerBound(), it.getUpperBound()
+  return {"status": "ok", "groups_used": m, "groups_dropped": n - m,
+          "first_order": [s1[k] for k in range(d)], "first_order_ci": [[lo1[k], hi1[k]] for k in range(d)],
+          "total": [st[k] for k in range(d)], "total_ci": [[lot[k], hit[k]] for k in range(d)]}
+
+
+def bar_chart(path, title, params, r):
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+  order = sorted(range(len(params)), key=lambda k: -r["total"][k])
+  names = [params[k] for k in order]
+  fig, ax = plt.subplots(figsize=(8, 0.32 * len(params) + 1.4))
+  ypos = list(range(len(order)))
+  for off, key, label, color in ((-0.2, "total", "total S_T", "#c0504d"), (0.2, "first_order", "first-order S_1", "#4f81bd")):
+    v = [r[key][k] for k in order]
+    ci = r[key + "_ci"] if key == "total" else r["first_order_ci"]
+    err = [[max(0.0, v[i] - ci[k][0]) for i, k in enumerate(order)], [max(0.0, ci[k][1] - v[i]) for i, k in enumerate(order)]]
+    ax.barh([p + off for p in ypos], v, height=0.4, xerr=err, color=color, label=label, capsize=2)
+  ax.set_yticks(ypos)
+  ax.set_yticklabels(names, fontsize=7)
+  ax.invert_yaxis()
+  ax.set_xlabel("Sobol' index (bars: bootstrap confidence interval)")
+  ax.set_title(title, fontsize=9)
+  ax.legend(fontsize=7, loc="lower right")
+  fig.tight_layout()
+  fig.savefig(path, dpi=110)
+  plt.close(fig)
+
+
+def main(argv=None):
+  ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+  ap.add_argument("--sweep", required=True, help="sweep.csv of a Saltelli sweep")
+  ap.add_argument("--spec", required=True, help="the sweep's spec (YAML): parameter count and N")
+  ap.add_argument("--out", required=True)
+  ap.add_argument("--outcomes", nargs="*", help="outcome columns (default: all)")
+  ap.add_argument("--bootstrap", type=int, default=300)
+  ap.add_argument("--confidence", type=float, default=0.95)
+  ap.add_argument("--estimator", default="saltelli", choices=sorted(ESTIMATORS))
+  ap.add_argument("--seed", type=int, default=1)
+  ap.add_argument("--no-charts", action="store_true")
+  a = ap.parse_args(argv)
+  import yaml
+  for flag, p in (("--sweep", a.sweep), ("--spec", a.spec)):
+    if not os.path.exists(p):
+      fail(f"{flag} = '{p}': file not found")
+  with open(a.spec) as f:
+    spec = yaml.safe_load(f)
+  design = (spec or {}).get("design") or {}
+  if design.get("type") != "saltelli":
+    fail(f"--spec = '{a.spec}': field 'design.type' = '{design.get('type')}': Sobol' indices need a saltelli design")
+  if a.bootstrap < 1:
+    fail(f"--bootstrap = {a.bootstrap}: must be >= 1")
+  if not 0.0 < a.confidence < 1.0:
+    fail(f"--confidence = {a.confidence}: must be in (0, 1)")
+  d, n = len(spec["parameters"]), int(design["samples"])
+  params, outcomes, X, Y = read_sweep(a.sweep, d)
+  if len(X) != n * (d + 2):
+    fail(f"--sweep = '{a.sweep}': {len(X)} rows, but the spec's Saltelli design has N (d + 2) = {n * (d + 2)}")
+  chosen = a.outcomes or outcomes
+  for o in chosen:
+    if o not in Y:
+      fail(f"--outcomes: '{o}' is not a column of {a.sweep}; columns: {', '.join(outcomes)}")
+  os.makedirs(a.out, exist_ok=True)
+  result = {"sweep": os.path.abspath(a.sweep), "spec": os.path.abspath(a.spec), "parameters": params,
+            "base_samples": n, "runs": len(X), "estimator": a.estimator, "bootstrap": a.bootstrap,
+            "confidence": a.confidence, "outcomes": {}}
+  for o in chosen:
+    r = sobol_indices(X, Y[o], n, d, a.bootstrap, a.confidence, a.estimator, a.seed)
+    result["outcomes"][o] = r
+    if r["status"] == "ok" and not a.no_charts:
+      r["chart"] = f"sobol_{o}.png"
+      bar_chart(os.path.join(a.out, r["chart"]), f"{o}: Sobol' indices ({a.estimator}, N = {r['groups_used']}, "
+                f"{int(100 * a.confidence)} % bootstrap CI)", params, r)
+  tmp = os.path.join(a.out, "sobol.json.tmp")
+  with open(tmp, "w") as f:
+    json.dump(result, f, indent=1)
+  os.replace(tmp, os.path.join(a.out, "sobol.json"))
+  print(f"global_sensitivity: {len(chosen)} outcomes -> {os.path.join(a.out, 'sobol.json')}")
+  return 0
+
+
+def top(r, params, key="total", count=3):
+  """The `count` parameters with the largest index `key`, with their intervals."""
+  order = sorted(range(len(params)), key=lambda k: -r[key][k])[:count]
+  return [(params[k], r[key][k], r[key + "_ci"][k] if key == "total" else r["first_order_ci"][k]) for k in order]
+
+
+def section(outdir):
+  """Report section (hooked into make_report.py): OUTDIR/global_sensitivity/sobol.json, if any."""
+  path = os.path.join(outdir, "global_sensitivity", "sobol.json")
+  if not os.path.exists(path):
+    return ""
+  with open(path) as f:
+    s = json.load(f)
+  e = html.escape
+  parts = ["<h2 id='global-sensitivity'>Global sensitivity (Sobol' indices)</h2>",
+           f"<p>Saltelli sweep of {s['runs']} runs (N = {s['base_samples']}, {len(s['parameters'])} parameters), "
+           f"estimator {e(s['estimator'])} (OpenTURNS), {int(100 * s['confidence'])} % bootstrap confidence intervals "
+           f"({s['bootstrap']} resamples). Ranked by total index. Source: <code>{e(s['sweep'])}</code>.</p>"]
+  for o, r in s["outcomes"].items():
+    if r.get("status") != "ok":
+      parts.append(f"<p>{e(o)}: {e(r.get('status'))}</p>")
+      continue
+    rows = "".join(f"<tr><td>{e(p)}</td><td>{v:.3f} [{ci[0]:.3f}, {ci[1]:.3f}]</td></tr>" for p, v, ci in top(r, s["parameters"]))
+    parts.append(f"<h3>{e(o)}</h3><p>{r['groups_used']} complete groups ({r['groups_dropped']} dropped). "
+                 f"Top three by S_T:</p><table><tr><th>parameter</th><th>S_T [CI]</th></tr>{rows}</table>")
+    if r.get("chart"):
+      rel = os.path.join("global_sensitivity", r["chart"])
+      parts.append(f"<figure><img src='{e(rel)}' alt='Sobol indices of {e(o)}'></figure>")
+  return "\n".join(parts)
+
+
+if __name__ == "__main__":
+  sys.exit(main())
