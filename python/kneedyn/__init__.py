@@ -154,6 +154,11 @@ class Scene:
         self.update({"ligaments": [n for n in names if n not in removed]})
         return removed
 
+    def set_ligament_parameters(self, name, **values):
+        """Replaces one element's parameter-set values (scene key ligament_parameters):
+        k_linear_N_mm, k_parabolic_N_mm2, extension_ratio (each > 0)."""
+        return self.update({"ligament_parameters": {name: values}})
+
     def set_ligament_stiffness_scale(self, scale):
         """Scales both stiffnesses of every element (scene key ligament_stiffness_scale)."""
         return self.update({"ligament_stiffness_scale": scale})
