@@ -275,3 +275,17 @@ def test_example_remove_acl_runs():
     assert p.returncode == 0, p.stderr
     assert os.path.getsize(os.path.join(out, "remove_acl.png")) > 10000
     assert "lift-off" in p.stdout
+
+
+@pytest.mark.skipif(not os.environ.get("KNEEDYN_BUILD_DIR"), reason="needs the build tree (run by ctest)")
+def test_import_from_install_prefix():
+    prefix = os.path.join(OUT, "prefix")
+    subprocess.run([os.environ.get("KNEEDYN_CMAKE", "cmake"), "--install", os.environ["KNEEDYN_BUILD_DIR"],
+                    "--prefix", prefix], check=True, capture_output=True)
+    site = os.path.join(prefix, os.environ["KNEEDYN_PYTHON_INSTALL_DIR"])
+    env = dict(os.environ, PYTHONPATH=site)
+    p = subprocess.run([sys.executable, "-c", "import kneedyn; print(kneedyn.__file__); "
+                        "print(kneedyn.run(kneedyn.scene_path('chapter_impact'), 'dae-reduced').status)"],
+                       capture_output=True, text=True, env=env, cwd=prefix)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.split() == [os.path.join(site, "kneedyn", "__init__.py"), "completed"]
