@@ -238,7 +238,7 @@ PYBIND11_MODULE(_kneedyn, m) {
   m.def("run", [](std::shared_ptr<Scene> scene, const std::string& formulation, double rtol, double atol,
                   const std::string& integrator, double step, double max_step, long max_steps,
                   const std::string& stabilization, const std::string& constraint_level,
-                  double output_interval) {
+                  double output_interval, const std::string& out_dir) {
     RunSettings settings;
     settings.formulation = formulation;
     settings.options.rtol = rtol;
@@ -256,6 +256,8 @@ PYBIND11_MODULE(_kneedyn, m) {
       out->result = RunScene(*scene, settings);
       out->table = MakeTrajectoryTable(*scene, out->result);
       out->summary_json = SummaryJson(*scene, settings, out->result).dump();
+      // The CLI's writer: trajectory.csv, trajectory.sto, summary.json, byte for byte.
+      if (!out_dir.empty()) WriteRunOutputs(out_dir, *scene, settings, out->result);
     }
     // Column-major copy of the table: each named column is a contiguous view.
     const size_t ncols = out->table.columns.size(), nrows = out->table.rows.size();
@@ -271,6 +273,6 @@ PYBIND11_MODULE(_kneedyn, m) {
     return d;
   }, py::arg("scene"), py::arg("formulation"), py::arg("rtol"), py::arg("atol"), py::arg("integrator"),
      py::arg("step"), py::arg("max_step"), py::arg("max_steps"), py::arg("stabilization"),
-     py::arg("constraint_level"), py::arg("output_interval"),
-     "RunScene + MakeTrajectoryTable + SummaryJson without the GIL");
+     py::arg("constraint_level"), py::arg("output_interval"), py::arg("out_dir") = "",
+     "RunScene + MakeTrajectoryTable + SummaryJson (+ WriteRunOutputs into out_dir) without the GIL");
 }

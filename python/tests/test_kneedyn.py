@@ -89,6 +89,16 @@ def test_run_equals_cli(formulation, options):
     # 12 digits agree to their rounding.
     flex = np.array([float(r[header.index("flexion_deg")]) for r in rows])
     assert np.allclose(result.trajectory["flexion_deg"], flex, rtol=1e-11, atol=0)
+    # out=DIR writes the CLI's files: the same bytes (summary.json up to its wall time).
+    mine = os.path.join(OUT, "py_" + formulation)
+    kneedyn.run(kneedyn.load_scene(CHAPTER), formulation, out=mine, **options)
+    for name in ("trajectory.csv", "trajectory.sto"):
+        with open(os.path.join(mine, name)) as f1, open(os.path.join(OUT, "cli_" + formulation, name)) as f2:
+            assert f1.read() == f2.read(), name
+    with open(os.path.join(mine, "summary.json")) as f:
+        written = json.load(f)
+    written.pop("wall_time_s"), summary.pop("wall_time_s")
+    assert written == summary
 
 
 def test_python_edits_equal_the_same_edits_in_a_file():
