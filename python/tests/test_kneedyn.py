@@ -299,3 +299,21 @@ def test_import_from_install_prefix():
                        capture_output=True, text=True, env=env, cwd=prefix)
     assert p.returncode == 0, p.stderr
     assert p.stdout.split() == [os.path.join(site, "kneedyn", "__init__.py"), "completed"]
+
+
+def test_report_runner_module_equals_subprocess(monkeypatch):
+    # reports/run_families.py runs through the module when it can; its files must be the
+    # subprocess path's.
+    sys.path.insert(0, os.path.join(os.getcwd(), "reports"))
+    import run_families
+    scene = os.path.join(OUT, "family_scene.yaml")
+    kneedyn.load_scene(CHAPTER).write(scene)
+    args = ["--formulation", "dae", "--rtol", "1e-7", "--atol", "1e-9"]
+    via_module = run_families.run_once(CLI, scene, os.path.join(OUT, "fam_module"), args)
+    monkeypatch.setenv("KNEEDYN_REPORT_RUNNER", "subprocess")
+    via_cli = run_families.run_once(CLI, scene, os.path.join(OUT, "fam_cli"), args)
+    assert (via_module["runner"], via_cli["runner"]) == ("module", "subprocess")
+    assert via_module["ok"] and via_cli["ok"]
+    for name in ("trajectory.csv", "trajectory.sto"):
+        with open(os.path.join(OUT, "fam_module", name)) as a, open(os.path.join(OUT, "fam_cli", name)) as b:
+            assert a.read() == b.read(), name
