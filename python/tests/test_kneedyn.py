@@ -317,3 +317,30 @@ def test_report_runner_module_equals_subprocess(monkeypatch):
     for name in ("trajectory.csv", "trajectory.sto"):
         with open(os.path.join(OUT, "fam_module", name)) as a, open(os.path.join(OUT, "fam_cli", name)) as b:
             assert a.read() == b.read(), name
+
+
+def test_gil_is_released_during_a_run():
+    # While a run integrates in another thread, this thread keeps executing Python. Were the
+    # GIL held for the run, this loop would stall for a whole run: its longest pause would
+    # be at least the run's own wall time. Released, the pauses are thread switches.
+    import threading
+    import time
+    scene = kneedyn.load_scene(CHAPTER)
+    walls = []
+    started = threading.Event()
+
+    def work():
+        started.set()
+        for _ in range(3):
+            walls.append(kneedyn.run(scene, "dae", rtol=1e-11, atol=1e-13).wall_time_s)
+
+    t = threading.Thread(target=work)
+    t.start()
+    started.wait()
+    longest, last = 0.0, time.perf_counter()
+    while t.is_alive():
+        now = time.perf_counter()
+        longest, last = max(longest, now - last), now
+    t.join()
+    print("longest pause %.4f s, run wall times %s" % (longest, walls))
+    assert longest < 0.5 * min(walls), (longest, walls)
