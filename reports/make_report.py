@@ -468,7 +468,9 @@ def commands_section(outdir, kneedyn, quick, bench, fam):
            f"/usr/bin/python3 reports/make_report.py --out {outdir}"]
   if one:
     lines += ["# one member by hand", one["command"]]
-  return "<h2 id='reproduce'>Reproduction</h2>\n<pre>" + esc("\n".join(lines)) + "</pre>"
+  runner = (f"<p>Simulations ran {esc(fam['runner'])} (reports/run_families.py; "
+            "KNEEDYN_REPORT_RUNNER=subprocess runs one CLI process each instead).</p>") if fam.get("runner") else ""
+  return "<h2 id='reproduce'>Reproduction</h2>\n" + runner + "<pre>" + esc("\n".join(lines)) + "</pre>"
 
 
 PEER_INTRO = ("<p>Simbody's integrators (<code>crosscheck/simbody</code>, the chapter knee rebuilt in "

@@ -4,6 +4,10 @@ sensitivity studies with the reference solver, in parallel.
 
   run_families.py --kneedyn PATH --out OUTDIR [--quick]
 
+Runs go through the kneedyn Python module when it is importable (PYTHONPATH, or
+<build>/python beside --kneedyn), in this process; otherwise, or with
+KNEEDYN_REPORT_RUNNER=subprocess, one `kneedyn run` process each. Both write the same files.
+
 Writes OUTDIR/scenes/<member>.yaml, OUTDIR/runs/<member>/{trajectory.csv, summary.json},
 OUTDIR/families.json (members, status) and OUTDIR/sensitivity.json.
 Exit status 1 if any run failed (all runs are attempted).
@@ -90,9 +94,49 @@ def write_scene(outdir, name, amplitude_N, duration_s, init_extra=None, patch=No
   return path
 
 
+_MODULE = {}
+
+
+def kneedyn_module(kneedyn):
+  """The kneedyn Python module (python/, issue 17) if importable — from PYTHONPATH or from the
+  build tree beside the binary (<build>/python) — else None. KNEEDYN_REPORT_RUNNER=subprocess
+  forces the subprocess path."""
+  if os.environ.get("KNEEDYN_REPORT_RUNNER") == "subprocess":
+    return None
+  if kneedyn not in _MODULE:
+    build_python = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(kneedyn))), "python")
+    if os.path.isdir(os.path.join(build_python, "kneedyn")) and build_python not in sys.path:
+      sys.path.insert(0, build_python)
+    try:
+      import kneedyn as module
+      _MODULE[kneedyn] = module
+    except ImportError:
+      _MODULE[kneedyn] = None
+  return _MODULE[kneedyn]
+
+
+def runner_description(kneedyn):
+  m = kneedyn_module(kneedyn)
+  return (f"in-process through the kneedyn Python module ({m.__file__}), same driver and file writer as the CLI"
+          if m else "one kneedyn CLI process per run")
+
+
 def run_once(kneedyn, scene_path, run_dir, solver_args):
   cmd = [kneedyn, "run", scene_path] + solver_args + [
       "--output-interval", str(OUTPUT_INTERVAL_S), "--out", run_dir, "--quiet"]
+  module = kneedyn_module(kneedyn)
+  if module is not None:
+    # Same run and same files as `cmd` (python/tests: byte-identical trajectory.csv), in this
+    # process; the thread pool runs several at once (the module releases the GIL).
+    opts = dict(zip(solver_args[0::2], solver_args[1::2]))
+    try:
+      r = module.run(scene_path, opts["--formulation"], rtol=float(opts["--rtol"]), atol=float(opts["--atol"]),
+                     output_interval=OUTPUT_INTERVAL_S, out=run_dir)
+      ok, status, rc, err = r.completed, r.status, 0 if r.completed else 1, r.failure
+    except module.Error as e:  # InputError: what the CLI reports with exit code 2
+      ok, status, rc, err = False, "failed", 2 if isinstance(e, module.InputError) else 1, str(e)
+    return {"command": " ".join(cmd), "ok": ok, "status": status, "returncode": rc,
+            "stderr": err[-2000:], "runner": "module"}
   p = subprocess.run(cmd, capture_output=True, text=True)
   ok = p.returncode == 0 and os.path.exists(os.path.join(run_dir, "summary.json"))
   status = "failed"
@@ -101,7 +145,7 @@ def run_once(kneedyn, scene_path, run_dir, solver_args):
       status = json.load(f).get("status", "failed")
     ok = status == "completed"
   return {"command": " ".join(cmd), "ok": ok, "status": status, "returncode": p.returncode,
-          "stderr": p.stderr.strip()[-2000:]}
+          "stderr": p.stderr.strip()[-2000:], "runner": "subprocess"}
 
 
 def run_one(kneedyn, scene_path, run_dir):
@@ -215,7 +259,7 @@ def main(argv=None):
                     "fallback": results[name]["fallback"]})
   with open(os.path.join(outdir, "families.json"), "w") as f:
     json.dump({"solver_args": SOLVER_ARGS, "output_interval_s": OUTPUT_INTERVAL_S,
-               "quick": args.quick, "members": members}, f, indent=2)
+               "quick": args.quick, "runner": runner_description(args.kneedyn), "members": members}, f, indent=2)
 
   # Sensitivity studies: differences vs the unperturbed run.
   sens = {"reference": ref_name, "force_guess": [], "contact_offset": []}

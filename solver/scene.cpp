@@ -52,6 +52,12 @@ class Field {
     return node_.size();
   }
   bool IsSequence() const { return node_.IsSequence(); }
+  std::vector<std::string> Keys() const {
+    if (!node_.IsMap()) Fail("must be a mapping");
+    std::vector<std::string> keys;
+    for (const auto& kv : node_) keys.push_back(kv.first.Scalar());
+    return keys;
+  }
   bool IsScalar() const { return node_.IsScalar(); }
   const std::string& path() const { return path_; }
 
@@ -408,10 +414,35 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
         if (l.name == names[i]) f.Item(i).Fail("ligament listed twice");
       }
       Ligament lig = *it;
+      if (top.Has("ligament_parameters") && top.Required("ligament_parameters").Has(names[i])) {
+        // Per-element values replacing the parameter set's (before the stiffness scale).
+        const Field p = top.Required("ligament_parameters").Required(names[i]);
+        for (const std::string& key : p.Keys()) {
+          if (key == "k_linear_N_mm") {
+            lig.k_linear = p.Required(key).Positive() * kMmPerM;  // N/mm -> N/m
+          } else if (key == "k_parabolic_N_mm2") {
+            lig.k_parabolic_published = p.Required(key).Positive() * kMmPerM * kMmPerM;
+          } else if (key == "extension_ratio") {
+            lig.extension_ratio = p.Required(key).Positive();
+          } else {
+            p.Required(key).Fail("unknown ligament parameter; expected k_linear_N_mm, k_parabolic_N_mm2 or extension_ratio");
+          }
+        }
+      }
       lig.k_linear *= stiffness_scale;
       lig.k_parabolic_published *= stiffness_scale;
       FillLigamentLengths(ps.reference_q, model.ligament_law, &lig);
       model.ligaments.push_back(lig);
+    }
+  }
+
+  if (top.Has("ligament_parameters")) {
+    const Field f = top.Required("ligament_parameters");
+    for (const std::string& key : f.Keys()) {
+      if (std::none_of(model.ligaments.begin(), model.ligaments.end(),
+                       [&](const Ligament& l) { return l.name == key; })) {
+        f.Required(key).Fail("not a ligament element selected by this scene (field 'ligaments')");
+      }
     }
   }
 

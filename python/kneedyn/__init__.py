@@ -1,0 +1,302 @@
+"""kneedyn from Python (issue 17): scenes, the formulation registry and runs.
+
+    import kneedyn
+    scene = kneedyn.load_scene(kneedyn.scene_path("chapter_impact"))
+    scene.remove_ligaments("ACL")
+    result = kneedyn.run(scene, "dae", rtol=1e-8, atol=1e-10)
+    result.trajectory["flexion_deg"], result.events, result.statistics, result.summary
+
+A Scene is a scene document (the dict form of a scene YAML file, see
+reference-data/scenes/README.md) plus its validated form. Every change goes through the
+C++ scene loader again, so the rules and messages are the CLI's; a change that breaks a
+rule raises kneedyn.InputError (a ValueError) and leaves the scene as it was.
+
+run() calls the same driver as `kneedyn run` and returns the same content: the
+trajectory with the columns and units of trajectory.csv, and `summary`, the dict that
+summary.json holds. The GIL is released during a run, so a ThreadPoolExecutor runs
+several scenes at once. See docs/python.md.
+"""
+import copy as _copy
+import json as _json
+import os as _os
+
+import numpy as _np
+
+from . import _kneedyn
+from ._kneedyn import Error, InputError, SolverError, CompiledScene
+
+__all__ = ["Scene", "Result", "Trajectory", "Event", "load_scene", "run", "formulations",
+           "data_dir", "scene_path", "Error", "InputError", "SolverError"]
+
+
+def data_dir():
+    """Directory of the reference data (parameter sets, scenes); KNEEDYN_DATA_DIR overrides."""
+    return _kneedyn.data_dir()
+
+
+def scene_path(name):
+    """Path of a scene shipped in reference-data/scenes, e.g. scene_path('chapter_impact')."""
+    return _os.path.join(data_dir(), "scenes", name if name.endswith(".yaml") else name + ".yaml")
+
+
+def formulations():
+    """The formulation registry: list of dicts with name, summary, integrators (values
+    `integrator=` accepts; empty: fixed integrator), fixed_step (steps only with `step=`)
+    and fixed_step_integrators (integrators that take `step=` instead of tolerances)."""
+    return _kneedyn.formulations()
+
+
+class Scene:
+    """A scene: its document (dict) and the loader's validated form of it."""
+
+    def __init__(self, document, compiled, label, base_dir):
+        self._doc = document
+        self._compiled = compiled
+        self._label = label
+        self._base_dir = base_dir
+
+    # --- construction -------------------------------------------------------------
+    @classmethod
+    def from_dict(cls, document, base_dir=None, label="<dict>"):
+        """Validates a scene document with the CLI's loader. A relative parameter_set is
+        looked up under base_dir (default: the working directory), then under data_dir()."""
+        if not isinstance(document, dict):
+            raise InputError("Scene.from_dict(): document = %r: must be a dict" % (document,))
+        doc = _copy.deepcopy(document)
+        base = _os.path.abspath(base_dir if base_dir is not None else _os.getcwd())
+        return cls(doc, _kneedyn.parse_document(doc, label, base), label, base)
+
+    def copy(self):
+        return Scene(_copy.deepcopy(self._doc), self._compiled, self._label, self._base_dir)
+
+    # --- what it is -----------------------------------------------------------------
+    @property
+    def compiled(self):
+        return self._compiled
+
+    @property
+    def name(self):
+        return self._compiled.name
+
+    @property
+    def path(self):
+        return self._compiled.path
+
+    @property
+    def ligaments(self):
+        """Names of the ligament elements in the model, in model order."""
+        return [lig["name"] for lig in self._compiled.ligaments]
+
+    @ligaments.setter
+    def ligaments(self, names):
+        self.update({"ligaments": list(names)})
+
+    @property
+    def ligament_parameters(self):
+        """Per element: stiffnesses (N/mm, N/mm^2, as the law uses them), extension ratio,
+        reference and slack lengths (mm)."""
+        return self._compiled.ligaments
+
+    @property
+    def contacts(self):
+        return self._compiled.contacts
+
+    @property
+    def pulse(self):
+        return self._compiled.pulse
+
+    @property
+    def end(self):
+        return self._compiled.end
+
+    def to_dict(self):
+        """A copy of the scene document."""
+        return _copy.deepcopy(self._doc)
+
+    def to_yaml(self):
+        """The document as YAML text (what the loader reads; numbers with 17 digits)."""
+        return _kneedyn.to_yaml(self._doc)
+
+    def write(self, path):
+        """Writes the document as a scene file the CLI can run. A relative parameter_set
+        is made absolute so that the file works from any directory."""
+        doc = _copy.deepcopy(self._doc)
+        ps = doc.get("parameter_set")
+        if isinstance(ps, str) and not _os.path.isabs(ps):
+            near = _os.path.join(self._base_dir, ps)
+            doc["parameter_set"] = near if _os.path.exists(near) else _os.path.join(data_dir(), ps)
+        with open(path, "w") as f:
+            f.write(_kneedyn.to_yaml(doc))
+
+    # --- changes (validated by the loader; atomic) ----------------------------------
+    def update(self, changes):
+        """Deep-merges `changes` into the document (a value None deletes the key) and
+        validates the result; on error the scene is unchanged."""
+        doc = _copy.deepcopy(self._doc)
+        _merge(doc, changes)
+        label = self._label if self._label.endswith("(modified in Python)") \
+            else self._label + " (modified in Python)"
+        compiled = _kneedyn.parse_document(doc, label, self._base_dir)
+        self._doc, self._compiled, self._label = doc, compiled, label
+        return self
+
+    def remove_ligaments(self, *patterns):
+        """Removes every element whose name contains one of the patterns (e.g. 'ACL');
+        returns the removed names. A pattern that matches nothing raises InputError."""
+        names = self.ligaments
+        removed = []
+        for p in patterns:
+            hit = [n for n in names if p in n]
+            if not hit:
+                raise InputError("Scene.remove_ligaments(): pattern '%s' matches no element; the "
+                                 "scene has: %s" % (p, ", ".join(names)))
+            removed += [n for n in hit if n not in removed]
+        self.update({"ligaments": [n for n in names if n not in removed]})
+        return removed
+
+    def set_ligament_parameters(self, name, **values):
+        """Replaces one element's parameter-set values (scene key ligament_parameters):
+        k_linear_N_mm, k_parabolic_N_mm2, extension_ratio (each > 0)."""
+        return self.update({"ligament_parameters": {name: values}})
+
+    def set_ligament_stiffness_scale(self, scale):
+        """Scales both stiffnesses of every element (scene key ligament_stiffness_scale)."""
+        return self.update({"ligament_stiffness_scale": scale})
+
+    def set_pulse(self, **fields):
+        """Pulse fields: shape (reconstructed|half_sine|none), amplitude_N, duration_s,
+        direction_T."""
+        return self.update({"pulse": fields})
+
+    def set_end(self, **fields):
+        """End condition fields: flexion_deg, time_s (None removes one)."""
+        return self.update({"end": fields})
+
+    def __repr__(self):
+        return "<kneedyn.Scene %s: %d ligaments, contacts %s, pulse %s>" % (
+            self.name, len(self.ligaments), self.contacts, self.pulse)
+
+
+def _merge(doc, changes):
+    for k, v in changes.items():
+        if v is None:
+            doc.pop(k, None)
+        elif isinstance(v, dict) and isinstance(doc.get(k), dict):
+            _merge(doc[k], v)
+        else:
+            doc[k] = _copy.deepcopy(v)
+
+
+def load_scene(path):
+    """Reads and validates a scene file exactly as `kneedyn run` does."""
+    compiled, document = _kneedyn.load_file(str(path))
+    return Scene(document, compiled, str(path), _os.path.dirname(_os.path.abspath(str(path))))
+
+
+def _unit(column):
+    if column in ("contacts_active",):
+        return "count"
+    if column == "is_event":
+        return "flag (1: event row)"
+    if column.startswith("strain_"):
+        return "1 (strain)"
+    for suffix, unit in (("_deg_s", "deg/s"), ("_mm_s", "mm/s"), ("_deg", "deg"), ("_mm", "mm"),
+                         ("_N", "N"), ("_s", "s")):
+        if column.endswith(suffix):
+            return unit
+    return ""
+
+
+class Trajectory:
+    """The run's output rows with the columns of trajectory.csv (same names, same units:
+    mm, deg, N, s; NaN where the CSV has an empty cell). `traj['flexion_deg']` is a
+    contiguous read-only view, `traj.array` the (rows x columns) array."""
+
+    def __init__(self, columns, data):
+        self.columns = list(columns)
+        self._index = {c: i for i, c in enumerate(self.columns)}
+        data.setflags(write=False)
+        self._data = data  # (columns, rows)
+
+    @property
+    def array(self):
+        return self._data.T
+
+    @property
+    def units(self):
+        return {c: _unit(c) for c in self.columns}
+
+    def __getitem__(self, column):
+        try:
+            return self._data[self._index[column]]
+        except KeyError:
+            raise KeyError("no column '%s'; columns: %s" % (column, ", ".join(self.columns))) from None
+
+    def __contains__(self, column):
+        return column in self._index
+
+    def __len__(self):
+        return self._data.shape[1]
+
+    def to_dict(self):
+        return {c: self[c] for c in self.columns}
+
+
+class Event:
+    __slots__ = ("name", "time", "flexion_deg")
+
+    def __init__(self, name, time, flexion_deg):
+        self.name, self.time, self.flexion_deg = name, time, flexion_deg
+
+    def __repr__(self):
+        return "Event(%r, t=%.6g s, flexion=%.6g deg)" % (self.name, self.time, self.flexion_deg)
+
+
+class Result:
+    """A run: `summary` is the dict summary.json holds; status, failure, end_reason,
+    events, statistics are taken from it; `trajectory` holds trajectory.csv's columns."""
+
+    def __init__(self, summary, trajectory):
+        self.summary = summary
+        self.trajectory = trajectory
+
+    status = property(lambda self: self.summary["status"])       # completed | partial
+    completed = property(lambda self: self.summary["status"] == "completed")
+    failure = property(lambda self: self.summary.get("failure", ""))
+    end_reason = property(lambda self: self.summary["end_reason"])
+    statistics = property(lambda self: self.summary["statistics"])
+    wall_time_s = property(lambda self: self.summary["wall_time_s"])
+
+    @property
+    def events(self):
+        return [Event(e["name"], e["time"], e["flexion_deg"]) for e in self.summary["events"]]
+
+    def event(self, prefix):
+        """First event whose name starts with prefix (e.g. 'liftoff'), or None."""
+        return next((e for e in self.events if e.name.startswith(prefix)), None)
+
+    def __repr__(self):
+        return "<kneedyn.Result %s (%s), %d rows, %d steps>" % (
+            self.status, self.end_reason or self.failure, len(self.trajectory),
+            self.statistics["steps"])
+
+
+_DEFAULTS = _kneedyn.default_options()
+
+
+def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["atol"],
+        integrator=_DEFAULTS["integrator"], step=_DEFAULTS["step"], max_step=_DEFAULTS["max_step"],
+        max_steps=_DEFAULTS["max_steps"], stabilization=_DEFAULTS["stabilization"],
+        constraint_level=_DEFAULTS["constraint_level"], output_interval=0.0, out=None):
+    """Runs a scene (a Scene, or a path to a scene file) like `kneedyn run` with the
+    options of the same names (output_interval 0: the scene's). Bad options raise
+    InputError before anything runs; a solver failure returns a Result with
+    status 'partial' and the reason in `failure`, as the CLI does. With out=DIR the
+    CLI's files (trajectory.csv, trajectory.sto, summary.json) are written there by the
+    CLI's writer."""
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    out = _kneedyn.run(scene.compiled, formulation, float(rtol), float(atol), integrator,
+                       float(step), float(max_step), int(max_steps), stabilization,
+                       constraint_level, float(output_interval), "" if out is None else str(out))
+    return Result(_json.loads(out["summary_json"]), Trajectory(out["columns"], out["data"]))

@@ -1,0 +1,278 @@
+// _kneedyn: the compiled half of the `kneedyn` Python package (issue 17). It binds the
+// public API only — the scene loader (solver/scene.hpp), the formulation registry
+// (formulations/formulation.hpp), the run driver (formulations/run.hpp) and the output
+// builders (formulations/run_output.hpp) — and adds no physics and no validation:
+//   - a scene given as a Python dict is turned into a YAML document and handed to
+//     ParseScene, so every rule and every message is the CLI loader's;
+//   - a run's trajectory is MakeTrajectoryTable's (the columns of trajectory.csv), its
+//     summary is SummaryJson's (the content of summary.json).
+// The GIL is released while a scene is parsed and while a run integrates, so Python
+// threads run several scenes at once (each run owns its formulation and SUNDIALS context).
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <string>
+
+#include "formulations/run.hpp"
+#include "formulations/run_output.hpp"
+#include "solver/error.hpp"
+#include "solver/loads.hpp"
+#include "solver/scene.hpp"
+#include "solver/units.hpp"
+
+namespace py = pybind11;
+using namespace kneedyn;
+
+namespace {
+
+// Python value -> YAML node. Numbers are written with 17 significant digits, so the
+// loader reads back exactly the double Python holds.
+YAML::Node ToYaml(const py::handle& obj, const std::string& where) {
+  if (obj.is_none()) return YAML::Node(YAML::NodeType::Null);
+  if (py::isinstance<py::bool_>(obj)) return YAML::Node(obj.cast<bool>() ? "true" : "false");
+  if (py::isinstance<py::str>(obj)) return YAML::Node(obj.cast<std::string>());
+  if (py::isinstance<py::dict>(obj)) {
+    YAML::Node map(YAML::NodeType::Map);
+    for (auto item : obj.cast<py::dict>()) {
+      if (!py::isinstance<py::str>(item.first)) {
+        Throw<InputError>("Scene.from_dict", "key ", std::string(py::repr(item.first)), " under '",
+                          where.empty() ? "<top>" : where, "' must be a string");
+      }
+      const std::string key = item.first.cast<std::string>();
+      map[key] = ToYaml(item.second, where.empty() ? key : where + "." + key);
+    }
+    return map;
+  }
+  if (py::isinstance<py::list>(obj) || py::isinstance<py::tuple>(obj)) {
+    YAML::Node seq(YAML::NodeType::Sequence);
+    size_t i = 0;
+    for (auto item : obj) seq.push_back(ToYaml(item, StrCat(where, "[", i++, "]")));
+    return seq;
+  }
+  if (py::isinstance<py::int_>(obj) || py::hasattr(obj, "__index__")) {
+    return YAML::Node(std::string(py::str(py::int_(py::reinterpret_borrow<py::object>(obj)))));
+  }
+  if (py::isinstance<py::float_>(obj) || py::hasattr(obj, "__float__")) {
+    const double v = py::float_(py::reinterpret_borrow<py::object>(obj)).cast<double>();
+    if (std::isnan(v)) return YAML::Node(".nan");  // the loader's "must be finite"
+    if (std::isinf(v)) return YAML::Node(v > 0 ? ".inf" : "-.inf");
+    char buf[40];
+    std::snprintf(buf, sizeof(buf), "%.17g", v);
+    return YAML::Node(std::string(buf));
+  }
+  Throw<InputError>("Scene.from_dict", "field '", where, "' = ", std::string(py::repr(obj)),
+                    ": unsupported type ", std::string(py::str(obj.get_type().attr("__name__"))),
+                    "; use dict, list, str, number, bool or None");
+}
+
+std::string EmitYaml(const YAML::Node& node) {
+  YAML::Emitter out;
+  out << node;
+  return out.c_str();
+}
+
+// YAML node -> Python value: integers and decimals become int / float, true/false bool,
+// anything else a string (as the loader would read it).
+py::object FromYaml(const YAML::Node& node) {
+  switch (node.Type()) {
+    case YAML::NodeType::Map: {
+      py::dict d;
+      for (const auto& kv : node) d[py::str(kv.first.Scalar())] = FromYaml(kv.second);
+      return std::move(d);
+    }
+    case YAML::NodeType::Sequence: {
+      py::list l;
+      for (const auto& item : node) l.append(FromYaml(item));
+      return std::move(l);
+    }
+    case YAML::NodeType::Scalar: {
+      const std::string& s = node.Scalar();
+      if (node.Tag() != "!") {  // quoted scalars stay strings
+        if (s == "true" || s == "True") return py::bool_(true);
+        if (s == "false" || s == "False") return py::bool_(false);
+        char* end = nullptr;
+        if (!s.empty()) {
+          const long long i = std::strtoll(s.c_str(), &end, 10);
+          if (*end == '\0') return py::int_(i);
+          const double v = std::strtod(s.c_str(), &end);
+          if (*end == '\0') return py::float_(v);
+        }
+      }
+      return py::str(s);
+    }
+    default:
+      return py::none();
+  }
+}
+
+py::dict LigamentDict(const Ligament& l) {
+  py::dict d;
+  d["name"] = l.name;
+  d["k_linear_N_mm"] = l.k_linear / kMmPerM;
+  d["k_parabolic_N_mm2"] = l.k_parabolic / (kMmPerM * kMmPerM);
+  d["extension_ratio"] = l.extension_ratio;
+  d["reference_length_mm"] = MToMm(l.reference_length);
+  d["slack_length_mm"] = MToMm(l.slack_length);
+  return d;
+}
+
+// Everything a run returns, built without the GIL.
+struct RunOutput {
+  std::string summary_json;
+  TrajectoryTable table;
+  RunResult result;
+};
+
+}  // namespace
+
+PYBIND11_MODULE(_kneedyn, m) {
+  m.doc() = "kneedyn compiled bindings; use the `kneedyn` package";
+
+  // Exceptions: InputError is also a ValueError, SolverError a RuntimeError.
+  static py::exception<Error> error(m, "Error", PyExc_RuntimeError);
+  static py::exception<InputError> input_error(m, "InputError", PyExc_ValueError);
+  static py::exception<SolverError> solver_error(m, "SolverError", error.ptr());
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const InputError& e) {
+      input_error(e.what());
+    } catch (const SolverError& e) {
+      solver_error(e.what());
+    } catch (const Error& e) {
+      error(e.what());
+    }
+  });
+
+  py::class_<Scene, std::shared_ptr<Scene>>(m, "CompiledScene",
+      "A validated scene as the run driver sees it (read-only; modify kneedyn.Scene)")
+      .def_readonly("name", &Scene::name)
+      .def_readonly("path", &Scene::path)
+      .def_readonly("description", &Scene::description)
+      .def_readonly("parameter_set", &Scene::parameter_set)
+      .def_readonly("output_interval_s", &Scene::output_interval)
+      .def_property_readonly("ligaments", [](const Scene& s) {
+        py::list l;
+        for (const Ligament& lig : s.model.ligaments) l.append(LigamentDict(lig));
+        return l;
+      })
+      .def_property_readonly("contacts", [](const Scene& s) {
+        std::vector<std::string> c;
+        for (const ContactPair& p : s.model.contacts) c.push_back(CompartmentName(p.compartment));
+        return c;
+      })
+      .def_property_readonly("pulse", [](const Scene& s) {
+        py::dict d;
+        d["shape"] = PulseShapeName(s.model.pulse.shape);
+        d["amplitude_N"] = s.model.pulse.amplitude;
+        d["duration_s"] = s.model.pulse.duration;
+        return d;
+      })
+      .def_property_readonly("end", [](const Scene& s) {
+        py::dict d;
+        d["flexion_deg"] = s.end.flexion ? py::object(py::float_(RadToDeg(*s.end.flexion))) : py::none();
+        d["time_s"] = s.end.time;
+        return d;
+      });
+
+  m.def("load_file", [](const std::string& path) {
+    std::shared_ptr<Scene> scene;
+    {
+      py::gil_scoped_release release;
+      scene = std::make_shared<Scene>(LoadScene(path));
+    }
+    // The file is valid YAML: LoadScene has parsed it.
+    return py::make_tuple(scene, FromYaml(YAML::LoadFile(path)));
+  }, py::arg("path"), "LoadScene(path) and the file's document as a dict");
+
+  m.def("parse_document", [](const py::dict& doc, const std::string& label, const std::string& base_dir) {
+    const std::string text = EmitYaml(ToYaml(doc, ""));
+    py::gil_scoped_release release;
+    return std::make_shared<Scene>(ParseScene(text, label, base_dir));
+  }, py::arg("document"), py::arg("label"), py::arg("base_dir"),
+     "ParseScene on the YAML form of a dict (the CLI loader's rules and messages)");
+
+  m.def("to_yaml", [](const py::dict& doc) { return EmitYaml(ToYaml(doc, "")); }, py::arg("document"));
+
+  m.def("data_dir", &ReferenceDataDir, "directory of the reference data (KNEEDYN_DATA_DIR overrides)");
+
+  m.def("formulations", []() {
+    py::list out;
+    for (const FormulationInfo& f : RegisteredFormulations()) {
+      py::dict d;
+      d["name"] = f.name;
+      d["summary"] = f.summary;
+      d["integrators"] = f.integrators;
+      d["fixed_step"] = f.fixed_step;
+      std::vector<std::string> fixed;
+      for (const std::string& i : f.integrators) {
+        if (IsFixedStep(f, i)) fixed.push_back(i);
+      }
+      d["fixed_step_integrators"] = fixed;
+      out.append(d);
+    }
+    return out;
+  }, "the formulation registry, in its stable order");
+
+  m.def("default_options", []() {
+    const FormulationOptions o;
+    py::dict d;
+    d["rtol"] = o.rtol;
+    d["atol"] = o.atol;
+    d["integrator"] = o.integrator;
+    d["step"] = o.step;
+    d["max_step"] = o.max_step;
+    d["max_steps"] = o.max_steps;
+    d["stabilization"] = o.stabilization;
+    d["constraint_level"] = o.constraint_level;
+    d["default_fixed_step"] = kDefaultFixedStep;
+    return d;
+  });
+
+  m.def("run", [](std::shared_ptr<Scene> scene, const std::string& formulation, double rtol, double atol,
+                  const std::string& integrator, double step, double max_step, long max_steps,
+                  const std::string& stabilization, const std::string& constraint_level,
+                  double output_interval, const std::string& out_dir) {
+    RunSettings settings;
+    settings.formulation = formulation;
+    settings.options.rtol = rtol;
+    settings.options.atol = atol;
+    settings.options.integrator = integrator;
+    settings.options.step = step;
+    settings.options.max_step = max_step;
+    settings.options.max_steps = max_steps;
+    settings.options.stabilization = stabilization;
+    settings.options.constraint_level = constraint_level;
+    settings.output_interval = output_interval;
+    auto out = std::make_shared<RunOutput>();
+    {
+      py::gil_scoped_release release;
+      out->result = RunScene(*scene, settings);
+      out->table = MakeTrajectoryTable(*scene, out->result);
+      out->summary_json = SummaryJson(*scene, settings, out->result).dump();
+      // The CLI's writer: trajectory.csv, trajectory.sto, summary.json, byte for byte.
+      if (!out_dir.empty()) WriteRunOutputs(out_dir, *scene, settings, out->result);
+    }
+    // Column-major copy of the table: each named column is a contiguous view.
+    const size_t ncols = out->table.columns.size(), nrows = out->table.rows.size();
+    py::array_t<double> data({ncols, nrows});
+    auto w = data.mutable_unchecked<2>();
+    for (size_t r = 0; r < nrows; ++r) {
+      for (size_t c = 0; c < ncols; ++c) w(c, r) = out->table.rows[r][c];
+    }
+    py::dict d;
+    d["summary_json"] = out->summary_json;
+    d["columns"] = out->table.columns;
+    d["data"] = data;
+    return d;
+  }, py::arg("scene"), py::arg("formulation"), py::arg("rtol"), py::arg("atol"), py::arg("integrator"),
+     py::arg("step"), py::arg("max_step"), py::arg("max_steps"), py::arg("stabilization"),
+     py::arg("constraint_level"), py::arg("output_interval"), py::arg("out_dir") = "",
+     "RunScene + MakeTrajectoryTable + SummaryJson (+ WriteRunOutputs into out_dir) without the GIL");
+}

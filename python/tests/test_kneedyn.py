@@ -1,0 +1,346 @@
+"""pytest suite of the kneedyn Python module (issue 17), run by ctest (label python).
+
+What it validates:
+  - the module's runs equal the CLI's for the same scene and settings: every cell of
+    trajectory.csv (the CSV prints 12 significant digits, "%.12g", so that is the
+    precision this comparison has) and, bitwise, everything in summary.json (JSON numbers
+    are written shortest-round-trip, so equal text means equal doubles): events, final
+    state, initialization residuals, solver counters;
+  - scenes edited in Python equal the same edits written to a file and run by the CLI;
+  - bad scenes and options raise InputError with the loader's message (field and value),
+    the same text the CLI prints before exiting with code 2, and leave the scene unchanged;
+  - a thread pool of runs gives bitwise the same results as serial runs.
+What it does not: accuracy of the physics (the C++ suites do that).
+"""
+import concurrent.futures
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+import pytest
+
+import kneedyn
+
+CLI = os.environ.get("KNEEDYN_CLI", "build/formulations/kneedyn")
+OUT = os.environ.get("KNEEDYN_TEST_OUT") or tempfile.mkdtemp(prefix="kneedyn_py_")
+CHAPTER = os.path.join("reference-data", "scenes", "chapter_impact.yaml")
+
+# (formulation, options): one per family of method (IDA, fixed-step Newton, explicit RK
+# with error control, CVODE).
+CASES = [
+    ("dae", dict(rtol=1e-8, atol=1e-10)),
+    ("newmark", dict(step=2e-4)),
+    ("mde", dict(integrator="dopri5", rtol=1e-7, atol=1e-9)),
+    ("ede", dict(integrator="cvode-bdf", stabilization="projection")),
+]
+
+
+def cli_args(options):
+    args = []
+    for k, v in options.items():
+        args += ["--" + k.replace("_", "-"), repr(v) if isinstance(v, float) else str(v)]
+    return args
+
+
+def run_cli(scene_file, formulation, options, name):
+    out = os.path.join(OUT, name)
+    p = subprocess.run([CLI, "run", scene_file, "--formulation", formulation, "--quiet", "--out", out]
+                       + cli_args(options), capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    with open(os.path.join(out, "trajectory.csv")) as f:
+        rows = list(csv.reader(f))
+    with open(os.path.join(out, "summary.json")) as f:
+        summary = json.load(f)
+    return rows[0], rows[1:], summary
+
+
+def assert_same_as_cli(result, header, rows, summary, ignore_path=False):
+    traj = result.trajectory
+    assert traj.columns == header
+    assert len(traj) == len(rows)
+    mismatches = []
+    for c, name in enumerate(header):
+        col = traj[name]
+        for r, row in enumerate(rows):
+            mine = "" if not math.isfinite(col[r]) else "%.12g" % col[r]
+            if mine != row[c]:
+                mismatches.append((r, name, mine, row[c]))
+    assert not mismatches, mismatches[:5]
+    a, b = dict(result.summary), dict(summary)
+    for d in (a, b):
+        d.pop("wall_time_s")
+        if ignore_path:
+            d["scene"].pop("path")
+    assert a == b
+
+
+@pytest.mark.parametrize("formulation,options", CASES, ids=[c[0] for c in CASES])
+def test_run_equals_cli(formulation, options):
+    header, rows, summary = run_cli(CHAPTER, formulation, options, "cli_" + formulation)
+    result = kneedyn.run(kneedyn.load_scene(CHAPTER), formulation, **options)
+    assert result.completed and result.end_reason == "flexion_90"
+    assert_same_as_cli(result, header, rows, summary)
+    # The trajectory is float64 straight from the driver, not re-read from text: the CSV's
+    # 12 digits agree to their rounding.
+    flex = np.array([float(r[header.index("flexion_deg")]) for r in rows])
+    assert np.allclose(result.trajectory["flexion_deg"], flex, rtol=1e-11, atol=0)
+    # out=DIR writes the CLI's files: the same bytes (summary.json up to its wall time).
+    mine = os.path.join(OUT, "py_" + formulation)
+    kneedyn.run(kneedyn.load_scene(CHAPTER), formulation, out=mine, **options)
+    for name in ("trajectory.csv", "trajectory.sto"):
+        with open(os.path.join(mine, name)) as f1, open(os.path.join(OUT, "cli_" + formulation, name)) as f2:
+            assert f1.read() == f2.read(), name
+    with open(os.path.join(mine, "summary.json")) as f:
+        written = json.load(f)
+    written.pop("wall_time_s"), summary.pop("wall_time_s")
+    assert written == summary
+
+
+def test_python_edits_equal_the_same_edits_in_a_file():
+    scene = kneedyn.load_scene(CHAPTER)
+    removed = scene.remove_ligaments("ACL")
+    assert removed == ["ACL anterior", "ACL posterior"]
+    scene.set_pulse(amplitude_N=80.0, duration_s=0.12)
+    scene.set_end(flexion_deg=70.0, time_s=1.0)
+    scene.set_ligament_stiffness_scale(1.1)
+    assert scene.pulse["amplitude_N"] == 80.0 and scene.end["flexion_deg"] == pytest.approx(70.0)
+    assert len(scene.ligaments) == 10 and not any("ACL" in n for n in scene.ligaments)
+    path = os.path.join(OUT, "edited_scene.yaml")
+    os.makedirs(OUT, exist_ok=True)
+    scene.write(path)
+    header, rows, summary = run_cli(path, "dae", dict(rtol=1e-7, atol=1e-9), "cli_edited")
+    result = kneedyn.run(scene, "dae", rtol=1e-7, atol=1e-9)
+    assert summary["scene"]["ligaments"] == 10
+    assert_same_as_cli(result, header, rows, summary, ignore_path=True)
+    assert not any(c.startswith("F_ACL") for c in result.trajectory.columns)
+    # The edits changed the run (the file on disk was not touched).
+    base = kneedyn.run(kneedyn.load_scene(CHAPTER), "dae", rtol=1e-7, atol=1e-9)
+    assert base.trajectory["flexion_deg"].shape != result.trajectory["flexion_deg"].shape or \
+        not np.array_equal(base.trajectory["flexion_deg"], result.trajectory["flexion_deg"])
+
+
+def test_ligament_parameters_equal_the_stiffness_scale():
+    # Doubling both stiffnesses of every element by ligament_parameters is what
+    # ligament_stiffness_scale 2 does (a power of two: bitwise the same model and run).
+    by_element = kneedyn.load_scene(CHAPTER)
+    for lig in by_element.ligament_parameters:
+        by_element.set_ligament_parameters(lig["name"], k_linear_N_mm=2 * lig["k_linear_N_mm"])
+    doc = by_element.to_dict()
+    for name, p in doc["ligament_parameters"].items():
+        pub = next(l for l in kneedyn.load_scene(CHAPTER).ligament_parameters if l["name"] == name)
+        # k_parabolic as the law uses it is the published one under ligament_law: published
+        p["k_parabolic_N_mm2"] = 2 * pub["k_parabolic_N_mm2"]
+    by_element.update(doc)
+    scaled = kneedyn.load_scene(CHAPTER).set_ligament_stiffness_scale(2.0)
+    assert by_element.ligament_parameters == scaled.ligament_parameters
+    a = kneedyn.run(by_element, "dae-reduced")
+    b = kneedyn.run(scaled, "dae-reduced")
+    assert np.array_equal(a.trajectory.array, b.trajectory.array, equal_nan=True)
+    # extension ratio: slack length = reference length / ratio (Eq. 1.16's L0).
+    s = kneedyn.load_scene(CHAPTER).set_ligament_parameters("LCL", extension_ratio=1.25)
+    lcl = next(l for l in s.ligament_parameters if l["name"] == "LCL")
+    assert lcl["slack_length_mm"] == pytest.approx(lcl["reference_length_mm"] / 1.25, rel=1e-14)
+    with pytest.raises(kneedyn.InputError, match=r"field 'ligament_parameters.LCL.extension_ratio' = '0': must be > 0"):
+        s.set_ligament_parameters("LCL", extension_ratio=0)
+    with pytest.raises(kneedyn.InputError, match=r"field 'ligament_parameters.LCL.stiffness'.*unknown ligament parameter"):
+        s.set_ligament_parameters("LCL", stiffness=3)
+    s.remove_ligaments("ACL")
+    with pytest.raises(kneedyn.InputError, match=r"field 'ligament_parameters.ACL anterior': not a ligament element selected"):
+        s.set_ligament_parameters("ACL anterior", k_linear_N_mm=10)
+
+
+def test_from_dict_equals_load_scene():
+    scene = kneedyn.load_scene(CHAPTER)
+    doc = scene.to_dict()
+    again = kneedyn.Scene.from_dict(doc, base_dir=os.path.dirname(CHAPTER))
+    a = kneedyn.run(scene, "dae-reduced")
+    b = kneedyn.run(again, "dae-reduced")
+    assert np.array_equal(a.trajectory.array, b.trajectory.array, equal_nan=True)
+
+
+def chapter_doc():
+    return kneedyn.load_scene(CHAPTER).to_dict()
+
+
+@pytest.mark.parametrize("change,field,value", [
+    ({"pulse": {"amplitude_N": -5.0}}, "pulse.amplitude_N", "-5"),
+    ({"pulse": {"shape": "square"}}, "pulse.shape", "square"),
+    ({"end": {"flexion_deg": -10}}, "end.flexion_deg", "-10"),
+    ({"ligaments": ["ACL anterior", "no such ligament"]}, "ligaments[1]", "no such ligament"),
+    ({"gravity": {"enabled": "maybe"}}, "gravity.enabled", "maybe"),
+    ({"output": {"interval_s": float("nan")}}, "output.interval_s", ".nan"),
+])
+def test_bad_scene_raises_loader_message(change, field, value):
+    scene = kneedyn.load_scene(CHAPTER)
+    before = scene.to_dict()
+    with pytest.raises(kneedyn.InputError) as e:
+        scene.update(change)
+    msg = str(e.value)
+    assert "field '%s'" % field in msg and "'%s'" % value in msg, msg
+    assert scene.to_dict() == before  # unchanged
+    with pytest.raises(ValueError):  # InputError is a ValueError
+        doc = chapter_doc()
+        kneedyn.Scene(doc, None, "", "").update(change)
+
+
+def test_bad_scene_message_is_the_clis():
+    doc = chapter_doc()
+    doc["pulse"]["duration_s"] = 0
+    doc["parameter_set"] = os.path.abspath(os.path.join(os.path.dirname(CHAPTER), doc["parameter_set"]))
+    path = os.path.join(OUT, "bad_scene.yaml")
+    os.makedirs(OUT, exist_ok=True)
+    with open(path, "w") as f:
+        f.write(kneedyn._kneedyn.to_yaml(doc))
+    with pytest.raises(kneedyn.InputError) as e:
+        kneedyn.load_scene(path)
+    out_dir = os.path.join(OUT, "bad_scene_out")
+    p = subprocess.run([CLI, "run", path, "--quiet", "--out", out_dir], capture_output=True, text=True)
+    assert p.returncode == 2
+    assert p.stderr.strip() == "kneedyn: error: " + str(e.value)
+    assert "field 'pulse.duration_s' = '0': must be > 0" in str(e.value)
+    assert not os.path.exists(out_dir)
+
+
+def test_missing_field_unknown_type_and_missing_file():
+    with pytest.raises(kneedyn.InputError, match="missing required field 'parameter_set'"):
+        kneedyn.Scene.from_dict({"name": "x"})
+    doc = chapter_doc()
+    doc["pulse"]["amplitude_N"] = object()
+    with pytest.raises(kneedyn.InputError, match=r"field 'pulse.amplitude_N' = <object"):
+        kneedyn.Scene.from_dict(doc)
+    with pytest.raises(kneedyn.InputError, match="cannot open scene file '/no/such.yaml'"):
+        kneedyn.load_scene("/no/such.yaml")
+    scene = kneedyn.load_scene(CHAPTER)
+    with pytest.raises(kneedyn.InputError, match="pattern 'XYZ' matches no element"):
+        scene.remove_ligaments("XYZ")
+
+
+def test_bad_options_raise_before_running():
+    scene = kneedyn.load_scene(CHAPTER)
+    with pytest.raises(kneedyn.InputError, match=r"--rtol = -1; must be finite and in \(0, 1\)"):
+        kneedyn.run(scene, "dae", rtol=-1)
+    with pytest.raises(kneedyn.InputError, match="unknown formulation 'nope'; registered: dae"):
+        kneedyn.run(scene, "nope")
+    with pytest.raises(kneedyn.InputError, match="--integrator = 'rk9' is not available"):
+        kneedyn.run(scene, "mde", integrator="rk9")
+
+
+def test_solver_failure_is_a_partial_result():
+    # Euler with a step far outside its stability range diverges (run.cpp refuses the
+    # sample); the CLI writes it as status partial with the reason, so does run().
+    scene = kneedyn.load_scene(CHAPTER)
+    r = kneedyn.run(scene, "mde", integrator="euler", step=0.02)
+    assert r.status == "partial" and not r.completed
+    assert r.failure and r.failure == r.summary["failure"]
+    assert len(r.trajectory) >= 1
+
+
+def test_formulations_is_the_registry():
+    regs = kneedyn.formulations()
+    p = subprocess.run([CLI, "formulations"], capture_output=True, text=True, check=True)
+    listed = [line.split()[0] for line in p.stdout.splitlines() if line.strip()]
+    assert [f["name"] for f in regs] == listed
+    mde = next(f for f in regs if f["name"] == "mde")
+    assert "dopri5" in mde["integrators"] and mde["fixed_step_integrators"] == ["euler", "rk4"]
+    assert next(f for f in regs if f["name"] == "newmark")["fixed_step"]
+
+
+def test_thread_pool_equals_serial():
+    scene = kneedyn.load_scene(CHAPTER)
+    acl_free = scene.copy()
+    acl_free.remove_ligaments("ACL")
+    jobs = [(s, f, o) for s in (scene, acl_free) for f, o in CASES]
+    serial = [kneedyn.run(s, f, **o) for s, f, o in jobs]
+    with concurrent.futures.ThreadPoolExecutor(max_workers=4) as pool:
+        parallel = list(pool.map(lambda j: kneedyn.run(j[0], j[1], **j[2]), jobs))
+    for a, b in zip(serial, parallel):
+        assert a.trajectory.columns == b.trajectory.columns
+        assert np.array_equal(a.trajectory.array, b.trajectory.array, equal_nan=True)
+        sa, sb = dict(a.summary), dict(b.summary)
+        sa.pop("wall_time_s"), sb.pop("wall_time_s")
+        assert sa == sb
+
+
+def test_trajectory_columns_are_views_with_units():
+    r = kneedyn.run(kneedyn.load_scene(CHAPTER), "dae-reduced")
+    t = r.trajectory
+    col = t["flexion_deg"]
+    assert col.flags.c_contiguous and not col.flags.writeable
+    assert np.shares_memory(col, t.array)
+    assert t.units["flexion_deg"] == "deg" and t.units["F_PCL_anterior_N"] == "N"
+    assert t.units["vx_mm_s"] == "mm/s" and t.units["time_s"] == "s"
+    with pytest.raises(KeyError, match="no column 'nope'"):
+        t["nope"]
+
+
+def test_example_remove_acl_runs():
+    out = os.path.join(OUT, "remove_acl")
+    p = subprocess.run([sys.executable, os.path.join("examples", "python", "remove_acl.py"), "--out", out],
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert os.path.getsize(os.path.join(out, "remove_acl.png")) > 10000
+    assert "lift-off" in p.stdout
+
+
+@pytest.mark.skipif(not os.environ.get("KNEEDYN_BUILD_DIR"), reason="needs the build tree (run by ctest)")
+def test_import_from_install_prefix():
+    prefix = os.path.join(OUT, "prefix")
+    subprocess.run([os.environ.get("KNEEDYN_CMAKE", "cmake"), "--install", os.environ["KNEEDYN_BUILD_DIR"],
+                    "--prefix", prefix], check=True, capture_output=True)
+    site = os.path.join(prefix, os.environ["KNEEDYN_PYTHON_INSTALL_DIR"])
+    env = dict(os.environ, PYTHONPATH=site)
+    p = subprocess.run([sys.executable, "-c", "import kneedyn; print(kneedyn.__file__); "
+                        "print(kneedyn.run(kneedyn.scene_path('chapter_impact'), 'dae-reduced').status)"],
+                       capture_output=True, text=True, env=env, cwd=prefix)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.split() == [os.path.join(site, "kneedyn", "__init__.py"), "completed"]
+
+
+def test_report_runner_module_equals_subprocess(monkeypatch):
+    # reports/run_families.py runs through the module when it can; its files must be the
+    # subprocess path's.
+    sys.path.insert(0, os.path.join(os.getcwd(), "reports"))
+    import run_families
+    scene = os.path.join(OUT, "family_scene.yaml")
+    kneedyn.load_scene(CHAPTER).write(scene)
+    args = ["--formulation", "dae", "--rtol", "1e-7", "--atol", "1e-9"]
+    via_module = run_families.run_once(CLI, scene, os.path.join(OUT, "fam_module"), args)
+    monkeypatch.setenv("KNEEDYN_REPORT_RUNNER", "subprocess")
+    via_cli = run_families.run_once(CLI, scene, os.path.join(OUT, "fam_cli"), args)
+    assert (via_module["runner"], via_cli["runner"]) == ("module", "subprocess")
+    assert via_module["ok"] and via_cli["ok"]
+    for name in ("trajectory.csv", "trajectory.sto"):
+        with open(os.path.join(OUT, "fam_module", name)) as a, open(os.path.join(OUT, "fam_cli", name)) as b:
+            assert a.read() == b.read(), name
+
+
+def test_gil_is_released_during_a_run():
+    # While a run integrates in another thread, this thread keeps executing Python. Were the
+    # GIL held for the run, this loop would stall for a whole run: its longest pause would
+    # be at least the run's own wall time. Released, the pauses are thread switches.
+    import threading
+    import time
+    scene = kneedyn.load_scene(CHAPTER)
+    walls = []
+    started = threading.Event()
+
+    def work():
+        started.set()
+        for _ in range(3):
+            walls.append(kneedyn.run(scene, "dae", rtol=1e-11, atol=1e-13).wall_time_s)
+
+    t = threading.Thread(target=work)
+    t.start()
+    started.wait()
+    longest, last = 0.0, time.perf_counter()
+    while t.is_alive():
+        now = time.perf_counter()
+        longest, last = max(longest, now - last), now
+    t.join()
+    print("longest pause %.4f s, run wall times %s" % (longest, walls))
+    assert longest < 0.5 * min(walls), (longest, walls)
