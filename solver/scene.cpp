@@ -1,5 +1,7 @@
 #include "solver/scene.hpp"
 
+#include <dlfcn.h>
+
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/LU>
@@ -311,23 +313,35 @@ Compartment CompartmentByName(const Field& f) {
 
 // Found at run time, never baked in: $KNEEDYN_DATA_DIR, else share/kneedyn beside the
 // running executable (<prefix>/bin/kneedyn -> <prefix>/share/kneedyn; in a build tree,
-// <build>/share/kneedyn is a link to the source tree's reference-data/ made by CMake),
-// else ./reference-data (a source checkout's top directory).
+// <build>/share/kneedyn is a link to the source tree's reference-data/ made by CMake), else
+// beside the binary that holds this code (the Python module: <build>/python/_kneedyn.so or
+// <prefix>/lib/python3.X/site-packages/kneedyn/_kneedyn.so), else ./reference-data (a source
+// checkout's top directory).
 std::string ReferenceDataDir() {
   if (const char* env = std::getenv("KNEEDYN_DATA_DIR"); env && *env) return env;
-  static const std::string beside_executable = [] {
+  static const std::string found = [] {
+    const auto search_up = [](fs::path dir, int levels) {
+      std::error_code ec;
+      for (int up = 0; up < levels && !dir.empty(); ++up, dir = dir.parent_path()) {
+        const fs::path candidate = dir / "share" / "kneedyn";
+        if (fs::is_directory(candidate / "scenes", ec)) return candidate.string();
+        if (dir == dir.root_path()) break;
+      }
+      return std::string();
+    };
     std::error_code ec;
     const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    if (ec) return std::string();
-    fs::path dir = exe.parent_path();
-    for (int up = 0; up < 3 && !dir.empty(); ++up, dir = dir.parent_path()) {
-      const fs::path candidate = dir / "share" / "kneedyn";
-      if (fs::is_directory(candidate / "scenes", ec)) return candidate.string();
-      if (dir == dir.root_path()) break;
+    if (!ec) {
+      if (std::string dir = search_up(exe.parent_path(), 3); !dir.empty()) return dir;
+    }
+    Dl_info info{};
+    if (dladdr(reinterpret_cast<void*>(&ReferenceDataDir), &info) != 0 && info.dli_fname) {
+      const fs::path object = fs::weakly_canonical(fs::path(info.dli_fname), ec);
+      if (!ec) return search_up(object.parent_path(), 5);
     }
     return std::string();
   }();
-  return beside_executable.empty() ? std::string("reference-data") : beside_executable;
+  return found.empty() ? std::string("reference-data") : found;
 }
 
 Scene LoadScene(const std::string& path) {
