@@ -72,6 +72,8 @@ def assert_same_as_cli(result, header, rows, summary, ignore_path=False):
                 mismatches.append((r, name, mine, row[c]))
     assert not mismatches, mismatches[:5]
     a, b = dict(result.summary), dict(summary)
+    # The CLI records its argv in command_line; a run from Python has none (empty list).
+    assert a.pop("command_line") == [] and b.pop("command_line")[1] == "run"
     for d in (a, b):
         d.pop("wall_time_s")
         if ignore_path:
@@ -98,6 +100,7 @@ def test_run_equals_cli(formulation, options):
     with open(os.path.join(mine, "summary.json")) as f:
         written = json.load(f)
     written.pop("wall_time_s"), summary.pop("wall_time_s")
+    written.pop("command_line"), summary.pop("command_line")  # the CLI's argv; none from Python
     assert written == summary
 
 
