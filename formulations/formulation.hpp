@@ -10,6 +10,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -52,6 +53,13 @@ struct FormulationOptions {
   double baumgarte_alpha = 20.0;  // 1/s
   double baumgarte_beta = 20.0;   // 1/s
   std::string constraint_level = "velocity";  // dae: velocity (index 2) | position (index 3)
+  // generalized-alpha (newmark_scheme.hpp): spectral radius at infinity ρ∞ ∈ [0, 1], or
+  // the four parameters explicitly (all four finite; NaN = from ρ∞).
+  double rho_inf = 0.9;
+  double alpha_m = std::numeric_limits<double>::quiet_NaN();
+  double alpha_f = std::numeric_limits<double>::quiet_NaN();
+  double newmark_beta = std::numeric_limits<double>::quiet_NaN();
+  double newmark_gamma = std::numeric_limits<double>::quiet_NaN();
 
   // Ceres Solver::Options::IsValid style: names the option, its value and the rule.
   bool IsValid(std::string* error) const;
