@@ -39,8 +39,9 @@ bool FormulationOptions::IsValid(std::string* error) const {
     return fail(StrCat("--max-step = ", max_step, " s; must be finite and >= 0 (0: none)"));
   }
   if (max_steps < 1) return fail(StrCat("--max-steps = ", max_steps, "; must be >= 1"));
-  if (stabilization != "none" && stabilization != "baumgarte" && stabilization != "projection") {
-    return fail("--stabilization = '" + stabilization + "'; must be none, baumgarte or projection");
+  if (stabilization != "none" && stabilization != "baumgarte" && stabilization != "projection" &&
+      stabilization != "cvode-projection") {
+    return fail("--stabilization = '" + stabilization + "'; must be none, baumgarte, projection or cvode-projection");
   }
   if (!(baumgarte_alpha >= 0.0) || !(baumgarte_beta >= 0.0)) {
     return fail(StrCat("Baumgarte gains (", baumgarte_alpha, ", ", baumgarte_beta, "); must be >= 0"));

@@ -49,7 +49,7 @@ struct FormulationOptions {
   double step = 0.0;              // s: fixed step (euler, rk4, newmark); 0 = method default
   double max_step = 0.0;          // s: cap on adaptive steps; 0 = none
   long max_steps = 200000;        // per phase
-  std::string stabilization = "none";  // ede: none|baumgarte|projection
+  std::string stabilization = "none";  // ede: none|baumgarte|projection|cvode-projection
   double baumgarte_alpha = 20.0;  // 1/s
   double baumgarte_beta = 20.0;   // 1/s
   std::string constraint_level = "velocity";  // dae: velocity (index 2) | position (index 3)

@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
   run->add_option("--step", settings.options.step, "fixed step in s (euler, rk4, newmark)");
   run->add_option("--max-step", settings.options.max_step, "largest adaptive step in s (0: none)");
   run->add_option("--max-steps", settings.options.max_steps, "step budget per phase")->capture_default_str();
-  run->add_option("--stabilization", settings.options.stabilization, "ede: none|baumgarte|projection")
+  run->add_option("--stabilization", settings.options.stabilization, "ede: none|baumgarte|projection|cvode-projection")
       ->capture_default_str();
   run->add_option("--constraint-level", settings.options.constraint_level,
                   "dae: velocity (index 2) | position (index-3 variant)")->capture_default_str();

@@ -25,7 +25,7 @@ const std::vector<FormulationInfo>& RegisteredFormulations() {
       {"generalized-alpha", "reverse EDE with the generalized-alpha scheme (Arnold-Bruels index 3, Chung-Hulbert --rho-inf), contact coordinates, Newton", {}, CreateGeneralizedAlpha, /*fixed_step=*/true},
       {"generalized-alpha-reduced", "generalized-alpha with closed-form sphere-on-plane gap", {}, CreateGeneralizedAlphaReduced, /*fixed_step=*/true},
       {"mde", "minimal ODE: closed-form elimination of the contact translations, projected Newton-Euler", {"euler", "rk4", "dopri5", "verner65", "fehlberg78", "cvode-bdf", "cvode-adams"}, CreateMde},
-      {"ede", "excess ODE in (q, qdot) with the hidden constraint; --stabilization none|baumgarte|projection", {"euler", "rk4", "dopri5", "verner65", "fehlberg78", "cvode-bdf", "cvode-adams"}, CreateEde},
+      {"ede", "excess ODE in (q, qdot) with the hidden constraint; --stabilization none|baumgarte|projection|cvode-projection", {"euler", "rk4", "dopri5", "verner65", "fehlberg78", "cvode-bdf", "cvode-adams"}, CreateEde},
   };
   return kRegistry;
 }
