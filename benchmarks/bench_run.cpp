@@ -34,6 +34,7 @@ std::string BenchConfig::Name() const {
   if (!integrator.empty()) name += ":" + integrator;
   name += fixed_step ? "/step=" + Num(step) : "/rtol=" + Num(rtol);
   if (max_steps != 200000) name += "/max_steps=" + std::to_string(max_steps);
+  if (stabilization != "none") name += "/stabilization=" + stabilization;
   return name;
 }
 
@@ -50,6 +51,7 @@ nlohmann::json BenchConfig::SettingJson() const {
     j["atol"] = atol;
   }
   if (max_steps != 200000) j["max_steps"] = max_steps;
+  if (stabilization != "none") j["stabilization"] = stabilization;
   return j;
 }
 
@@ -60,6 +62,7 @@ FormulationOptions BenchConfig::Options() const {
   o.atol = atol;
   if (fixed_step) o.step = step;
   o.max_steps = max_steps;
+  o.stabilization = stabilization;
   return o;
 }
 

@@ -19,6 +19,7 @@ struct BenchConfig {
   double atol = 1e-8;
   double step = 0.0;       // s, fixed-step
   long max_steps = 200000;
+  std::string stabilization = "none";  // ede: none|baumgarte|projection|cvode-projection
 
   std::string Name() const;              // "dae/rtol=1e-06" or "mde:rk4/step=0.001"
   nlohmann::json SettingJson() const;    // {rtol, atol} or {step} (+ max_steps if changed)

@@ -52,6 +52,7 @@ BenchConfig ConfigFromJson(const nlohmann::json& r) {
     c.atol = s.at("atol").get<double>();
   }
   c.max_steps = s.value("max_steps", c.max_steps);
+  c.stabilization = s.value("stabilization", c.stabilization);
   return c;
 }
 

@@ -22,6 +22,11 @@ run ede_rk4_none --formulation ede --integrator rk4 --step 1e-3
 run ede_rk4_projection --formulation ede --integrator rk4 --step 1e-3 --stabilization projection
 run newmark --formulation newmark --step 1e-4 --rtol 1e-10 --atol 1e-12
 run newmark-reduced --formulation newmark-reduced --step 1e-4 --rtol 1e-10 --atol 1e-12
+run dae-ggl --formulation dae-ggl --rtol 1e-10 --atol 1e-12
+run dae-ggl-reduced --formulation dae-ggl-reduced --rtol 1e-10 --atol 1e-12
+run generalized-alpha --formulation generalized-alpha --step 1e-4 --rtol 1e-10 --atol 1e-12
+run generalized-alpha-reduced --formulation generalized-alpha-reduced --step 1e-4 --rtol 1e-10 --atol 1e-12
+run ede_cvode-bdf_cvode-projection --formulation ede --integrator cvode-bdf --stabilization cvode-projection --rtol 1e-10 --atol 1e-12
 /usr/bin/python3 - "$O" <<'PY'
 import json, sys, os
 O = sys.argv[1]

@@ -9,6 +9,8 @@
 //               --rtol-min R changes the tightest (keep it ≥ 3 decades above the
 //               reference's rtol 1e-14: the stored references, scd ≥ 11.2, measure scd
 //               up to ~10)
+//               ede additionally with --stabilization projection (dopri5) and
+//               cvode-projection (cvode-bdf)
 //   fixed step  h = 4e-3 / 2^i s, i = 0 … 5: 4e-3 … 1.25e-4 (6 settings; --short 2);
 //               newmark Newton tolerance rtol 1e-9, atol 1e-11
 // Each setting is run once untimed for its metrics (metrics.hpp, against the stored
@@ -106,11 +108,20 @@ std::vector<BenchConfig> Grid(bool short_mode, double rtol_min, const std::strin
           grid.push_back(c);
         }
       } else {
-        for (double r : rtols) {
-          c.rtol = r;
-          c.atol = 1e-2 * r;
-          grid.push_back(c);
+        // ede: also the two projections (issue 13): kneedyn's project-and-restart with an
+        // explicit RK method, CVODE's own (CVodeSetProjFn) with BDF.
+        std::vector<std::string> stabilizations = {"none"};
+        if (info.name == "ede" && integ == "dopri5") stabilizations.push_back("projection");
+        if (info.name == "ede" && integ == "cvode-bdf") stabilizations.push_back("cvode-projection");
+        for (const std::string& stab : stabilizations) {
+          c.stabilization = stab;
+          for (double r : rtols) {
+            c.rtol = r;
+            c.atol = 1e-2 * r;
+            grid.push_back(c);
+          }
         }
+        c.stabilization = "none";
       }
     }
   }

@@ -10,10 +10,12 @@
 //               the minimum-norm correction in q (Eigen CompleteOrthogonalDecomposition of
 //               J = ∂φ/∂q = G B), then velocities onto J q̇ = 0 (minimum norm); the
 //               integrator restarts from the projected state (stats.projections counts);
-//               with cvode-bdf, CVODE's own projection (CVodeSetProjFn) calls the same
-//               projection after each step, keeping the BDF order and step history.
-//               The state at an event root is projected as well (moves it by ~ the
+//               the state at an event root is projected as well (moves it by ~ the
 //               integration error, so the event's flexion is off the root by as much).
+//   cvode-projection  (cvode-bdf only) CVODE's own projection (CVodeSetProjFn): CVODE calls
+//               the same projection after each step and keeps its BDF order, step history
+//               and error estimate (the correction enters the error test); no restart.
+//               Other integrators: InputError (CVODE projects only with BDF).
 // Events: lift-off g = N_i, re-contact and flexion via solver/events.hpp.
 #include <Eigen/QR>
 #include <cmath>
@@ -39,8 +41,14 @@ class EdeFormulation final : public Formulation, public OdeProblem {
       gains_.alpha = options.baumgarte_alpha;
       gains_.beta = options.baumgarte_beta;
     }
-    project_ = options.stabilization == "projection";
-    if (project_ && integrator_.name() == "cvode-adams") {
+    project_ = options.stabilization == "projection" || options.stabilization == "cvode-projection";
+    solver_projection_ = options.stabilization == "cvode-projection";
+    if (solver_projection_ && !integrator_.supports_solver_projection()) {
+      Throw<InputError>("EdeFormulation", "--stabilization cvode-projection with --integrator '",
+                        integrator_.name(), "': CVODE's projection (CVodeSetProjFn) exists only for "
+                        "cvode-bdf; use --integrator cvode-bdf or --stabilization projection");
+    }
+    if (project_ && !solver_projection_ && integrator_.name() == "cvode-adams") {
       // The project-and-restart loop would restart the multistep method at order 1 every step.
       Throw<InputError>("EdeFormulation", "--stabilization projection with --integrator cvode-adams: "
                         "not supported (CVODE projects only with BDF); use cvode-bdf or an ERK method");
@@ -58,13 +66,13 @@ class EdeFormulation final : public Formulation, public OdeProblem {
     y_.resize(12);
     y_ << state.q, state.qd;
     const std::vector<int> dirs = RootDirections(events_);
-    integrator_.Start(this, t_, y_, dirs, project_ && integrator_.supports_solver_projection());
+    integrator_.Start(this, t_, y_, dirs, solver_projection_);
   }
 
   AdvanceResult Advance(double t_out, MechanicalState* state) override {
     std::vector<int> found;
     bool root = false;
-    if (!project_ || integrator_.supports_solver_projection()) {
+    if (!project_ || solver_projection_) {
       root = integrator_.Evolve(t_out, false, &t_, &y_, &found);
       if (project_ && root) Project(&y_);  // the root state is the solver's interpolant
     } else {
@@ -151,6 +159,7 @@ class EdeFormulation final : public Formulation, public OdeProblem {
   OdeIntegrator integrator_;
   BaumgarteGains gains_;
   bool project_ = false;
+  bool solver_projection_ = false;  // cvode-projection: CVodeSetProjFn instead of restarts
   long projections_ = 0;
   double t_ = 0.0;
   VectorXd y_;

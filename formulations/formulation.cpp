@@ -39,14 +39,28 @@ bool FormulationOptions::IsValid(std::string* error) const {
     return fail(StrCat("--max-step = ", max_step, " s; must be finite and >= 0 (0: none)"));
   }
   if (max_steps < 1) return fail(StrCat("--max-steps = ", max_steps, "; must be >= 1"));
-  if (stabilization != "none" && stabilization != "baumgarte" && stabilization != "projection") {
-    return fail("--stabilization = '" + stabilization + "'; must be none, baumgarte or projection");
+  if (stabilization != "none" && stabilization != "baumgarte" && stabilization != "projection" &&
+      stabilization != "cvode-projection") {
+    return fail("--stabilization = '" + stabilization + "'; must be none, baumgarte, projection or cvode-projection");
   }
   if (!(baumgarte_alpha >= 0.0) || !(baumgarte_beta >= 0.0)) {
     return fail(StrCat("Baumgarte gains (", baumgarte_alpha, ", ", baumgarte_beta, "); must be >= 0"));
   }
   if (constraint_level != "velocity" && constraint_level != "position") {
     return fail("--constraint-level = '" + constraint_level + "'; must be velocity or position");
+  }
+  if (!(rho_inf >= 0.0 && rho_inf <= 1.0)) {
+    return fail(StrCat("--rho-inf = ", rho_inf, "; must be in [0, 1]"));
+  }
+  const int given = std::isfinite(alpha_m) + std::isfinite(alpha_f) + std::isfinite(newmark_beta) +
+                    std::isfinite(newmark_gamma);
+  if (given != 0 && given != 4) {
+    return fail(StrCat("--alpha-m/--alpha-f/--beta/--gamma: ", given, " of 4 given (", alpha_m, ", ", alpha_f,
+                       ", ", newmark_beta, ", ", newmark_gamma, "); give all four or none (then from --rho-inf)"));
+  }
+  if (given == 4 && !(alpha_m < 1.0 && alpha_f < 1.0 && newmark_beta > 0.0 && newmark_gamma > 0.0)) {
+    return fail(StrCat("generalized-alpha parameters (alpha_m, alpha_f, beta, gamma) = (", alpha_m, ", ", alpha_f,
+                       ", ", newmark_beta, ", ", newmark_gamma, "); need alpha_m < 1, alpha_f < 1, beta > 0, gamma > 0"));
   }
   return true;
 }

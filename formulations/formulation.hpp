@@ -10,6 +10,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -48,10 +49,17 @@ struct FormulationOptions {
   double step = 0.0;              // s: fixed step (euler, rk4, newmark); 0 = method default
   double max_step = 0.0;          // s: cap on adaptive steps; 0 = none
   long max_steps = 200000;        // per phase
-  std::string stabilization = "none";  // ede: none|baumgarte|projection
+  std::string stabilization = "none";  // ede: none|baumgarte|projection|cvode-projection
   double baumgarte_alpha = 20.0;  // 1/s
   double baumgarte_beta = 20.0;   // 1/s
   std::string constraint_level = "velocity";  // dae: velocity (index 2) | position (index 3)
+  // generalized-alpha (newmark_scheme.hpp): spectral radius at infinity ρ∞ ∈ [0, 1], or
+  // the four parameters explicitly (all four finite; NaN = from ρ∞).
+  double rho_inf = 0.9;
+  double alpha_m = std::numeric_limits<double>::quiet_NaN();
+  double alpha_f = std::numeric_limits<double>::quiet_NaN();
+  double newmark_beta = std::numeric_limits<double>::quiet_NaN();
+  double newmark_gamma = std::numeric_limits<double>::quiet_NaN();
 
   // Ceres Solver::Options::IsValid style: names the option, its value and the rule.
   bool IsValid(std::string* error) const;

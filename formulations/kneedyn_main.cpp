@@ -81,10 +81,16 @@ int main(int argc, char** argv) {
   run->add_option("--step", settings.options.step, "fixed step in s (euler, rk4, newmark)");
   run->add_option("--max-step", settings.options.max_step, "largest adaptive step in s (0: none)");
   run->add_option("--max-steps", settings.options.max_steps, "step budget per phase")->capture_default_str();
-  run->add_option("--stabilization", settings.options.stabilization, "ede: none|baumgarte|projection")
+  run->add_option("--stabilization", settings.options.stabilization, "ede: none|baumgarte|projection|cvode-projection")
       ->capture_default_str();
   run->add_option("--constraint-level", settings.options.constraint_level,
                   "dae: velocity (index 2) | position (index-3 variant)")->capture_default_str();
+  run->add_option("--rho-inf", settings.options.rho_inf, "generalized-alpha: spectral radius at infinity in [0, 1]")
+      ->capture_default_str();
+  run->add_option("--alpha-m", settings.options.alpha_m, "generalized-alpha: alpha_m (with --alpha-f, --beta, --gamma)");
+  run->add_option("--alpha-f", settings.options.alpha_f, "generalized-alpha: alpha_f");
+  run->add_option("--beta", settings.options.newmark_beta, "generalized-alpha: beta");
+  run->add_option("--gamma", settings.options.newmark_gamma, "generalized-alpha: gamma");
   run->add_option("--output-interval", settings.output_interval, "s between output rows (0: scene's)");
   run->add_option("--out", out_dir, "output directory")->capture_default_str();
   run->add_flag("--quiet", quiet, "no progress on stderr");

@@ -335,6 +335,16 @@ double ManufacturedError(const Scene& scene, const RunResult& r) {
   return e;
 }
 
+// Max |N − N*| over the output samples from t_from on, both contacts (N* = 200 N, exact).
+double ManufacturedForceError(const RunResult& r, double t_from) {
+  double e = 0.0;
+  for (const MechanicalState& s : r.samples) {
+    if (s.t < t_from - 1e-12) continue;
+    for (int c : s.active) e = std::max(e, std::abs(s.contact[c].normal_force - kManufacturedNormalForce));
+  }
+  return e;
+}
+
 RunResult RunManufactured(const Scene& scene, const RunSettings& settings) {
   const RunResult r = RunScene(scene, settings);
   EXPECT_TRUE(r.completed) << settings.formulation << " " << settings.options.integrator << ": " << r.failure;
@@ -367,6 +377,26 @@ TEST_P(ExactSolution, ManufacturedKneeConvergesAtTheoreticalOrder) {
                 name.c_str(), e1, e2, order);
     EXPECT_NEAR(order, 2.0, 0.3) << name;
     EXPECT_LT(e2, 1e-4) << name;
+    if (name.rfind("generalized-alpha", 0) == 0) {
+      // Issue 13: Arnold & Brüls (2007): second order in positions and multipliers, the
+      // multipliers after an initial layer of O(h) errors that ρ∞ < 1 damps (measured here:
+      // max |N − N*| over the whole run is first order, 4.7e-3/2.3e-3/1.1e-3 N, from a
+      // decaying oscillation excited at the start; newmark's does not converge at all).
+      // The issue's band ±0.2 for positions over the run and forces from t = 0.1 s on.
+      std::vector<double> ep, en;
+      for (double h : {2.0e-3, 1.0e-3, 5.0e-4}) {
+        s.options.step = h;
+        const RunResult r = RunManufactured(scene, s);
+        ep.push_back(ManufacturedError(scene, r));
+        en.push_back(ManufacturedForceError(r, 0.1));
+      }
+      const double order_q = std::log2(ep[1] / ep[2]), order_n = std::log2(en[1] / en[2]);
+      std::printf("[exact] %-16s manufactured h = 2e-3/1e-3/5e-4: q %.3e %.3e %.3e (order %.2f), "
+                  "N (t >= 0.1 s) %.3e %.3e %.3e N (order %.2f)\n", name.c_str(), ep[0], ep[1], ep[2], order_q,
+                  en[0], en[1], en[2], order_n);
+      EXPECT_NEAR(order_q, 2.0, 0.2) << name;
+      EXPECT_NEAR(order_n, 2.0, 0.2) << name;
+    }
     return;
   }
   // Adaptive (default integrator): error decreases with the tolerance.
