@@ -110,8 +110,8 @@ double MaxFemoralGradient(const Model& model, const std::vector<MechanicalState>
     const Pose pose = PoseFromCoordinates(s.q);
     for (int i : s.active) {
       const ContactPair& pair = model.contacts[i];
-      if (!pair.sphere_on_plane) continue;
-      const ContactGeometry geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+      ContactGeometry geo;
+      if (!ContactKinematics(pair, pose, &geo)) continue;
       HeightSample hs;
       double v = INFINITY;  // outside the surface's domain: at/over the edge
       if (pair.femoral_surface->Evaluate(geo.point_F.x(), geo.point_F.y(), &hs)) {

@@ -30,8 +30,8 @@ int Info(const std::string& path) {
               MToMm(q(0)), MToMm(q(1)), MToMm(q(2)), RadToDeg(q(3)), RadToDeg(q(4)), RadToDeg(q(5)));
   const Pose pose = PoseFromCoordinates(q);
   for (const ContactPair& pair : model.contacts) {
-    if (!pair.sphere_on_plane) continue;
-    const ContactGeometry g = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+    ContactGeometry g;
+    if (!ContactKinematics(pair, pose, &g)) continue;
     std::printf("%-8s contact: femoral (%.6f, %.6f, %.6f) mm, tibial (%.6f, %.6f, %.6f) mm\n",
                 CompartmentName(pair.compartment), MToMm(g.point_F.x()), MToMm(g.point_F.y()),
                 MToMm(g.point_F.z()), MToMm(g.point_T.x()), MToMm(g.point_T.y()), MToMm(g.point_T.z()));

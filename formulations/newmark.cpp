@@ -69,9 +69,6 @@ class NewmarkFormulation final : public Formulation {
   NewmarkFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
       : scene_(scene), model_(scene.model), options_(options), form_(form) {
     const char* name = form == ContactForm::kChapter ? "newmark" : "newmark-reduced";
-    if (form == ContactForm::kClosedForm) {
-      for (const ContactPair& p : model_.contacts) RequireSphereOnPlane(p, name);
-    }
     if (options.stabilization != "none") {
       Throw<InputError>("NewmarkFormulation", "--stabilization = '", options.stabilization,
                         "' applies to ede only; ", name, " enforces the contacts at position level");
@@ -180,7 +177,7 @@ class NewmarkFormulation final : public Formulation {
       if (form_ == ContactForm::kChapter) {
         if (!ChapterContactResiduals(pair, pose, x + 6 + 4 * c, F + 6 + 5 * c, &geo)) return false;
       } else {
-        geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+        if (!ContactKinematics(pair, pose, &geo)) return false;
         F[6 + c] = geo.gap;  // φ_i = 0
       }
       AddContactWrench(pose, geo, N[c], &data.applied_force_F, &data.applied_moment_T);
@@ -393,7 +390,7 @@ class NewmarkFormulation final : public Formulation {
       }
       state->contact[active_[c]].normal_force = s.extra(per_contact_ * k + c);
     }
-    if (per_contact_ == 0) FillContactCoordinatesFromClosedForm(model_, state);
+    if (per_contact_ == 0) FillContactCoordinates(model_, state);
   }
 
   const Scene& scene_;

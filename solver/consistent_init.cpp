@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "solver/constrained_dynamics.hpp"
+#include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn {
@@ -41,13 +42,15 @@ struct ChapterPositionResidual : PositionUnknowns {
   }
 };
 
-// Closed form: unknowns = free coordinates; residual φ_i per contact.
+// Gap form: unknowns = free coordinates; residual φ_i per contact (contact_kinematics.hpp).
 struct ClosedPositionResidual : PositionUnknowns {
   template <typename T>
   bool operator()(T const* const* x, T* r) const {
     const PoseTpl<T> pose = PoseOf(x[0]);
     for (size_t k = 0; k < active.size(); ++k) {
-      r[k] = SphereOnPlaneContact(*model->contacts[active[k]].sphere_on_plane, pose).gap;
+      ContactGeometryTpl<T> geo;
+      if (!ContactKinematics(model->contacts[active[k]], pose, &geo)) return false;
+      r[k] = geo.gap;
     }
     return true;
   }
@@ -137,11 +140,11 @@ bool ConsistentInitOptions::IsValid(std::string* error) const {
   return true;
 }
 
-void FillContactCoordinatesFromClosedForm(const Model& model, MechanicalState* state) {
+void FillContactCoordinates(const Model& model, MechanicalState* state) {
   const Pose pose = PoseFromCoordinates(state->q);
   for (int i : state->active) {
-    if (!model.contacts[i].sphere_on_plane) continue;
-    const ContactGeometry g = SphereOnPlaneContact(*model.contacts[i].sphere_on_plane, pose);
+    const ContactGeometry g =
+        RequireContactKinematics(model.contacts[i], pose, "FillContactCoordinates");
     state->contact[i].coordinates = {g.point_F.x(), g.point_F.y(), g.point_T.x(), g.point_T.y()};
   }
 }
@@ -158,9 +161,8 @@ std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
   MatrixXd G(k, 6);
   VectorXd kappa(k);
   for (int c = 0; c < k; ++c) {
-    const SphereOnPlane& sop =
-        RequireSphereOnPlane(model.contacts[state->active[c]], "ConsistentInitialize");
-    G.row(c) = ContactConstraintRow(pose, SphereOnPlaneContact(sop, pose));
+    G.row(c) = ContactConstraintRow(
+        pose, RequireContactKinematics(model.contacts[state->active[c]], pose, "ConsistentInitialize"));
   }
   // Velocity level: φ̇ = G B(q) q̇ = 0, minimum-norm correction of the free rates.
   InitLevelReport vel;
@@ -194,7 +196,7 @@ std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
   // Hidden level (Ceres), from the guesses in state->contact[].normal_force.
   const Vector6d nu = GeneralizedVelocity(state->q, state->qd);
   for (int c = 0; c < k; ++c) {
-    kappa(c) = ContactAccelerationTerm(*model.contacts[state->active[c]].sphere_on_plane, pose, nu);
+    kappa(c) = ContactRateTerm(model.contacts[state->active[c]], state->q, state->qd);
   }
   Data data(model);
   data.ligament_branch = &state->ligament_branch;
@@ -254,7 +256,6 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
         for (int j = 0; j < 4; ++j) state.contact[active[c]].coordinates[j] = x[free.size() + 4 * c + j];
       }
     } else {
-      for (int c : active) RequireSphereOnPlane(model.contacts[c], "ConsistentInitialize");
       auto* f = new ClosedPositionResidual{{&model, state.q, free, active}};
       std::unique_ptr<ClosedPositionResidual> owner(f);
       std::vector<double> x;
@@ -262,7 +263,7 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
       rep.position = SolveLevel("position", f, &x, k, options.position_tolerance,
                                 options.max_iterations);
       for (size_t i = 0; i < free.size(); ++i) state.q(free[i]) = x[i];
-      FillContactCoordinatesFromClosedForm(model, &state);
+      FillContactCoordinates(model, &state);
     }
   }
   CheckJcsRegular(state.q(kBeta), "ConsistentInitialize");
@@ -288,7 +289,7 @@ void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state) {
   constexpr double kGapTolerance = 1.0e-14;  // m
   ProjectOntoContacts(scene.model, state->active, kGapTolerance, 20, &state->q);
   SolveVelocityAndHidden(scene, {}, options, state);
-  FillContactCoordinatesFromClosedForm(scene.model, state);
+  FillContactCoordinates(scene.model, state);
 }
 
 }  // namespace kneedyn

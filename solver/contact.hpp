@@ -5,13 +5,13 @@
 //   Xf = (xc, yc, f(xc, yc))  in F,        X′t = (x′c, y′c, g(x′c, y′c))  in T
 //   e  = Xf − (R0 + R X′t)                 (Eq. 1.8; three components: F13–F15)
 //   nf − R n′t, x and y components         (Eq. 1.13; F19, F20), n = (∂x h, ∂y h, −1)/norm
-// Closed form, sphere on plane: the gap φ = n·(C − R0) − d − r with n = R n̂′ (in F);
-// contact point Xc = C − r n. φ > 0 separated, φ < 0 penetrating.
+// Closed form, sphere on plane (contact_kinematics.hpp chooses it): the gap φ = n·(C − R0) − d − r with n = R n̂′ (in F);
+// contact point Xc = C − r n (reported in both frames). φ > 0 separated, φ < 0 penetrating.
 //
 // Velocity level (both forms): the normal approach velocity of the tibial material point
 // at the contact, written as φ̇ = −n_F · (v_F + w_F × R X′t) = G ν with ν = (v_F, w_T),
 //   G = [−n_Fᵀ, (n′_T × X′t)ᵀ]                 (1×6)
-// and at acceleration level φ̈ = G ν̇ + κ (closed form only; see ContactAccelerationTerm).
+// and at acceleration level φ̈ = G ν̇ + κ (any pair: ContactRateTerm, contact_kinematics.hpp).
 //
 // Contact force on the tibia: −N n_F applied at the tibial contact point (spec §4).
 #pragma once
@@ -21,11 +21,22 @@
 
 namespace kneedyn {
 
+// The sphere-on-plane closed form of a contact pair (spec §4), from the surfaces'
+// SphereForm/PlaneForm (contact_kinematics.hpp: SphereOnPlaneForm).
+struct SphereOnPlane {
+  Vector3d centre_F;  // sphere centre C in F, m
+  double radius = 0.0;  // r, m
+  Vector3d normal_T;  // unit plane normal n̂′ in T, towards the femur
+  double offset = 0.0;  // d: n̂′ · x′ = d on the plane, m
+};
+
 // Where a contact acts on the tibia and its normal; shared by both forms.
 template <typename T>
 struct ContactGeometryTpl {
   Vector3<T> point_F;   // femoral contact point Xf, m
-  Vector3<T> point_T;   // tibial contact point X′t (tibial coordinates), m
+  Vector3<T> point_T;   // tibial contact point X′t (tibial coordinates), m; any point on
+                        // the line of action gives the same G and wrench: the closed form
+                        // reports the femoral point here, the general solve the tibial one
   Vector3<T> normal_T;  // unit tibial normal n′, towards the femur
   T gap = T(0.0);       // closed form φ; chapter form: n_F · e (signed distance along n)
 };
@@ -76,10 +87,6 @@ ContactGeometryTpl<T> SphereOnPlaneContact(const SphereOnPlane& sop, const PoseT
   return out;
 }
 
-// The closed form of a pair, or InputError naming the compartment when the pair is not a
-// sphere on a plane. `caller` names the formulation that needs it.
-const SphereOnPlane& RequireSphereOnPlane(const ContactPair& pair, const char* caller);
-
 // φ̇ = G ν: the 1×6 velocity-constraint row at a contact (see header comment).
 template <typename T>
 Eigen::Matrix<T, 1, 6> ContactConstraintRow(const PoseTpl<T>& pose,
@@ -89,10 +96,6 @@ Eigen::Matrix<T, 1, 6> ContactConstraintRow(const PoseTpl<T>& pose,
   G.template tail<3>() = geometry.normal_T.cross(geometry.point_T).transpose();
   return G;
 }
-
-// κ in φ̈ = G ν̇ + κ for the sphere-on-plane gap:
-//   κ = (w_F × (w_F × n)) · (C − R0) − 2 (w_F × n) · v_F.
-double ContactAccelerationTerm(const SphereOnPlane& sop, const Pose& pose, const Vector6d& nu);
 
 // Force (F) and moment about the centre of mass (T) of −N n_F applied at point_T.
 template <typename T>

@@ -76,7 +76,7 @@ TEST_P(ConsistentInitForms, ReachesSpecReferencePoseContactsAndForcesFromChapter
   }
   const Pose pose = PoseFromCoordinates(s.q);
   for (int c = 0; c < 2; ++c) {
-    const ContactGeometry g = SphereOnPlaneContact(*scene.model.contacts[c].sphere_on_plane, pose);
+    const ContactGeometry g = SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[c]), pose);
     EXPECT_NEAR(g.gap, 0.0, 1e-10) << "contact " << c;
     for (int i = 0; i < 3; ++i) {
       EXPECT_NEAR(MToMm(g.point_F(i)), kFemoral_mm[c][i], kPointTol_mm) << "contact " << c << " F " << i;
@@ -197,7 +197,7 @@ TEST_P(ConsistentInitForms, FreedInconsistentVelocityIsCorrectedToZeroApproachRa
   const Pose pose = PoseFromCoordinates(s.q);
   const Vector6d nu = GeneralizedVelocity(s.q, s.qd);
   for (int c = 0; c < 2; ++c) {
-    const ContactGeometry g = SphereOnPlaneContact(*scene.model.contacts[c].sphere_on_plane, pose);
+    const ContactGeometry g = SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[c]), pose);
     EXPECT_NEAR(ContactConstraintRow(pose, g).dot(nu), 0.0, 1e-11) << "contact " << c;
   }
   // Minimum-norm correction: the velocity changed, and is not simply zeroed.
