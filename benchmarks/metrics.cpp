@@ -43,7 +43,8 @@ void AppendRow(const Scene& scene, ContactForm form, const MechanicalState& st, 
       ok = ContactKinematics(pair, pose, &geo);
     } else if (active) {
       double r[5];
-      ok = ChapterContactResiduals(pair, pose, st.contact[i].coordinates.data(), r, &geo);
+      ok = ChapterContactResiduals(pair, pose, st.contact[i].coordinates.data(), r, &geo,
+                                   st.contact[i].chart);
     }
     for (int a = 0; a < 3; ++a) points.push_back(ok ? MToMm(geo.point_F(a)) : kNaN);
     for (int a = 0; a < 3; ++a) points.push_back(ok ? MToMm(geo.point_T(a)) : kNaN);

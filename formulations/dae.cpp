@@ -210,7 +210,10 @@ class DaeFormulation final : public Formulation {
       ContactGeometryTpl<T> geo;
       if (form_ == ContactForm::kChapter) {
         T r[5];
-        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo)) return false;
+        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo,
+                                     state_contact_[active_[c]].chart)) {
+          return false;
+        }
         Fc[0] = r[0];
         Fc[1] = r[1];
         Fc[2] = options_.constraint_level == "position" ? r[2]

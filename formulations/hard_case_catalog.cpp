@@ -81,12 +81,16 @@ const std::vector<CaseSpec>& Cases() {
 
 bool IsFixedStep(const std::string& name) { return IsFixedStep(FindFormulation(name), ""); }
 
+// --contact-chart: the chart of the chapter-form contact coordinates in every run.
+ContactChart g_contact_chart = ContactChart::kRegular;
+
 RunSettings DefaultSettings(const std::string& formulation, const CaseSpec& c) {
   RunSettings s;
   s.formulation = formulation;
   s.options.rtol = 1.0e-8;
   s.options.atol = 1.0e-10;
   if (IsFixedStep(formulation)) s.options.step = kDefaultFixedStep;
+  s.options.contact_chart = g_contact_chart;
   if (!c.constraint_level.empty()) s.options.constraint_level = c.constraint_level;
   return s;
 }
@@ -266,6 +270,11 @@ int main(int argc, char** argv) {
   app.add_option("--formulation", only_formulations, "run only this formulation (repeatable)");
   app.add_flag("--check", check, "exit 1 unless every run meets its case's expectation");
   app.add_flag("--no-reference", no_reference, "skip the tight-tolerance dae reference runs");
+  app.add_option("--contact-chart", g_contact_chart,
+                 "chart of the chapter-form contact coordinates: regular | height-field (the "
+                 "chapter's; reproduces its failure at the condyle rim)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, ContactChart>{
+          {"regular", ContactChart::kRegular}, {"height-field", ContactChart::kHeightField}}));
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -297,6 +306,7 @@ int main(int argc, char** argv) {
         ref.formulation = "dae";
         ref.options.rtol = 1.0e-10;
         ref.options.atol = 1.0e-12;
+        ref.options.contact_chart = g_contact_chart;
         try {
           reference = RunScene(*scene, ref);
         } catch (const std::exception&) {

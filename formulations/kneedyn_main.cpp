@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <map>
 
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
@@ -79,6 +80,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   run->add_option("--constraint-level", settings.options.constraint_level,
                   "dae: velocity (index 2) | position (index-3 variant)")->capture_default_str();
+  run->add_option("--contact-chart", settings.options.contact_chart,
+                  "dae, newmark: chart of the contact coordinates: regular | height-field "
+                  "(the chapter's, singular at the condyle rim)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, ContactChart>{
+          {"regular", ContactChart::kRegular}, {"height-field", ContactChart::kHeightField}}));
   run->add_option("--output-interval", settings.output_interval, "s between output rows (0: scene's)");
   run->add_option("--out", out_dir, "output directory")->capture_default_str();
   run->add_flag("--quiet", quiet, "no progress on stderr");

@@ -175,7 +175,10 @@ class NewmarkFormulation final : public Formulation {
       const ContactPair& pair = model_.contacts[active_[c]];
       ContactGeometryTpl<T> geo;
       if (form_ == ContactForm::kChapter) {
-        if (!ChapterContactResiduals(pair, pose, x + 6 + 4 * c, F + 6 + 5 * c, &geo)) return false;
+        if (!ChapterContactResiduals(pair, pose, x + 6 + 4 * c, F + 6 + 5 * c, &geo,
+                                     state_contact_[active_[c]].chart)) {
+          return false;
+        }
       } else {
         if (!ContactKinematics(pair, pose, &geo)) return false;
         F[6 + c] = geo.gap;  // φ_i = 0

@@ -103,6 +103,7 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
 
   ConsistentInitOptions init_options = settings.init;
   init_options.form = formulation->contact_form();
+  init_options.chart = settings.options.contact_chart;
   std::vector<int> active;
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
   MechanicalState state = ConsistentInitialize(scene, active, init_options, &result.init);

@@ -20,6 +20,7 @@ struct PositionUnknowns {
   Vector6d q_fixed;
   std::vector<int> free;    // coordinate indices
   std::vector<int> active;  // contact indices
+  ContactChart chart = ContactChart::kRegular;
 
   template <typename T>
   PoseTpl<T> PoseOf(T const* x) const {
@@ -36,7 +37,10 @@ struct ChapterPositionResidual : PositionUnknowns {
     const PoseTpl<T> pose = PoseOf(x[0]);
     for (size_t k = 0; k < active.size(); ++k) {
       const T* c = x[0] + free.size() + 4 * k;
-      if (!ChapterContactResiduals(model->contacts[active[k]], pose, c, r + 5 * k)) return false;
+      if (!ChapterContactResiduals(model->contacts[active[k]], pose, c, r + 5 * k,
+                                   static_cast<ContactGeometryTpl<T>*>(nullptr), chart)) {
+        return false;
+      }
     }
     return true;
   }
@@ -143,13 +147,42 @@ bool ConsistentInitOptions::IsValid(std::string* error) const {
 void FillContactCoordinates(const Model& model, MechanicalState* state) {
   const Pose pose = PoseFromCoordinates(state->q);
   for (int i : state->active) {
+    double chart[4];
     const ContactGeometry g =
-        RequireContactKinematics(model.contacts[i], pose, "FillContactCoordinates");
-    state->contact[i].coordinates = {g.point_F.x(), g.point_F.y(), g.point_T.x(), g.point_T.y()};
+        RequireContactKinematics(model.contacts[i], pose, "FillContactCoordinates", chart);
+    if (state->contact[i].chart == ContactChart::kRegular) {
+      state->contact[i].coordinates = {chart[0], chart[1], chart[2], chart[3]};
+    } else {
+      state->contact[i].coordinates = {g.point_F.x(), g.point_F.y(), g.point_T.x(), g.point_T.y()};
+    }
   }
 }
 
 namespace {
+
+// Height-field (x, y) coordinates → the regular charts' (u, v) of the same surface points
+// (a point off its surface's domain: the contact kinematics' solution instead).
+void ConvertContactCoordinates(const Model& model, ContactChart chart, MechanicalState* state) {
+  const Pose pose = PoseFromCoordinates(state->q);
+  for (size_t i = 0; i < state->contact.size() && i < model.contacts.size(); ++i) {
+    ContactGuess& g = state->contact[i];
+    if (g.chart == chart) continue;
+    g.chart = chart;
+    if (chart == ContactChart::kHeightField) continue;  // only scenes give height-field ones
+    const ContactPair& pair = model.contacts[i];
+    HeightSample hf, ht;
+    double kin[4];
+    ContactGeometry geo;
+    if (pair.femoral_surface->Evaluate(g.coordinates[0], g.coordinates[1], &hf) &&
+        pair.tibial_surface->Evaluate(g.coordinates[2], g.coordinates[3], &ht)) {
+      pair.femoral_surface->ChartCoordinates(Vector3d(g.coordinates[0], g.coordinates[1], hf.value), kin);
+      pair.tibial_surface->ChartCoordinates(Vector3d(g.coordinates[2], g.coordinates[3], ht.value), kin + 2);
+    } else if (!ContactKinematics(pair, pose, &geo, kin)) {
+      continue;  // left as is: the position level reports the failure
+    }
+    g.coordinates = {kin[0], kin[1], kin[2], kin[3]};
+  }
+}
 
 // Levels 2–3 with given velocity holds. Returns the two level reports.
 std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
@@ -229,6 +262,7 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
   state.qd = init.qd;
   state.active = active;
   state.contact = init.contact_guesses;
+  ConvertContactCoordinates(scene.model, options.chart, &state);
   InitReport rep;
   rep.form = options.form == ContactForm::kChapter ? "chapter" : "closed_form";
   for (int i : init.held) rep.held.push_back(CoordinateName(i));
@@ -242,7 +276,7 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
   const int k = static_cast<int>(active.size());
   if (k > 0) {
     if (options.form == ContactForm::kChapter) {
-      auto* f = new ChapterPositionResidual{{&model, state.q, free, active}};
+      auto* f = new ChapterPositionResidual{{&model, state.q, free, active, options.chart}};
       std::unique_ptr<ChapterPositionResidual> owner(f);
       std::vector<double> x;
       for (int i : free) x.push_back(state.q(i));
@@ -256,7 +290,7 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
         for (int j = 0; j < 4; ++j) state.contact[active[c]].coordinates[j] = x[free.size() + 4 * c + j];
       }
     } else {
-      auto* f = new ClosedPositionResidual{{&model, state.q, free, active}};
+      auto* f = new ClosedPositionResidual{{&model, state.q, free, active, options.chart}};
       std::unique_ptr<ClosedPositionResidual> owner(f);
       std::vector<double> x;
       for (int i : free) x.push_back(state.q(i));

@@ -21,6 +21,9 @@ namespace kneedyn {
 
 struct ConsistentInitOptions {
   ContactForm form = ContactForm::kChapter;
+  // Chart of the chapter-form contact coordinates (contact.hpp): regular by default; the
+  // chapter's height-field chart reproduces its failure at the condyle rim.
+  ContactChart chart = ContactChart::kRegular;
   double position_tolerance = 1.0e-11;  // max |residual| (m; normals dimensionless)
   double velocity_tolerance = 1.0e-11;  // max |φ̇| (m/s)
   double hidden_tolerance = 1.0e-7;     // max |residual| (N, N m, m/s²)

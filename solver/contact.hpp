@@ -42,13 +42,42 @@ struct ContactGeometryTpl {
 };
 using ContactGeometry = ContactGeometryTpl<double>;
 
-// Chapter-form residuals for one pair. c = (xc, yc, x′c, y′c) in m.
-// residual[0..2] = e (Eq. 1.8), residual[3..4] = x, y of nf − R n′t (Eq. 1.13).
+// Chapter-form residuals for one pair, in one of two charts (height_field.hpp):
+//  - kHeightField, the chapter's: c = (xc, yc, x′c, y′c) in m; residual[0..2] = e (Eq. 1.8),
+//    residual[3..4] = x, y of nf − R n′t (Eq. 1.13). Singular where |∇f| → ∞ (the rim of a
+//    condylar sphere) and where the normal turns horizontal in F.
+//  - kRegular: c = (uf, vf, ut, vt) in the surfaces' regular charts; the same conditions
+//    written in the tangent frame, regular up to and beyond the equator:
+//      residual[0,1] = e · R P′t_{u,v} / |P′t_{u,v}|   (Eq. 1.8, tangential components)
+//      residual[2]   = e · n_F                          (Eq. 1.8, normal component: the gap)
+//      residual[3,4] = n_F · Pf_{u,v} / |Pf_{u,v}|     (Eq. 1.13: normals parallel)
 // Returns false when a surface is evaluated outside its domain (recoverable for solvers).
 template <typename T>
 bool ChapterContactResiduals(const ContactPair& pair, const PoseTpl<T>& pose, const T c[4],
-                             T residual[5], ContactGeometryTpl<T>* geometry = nullptr) {
+                             T residual[5], ContactGeometryTpl<T>* geometry = nullptr,
+                             ContactChart chart = ContactChart::kHeightField) {
   using std::sqrt;
+  if (chart == ContactChart::kRegular) {
+    Vector3<T> pf, pf_u, pf_v, pt, pt_u, pt_v;
+    if (!EvaluateChart(*pair.femoral_surface, c[0], c[1], &pf, &pf_u, &pf_v)) return false;
+    if (!EvaluateChart(*pair.tibial_surface, c[2], c[3], &pt, &pt_u, &pt_v)) return false;
+    const Vector3<T> e = pf - pose.PointInF(pt);
+    const Vector3<T> t1 = pose.R_FT * pt_u, t2 = pose.R_FT * pt_v;
+    const Vector3<T> n_T = pt_u.cross(pt_v).normalized();
+    const Vector3<T> n_F = pose.R_FT * n_T;
+    residual[0] = e.dot(t1) / t1.norm();
+    residual[1] = e.dot(t2) / t2.norm();
+    residual[2] = e.dot(n_F);
+    residual[3] = n_F.dot(pf_u) / pf_u.norm();
+    residual[4] = n_F.dot(pf_v) / pf_v.norm();
+    if (geometry != nullptr) {
+      geometry->point_F = pf;
+      geometry->point_T = pt;
+      geometry->normal_T = n_T;
+      geometry->gap = residual[2];
+    }
+    return true;
+  }
   T f, g, df[2], dg[2];
   if (!EvaluateHeight(*pair.femoral_surface, c[0], c[1], &f, df)) return false;
   if (!EvaluateHeight(*pair.tibial_surface, c[2], c[3], &g, dg)) return false;

@@ -82,12 +82,17 @@ TEST_P(ConsistentInitForms, ReachesSpecReferencePoseContactsAndForcesFromChapter
       EXPECT_NEAR(MToMm(g.point_F(i)), kFemoral_mm[c][i], kPointTol_mm) << "contact " << c << " F " << i;
       EXPECT_NEAR(MToMm(g.point_T(i)), kTibial_mm[c][i], kPointTol_mm) << "contact " << c << " T " << i;
     }
-    // The chapter-form coordinates (xc, yc, x′c, y′c) are the same points.
+    // The chapter-form coordinates are the same points, in the surfaces' regular charts
+    // (the default ConsistentInitOptions::chart).
     const auto& co = s.contact[c].coordinates;
-    EXPECT_NEAR(MToMm(co[0]), kFemoral_mm[c][0], kPointTol_mm);
-    EXPECT_NEAR(MToMm(co[1]), kFemoral_mm[c][1], kPointTol_mm);
-    EXPECT_NEAR(MToMm(co[2]), kTibial_mm[c][0], kPointTol_mm);
-    EXPECT_NEAR(MToMm(co[3]), kTibial_mm[c][1], kPointTol_mm);
+    EXPECT_EQ(s.contact[c].chart, ContactChart::kRegular);
+    ChartSample f, t;
+    ASSERT_TRUE(scene.model.contacts[c].femoral_surface->EvaluateChart(co[0], co[1], &f));
+    ASSERT_TRUE(scene.model.contacts[c].tibial_surface->EvaluateChart(co[2], co[3], &t));
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NEAR(MToMm(f.p(i)), kFemoral_mm[c][i], kPointTol_mm) << "contact " << c << " chart F " << i;
+      EXPECT_NEAR(MToMm(t.p(i)), kTibial_mm[c][i], kPointTol_mm) << "contact " << c << " chart T " << i;
+    }
     EXPECT_NEAR(s.contact[c].normal_force, kNormal_N[c], kNormalTol_N) << "contact " << c;
     EXPECT_NEAR(report.normal_force[c], kNormal_N[c], kNormalTol_N);
   }
