@@ -39,12 +39,12 @@ void AppendRow(const Scene& scene, ContactForm form, const MechanicalState& st, 
     const bool active = st.IsActive(static_cast<int>(i));
     ContactGeometry geo;
     bool ok = false;
-    if (active && form == ContactForm::kClosedForm && pair.sphere_on_plane) {
-      geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
-      ok = true;
+    if (active && form == ContactForm::kClosedForm) {
+      ok = ContactKinematics(pair, pose, &geo);
     } else if (active) {
       double r[5];
-      ok = ChapterContactResiduals(pair, pose, st.contact[i].coordinates.data(), r, &geo);
+      ok = ChapterContactResiduals(pair, pose, st.contact[i].coordinates.data(), r, &geo,
+                                   st.contact[i].chart);
     }
     for (int a = 0; a < 3; ++a) points.push_back(ok ? MToMm(geo.point_F(a)) : kNaN);
     for (int a = 0; a < 3; ++a) points.push_back(ok ? MToMm(geo.point_T(a)) : kNaN);

@@ -49,9 +49,6 @@ class DaeFormulation final : public Formulation {
  public:
   DaeFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
       : scene_(scene), model_(scene.model), options_(options), form_(form) {
-    if (form == ContactForm::kClosedForm) {
-      for (const ContactPair& p : model_.contacts) RequireSphereOnPlane(p, "dae-reduced");
-    }
     if (options.step != 0.0) {
       Throw<InputError>("DaeFormulation", "--step = ", options.step,
                         " s: the IDA formulations choose their own steps; use --max-step");
@@ -172,7 +169,7 @@ class DaeFormulation final : public Formulation {
       }
       state->contact[active_[c]].normal_force = y[NormalIndex(static_cast<int>(c))];
     }
-    if (per_contact_ == 0) FillContactCoordinatesFromClosedForm(model_, state);
+    if (per_contact_ == 0) FillContactCoordinates(model_, state);
     if (flag == IDA_ROOT_RETURN) {
       std::vector<int> found(events_.size());
       Check(IDAGetRootInfo(mem_, found.data()), "IDAGetRootInfo");
@@ -216,7 +213,10 @@ class DaeFormulation final : public Formulation {
       ContactGeometryTpl<T> geo;
       if (form_ == ContactForm::kChapter) {
         T r[5];
-        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo)) return false;
+        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo,
+                                     state_contact_[active_[c]].chart)) {
+          return false;
+        }
         Fc[0] = r[0];
         Fc[1] = r[1];
         Fc[2] = options_.constraint_level == "position" ? r[2]
@@ -224,7 +224,7 @@ class DaeFormulation final : public Formulation {
         Fc[3] = r[3];
         Fc[4] = r[4];
       } else {
-        geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+        if (!ContactKinematics(pair, pose, &geo)) return false;
         Fc[0] = options_.constraint_level == "position" ? geo.gap
                                                         : T(ContactConstraintRow(pose, geo).dot(nu));
       }

@@ -69,9 +69,6 @@ class DaeGglFormulation final : public Formulation {
       : scene_(scene), model_(scene.model), options_(options), form_(form),
         data_(model_), data_jet_(model_) {
     const char* name = form == ContactForm::kChapter ? "dae-ggl" : "dae-ggl-reduced";
-    if (form == ContactForm::kClosedForm) {
-      for (const ContactPair& p : model_.contacts) RequireSphereOnPlane(p, name);
-    }
     if (options.step != 0.0) {
       Throw<InputError>("DaeGglFormulation", "--step = ", options.step,
                         " s: ", name, " chooses its own steps; use --max-step");
@@ -206,7 +203,7 @@ class DaeGglFormulation final : public Formulation {
       }
       state->contact[active_[c]].normal_force = y[NormalIndex(static_cast<int>(c))];
     }
-    if (per_contact_ == 0) FillContactCoordinatesFromClosedForm(model_, state);
+    if (per_contact_ == 0) FillContactCoordinates(model_, state);
     if (flag == IDA_ROOT_RETURN) {
       Check(IDAGetRootInfo(mem_, root_flags_.data()), "IDAGetRootInfo");
       result = EventResult(root_flags_);
@@ -247,14 +244,17 @@ class DaeGglFormulation final : public Formulation {
       T phi;
       if (form_ == ContactForm::kChapter) {
         T r[5];
-        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo)) return false;
+        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo,
+                                     state_contact_[active_[c]].chart)) {
+          return false;
+        }
         Fc[0] = r[0];
         Fc[1] = r[1];
         Fc[2] = r[3];
         Fc[3] = r[4];
         phi = r[2];
       } else {
-        geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+        if (!ContactKinematics(pair, pose, &geo)) return false;
         phi = geo.gap;
       }
       const Eigen::Matrix<T, 1, 6> G = ContactConstraintRow(pose, geo);

@@ -36,7 +36,6 @@ class EdeFormulation final : public Formulation, public OdeProblem {
  public:
   EdeFormulation(const Scene& scene, const FormulationOptions& options)
       : scene_(scene), model_(scene.model), options_(options), integrator_(options, "ede") {
-    for (const ContactPair& p : model_.contacts) RequireSphereOnPlane(p, "ede");
     if (options.stabilization == "baumgarte") {
       gains_.alpha = options.baumgarte_alpha;
       gains_.beta = options.baumgarte_beta;
@@ -93,7 +92,7 @@ class EdeFormulation final : public Formulation, public OdeProblem {
     state->contact = state_contact_;
     state->ligament_branch = ligament_branch_;
     for (size_t c = 0; c < active_.size(); ++c) state->contact[active_[c]].normal_force = acc.normal_force[c];
-    FillContactCoordinatesFromClosedForm(model_, state);
+    FillContactCoordinates(model_, state);
     return root ? EventResult(found) : AdvanceResult{};
   }
 

@@ -52,6 +52,8 @@ struct FormulationOptions {
   std::string stabilization = "none";  // ede: none|baumgarte|projection|cvode-projection
   double baumgarte_alpha = 20.0;  // 1/s
   double baumgarte_beta = 20.0;   // 1/s
+  // dae, newmark: chart of the contact coordinates (contact.hpp): regular | height-field
+  ContactChart contact_chart = ContactChart::kRegular;
   std::string constraint_level = "velocity";  // dae: velocity (index 2) | position (index 3)
   // generalized-alpha (newmark_scheme.hpp): spectral radius at infinity ρ∞ ∈ [0, 1], or
   // the four parameters explicitly (all four finite; NaN = from ρ∞).

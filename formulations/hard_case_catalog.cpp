@@ -85,12 +85,16 @@ const std::vector<CaseSpec>& Cases() {
 
 bool IsFixedStep(const std::string& name) { return IsFixedStep(FindFormulation(name), ""); }
 
+// --contact-chart: the chart of the chapter-form contact coordinates in every run.
+ContactChart g_contact_chart = ContactChart::kRegular;
+
 RunSettings DefaultSettings(const std::string& formulation, const CaseSpec& c) {
   RunSettings s;
   s.formulation = formulation;
   s.options.rtol = 1.0e-8;
   s.options.atol = 1.0e-10;
   if (IsFixedStep(formulation)) s.options.step = kDefaultFixedStep;
+  s.options.contact_chart = g_contact_chart;
   if (!c.constraint_level.empty()) s.options.constraint_level = c.constraint_level;
   return s;
 }
@@ -114,8 +118,8 @@ double MaxFemoralGradient(const Model& model, const std::vector<MechanicalState>
     const Pose pose = PoseFromCoordinates(s.q);
     for (int i : s.active) {
       const ContactPair& pair = model.contacts[i];
-      if (!pair.sphere_on_plane) continue;
-      const ContactGeometry geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+      ContactGeometry geo;
+      if (!ContactKinematics(pair, pose, &geo)) continue;
       HeightSample hs;
       double v = INFINITY;  // outside the surface's domain: at/over the edge
       if (pair.femoral_surface->Evaluate(geo.point_F.x(), geo.point_F.y(), &hs)) {
@@ -265,6 +269,11 @@ int main(int argc, char** argv) {
   app.add_option("--formulation", only_formulations, "run only this formulation (repeatable)");
   app.add_flag("--check", check, "exit 1 unless every run meets its case's expectation");
   app.add_flag("--no-reference", no_reference, "skip the tight-tolerance dae reference runs");
+  app.add_option("--contact-chart", g_contact_chart,
+                 "chart of the chapter-form contact coordinates: regular | height-field (the "
+                 "chapter's; reproduces its failure at the condyle rim)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, ContactChart>{
+          {"regular", ContactChart::kRegular}, {"height-field", ContactChart::kHeightField}}));
   app.set_version_flag("--version", VersionReport("kneedyn_catalog"));
   if (const int code = ParseCommandLine(app, argc, argv, "kneedyn_catalog"); code >= 0) return code;
 
@@ -319,6 +328,7 @@ int main(int argc, char** argv) {
           ref.formulation = candidate;
           ref.options.rtol = 1.0e-10;
           ref.options.atol = 1.0e-12;
+          ref.options.contact_chart = g_contact_chart;
           std::string why;
           try {
             RunResult r = RunScene(*scene, ref);

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <map>
 
 #include "ensembles/sweep_cli.hpp"
 #include "formulations/cli.hpp"
@@ -35,8 +36,8 @@ int Info(const std::string& path) {
               MToMm(q(0)), MToMm(q(1)), MToMm(q(2)), RadToDeg(q(3)), RadToDeg(q(4)), RadToDeg(q(5)));
   const Pose pose = PoseFromCoordinates(q);
   for (const ContactPair& pair : model.contacts) {
-    if (!pair.sphere_on_plane) continue;
-    const ContactGeometry g = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+    ContactGeometry g;
+    if (!ContactKinematics(pair, pose, &g)) continue;
     std::printf("%-8s contact: femoral (%.6f, %.6f, %.6f) mm, tibial (%.6f, %.6f, %.6f) mm\n",
                 CompartmentName(pair.compartment), MToMm(g.point_F.x()), MToMm(g.point_F.y()),
                 MToMm(g.point_F.z()), MToMm(g.point_T.x()), MToMm(g.point_T.y()), MToMm(g.point_T.z()));
@@ -91,6 +92,11 @@ int main(int argc, char** argv) {
   run->add_option("--alpha-f", settings.options.alpha_f, "generalized-alpha: alpha_f");
   run->add_option("--beta", settings.options.newmark_beta, "generalized-alpha: beta");
   run->add_option("--gamma", settings.options.newmark_gamma, "generalized-alpha: gamma");
+  run->add_option("--contact-chart", settings.options.contact_chart,
+                  "dae, newmark: chart of the contact coordinates: regular | height-field "
+                  "(the chapter's, singular at the condyle rim)")
+      ->transform(CLI::CheckedTransformer(std::map<std::string, ContactChart>{
+          {"regular", ContactChart::kRegular}, {"height-field", ContactChart::kHeightField}}));
   run->add_option("--output-interval", settings.output_interval, "s between output rows (0: scene's)");
   run->add_option("--out", out_dir, "output directory")->capture_default_str();
   run->add_flag("--quiet", quiet, "no progress on stderr");

@@ -1,7 +1,8 @@
-// `mde`: minimal differential equations. With sphere-on-plane contacts the contact
-// conditions φ_i(q) = n_i·(C_i − R0) − d_i − r_i = 0, n_i = R(α, β, γ) n̂′_i, are linear in
-// R0 = (x0, y0, z0) for a fixed rotation, so k active contacts eliminate k translations in
-// closed form and the state is y = (s, ṡ) with the 6 − k free coordinates s:
+// `mde`: minimal differential equations. The contact conditions φ_i(q) = 0
+// (contact_kinematics.hpp, any surface pair) are solved for k translations of R0 by Newton
+// (∂φ_i/∂R0 = −n_F,i; for sphere on plane φ_i = n_i·(C_i − R0) − d_i − r_i is linear in R0
+// and one step is exact), so k active contacts eliminate k translations and the state is
+// y = (s, ṡ) with the 6 − k free coordinates s:
 //   two-point  s = (y0, α, β, γ): x0, z0 from the 2×2 solve of φ1 = φ2 = 0 (the admissible
 //              R0 lie on a line along n1 × n2, parameterised by y0);
 //   one-point  s = (x0, y0, α, β, γ): z0 from φ = 0;
@@ -41,6 +42,9 @@ constexpr double kMinEliminationDeterminant = 1.0e-8;
 // Largest loss of conditioning of the chart in use, best |det| / its |det|, tolerated
 // inside a step (charts are switched at 2x after each step).
 constexpr double kMaxChartDegradation = 1.0e3;
+// Newton for the eliminated translations: stop at this max |φ_i| (m) / after this many steps.
+constexpr double kEliminationTolerance = 1.0e-15;
+constexpr int kMaxEliminationIterations = 20;
 
 struct MdeKinematics {
   Vector6d q, qd, qdd;
@@ -51,7 +55,6 @@ class MdeFormulation final : public Formulation, public OdeProblem {
  public:
   MdeFormulation(const Scene& scene, const FormulationOptions& options)
       : scene_(scene), model_(scene.model), options_(options), integrator_(options, "mde") {
-    for (const ContactPair& p : model_.contacts) RequireSphereOnPlane(p, "mde");
     if (options.stabilization != "none") {
       Throw<InputError>("MdeFormulation", "--stabilization = '", options.stabilization,
                         "' applies to ede only (mde has no drift)");
@@ -67,6 +70,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     ligament_branch_ = state.ligament_branch;
     elim_.clear();
     phase_steps_ = 0;
+    last_q_ = state.q;
     ChooseEliminated(state.q);
     StartIntegrator(state);
   }
@@ -105,7 +109,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     state->contact = state_contact_;
     state->ligament_branch = ligament_branch_;
     for (size_t c = 0; c < active_.size(); ++c) state->contact[active_[c]].normal_force = kin.normal_force[c];
-    FillContactCoordinatesFromClosedForm(model_, state);
+    FillContactCoordinates(model_, state);
     return root ? EventResult(found) : AdvanceResult{};
   }
 
@@ -135,17 +139,11 @@ class MdeFormulation final : public Formulation, public OdeProblem {
   // After an accepted step: restart in a better chart when the one in use lost a factor 2.
   void SwitchChartIfBetter() {
     const std::vector<int> before = elim_;
-    Vector6d q_angles = Vector6d::Zero();  // the angles are always free coordinates
-    for (size_t j = 0; j < free_.size(); ++j) q_angles(free_[j]) = y_(j);
-    ChooseEliminated(q_angles);
-    if (elim_ == before) return;
     // The new chart's state from the full q, q̇ of the old one (exact: same point).
-    std::vector<int> after = elim_;
-    elim_ = before;
-    SetFree();
     const MdeKinematics kin = Evaluate(t_, y_.data(), nullptr);
-    elim_ = after;
-    SetFree();
+    ChooseEliminated(kin.q);
+    if (elim_ == before) return;
+    last_q_ = kin.q;
     MechanicalState at;
     at.t = t_;
     at.q = kin.q;
@@ -177,11 +175,14 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     return std::abs(block.determinant());
   }
 
-  MatrixXd RotatedNormals(const Matrix3d& R) const {
+  // Contact normals n_F (rows) of the active contacts at the full pose q.
+  MatrixXd ContactNormals(const Vector6d& q) const {
     const int k = static_cast<int>(active_.size());
+    const Pose pose = PoseFromCoordinates(q);
     MatrixXd normals(k, 3);
     for (int r = 0; r < k; ++r) {
-      normals.row(r) = (R * model_.contacts[active_[r]].sphere_on_plane->normal_T).transpose();
+      const ContactGeometry g = RequireContactKinematics(model_.contacts[active_[r]], pose, "MdeFormulation");
+      normals.row(r) = (pose.R_FT * g.normal_T).transpose();
     }
     return normals;
   }
@@ -190,7 +191,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
   void ChooseEliminated(const Vector6d& q) {
     const int k = static_cast<int>(active_.size());
     if (k > 2) Throw<SolverError>("MdeFormulation::Start", k, " active contacts; at most 2 supported");
-    const MatrixXd normals = RotatedNormals(RotationFT(q(kAlpha), q(kBeta), q(kGamma)));
+    const MatrixXd normals = ContactNormals(q);
     const std::vector<int> current = elim_;
     double current_det = -1.0;
     elim_.clear();
@@ -219,12 +220,55 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     const int m = static_cast<int>(free_.size());
     const int k = static_cast<int>(elim_.size());
     MdeKinematics kin;
-    kin.q.setZero();
+    kin.q = last_q_;
     for (int j = 0; j < m; ++j) kin.q(free_[j]) = y[j];
-    const Matrix3d R = RotationFT(kin.q(kAlpha), kin.q(kBeta), kin.q(kGamma));
+    // φ_i(q) = 0 solved for the eliminated translations by Newton (∂φ_i/∂R0 = −n_F,i); one
+    // step is exact for a sphere on a plane (φ linear in R0), a few for curved surfaces.
+    std::vector<ContactGeometry> geo(k);
+    // Closed form where one exists: n_i · R0 = n_i · C_i − d_i − r_i (linear in R0).
+    bool closed_form = k > 0;
+    std::vector<SphereOnPlane> sop(k);
+    for (int r = 0; r < k; ++r) closed_form = closed_form && SphereOnPlaneForm(model_.contacts[active_[r]], &sop[r]);
+    if (closed_form) {
+      const Matrix3d R = RotationFT(kin.q(kAlpha), kin.q(kBeta), kin.q(kGamma));
+      MatrixXd ND(k, k);
+      VectorXd rhs(k);
+      for (int r = 0; r < k; ++r) {
+        const Vector3d n = R * sop[r].normal_T;
+        rhs(r) = n.dot(sop[r].centre_F) - sop[r].offset - sop[r].radius;
+        for (int j = 0; j < m; ++j) {
+          if (free_[j] < 3) rhs(r) -= n(free_[j]) * kin.q(free_[j]);
+        }
+        for (int c = 0; c < k; ++c) ND(r, c) = n(elim_[c]);
+      }
+      const VectorXd x = ND.partialPivLu().solve(rhs);
+      for (int c = 0; c < k; ++c) kin.q(elim_[c]) = x(c);
+      const Pose pose_c = PoseFromCoordinates(kin.q);
+      for (int r = 0; r < k; ++r) geo[r] = SphereOnPlaneContact(sop[r], pose_c);
+    }
+    for (int iter = 0; k > 0 && !closed_form; ++iter) {
+      const Pose pose_i = PoseFromCoordinates(kin.q);
+      MatrixXd ND(k, k);
+      VectorXd phi(k);
+      for (int r = 0; r < k; ++r) {
+        geo[r] = RequireContactKinematics(model_.contacts[active_[r]], pose_i, "MdeFormulation::Evaluate");
+        phi(r) = geo[r].gap;
+        const Vector3d n = pose_i.R_FT * geo[r].normal_T;
+        for (int c = 0; c < k; ++c) ND(r, c) = -n(elim_[c]);
+      }
+      // At least one step: the result must not depend on the start (last_q_).
+      if (iter > 0 && phi.cwiseAbs().maxCoeff() <= kEliminationTolerance) break;
+      if (iter == kMaxEliminationIterations) {
+        Throw<SolverError>("MdeFormulation::Evaluate", "eliminating the contact translations did not converge at t = ", t,
+                           " s: max |gap| = ", phi.cwiseAbs().maxCoeff(), " m after ", iter,
+                           " Newton steps (rule: <= ", kEliminationTolerance, " m)");
+      }
+      const VectorXd dx = ND.partialPivLu().solve(phi);
+      for (int c = 0; c < k; ++c) kin.q(elim_[c]) -= dx(c);
+    }
     if (k > 0) {
       // The chart in use must still be usable here (see kMaxChartDegradation).
-      const MatrixXd normals = RotatedNormals(R);
+      const MatrixXd normals = ContactNormals(kin.q);
       double best = 0.0;
       for (const std::vector<int>& cand : Candidates(k)) best = std::max(best, BlockDeterminant(normals, cand));
       const double det = BlockDeterminant(normals, elim_);
@@ -234,29 +278,13 @@ class MdeFormulation final : public Formulation, public OdeProblem {
                            " of the eliminated block vs ", best, " of the best one (rule: within a factor ",
                            kMaxChartDegradation, "; reduce --rtol or --max-step)");
       }
-      // n_i · R0 = n_i · C_i − d_i − r_i, solved for the eliminated components.
-      MatrixXd ND(k, k);
-      VectorXd rhs(k);
-      for (int r = 0; r < k; ++r) {
-        const SphereOnPlane& sop = *model_.contacts[active_[r]].sphere_on_plane;
-        const Vector3d n = R * sop.normal_T;
-        rhs(r) = n.dot(sop.centre_F) - sop.offset - sop.radius;
-        for (int j = 0; j < m; ++j) {
-          if (free_[j] < 3) rhs(r) -= n(free_[j]) * kin.q(free_[j]);
-        }
-        for (int c = 0; c < k; ++c) ND(r, c) = n(elim_[c]);
-      }
-      const VectorXd x = ND.partialPivLu().solve(rhs);
-      for (int c = 0; c < k; ++c) kin.q(elim_[c]) = x(c);
     }
     const Pose pose = PoseFromCoordinates(kin.q);
     const Matrix3d E = AngularVelocityMap(kin.q(kBeta), kin.q(kGamma));
     // J = ∂φ/∂q = G B, and P = ∂q/∂s.
     MatrixXd J(k, 6), G(k, 6);
-    std::vector<ContactGeometry> geo;
     for (int r = 0; r < k; ++r) {
-      geo.push_back(SphereOnPlaneContact(*model_.contacts[active_[r]].sphere_on_plane, pose));
-      G.row(r) = ContactConstraintRow(pose, geo.back());
+      G.row(r) = ContactConstraintRow(pose, geo[r]);
       J.block(r, 0, 1, 3) = G.block(r, 0, 1, 3);
       J.block(r, 3, 1, 3) = G.block(r, 3, 1, 3) * E;
     }
@@ -282,7 +310,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
       VectorXd c(k);
       for (int r = 0; r < k; ++r) {
         c(r) = (G.block(r, 3, 1, 3) * Edot_thetadot)(0) +
-               ContactAccelerationTerm(*model_.contacts[active_[r]].sphere_on_plane, pose, nu);
+               ContactRateTerm(model_.contacts[active_[r]], kin.q, kin.qd);
       }
       const VectorXd pD = -JD_lu.solve(c);
       for (int r = 0; r < k; ++r) p(elim_[r]) = pD(r);
@@ -321,7 +349,10 @@ class MdeFormulation final : public Formulation, public OdeProblem {
   std::vector<int> active_;
   std::vector<int> free_;  // indices into q of s, ascending
   std::vector<int> elim_;  // eliminated translations (one per active contact)
-  long phase_steps_ = 0;   // steps since Start (the --max-steps budget is per phase)
+  long phase_steps_ = 0;
+  // The eliminated translations start Newton from the phase start's values, so that the
+  // right-hand side is a function of (t, y) alone (no dependence on the call history).
+  Vector6d last_q_ = Vector6d::Zero();   // steps since Start (the --max-steps budget is per phase)
   std::vector<EventSpec> events_;
   std::vector<ContactGuess> state_contact_;
   std::vector<signed char> ligament_branch_;

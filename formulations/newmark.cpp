@@ -77,9 +77,6 @@ class NewmarkFormulation final : public Formulation {
                      const NewmarkScheme& scheme = NewmarkScheme(), const char* name = nullptr)
       : scene_(scene), model_(scene.model), options_(options), form_(form), scheme_(scheme) {
     if (name == nullptr) name = form == ContactForm::kChapter ? "newmark" : "newmark-reduced";
-    if (form == ContactForm::kClosedForm) {
-      for (const ContactPair& p : model_.contacts) RequireSphereOnPlane(p, name);
-    }
     if (options.stabilization != "none") {
       Throw<InputError>("NewmarkFormulation", "--stabilization = '", options.stabilization,
                         "' applies to ede only; ", name, " enforces the contacts at position level");
@@ -190,9 +187,12 @@ class NewmarkFormulation final : public Formulation {
       const ContactPair& pair = model_.contacts[active_[c]];
       ContactGeometryTpl<T> geo;
       if (form_ == ContactForm::kChapter) {
-        if (!ChapterContactResiduals(pair, pose, x + 6 + 4 * c, F + 6 + 5 * c, &geo)) return false;
+        if (!ChapterContactResiduals(pair, pose, x + 6 + 4 * c, F + 6 + 5 * c, &geo,
+                                     state_contact_[active_[c]].chart)) {
+          return false;
+        }
       } else {
-        geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+        if (!ContactKinematics(pair, pose, &geo)) return false;
         F[6 + c] = geo.gap;  // φ_i = 0
       }
       AddContactWrench(pose, geo, N[c], &data.applied_force_F, &data.applied_moment_T);
@@ -211,13 +211,10 @@ class NewmarkFormulation final : public Formulation {
   // layer (damped by ρ∞ < 1; second order after ~0.1 s, tests/exact_solution_test.cpp). q̈(t_0 + s) from the hidden constraint
   // (solver/constrained_dynamics.hpp) along the Taylor path, forward difference with
   // s = 1e-6 s (truncation ~1e-6 |q⁗|, round-off ~ε|q̈|/s, both ≪ the O(h²) left). Newmark
-  // (Δα = 0) and contacts without a closed form keep a_0 = q̈_0.
+  // (Δα = 0) keeps a_0 = q̈_0.
   Vector6d StartingPseudoAcceleration(const MechanicalState& state) const {
     const double delta_alpha = scheme_.alpha_m - scheme_.alpha_f;
     if (delta_alpha == 0.0) return state.qdd;
-    for (int c : active_) {
-      if (!model_.contacts[c].sphere_on_plane) return state.qdd;
-    }
     const double s = 1.0e-6;
     const Vector6d q1 = state.q + s * state.qd + 0.5 * s * s * state.qdd;
     const Vector6d qd1 = state.qd + s * state.qdd;
@@ -453,7 +450,7 @@ class NewmarkFormulation final : public Formulation {
       }
       state->contact[active_[c]].normal_force = s.extra(per_contact_ * k + c);
     }
-    if (per_contact_ == 0) FillContactCoordinatesFromClosedForm(model_, state);
+    if (per_contact_ == 0) FillContactCoordinates(model_, state);
   }
 
   const Scene& scene_;

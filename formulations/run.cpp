@@ -6,6 +6,7 @@
 #include <Eigen/LU>
 
 #include "solver/constrained_dynamics.hpp"
+#include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 
@@ -18,8 +19,8 @@ void ConstraintResiduals(const Model& model, const MechanicalState& state,
   gap->assign(model.contacts.size(), std::nan(""));
   gap_rate->assign(model.contacts.size(), std::nan(""));
   for (size_t i = 0; i < model.contacts.size(); ++i) {
-    if (!model.contacts[i].sphere_on_plane) continue;
-    const ContactGeometry g = SphereOnPlaneContact(*model.contacts[i].sphere_on_plane, pose);
+    ContactGeometry g;
+    if (!ContactKinematics(model.contacts[i], pose, &g)) continue;
     (*gap)[i] = g.gap;
     (*gap_rate)[i] = ContactConstraintRow(pose, g).dot(nu);
   }
@@ -37,8 +38,8 @@ void ApplyPlasticImpact(const Model& model, MechanicalState* state) {
   A.topLeftCorner<6, 6>() = MassMatrix(model);
   const Vector6d nu = GeneralizedVelocity(state->q, state->qd);
   for (int r = 0; r < k; ++r) {
-    const auto& sop = RequireSphereOnPlane(model.contacts[state->active[r]], "ApplyPlasticImpact");
-    const Eigen::Matrix<double, 1, 6> G = ContactConstraintRow(pose, SphereOnPlaneContact(sop, pose));
+    const Eigen::Matrix<double, 1, 6> G = ContactConstraintRow(
+        pose, RequireContactKinematics(model.contacts[state->active[r]], pose, "ApplyPlasticImpact"));
     A.block<1, 6>(6 + r, 0) = G;
     A.block<6, 1>(0, 6 + r) = -G.transpose();
     b(6 + r) = -G.dot(nu);
@@ -66,8 +67,8 @@ void CheckSampleIsPhysical(const Model& model, const MechanicalState& s) {
   for (int i : s.active) {
     const ContactPair& pair = model.contacts[i];
     double x = s.contact[i].coordinates[0], y = s.contact[i].coordinates[1];
-    if (pair.sphere_on_plane) {
-      const ContactGeometry g = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+    ContactGeometry g;
+    if (ContactKinematics(pair, pose, &g)) {
       x = g.point_F.x();
       y = g.point_F.y();
       if (std::abs(g.gap) > kMaxConstraintViolation) {
@@ -102,6 +103,7 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
 
   ConsistentInitOptions init_options = settings.init;
   init_options.form = formulation->contact_form();
+  init_options.chart = settings.options.contact_chart;
   std::vector<int> active;
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
   MechanicalState state = ConsistentInitialize(scene, active, init_options, &result.init);

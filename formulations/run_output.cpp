@@ -70,7 +70,7 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
         const auto& c = st.contact[idx].coordinates;
         ContactGeometry geo;
         double r[5];
-        if (ChapterContactResiduals(model.contacts[idx], pose, c.data(), r, &geo)) {
+        if (ChapterContactResiduals(model.contacts[idx], pose, c.data(), r, &geo, st.contact[idx].chart)) {
           for (int a = 0; a < 3; ++a) row.push_back(MToMm(geo.point_F(a)));
           for (int a = 0; a < 3; ++a) row.push_back(MToMm(geo.point_T(a)));
         } else {

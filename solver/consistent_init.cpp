@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "solver/constrained_dynamics.hpp"
+#include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn {
@@ -19,6 +20,7 @@ struct PositionUnknowns {
   Vector6d q_fixed;
   std::vector<int> free;    // coordinate indices
   std::vector<int> active;  // contact indices
+  ContactChart chart = ContactChart::kRegular;
 
   template <typename T>
   PoseTpl<T> PoseOf(T const* x) const {
@@ -35,19 +37,24 @@ struct ChapterPositionResidual : PositionUnknowns {
     const PoseTpl<T> pose = PoseOf(x[0]);
     for (size_t k = 0; k < active.size(); ++k) {
       const T* c = x[0] + free.size() + 4 * k;
-      if (!ChapterContactResiduals(model->contacts[active[k]], pose, c, r + 5 * k)) return false;
+      if (!ChapterContactResiduals(model->contacts[active[k]], pose, c, r + 5 * k,
+                                   static_cast<ContactGeometryTpl<T>*>(nullptr), chart)) {
+        return false;
+      }
     }
     return true;
   }
 };
 
-// Closed form: unknowns = free coordinates; residual φ_i per contact.
+// Gap form: unknowns = free coordinates; residual φ_i per contact (contact_kinematics.hpp).
 struct ClosedPositionResidual : PositionUnknowns {
   template <typename T>
   bool operator()(T const* const* x, T* r) const {
     const PoseTpl<T> pose = PoseOf(x[0]);
     for (size_t k = 0; k < active.size(); ++k) {
-      r[k] = SphereOnPlaneContact(*model->contacts[active[k]].sphere_on_plane, pose).gap;
+      ContactGeometryTpl<T> geo;
+      if (!ContactKinematics(model->contacts[active[k]], pose, &geo)) return false;
+      r[k] = geo.gap;
     }
     return true;
   }
@@ -137,16 +144,45 @@ bool ConsistentInitOptions::IsValid(std::string* error) const {
   return true;
 }
 
-void FillContactCoordinatesFromClosedForm(const Model& model, MechanicalState* state) {
+void FillContactCoordinates(const Model& model, MechanicalState* state) {
   const Pose pose = PoseFromCoordinates(state->q);
   for (int i : state->active) {
-    if (!model.contacts[i].sphere_on_plane) continue;
-    const ContactGeometry g = SphereOnPlaneContact(*model.contacts[i].sphere_on_plane, pose);
-    state->contact[i].coordinates = {g.point_F.x(), g.point_F.y(), g.point_T.x(), g.point_T.y()};
+    double chart[4];
+    const ContactGeometry g =
+        RequireContactKinematics(model.contacts[i], pose, "FillContactCoordinates", chart);
+    if (state->contact[i].chart == ContactChart::kRegular) {
+      state->contact[i].coordinates = {chart[0], chart[1], chart[2], chart[3]};
+    } else {
+      state->contact[i].coordinates = {g.point_F.x(), g.point_F.y(), g.point_T.x(), g.point_T.y()};
+    }
   }
 }
 
 namespace {
+
+// Height-field (x, y) coordinates → the regular charts' (u, v) of the same surface points
+// (a point off its surface's domain: the contact kinematics' solution instead).
+void ConvertContactCoordinates(const Model& model, ContactChart chart, MechanicalState* state) {
+  const Pose pose = PoseFromCoordinates(state->q);
+  for (size_t i = 0; i < state->contact.size() && i < model.contacts.size(); ++i) {
+    ContactGuess& g = state->contact[i];
+    if (g.chart == chart) continue;
+    g.chart = chart;
+    if (chart == ContactChart::kHeightField) continue;  // only scenes give height-field ones
+    const ContactPair& pair = model.contacts[i];
+    HeightSample hf, ht;
+    double kin[4];
+    ContactGeometry geo;
+    if (pair.femoral_surface->Evaluate(g.coordinates[0], g.coordinates[1], &hf) &&
+        pair.tibial_surface->Evaluate(g.coordinates[2], g.coordinates[3], &ht)) {
+      pair.femoral_surface->ChartCoordinates(Vector3d(g.coordinates[0], g.coordinates[1], hf.value), kin);
+      pair.tibial_surface->ChartCoordinates(Vector3d(g.coordinates[2], g.coordinates[3], ht.value), kin + 2);
+    } else if (!ContactKinematics(pair, pose, &geo, kin)) {
+      continue;  // left as is: the position level reports the failure
+    }
+    g.coordinates = {kin[0], kin[1], kin[2], kin[3]};
+  }
+}
 
 // Levels 2–3 with given velocity holds. Returns the two level reports.
 std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
@@ -158,9 +194,8 @@ std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
   MatrixXd G(k, 6);
   VectorXd kappa(k);
   for (int c = 0; c < k; ++c) {
-    const SphereOnPlane& sop =
-        RequireSphereOnPlane(model.contacts[state->active[c]], "ConsistentInitialize");
-    G.row(c) = ContactConstraintRow(pose, SphereOnPlaneContact(sop, pose));
+    G.row(c) = ContactConstraintRow(
+        pose, RequireContactKinematics(model.contacts[state->active[c]], pose, "ConsistentInitialize"));
   }
   // Velocity level: φ̇ = G B(q) q̇ = 0, minimum-norm correction of the free rates.
   InitLevelReport vel;
@@ -194,7 +229,7 @@ std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
   // Hidden level (Ceres), from the guesses in state->contact[].normal_force.
   const Vector6d nu = GeneralizedVelocity(state->q, state->qd);
   for (int c = 0; c < k; ++c) {
-    kappa(c) = ContactAccelerationTerm(*model.contacts[state->active[c]].sphere_on_plane, pose, nu);
+    kappa(c) = ContactRateTerm(model.contacts[state->active[c]], state->q, state->qd);
   }
   Data data(model);
   data.ligament_branch = &state->ligament_branch;
@@ -227,6 +262,7 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
   state.qd = init.qd;
   state.active = active;
   state.contact = init.contact_guesses;
+  ConvertContactCoordinates(scene.model, options.chart, &state);
   InitReport rep;
   rep.form = options.form == ContactForm::kChapter ? "chapter" : "closed_form";
   for (int i : init.held) rep.held.push_back(CoordinateName(i));
@@ -240,7 +276,7 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
   const int k = static_cast<int>(active.size());
   if (k > 0) {
     if (options.form == ContactForm::kChapter) {
-      auto* f = new ChapterPositionResidual{{&model, state.q, free, active}};
+      auto* f = new ChapterPositionResidual{{&model, state.q, free, active, options.chart}};
       std::unique_ptr<ChapterPositionResidual> owner(f);
       std::vector<double> x;
       for (int i : free) x.push_back(state.q(i));
@@ -254,15 +290,14 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
         for (int j = 0; j < 4; ++j) state.contact[active[c]].coordinates[j] = x[free.size() + 4 * c + j];
       }
     } else {
-      for (int c : active) RequireSphereOnPlane(model.contacts[c], "ConsistentInitialize");
-      auto* f = new ClosedPositionResidual{{&model, state.q, free, active}};
+      auto* f = new ClosedPositionResidual{{&model, state.q, free, active, options.chart}};
       std::unique_ptr<ClosedPositionResidual> owner(f);
       std::vector<double> x;
       for (int i : free) x.push_back(state.q(i));
       rep.position = SolveLevel("position", f, &x, k, options.position_tolerance,
                                 options.max_iterations);
       for (size_t i = 0; i < free.size(); ++i) state.q(free[i]) = x[i];
-      FillContactCoordinatesFromClosedForm(model, &state);
+      FillContactCoordinates(model, &state);
     }
   }
   CheckJcsRegular(state.q(kBeta), "ConsistentInitialize");
@@ -288,7 +323,7 @@ void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state) {
   constexpr double kGapTolerance = 1.0e-14;  // m
   ProjectOntoContacts(scene.model, state->active, kGapTolerance, 20, &state->q);
   SolveVelocityAndHidden(scene, {}, options, state);
-  FillContactCoordinatesFromClosedForm(scene.model, state);
+  FillContactCoordinates(scene.model, state);
 }
 
 }  // namespace kneedyn

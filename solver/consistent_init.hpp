@@ -21,6 +21,9 @@ namespace kneedyn {
 
 struct ConsistentInitOptions {
   ContactForm form = ContactForm::kChapter;
+  // Chart of the chapter-form contact coordinates (contact.hpp): regular by default; the
+  // chapter's height-field chart reproduces its failure at the condyle rim.
+  ContactChart chart = ContactChart::kRegular;
   double position_tolerance = 1.0e-11;  // max |residual| (m; normals dimensionless)
   double velocity_tolerance = 1.0e-11;  // max |φ̇| (m/s)
   double hidden_tolerance = 1.0e-7;     // max |residual| (N, N m, m/s²)
@@ -50,10 +53,11 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
 // After a mode switch: projects the positions onto the active contacts' gaps φ_i = 0
 // (Gauss–Newton, minimum-norm corrections; removes the drift of velocity-level
 // formulations and the hysteresis penetration of a re-contact), then levels 2–3; fills
-// qdd, normal forces and (from the closed form) contact coordinates.
+// qdd, normal forces and (from the contact kinematics) contact coordinates.
 void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state);
 
-// Chapter-form contact coordinates of the active contacts from the closed form.
-void FillContactCoordinatesFromClosedForm(const Model& model, MechanicalState* state);
+// Chapter-form contact coordinates of the active contacts from the contact kinematics
+// (contact_kinematics.hpp).
+void FillContactCoordinates(const Model& model, MechanicalState* state);
 
 }  // namespace kneedyn

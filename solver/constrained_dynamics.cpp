@@ -2,6 +2,7 @@
 
 #include <Eigen/LU>
 
+#include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn {
@@ -11,8 +12,7 @@ std::vector<ContactGeometry> ClosedFormContacts(const Model& model, const Pose& 
   std::vector<ContactGeometry> out;
   out.reserve(contacts.size());
   for (int i : contacts) {
-    out.push_back(SphereOnPlaneContact(
-        RequireSphereOnPlane(model.contacts[i], "ClosedFormContacts"), pose));
+    out.push_back(RequireContactKinematics(model.contacts[i], pose, "ClosedFormContacts"));
   }
   return out;
 }
@@ -26,8 +26,8 @@ void ContactGapsAndJacobian(const Model& model, const Vector6d& q, const std::ve
   Matrix6d B = Matrix6d::Identity();
   B.bottomRightCorner<3, 3>() = AngularVelocityMap(q(kBeta), q(kGamma));
   for (int c = 0; c < k; ++c) {
-    const SphereOnPlane& sop = RequireSphereOnPlane(model.contacts[contacts[c]], "ContactGapsAndJacobian");
-    const ContactGeometry g = SphereOnPlaneContact(sop, pose);
+    const ContactGeometry g =
+        RequireContactKinematics(model.contacts[contacts[c]], pose, "ContactGapsAndJacobian");
     (*phi)(c) = g.gap;
     J->row(c) = ContactConstraintRow(pose, g) * B;
   }
@@ -63,13 +63,12 @@ ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double 
   A.topLeftCorner<6, 6>() = MassMatrix(model);
   b.head<6>() = Q;
   for (int r = 0; r < k; ++r) {
-    const SphereOnPlane& sop =
-        RequireSphereOnPlane(model.contacts[active[r]], "SolveConstrainedAcceleration");
-    const ContactGeometry geo = SphereOnPlaneContact(sop, pose);
+    const ContactPair& pair = model.contacts[active[r]];
+    const ContactGeometry geo = RequireContactKinematics(pair, pose, "SolveConstrainedAcceleration");
     const Eigen::Matrix<double, 1, 6> G = ContactConstraintRow(pose, geo);
     A.block<1, 6>(6 + r, 0) = G;
     A.block<6, 1>(0, 6 + r) = -G.transpose();
-    b(6 + r) = -ContactAccelerationTerm(sop, pose, nu) - 2.0 * gains.alpha * G.dot(nu) -
+    b(6 + r) = -ContactRateTerm(pair, q, qd) - 2.0 * gains.alpha * G.dot(nu) -
                gains.beta * gains.beta * geo.gap;
   }
   Eigen::FullPivLU<MatrixXd> lu(A);

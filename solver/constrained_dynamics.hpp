@@ -1,4 +1,5 @@
-// The hidden (acceleration-level) constraint with closed-form sphere-on-plane contacts:
+// The hidden (acceleration-level) constraint with the contact kinematics of
+// contact_kinematics.hpp (any surface pair):
 // contact forces and accelerations at a state (q, q̇), shared by every formulation that
 // needs them (consistent initialization, EDE right-hand side, MDE force recovery, lift-off
 // events of the ODE formulations, output of contact forces).
@@ -26,7 +27,7 @@ struct BaumgarteGains {
   double beta = 0.0;   // 1/s, position feedback (b² φ)
 };
 
-// `active` lists indices into model.contacts (each must be a sphere on a plane).
+// `active` lists indices into model.contacts.
 // Throws SolverError when the constraint rows are dependent.
 ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double t,
                                                      const Vector6d& q, const Vector6d& qd,
@@ -34,7 +35,7 @@ ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double 
                                                      BaumgarteGains gains = {},
                                                      const std::vector<signed char>* ligament_branch = nullptr);
 
-// Closed-form gaps φ_i (m) of the listed contacts at q and their Jacobian
+// Gaps φ_i (m) of the listed contacts at q and their Jacobian
 // ∂φ/∂q = G B(q) (k×6; G from contact.hpp, B = diag(1, E)).
 void ContactGapsAndJacobian(const Model& model, const Vector6d& q, const std::vector<int>& contacts,
                             VectorXd* phi, MatrixXd* J);
@@ -45,7 +46,8 @@ void ContactGapsAndJacobian(const Model& model, const Vector6d& q, const std::ve
 void ProjectOntoContacts(const Model& model, const std::vector<int>& contacts, double tolerance,
                          int max_iterations, Vector6d* q);
 
-// Closed-form contact geometries of the listed contacts at a pose.
+// Contact geometries (contact_kinematics.hpp) of the listed contacts at a pose; throws
+// SolverError when one has no contact point.
 std::vector<ContactGeometry> ClosedFormContacts(const Model& model, const Pose& pose,
                                                 const std::vector<int>& contacts);
 

@@ -5,13 +5,13 @@
 //   Xf = (xc, yc, f(xc, yc))  in F,        X′t = (x′c, y′c, g(x′c, y′c))  in T
 //   e  = Xf − (R0 + R X′t)                 (Eq. 1.8; three components: F13–F15)
 //   nf − R n′t, x and y components         (Eq. 1.13; F19, F20), n = (∂x h, ∂y h, −1)/norm
-// Closed form, sphere on plane: the gap φ = n·(C − R0) − d − r with n = R n̂′ (in F);
-// contact point Xc = C − r n. φ > 0 separated, φ < 0 penetrating.
+// Closed form, sphere on plane (contact_kinematics.hpp chooses it): the gap φ = n·(C − R0) − d − r with n = R n̂′ (in F);
+// contact point Xc = C − r n (reported in both frames). φ > 0 separated, φ < 0 penetrating.
 //
 // Velocity level (both forms): the normal approach velocity of the tibial material point
 // at the contact, written as φ̇ = −n_F · (v_F + w_F × R X′t) = G ν with ν = (v_F, w_T),
 //   G = [−n_Fᵀ, (n′_T × X′t)ᵀ]                 (1×6)
-// and at acceleration level φ̈ = G ν̇ + κ (closed form only; see ContactAccelerationTerm).
+// and at acceleration level φ̈ = G ν̇ + κ (any pair: ContactRateTerm, contact_kinematics.hpp).
 //
 // Contact force on the tibia: −N n_F applied at the tibial contact point (spec §4).
 #pragma once
@@ -21,23 +21,63 @@
 
 namespace kneedyn {
 
+// The sphere-on-plane closed form of a contact pair (spec §4), from the surfaces'
+// SphereForm/PlaneForm (contact_kinematics.hpp: SphereOnPlaneForm).
+struct SphereOnPlane {
+  Vector3d centre_F;  // sphere centre C in F, m
+  double radius = 0.0;  // r, m
+  Vector3d normal_T;  // unit plane normal n̂′ in T, towards the femur
+  double offset = 0.0;  // d: n̂′ · x′ = d on the plane, m
+};
+
 // Where a contact acts on the tibia and its normal; shared by both forms.
 template <typename T>
 struct ContactGeometryTpl {
   Vector3<T> point_F;   // femoral contact point Xf, m
-  Vector3<T> point_T;   // tibial contact point X′t (tibial coordinates), m
+  Vector3<T> point_T;   // tibial contact point X′t (tibial coordinates), m; any point on
+                        // the line of action gives the same G and wrench: the closed form
+                        // reports the femoral point here, the general solve the tibial one
   Vector3<T> normal_T;  // unit tibial normal n′, towards the femur
   T gap = T(0.0);       // closed form φ; chapter form: n_F · e (signed distance along n)
 };
 using ContactGeometry = ContactGeometryTpl<double>;
 
-// Chapter-form residuals for one pair. c = (xc, yc, x′c, y′c) in m.
-// residual[0..2] = e (Eq. 1.8), residual[3..4] = x, y of nf − R n′t (Eq. 1.13).
+// Chapter-form residuals for one pair, in one of two charts (height_field.hpp):
+//  - kHeightField, the chapter's: c = (xc, yc, x′c, y′c) in m; residual[0..2] = e (Eq. 1.8),
+//    residual[3..4] = x, y of nf − R n′t (Eq. 1.13). Singular where |∇f| → ∞ (the rim of a
+//    condylar sphere) and where the normal turns horizontal in F.
+//  - kRegular: c = (uf, vf, ut, vt) in the surfaces' regular charts; the same conditions
+//    written in the tangent frame, regular up to and beyond the equator:
+//      residual[0,1] = e · R P′t_{u,v} / |P′t_{u,v}|   (Eq. 1.8, tangential components)
+//      residual[2]   = e · n_F                          (Eq. 1.8, normal component: the gap)
+//      residual[3,4] = n_F · Pf_{u,v} / |Pf_{u,v}|     (Eq. 1.13: normals parallel)
 // Returns false when a surface is evaluated outside its domain (recoverable for solvers).
 template <typename T>
 bool ChapterContactResiduals(const ContactPair& pair, const PoseTpl<T>& pose, const T c[4],
-                             T residual[5], ContactGeometryTpl<T>* geometry = nullptr) {
+                             T residual[5], ContactGeometryTpl<T>* geometry = nullptr,
+                             ContactChart chart = ContactChart::kHeightField) {
   using std::sqrt;
+  if (chart == ContactChart::kRegular) {
+    Vector3<T> pf, pf_u, pf_v, pt, pt_u, pt_v;
+    if (!EvaluateChart(*pair.femoral_surface, c[0], c[1], &pf, &pf_u, &pf_v)) return false;
+    if (!EvaluateChart(*pair.tibial_surface, c[2], c[3], &pt, &pt_u, &pt_v)) return false;
+    const Vector3<T> e = pf - pose.PointInF(pt);
+    const Vector3<T> t1 = pose.R_FT * pt_u, t2 = pose.R_FT * pt_v;
+    const Vector3<T> n_T = pt_u.cross(pt_v).normalized();
+    const Vector3<T> n_F = pose.R_FT * n_T;
+    residual[0] = e.dot(t1) / t1.norm();
+    residual[1] = e.dot(t2) / t2.norm();
+    residual[2] = e.dot(n_F);
+    residual[3] = n_F.dot(pf_u) / pf_u.norm();
+    residual[4] = n_F.dot(pf_v) / pf_v.norm();
+    if (geometry != nullptr) {
+      geometry->point_F = pf;
+      geometry->point_T = pt;
+      geometry->normal_T = n_T;
+      geometry->gap = residual[2];
+    }
+    return true;
+  }
   T f, g, df[2], dg[2];
   if (!EvaluateHeight(*pair.femoral_surface, c[0], c[1], &f, df)) return false;
   if (!EvaluateHeight(*pair.tibial_surface, c[2], c[3], &g, dg)) return false;
@@ -76,10 +116,6 @@ ContactGeometryTpl<T> SphereOnPlaneContact(const SphereOnPlane& sop, const PoseT
   return out;
 }
 
-// The closed form of a pair, or InputError naming the compartment when the pair is not a
-// sphere on a plane. `caller` names the formulation that needs it.
-const SphereOnPlane& RequireSphereOnPlane(const ContactPair& pair, const char* caller);
-
 // φ̇ = G ν: the 1×6 velocity-constraint row at a contact (see header comment).
 template <typename T>
 Eigen::Matrix<T, 1, 6> ContactConstraintRow(const PoseTpl<T>& pose,
@@ -89,10 +125,6 @@ Eigen::Matrix<T, 1, 6> ContactConstraintRow(const PoseTpl<T>& pose,
   G.template tail<3>() = geometry.normal_T.cross(geometry.point_T).transpose();
   return G;
 }
-
-// κ in φ̈ = G ν̇ + κ for the sphere-on-plane gap:
-//   κ = (w_F × (w_F × n)) · (C − R0) − 2 (w_F × n) · v_F.
-double ContactAccelerationTerm(const SphereOnPlane& sop, const Pose& pose, const Vector6d& nu);
 
 // Force (F) and moment about the centre of mass (T) of −N n_F applied at point_T.
 template <typename T>

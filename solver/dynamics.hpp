@@ -11,7 +11,7 @@
 
 #include <vector>
 
-#include "solver/contact.hpp"
+#include "solver/contact_kinematics.hpp"
 #include "solver/ligament.hpp"
 #include "solver/loads.hpp"
 

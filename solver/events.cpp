@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "solver/contact.hpp"
+#include "solver/contact_kinematics.hpp"
 #include "solver/ligament.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -32,8 +32,8 @@ std::vector<EventSpec> EventsForPhase(const Scene& scene, const MechanicalState&
     const std::string comp = CompartmentName(model.contacts[i].compartment);
     if (state.IsActive(i)) {
       specs.push_back({EventKind::kLiftoff, i, -1, -1, 0.0, "liftoff_" + comp});
-    } else if (model.contacts[i].sphere_on_plane) {
-      const double gap = SphereOnPlaneContact(*model.contacts[i].sphere_on_plane, pose).gap;
+    } else {
+      const double gap = RequireContactKinematics(model.contacts[i], pose, "EventsForPhase").gap;
       specs.push_back({EventKind::kRecontact, i, -1, -1,
                        std::min(gap, 0.0) - std::max(gap_tolerance, kMinRecontactHysteresis), "recontact_" + comp});
     }
@@ -61,7 +61,7 @@ void EvaluateEvents(const Scene& scene, const std::vector<EventSpec>& specs, con
         g[k] = normal_force[s.contact];
         break;
       case EventKind::kRecontact:
-        g[k] = SphereOnPlaneContact(*scene.model.contacts[s.contact].sphere_on_plane, pose).gap -
+        g[k] = RequireContactKinematics(scene.model.contacts[s.contact], pose, "EvaluateEvents").gap -
                s.offset;
         break;
       case EventKind::kFlexionEnd:

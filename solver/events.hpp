@@ -34,9 +34,8 @@ constexpr double kMinRecontactHysteresis = 1.0e-9;  // m
 std::vector<EventSpec> EventsForPhase(const Scene& scene, const MechanicalState& state,
                                       double gap_tolerance = kMinRecontactHysteresis);
 
-// g_k(state) for each spec, in order: N_i (lift-off), φ_i − offset (re-contact; closed
-// form), α − α_end (flexion), L_j − (1 + 2ε1) L0_j (kink). `normal_force` is indexed like model.contacts.
-// Returns false if a gap cannot be evaluated (contact pair without a closed form).
+// g_k(state) for each spec, in order: N_i (lift-off), φ_i − offset (re-contact), α − α_end (flexion), L_j − (1 + 2ε1) L0_j (kink). `normal_force` is indexed like model.contacts.
+// Throws SolverError when a gap has no contact point (contact_kinematics.hpp).
 void EvaluateEvents(const Scene& scene, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const std::vector<double>& normal_force, double* g);
 

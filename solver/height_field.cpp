@@ -1,11 +1,58 @@
 #include "solver/height_field.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
+
+bool HeightField::EvaluateChart(double u, double v, ChartSample* s) const {
+  HeightSample h;
+  if (!Evaluate(u, v, &h)) return false;
+  s->p = Vector3d(u, v, h.value);
+  s->p_u = Vector3d(1.0, 0.0, h.gradient[0]);
+  s->p_v = Vector3d(0.0, 1.0, h.gradient[1]);
+  s->p_uu = Vector3d(0.0, 0.0, h.hessian[0]);
+  s->p_uv = Vector3d(0.0, 0.0, h.hessian[1]);
+  s->p_vv = Vector3d(0.0, 0.0, h.hessian[2]);
+  return true;
+}
+
+void HeightField::ChartCoordinates(const Vector3d& p, double uv[2]) const {
+  uv[0] = p.x();
+  uv[1] = p.y();
+}
+
+bool HeightField::PointWithNormal(const Vector3d&, double*) const { return false; }
+bool HeightField::SphereForm(Vector3d*, double*) const { return false; }
+bool HeightField::PlaneForm(Vector3d*, double*) const { return false; }
+
+namespace {
+// Domain of the angle charts (sphere_cap, ellipsoid_cap): away from the ±x poles.
+constexpr double kMaxLatitude = 80.0 * 3.14159265358979323846 / 180.0;    // |u|
+constexpr double kMaxLongitude = 170.0 * 3.14159265358979323846 / 180.0;  // |v|
+}  // namespace
+
+// s(u, v) = (sin u, cos u sin v, −cos u cos v) and its derivatives (unit sphere).
+bool UnitSphereChart(double u, double v, ChartSample* s) {
+  if (!(std::abs(u) < kMaxLatitude) || !(std::abs(v) < kMaxLongitude)) return false;
+  const double su = std::sin(u), cu = std::cos(u), sv = std::sin(v), cv = std::cos(v);
+  s->p = Vector3d(su, cu * sv, -cu * cv);
+  s->p_u = Vector3d(cu, -su * sv, su * cv);
+  s->p_v = Vector3d(0.0, cu * cv, cu * sv);
+  s->p_uu = -s->p;
+  s->p_uv = Vector3d(0.0, -su * cv, -su * sv);
+  s->p_vv = Vector3d(0.0, -cu * sv, cu * cv);
+  return true;
+}
+
+void UnitSphereChartCoordinates(const Vector3d& s, double uv[2]) {
+  const Vector3d d = s.normalized();
+  uv[0] = std::asin(std::max(-1.0, std::min(1.0, d.x())));
+  uv[1] = std::atan2(d.y(), -d.z());
+}
 
 SphereCap::SphereCap(const Vector3d& centre, double radius) : centre_(centre), radius_(radius) {
   if (!(radius > 0.0) || !std::isfinite(radius)) {
@@ -27,6 +74,39 @@ bool SphereCap::Evaluate(double x, double y, HeightSample* s) const {
   s->hessian[0] = (r2 - dy * dy) / w3;
   s->hessian[1] = dx * dy / w3;
   s->hessian[2] = (r2 - dx * dx) / w3;
+  return true;
+}
+
+bool SphereCap::EvaluateChart(double u, double v, ChartSample* s) const {
+  if (!UnitSphereChart(u, v, s)) return false;
+  s->p = centre_ + radius_ * s->p;
+  s->p_u *= radius_;
+  s->p_v *= radius_;
+  s->p_uu *= radius_;
+  s->p_uv *= radius_;
+  s->p_vv *= radius_;
+  return true;
+}
+
+void SphereCap::ChartCoordinates(const Vector3d& p, double uv[2]) const {
+  UnitSphereChartCoordinates(p - centre_, uv);
+}
+
+// The chart normal P_u × P_v is −cos u · s: the point with normal n_up has s = −n_up.
+bool SphereCap::PointWithNormal(const Vector3d& n_up, double uv[2]) const {
+  UnitSphereChartCoordinates(-n_up, uv);
+  return true;
+}
+
+bool SphereCap::SphereForm(Vector3d* centre, double* radius) const {
+  *centre = centre_;
+  *radius = radius_;
+  return true;
+}
+
+bool PlaneSurface::PlaneForm(Vector3d* unit_normal, double* offset) const {
+  *unit_normal = UnitNormal();
+  *offset = NormalOffset();
   return true;
 }
 

@@ -1,11 +1,18 @@
-// Articular surfaces as height fields z = h(x, y) in the frame of the bone that carries
-// them (femoral surfaces in F, tibial surfaces in T; chapter Eqs. 1.4, 1.5), in metres.
+// Articular surfaces in the frame of the bone that carries them (femoral surfaces in F,
+// tibial surfaces in T), in metres. Every surface offers two charts:
 //
-// A surface implements one small interface: value, gradient and Hessian in double. The
-// template EvaluateHeight() lifts that to ceres::Jet by the chain rule, so every
-// Jacobian that passes through a surface is exact without the surface knowing about AD.
-// Adding a smooth height field (e.g. a polynomial fit) is one new file deriving from
-// HeightField plus one line in scene.cpp's surface factory.
+//  - the height-field chart z = h(x, y) of the chapter (Eqs. 1.4, 1.5): value, gradient and
+//    Hessian; singular where the surface turns vertical (a sphere's equator);
+//  - a regular parametric chart P(u, v) with first and second derivatives, oriented so that
+//    P_u × P_v points to +z (out of a tibial surface, into a femoral one). A height field's
+//    default regular chart is its height-field chart (u, v) = (x, y); curved caps override it
+//    with angles that stay regular past the equator (sphere_cap, ellipsoid_cap).
+//
+// The templates EvaluateHeight() / EvaluateChart() lift double samples to ceres::Jet by
+// the chain rule, so every Jacobian through a surface is exact without the surface knowing
+// about AD. Contact kinematics for any pair of surfaces: contact_kinematics.hpp.
+// Adding a surface type: one new file deriving from HeightField plus one line in
+// scene.cpp's surface factory (ParseSurface).
 #pragma once
 
 #include <memory>
@@ -21,6 +28,13 @@ struct HeightSample {
   double hessian[3] = {0.0, 0.0, 0.0};  // h_xx, h_xy, h_yy (1/m)
 };
 
+// One sample of a regular chart P(u, v).
+struct ChartSample {
+  Vector3d p = Vector3d::Zero();                       // P, m
+  Vector3d p_u = Vector3d::Zero(), p_v = Vector3d::Zero();  // ∂P/∂u, ∂P/∂v
+  Vector3d p_uu = Vector3d::Zero(), p_uv = Vector3d::Zero(), p_vv = Vector3d::Zero();
+};
+
 class HeightField {
  public:
   virtual ~HeightField() = default;
@@ -29,7 +43,43 @@ class HeightField {
   virtual bool Evaluate(double x, double y, HeightSample* sample) const = 0;
   // "sphere(r=21 mm, centre=(...))" for messages and summaries.
   virtual std::string Describe() const = 0;
+
+  // Regular chart (see header comment). Default: (x, y, h(x, y)). False outside its domain.
+  virtual bool EvaluateChart(double u, double v, ChartSample* sample) const;
+  // Chart coordinates of a point on the surface (exact inverse there); for points off the
+  // surface, those of a nearby surface point (a starting guess). Default: (x, y).
+  virtual void ChartCoordinates(const Vector3d& p, double uv[2]) const;
+  // Chart coordinates of the point whose chart normal (P_u × P_v) is parallel to n_up
+  // (unit, same direction), when the surface knows it in closed form (convex caps).
+  virtual bool PointWithNormal(const Vector3d& n_up, double uv[2]) const;
+  // Closed-form data, when the surface is a sphere / a plane (contact_kinematics.hpp uses
+  // them for the sphere-on-plane closed form). Plane: unit normal towards +z and offset d
+  // with n·p = d on the plane.
+  virtual bool SphereForm(Vector3d* centre, double* radius) const;
+  virtual bool PlaneForm(Vector3d* unit_normal, double* offset) const;
 };
+
+// Chart choice for the chapter-form contact coordinates (contact.hpp).
+enum class ContactChart {
+  kRegular,      // the surface's regular chart (default)
+  kHeightField,  // the chapter's (x, y) height-field chart, singular at a sphere's rim
+};
+
+// P, P_u, P_v at chart coordinates (u, v) of scalar type T (double or Jet), by the chain
+// rule from one double sample: δ = u − ScalarPart(u) carries only derivatives.
+template <typename T>
+bool EvaluateChart(const HeightField& surface, const T& u, const T& v, Vector3<T>* p,
+                   Vector3<T>* p_u, Vector3<T>* p_v) {
+  ChartSample s;
+  if (!surface.EvaluateChart(ScalarPart(u), ScalarPart(v), &s)) return false;
+  const T du = u - T(ScalarPart(u)), dv = v - T(ScalarPart(v));
+  for (int i = 0; i < 3; ++i) {
+    (*p)(i) = T(s.p(i)) + s.p_u(i) * du + s.p_v(i) * dv;
+    (*p_u)(i) = T(s.p_u(i)) + s.p_uu(i) * du + s.p_uv(i) * dv;
+    (*p_v)(i) = T(s.p_v(i)) + s.p_uv(i) * du + s.p_vv(i) * dv;
+  }
+  return true;
+}
 
 inline bool EvaluateHeight(const HeightField& surface, double x, double y, double* value,
                            double gradient[2]) {
@@ -59,11 +109,23 @@ bool EvaluateHeight(const HeightField& surface, const ceres::Jet<double, N>& x,
 
 // Lower half of a sphere, z = l − sqrt(r² − (x − h)² − (y − k)²) (chapter Eq. 1.4).
 // Centre (h, k, l), radius r, all in metres. Domain: strictly inside the footprint circle.
+// The unit-sphere angle chart shared by sphere_cap and ellipsoid_cap (height_field.cpp):
+// s(u, v) = (sin u, cos u sin v, −cos u cos v); false outside |u| < 80°, |v| < 170°.
+bool UnitSphereChart(double u, double v, ChartSample* s);
+void UnitSphereChartCoordinates(const Vector3d& s, double uv[2]);  // inverse, s ≠ 0
+
+// Regular chart: spherical angles with the poles on the ±x axis (medial–lateral), so the
+// chart is regular across the sagittal rim where flexion moves the contact:
+//   P(u, v) = C + r (sin u, cos u sin v, −cos u cos v),  |u| < 80°, |v| < 170°.
 class SphereCap final : public HeightField {
  public:
   SphereCap(const Vector3d& centre, double radius);
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   std::string Describe() const override;
+  bool EvaluateChart(double u, double v, ChartSample* sample) const override;
+  void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
+  bool PointWithNormal(const Vector3d& n_up, double uv[2]) const override;
+  bool SphereForm(Vector3d* centre, double* radius) const override;
   const Vector3d& centre() const { return centre_; }
   double radius() const { return radius_; }
 
@@ -78,6 +140,7 @@ class PlaneSurface final : public HeightField {
   PlaneSurface(double slope_x, double slope_y, double offset);
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   std::string Describe() const override;
+  bool PlaneForm(Vector3d* unit_normal, double* offset) const override;
   // Unit normal (−h_x, −h_y, 1)/norm, pointing to +z (towards the femur for a tibial
   // plateau), and offset d with normal·p = d for points p on the plane.
   Vector3d UnitNormal() const;

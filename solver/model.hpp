@@ -37,15 +37,6 @@ struct Ligament {
   double slack_length = 0.0;       // L0 = L_ref / e, m
 };
 
-// The sphere-on-plane closed form of a contact pair (spec §4), present when the femoral
-// surface is a SphereCap and the tibial one a PlaneSurface.
-struct SphereOnPlane {
-  Vector3d centre_F;  // sphere centre C in F, m
-  double radius = 0.0;  // r, m
-  Vector3d normal_T;  // unit plane normal n̂′ in T, towards the femur
-  double offset = 0.0;  // d: n̂′ · x′ = d on the plane, m
-};
-
 enum class Compartment { kMedial = 0, kLateral = 1 };
 constexpr int kMaxContacts = 2;
 const char* CompartmentName(Compartment c);  // "medial" / "lateral"
@@ -54,7 +45,8 @@ struct ContactPair {
   Compartment compartment = Compartment::kMedial;
   std::shared_ptr<const HeightField> femoral_surface;  // in F
   std::shared_ptr<const HeightField> tibial_surface;   // in T
-  std::optional<SphereOnPlane> sphere_on_plane;        // closed form when available
+  // Contact kinematics of the pair: solver/contact_kinematics.hpp (closed form for a
+  // sphere on a plane, a local solve otherwise).
 };
 
 // External pulse at the centre of mass, along a tibial direction (spec §7).

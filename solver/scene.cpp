@@ -12,7 +12,9 @@
 #include <map>
 #include <sstream>
 
-#include "solver/contact.hpp"
+#include "solver/contact_kinematics.hpp"
+#include "solver/ellipsoid_cap.hpp"
+#include "solver/polynomial_surface.hpp"
 #include "solver/ligament.hpp"
 #include "solver/loads.hpp"
 #include <algorithm>
@@ -158,6 +160,46 @@ struct ParameterSet {
   std::map<std::string, ChapterGuess> guesses;
 };
 
+// Surface types added with the general contact kernel (issue 11); null for other types.
+//   ellipsoid_cap: centre_mm [3], semi_axes_mm [3] (> 0), orientation_deg [3] (optional:
+//                  rotations about x, then y, then z of the bone's frame; default none)
+//   polynomial:    origin_mm [3], rotation_z_deg (optional), coefficients_mm {cij: value}
+//                  with i + j <= 4: z_mm = origin_z + sum cij xi_mm^i eta_mm^j
+std::shared_ptr<const HeightField> ParseCurvedSurface(const Field& f, const std::string& type) {
+  if (type == "ellipsoid_cap") {
+    const Vector3d centre = f.Required("centre_mm").Vec3() * kMPerMm;
+    const Vector3d axes = f.Required("semi_axes_mm").Vec3();
+    for (int i = 0; i < 3; ++i) {
+      if (!(axes(i) > 0.0)) f.Required("semi_axes_mm").Item(i).Fail("must be > 0");
+    }
+    Vector3d angles = Vector3d::Zero();
+    if (f.Has("orientation_deg")) angles = f.Required("orientation_deg").Vec3() * kRadPerDeg;
+    const Matrix3d Q = (Eigen::AngleAxisd(angles.z(), Vector3d::UnitZ()) *
+                        Eigen::AngleAxisd(angles.y(), Vector3d::UnitY()) *
+                        Eigen::AngleAxisd(angles.x(), Vector3d::UnitX())).toRotationMatrix();
+    return std::make_shared<EllipsoidCap>(centre, axes * kMPerMm, Q);
+  }
+  if (type == "polynomial") {
+    const Vector3d origin = f.Required("origin_mm").Vec3() * kMPerMm;
+    const double theta = f.Has("rotation_z_deg") ? DegToRad(f.Required("rotation_z_deg").Double()) : 0.0;
+    double c[PolynomialSurface::kMaxDegree + 1][PolynomialSurface::kMaxDegree + 1] = {};
+    const Field coeffs = f.Required("coefficients_mm");
+    int given = 0;
+    for (int i = 0; i <= PolynomialSurface::kMaxDegree; ++i) {
+      for (int j = 0; i + j <= PolynomialSurface::kMaxDegree; ++j) {
+        const std::string key = StrCat("c", i, j);
+        if (!coeffs.Has(key)) continue;
+        // z_mm = c ξ_mm^i η_mm^j  →  SI coefficient c · 1000^(i+j−1).
+        c[i][j] = coeffs.Required(key).Double() * std::pow(1.0e3, i + j - 1);
+        ++given;
+      }
+    }
+    if (given == 0) coeffs.Fail("needs at least one coefficient c<i><j> with i + j <= 4 (e.g. c20)");
+    return std::make_shared<PolynomialSurface>(origin, theta, c);
+  }
+  return nullptr;
+}
+
 std::shared_ptr<const HeightField> ParseSurface(const Field& f) {
   const std::string type = f.Required("type").String();
   // Surface factory: a new height field type is one more branch here.
@@ -170,7 +212,8 @@ std::shared_ptr<const HeightField> ParseSurface(const Field& f) {
         f.Required("slope_x").Double(), f.Has("slope_y") ? f.Required("slope_y").Double() : 0.0,
         MmToM(f.Required("offset_mm").Double()));
   }
-  f.Required("type").Fail("unknown surface type; expected sphere_cap or plane");
+  if (auto curved = ParseCurvedSurface(f, type)) return curved;
+  f.Required("type").Fail("unknown surface type; expected sphere_cap, plane, ellipsoid_cap or polynomial");
 }
 
 CompartmentData ParseCompartment(const Field& f) {
@@ -181,14 +224,11 @@ CompartmentData ParseCompartment(const Field& f) {
 }
 
 std::optional<SphereOnPlane> MakeSphereOnPlane(const CompartmentData& c) {
-  const auto* sphere = dynamic_cast<const SphereCap*>(c.femoral.get());
-  const auto* plane = dynamic_cast<const PlaneSurface*>(c.tibial.get());
-  if (sphere == nullptr || plane == nullptr) return std::nullopt;
   SphereOnPlane sop;
-  sop.centre_F = sphere->centre();
-  sop.radius = sphere->radius();
-  sop.normal_T = plane->UnitNormal();
-  sop.offset = plane->NormalOffset();
+  if (!c.femoral->SphereForm(&sop.centre_F, &sop.radius) ||
+      !c.tibial->PlaneForm(&sop.normal_T, &sop.offset)) {
+    return std::nullopt;
+  }
   return sop;
 }
 
@@ -482,7 +522,6 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
       pair.compartment = c;
       pair.femoral_surface = data.femoral;
       pair.tibial_surface = data.tibial;
-      pair.sphere_on_plane = MakeSphereOnPlane(data);
       model.contacts.push_back(pair);
     }
   }
@@ -581,8 +620,8 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
     const Pose pose = PoseFromCoordinates(init.q);
     for (const ContactPair& pair : model.contacts) {
       ContactGuess guess;
-      if (pair.sphere_on_plane) {
-        const ContactGeometry geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+      ContactGeometry geo;
+      if (ContactKinematics(pair, pose, &geo)) {
         if (std::abs(geo.gap) > MmToM(10.0)) {
           Throw<InputError>("LoadScene", label, ": field 'contacts' names the ",
                             CompartmentName(pair.compartment),

@@ -20,6 +20,9 @@ namespace kneedyn {
 // Chapter-form unknowns of one contact: c = (xc, yc, x′c, y′c) in m, and N in newtons.
 struct ContactGuess {
   std::array<double, 4> coordinates = {0.0, 0.0, 0.0, 0.0};
+  // The chart the coordinates are given in (contact.hpp); scenes give height-field (x, y)
+  // coordinates, the consistent initialization converts them to the run's chart.
+  ContactChart chart = ContactChart::kHeightField;
   double normal_force = 0.0;
 };
 

@@ -76,18 +76,23 @@ TEST_P(ConsistentInitForms, ReachesSpecReferencePoseContactsAndForcesFromChapter
   }
   const Pose pose = PoseFromCoordinates(s.q);
   for (int c = 0; c < 2; ++c) {
-    const ContactGeometry g = SphereOnPlaneContact(*scene.model.contacts[c].sphere_on_plane, pose);
+    const ContactGeometry g = SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[c]), pose);
     EXPECT_NEAR(g.gap, 0.0, 1e-10) << "contact " << c;
     for (int i = 0; i < 3; ++i) {
       EXPECT_NEAR(MToMm(g.point_F(i)), kFemoral_mm[c][i], kPointTol_mm) << "contact " << c << " F " << i;
       EXPECT_NEAR(MToMm(g.point_T(i)), kTibial_mm[c][i], kPointTol_mm) << "contact " << c << " T " << i;
     }
-    // The chapter-form coordinates (xc, yc, x′c, y′c) are the same points.
+    // The chapter-form coordinates are the same points, in the surfaces' regular charts
+    // (the default ConsistentInitOptions::chart).
     const auto& co = s.contact[c].coordinates;
-    EXPECT_NEAR(MToMm(co[0]), kFemoral_mm[c][0], kPointTol_mm);
-    EXPECT_NEAR(MToMm(co[1]), kFemoral_mm[c][1], kPointTol_mm);
-    EXPECT_NEAR(MToMm(co[2]), kTibial_mm[c][0], kPointTol_mm);
-    EXPECT_NEAR(MToMm(co[3]), kTibial_mm[c][1], kPointTol_mm);
+    EXPECT_EQ(s.contact[c].chart, ContactChart::kRegular);
+    ChartSample f, t;
+    ASSERT_TRUE(scene.model.contacts[c].femoral_surface->EvaluateChart(co[0], co[1], &f));
+    ASSERT_TRUE(scene.model.contacts[c].tibial_surface->EvaluateChart(co[2], co[3], &t));
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_NEAR(MToMm(f.p(i)), kFemoral_mm[c][i], kPointTol_mm) << "contact " << c << " chart F " << i;
+      EXPECT_NEAR(MToMm(t.p(i)), kTibial_mm[c][i], kPointTol_mm) << "contact " << c << " chart T " << i;
+    }
     EXPECT_NEAR(s.contact[c].normal_force, kNormal_N[c], kNormalTol_N) << "contact " << c;
     EXPECT_NEAR(report.normal_force[c], kNormal_N[c], kNormalTol_N);
   }
@@ -197,7 +202,7 @@ TEST_P(ConsistentInitForms, FreedInconsistentVelocityIsCorrectedToZeroApproachRa
   const Pose pose = PoseFromCoordinates(s.q);
   const Vector6d nu = GeneralizedVelocity(s.q, s.qd);
   for (int c = 0; c < 2; ++c) {
-    const ContactGeometry g = SphereOnPlaneContact(*scene.model.contacts[c].sphere_on_plane, pose);
+    const ContactGeometry g = SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[c]), pose);
     EXPECT_NEAR(ContactConstraintRow(pose, g).dot(nu), 0.0, 1e-11) << "contact " << c;
   }
   // Minimum-norm correction: the velocity changed, and is not simply zeroed.

@@ -22,7 +22,8 @@
 #include <random>
 #include <string>
 
-#include "solver/contact.hpp"
+#include "solver/contact_kinematics.hpp"
+#include "tests/test_support.hpp"
 #include "solver/error.hpp"
 #include "solver/scene.hpp"
 #include "solver/units.hpp"
@@ -105,7 +106,7 @@ Vector6d CloseBothGaps(Vector6d q) {
   Eigen::Matrix2d A;
   Eigen::Vector2d b;
   for (int i = 0; i < 2; ++i) {
-    const SphereOnPlane& sop = *model.contacts[i].sphere_on_plane;
+    const SphereOnPlane& sop = test_support::SopOf(model.contacts[i]);
     const Vector3d n = pose.R_FT * sop.normal_T;
     A(i, 0) = n.x();
     A(i, 1) = n.z();
@@ -118,7 +119,7 @@ Vector6d CloseBothGaps(Vector6d q) {
 }
 
 void ExpectFormsAgree(const ContactPair& pair, const Pose& pose, bool gap_closed) {
-  const SphereOnPlane& sop = *pair.sphere_on_plane;
+  const SphereOnPlane& sop = test_support::SopOf(pair);
   const ContactGeometry closed = SphereOnPlaneContact(sop, pose);
   const ChapterSolution chapter = SolveChapterForm(pair, pose, StartGuess(pair.compartment));
   const ContactGeometry& ch = chapter.geometry;
@@ -149,7 +150,8 @@ TEST(Contact, ChapterAndClosedFormsAgreeAtRandomPoses) {
   for (int s = 0; s < 30; ++s) {
     const Pose pose = PoseFromCoordinates(PerturbedPose(rng));
     for (const ContactPair& pair : model.contacts) {
-      ASSERT_TRUE(pair.sphere_on_plane.has_value());
+      SphereOnPlane unused;
+      ASSERT_TRUE(SphereOnPlaneForm(pair, &unused));
       ExpectFormsAgree(pair, pose, false);
     }
   }
@@ -161,7 +163,7 @@ TEST(Contact, ChapterAndClosedFormsGiveSameTibialPointWhenInContact) {
   for (int s = 0; s < 30; ++s) {
     const Pose pose = PoseFromCoordinates(CloseBothGaps(PerturbedPose(rng)));
     for (const ContactPair& pair : model.contacts) {
-      EXPECT_NEAR(SphereOnPlaneContact(*pair.sphere_on_plane, pose).gap, 0.0, 1e-15);
+      EXPECT_NEAR(SphereOnPlaneContact(test_support::SopOf(pair), pose).gap, 0.0, 1e-15);
       ExpectFormsAgree(pair, pose, true);
     }
   }
@@ -171,7 +173,7 @@ TEST(Contact, ReferencePoseClosesBothGapsAndAllFiveChapterResiduals) {
   const Scene& scene = ChapterScene();
   const Pose pose = PoseFromCoordinates(scene.reference_q);
   for (const ContactPair& pair : scene.model.contacts) {
-    const ContactGeometry closed = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+    const ContactGeometry closed = SphereOnPlaneContact(test_support::SopOf(pair), pose);
     EXPECT_NEAR(closed.gap, 0.0, 1e-12) << CompartmentName(pair.compartment);
     const ChapterSolution chapter = SolveChapterForm(pair, pose, StartGuess(pair.compartment));
     for (int i = 0; i < 5; ++i) {
@@ -203,7 +205,7 @@ TEST(ContactConstraintRow, TimesGeneralizedVelocityIsGapRate) {
     const Pose pose = PoseFromCoordinates(q);
     const Vector6d nu = GeneralizedVelocity(q, qd);
     for (const ContactPair& pair : model.contacts) {
-      const SphereOnPlane& sop = *pair.sphere_on_plane;
+      const SphereOnPlane& sop = test_support::SopOf(pair);
       auto gap_at = [&](double t) {
         return SphereOnPlaneContact(sop, PoseFromCoordinates(Vector6d(q + t * qd))).gap;
       };
@@ -215,7 +217,7 @@ TEST(ContactConstraintRow, TimesGeneralizedVelocityIsGapRate) {
   }
 }
 
-TEST(ContactAccelerationTerm, GapSecondDerivativeIsRowTimesAccelerationPlusKappa) {
+TEST(ContactRateTerm, GapSecondDerivativeIsRowTimesAccelerationPlusKappa) {
   const Model& model = ChapterScene().model;
   std::mt19937 rng(24);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -230,7 +232,7 @@ TEST(ContactAccelerationTerm, GapSecondDerivativeIsRowTimesAccelerationPlusKappa
     const Vector6d nu = GeneralizedVelocity(q, qd);
     const Vector6d nu_dot = GeneralizedAcceleration(q, qd, qdd);
     for (const ContactPair& pair : model.contacts) {
-      const SphereOnPlane& sop = *pair.sphere_on_plane;
+      const SphereOnPlane& sop = test_support::SopOf(pair);
       auto gap_at = [&](double t) {
         const Vector6d qt = q + t * qd + 0.5 * t * t * qdd;
         return SphereOnPlaneContact(sop, PoseFromCoordinates(qt)).gap;
@@ -241,7 +243,7 @@ TEST(ContactAccelerationTerm, GapSecondDerivativeIsRowTimesAccelerationPlusKappa
                         (12 * h * h);
       const double analytic =
           ContactConstraintRow(pose, SphereOnPlaneContact(sop, pose)).dot(nu_dot) +
-          ContactAccelerationTerm(sop, pose, nu);
+          ContactRateTerm(pair, q, qd);
       EXPECT_NEAR(analytic, fd, 1e-6 * (1.0 + std::abs(fd))) << CompartmentName(pair.compartment);
     }
   }
@@ -253,7 +255,7 @@ TEST(AddContactWrench, MomentIsPointCrossForceInTibialFrame) {
   for (int s = 0; s < 20; ++s) {
     const Pose pose = PoseFromCoordinates(PerturbedPose(rng));
     for (const ContactPair& pair : model.contacts) {
-      const ContactGeometry geo = SphereOnPlaneContact(*pair.sphere_on_plane, pose);
+      const ContactGeometry geo = SphereOnPlaneContact(test_support::SopOf(pair), pose);
       const double N = 150.0 + 10.0 * s;
       const Vector3d f0(1.0, -2.0, 3.0), m0(-0.5, 0.25, 0.125);
       Vector3d force_F = f0, moment_T = m0;
@@ -261,27 +263,29 @@ TEST(AddContactWrench, MomentIsPointCrossForceInTibialFrame) {
       const Vector3d df_F = force_F - f0;
       // −N n applied at the tibial point: magnitude N, pushing the tibia away from the femur.
       EXPECT_NEAR(df_F.norm(), N, 1e-12 * N);
-      EXPECT_LT((df_F + N * (pose.R_FT * pair.sphere_on_plane->normal_T)).norm(), 1e-12 * N);
+      EXPECT_LT((df_F + N * (pose.R_FT * test_support::SopOf(pair).normal_T)).norm(), 1e-12 * N);
       const Vector3d df_T = pose.R_FT.transpose() * df_F;
       EXPECT_LT(((moment_T - m0) - geo.point_T.cross(df_T)).norm(), 1e-12 * N);
     }
   }
 }
 
-TEST(RequireSphereOnPlane, RefusesOtherSurfacePairsNamingTheCompartment) {
+// Two parallel planes have no isolated contact point (the 4×4 system is singular).
+TEST(RequireContactKinematics, RefusesAPairWithoutContactPointNamingTheCompartment) {
   ContactPair pair;
   pair.compartment = Compartment::kLateral;
   pair.femoral_surface = std::make_shared<PlaneSurface>(0.0, 0.0, 0.0);
   pair.tibial_surface = std::make_shared<PlaneSurface>(0.0, 0.0, 0.2);
   try {
-    (void)RequireSphereOnPlane(pair, "MyFormulation");
+    (void)RequireContactKinematics(pair, PoseFromCoordinates(ChapterScene().reference_q), "MyFormulation");
     ADD_FAILURE() << "no exception";
-  } catch (const InputError& e) {
+  } catch (const SolverError& e) {
     const std::string what = e.what();
     EXPECT_NE(what.find("lateral"), std::string::npos) << what;
     EXPECT_NE(what.find("MyFormulation"), std::string::npos) << what;
   }
-  EXPECT_NO_THROW((void)RequireSphereOnPlane(ChapterScene().model.contacts[0], "x"));
+  EXPECT_NO_THROW((void)RequireContactKinematics(ChapterScene().model.contacts[0],
+                                                 PoseFromCoordinates(ChapterScene().reference_q), "x"));
 }
 
 }  // namespace

@@ -162,8 +162,8 @@ const RunResult& DaeReduced() {
 }
 
 // Issue 3: a femoral height field evaluated outside its domain during a Newton iteration
-// (here the medial femoral contact coordinate moved beyond the sphere's footprint, r = 21 mm
-// around (−23.75, −18) mm) is a recoverable failure: the residual reports false (IDA's
+// (here the medial femoral contact coordinate moved beyond its chart's domain) is a
+// recoverable failure: the residual reports false (IDA's
 // "return 1"), never NaN, never a crash; the same point inside the footprint evaluates.
 TEST(DaeResidual, SurfaceOutsideItsDomainIsARecoverableFailure) {
   const Scene& scene = ChapterScene();
@@ -173,7 +173,10 @@ TEST(DaeResidual, SurfaceOutsideItsDomainIsARecoverableFailure) {
   ASSERT_TRUE(DaeResidualAndJacobianForTesting(scene, options, ContactForm::kChapter, p.state,
                                                p.state.t, p.y, p.yp, 850.0, &F, nullptr, nullptr));
   for (double f : F) EXPECT_TRUE(std::isfinite(f));
-  p.y[12] = MmToM(-23.75 + 25.0);  // xc of the medial contact: 25 mm from the centre > r
+  // uf of the medial contact in its regular chart (contact.hpp): latitude 86° > the 80°
+  // limit of the sphere's angle chart, next to its pole.
+  ASSERT_EQ(p.state.contact[0].chart, ContactChart::kRegular);
+  p.y[12] = DegToRad(86.0);
   F.clear();
   MatrixXd J;
   EXPECT_FALSE(DaeResidualAndJacobianForTesting(scene, options, ContactForm::kChapter, p.state,

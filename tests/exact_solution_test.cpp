@@ -232,7 +232,7 @@ Vector6d ManufacturedQ(const Model& model, double t) {
   Eigen::Matrix2d A;
   Eigen::Vector2d b;
   for (int row = 0; row < 2; ++row) {
-    const SphereOnPlane& s = *model.contacts[row].sphere_on_plane;
+    const SphereOnPlane& s = test_support::SopOf(model.contacts[row]);
     const Vector3d n = R * s.normal_T;
     A(row, 0) = n.x();
     A(row, 1) = n.z();

@@ -10,9 +10,17 @@
 #include <vector>
 
 #include "formulations/formulation.hpp"
+#include "solver/contact_kinematics.hpp"
 #include "solver/scene.hpp"
 
 namespace kneedyn::test_support {
+
+// The sphere-on-plane data of a pair that must have one (chapter surfaces).
+inline SphereOnPlane SopOf(const ContactPair& pair) {
+  SphereOnPlane s;
+  EXPECT_TRUE(SphereOnPlaneForm(pair, &s)) << "not a sphere on a plane";
+  return s;
+}
 
 inline std::string ScenesDir() { return ReferenceDataDir() + "/scenes"; }
 

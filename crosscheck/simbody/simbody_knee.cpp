@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "solver/contact_kinematics.hpp"  // SphereOnPlaneForm: the scene's surfaces as sphere + plane data
 #include "solver/error.hpp"
 #include "solver/pose.hpp"  // JCS output conversion only (CoordinateVelocity/Acceleration)
 #include "solver/units.hpp"
@@ -202,12 +203,13 @@ class Knee {
     SimTK::Force::Custom(forces_, ligaments_);
     SimTK::Force::Custom(forces_, new PulseForce(tibia_, m));
     for (const ContactPair& pair : m.contacts) {
-      if (!pair.sphere_on_plane) {
+      SphereOnPlane sop;
+      if (!SphereOnPlaneForm(pair, &sop)) {
         Throw<InputError>("simbody::Run", scene.path, ": the ", CompartmentName(pair.compartment),
                           " contact is not a sphere on a plane; the Simbody port models "
                           "Constraint::SphereOnPlaneContact only");
       }
-      const SphereOnPlane& sop = *pair.sphere_on_plane;
+      sops_.push_back(sop);
       const SimTK::UnitVec3 n_T(ToVec3(sop.normal_T));
       const SimTK::Transform plane_frame(SimTK::Rotation(n_T, SimTK::ZAxis), sop.offset * Vec3(n_T));
       contacts_.push_back(SimTK::Constraint::SphereOnPlaneContact(
@@ -251,12 +253,12 @@ class Knee {
   // Compressive normal force (N > 0 pushes the tibia away from the femur).
   double NormalForce(const State& s, size_t i) const {
     if (!Active(s, i)) return 0.0;
-    const Vec3 n_G = tibia_.getBodyRotation(s) * ToVec3(model_.contacts[i].sphere_on_plane->normal_T);
+    const Vec3 n_G = tibia_.getBodyRotation(s) * ToVec3(sops_[i].normal_T);
     return ~contacts_[i].findForceOnSphereInG(s) * n_G;
   }
   double Gap(const State& s, size_t i) const { return contacts_[i].findSeparation(s); }
   double GapRate(const State& s, size_t i) const {
-    const SphereOnPlane& sop = *model_.contacts[i].sphere_on_plane;
+    const SphereOnPlane& sop = sops_[i];
     const SimTK::Rotation& R = tibia_.getBodyRotation(s);
     const Vec3 p = tibia_.getBodyOriginLocation(s), v = tibia_.getBodyOriginVelocity(s);
     const Vec3 w = tibia_.getBodyAngularVelocity(s);
@@ -472,6 +474,7 @@ class Knee {
   SimTK::MobilizedBody::Free tibia_;
   LigamentForces* ligaments_ = nullptr;  // owned by the Force::Custom handle
   std::vector<SimTK::Constraint::SphereOnPlaneContact> contacts_;
+  std::vector<SphereOnPlane> sops_;  // the pairs in closed form, parallel to contacts_
   std::vector<double> recontact_level_;  // m: gap below which a separated contact re-closes
   std::vector<EventRecord> events_;
   std::vector<Sample> samples_;

@@ -1,0 +1,132 @@
+// Contact kinematics of one pair of smooth surfaces at a pose — the one interface every
+// formulation, the consistent initialization, the events, the impact law, the projection
+// and the restarts use (spec §4; chapter Eqs. 1.6–1.13).
+//
+// Femoral surface Pf(uf, vf) in F, tibial surface Pt(ut, vt) in T, both in their regular
+// charts (height_field.hpp: P_u × P_v points to +z). The contact points are where the
+// normals are parallel and the separation lies along them, i.e. the four equations
+//
+//   F1,2 = (Pf − (R0 + R Pt)) · R Pt_{u,v} = 0      separation normal to the tibial surface
+//   F3,4 = (R Pt_u × R Pt_v) · Pf_{u,v}    = 0      normals parallel
+//
+// in z = (uf, vf, ut, vt). The gap is φ = (Pf − (R0 + R Pt)) · n_F with n_F = R n_T the unit
+// tibial normal (towards the femur): φ > 0 separated, φ < 0 penetrating.
+//
+//  - Sphere on plane: closed form (SphereOnPlaneContact in contact.hpp), chosen from the
+//    surfaces' SphereForm/PlaneForm.
+//  - Any other pair: a starting point (closed-form PointWithNormal of a convex femoral cap,
+//    alternated with the tibial chart's projection), then Newton on the 4×4 system with
+//    its analytic Jacobian (second chart derivatives), to round-off.
+//  - For T = ceres::Jet the double solution is lifted by one Newton step in T
+//    (implicit-function theorem): z = z* − J⁻¹ F(z*, pose(T)), exact first derivatives.
+//
+// Velocity level: because the contact points are stationary, φ̇ = −n_F · (velocity of the
+// tibial material point at the contact) = G ν with G from ContactConstraintRow (contact.hpp),
+// for every pair. Acceleration level: φ̈ = G ν̇ + κ with κ = (dG/dt) ν (ContactRateTerm;
+// closed form for sphere on plane, Jet-differentiated G otherwise).
+#pragma once
+
+#include <Eigen/LU>
+
+#include "solver/contact.hpp"
+
+namespace kneedyn {
+
+// Sphere-on-plane data of a pair when the femoral surface is a sphere and the tibial one a
+// plane (from the surfaces' SphereForm/PlaneForm); false otherwise.
+bool SphereOnPlaneForm(const ContactPair& pair, SphereOnPlane* out);
+
+// The double-precision local solve of the general case: chart coordinates z and the
+// Jacobian ∂F/∂z at the solution. False when no contact point is found inside the charts'
+// domains (e.g. the surfaces are far apart or the point left a cap).
+struct ContactSolution {
+  Eigen::Vector4d z = Eigen::Vector4d::Zero();   // (uf, vf, ut, vt)
+  Eigen::Matrix4d jacobian = Eigen::Matrix4d::Zero();
+  int iterations = 0;
+};
+bool SolveContactPoints(const ContactPair& pair, const Pose& pose, ContactSolution* out);
+
+template <typename T>
+Pose ScalarPose(const PoseTpl<T>& pose) {
+  Pose out;
+  for (int i = 0; i < 3; ++i) {
+    out.p_FoTo_F(i) = ScalarPart(pose.p_FoTo_F(i));
+    for (int j = 0; j < 3; ++j) out.R_FT(i, j) = ScalarPart(pose.R_FT(i, j));
+  }
+  return out;
+}
+
+// F(z, pose) of the header comment, for the Jet lift.
+template <typename T, typename Z>
+bool ContactPointResiduals(const ContactPair& pair, const PoseTpl<T>& pose, const Z z[4],
+                           Vector3<T>* pf, Vector3<T>* pt_T, Vector3<T>* n_T, T F[4]) {
+  Vector3<T> pf_u, pf_v, pt_u, pt_v;
+  if (!EvaluateChart(*pair.femoral_surface, T(z[0]), T(z[1]), pf, &pf_u, &pf_v)) return false;
+  if (!EvaluateChart(*pair.tibial_surface, T(z[2]), T(z[3]), pt_T, &pt_u, &pt_v)) return false;
+  const Vector3<T> d = *pf - pose.PointInF(*pt_T);
+  const Vector3<T> tt1 = pose.R_FT * pt_u, tt2 = pose.R_FT * pt_v;
+  const Vector3<T> m = tt1.cross(tt2);
+  F[0] = d.dot(tt1);
+  F[1] = d.dot(tt2);
+  F[2] = m.dot(pf_u);
+  F[3] = m.dot(pf_v);
+  *n_T = pt_u.cross(pt_v).normalized();
+  return true;
+}
+
+// Contact geometry of a pair at a pose: gap, contact points in both frames, unit tibial
+// normal (geometry.normal_T; n_F = R n_T). `chart` (optional) receives the regular chart
+// coordinates (uf, vf, ut, vt) of the contact points. Returns false when the general solve
+// finds no contact point (never for sphere on plane).
+template <typename T>
+bool ContactKinematics(const ContactPair& pair, const PoseTpl<T>& pose,
+                       ContactGeometryTpl<T>* geometry, double chart[4] = nullptr) {
+  SphereOnPlane sop;
+  if (SphereOnPlaneForm(pair, &sop)) {
+    *geometry = SphereOnPlaneContact(sop, pose);
+    if (chart != nullptr) {
+      Vector3d pf, pt;  // femoral point; tibial point on the plane, φ n′ below it
+      for (int i = 0; i < 3; ++i) {
+        pf(i) = ScalarPart(geometry->point_F(i));
+        pt(i) = ScalarPart(geometry->point_T(i)) - ScalarPart(geometry->gap) * sop.normal_T(i);
+      }
+      pair.femoral_surface->ChartCoordinates(pf, chart);
+      pair.tibial_surface->ChartCoordinates(pt, chart + 2);
+    }
+    return true;
+  }
+  ContactSolution sol;
+  if (!SolveContactPoints(pair, ScalarPose(pose), &sol)) return false;
+  if (chart != nullptr) {
+    for (int i = 0; i < 4; ++i) chart[i] = sol.z(i);
+  }
+  // Lift: z = z* − J⁻¹ F(z*, pose) with only the derivative part kept (F(z*) ≈ 0).
+  Vector3<T> pf, pt, n_T;
+  T F[4];
+  const double* z0 = sol.z.data();
+  if (!ContactPointResiduals(pair, pose, z0, &pf, &pt, &n_T, F)) return false;
+  const Eigen::Matrix4d Jinv = sol.jacobian.inverse();
+  T z[4];
+  for (int i = 0; i < 4; ++i) {
+    T dz = T(0.0);
+    for (int j = 0; j < 4; ++j) dz -= Jinv(i, j) * F[j];
+    z[i] = T(z0[i]) + (dz - T(ScalarPart(dz)));
+  }
+  T unused[4];
+  ContactPointResiduals(pair, pose, z, &pf, &pt, &n_T, unused);
+  geometry->point_F = pf;
+  geometry->point_T = pt;
+  geometry->normal_T = n_T;
+  geometry->gap = (pf - pose.PointInF(pt)).dot(pose.R_FT * n_T);
+  return true;
+}
+
+// ContactKinematics in double; throws SolverError naming the compartment and `caller` when
+// no contact point is found.
+ContactGeometry RequireContactKinematics(const ContactPair& pair, const Pose& pose,
+                                         const char* caller, double chart[4] = nullptr);
+
+// κ in φ̈ = G ν̇ + κ at (q, q̇) (header comment). Throws like RequireContactKinematics.
+double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6d& qd);
+
+}  // namespace kneedyn

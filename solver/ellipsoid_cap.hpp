@@ -1,0 +1,30 @@
+// Lower cap of an ellipsoid: a femoral condyle closer to anatomy than a sphere (issue 11).
+//   P = C + A s,  A = Q diag(a, b, c),  |s| = 1,
+// semi-axes (a, b, c) along the columns of the orientation Q, centre C, in the femur's
+// frame. Height-field chart: the lower root z of (P − C)ᵀ M (P − C) = 1, M = A⁻ᵀ A⁻¹, on a
+// vertical line (domain: |∇h| ≤ 1e3, like SphereCap). Regular chart: s(u, v) of
+// UnitSphereChart (height_field.hpp), regular across the sagittal rim. Convex: the point
+// with a given normal is closed form, s = −Aᵀ n / |Aᵀ n|.
+#pragma once
+
+#include "solver/height_field.hpp"
+
+namespace kneedyn {
+
+class EllipsoidCap final : public HeightField {
+ public:
+  // semi_axes (a, b, c) > 0 in m; orientation: rotation from the ellipsoid's axes to the
+  // bone's frame.
+  EllipsoidCap(const Vector3d& centre, const Vector3d& semi_axes, const Matrix3d& orientation);
+  bool Evaluate(double x, double y, HeightSample* sample) const override;
+  std::string Describe() const override;
+  bool EvaluateChart(double u, double v, ChartSample* sample) const override;
+  void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
+  bool PointWithNormal(const Vector3d& n_up, double uv[2]) const override;
+
+ private:
+  Vector3d centre_, semi_axes_;
+  Matrix3d A_, A_inv_, M_;
+};
+
+}  // namespace kneedyn
