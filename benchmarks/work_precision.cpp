@@ -68,7 +68,7 @@ class CollectingReporter : public benchmark::ConsoleReporter {
       if (it == by_name_->end()) continue;
       const std::string& agg = run.aggregate_name;
       if (agg == "median" || agg == "min" || agg == "max") {
-        it->second->cpu[agg] = run.GetAdjustedCPUTime();  // unit: kSecond
+        it->second->cpu[agg] = 1e-3 * run.GetAdjustedCPUTime();  // unit: kMillisecond -> s
       }
     }
     ConsoleReporter::ReportRuns(runs);
@@ -240,7 +240,7 @@ int main(int argc, char** argv) {
                                      state.counters["rejected_steps"] = s.rejected_steps();
                                      state.counters["scd"] = std::isfinite(ep->metrics.scd) ? ep->metrics.scd : 0.0;
                                    })
-          ->Unit(benchmark::kSecond)
+          ->Unit(benchmark::kMillisecond)  // compare.py prints whole time units
           // Minimum time and repetitions go in as flags below: set here, Google Benchmark
           // would append them (mode-dependent) to the names, and compare.py could not
           // match a short run against a full one.

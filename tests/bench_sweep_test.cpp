@@ -144,7 +144,7 @@ TEST_F(ShortSweep, IsGoogleBenchmarkJsonWithEveryRepetition) {
     for (const char* banned : {"short", "full", "min_time", "repeats"}) {
       EXPECT_EQ(name.find(banned), std::string::npos) << name;
     }
-    EXPECT_EQ(b.at("time_unit"), "s") << name;
+    EXPECT_EQ(b.at("time_unit"), "ms") << name;
     EXPECT_TRUE(b.at("real_time").is_number()) << name;
     const std::string run_name = b.at("run_name").get<std::string>();
     if (b.at("run_type") == "iteration") {
