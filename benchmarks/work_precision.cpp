@@ -28,6 +28,8 @@
 #include <benchmark/benchmark.h>
 #include <CLI/CLI.hpp>
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <ctime>
@@ -35,6 +37,8 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <regex>
+#include <sstream>
 
 #include "benchmarks/bench_run.hpp"
 #include "formulations/cli.hpp"
@@ -57,7 +61,8 @@ struct Entry {
 // Collects the aggregates while printing them like the console reporter.
 class CollectingReporter : public benchmark::ConsoleReporter {
  public:
-  explicit CollectingReporter(std::map<std::string, Entry*>* by_name) : by_name_(by_name) {}
+  explicit CollectingReporter(std::map<std::string, Entry*>* by_name)
+      : benchmark::ConsoleReporter(::isatty(::fileno(stdout)) ? OO_Defaults : OO_Tabular), by_name_(by_name) {}
   void ReportRuns(const std::vector<Run>& runs) override {
     for (const Run& run : runs) {
       if (run.run_type != Run::RT_Aggregate) continue;
@@ -65,7 +70,7 @@ class CollectingReporter : public benchmark::ConsoleReporter {
       if (it == by_name_->end()) continue;
       const std::string& agg = run.aggregate_name;
       if (agg == "median" || agg == "min" || agg == "max") {
-        it->second->cpu[agg] = run.GetAdjustedCPUTime();  // unit: kSecond
+        it->second->cpu[agg] = 1e-3 * run.GetAdjustedCPUTime();  // unit: kMillisecond -> s
       }
     }
     ConsoleReporter::ReportRuns(runs);
@@ -246,14 +251,28 @@ int main(int argc, char** argv) {
                                      state.counters["rejected_steps"] = s.rejected_steps();
                                      state.counters["scd"] = std::isfinite(ep->metrics.scd) ? ep->metrics.scd : 0.0;
                                    })
-          ->Unit(benchmark::kSecond)
-          ->MinTime(short_mode ? 0.005 : 0.05)
-          ->Repetitions(repetitions)
-          ->ReportAggregatesOnly(true)
+          ->Unit(benchmark::kMillisecond)  // compare.py prints whole time units
+          // Minimum time and repetitions go in as flags below: set here, Google Benchmark
+          // would append them (mode-dependent) to the names, and compare.py could not
+          // match a short run against a full one.
+          ->DisplayAggregatesOnly(true)  // the JSON file keeps every repetition
           ->ComputeStatistics("min", MinOf)
           ->ComputeStatistics("max", MaxOf);
     }
 
+    // Google Benchmark writes its own JSON (context, per-repetition and aggregate entries,
+    // time units) so that its tools/compare.py reads our files; kneedyn's header and
+    // results are added beside them (docs/outputs.md).
+    const std::string gbench_path =
+        (std::filesystem::temp_directory_path() / ("kneedyn_work_precision_" + std::to_string(::getpid()) + ".json"))
+            .string();
+    std::string out_flag = "--benchmark_out=" + gbench_path;
+    std::string format_flag = "--benchmark_out_format=json";
+    std::string min_time_flag = std::string("--benchmark_min_time=") + (short_mode ? "0.005" : "0.05");
+    std::string repetitions_flag = "--benchmark_repetitions=" + std::to_string(repetitions);
+    rest.insert(rest.begin() + 1, {min_time_flag.data(), repetitions_flag.data()});  // user flags win
+    rest.push_back(out_flag.data());
+    rest.push_back(format_flag.data());
     int bargc = static_cast<int>(rest.size());
     benchmark::Initialize(&bargc, rest.data());
     CollectingReporter reporter(&by_name);
@@ -261,6 +280,21 @@ int main(int argc, char** argv) {
     benchmark::Shutdown();
 
     nlohmann::json out;
+    {
+      std::ifstream in(gbench_path);
+      if (!in) Throw<InputError>("work_precision", "Google Benchmark wrote no '", gbench_path, "'");
+      // Google Benchmark prints NaN (e.g. the cv of a counter that is 0 in every
+      // repetition), which is not JSON: such values become null.
+      std::stringstream text;
+      text << in.rdbuf();
+      out = nlohmann::json::parse(
+          std::regex_replace(text.str(), std::regex(R"(:\s*-?(NaN|nan|inf|Infinity)\b)"), ": null"));
+    }
+    std::filesystem::remove(gbench_path);
+    out["context"]["kneedyn_version"] = KneedynVersion();
+    out["context"]["git_commit"] = KneedynGitCommit();
+    out["context"]["kneedyn_mode"] = short_mode ? "short" : "full";
+    out["context"]["kneedyn_scene"] = scene.name;
     nlohmann::json& h = out["header"];
     h["machine"] = MachineJson();
     h["scene"] = scene.name;
@@ -284,6 +318,7 @@ int main(int argc, char** argv) {
         "linear_solver_setups,nonlinear_iterations,steps,rejected_steps,reason\n";
     for (const Entry& e : entries) {
       nlohmann::json r;
+      r["name"] = e.config.Name();  // the Google Benchmark entries' run_name
       r["formulation"] = e.config.formulation;
       r["integrator"] = e.config.integrator;
       r["setting"] = e.config.SettingJson();

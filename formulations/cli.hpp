@@ -22,13 +22,20 @@ inline int ParseCommandLine(CLI::App& app, int argc, char** argv, const std::str
     std::string message = e.what();
     // A mistyped subcommand: CLI11 only says that one is required; name the word given.
     const std::vector<CLI::App*> all = app.get_subcommands([](CLI::App*) { return true; });
-    if (!all.empty() && app.get_subcommands().empty()) {
-      for (int i = 1; i < argc; ++i) {
-        const std::string word = argv[i];
-        if (word.empty() || word[0] == '-') continue;
-        message = "unknown subcommand '" + word + "'; expected one of:";
-        for (const CLI::App* sub : all) message += " " + sub->get_name();
-        break;
+    if (!all.empty() && app.get_subcommands().empty() && e.get_name() == "RequiredError") {
+      std::string expected;
+      for (const CLI::App* sub : all) expected += " " + sub->get_name();
+      if (argc > 1) {
+        const std::string word = argv[1];
+        bool known = false;
+        for (const CLI::App* sub : all) known = known || sub->check_name(word);
+        if (!known && !word.empty() && word[0] == '-') {
+          message = "'" + word + "' given before the subcommand; expected one of:" + expected;
+        } else if (!known) {
+          message = "unknown subcommand '" + word + "'; expected one of:" + expected;
+        }
+      } else {
+        message += "; expected one of:" + expected;
       }
     }
     std::fprintf(stderr, "%s: error: %s\nRun '%s --help' for the arguments.\n", program.c_str(),

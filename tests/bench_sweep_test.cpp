@@ -10,8 +10,10 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <vector>
 #include <string>
 
 #include "formulations/formulation.hpp"
@@ -122,6 +124,44 @@ TEST_F(ShortSweep, CsvHasOneRowPerResult) {
   EXPECT_EQ(line.rfind("formulation,integrator,rtol,atol,step,status,scd", 0), 0u);
   while (std::getline(in, line)) ++lines;
   EXPECT_EQ(lines, json_["results"].size());
+}
+
+// Issue 10: the file is Google Benchmark's own JSON (what its tools/compare.py reads): a
+// context, and in `benchmarks` one `iteration` entry per repetition of every setting plus
+// the aggregates, with time units; names carry no sweep mode, min_time or repeat count
+// (a short and a full run compare name by name). The mean aggregate equals the mean of
+// the repetitions Google Benchmark itself wrote.
+TEST_F(ShortSweep, IsGoogleBenchmarkJsonWithEveryRepetition) {
+  ASSERT_EQ(exit_code_, 0);
+  ASSERT_TRUE(json_.contains("context"));
+  EXPECT_TRUE(json_["context"].contains("date"));
+  EXPECT_TRUE(json_["context"].contains("num_cpus"));
+  ASSERT_TRUE(json_["benchmarks"].is_array());
+  std::map<std::string, std::vector<double>> cpu_by_name;
+  std::map<std::string, double> mean_by_name;
+  for (const auto& b : json_["benchmarks"]) {
+    const std::string name = b.at("name").get<std::string>();
+    for (const char* banned : {"short", "full", "min_time", "repeats"}) {
+      EXPECT_EQ(name.find(banned), std::string::npos) << name;
+    }
+    EXPECT_EQ(b.at("time_unit"), "ms") << name;
+    EXPECT_TRUE(b.at("real_time").is_number()) << name;
+    const std::string run_name = b.at("run_name").get<std::string>();
+    if (b.at("run_type") == "iteration") {
+      EXPECT_EQ(b.at("repetitions").get<int>(), 2) << name;
+      cpu_by_name[run_name].push_back(b.at("cpu_time").get<double>());
+    } else if (b.at("aggregate_name") == "mean") {
+      mean_by_name[run_name] = b.at("cpu_time").get<double>();
+    }
+  }
+  EXPECT_EQ(cpu_by_name.size(), json_["results"].size());
+  for (const auto& r : json_["results"]) {
+    const std::string name = r.at("name").get<std::string>();
+    ASSERT_EQ(cpu_by_name[name].size(), 2u) << name;
+    ASSERT_TRUE(mean_by_name.count(name)) << name;
+    const double mean = 0.5 * (cpu_by_name[name][0] + cpu_by_name[name][1]);
+    EXPECT_NEAR(mean_by_name[name], mean, 1e-9 * mean + 1e-15) << name;
+  }
 }
 
 }  // namespace

@@ -328,6 +328,8 @@ TEST_F(CliTest, ArgumentErrorsExitTwoAndNameTheArgument) {
       {"run" + out, "scene"},                               // missing positional
       {"info", "scene"},
       {"", "subcommand"},
+      {"--rtol 3 run " + scene + out, "--rtol"},             // option before the subcommand
+      {"--rtol 3", "'--rtol'"},                            // ... and no subcommand
   };
   for (const auto& [args, named] : cases) {
     const CommandResult r = RunKneedyn(args);
