@@ -139,6 +139,7 @@ class DaeGglFormulation final : public Formulation {
     }
     mem_ = IDACreate(ctx_);
     if (mem_ == nullptr) Throw<SolverError>("DaeGglFormulation::Start", "IDACreate failed");
+    Check(IDASetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "IDASetErrHandlerFn");
     Check(IDAInit(mem_, &DaeGglFormulation::Residual, state.t, y_, yp_), "IDAInit");
     Check(IDASetUserData(mem_, this), "IDASetUserData");
     Check(IDASVtolerances(mem_, options_.rtol, atol), "IDASVtolerances");
@@ -364,7 +365,7 @@ class DaeGglFormulation final : public Formulation {
   }
 
   void Check(int flag, const char* call) const {
-    CheckSundials(flag, call, "DaeGglFormulation", IDAGetReturnFlagName);
+    CheckSundials(flag, call, "DaeGglFormulation", IDAGetReturnFlagName, &sundials_messages_);
   }
 
   SolverStats CurrentStats() const {
@@ -420,6 +421,7 @@ class DaeGglFormulation final : public Formulation {
   mutable MatrixXd J_;
   std::vector<double> normal_;  // N per model contact, for the root functions
   std::vector<int> root_flags_;
+  mutable SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason
 };
 
 }  // namespace

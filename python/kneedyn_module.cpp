@@ -13,12 +13,17 @@
 #include <pybind11/stl.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
 #include <string>
+#include <thread>
 
+#include "ensembles/sweep.hpp"
+#include "ensembles/sweep_output.hpp"
+#include "ensembles/sweep_spec.hpp"
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
 #include "solver/error.hpp"
@@ -275,4 +280,51 @@ PYBIND11_MODULE(_kneedyn, m) {
      py::arg("step"), py::arg("max_step"), py::arg("max_steps"), py::arg("stabilization"),
      py::arg("constraint_level"), py::arg("output_interval"), py::arg("out_dir") = "",
      "RunScene + MakeTrajectoryTable + SummaryJson (+ WriteRunOutputs into out_dir) without the GIL");
+
+  // The sweep API of ensembles/ (issue 14): the same spec, design, runs and result files as
+  // `kneedyn sweep SPEC --threads N --out DIR`, in process and without the GIL.
+  m.def("sweep", [](const std::string& spec_path, int threads, const std::string& out_dir) {
+    if (threads < 0 || threads > 4096) {
+      Throw<InputError>("kneedyn.sweep", "threads = ", threads, ": must be in [0, 4096] (0: all cores)");
+    }
+    if (threads == 0) threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+    ensembles::SweepTable table;
+    {
+      py::gil_scoped_release release;
+      const ensembles::SweepSpec spec = ensembles::LoadSweepSpec(spec_path);
+      table = ensembles::RunSweep(spec, ensembles::ShardIndices(spec, 0, 1), threads);
+      if (!out_dir.empty()) ensembles::WriteSweepResults(out_dir, table);
+    }
+    const size_t np = table.parameter_columns.size(), no = table.outcome_columns.size();
+    const size_t n = table.rows.size();
+    py::array_t<long> index(n), steps(n);
+    py::array_t<bool> completed(n);
+    py::array_t<double> parameters({np, n}), outcomes({no, n});
+    auto pw = parameters.mutable_unchecked<2>();
+    auto ow = outcomes.mutable_unchecked<2>();
+    std::vector<std::string> failure(n), end_reason(n);
+    for (size_t r = 0; r < n; ++r) {
+      const ensembles::RunRow& row = table.rows[r];
+      index.mutable_at(r) = row.index;
+      steps.mutable_at(r) = row.steps;
+      completed.mutable_at(r) = row.completed;
+      for (size_t c = 0; c < np; ++c) pw(c, r) = row.parameters[c];
+      for (size_t c = 0; c < no; ++c) ow(c, r) = row.outcomes[c];
+      failure[r] = row.failure;
+      end_reason[r] = row.end_reason;
+    }
+    py::dict d;
+    d["parameter_columns"] = table.parameter_columns;
+    d["outcome_columns"] = table.outcome_columns;
+    d["index"] = index;
+    d["parameters"] = parameters;
+    d["outcomes"] = outcomes;
+    d["completed"] = completed;
+    d["steps"] = steps;
+    d["end_reason"] = end_reason;
+    d["failure"] = failure;
+    d["total_runs"] = table.total_runs;
+    return d;
+  }, py::arg("spec_path"), py::arg("threads") = 0, py::arg("out_dir") = "",
+     "LoadSweepSpec + RunSweep on `threads` workers (0: all cores) (+ WriteSweepResults) without the GIL");
 }

@@ -25,7 +25,7 @@ import numpy as _np
 from . import _kneedyn
 from ._kneedyn import Error, InputError, SolverError, CompiledScene
 
-__all__ = ["Scene", "Result", "Trajectory", "Event", "load_scene", "run", "formulations",
+__all__ = ["sweep", "SweepResult", "Scene", "Result", "Trajectory", "Event", "load_scene", "run", "formulations",
            "data_dir", "scene_path", "Error", "InputError", "SolverError"]
 
 
@@ -300,3 +300,32 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
                        float(step), float(max_step), int(max_steps), stabilization,
                        constraint_level, float(output_interval), "" if out is None else str(out))
     return Result(_json.loads(out["summary_json"]), Trajectory(out["columns"], out["data"]))
+
+
+class SweepResult:
+    """One row per design run of a sweep (same rows as `kneedyn sweep`'s sweep.csv):
+    `index`, `parameters[name]` and `outcomes[name]` as NumPy arrays (spec units; NaN where a
+    run did not reach an outcome), `completed`, `steps`, `end_reason`, `failure`."""
+
+    def __init__(self, d):
+        self.index = d["index"]
+        self.parameters = {c: d["parameters"][i] for i, c in enumerate(d["parameter_columns"])}
+        self.outcomes = {c: d["outcomes"][i] for i, c in enumerate(d["outcome_columns"])}
+        self.completed = d["completed"]
+        self.steps = d["steps"]
+        self.end_reason = list(d["end_reason"])
+        self.failure = list(d["failure"])
+        self.total_runs = d["total_runs"]
+
+    def __len__(self):
+        return len(self.index)
+
+    def __repr__(self):
+        return "<kneedyn.SweepResult: %d runs, %d failed>" % (len(self), int((~self.completed).sum()))
+
+
+def sweep(spec_path, threads=0, out=None):
+    """Runs a sweep spec (ensembles/README.md) in process on `threads` workers (0: all cores),
+    the GIL released; `out` also writes sweep.csv and sweep.h5 as `kneedyn sweep --out` does.
+    The rows do not depend on the thread count."""
+    return SweepResult(_kneedyn.sweep(str(spec_path), int(threads), "" if out is None else str(out)))

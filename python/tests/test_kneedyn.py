@@ -14,6 +14,7 @@ What it does not: accuracy of the physics (the C++ suites do that).
 """
 import concurrent.futures
 import csv
+import io
 import json
 import math
 import os
@@ -347,3 +348,52 @@ def test_gil_is_released_during_a_run():
     t.join()
     print("longest pause %.4f s, run wall times %s" % (longest, walls))
     assert longest < 0.5 * min(walls), (longest, walls)
+
+
+SWEEP_SPEC = """\
+# Four Latin-hypercube runs of the chapter scene (pulse amplitude, PCL-anterior stiffness).
+scene: {scene}
+parameters:
+  - {{name: pulse.amplitude, uniform: [80, 120]}}
+  - {{name: PCL anterior.k_linear, relative: 0.3}}
+design: {{type: lhs, samples: 4, seed: 7}}
+outcomes: [liftoff_time, liftoff_flexion, peak_ligament_force]
+solver: {{formulation: mde, integrator: dopri5, rtol: 1.0e-7, atol: 1.0e-9}}
+"""
+
+
+def test_sweep_equals_cli_sweep_for_any_thread_count():
+    """kneedyn.sweep runs the ensembles/ API in process: its sweep.csv is byte-identical to
+    `kneedyn sweep`'s, whatever the thread count, and its arrays hold the CSV's rows."""
+    spec = os.path.join(OUT, "sweep_spec.yaml")
+    with open(spec, "w") as f:
+        f.write(SWEEP_SPEC.format(scene=os.path.abspath(CHAPTER)))
+    cli_out = os.path.join(OUT, "sweep_cli")
+    p = subprocess.run([CLI, "sweep", spec, "--threads", "1", "--quiet", "--out", cli_out],
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    one = kneedyn.sweep(spec, threads=1, out=os.path.join(OUT, "sweep_py1"))
+    two = kneedyn.sweep(spec, threads=2, out=os.path.join(OUT, "sweep_py2"))
+    with open(os.path.join(cli_out, "sweep.csv"), "rb") as f:
+        cli_csv = f.read()
+    for d in ("sweep_py1", "sweep_py2"):
+        with open(os.path.join(OUT, d, "sweep.csv"), "rb") as f:
+            assert f.read() == cli_csv, d
+    assert len(one) == 4 and one.total_runs == 4 and list(one.index) == [0, 1, 2, 3]
+    assert one.completed.all()
+    for name in one.outcomes:
+        assert np.array_equal(one.outcomes[name], two.outcomes[name], equal_nan=True), name
+    # The arrays are the CSV's rows (the CSV prints round-trip digits or fewer: compare as
+    # the CSV's own text parsed back).
+    rows = list(csv.DictReader(io.StringIO(cli_csv.decode())))
+    lift = np.array([float(r["liftoff_flexion_deg"]) for r in rows])
+    assert np.allclose(one.outcomes["liftoff_flexion_deg"], lift, rtol=1e-9, atol=0)
+    # The amplitudes stay inside the spec's range, one per LHS stratum.
+    amp = np.sort(one.parameters["pulse.amplitude"] if "pulse.amplitude" in one.parameters
+                  else next(v for k, v in one.parameters.items() if "amplitude" in k))
+    assert all(80 + 10 * i <= a <= 80 + 10 * (i + 1) for i, a in enumerate(amp))
+
+
+def test_sweep_bad_threads_is_an_input_error():
+    with pytest.raises(kneedyn.InputError, match="threads = -1"):
+        kneedyn.sweep(os.path.join(OUT, "does_not_matter.yaml"), threads=-1)
