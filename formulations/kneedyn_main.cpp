@@ -56,9 +56,14 @@ int Info(const std::string& path) {
   return 0;
 }
 
-}  // namespace
+// A message as printed: values in it are already cut (Echo); this only bounds the whole.
+std::string Clip(const std::string& m) { return m.size() > 4000 ? m.substr(0, 4000) + "..." : m; }
 
-int main(int argc, char** argv) {
+// Exit codes (README "Exit codes"): 0 completed; 1 solver failure while integrating, with
+// the results up to there written and marked partial; 2 bad input or arguments, including
+// what the input makes impossible before integration starts (a singular or inconsistent
+// initial pose), and an unusable --out; nothing is written then. No other code.
+int Main(int argc, char** argv) {
   CLI::App app{"kneedyn: 3D dynamic knee model (Hefzy & Abdel-Rahman) — verification and benchmark suite"};
   app.require_subcommand(1);
 
@@ -90,6 +95,18 @@ int main(int argc, char** argv) {
   CLI::App* list = app.add_subcommand("formulations", "list the registered formulations");
 
   CLI11_PARSE(app, argc, argv);
+  for (const std::string* s : {&scene_path, &info_scene, &out_dir, &settings.formulation,
+                               &settings.options.integrator, &settings.options.stabilization,
+                               &settings.options.constraint_level}) {
+    if (s->size() > 1024) {
+      std::fprintf(stderr, "kneedyn: error: argument '%s' is longer than 1024 characters\n", Echo(*s).c_str());
+      return 2;
+    }
+  }
+  if (run->count("--output-interval") && settings.output_interval == 0.0) {
+    std::fprintf(stderr, "kneedyn: error: --output-interval = 0; must be > 0 (omit it for the scene's)\n");
+    return 2;
+  }
   try {
     if (*info) return Info(info_scene);
     if (*list) {
@@ -105,6 +122,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     const Scene scene = LoadScene(scene_path);
+    CheckOutputDirectory(out_dir);  // refuse an unusable --out before running
     if (!quiet) {
       double last = -1.0;
       settings.progress = [&](double t, double alpha) {
@@ -115,7 +133,12 @@ int main(int argc, char** argv) {
     }
     const RunResult result = RunScene(scene, settings);
     if (!quiet) std::fprintf(stderr, "\n");
-    WriteRunOutputs(out_dir, scene, settings, result);
+    try {
+      WriteRunOutputs(out_dir, scene, settings, result);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "kneedyn: error: --out = '%s': %s\n", Echo(out_dir).c_str(), Clip(e.what()).c_str());
+      return 2;
+    }
     const SolverStats& s = result.stats;
     std::printf("%s: %s with %s in %.3f s wall\n", scene.name.c_str(),
                 result.completed ? ("completed (" + result.end_reason + ")").c_str() : "FAILED",
@@ -139,11 +162,22 @@ int main(int argc, char** argv) {
       return 1;
     }
     return 0;
-  } catch (const InputError& e) {
-    std::fprintf(stderr, "kneedyn: error: %s\n", e.what());
+  } catch (const std::exception& e) {
+    // Before integration: the scene, the options or the initial state refused (exit 2).
+    std::fprintf(stderr, "kneedyn: error: %s\n", Clip(e.what()).c_str());
     return 2;
-  } catch (const Error& e) {
-    std::fprintf(stderr, "kneedyn: error: %s\n", e.what());
-    return 1;
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return Main(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "kneedyn: error: %s\n", Clip(e.what()).c_str());
+  } catch (...) {
+    std::fprintf(stderr, "kneedyn: error: unknown exception\n");
+  }
+  return 2;
 }
