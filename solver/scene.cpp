@@ -77,7 +77,7 @@ class Field {
     if (!node_.IsMap()) Fail("must be a mapping");
     std::vector<std::string> seen;
     for (auto it = node_.begin(); it != node_.end(); ++it) {
-      const YAML::Node& key = it->first;
+      const YAML::Node key = it->first;  // a copy: *it is a temporary (ASan, fuzz_scene)
       const std::string k = key.IsScalar() ? key.Scalar() : std::string("(non-scalar key)");
       const std::string where = path_.empty() ? k : path_ + "." + k;
       if (std::find(seen.begin(), seen.end(), k) != seen.end()) {
