@@ -138,6 +138,40 @@ class DaeFormulation final : public Formulation {
     ++accumulated_.restarts;
   }
 
+  // Issue 18: which unknown IDA's failure is about — the component with the largest
+  // weighted local error estimate |e_i| w_i (IDAGetEstLocalErrors, IDAGetErrWeights).
+  std::string LargestErrorComponent() const {
+    N_Vector e = N_VClone(y_), w = N_VClone(y_);
+    std::string out;
+    if (IDAGetEstLocalErrors(mem_, e) == IDA_SUCCESS && IDAGetErrWeights(mem_, w) == IDA_SUCCESS) {
+      const double* ed = NvData(e);
+      const double* wd = NvData(w);
+      int worst = 0;
+      for (int i = 1; i < n_; ++i) {
+        if (std::abs(ed[i] * wd[i]) > std::abs(ed[worst] * wd[worst])) worst = i;
+      }
+      out = StrCat("; largest weighted local error estimate: ", UnknownName(worst), " (",
+                   std::abs(ed[worst] * wd[worst]), " of the tolerance)");
+    }
+    N_VDestroy(e);
+    N_VDestroy(w);
+    return out;
+  }
+  // y = (q: x0 … gamma, u: generalized velocity, contact coordinates, N per contact).
+  std::string UnknownName(int i) const {
+    if (i < 6) return CoordinateName(i);
+    if (i < 12) return StrCat("u[", i - 6, "]");
+    const int k = static_cast<int>(active_.size());
+    const int coords = per_contact_ * k;
+    if (i < 12 + coords) {
+      static const char* kCoord[4] = {"x_c", "y_c", "x'_c", "y'_c"};
+      return StrCat(CompartmentName(state_contact_compartment((i - 12) / per_contact_)), " ",
+                    kCoord[(i - 12) % per_contact_]);
+    }
+    return StrCat("N_", CompartmentName(state_contact_compartment(i - 12 - coords)));
+  }
+  Compartment state_contact_compartment(int c) const { return model_.contacts[active_[c]].compartment; }
+
   AdvanceResult Advance(double t_out, MechanicalState* state) override {
     double t_reached = state->t;
     failure_.clear();
@@ -151,7 +185,8 @@ class DaeFormulation final : public Formulation {
       const std::string text = name ? name : "?";
       free(name);
       Throw<SolverError>("IDASolve", text, " at t = ", t_cur, " s with step h = ", h, " s",
-                         failure_.empty() ? "" : " (" + failure_ + ")", sundials_messages_.Take());
+                         failure_.empty() ? "" : " (" + failure_ + ")", LargestErrorComponent(),
+                         sundials_messages_.Take());
     }
     const double* y = NvData(y_);
     const double* yp = NvData(yp_);

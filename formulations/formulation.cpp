@@ -26,19 +26,21 @@ bool FormulationOptions::IsValid(std::string* error) const {
     if (error) *error = m;
     return false;
   };
-  if (!(std::isfinite(rtol) && rtol > 0.0 && rtol < 1.0)) {
-    return fail(StrCat("--rtol = ", rtol, "; must be finite and in (0, 1)"));
+  if (!(std::isfinite(rtol) && rtol > 0.0 && rtol <= 0.5)) {
+    return fail(StrCat("--rtol = ", rtol, "; must lie in (0, 0.5]"));
   }
-  if (!(std::isfinite(atol) && atol > 0.0)) {
-    return fail(StrCat("--atol = ", atol, "; must be finite and > 0"));
+  if (!(std::isfinite(atol) && atol > 0.0 && atol <= 1e-2)) {
+    return fail(StrCat("--atol = ", atol, "; must lie in (0, 1e-2] (SI: m, m/s, rad)"));
   }
-  if (!(std::isfinite(step) && step >= 0.0)) {
-    return fail(StrCat("--step = ", step, " s; must be finite and >= 0 (0: method default)"));
+  if (!(std::isfinite(step) && (step == 0.0 || (step >= 1e-9 && step <= 0.1)))) {
+    return fail(StrCat("--step = ", step, " s; must be 0 (method default) or lie in [1e-9, 0.1] s"));
   }
-  if (!(std::isfinite(max_step) && max_step >= 0.0)) {
-    return fail(StrCat("--max-step = ", max_step, " s; must be finite and >= 0 (0: none)"));
+  if (!(std::isfinite(max_step) && max_step >= 0.0 && max_step <= 100.0)) {
+    return fail(StrCat("--max-step = ", max_step, " s; must lie in [0, 100] s (0: none)"));
   }
-  if (max_steps < 1) return fail(StrCat("--max-steps = ", max_steps, "; must be >= 1"));
+  if (max_steps < 1 || max_steps > 100000000) {
+    return fail(StrCat("--max-steps = ", max_steps, "; must lie in [1, 1e8]"));
+  }
   if (stabilization != "none" && stabilization != "baumgarte" && stabilization != "projection" &&
       stabilization != "cvode-projection") {
     return fail("--stabilization = '" + stabilization + "'; must be none, baumgarte, projection or cvode-projection");

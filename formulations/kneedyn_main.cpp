@@ -62,9 +62,14 @@ int Info(const std::string& path) {
   return 0;
 }
 
-}  // namespace
+// A message as printed: values in it are already cut (Echo); this only bounds the whole.
+std::string Clip(const std::string& m) { return m.size() > 4000 ? m.substr(0, 4000) + "..." : m; }
 
-int main(int argc, char** argv) {
+// Exit codes (README "Exit codes"): 0 completed; 1 solver failure while integrating, with
+// the results up to there written and marked partial; 2 bad input or arguments, including
+// what the input makes impossible before integration starts (a singular or inconsistent
+// initial pose), and an unusable --out; nothing is written then. No other code.
+int Main(int argc, char** argv) {
   CLI::App app{"kneedyn: 3D dynamic knee model (Hefzy & Abdel-Rahman) — verification and benchmark suite"};
   app.require_subcommand(1);
   app.set_version_flag("--version", VersionReport("kneedyn"), "print the version, git commit and library versions");
@@ -111,6 +116,18 @@ int main(int argc, char** argv) {
 
   if (const int code = ParseCommandLine(app, argc, argv, "kneedyn"); code >= 0) return code;
   if (sweep.parsed()) return sweep.Run();
+  for (const std::string* s : {&scene_path, &info_scene, &out_dir, &settings.formulation,
+                               &settings.options.integrator, &settings.options.stabilization,
+                               &settings.options.constraint_level}) {
+    if (s->size() > 1024) {
+      std::fprintf(stderr, "kneedyn: error: argument '%s' is longer than 1024 characters\n", Echo(*s).c_str());
+      return 2;
+    }
+  }
+  if (run->count("--output-interval") && settings.output_interval == 0.0) {
+    std::fprintf(stderr, "kneedyn: error: --output-interval = 0; must be > 0 (omit it for the scene's)\n");
+    return 2;
+  }
   try {
     if (*info) return Info(info_scene);
     if (*list) {
@@ -127,6 +144,7 @@ int main(int argc, char** argv) {
     }
     const Scene scene = LoadScene(scene_path);
     settings.command_line.assign(argv, argv + argc);
+    CheckOutputDirectory(out_dir);  // refuse an unusable --out before running
     // `\r` progress only on a terminal (logs and pipes get the summary lines alone).
     const bool show_progress = !quiet && StderrIsTerminal();
     if (show_progress) {
@@ -139,7 +157,12 @@ int main(int argc, char** argv) {
     }
     const RunResult result = RunScene(scene, settings);
     if (show_progress) std::fprintf(stderr, "\n");
-    WriteRunOutputs(out_dir, scene, settings, result);
+    try {
+      WriteRunOutputs(out_dir, scene, settings, result);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "kneedyn: error: --out = '%s': %s\n", Echo(out_dir).c_str(), Clip(e.what()).c_str());
+      return 2;
+    }
     const SolverStats& s = result.stats;
     std::printf("%s: %s with %s in %.3f s wall\n", scene.name.c_str(),
                 result.completed ? ("completed (" + result.end_reason + ")").c_str() : "FAILED",
@@ -163,11 +186,22 @@ int main(int argc, char** argv) {
       return 1;
     }
     return 0;
-  } catch (const InputError& e) {
-    std::fprintf(stderr, "kneedyn: error: %s\n", e.what());
+  } catch (const std::exception& e) {
+    // Before integration: the scene, the options or the initial state refused (exit 2).
+    std::fprintf(stderr, "kneedyn: error: %s\n", Clip(e.what()).c_str());
     return 2;
-  } catch (const Error& e) {
-    std::fprintf(stderr, "kneedyn: error: %s\n", e.what());
-    return 1;
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return Main(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "kneedyn: error: %s\n", Clip(e.what()).c_str());
+  } catch (...) {
+    std::fprintf(stderr, "kneedyn: error: unknown exception\n");
+  }
+  return 2;
 }

@@ -88,6 +88,22 @@ void CheckSampleIsPhysical(const Model& model, const MechanicalState& s) {
   }
 }
 
+// Issue 18: the physical situation beside a solver's failure message: the last state the
+// driver holds (time, flexion), the active contacts and their constraint residuals.
+std::string FailureSituation(const Model& model, const MechanicalState& s) {
+  std::string out = StrCat("; last state t = ", s.t, " s, flexion = ", RadToDeg(s.q(kAlpha)),
+                           " deg, active contacts: ");
+  if (s.active.empty()) out += "none";
+  std::vector<double> gap, rate;
+  ConstraintResiduals(model, s, &gap, &rate);
+  for (size_t n = 0; n < s.active.size(); ++n) {
+    const int i = s.active[n];
+    out += StrCat(n ? ", " : "", CompartmentName(model.contacts[i].compartment), " (gap ", MToMm(gap[i]),
+                  " mm, gap rate ", MToMm(rate[i]), " mm/s, N = ", s.contact[i].normal_force, " N)");
+  }
+  return out;
+}
+
 }  // namespace
 
 RunResult RunScene(const Scene& scene, const RunSettings& settings) {
@@ -96,9 +112,11 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
   RunResult result;
   std::unique_ptr<Formulation> formulation =
       CreateFormulation(settings.formulation, scene, settings.options);
-  const double dt = settings.output_interval > 0.0 ? settings.output_interval : scene.output_interval;
-  if (!(dt > 0.0) || !std::isfinite(dt)) {
-    Throw<InputError>("RunScene", "output interval = ", dt, " s; must be finite and > 0");
+  // 0 means the scene's interval; anything else must be usable (issue 18: no silent fallback).
+  const double dt = settings.output_interval == 0.0 ? scene.output_interval : settings.output_interval;
+  std::string why;
+  if (!IsValidOutputInterval(dt, scene.end.time, &why)) {
+    Throw<InputError>("RunScene", settings.output_interval == 0.0 ? "scene output.interval_s: " : "--output-interval: ", why);
   }
 
   ConsistentInitOptions init_options = settings.init;
@@ -107,6 +125,12 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
   std::vector<int> active;
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
   MechanicalState state = ConsistentInitialize(scene, active, init_options, &result.init);
+  // Refusals the input causes are raised here, before integration (exit code 2): contact
+  // rows that are dependent at the start (e.g. two compartments given the same surfaces).
+  if (std::all_of(state.active.begin(), state.active.end(),
+                  [&](int i) { return model.contacts[i].sphere_on_plane.has_value(); })) {
+    SolveConstrainedAcceleration(model, state.t, state.q, state.qd, state.active);
+  }
 
   auto record = [&](const MechanicalState& s, bool is_event) {
     CheckSampleIsPhysical(model, s);
@@ -214,9 +238,12 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
       }
     }
     result.completed = true;
-  } catch (const SolverError& e) {
+  } catch (const Error& e) {
     result.completed = false;
-    result.failure = e.what();
+    result.failure = e.what() + FailureSituation(model, state);
+  } catch (const std::exception& e) {  // any other failure while integrating: still partial
+    result.completed = false;
+    result.failure = StrCat("RunScene(): ", e.what());
   }
   result.stats = formulation->stats();
   result.integrator = formulation->integrator();

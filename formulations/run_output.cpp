@@ -1,7 +1,16 @@
 #include "formulations/run_output.hpp"
 
+#include <fcntl.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <random>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -153,22 +162,84 @@ std::string FormatDouble(double v) {
   return buf;
 }
 
-// Writes `text` to dir/name via a temporary file and rename.
-void WriteAtomically(const fs::path& dir, const std::string& name, const std::string& text) {
-  const fs::path tmp = dir / ("." + name + ".tmp");
-  {
-    std::ofstream out(tmp);
-    if (!out) Throw<InputError>("WriteRunOutputs", "cannot write '", tmp.string(), "'");
-    out << text;
-    out.close();
-    if (!out) {
-      fs::remove(tmp);
-      Throw<InputError>("WriteRunOutputs", "failed writing '", tmp.string(), "'");
-    }
-  }
-  fs::rename(tmp, dir / name);
+const char* const kOutputFiles[] = {"trajectory.csv", "trajectory.sto", "summary.json"};
+
+void WriteFile(const fs::path& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) Throw<InputError>("WriteRunOutputs", "cannot write '", Echo(path.string(), 256), "'");
+  out << text;
+  out.close();
+  if (!out) Throw<InputError>("WriteRunOutputs", "failed writing '", Echo(path.string(), 256), "'");
 }
 
+// --out without a trailing '/', so that parent_path() and filename() name the directory.
+fs::path OutputPath(const std::string& dir_name) {
+  fs::path out = fs::path(dir_name).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();
+  if (out.empty() || out.filename() == "." || out.filename() == "..") {
+    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256),
+                      "': must name a directory of its own (not '.', '..' or '/')");
+  }
+  return out;
+}
+
+std::string TempPrefix(const fs::path& out) { return "." + out.filename().string() + ".kneedyn-tmp-"; }
+
+// Removes temporaries of earlier runs into `out` whose process no longer exists.
+void RemoveStaleTemporaries(const fs::path& out) {
+  const std::string prefix = TempPrefix(out);
+  std::error_code ec;
+  const fs::path parent = out.parent_path().empty() ? fs::path(".") : out.parent_path();
+  for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.compare(0, prefix.size(), prefix) != 0) continue;
+    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+    if (pid <= 0 || pid == ::getpid()) continue;
+    if (::kill(static_cast<pid_t>(pid), 0) == -1 && errno == ESRCH) {
+      std::error_code ignored;
+      fs::remove_all(it->path(), ignored);
+    }
+  }
+}
+
+}  // namespace
+
+void CheckOutputDirectory(const std::string& dir_name) {
+  const fs::path out = OutputPath(dir_name);
+  std::error_code ec;
+  const fs::file_status st = fs::symlink_status(out, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory) {
+    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': ", ec.message());
+  }
+  if (!fs::exists(st)) return;
+  if (!fs::is_directory(st)) {
+    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "' exists and is not a directory");
+  }
+  for (fs::directory_iterator it(out, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    const bool known = std::find(std::begin(kOutputFiles), std::end(kOutputFiles), name) != std::end(kOutputFiles);
+    if (!known || !it->is_regular_file()) {
+      Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "' holds '", Echo(name),
+                        "', which is not ", known ? "a regular file" : "part of an output set",
+                        "; a run replaces the whole directory: give a new or empty one");
+    }
+  }
+  if (ec) Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': ", ec.message());
+}
+
+namespace {
+
+// Replaces `out` by `tmp` in one step; afterwards `tmp` holds the previous set (if any).
+void Publish(const fs::path& tmp, const fs::path& out) {
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, out.c_str(), RENAME_NOREPLACE) == 0) return;
+    if (errno != EEXIST) break;
+    if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, out.c_str(), RENAME_EXCHANGE) == 0) return;
+    if (errno != ENOENT) break;  // ENOENT: `out` vanished in between (another run); again
+  }
+  Throw<InputError>("WriteRunOutputs", "cannot publish '", Echo(tmp.string(), 256), "' as '",
+                    Echo(out.string(), 256), "': ", std::strerror(errno));
+}
 }  // namespace
 
 nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
@@ -233,36 +304,51 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
 
 void WriteRunOutputs(const std::string& dir_name, const Scene& scene, const RunSettings& settings,
                      const RunResult& result) {
-  const fs::path dir(dir_name);
+  CheckOutputDirectory(dir_name);
+  const fs::path out = OutputPath(dir_name);
   std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec || !fs::is_directory(dir)) {
-    Throw<InputError>("WriteRunOutputs", "--out = '", dir_name, "': cannot create directory (",
-                      ec.message(), ")");
+  if (!out.parent_path().empty()) fs::create_directories(out.parent_path(), ec);
+  RemoveStaleTemporaries(out);
+  std::random_device random;
+  char suffix[64];
+  std::snprintf(suffix, sizeof(suffix), "%ld-%08x", static_cast<long>(::getpid()), random());
+  const fs::path tmp = out.parent_path() / (TempPrefix(out) + suffix);
+  if (!fs::create_directory(tmp, ec) || ec) {
+    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': cannot create '",
+                      Echo(tmp.string(), 256), "' (", ec.message(), ")");
   }
-  const TrajectoryTable table = MakeTrajectoryTable(scene, result);
-  std::ostringstream csv, sto;
-  for (size_t c = 0; c < table.columns.size(); ++c) csv << (c ? "," : "") << table.columns[c];
-  csv << "\n";
-  sto << "kneedyn_" << scene.name << "\nversion=1\nnRows=" << table.rows.size()
-      << "\nnColumns=" << table.columns.size() << "\ninDegrees=yes\n"
-      << "// lengths in mm, forces in N, angles in deg; formulation " << settings.formulation
-      << (result.completed ? "" : "; PARTIAL: solver failed") << "\nendheader\n";
-  for (size_t c = 0; c < table.columns.size(); ++c) {
-    sto << (c ? "\t" : "") << (c == 0 ? std::string("time") : table.columns[c]);
-  }
-  sto << "\n";
-  for (const auto& row : table.rows) {
-    for (size_t c = 0; c < row.size(); ++c) {
-      csv << (c ? "," : "") << FormatDouble(row[c]);
-      sto << (c ? "\t" : "") << (std::isfinite(row[c]) ? FormatDouble(row[c]) : "NaN");
-    }
+  try {
+    const TrajectoryTable table = MakeTrajectoryTable(scene, result);
+    std::ostringstream csv, sto;
+    for (size_t c = 0; c < table.columns.size(); ++c) csv << (c ? "," : "") << table.columns[c];
     csv << "\n";
+    sto << "kneedyn_" << scene.name << "\nversion=1\nnRows=" << table.rows.size()
+        << "\nnColumns=" << table.columns.size() << "\ninDegrees=yes\n"
+        << "// lengths in mm, forces in N, angles in deg; formulation " << settings.formulation
+        << (result.completed ? "" : "; PARTIAL: solver failed") << "\nendheader\n";
+    for (size_t c = 0; c < table.columns.size(); ++c) {
+      sto << (c ? "\t" : "") << (c == 0 ? std::string("time") : table.columns[c]);
+    }
     sto << "\n";
+    for (const auto& row : table.rows) {
+      for (size_t c = 0; c < row.size(); ++c) {
+        csv << (c ? "," : "") << FormatDouble(row[c]);
+        sto << (c ? "\t" : "") << (std::isfinite(row[c]) ? FormatDouble(row[c]) : "NaN");
+      }
+      csv << "\n";
+      sto << "\n";
+    }
+    WriteFile(tmp / "trajectory.csv", csv.str());
+    WriteFile(tmp / "trajectory.sto", sto.str());
+    // Invalid UTF-8 (e.g. in a file path) is replaced, never thrown on.
+    WriteFile(tmp / "summary.json",
+              SummaryJson(scene, settings, result).dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+    Publish(tmp, out);
+  } catch (...) {
+    fs::remove_all(tmp, ec);
+    throw;
   }
-  WriteAtomically(dir, "trajectory.csv", csv.str());
-  WriteAtomically(dir, "trajectory.sto", sto.str());
-  WriteAtomically(dir, "summary.json", SummaryJson(scene, settings, result).dump(2) + "\n");
+  fs::remove_all(tmp, ec);  // the previous set, if there was one
 }
 
 }  // namespace kneedyn

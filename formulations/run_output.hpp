@@ -1,4 +1,4 @@
-// Files of `kneedyn run` (issue 3), written completely or not at all (write, then rename):
+// Files of `kneedyn run` (issue 3), published as one complete set (see WriteRunOutputs):
 //   trajectory.csv  one row per output time plus every event; named columns with units
 //   trajectory.sto  the same as an OpenSim storage file (inDegrees=yes, tab-separated)
 //   summary.json    scene, formulation, settings, initialization, events, final state,
@@ -32,8 +32,17 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
                            const RunResult& result);
 nlohmann::json StatsJson(const SolverStats& stats);
 
-// Writes the three files into `dir` (created if needed). Throws InputError if the
-// directory cannot be written; never leaves a partial file behind.
+// Checks that `dir` can receive an output set before a run starts: it is absent, or a
+// directory holding nothing but regular files named as the set's (a previous set).
+// Throws InputError naming --out and the rule otherwise.
+void CheckOutputDirectory(const std::string& dir);
+
+// Publishes the three files as one set (issue 18): they are written into a private
+// temporary directory beside `dir` (".<name>.kneedyn-tmp-<pid>-<random>"), which then
+// replaces `dir` in one atomic rename (Linux renameat2 RENAME_EXCHANGE when `dir` exists).
+// After a kill at any moment `dir` holds the previous complete set or the new one; a
+// later run removes temporaries whose process has ended. Of two runs into the same `dir`,
+// the last to publish wins whole. Throws InputError (checks of CheckOutputDirectory).
 void WriteRunOutputs(const std::string& dir, const Scene& scene, const RunSettings& settings,
                      const RunResult& result);
 

@@ -9,6 +9,23 @@
 #include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
 
+namespace {
+// Ceres logs through glog; uninitialised, glog prints "Logging before InitGoogleLogging"
+// warnings, and initialised with defaults it writes log files under /tmp. Once per
+// process: initialise it to stderr, errors only (issue 18: nothing stray is printed).
+void QuietCeresLogging() {
+  static const bool done = [] {
+    if (!google::IsGoogleLoggingInitialized()) {
+      FLAGS_logtostderr = true;
+      FLAGS_minloglevel = google::GLOG_ERROR;
+      google::InitGoogleLogging("kneedyn");
+    }
+    return true;
+  }();
+  (void)done;
+}
+}  // namespace
+
 namespace kneedyn {
 namespace {
 
@@ -108,6 +125,7 @@ InitLevelReport SolveLevel(const char* level, Functor* functor, std::vector<doub
     cost->SetNumResiduals(num_residuals);
     ceres::Problem problem;
     problem.AddResidualBlock(cost, nullptr, x->data());
+    QuietCeresLogging();
     ceres::Solver::Options opts;
     opts.linear_solver_type = ceres::DENSE_QR;
     opts.max_num_iterations = max_iterations;

@@ -43,6 +43,19 @@ std::string StrCat(const Args&... args) {
   return os.str();
 }
 
+// A user-given value as shown in a message: at most max_chars characters, non-printable
+// bytes (control characters, invalid or non-ASCII UTF-8) as '?', and the full length when
+// cut (issue 18: a 100 KB value is not echoed in full).
+inline std::string Echo(const std::string& value, size_t max_chars = 80) {
+  std::string out;
+  for (size_t i = 0; i < value.size() && i < max_chars; ++i) {
+    const unsigned char c = static_cast<unsigned char>(value[i]);
+    out += (c >= 0x20 && c < 0x7f) ? static_cast<char>(c) : '?';
+  }
+  if (value.size() > max_chars) out += StrCat("... (", value.size(), " bytes)");
+  return out;
+}
+
 // "function(): message" as Drake does.
 template <typename E = Error, typename... Args>
 [[noreturn]] void Throw(const char* function, const Args&... args) {

@@ -18,6 +18,7 @@
 #include "solver/ligament.hpp"
 #include "solver/loads.hpp"
 #include <algorithm>
+#include <cctype>
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 
@@ -27,6 +28,40 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// Input limits (issue 18): every file and number a scene can give is bounded.
+constexpr std::uintmax_t kMaxInputFileBytes = 1 << 20;  // scene or parameter-set file
+constexpr size_t kMaxNameLength = 64;                    // scene, set and element names
+constexpr double kMaxLengthMm = 1000.0;                  // any position or length, mm
+constexpr double kMaxAngleDeg = 360.0;
+constexpr double kMaxForceN = 1.0e5;
+
+size_t EditDistance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diag = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
+// Names written into output headers: a letter, then letters, digits, '_', '-', '.', and
+// (elements only) spaces and '/'; ColumnSafeName turns ' ', '-', '/' into '_'.
+bool IsName(const std::string& s, bool element) {
+  if (s.empty() || s.size() > kMaxNameLength || !std::isalpha(static_cast<unsigned char>(s[0]))) return false;
+  for (char c : s) {
+    const bool ok = std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.' ||
+                    (element && (c == ' ' || c == '/'));
+    if (!ok) return false;
+  }
+  return true;
+}
+
 // A YAML node with the path that leads to it, so that every message names file and field.
 class Field {
  public:
@@ -34,11 +69,45 @@ class Field {
       : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)) {}
 
   [[noreturn]] void Fail(const std::string& rule) const {
-    Throw<InputError>("LoadScene", file_, ": field '", path_, "'",
-                      node_ && node_.IsScalar() ? " = '" + node_.Scalar() + "'" : std::string(),
+    Throw<InputError>("LoadScene", Echo(file_, 256), Line(node_), ": field '", path_.empty() ? "(top level)" : path_, "'",
+                      node_ && node_.IsScalar() ? " = '" + Echo(node_.Scalar()) + "'" : std::string(),
                       ": ", rule);
   }
-  bool Has(const std::string& key) const { return node_.IsMap() && node_[key]; }
+  // This node must be a mapping whose keys are all in `keys`, each once. An unknown key is
+  // refused with its line and the nearest valid key.
+  const Field& Keys(std::initializer_list<const char*> keys) const {
+    if (!node_.IsMap()) Fail("must be a mapping");
+    std::vector<std::string> seen;
+    for (auto it = node_.begin(); it != node_.end(); ++it) {
+      const YAML::Node key = it->first;  // a copy: *it is a temporary (ASan, fuzz_scene)
+      const std::string k = key.IsScalar() ? key.Scalar() : std::string("(non-scalar key)");
+      const std::string where = path_.empty() ? k : path_ + "." + k;
+      if (std::find(seen.begin(), seen.end(), k) != seen.end()) {
+        Throw<InputError>("LoadScene", Echo(file_, 256), Line(key), ": key '", Echo(where),
+                          "' given twice (a key may appear once per mapping)");
+      }
+      seen.push_back(k);
+      const char* nearest = nullptr;
+      size_t best = std::string::npos;
+      for (const char* valid : keys) {
+        if (k == valid) { best = 0; nearest = valid; break; }
+        const size_t d = EditDistance(k, valid);
+        if (d < best) { best = d; nearest = valid; }
+      }
+      if (best != 0) {
+        std::string list;
+        for (const char* valid : keys) list += (list.empty() ? "" : ", ") + std::string(valid);
+        Throw<InputError>("LoadScene", Echo(file_, 256), Line(key), ": unknown key '", Echo(where), "'",
+                          nearest ? StrCat("; nearest valid key '", nearest, "'") : std::string(),
+                          " (valid here: ", list, ")");
+      }
+    }
+    return *this;
+  }
+  bool Has(const std::string& key) const {
+    if (node_ && !node_.IsMap()) Fail("must be a mapping");
+    return node_.IsMap() && node_[key];
+  }
   Field Child(const std::string& key) const {
     if (!node_.IsMap()) Fail("must be a mapping");
     return Field(node_[key], file_, path_.empty() ? key : path_ + "." + key);
@@ -76,19 +145,37 @@ class Field {
     if (!std::isfinite(v)) Fail("must be finite");
     return v;
   }
-  double Positive() const {
+  // A number in [lo, hi] (the physical or practical limit of the field).
+  double Range(double lo, double hi) const {
     const double v = Double();
-    if (!(v > 0.0)) Fail("must be > 0");
+    if (!(v >= lo && v <= hi)) Fail(StrCat("must lie in [", lo, ", ", hi, "]"));
     return v;
   }
-  double NonNegative() const {
+  double Positive(double hi = 1.0e6) const {
+    const double v = Double();
+    if (!(v > 0.0)) Fail("must be > 0");
+    if (!(v <= hi)) Fail(StrCat("must be <= ", hi));
+    return v;
+  }
+  double NonNegative(double hi = 1.0e6) const {
     const double v = Double();
     if (!(v >= 0.0)) Fail("must be >= 0");
+    if (!(v <= hi)) Fail(StrCat("must be <= ", hi));
     return v;
   }
   std::string String() const {
     if (!node_ || !node_.IsScalar()) Fail("must be a string");
     return node_.Scalar();
+  }
+  // A name that goes into output headers (see IsName).
+  std::string Name(bool element = false) const {
+    const std::string s = String();
+    if (!IsName(s, element)) {
+      Fail(StrCat("must be a name of at most ", kMaxNameLength,
+                  " characters: a letter, then letters, digits, '_', '-', '.'",
+                  element ? ", spaces or '/'" : ""));
+    }
+    return s;
   }
   bool Bool() const {
     if (!node_ || !node_.IsScalar()) Fail("must be true or false");
@@ -98,16 +185,28 @@ class Field {
       Fail("must be true or false");
     }
   }
-  Vector3d Vec3() const {
+  // Three numbers, each with |v| <= limit.
+  Vector3d Vec3(double limit = kMaxLengthMm) const {
     if (!node_.IsSequence() || node_.size() != 3) Fail("must be a list of 3 numbers");
-    return Vector3d(Item(0).Double(), Item(1).Double(), Item(2).Double());
+    return Vector3d(Item(0).Range(-limit, limit), Item(1).Range(-limit, limit),
+                    Item(2).Range(-limit, limit));
   }
-  std::array<double, 2> Vec2() const {
+  std::array<double, 2> Vec2(double limit = kMaxLengthMm) const {
     if (!node_.IsSequence() || node_.size() != 2) Fail("must be a list of 2 numbers");
-    return {Item(0).Double(), Item(1).Double()};
+    return {Item(0).Range(-limit, limit), Item(1).Range(-limit, limit)};
   }
 
  private:
+  static std::string Line(const YAML::Node& n) {
+    try {
+      if (n.IsDefined()) {
+        const YAML::Mark m = n.Mark();
+        if (m.line >= 0) return StrCat(":", m.line + 1);
+      }
+    } catch (const YAML::Exception&) {
+    }
+    return "";
+  }
   YAML::Node node_;
   std::string file_;
   std::string path_;
@@ -117,20 +216,38 @@ YAML::Node ParseYaml(const std::string& text, const std::string& label) {
   try {
     YAML::Node root = YAML::Load(text);
     if (!root.IsMap()) {
-      Throw<InputError>("LoadScene", label, ": the top level must be a mapping");
+      Throw<InputError>("LoadScene", Echo(label), ": the top level must be a mapping of keys "
+                        "(name, parameter_set, ...); got ", root.IsSequence() ? "a list" : root.IsScalar() ? "a scalar" : "nothing");
     }
     return root;
   } catch (const YAML::Exception& e) {
-    Throw<InputError>("LoadScene", label, ": not valid YAML: ", e.what());
+    Throw<InputError>("LoadScene", Echo(label), ": not valid YAML: ", Echo(e.what()));
   }
 }
 
+// A scene or parameter-set file: an existing regular file (not a device, FIFO or
+// directory) of at most kMaxInputFileBytes.
 std::string ReadFile(const std::string& path, const char* what) {
-  std::ifstream in(path);
-  if (!in) Throw<InputError>("LoadScene", "cannot open ", what, " '", path, "'");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (ec || !fs::exists(st)) {
+    Throw<InputError>("LoadScene", "cannot open ", what, " '", Echo(path, 256), "'",
+                      ec ? " (" + ec.message() + ")" : std::string());
+  }
+  if (!fs::is_regular_file(st)) {
+    Throw<InputError>("LoadScene", what, " '", Echo(path, 256), "' is not a regular file");
+  }
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (ec || size > kMaxInputFileBytes) {
+    Throw<InputError>("LoadScene", what, " '", Echo(path, 256), "' has ", ec ? 0 : size,
+                      " bytes; the limit is ", kMaxInputFileBytes);
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) Throw<InputError>("LoadScene", "cannot open ", what, " '", Echo(path, 256), "'");
+  std::string text(static_cast<size_t>(size), '\0');
+  in.read(text.data(), static_cast<std::streamsize>(size));
+  text.resize(static_cast<size_t>(in.gcount()));
+  return text;
 }
 
 struct RawLigament {
@@ -167,10 +284,13 @@ struct ParameterSet {
 //                  with i + j <= 4: z_mm = origin_z + sum cij xi_mm^i eta_mm^j
 std::shared_ptr<const HeightField> ParseCurvedSurface(const Field& f, const std::string& type) {
   if (type == "ellipsoid_cap") {
+    f.Keys({"type", "centre_mm", "semi_axes_mm", "orientation_deg"});
     const Vector3d centre = f.Required("centre_mm").Vec3() * kMPerMm;
     const Vector3d axes = f.Required("semi_axes_mm").Vec3();
     for (int i = 0; i < 3; ++i) {
-      if (!(axes(i) > 0.0)) f.Required("semi_axes_mm").Item(i).Fail("must be > 0");
+      if (!(axes(i) > 0.0 && axes(i) <= kMaxLengthMm)) {
+        f.Required("semi_axes_mm").Item(i).Fail(StrCat("must lie in (0, ", kMaxLengthMm, "] mm"));
+      }
     }
     Vector3d angles = Vector3d::Zero();
     if (f.Has("orientation_deg")) angles = f.Required("orientation_deg").Vec3() * kRadPerDeg;
@@ -180,6 +300,7 @@ std::shared_ptr<const HeightField> ParseCurvedSurface(const Field& f, const std:
     return std::make_shared<EllipsoidCap>(centre, axes * kMPerMm, Q);
   }
   if (type == "polynomial") {
+    f.Keys({"type", "origin_mm", "rotation_z_deg", "coefficients_mm"});
     const Vector3d origin = f.Required("origin_mm").Vec3() * kMPerMm;
     const double theta = f.Has("rotation_z_deg") ? DegToRad(f.Required("rotation_z_deg").Double()) : 0.0;
     double c[PolynomialSurface::kMaxDegree + 1][PolynomialSurface::kMaxDegree + 1] = {};
@@ -194,6 +315,13 @@ std::shared_ptr<const HeightField> ParseCurvedSurface(const Field& f, const std:
         ++given;
       }
     }
+    if (given != static_cast<int>(coeffs.Keys().size())) {
+      for (const std::string& key : coeffs.Keys()) {
+        const bool ok = key.size() == 3 && key[0] == 'c' && key[1] >= '0' && key[2] >= '0' &&
+                        (key[1] - '0') + (key[2] - '0') <= PolynomialSurface::kMaxDegree;
+        if (!ok) coeffs.Required(key).Fail("unknown coefficient; expected c<i><j> with i + j <= 4 (e.g. c20)");
+      }
+    }
     if (given == 0) coeffs.Fail("needs at least one coefficient c<i><j> with i + j <= 4 (e.g. c20)");
     return std::make_shared<PolynomialSurface>(origin, theta, c);
   }
@@ -204,19 +332,23 @@ std::shared_ptr<const HeightField> ParseSurface(const Field& f) {
   const std::string type = f.Required("type").String();
   // Surface factory: a new height field type is one more branch here.
   if (type == "sphere_cap") {
+    f.Keys({"type", "centre_mm", "radius_mm"});
     const Vector3d centre = f.Required("centre_mm").Vec3() * kMPerMm;
-    return std::make_shared<SphereCap>(centre, MmToM(f.Required("radius_mm").Positive()));
+    return std::make_shared<SphereCap>(centre, MmToM(f.Required("radius_mm").Positive(kMaxLengthMm)));
   }
   if (type == "plane") {
+    f.Keys({"type", "slope_x", "slope_y", "offset_mm"});
     return std::make_shared<PlaneSurface>(
-        f.Required("slope_x").Double(), f.Has("slope_y") ? f.Required("slope_y").Double() : 0.0,
-        MmToM(f.Required("offset_mm").Double()));
+        f.Required("slope_x").Range(-100.0, 100.0),
+        f.Has("slope_y") ? f.Required("slope_y").Range(-100.0, 100.0) : 0.0,
+        MmToM(f.Required("offset_mm").Range(-kMaxLengthMm, kMaxLengthMm)));
   }
   if (auto curved = ParseCurvedSurface(f, type)) return curved;
   f.Required("type").Fail("unknown surface type; expected sphere_cap, plane, ellipsoid_cap or polynomial");
 }
 
 CompartmentData ParseCompartment(const Field& f) {
+  f.Keys({"femoral_surface", "tibial_surface"});
   CompartmentData c;
   c.femoral = ParseSurface(f.Required("femoral_surface"));
   c.tibial = ParseSurface(f.Required("tibial_surface"));
@@ -234,6 +366,17 @@ std::optional<SphereOnPlane> MakeSphereOnPlane(const CompartmentData& c) {
 
 const char* kCoordinateUnits[kNumCoordinates] = {"mm", "mm", "mm", "deg", "deg", "deg"};
 double CoordinateToSi(int i, double v) { return i < 3 ? MmToM(v) : DegToRad(v); }
+// A coordinate in scene units: positions within 1 m, angles within one turn.
+double CoordinateValue(int i, const Field& f) {
+  return i < 3 ? f.Range(-kMaxLengthMm, kMaxLengthMm) : f.Range(-kMaxAngleDeg, kMaxAngleDeg);
+}
+// Output column spelling of an element name (as ColumnSafeName in run_output.cpp).
+std::string ColumnName(std::string name) {
+  for (char& c : name) {
+    if (c == ' ' || c == '-' || c == '/') c = '_';
+  }
+  return name;
+}
 
 int CoordinateIndexByName(const Field& f, const std::string& name) {
   for (int i = 0; i < kNumCoordinates; ++i) {
@@ -277,48 +420,68 @@ Vector6d SolveReferencePose(const ParameterSet& ps, const std::string& file) {
 ParameterSet LoadParameterSet(const std::string& path) {
   const YAML::Node root = ParseYaml(ReadFile(path, "parameter set"), path);
   const Field top(root, path, "");
+  top.Keys({"name", "description", "body", "gravity", "compartments", "ligaments",
+            "reference_pose", "chapter_initial_guesses"});
   ParameterSet ps;
-  ps.name = top.Required("name").String();
+  ps.name = top.Required("name").Name();
+  if (top.Has("description")) top.Required("description").String();
   const Field body = top.Required("body");
-  ps.mass = body.Required("mass_kg").Positive();
-  ps.inertia = body.Required("principal_inertia_kg_m2").Vec3();
+  body.Keys({"mass_kg", "principal_inertia_kg_m2"});
+  ps.mass = body.Required("mass_kg").Range(1e-3, 1e3);
+  ps.inertia = body.Required("principal_inertia_kg_m2").Vec3(1e3);
   for (int i = 0; i < 3; ++i) {
     if (!(ps.inertia(i) > 0.0)) body.Required("principal_inertia_kg_m2").Item(i).Fail("must be > 0");
   }
   const Field grav = top.Required("gravity");
-  ps.g = grav.Required("magnitude_m_s2").NonNegative();
-  ps.gravity_direction = grav.Required("direction_F").Vec3();
+  grav.Keys({"magnitude_m_s2", "direction_F"});
+  ps.g = grav.Required("magnitude_m_s2").NonNegative(100.0);
+  ps.gravity_direction = grav.Required("direction_F").Vec3(1e3);
   const Field comps = top.Required("compartments");
+  comps.Keys({"medial", "lateral"});
   for (const char* name : {"medial", "lateral"}) {
     if (comps.Has(name)) ps.compartments[name] = ParseCompartment(comps.Required(name));
   }
   const Field ligs = top.Required("ligaments");
   for (size_t i = 0; i < ligs.Size(); ++i) {
     const Field f = ligs.Item(i);
+    f.Keys({"name", "femoral_mm", "tibial_mm", "k_linear_N_mm", "k_parabolic_N_mm2", "extension_ratio"});
     Ligament lig;
-    lig.name = f.Required("name").String();
+    lig.name = f.Required("name").Name(/*element=*/true);
     lig.p_FoA_F = f.Required("femoral_mm").Vec3() * kMPerMm;
     lig.p_ToB_T = f.Required("tibial_mm").Vec3() * kMPerMm;
     lig.k_linear = f.Required("k_linear_N_mm").Positive() * kMmPerM;  // N/mm -> N/m
     lig.k_parabolic_published =
         f.Required("k_parabolic_N_mm2").Positive() * kMmPerM * kMmPerM;  // N/mm² -> N/m²
-    lig.extension_ratio = f.Required("extension_ratio").Positive();
+    lig.extension_ratio = f.Required("extension_ratio").Range(0.5, 2.0);
     for (const Ligament& other : ps.ligaments) {
       if (other.name == lig.name) f.Required("name").Fail("duplicate ligament name");
+      if (ColumnName(other.name) == ColumnName(lig.name)) {
+        f.Required("name").Fail("gives the same output column as element '" + other.name + "'");
+      }
     }
+    if (ps.ligaments.size() >= 64) ligs.Fail("at most 64 elements");
     ps.ligaments.push_back(lig);
   }
   const Field ref = top.Required("reference_pose");
-  ps.reference_q(kAlpha) = DegToRad(ref.Required("alpha_deg").Double());
-  ps.reference_q(kBeta) = DegToRad(ref.Required("beta_deg").Double());
-  ps.reference_q(kGamma) = DegToRad(ref.Required("gamma_deg").Double());
-  ps.reference_q(kY0) = MmToM(ref.Required("y0_mm").Double());
+  ref.Keys({"alpha_deg", "beta_deg", "gamma_deg", "y0_mm"});
+  ps.reference_q(kAlpha) = DegToRad(ref.Required("alpha_deg").Range(-kMaxAngleDeg, kMaxAngleDeg));
+  ps.reference_q(kBeta) = DegToRad(ref.Required("beta_deg").Range(-kMaxAngleDeg, kMaxAngleDeg));
+  ps.reference_q(kGamma) = DegToRad(ref.Required("gamma_deg").Range(-kMaxAngleDeg, kMaxAngleDeg));
+  ps.reference_q(kY0) = MmToM(ref.Required("y0_mm").Range(-kMaxLengthMm, kMaxLengthMm));
+  if (std::abs(std::sin(ps.reference_q(kBeta))) < kJcsSingularityTolerance) {
+    ref.Required("beta_deg").Fail("puts the reference pose at the JCS singularity (sin beta = 0)");
+  }
   ps.reference_q = SolveReferencePose(ps, path);
+  if (!ps.reference_q.allFinite() || ps.reference_q.head<3>().norm() > MmToM(kMaxLengthMm)) {
+    ref.Fail("the contact conditions give no reference pose within 1 m (parallel or degenerate surfaces)");
+  }
   if (top.Has("chapter_initial_guesses")) {
     const Field g = top.Required("chapter_initial_guesses");
+    g.Keys({"medial", "lateral"});
     for (const char* name : {"medial", "lateral"}) {
       if (!g.Has(name)) continue;
       const Field c = g.Required(name);
+      c.Keys({"femoral_xy_mm", "tibial_xy_mm", "normal_force_N"});
       ChapterGuess cg;
       cg.present = true;
       cg.femoral_xy = c.Required("femoral_xy_mm").Vec2();
@@ -326,7 +489,7 @@ ParameterSet LoadParameterSet(const std::string& path) {
         cg.tibial_xy = c.Required("tibial_xy_mm").Vec2();
         cg.has_tibial = true;
       }
-      cg.normal_force = c.Required("normal_force_N").Double();
+      cg.normal_force = c.Required("normal_force_N").Range(-kMaxForceN, kMaxForceN);
       ps.guesses[name] = cg;
     }
   }
@@ -350,6 +513,19 @@ Compartment CompartmentByName(const Field& f) {
 }
 
 }  // namespace
+
+bool IsValidOutputInterval(double interval, double end_time, std::string* why) {
+  if (!(std::isfinite(interval) && interval >= kMinOutputInterval && interval <= 10.0)) {
+    *why = StrCat("output interval ", interval, " s; must lie in [", kMinOutputInterval, ", 10] s");
+    return false;
+  }
+  if (end_time / interval > kMaxOutputRows) {
+    *why = StrCat("output interval ", interval, " s gives ", end_time / interval, " rows up to the end time ",
+                  end_time, " s; at most ", kMaxOutputRows, " rows");
+    return false;
+  }
+  return true;
+}
 
 // Found at run time, never baked in: $KNEEDYN_DATA_DIR, else share/kneedyn beside the
 // running executable (<prefix>/bin/kneedyn -> <prefix>/share/kneedyn; in a build tree,
@@ -393,20 +569,29 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
                  const std::string& base_dir) {
   const YAML::Node root = ParseYaml(yaml_text, label);
   const Field top(root, label, "");
+  top.Keys({"name", "description", "parameter_set", "body", "ligament_law", "ligaments",
+            "ligament_stiffness_scale", "ligament_parameters", "contacts", "surfaces", "gravity",
+            "pulse", "constant_load", "initial_state", "end", "output"});
   Scene scene;
   scene.path = label;
-  scene.name = top.Required("name").String();
+  scene.name = top.Required("name").Name();
   scene.description = top.Has("description") ? top.Required("description").String() : "";
 
   // Parameter set: relative to the scene file, else to the reference-data directory.
   const Field psf = top.Required("parameter_set");
   std::string ps_path = psf.String();
+  if (ps_path.empty() || ps_path.size() > 1024) psf.Fail("must be a file path of 1 to 1024 characters");
+  std::error_code ec;  // error_code overloads: a path the OS refuses is "not found", not a crash
   if (!fs::path(ps_path).is_absolute()) {
     const fs::path near_scene = fs::path(base_dir) / ps_path;
-    ps_path = fs::exists(near_scene) ? near_scene.string()
-                                     : (fs::path(ReferenceDataDir()) / ps_path).string();
+    ps_path = fs::exists(near_scene, ec) ? near_scene.string()
+                                         : (fs::path(ReferenceDataDir()) / ps_path).string();
   }
-  if (!fs::exists(ps_path)) psf.Fail("parameter set file not found (looked for '" + ps_path + "')");
+  if (!fs::exists(ps_path, ec)) {
+    psf.Fail("parameter set file not found (looked for '" + Echo(ps_path) + "'" +
+             (ec ? "; " + ec.message() : std::string()) + ")");
+  }
+  if (!fs::is_regular_file(ps_path, ec)) psf.Fail("must name a regular file");
   const ParameterSet ps = LoadParameterSet(ps_path);
   scene.parameter_set = ps.name;
   scene.reference_q = ps.reference_q;
@@ -416,10 +601,11 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
   model.inertia_T = ps.inertia;
   if (top.Has("body")) {
     const Field body = top.Required("body");
-    if (body.Has("mass_kg")) model.mass = body.Required("mass_kg").Positive();
+    body.Keys({"mass_kg", "principal_inertia_kg_m2"});
+    if (body.Has("mass_kg")) model.mass = body.Required("mass_kg").Range(1e-3, 1e3);
     if (body.Has("principal_inertia_kg_m2")) {
       const Field f = body.Required("principal_inertia_kg_m2");
-      model.inertia_T = f.Vec3();
+      model.inertia_T = f.Vec3(1e3);
       for (int i = 0; i < 3; ++i) {
         if (!(model.inertia_T(i) > 0.0)) f.Item(i).Fail("must be > 0");
       }
@@ -450,11 +636,11 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
         f.Fail("must be 'all', 'none' or a list of element names");
       }
     } else {
-      for (size_t i = 0; i < f.Size(); ++i) names.push_back(f.Item(i).String());
+      for (size_t i = 0; i < f.Size(); ++i) names.push_back(f.Item(i).Name(/*element=*/true));
     }
     double stiffness_scale = 1.0;
     if (top.Has("ligament_stiffness_scale")) {
-      stiffness_scale = top.Required("ligament_stiffness_scale").Positive();
+      stiffness_scale = top.Required("ligament_stiffness_scale").Range(1e-3, 1e3);
     }
     for (size_t i = 0; i < names.size(); ++i) {
       auto it = std::find_if(ps.ligaments.begin(), ps.ligaments.end(),
@@ -503,6 +689,7 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
   // Contacts: list of compartments; a scene may replace a compartment's surfaces.
   {
     const Field f = top.Required("contacts");
+    if (top.Has("surfaces")) top.Required("surfaces").Keys({"medial", "lateral"});
     for (size_t i = 0; i < f.Size(); ++i) {
       const Field item = f.Item(i);
       const Compartment c = CompartmentByName(item);
@@ -529,11 +716,12 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
   // Gravity.
   {
     const Field f = top.Required("gravity");
+    f.Keys({"enabled", "direction_F", "magnitude_m_s2"});
     const bool enabled = f.Required("enabled").Bool();
     Vector3d dir = ps.gravity_direction;
     double g = ps.g;
-    if (f.Has("direction_F")) dir = f.Required("direction_F").Vec3();
-    if (f.Has("magnitude_m_s2")) g = f.Required("magnitude_m_s2").NonNegative();
+    if (f.Has("direction_F")) dir = f.Required("direction_F").Vec3(1e3);
+    if (f.Has("magnitude_m_s2")) g = f.Required("magnitude_m_s2").NonNegative(100.0);
     if (enabled) {
       if (!(dir.norm() > 0.0)) f.Required("direction_F").Fail("must be a non-zero vector");
       model.gravity_F = g * dir.normalized();
@@ -543,6 +731,7 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
   // Pulse.
   {
     const Field f = top.Required("pulse");
+    f.Keys({"shape", "amplitude_N", "duration_s", "direction_T"});
     const Field shape = f.Required("shape");
     try {
       model.pulse.shape = ParsePulseShape(shape.String());
@@ -550,11 +739,11 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
       shape.Fail("unknown pulse shape; expected reconstructed, half_sine or none");
     }
     if (model.pulse.shape != PulseShape::kNone) {
-      model.pulse.amplitude = f.Required("amplitude_N").NonNegative();
-      model.pulse.duration = f.Required("duration_s").Positive();
+      model.pulse.amplitude = f.Required("amplitude_N").NonNegative(kMaxForceN);
+      model.pulse.duration = f.Required("duration_s").Range(1e-6, 100.0);
     }
     if (f.Has("direction_T")) {
-      const Vector3d d = f.Required("direction_T").Vec3();
+      const Vector3d d = f.Required("direction_T").Vec3(1e3);
       if (!(d.norm() > 0.0)) f.Required("direction_T").Fail("must be a non-zero vector");
       model.pulse.direction_T = d.normalized();
     }
@@ -562,14 +751,24 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
 
   if (top.Has("constant_load")) {
     const Field f = top.Required("constant_load");
-    if (f.Has("force_F_N")) model.constant_load.force_F = f.Required("force_F_N").Vec3();
-    if (f.Has("torque_T_N_m")) model.constant_load.torque_T = f.Required("torque_T_N_m").Vec3();
+    f.Keys({"force_F_N", "torque_T_N_m"});
+    if (f.Has("force_F_N")) model.constant_load.force_F = f.Required("force_F_N").Vec3(kMaxForceN);
+    if (f.Has("torque_T_N_m")) model.constant_load.torque_T = f.Required("torque_T_N_m").Vec3(1e4);
   }
 
   // Initial state.
   {
     InitialState& init = scene.initial;
     const Field f = top.Required("initial_state");
+    f.Keys({"pose", "coordinates", "velocities", "hold", "guesses", "normal_force_guesses_N",
+            "contact_guess_offset_mm"});
+    if (f.Has("coordinates")) {
+      f.Required("coordinates").Keys({"x0_mm", "y0_mm", "z0_mm", "alpha_deg", "beta_deg", "gamma_deg"});
+    }
+    if (f.Has("velocities")) {
+      f.Required("velocities").Keys({"x0_mm_s", "y0_mm_s", "z0_mm_s", "alpha_deg_s", "beta_deg_s", "gamma_deg_s"});
+    }
+    if (f.Has("normal_force_guesses_N")) f.Required("normal_force_guesses_N").Keys({"medial", "lateral"});
     const std::string from = f.Required("pose").String();
     if (from == "reference") {
       init.q = ps.reference_q;
@@ -577,7 +776,7 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
       init.q = ps.reference_q;  // overridden below; all six required
       for (int i = 0; i < kNumCoordinates; ++i) {
         const std::string key = StrCat(CoordinateName(i), "_", kCoordinateUnits[i]);
-        init.q(i) = CoordinateToSi(i, f.Required("coordinates").Required(key).Double());
+        init.q(i) = CoordinateToSi(i, CoordinateValue(i, f.Required("coordinates").Required(key)));
       }
     } else {
       f.Required("pose").Fail("must be 'reference' or 'explicit'");
@@ -586,17 +785,21 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
       const Field c = f.Required("coordinates");
       for (int i = 0; i < kNumCoordinates; ++i) {
         const std::string key = StrCat(CoordinateName(i), "_", kCoordinateUnits[i]);
-        if (c.Has(key)) init.q(i) = CoordinateToSi(i, c.Required(key).Double());
+        if (c.Has(key)) init.q(i) = CoordinateToSi(i, CoordinateValue(i, c.Required(key)));
       }
     }
     if (f.Has("velocities")) {
       const Field v = f.Required("velocities");
       for (int i = 0; i < kNumCoordinates; ++i) {
         const std::string key = StrCat(CoordinateName(i), "_", kCoordinateUnits[i], "_s");
-        if (v.Has(key)) init.qd(i) = CoordinateToSi(i, v.Required(key).Double());
+        if (v.Has(key)) init.qd(i) = CoordinateToSi(i, v.Required(key).Range(i < 3 ? -1e5 : -1e6, i < 3 ? 1e5 : 1e6));
       }
     }
-    CheckJcsRegular(init.q(kBeta), "LoadScene");
+    if (std::abs(std::sin(init.q(kBeta))) < kJcsSingularityTolerance) {
+      f.Fail(StrCat("initial pose at the JCS singularity: beta = ", RadToDeg(init.q(kBeta)),
+                    " deg (|sin beta| < ", kJcsSingularityTolerance,
+                    "); the angular-velocity map E is singular there (spec §2)"));
+    }
     if (f.Has("hold")) {
       const Field h = f.Required("hold");
       for (size_t i = 0; i < h.Size(); ++i) {
@@ -675,12 +878,12 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
       const Field nf = f.Required("normal_force_guesses_N");
       for (size_t k = 0; k < model.contacts.size(); ++k) {
         const std::string name = CompartmentName(model.contacts[k].compartment);
-        if (nf.Has(name)) init.contact_guesses[k].normal_force = nf.Required(name).Double();
+        if (nf.Has(name)) init.contact_guesses[k].normal_force = nf.Required(name).Range(-kMaxForceN, kMaxForceN);
       }
     }
     if (f.Has("contact_guess_offset_mm")) {
       // Perturbs every chapter-form coordinate guess by this amount (sensitivity studies).
-      const double d = MmToM(f.Required("contact_guess_offset_mm").Double());
+      const double d = MmToM(f.Required("contact_guess_offset_mm").Range(-100.0, 100.0));
       for (ContactGuess& g : init.contact_guesses) {
         for (double& c : g.coordinates) c += d;
       }
@@ -690,6 +893,7 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
   // End condition.
   {
     const Field f = top.Required("end");
+    f.Keys({"flexion_deg", "time_s"});
     if (!f.Has("flexion_deg") && !f.Has("time_s")) {
       f.Fail("needs flexion_deg, time_s or both");
     }
@@ -701,11 +905,14 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
       }
       scene.end.flexion = DegToRad(deg);
     }
-    if (f.Has("time_s")) scene.end.time = f.Required("time_s").Positive();
+    if (f.Has("time_s")) scene.end.time = f.Required("time_s").Positive(kMaxEndTime);
   }
   if (top.Has("output")) {
     const Field f = top.Required("output");
-    if (f.Has("interval_s")) scene.output_interval = f.Required("interval_s").Positive();
+    f.Keys({"interval_s"});
+    if (f.Has("interval_s")) scene.output_interval = f.Required("interval_s").Double();
+    std::string why;
+    if (!IsValidOutputInterval(scene.output_interval, scene.end.time, &why)) f.Required("interval_s").Fail(why);
   }
   return scene;
 }

@@ -56,6 +56,15 @@ struct Scene {
   double output_interval = 0.005;  // s
 };
 
+// Practical limits of a run (issue 18): the end time, and the output grid (a row is a few
+// hundred bytes of state; 1e6 rows would be hundreds of MB).
+constexpr double kMaxEndTime = 100.0;          // s
+constexpr double kMinOutputInterval = 1.0e-6;  // s
+constexpr double kMaxOutputRows = 1.0e5;       // end time / output interval
+
+// Whether an output interval (s) is usable up to end_time (s); else `why` says which rule.
+bool IsValidOutputInterval(double interval, double end_time, std::string* why);
+
 // Reads and validates a scene file; throws InputError.
 Scene LoadScene(const std::string& path);
 
