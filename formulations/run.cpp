@@ -127,10 +127,7 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
   MechanicalState state = ConsistentInitialize(scene, active, init_options, &result.init);
   // Refusals the input causes are raised here, before integration (exit code 2): contact
   // rows that are dependent at the start (e.g. two compartments given the same surfaces).
-  if (std::all_of(state.active.begin(), state.active.end(),
-                  [&](int i) { return model.contacts[i].sphere_on_plane.has_value(); })) {
-    SolveConstrainedAcceleration(model, state.t, state.q, state.qd, state.active);
-  }
+  SolveConstrainedAcceleration(model, state.t, state.q, state.qd, state.active);
 
   auto record = [&](const MechanicalState& s, bool is_event) {
     CheckSampleIsPhysical(model, s);
