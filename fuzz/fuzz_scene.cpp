@@ -54,9 +54,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     kneedyn::Data d(model);
     kneedyn::ComputeAppliedWrench(model, 0.0, pose, &d);
     std::vector<int> active;
-    for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) {
-      if (model.contacts[i].sphere_on_plane) active.push_back(i);
-    }
+    for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
     kneedyn::SolveConstrainedAcceleration(model, 0.0, scene.initial.q, scene.initial.qd, active);
   } catch (const kneedyn::Error&) {
     // Refused input or a physics refusal: the expected outcome for most inputs.

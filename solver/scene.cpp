@@ -588,7 +588,7 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
                                          : (fs::path(ReferenceDataDir()) / ps_path).string();
   }
   if (!fs::exists(ps_path, ec)) {
-    psf.Fail("parameter set file not found (looked for '" + Echo(ps_path) + "'" +
+    psf.Fail("parameter set file not found (looked for '" + Echo(ps_path, 256) + "'" +
              (ec ? "; " + ec.message() : std::string()) + ")");
   }
   if (!fs::is_regular_file(ps_path, ec)) psf.Fail("must name a regular file");
