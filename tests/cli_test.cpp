@@ -26,6 +26,7 @@
 #include <sundials/sundials_config.h>
 
 #include "solver/scene.hpp"
+#include "tests/cli_support.hpp"
 
 namespace kneedyn {
 namespace {
@@ -34,29 +35,10 @@ namespace fs = std::filesystem;
 
 std::string ChapterScenePath() { return ReferenceDataDir() + "/scenes/chapter_impact.yaml"; }
 
-struct CommandResult {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr
-};
-
-// Runs a shell command with stderr merged into stdout.
-CommandResult RunShell(const std::string& shell_command) {
-  const std::string command = shell_command + " 2>&1";
-  CommandResult result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return result;
-  char buffer[4096];
-  size_t n = 0;
-  while ((n = fread(buffer, 1, sizeof(buffer), pipe)) > 0) result.output.append(buffer, n);
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
-
-// Runs `kneedyn <args>` with stderr merged into stdout.
-CommandResult RunKneedyn(const std::string& args) {
-  return RunShell(std::string("'") + KNEEDYN_EXE + "' " + args);
-}
+// The exit-code contract (0, 1, 2, never a signal) is checked on every kneedyn call.
+using cli_test::CommandResult;
+using cli_test::RunKneedyn;
+using cli_test::RunShell;
 
 // A fresh, empty temporary directory per test; removed at the end.
 class CliTest : public ::testing::Test {
