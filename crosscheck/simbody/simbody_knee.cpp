@@ -69,14 +69,39 @@ double StrainEnergy(const Ligament& lig, double length) {
   return toe + 0.5 * lig.k_linear * (a * a - b * b);
 }
 
-// Eq. 1.62 as reconstructed, and the half-sine pulse (spec §7).
+// The reconstructed shape s sin(2πs) e^{−4.73 s} of Eq. 1.62 (s = t/t0).
+double ReconstructedShape(double s) { return s * std::sin(2.0 * SimTK::Pi * s) * std::exp(-4.73 * s); }
+
+// Its maximum over s >= 0, found here (not taken from kneedyn): the largest of a 1e-3 grid
+// on [0, 1] (the envelope s e^{−4.73 s} makes later lobes smaller), refined by golden
+// section to round-off.
+double ReconstructedShapePeak() {
+  double best_s = 0.0;
+  for (int i = 1; i <= 1000; ++i) {
+    if (ReconstructedShape(i * 1e-3) > ReconstructedShape(best_s)) best_s = i * 1e-3;
+  }
+  double a = best_s - 1e-3, b = best_s + 1e-3;
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (int it = 0; it < 100; ++it) {
+    const double c = b - g * (b - a), d = a + g * (b - a);
+    if (ReconstructedShape(c) > ReconstructedShape(d)) b = d; else a = c;
+  }
+  return ReconstructedShape(0.5 * (a + b));
+}
+
+// Eq. 1.62 as reconstructed (also scaled to peak A), the damped-sine reading, and the
+// half-sine pulse (spec §7; the reconstruction study's readings).
 double PulseValue(const Pulse& p, double t) {
   if (t < 0.0) return 0.0;
   const double s = t / p.duration;
   switch (p.shape) {
     case PulseShape::kNone: return 0.0;
-    case PulseShape::kReconstructed:
-      return p.amplitude * s * std::sin(2.0 * SimTK::Pi * s) * std::exp(-4.73 * s);
+    case PulseShape::kReconstructed: return p.amplitude * ReconstructedShape(s);
+    case PulseShape::kReconstructedPeak: {
+      static const double peak = ReconstructedShapePeak();
+      return p.amplitude * ReconstructedShape(s) / peak;
+    }
+    case PulseShape::kDampedSine: return p.amplitude * std::sin(2.0 * SimTK::Pi * s) * std::exp(-4.73 * s);
     case PulseShape::kHalfSine: return s <= 1.0 ? p.amplitude * std::sin(SimTK::Pi * s) : 0.0;
   }
   return 0.0;
