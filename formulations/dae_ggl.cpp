@@ -48,6 +48,7 @@
 #include <memory>
 
 #include "formulations/formulation.hpp"
+#include "formulations/ida_statistics.hpp"
 #include "formulations/sundials_util.hpp"
 #include "solver/dynamics.hpp"
 
@@ -368,19 +369,7 @@ class DaeGglFormulation final : public Formulation {
     CheckSundials(flag, call, "DaeGglFormulation", IDAGetReturnFlagName, &sundials_messages_);
   }
 
-  SolverStats CurrentStats() const {
-    SolverStats s;
-    long v = 0;
-    IDAGetNumSteps(mem_, &v); s.steps = v;
-    IDAGetNumResEvals(mem_, &v); s.residual_evaluations = v;
-    IDAGetNumJacEvals(mem_, &v); s.jacobian_evaluations = v;
-    IDAGetNumLinSolvSetups(mem_, &v); s.linear_solver_setups = v;
-    IDAGetNumNonlinSolvIters(mem_, &v); s.nonlinear_iterations = v;
-    IDAGetNumErrTestFails(mem_, &v); s.error_test_failures = v;
-    IDAGetNumNonlinSolvConvFails(mem_, &v); s.convergence_failures = v;
-    if (!events_.empty()) { IDAGetNumGEvals(mem_, &v); s.root_evaluations = v; }
-    return s;
-  }
+  SolverStats CurrentStats() const { return IdaStatistics(mem_, !events_.empty()); }
 
   void Free() {
     if (mem_ != nullptr) {
