@@ -14,3 +14,7 @@ for f in reference-data/scenes/*.yaml reference-data/scenes/*/*.yaml; do
   { sed 's|^parameter_set: .*|parameter_set: params.yaml|' "$f"; printf '\n#@params\n'; cat "$ps_file"; } \
       > "$out/$(basename "$(dirname "$f")")_$(basename "$f")"
 done
+# Inputs that once crashed the target (fixed since) run first in every campaign:
+#   field_keys_stack_use_after_scope.bin — Field::Keys held a reference into a temporary
+#   yaml-cpp iterator value (ASan stack-use-after-scope), issue 18.
+cp fuzz/regressions/* "$out/"
