@@ -3,90 +3,17 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <Eigen/LU>
 
 #include "solver/constrained_dynamics.hpp"
-#include "solver/contact_kinematics.hpp"
+#include "solver/constraint_residuals.hpp"
 #include "solver/error.hpp"
+#include "solver/impact.hpp"
+#include "solver/sample_checks.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
 
-void ConstraintResiduals(const Model& model, const MechanicalState& state,
-                         std::vector<double>* gap, std::vector<double>* gap_rate) {
-  const Pose pose = PoseFromCoordinates(state.q);
-  const Vector6d nu = GeneralizedVelocity(state.q, state.qd);
-  gap->assign(model.contacts.size(), std::nan(""));
-  gap_rate->assign(model.contacts.size(), std::nan(""));
-  for (size_t i = 0; i < model.contacts.size(); ++i) {
-    ContactGeometry g;
-    if (!ContactKinematics(model.contacts[i], pose, &g)) continue;
-    (*gap)[i] = g.gap;
-    (*gap_rate)[i] = ContactConstraintRow(pose, g).dot(nu);
-  }
-}
-
 namespace {
-
-// Perfectly plastic impact of the contacts in `active` (spec §4): the impulse along the
-// normals that zeroes their normal approach velocity, M Δν = Gᵀ P, G (ν + Δν) = 0.
-void ApplyPlasticImpact(const Model& model, MechanicalState* state) {
-  const Pose pose = PoseFromCoordinates(state->q);
-  const int k = static_cast<int>(state->active.size());
-  MatrixXd A = MatrixXd::Zero(6 + k, 6 + k);
-  VectorXd b = VectorXd::Zero(6 + k);
-  A.topLeftCorner<6, 6>() = MassMatrix(model);
-  const Vector6d nu = GeneralizedVelocity(state->q, state->qd);
-  for (int r = 0; r < k; ++r) {
-    const Eigen::Matrix<double, 1, 6> G = ContactConstraintRow(
-        pose, RequireContactKinematics(model.contacts[state->active[r]], pose, "ApplyPlasticImpact"));
-    A.block<1, 6>(6 + r, 0) = G;
-    A.block<6, 1>(0, 6 + r) = -G.transpose();
-    b(6 + r) = -G.dot(nu);
-  }
-  const VectorXd x = A.fullPivLu().solve(b);
-  state->qd = CoordinateVelocity(state->q, nu + x.head<6>());
-}
-
-// A sample no formulation may report as a result:
-// - a non-finite state;
-// - an active contact violated by more than kMaxConstraintViolation: velocity-level and
-//   fixed-step methods drift, but by far less (≤ 1e-4 mm at the chapter's settings); beyond
-//   1 mm the run has diverged (e.g. Euler outside its stability range);
-// - a contact point off its femoral surface: the surfaces are height fields over a
-//   footprint (for the chapter, the lower half of each sphere). Closed-form formulations
-//   would carry a contact past the rim silently; the chapter form cannot. Both stop there:
-//   the model is not defined beyond.
-constexpr double kMaxConstraintViolation = 1.0e-3;  // m
-
-void CheckSampleIsPhysical(const Model& model, const MechanicalState& s) {
-  if (!s.q.allFinite() || !s.qd.allFinite()) {
-    Throw<SolverError>("RunScene", "non-finite state at t = ", s.t, " s: the run has diverged");
-  }
-  const Pose pose = PoseFromCoordinates(s.q);
-  for (int i : s.active) {
-    const ContactPair& pair = model.contacts[i];
-    double x = s.contact[i].coordinates[0], y = s.contact[i].coordinates[1];
-    ContactGeometry g;
-    if (ContactKinematics(pair, pose, &g)) {
-      x = g.point_F.x();
-      y = g.point_F.y();
-      if (std::abs(g.gap) > kMaxConstraintViolation) {
-        Throw<SolverError>("RunScene", "the ", CompartmentName(pair.compartment),
-                           " contact constraint is violated by ", MToMm(g.gap), " mm at t = ", s.t,
-                           " s (limit ", MToMm(kMaxConstraintViolation),
-                           " mm): the run has diverged");
-      }
-    }
-    HeightSample sample;
-    if (!pair.femoral_surface->Evaluate(x, y, &sample)) {
-      Throw<SolverError>("RunScene", "the ", CompartmentName(pair.compartment),
-                         " contact point left the femoral surface (", pair.femoral_surface->Describe(),
-                         ") at t = ", s.t, " s, flexion = ", RadToDeg(s.q(kAlpha)),
-                         " deg: the model is not defined beyond its rim");
-    }
-  }
-}
 
 // Issue 18: the physical situation beside a solver's failure message: the last state the
 // driver holds (time, flexion), the active contacts and their constraint residuals.
@@ -133,12 +60,10 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
     CheckSampleIsPhysical(model, s);
     result.samples.push_back(s);
     result.sample_is_event.push_back(is_event);
-    std::vector<double> gap, rate;
-    ConstraintResiduals(model, s, &gap, &rate);
-    for (int i : s.active) {
-      if (std::isfinite(gap[i])) result.max_position_residual = std::max(result.max_position_residual, std::abs(gap[i]));
-      if (std::isfinite(rate[i])) result.max_velocity_residual = std::max(result.max_velocity_residual, std::abs(rate[i]));
-    }
+    double max_gap = 0.0, max_gap_rate = 0.0;
+    MaxActiveConstraintResiduals(model, s, &max_gap, &max_gap_rate);
+    result.max_position_residual = std::max(result.max_position_residual, max_gap);
+    result.max_velocity_residual = std::max(result.max_velocity_residual, max_gap_rate);
     if (settings.progress) settings.progress(s.t, s.q(kAlpha));
   };
   record(state, false);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "formulations/formulation.hpp"
+#include "solver/constraint_residuals.hpp"  // ConstraintResiduals, for callers of RunScene
 
 namespace kneedyn {
 
@@ -50,9 +51,5 @@ struct RunResult {
 // solver failures during integration are caught and returned (completed = false) with
 // what was computed up to there.
 RunResult RunScene(const Scene& scene, const RunSettings& settings);
-
-// Constraint residuals (closed form) of a state: per model.contacts, φ (m) and φ̇ (m/s).
-void ConstraintResiduals(const Model& model, const MechanicalState& state,
-                         std::vector<double>* gap, std::vector<double>* gap_rate);
 
 }  // namespace kneedyn
