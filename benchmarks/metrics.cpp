@@ -7,10 +7,8 @@
 #include <limits>
 #include <sundials/sundials_config.h>
 
-#include "solver/contact.hpp"
-#include "solver/dynamics.hpp"
 #include "solver/error.hpp"
-#include "solver/pose.hpp"
+#include "solver/observables.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
@@ -21,40 +19,31 @@ namespace {
 constexpr double kTimeMatch = 1e-9;  // s
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-// Row of every class at one sample.
+// Row of every class at one sample (solver/observables.hpp).
 void AppendRow(const Scene& scene, ContactForm form, const MechanicalState& st, Solution* s) {
-  const Model& model = scene.model;
   const Vector6d& q = st.q;
   const Vector6d& qd = st.qd;
-  s->values["positions"].push_back({MToMm(q(kX0)), MToMm(q(kY0)), MToMm(q(kZ0)),
-                                    RadToDeg(q(kAlpha)), RadToDeg(q(kBeta)) - 90.0,
-                                    RadToDeg(q(kGamma))});
+  Observables obs;
+  ComputeObservables(scene.model, st,
+                     form == ContactForm::kClosedForm ? ContactPointSource::kPose
+                                                      : ContactPointSource::kStateCoordinates,
+                     &obs);
+  const JointObservables& j = obs.joint;
+  s->values["positions"].push_back({MToMm(q(kX0)), MToMm(q(kY0)), MToMm(q(kZ0)), j.flexion_deg,
+                                    j.valgus_deg, j.external_rotation_deg});
   s->values["velocities"].push_back({MToMm(qd(kX0)), MToMm(qd(kY0)), MToMm(qd(kZ0)),
-                                     RadToDeg(qd(kAlpha)), RadToDeg(qd(kBeta)),
-                                     RadToDeg(qd(kGamma))});
-  const Pose pose = PoseFromCoordinates(q);
-  std::vector<double> points, forces;
-  for (size_t i = 0; i < model.contacts.size(); ++i) {
-    const ContactPair& pair = model.contacts[i];
-    const bool active = st.IsActive(static_cast<int>(i));
-    ContactGeometry geo;
-    bool ok = false;
-    if (active && form == ContactForm::kClosedForm) {
-      ok = ContactKinematics(pair, pose, &geo);
-    } else if (active) {
-      double r[5];
-      ok = ChapterContactResiduals(pair, pose, st.contact[i].coordinates.data(), r, &geo,
-                                   st.contact[i].chart);
-    }
-    for (int a = 0; a < 3; ++a) points.push_back(ok ? MToMm(geo.point_F(a)) : kNaN);
-    for (int a = 0; a < 3; ++a) points.push_back(ok ? MToMm(geo.point_T(a)) : kNaN);
-    forces.push_back(active ? st.contact[i].normal_force : 0.0);
+                                     j.flexion_rate_deg_s, j.valgus_rate_deg_s,
+                                     j.external_rotation_rate_deg_s});
+  std::vector<double> points, forces, tensions;
+  for (const ContactObservables& c : obs.contacts) {  // NaN where no point (separated)
+    for (int a = 0; a < 3; ++a) points.push_back(MToMm(c.point_F(a)));
+    for (int a = 0; a < 3; ++a) points.push_back(MToMm(c.point_T(a)));
+    forces.push_back(c.normal_force);
   }
+  for (const LigamentObservables& l : obs.ligaments) tensions.push_back(l.tension);
   s->values["contact_points"].push_back(points);
   s->values["contact_forces"].push_back(forces);
-  Data data(model);
-  ComputeAppliedWrench(model, st.t, pose, &data);
-  s->values["ligament_forces"].push_back(data.ligament_tension);
+  s->values["ligament_forces"].push_back(tensions);
 }
 
 double JsonNumber(const nlohmann::json& j) {
@@ -199,10 +188,10 @@ Metrics Compare(const Solution& run, const Solution& reference) {
 double EnergyError(const Scene& scene, const RunResult& result) {
   if (result.samples.empty()) return kNaN;
   const MechanicalState& s0 = result.samples.front();
-  const double e0 = MechanicalEnergy(scene.model, s0.q, s0.qd);
+  const double e0 = ComputeEnergies(scene.model, s0.q, s0.qd).mechanical;
   double worst = 0.0;
   for (const MechanicalState& s : result.samples) {
-    worst = std::max(worst, std::abs(MechanicalEnergy(scene.model, s.q, s.qd) - e0));
+    worst = std::max(worst, std::abs(ComputeEnergies(scene.model, s.q, s.qd).mechanical - e0));
   }
   return worst / std::abs(e0);
 }

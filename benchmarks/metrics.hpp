@@ -25,8 +25,10 @@
 //   event errors: |t − t_ref| [s] and |α − α_ref| [deg] per reference event name (first
 //           occurrence); NaN when the run does not have the event.
 //   residuals: RunResult.max_position_residual [m], max_velocity_residual [m/s].
-//   energy: max_i |E(t_i) − E(0)| / |E(0)| over all samples (solver/dynamics.hpp
-//           MechanicalEnergy), meaningful on conservative scenes only.
+//   energy: max_i |E(t_i) − E(0)| / |E(0)| over all samples (mechanical energy of
+//           solver/observables.hpp), meaningful on conservative scenes only.
+// Every per-state quantity comes from solver/observables.hpp (ComputeObservables), like
+// trajectory.csv's columns.
 #pragma once
 
 #include <map>

@@ -32,7 +32,7 @@
 #include "formulations/progress.hpp"
 #include "formulations/run.hpp"
 #include "formulations/version.hpp"
-#include "solver/dynamics.hpp"
+#include "solver/observables.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 
@@ -111,21 +111,16 @@ struct Row {
   double wall_s = NAN;
 };
 
-// Largest |∇f| of the femoral surface at the (closed-form) contact points of active contacts.
+// Largest |∇f| of the femoral height-field chart at the contact points of active contacts
+// (solver/observables.hpp femoral_slope; inf = outside the height field's domain).
 double MaxFemoralGradient(const Model& model, const std::vector<MechanicalState>& samples) {
   double g = NAN;
+  Observables obs;
   for (const MechanicalState& s : samples) {
-    const Pose pose = PoseFromCoordinates(s.q);
-    for (int i : s.active) {
-      const ContactPair& pair = model.contacts[i];
-      ContactGeometry geo;
-      if (!ContactKinematics(pair, pose, &geo)) continue;
-      HeightSample hs;
-      double v = INFINITY;  // outside the surface's domain: at/over the edge
-      if (pair.femoral_surface->Evaluate(geo.point_F.x(), geo.point_F.y(), &hs)) {
-        v = std::hypot(hs.gradient[0], hs.gradient[1]);
-      }
-      g = std::isnan(g) ? v : std::max(g, v);
+    ComputeObservables(model, s, ContactPointSource::kPose, &obs);
+    for (const ContactObservables& c : obs.contacts) {
+      if (std::isnan(c.femoral_slope)) continue;  // separated, or no contact point found
+      g = std::isnan(g) ? c.femoral_slope : std::max(g, c.femoral_slope);
     }
   }
   return g;
@@ -215,11 +210,11 @@ Row RunOne(const CaseSpec& c, const Scene* scene, const std::string& load_error,
               break;
             }
           }
-          const double e0 = MechanicalEnergy(scene->model, r.samples[0].q, r.samples[0].qd);
+          const double e0 = ComputeEnergies(scene->model, r.samples[0].q, r.samples[0].qd).mechanical;
           double d = 0.0;
           for (const MechanicalState& s : r.samples) {
             if (s.t > t_window) break;
-            d = std::max(d, std::abs(MechanicalEnergy(scene->model, s.q, s.qd) - e0));
+            d = std::max(d, std::abs(ComputeEnergies(scene->model, s.q, s.qd).mechanical - e0));
           }
           row.energy_drift_J = d;
           row.energy_window_s = t_window;

@@ -21,6 +21,7 @@
 
 #include "formulations/version.hpp"
 #include "solver/constrained_dynamics.hpp"
+#include "solver/observables.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 
@@ -43,72 +44,47 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
           "z0_mm", "vx_mm_s", "vy_mm_s", "vz_mm_s", "flexion_rate_deg_s", "valgus_rate_deg_s",
           "external_rotation_rate_deg_s", "omega_x_T_deg_s", "omega_y_T_deg_s", "omega_z_T_deg_s",
           "pulse_N", "contacts_active", "is_event"};
-  const char* comps[2] = {"medial", "lateral"};
-  for (const char* c : comps) {
+  // One group of columns per contact pair and per ligament of the model, in model order.
+  std::vector<std::string> contact_names;
+  for (const ContactPair& pair : model.contacts) contact_names.push_back(CompartmentName(pair.compartment));
+  for (const std::string& c : contact_names) {
     for (const char* frame : {"femoral", "tibial"}) {
       for (const char* axis : {"x", "y", "z"}) cols.push_back(StrCat(frame, "_", c, "_", axis, "_mm"));
     }
   }
-  cols.push_back("N_medial_N");
-  cols.push_back("N_lateral_N");
+  for (const std::string& c : contact_names) cols.push_back(StrCat("N_", c, "_N"));
   for (const Ligament& lig : model.ligaments) cols.push_back("F_" + ColumnSafeName(lig.name) + "_N");
-  for (const char* c : comps) cols.push_back(StrCat("gap_", c, "_mm"));
-  for (const char* c : comps) cols.push_back(StrCat("gap_rate_", c, "_mm_s"));
+  for (const std::string& c : contact_names) cols.push_back(StrCat("gap_", c, "_mm"));
+  for (const std::string& c : contact_names) cols.push_back(StrCat("gap_rate_", c, "_mm_s"));
   for (const Ligament& lig : model.ligaments) cols.push_back("L_" + ColumnSafeName(lig.name) + "_mm");
   for (const Ligament& lig : model.ligaments) cols.push_back("strain_" + ColumnSafeName(lig.name));
 
-  const double nan = std::nan("");
+  Observables obs;
   for (size_t s = 0; s < result.samples.size(); ++s) {
     const MechanicalState& st = result.samples[s];
-    std::vector<double> row;
+    ComputeObservables(model, st, ContactPointSource::kStateCoordinates, &obs);
     const Vector6d& q = st.q;
     const Vector6d& qd = st.qd;
-    row = {st.t, RadToDeg(q(kAlpha)), RadToDeg(q(kBeta)) - 90.0, RadToDeg(q(kGamma)),
-           MToMm(q(kX0)), MToMm(q(kY0)), MToMm(q(kZ0)), MToMm(qd(kX0)), MToMm(qd(kY0)),
-           MToMm(qd(kZ0)), RadToDeg(qd(kAlpha)), RadToDeg(qd(kBeta)), RadToDeg(qd(kGamma))};
-    const Vector3d w = AngularVelocityT(q, qd);
-    for (int i = 0; i < 3; ++i) row.push_back(RadToDeg(w(i)));
-    row.push_back(PulseMagnitude(model.pulse, st.t));
-    row.push_back(static_cast<double>(st.active.size()));
+    const JointObservables& j = obs.joint;
+    std::vector<double> row = {obs.t, j.flexion_deg, j.valgus_deg, j.external_rotation_deg,
+                               MToMm(q(kX0)), MToMm(q(kY0)), MToMm(q(kZ0)), MToMm(qd(kX0)), MToMm(qd(kY0)),
+                               MToMm(qd(kZ0)), j.flexion_rate_deg_s, j.valgus_rate_deg_s,
+                               j.external_rotation_rate_deg_s};
+    row.reserve(cols.size());
+    for (int i = 0; i < 3; ++i) row.push_back(RadToDeg(j.omega_T(i)));
+    row.push_back(obs.pulse);
+    row.push_back(static_cast<double>(obs.contacts_active));
     row.push_back(result.sample_is_event[s] ? 1.0 : 0.0);
-    const Pose pose = PoseFromCoordinates(q);
-    double N[2] = {0.0, 0.0};
-    for (int ci = 0; ci < 2; ++ci) {
-      const int idx = model.ContactIndex(static_cast<Compartment>(ci));
-      if (idx >= 0 && st.IsActive(idx)) {
-        const auto& c = st.contact[idx].coordinates;
-        ContactGeometry geo;
-        double r[5];
-        if (ChapterContactResiduals(model.contacts[idx], pose, c.data(), r, &geo, st.contact[idx].chart)) {
-          for (int a = 0; a < 3; ++a) row.push_back(MToMm(geo.point_F(a)));
-          for (int a = 0; a < 3; ++a) row.push_back(MToMm(geo.point_T(a)));
-        } else {
-          row.insert(row.end(), 6, nan);
-        }
-        N[ci] = st.contact[idx].normal_force;
-      } else {
-        row.insert(row.end(), 6, nan);
-      }
+    for (const ContactObservables& c : obs.contacts) {  // NaN = empty when separated
+      for (int a = 0; a < 3; ++a) row.push_back(MToMm(c.point_F(a)));
+      for (int a = 0; a < 3; ++a) row.push_back(MToMm(c.point_T(a)));
     }
-    row.push_back(N[0]);
-    row.push_back(N[1]);
-    Data data(model);
-    ComputeAppliedWrench(model, st.t, pose, &data);
-    for (double f : data.ligament_tension) row.push_back(f);
-    std::vector<double> gap, rate;
-    ConstraintResiduals(model, st, &gap, &rate);
-    for (int ci = 0; ci < 2; ++ci) {
-      const int idx = model.ContactIndex(static_cast<Compartment>(ci));
-      row.push_back(idx >= 0 ? MToMm(gap[idx]) : nan);
-    }
-    for (int ci = 0; ci < 2; ++ci) {
-      const int idx = model.ContactIndex(static_cast<Compartment>(ci));
-      row.push_back(idx >= 0 ? MToMm(rate[idx]) : nan);
-    }
-    for (double L : data.ligament_length) row.push_back(MToMm(L));
-    for (size_t j = 0; j < model.ligaments.size(); ++j) {
-      row.push_back(LigamentStrain(model.ligaments[j], data.ligament_length[j]));
-    }
+    for (const ContactObservables& c : obs.contacts) row.push_back(c.normal_force);
+    for (const LigamentObservables& l : obs.ligaments) row.push_back(l.tension);
+    for (const ContactObservables& c : obs.contacts) row.push_back(MToMm(c.gap));
+    for (const ContactObservables& c : obs.contacts) row.push_back(MToMm(c.gap_rate));
+    for (const LigamentObservables& l : obs.ligaments) row.push_back(MToMm(l.length));
+    for (const LigamentObservables& l : obs.ligaments) row.push_back(l.strain);
     table.rows.push_back(std::move(row));
   }
   return table;
