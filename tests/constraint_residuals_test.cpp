@@ -18,6 +18,7 @@
 #include "solver/consistent_init.hpp"
 #include "solver/constraint_residuals.hpp"
 #include "solver/contact_kinematics.hpp"
+#include "solver/ellipsoid_cap.hpp"
 #include "solver/error.hpp"
 #include "solver/sample_checks.hpp"
 #include "solver/units.hpp"
@@ -158,6 +159,44 @@ TEST(SampleChecks, ContactPastTheEquatorIsOnTheSurfaceUntilTheRegularChartEnds) 
   }
   EXPECT_GT(past_equator, 50);
   EXPECT_GT(beyond_chart, 3);
+}
+
+// Ellipsoidal condyle on the chapter's plateau plane (general local solve, no closed form):
+// the check accepts contact points the lower-cap height field does not cover (past the
+// equator its height at (x, y) is another point) as long as the regular charts hold them.
+TEST(SampleChecks, EllipsoidCapPastTheHeightFieldIsAccepted) {
+  Model model = ChapterScene().model;
+  const SphereOnPlane sop = SopOf(model.contacts[0]);
+  model.contacts[0].femoral_surface = std::make_shared<EllipsoidCap>(
+      sop.centre_F, Vector3d(0.020, 0.024, 0.021), Matrix3d::Identity());
+  model.contacts.resize(1);
+  SphereOnPlane unused;
+  ASSERT_FALSE(SphereOnPlaneForm(model.contacts[0], &unused)) << "must take the general solve";
+  MechanicalState s;
+  s.q = ChapterScene().initial.q;
+  s.active = {0};
+  s.contact.resize(1);
+  int off_height_field = 0, on_height_field = 0;
+  for (double deg = RadToDeg(s.q(kAlpha)); deg <= 160.0; deg += 2.0) {  // continuation in flexion
+    s.q(kAlpha) = DegToRad(deg);
+    ContactGeometry g;
+    bool closed = false;
+    for (int it = 0; it < 20 && !closed; ++it) {  // close the gap along the normal
+      const Pose pose = PoseFromCoordinates(s.q);
+      if (!ContactKinematics(model.contacts[0], pose, &g)) break;
+      s.q.head<3>() += g.gap * (pose.R_FT * g.normal_T);
+      closed = std::abs(g.gap) < 1e-12;
+    }
+    ASSERT_TRUE(closed) << "flexion " << deg << " deg";
+    HeightSample hs;
+    // On the chapter's chart when the lower cap's height at (x, y) is the point's z.
+    const bool on_hf = model.contacts[0].femoral_surface->Evaluate(g.point_F.x(), g.point_F.y(), &hs) &&
+                       std::abs(hs.value - g.point_F.z()) < 1e-9;
+    (on_hf ? on_height_field : off_height_field)++;
+    EXPECT_EQ(CheckMessage(model, s), "") << "flexion " << deg << " deg";
+  }
+  EXPECT_GT(on_height_field, 5);
+  EXPECT_GT(off_height_field, 5);
 }
 
 }  // namespace
