@@ -12,7 +12,10 @@
 //    from the surface data), from both sources, and the normal force passes through;
 //  - the trajectory table's columns follow the model's counts (19 + 9 per contact + 3 per
 //    ligament; the chapter's 73), names of removed elements are absent, every row has one
-//    value per column, and its values equal the observables.
+//    value per column, and its values equal the observables;
+//  - a real run (dae and mde) of the chapter scene without its lateral compartment and one
+//    ligament: 61 columns, forces on the law at the reported lengths, the two formulations
+//    agree on the time of 90° flexion.
 // Does not validate: the file formatting (output_publish_test, cli_test).
 #include <gtest/gtest.h>
 
@@ -201,6 +204,49 @@ TEST(TrajectoryTable, ColumnsFollowTheModelsCounts) {
   const TrajectoryTable full = MakeTrajectoryTable(chapter, one);
   EXPECT_EQ(full.columns.size(), 73u);
   EXPECT_EQ(full.rows[0].size(), 73u);
+}
+
+// A run of the chapter scene with its lateral compartment and one ligament removed, in
+// two formulations: 19 + 9 + 3·11 = 61 columns; in every row the ligament forces follow the
+// law at the reported lengths, the medial gap stays closed and its force compressive; both
+// formulations reach 90° of flexion at the same time.
+TEST(TrajectoryTable, RunOfASceneWithOneContactAndElevenLigaments) {
+  Scene scene = ChapterScene();
+  const int lateral = scene.model.ContactIndex(Compartment::kLateral);
+  scene.model.contacts.erase(scene.model.contacts.begin() + lateral);
+  scene.initial.contact_guesses.erase(scene.initial.contact_guesses.begin() + lateral);
+  scene.model.ligaments.erase(scene.model.ligaments.begin() + 3);
+  double t90[2] = {0.0, 0.0};
+  int n = 0;
+  for (const char* formulation : {"dae", "mde"}) {
+    RunSettings settings;
+    settings.formulation = formulation;
+    settings.options.rtol = 1e-8;
+    settings.options.atol = 1e-10;
+    const RunResult r = RunScene(scene, settings);
+    ASSERT_TRUE(r.completed) << formulation << ": " << r.failure;
+    ASSERT_FALSE(r.events.empty());
+    EXPECT_EQ(r.events.back().name, "flexion_90");
+    t90[n++] = r.events.back().time;
+    const TrajectoryTable t = MakeTrajectoryTable(scene, r);
+    ASSERT_EQ(t.columns.size(), 61u) << formulation;
+    auto col = [&](const std::string& c) {
+      const auto it = std::find(t.columns.begin(), t.columns.end(), c);
+      EXPECT_NE(it, t.columns.end()) << c;
+      return static_cast<size_t>(it - t.columns.begin());
+    };
+    for (const auto& row : t.rows) {
+      ASSERT_EQ(row.size(), t.columns.size());
+      EXPECT_GT(row[col("N_medial_N")], 0.0);
+      EXPECT_LT(std::abs(row[col("gap_medial_mm")]), 1e-4);
+      for (const Ligament& l : scene.model.ligaments) {
+        const double L = MmToM(row[col("L_" + ColumnSafeName(l.name) + "_mm")]);
+        const double F = HandTension(l, L);
+        EXPECT_NEAR(row[col("F_" + ColumnSafeName(l.name) + "_N")], F, 1e-9 * (1.0 + F)) << l.name;
+      }
+    }
+  }
+  EXPECT_NEAR(t90[0], t90[1], 1e-5) << "dae and mde disagree on the time of 90 deg";
 }
 
 }  // namespace
