@@ -15,7 +15,16 @@
 //     factor ratio_tolerance. Absolute times are never compared (machines differ).
 // Counters that fall are reported (update the baseline with --write) but do not fail.
 // --write reruns everything and rewrites the baseline file (keeping its thresholds).
-// Exit codes: 0 pass, 1 regression, 2 bad input.
+//
+//   compare_counters --instructions --kneedyn PATH [--valgrind PATH] [--write]
+//
+// Instead of the above (issue 12 item 5): the whole-process instruction count (valgrind
+// --tool=cachegrind --cache-sim=no, total `I refs`) of `kneedyn run` on each entry of the
+// baseline's `instruction_counts.runs` (one per registered formulation). Fails when a
+// count exceeds its baseline by more than `instruction_counts.threshold` (+5 %); a count
+// below baseline × (1 − threshold) is reported so the baseline can be tightened
+// (--write). Without valgrind it prints why and exits 77 (ctest SKIP_RETURN_CODE).
+// Exit codes: 0 pass, 1 regression, 2 bad input, 77 skipped (no valgrind).
 #include <CLI/CLI.hpp>
 
 #include "formulations/cli.hpp"
@@ -23,8 +32,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <sstream>
+#include <unistd.h>
 
 #include "benchmarks/bench_run.hpp"
 #include "solver/error.hpp"
@@ -67,14 +80,127 @@ std::string ScenePath(const std::string& name) {
   return ReferenceDataDir() + "/scenes/" + name + ".yaml";
 }
 
+// Single-quoted for /bin/sh.
+std::string Quote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
+// The first executable `name` on PATH, or empty.
+std::string FindOnPath(const std::string& name) {
+  if (name.find('/') != std::string::npos) return access(name.c_str(), X_OK) == 0 ? name : "";
+  const char* path = std::getenv("PATH");
+  std::stringstream dirs(path ? path : "");
+  std::string dir;
+  while (std::getline(dirs, dir, ':')) {
+    const std::string candidate = (dir.empty() ? "." : dir) + "/" + name;
+    if (access(candidate.c_str(), X_OK) == 0) return candidate;
+  }
+  return "";
+}
+
+// Total instructions executed (cachegrind's `summary:` line, the `I refs` it prints) of
+// `kneedyn run SCENE --formulation F ARGS... --out TMP --quiet` under valgrind.
+long long CountInstructions(const std::string& valgrind, const std::string& kneedyn,
+                            const std::string& scene, const nlohmann::json& run,
+                            const std::filesystem::path& tmp, std::string* failure) {
+  const std::filesystem::path cg = tmp / "cachegrind.out", log = tmp / "log.txt";
+  std::filesystem::remove(cg);
+  std::string cmd = Quote(valgrind) + " --tool=cachegrind --cache-sim=no --cachegrind-out-file=" +
+                    Quote(cg.string()) + " " + Quote(kneedyn) + " run " + Quote(scene) +
+                    " --formulation " + Quote(run.at("formulation").get<std::string>());
+  for (const nlohmann::json& a : run.at("args")) cmd += " " + Quote(a.get<std::string>());
+  cmd += " --quiet --out " + Quote((tmp / "out").string()) + " > " + Quote(log.string()) + " 2>&1";
+  const int status = std::system(cmd.c_str());
+  std::ifstream in(cg);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("summary:", 0) == 0) {
+      if (status != 0) *failure = "kneedyn run exited with status " + std::to_string(status) + " (log " + log.string() + ")";
+      return std::atoll(line.c_str() + 8);
+    }
+  }
+  *failure = "no cachegrind summary (status " + std::to_string(status) + "; log " + log.string() + ")";
+  return -1;
+}
+
+int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, const std::string& valgrind_name,
+                      const std::string& kneedyn, bool write) {
+  const std::string valgrind = FindOnPath(valgrind_name);
+  if (valgrind.empty()) {
+    std::printf("SKIPPED: valgrind ('%s') not found on PATH; instruction counts need it "
+                "(Debian package valgrind, installed by .ci/bootstrap)\n", valgrind_name.c_str());
+    return 77;
+  }
+  if (kneedyn.empty() || access(kneedyn.c_str(), X_OK) != 0) {
+    Throw<InputError>("compare_counters", "--kneedyn '", kneedyn, "' is not an executable");
+  }
+  nlohmann::json& ic = base.at("instruction_counts");
+  const double threshold = ic.at("threshold").get<double>();
+  const std::string scene = ScenePath(ic.at("scene").get<std::string>());
+  const std::filesystem::path tmp =
+      std::filesystem::temp_directory_path() / ("kneedyn_icount_" + std::to_string(getpid()));
+  std::filesystem::create_directories(tmp);
+  bool ok = true;
+  for (nlohmann::json& r : ic.at("runs")) {
+    std::string args;
+    for (const nlohmann::json& a : r.at("args")) args += " " + a.get<std::string>();
+    std::string failure;
+    const long long n = CountInstructions(valgrind, kneedyn, scene, r, tmp, &failure);
+    std::printf("%-26s %-34s %12lld instructions", r.at("formulation").get<std::string>().c_str(), args.c_str(), n);
+    if (!failure.empty()) {
+      std::printf("\n  %s: %s\n", n < 0 || !write ? "REGRESSION" : "note", failure.c_str());
+      ok = false;
+      continue;
+    }
+    if (write) {
+      r["instructions"] = n;
+      std::printf("\n");
+      continue;
+    }
+    const double b = r.at("instructions").get<double>();
+    std::printf(" (baseline %.0f, %+.1f %%)\n", b, 100.0 * (n / b - 1.0));
+    if (n > b * (1.0 + threshold)) {
+      std::printf("  REGRESSION: %lld instructions > baseline %.0f (+%.0f %% allowed)\n", n, b, 100 * threshold);
+      ok = false;
+    } else if (n < b * (1.0 - threshold)) {
+      std::printf("  improved: %lld < baseline %.0f (tighten it: compare_counters --instructions --write)\n", n, b);
+    }
+  }
+  if (ok) std::filesystem::remove_all(tmp);
+  if (write) {
+    if (!ok) {
+      std::printf("not written: a run failed\n");
+      return 1;
+    }
+    const std::string tmpfile = baseline_path + ".tmp";
+    {
+      std::ofstream f(tmpfile);
+      f << base.dump(1) << "\n";
+      if (!f) Throw<InputError>("compare_counters", "--baseline '", baseline_path, "' cannot be written");
+    }
+    std::rename(tmpfile.c_str(), baseline_path.c_str());
+    std::printf("wrote instruction_counts of %s\n", baseline_path.c_str());
+    return 0;
+  }
+  std::printf("%s\n", ok ? "instruction counts within baseline" : "PERFORMANCE REGRESSION");
+  return ok ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"kneedyn counter regression check"};
   std::string baseline_path = "benchmarks/baseline_counters.json";
-  bool write = false;
+  bool write = false, instructions = false;
+  std::string kneedyn, valgrind = "valgrind";
   app.add_option("--baseline", baseline_path, "baseline JSON")->capture_default_str();
   app.add_flag("--write", write, "rerun and rewrite the baseline");
+  app.add_flag("--instructions", instructions,
+               "check (or with --write record) the valgrind instruction counts of `kneedyn run` instead");
+  app.add_option("--kneedyn", kneedyn, "the kneedyn executable (with --instructions)");
+  app.add_option("--valgrind", valgrind, "valgrind executable (with --instructions)")->capture_default_str();
   if (const int code = ParseCommandLine(app, argc, argv, "compare_counters"); code >= 0) return code;
   try {
     nlohmann::json base;
@@ -83,6 +209,7 @@ int main(int argc, char** argv) {
       if (!in) Throw<InputError>("compare_counters", "--baseline '", baseline_path, "' cannot be read");
       in >> base;
     }
+    if (instructions) return InstructionCounts(base, baseline_path, valgrind, kneedyn, write);
     const double threshold = base.at("counter_threshold").get<double>();
     const double scd_drop = base.at("scd_drop").get<double>();
     bool ok = true;

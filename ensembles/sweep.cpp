@@ -72,9 +72,15 @@ std::vector<std::string> OutcomeColumns(const SweepSpec& spec) {
 }
 
 RunRow EvaluateRun(const SweepSpec& spec, long index, const std::vector<double>& unit_row) {
+  std::vector<double> values;
+  for (size_t k = 0; k < spec.parameters.size(); ++k) values.push_back(spec.parameters[k].FromUnit(unit_row[k]));
+  return EvaluateRunAt(spec, index, values);
+}
+
+RunRow EvaluateRunAt(const SweepSpec& spec, long index, const std::vector<double>& values) {
   RunRow row;
   row.index = index;
-  for (size_t k = 0; k < spec.parameters.size(); ++k) row.parameters.push_back(spec.parameters[k].FromUnit(unit_row[k]));
+  row.parameters = values;
   if (spec.analytic == AnalyticModel::kIshigami) {
     std::vector<double> x(3, 0.0);
     for (size_t k = 0; k < spec.parameters.size(); ++k) x[spec.parameters[k].axis] = row.parameters[k];

@@ -44,6 +44,9 @@ std::vector<std::string> OutcomeColumns(const SweepSpec& spec);
 // One run: the design row's parameter values applied to the base scene, RunScene, the
 // outcomes. Never throws for a failing run: the row says failed and why.
 RunRow EvaluateRun(const SweepSpec& spec, long index, const std::vector<double>& unit_row);
+// The same with the parameter values given directly (spec units, parallel to
+// spec.parameters): kneedyn batch (ensembles/batch.hpp).
+RunRow EvaluateRunAt(const SweepSpec& spec, long index, const std::vector<double>& values);
 
 struct SweepProgress {
   long done = 0, total = 0, failed = 0;

@@ -103,9 +103,11 @@ std::uint64_t Fnv1a(const std::string& bytes) {
 }
 
 // Resolves the name of one parameter against the base scene; sets kind, ligament, axis,
-// nominal and column.
-void ResolveParameter(const Node& where, const SweepSpec& spec, ParameterSpec* p) {
-  if (spec.analytic == AnalyticModel::kIshigami) {
+// nominal and column. `where` reports a failure ([[noreturn]] Fail(rule)): a spec Node, or
+// a batch file's column (ResolveParameterName).
+template <class Where>
+void ResolveParameter(const Where& where, AnalyticModel analytic, const Model& m, ParameterSpec* p) {
+  if (analytic == AnalyticModel::kIshigami) {
     if (p->name != "x1" && p->name != "x2" && p->name != "x3") {
       where.Fail("unknown parameter of the Ishigami function; expected x1, x2 or x3");
     }
@@ -114,7 +116,6 @@ void ResolveParameter(const Node& where, const SweepSpec& spec, ParameterSpec* p
     p->column = p->name;
     return;
   }
-  const Model& m = spec.base.model;
   if (p->name == "pulse.amplitude") {
     p->kind = ParameterKind::kPulseAmplitude;
     p->nominal = m.pulse.amplitude;
@@ -293,7 +294,7 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
     ParameterSpec p;
     const Node name = item.Required("name");
     p.name = name.String();
-    ResolveParameter(name, spec, &p);
+    ResolveParameter(name, spec.analytic, spec.base.model, &p);
     if (!seen.insert(p.column).second) name.Fail("parameter listed twice");
     const int given = item.Has("uniform") + item.Has("relative") + item.Has("normal");
     if (given != 1) item.Fail("give exactly one of uniform: [low, high], relative: r, normal: [mean, sd]");
@@ -417,6 +418,20 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
     }
   }
   return spec;
+}
+
+ParameterSpec ResolveParameterName(const Model& base, const std::string& name, const std::string& where) {
+  struct Field {
+    const std::string& where;
+    const std::string& name;
+    [[noreturn]] void Fail(const std::string& rule) const {
+      Throw<InputError>("ResolveParameterName", where, ": parameter '", name, "': ", rule);
+    }
+  };
+  ParameterSpec p;
+  p.name = name;
+  ResolveParameter(Field{where, name}, AnalyticModel::kNone, base, &p);
+  return p;
 }
 
 SweepSpec LoadSweepSpec(const std::string& path) {

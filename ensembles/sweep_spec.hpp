@@ -67,6 +67,11 @@ SweepSpec LoadSweepSpec(const std::string& path);
 SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
                          const std::string& base_dir);
 
+// A parameter named as in a spec ("pulse.amplitude", "ACL anterior.k_linear", ...)
+// resolved against a model (kind, element, axis, nominal value, result column); no
+// range. Throws InputError naming `where`, the name and the rule.
+ParameterSpec ResolveParameterName(const Model& base, const std::string& name, const std::string& where);
+
 // The base scene with the parameter values of one run (spec units) applied. Attachments
 // and slack lengths keep the chapter's definition L0 = L_ref / e at the reference pose
 // (spec §5), so moving an attachment with e fixed moves L0 with it.

@@ -3,6 +3,7 @@
 //   kneedyn info SCENE          reference pose, contact points, slack lengths and forces
 //   kneedyn formulations        the registered formulations and their integrators
 //   kneedyn sweep SPEC          an ensemble of runs (ensembles/sweep_cli.hpp)
+//   kneedyn batch SCENE --variants FILE.csv   many variants in one process (ensembles/batch_cli.hpp)
 // Exit codes: 0 success; 1 solver failure (partial results written, marked partial);
 // 2 bad input (nothing written).
 #include <CLI/CLI.hpp>
@@ -12,6 +13,7 @@
 #include <iostream>
 #include <map>
 
+#include "ensembles/batch_cli.hpp"
 #include "ensembles/sweep_cli.hpp"
 #include "formulations/cli.hpp"
 #include "formulations/progress.hpp"
@@ -113,9 +115,11 @@ int Main(int argc, char** argv) {
   CLI::App* list = app.add_subcommand("formulations", "list the registered formulations");
 
   ensembles::SweepCommand sweep(app);  // kneedyn sweep (ensembles/sweep_cli.hpp)
+  ensembles::BatchCommand batch(app);  // kneedyn batch (ensembles/batch_cli.hpp)
 
   if (const int code = ParseCommandLine(app, argc, argv, "kneedyn"); code >= 0) return code;
   if (sweep.parsed()) return sweep.Run();
+  if (batch.parsed()) return batch.Run();
   for (const std::string* s : {&scene_path, &info_scene, &out_dir, &settings.formulation,
                                &settings.options.integrator, &settings.options.stabilization,
                                &settings.options.constraint_level}) {

@@ -1,0 +1,212 @@
+#include "ensembles/batch.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "solver/error.hpp"
+
+namespace kneedyn::ensembles {
+
+namespace {
+
+// The sweep's outcome groups (sweep.hpp OutcomeColumns).
+const char* const kOutcomeGroups[] = {"liftoff_time",        "liftoff_flexion",    "peak_ligament_force",
+                                      "peak_contact_force",  "time_at_90",         "ligament_force_at_90",
+                                      "contact_force_at_90"};
+
+// Physical lower bounds, as for a sweep's ranges: at or below them there is no model.
+bool MustBePositive(ParameterKind k) {
+  switch (k) {
+    case ParameterKind::kLigamentLinearStiffness:
+    case ParameterKind::kLigamentParabolicStiffness:
+    case ParameterKind::kLigamentSlackLength:
+    case ParameterKind::kLigamentExtensionRatio:
+    case ParameterKind::kPulseDuration:
+    case ParameterKind::kMass: return true;
+    default: return false;
+  }
+}
+
+std::string Trim(const std::string& s) {
+  const size_t a = s.find_first_not_of(" \t\r");
+  if (a == std::string::npos) return "";
+  const size_t b = s.find_last_not_of(" \t\r");
+  return s.substr(a, b - a + 1);
+}
+
+std::vector<std::string> SplitCsv(const std::string& line) {
+  std::vector<std::string> out;
+  std::stringstream ss(line);
+  std::string field;
+  while (std::getline(ss, field, ',')) out.push_back(Trim(field));
+  if (!line.empty() && line.back() == ',') out.push_back("");
+  return out;
+}
+
+// Shortest round-trip form.
+void AppendNumber(std::string* out, double v) {
+  if (std::isnan(v)) {
+    *out += "nan";
+    return;
+  }
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out->append(buf, r.ptr);
+}
+
+void AppendText(std::string* out, const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) {
+    *out += s;
+    return;
+  }
+  *out += '"';
+  for (char c : s) {
+    if (c == '"') *out += '"';
+    *out += c == '\n' ? ' ' : c;
+  }
+  *out += '"';
+}
+
+}  // namespace
+
+BatchVariants ParseBatchVariants(const std::string& text, const std::string& label, const Model& base) {
+  BatchVariants v;
+  v.path = label;
+  std::stringstream in(text);
+  std::string line;
+  long line_no = 0;
+  bool header = false;
+  while (std::getline(in, line)) {
+    ++line_no;
+    const std::string t = Trim(line);
+    if (t.empty() || t[0] == '#') continue;
+    const std::vector<std::string> fields = SplitCsv(t);
+    if (!header) {
+      header = true;
+      for (size_t c = 0; c < fields.size(); ++c) {
+        if (fields[c].empty()) {
+          Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column ", c + 1,
+                            ": empty parameter name in the header");
+        }
+        ParameterSpec p = ResolveParameterName(base, fields[c], label + ": line " + std::to_string(line_no));
+        for (const ParameterSpec& q : v.parameters) {
+          if (q.column == p.column) {
+            Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ": parameter '", fields[c],
+                              "' listed twice");
+          }
+        }
+        v.parameters.push_back(p);
+      }
+      continue;
+    }
+    if (fields.size() != v.parameters.size()) {
+      Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ": ", fields.size(), " values, the header names ",
+                        v.parameters.size(), " parameters");
+    }
+    std::vector<double> row(fields.size());
+    for (size_t c = 0; c < fields.size(); ++c) {
+      const std::string& f = fields[c];
+      const auto r = std::from_chars(f.data(), f.data() + f.size(), row[c]);
+      if (f.empty() || r.ec != std::errc() || r.ptr != f.data() + f.size() || !std::isfinite(row[c])) {
+        Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column '", v.parameters[c].name,
+                          "' = '", f, "': not a finite number");
+      }
+      if (MustBePositive(v.parameters[c].kind) && !(row[c] > 0.0)) {
+        Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column '", v.parameters[c].name,
+                          "' = '", f, "': must be > 0");
+      }
+    }
+    v.rows.push_back(std::move(row));
+  }
+  if (!header) Throw<InputError>("LoadBatchVariants", label, ": no header line naming the parameters");
+  if (v.rows.empty()) Throw<InputError>("LoadBatchVariants", label, ": no variant rows after the header");
+  return v;
+}
+
+BatchVariants LoadBatchVariants(const std::string& path, const Model& base) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) Throw<InputError>("LoadBatchVariants", "cannot read the variants file '", path, "'");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ParseBatchVariants(ss.str(), path, base);
+}
+
+Batch::Batch(Scene base, RunSettings run, std::vector<std::string> outcome_groups) {
+  for (const std::string& g : outcome_groups) {
+    if (std::find(std::begin(kOutcomeGroups), std::end(kOutcomeGroups), g) == std::end(kOutcomeGroups)) {
+      Throw<InputError>("kneedyn batch", "--outcomes: unknown outcome '", g,
+                        "'; expected liftoff_time, liftoff_flexion, peak_ligament_force, peak_contact_force, "
+                        "time_at_90, ligament_force_at_90, contact_force_at_90");
+    }
+  }
+  std::string why;
+  if (!run.options.IsValid(&why)) Throw<InputError>("kneedyn batch", why);
+  CreateFormulation(run.formulation, base, run.options);  // the factory checks its options
+  spec_.path = "kneedyn batch";
+  spec_.scene_path = base.path;
+  spec_.base = std::move(base);
+  spec_.outcome_groups = std::move(outcome_groups);
+  spec_.run = std::move(run);
+  outcome_columns_ = OutcomeColumns(spec_);
+}
+
+RunRow Batch::Run(const std::vector<ParameterSpec>& parameters, const std::vector<double>& values, long index) {
+  spec_.parameters = parameters;
+  return EvaluateRunAt(spec_, index, values);
+}
+
+SweepTable Batch::RunAll(const BatchVariants& variants, int threads) {
+  spec_.parameters = variants.parameters;
+  SweepTable table;
+  table.total_runs = static_cast<long>(variants.rows.size());
+  for (const ParameterSpec& p : variants.parameters) table.parameter_columns.push_back(p.column);
+  table.outcome_columns = outcome_columns_;
+  table.rows.resize(variants.rows.size());
+  std::atomic<size_t> next{0};
+  auto worker = [&] {
+    for (size_t k = next++; k < variants.rows.size(); k = next++) {
+      table.rows[k] = EvaluateRunAt(spec_, static_cast<long>(k), variants.rows[k]);
+    }
+  };
+  threads = std::max(1, std::min<int>(threads, static_cast<int>(variants.rows.size())));
+  std::vector<std::thread> pool;
+  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
+  worker();
+  for (std::thread& t : pool) t.join();
+  return table;
+}
+
+std::string FormatBatchCsv(const SweepTable& table) {
+  std::string out = "index";
+  for (const std::string& c : table.parameter_columns) out += "," + c;
+  for (const std::string& c : table.outcome_columns) out += "," + c;
+  out += ",status,end_reason,steps,failure\n";
+  out.reserve(out.size() * (table.rows.size() + 1) * 2);
+  char buf[32];
+  for (const RunRow& r : table.rows) {
+    out.append(buf, std::to_chars(buf, buf + sizeof buf, r.index).ptr);
+    for (double v : r.parameters) {
+      out += ',';
+      AppendNumber(&out, v);
+    }
+    for (double v : r.outcomes) {
+      out += ',';
+      AppendNumber(&out, v);
+    }
+    out += r.completed ? ",completed," : ",failed,";
+    AppendText(&out, r.end_reason);
+    out += ',';
+    out.append(buf, std::to_chars(buf, buf + sizeof buf, r.steps).ptr);
+    out += ',';
+    AppendText(&out, r.failure);
+    out += '\n';
+  }
+  return out;
+}
+
+}  // namespace kneedyn::ensembles

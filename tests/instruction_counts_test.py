@@ -1,0 +1,68 @@
+#!/usr/bin/env python3
+"""compare_counters --instructions (issue 12 item 5) can fail, reports improvements and
+skips without valgrind. One cheap run (ede, cvode-adams) under valgrind per case, against
+baselines built here: a whole-process `kneedyn run` (dynamic loading of SUNDIALS, Ceres,
+yaml-cpp alone) executes far more than 1e6 instructions and far fewer than 1e12.
+
+  instruction_counts_test.py --compare-counters PATH --kneedyn PATH --baseline PATH
+"""
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+ap = argparse.ArgumentParser()
+ap.add_argument("--compare-counters", required=True)
+ap.add_argument("--kneedyn", required=True)
+ap.add_argument("--baseline", required=True)
+a = ap.parse_args()
+
+base = json.load(open(a.baseline))
+ic = base["instruction_counts"]
+ede = [r for r in ic["runs"] if r["formulation"] == "ede"][0]
+failures = []
+
+
+def run(baseline_runs, extra=()):
+    b = dict(base)
+    b["instruction_counts"] = dict(ic, runs=baseline_runs)
+    with tempfile.TemporaryDirectory() as d:
+        path = os.path.join(d, "baseline.json")
+        json.dump(b, open(path, "w"))
+        p = subprocess.run([a.compare_counters, "--instructions", "--kneedyn", a.kneedyn, "--baseline", path,
+                            *extra], capture_output=True, text=True)
+        return p.returncode, p.stdout + p.stderr, json.load(open(path))
+
+
+def expect(cond, what, out):
+    if not cond:
+        failures.append(what + "\n--- output ---\n" + out)
+
+
+code, out, _ = run([ede], ["--valgrind", "/nonexistent/valgrind"])
+expect(code == 77 and "SKIPPED: valgrind" in out, "no valgrind: exit 77 with SKIPPED", out)
+
+code, out, _ = run([ede], ["--kneedyn", "/nonexistent/kneedyn"])
+expect(code == 2 and "--kneedyn" in out, "bad --kneedyn: exit 2 naming it", out)
+
+if shutil.which("valgrind") is None:
+    print("SKIPPED: valgrind not found on PATH (Debian package valgrind)")
+    sys.exit(77 if not failures else 1)
+
+code, out, _ = run([dict(ede, instructions=1_000_000)])
+expect(code == 1 and "REGRESSION" in out, "count above baseline + 5 %: exit 1, REGRESSION", out)
+
+code, out, _ = run([dict(ede, instructions=10**12)])
+expect(code == 0 and "improved" in out, "count far below baseline: exit 0, reported as improved", out)
+
+code, out, written = run([dict(ede, instructions=1)], ["--write"])
+n = written["instruction_counts"]["runs"][0]["instructions"]
+expect(code == 0 and 1_000_000 < n < 10**12, "--write records the measured count (got %s)" % n, out)
+
+for f in failures:
+    print("FAIL:", f)
+print("ok" if not failures else "%d failure(s)" % len(failures))
+sys.exit(1 if failures else 0)
