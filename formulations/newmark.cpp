@@ -22,7 +22,8 @@
 // accepted once the q and c updates are below 1e-3 of their tolerance. At most 20
 // iterations; on failure the step is halved (at most 20 times below the nominal step,
 // then SolverError with t, h and the distinct reasons of the failed solves, e.g. the JCS
-// singularity thrown by solver/rotation.hpp) and regrows by doubling after each accepted step.
+// singularity thrown by solver/rotation.hpp, or non-convergence naming the unknown with the
+// largest weighted Newton update, its value, t and h) and regrows by doubling after each accepted step.
 //
 // Events (solver/events.hpp) are evaluated after each accepted step; N is an unknown, so
 // lift-off uses it directly. A sign change (respecting EventSpec::direction) is located on
@@ -269,6 +270,8 @@ class NewmarkFormulation final : public Formulation {
     MatrixXd J(n_, n_);
     VectorXd F(n_);
     const int first_force = 6 + per_contact_ * k;
+    int worst = -1;  // the largest weighted Newton update of the last iteration (issue 18)
+    double worst_update = 0.0;
     for (int iter = 0; iter < kMaxNewtonIterations; ++iter) {
       for (int i = 0; i < n_; ++i) {
         xj[i] = JetD(x(i), i);
@@ -300,13 +303,19 @@ class NewmarkFormulation final : public Formulation {
       dx.tail(n_ - first_force) *= 1.0 / RowScale(h);
       x += dx;
       if (!x.allFinite()) return NoteFailure("non-finite Newton iterate");
-      double norm_positions = 0.0, norm_forces = 0.0;
+      double norm_positions = 0.0, norm_forces = 0.0, worst_ratio = -1.0;
       for (int i = 0; i < n_; ++i) {
         const bool force = i >= first_force;
         const double tol = options_.rtol * std::abs(x(i)) +
                            (force ? kForceAtolScale * options_.atol : options_.atol);
         double& norm = force ? norm_forces : norm_positions;
-        norm = std::max(norm, std::abs(dx(i)) / tol);
+        const double ratio = std::abs(dx(i)) / tol;
+        norm = std::max(norm, ratio);
+        if (ratio > worst_ratio) {
+          worst_ratio = ratio;
+          worst = i;
+          worst_update = dx(i);
+        }
       }
       if (norm_positions <= 1.0 &&
           (norm_forces <= 1.0 || norm_positions <= kMultiplierAcceptFactor)) {
@@ -322,7 +331,27 @@ class NewmarkFormulation final : public Formulation {
         return true;
       }
     }
-    return NoteFailure(StrCat("no convergence in ", kMaxNewtonIterations, " iterations"));
+    return NoteFailure(StrCat("no convergence in ", kMaxNewtonIterations, " iterations (largest Newton update ",
+                              UnknownName(worst), " = ", worst_update, " ", UnknownUnit(worst), " at t = ",
+                              from.t + h, " s, h = ", h, " s)"));
+  }
+
+  // x = (q: x0 … gamma, contact coordinates (chapter form), N per active contact).
+  std::string UnknownName(int i) const {
+    if (i < 0) return "none";
+    if (i < 6) return CoordinateName(i);
+    const int k = static_cast<int>(active_.size());
+    const int coords = per_contact_ * k;
+    auto compartment = [&](int c) { return CompartmentName(model_.contacts[active_[c]].compartment); };
+    if (i < 6 + coords) {
+      static const char* kCoord[4] = {"x_c", "y_c", "x'_c", "y'_c"};
+      return StrCat(compartment((i - 6) / per_contact_), " ", kCoord[(i - 6) % per_contact_]);
+    }
+    return StrCat("N_", compartment(i - 6 - coords));
+  }
+  const char* UnknownUnit(int i) const {
+    if (i >= 3 && i < 6) return "rad";
+    return i >= 6 + per_contact_ * static_cast<int>(active_.size()) ? "N" : "m";
   }
 
   // Generalized-α with a step h different from the one a_n belongs to (output times,

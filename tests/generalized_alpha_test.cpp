@@ -188,6 +188,31 @@ TEST(GeneralizedAlpha, LiftoffLocatedOnTheStateAndErrorIsSecondOrder) {
   EXPECT_NEAR(err[0] / err[1], 4.0, 0.5);  // second order: the scheme's global error
 }
 
+// Issue 18 item 4: a Newton failure names the unknown with the largest weighted update, its
+// value and unit, t and h. Provoked by a Newton tolerance below round-off (rtol 1e-15,
+// atol 1e-18: |Δx| cannot fall below ε|x|), so every step fails until the halvings run out.
+TEST(GeneralizedAlpha, NewtonFailureNamesTheLargestUpdate) {
+  for (const char* name : {"generalized-alpha", "newmark-reduced"}) {
+    RunSettings s = FixedStep(name, 5e-5);
+    s.options.rtol = 1e-15;
+    s.options.atol = 1e-18;
+    const RunResult r = RunScene(ChapterScene(), s);
+    ASSERT_FALSE(r.completed) << name;
+    std::printf("%s: %s\n", name, r.failure.substr(0, 400).c_str());
+    const size_t at = r.failure.find("largest Newton update ");
+    ASSERT_NE(at, std::string::npos) << r.failure;
+    const std::string rest = r.failure.substr(at + 22);
+    bool named = false;
+    for (const char* unknown : {"x0 = ", "y0 = ", "z0 = ", "alpha = ", "beta = ", "gamma = ", "N_medial = ",
+                                "N_lateral = ", "medial x_c = ", "lateral x_c = ", "medial y_c = ", "lateral y_c = "}) {
+      named = named || rest.rfind(unknown, 0) == 0;
+    }
+    EXPECT_TRUE(named) << rest.substr(0, 80);
+    EXPECT_NE(rest.find(" at t = "), std::string::npos);
+    EXPECT_NE(rest.find(", h = "), std::string::npos);
+  }
+}
+
 TEST(GeneralizedAlpha, RefusesBadParameters) {
   auto message = [](const FormulationOptions& o, const std::string& name) -> std::string {
     try {
