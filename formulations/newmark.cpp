@@ -47,6 +47,7 @@
 #include <Eigen/LU>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -69,6 +70,12 @@ constexpr double kMultiplierAcceptFactor = 1.0e-3;  // see header: N round-off
 constexpr double kEventTimeResolution = 1.0e-12;  // s
 constexpr int kMaxEventIterations = 100;
 
+// Fixed-capacity Eigen types (kMaxJetSize = the largest system, checked at Start): no heap
+// allocation in a step, the event location or the Newton solve once a phase has started
+// (issue 11 item 7; the workspaces below are sized in Start).
+using XVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxJetSize, 1>;
+using XMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxJetSize, kMaxJetSize>;
+
 // The integrator state at one time: what Newmark needs to take the next step.
 struct StepState {
   double t = 0.0;
@@ -77,7 +84,7 @@ struct StepState {
   Vector6d qdd = Vector6d::Zero();
   Vector6d a = Vector6d::Zero();  // generalized-α pseudo-acceleration (= q̈ for Newmark)
   double h_a = 0.0;  // s, the step a belongs to: a ≈ q̈(t + (αm − αf) h_a)
-  VectorXd extra;  // (c_1 … c_k, N_1 … N_k) chapter form, (N_1 … N_k) closed form
+  XVector extra;  // (c_1 … c_k, N_1 … N_k) chapter form, (N_1 … N_k) closed form
 };
 
 class NewmarkFormulation final : public Formulation {
@@ -126,6 +133,10 @@ class NewmarkFormulation final : public Formulation {
       }
       current_.extra(per_contact_ * k + c) = state.contact[active_[c]].normal_force;
     }
+    normal_.assign(model_.contacts.size(), 0.0);
+    g_next_.resize(events.size());
+    fired_.reserve(events.size());
+    located_.fired.reserve(events.size());
     g_current_ = Events(current_);
     h_ = step_;
     phase_steps_ = 0;
@@ -148,19 +159,19 @@ class NewmarkFormulation final : public Formulation {
       StepState next;
       const double h_taken = StepWithHalving(current_, h, &next);
       if (lands && h_taken == h) next.t = t_out;  // exact landing despite round-off in t + h
-      const std::vector<double> g_next = Events(next);
-      std::vector<int> fired = Crossed(g_current_, g_next);
-      if (!fired.empty()) {
-        LocateEvent(current_, h_taken, next, g_next, &next, &fired);
+      EventsInto(next, g_next_.data());
+      CrossedEvents(events_, g_current_, g_next_, &fired_);
+      if (!fired_.empty()) {
+        LocateEvent(current_, h_taken, next, g_next_, &next, &fired_);
         current_ = next;
-        g_current_ = Events(current_);
+        EventsInto(current_, g_current_.data());
         ++stats_.steps;
         result.status = AdvanceStatus::kEvent;
-        result.events = fired;
+        result.events = fired_;
         break;
       }
       current_ = next;
-      g_current_ = g_next;
+      g_current_.swap(g_next_);
       ++stats_.steps;
       if (++phase_steps_ > options_.max_steps) {
         Throw<SolverError>("NewmarkFormulation::Advance", "more than --max-steps = ", options_.max_steps,
@@ -265,12 +276,13 @@ class NewmarkFormulation final : public Formulation {
     const int k = static_cast<int>(active_.size());
     StepState from = from_given;
     RescalePseudoAcceleration(h, &from);
-    VectorXd x(n_);
+    XVector x(n_);
     x.head<6>() = from.q + h * from.qd + 0.5 * h * h * from.qdd;  // predictor: q̈ constant
     x.tail(n_ - 6) = from.extra;
-    std::vector<JetD> xj(n_), Fj(n_);
-    MatrixXd J(n_, n_);
-    VectorXd F(n_);
+    JetD* xj = xj_.data();
+    JetD* Fj = Fj_.data();
+    XMatrix J(n_, n_);
+    XVector F(n_);
     const int first_force = 6 + per_contact_ * k;
     int worst = -1;  // the largest weighted Newton update of the last iteration (issue 18)
     double worst_update = 0.0;
@@ -280,7 +292,7 @@ class NewmarkFormulation final : public Formulation {
       }
       bool ok = false;
       try {
-        ok = StepResidual(from, h, xj.data(), Fj.data());
+        ok = StepResidual(from, h, xj, Fj);
         if (!ok) NoteFailure("a contact surface evaluated outside its domain");
       } catch (const SolverError& e) {
         ok = false;  // e.g. the JCS singularity at a Newton iterate: kept for the final error
@@ -297,11 +309,11 @@ class NewmarkFormulation final : public Formulation {
       // Column equilibration: the force columns are h²/4 G (RowScale G); solve for
       // RowScale ΔN instead.
       for (int c = first_force; c < n_; ++c) J.col(c) *= 1.0 / RowScale(h);
-      const Eigen::FullPivLU<MatrixXd> lu(J);
+      const Eigen::FullPivLU<XMatrix> lu(J);
       ++stats_.linear_solver_setups;
       ++stats_.nonlinear_iterations;
       if (!lu.isInvertible()) return NoteFailure("singular tangent matrix");
-      VectorXd dx = lu.solve(-F);
+      XVector dx = lu.solve(-F);
       dx.tail(n_ - first_force) *= 1.0 / RowScale(h);
       x += dx;
       if (!x.allFinite()) return NoteFailure("non-finite Newton iterate");
@@ -414,17 +426,10 @@ class NewmarkFormulation final : public Formulation {
   }
   void EventsInto(const StepState& s, double* g) {
     if (events_.empty()) return;
-    std::vector<double> normal(model_.contacts.size(), 0.0);
     const int k = static_cast<int>(active_.size());
-    for (int c = 0; c < k; ++c) normal[active_[c]] = s.extra(per_contact_ * k + c);
-    EvaluateEvents(scene_, events_, s.q, normal, g);
+    for (int c = 0; c < k; ++c) normal_[active_[c]] = s.extra(per_contact_ * k + c);
+    EvaluateEvents(scene_, events_, s.q, normal_, g);
     ++stats_.root_evaluations;
-  }
-
-  std::vector<int> Crossed(const std::vector<double>& a, const std::vector<double>& b) const {
-    std::vector<int> out;
-    CrossedEvents(events_, a, b, &out);
-    return out;
   }
 
   // The state at t_n + s inside an accepted step: cubic Hermite in (q, q̇) at both ends
@@ -453,12 +458,11 @@ class NewmarkFormulation final : public Formulation {
   // generalized-α it would also pair a_n with a step it does not belong to.)
   void LocateEvent(const StepState& from, double h, const StepState& at_h, const std::vector<double>& g_h,
                    StepState* out, std::vector<int>* fired) {
-    LocatedEvent located;
     LocateEarliestEvent(
         events_, g_current_, g_h, h, kEventTimeResolution, kMaxEventIterations,
-        [&](double s, double* g) { EventsInto(Interpolate(from, at_h, s), g); }, &locator_, &located);
-    *out = Interpolate(from, at_h, located.s);
-    *fired = located.fired;
+        [&](double s, double* g) { EventsInto(Interpolate(from, at_h, s), g); }, &locator_, &located_);
+    *out = Interpolate(from, at_h, located_.s);
+    fired->assign(located_.fired.begin(), located_.fired.end());
   }
 
   void WriteState(const StepState& s, MechanicalState* state) const {
@@ -496,6 +500,11 @@ class NewmarkFormulation final : public Formulation {
   StepState current_;
   std::vector<double> g_current_;
   EventLocatorWorkspace locator_;
+  LocatedEvent located_;
+  std::vector<double> g_next_;        // events at the step's end
+  std::vector<int> fired_;            // events that fired in the step
+  std::vector<double> normal_;        // N per model contact, for EvaluateEvents
+  std::array<JetD, kMaxJetSize> xj_, Fj_;  // Newton unknowns and residual with ∂/∂x
   SolverStats stats_;
   struct FailureReason {
     std::string kind, text;
