@@ -22,14 +22,23 @@
 // accepted once the q and c updates are below 1e-3 of their tolerance. At most 20
 // iterations; on failure the step is halved (at most 20 times below the nominal step,
 // then SolverError with t, h and the distinct reasons of the failed solves, e.g. the JCS
-// singularity thrown by solver/rotation.hpp) and regrows by doubling after each accepted step.
+// singularity thrown by solver/rotation.hpp, or non-convergence naming the unknown with the
+// largest weighted Newton update, its value, t and h) and regrows by doubling after each accepted step.
 //
 // Events (solver/events.hpp) are evaluated after each accepted step; N is an unknown, so
 // lift-off uses it directly. A sign change (respecting EventSpec::direction) is located on
-// the step's interpolant (cubic Hermite q, linear q̈ and N) by the Illinois variant of the
-// secant rule until the bracket is 1e-12 s wide; the state returned is the interpolated
-// one just past the root (a retaken step of size h′ ≪ h would amplify the Newton
-// tolerance in q̈ and N by 4/h′²). The driver re-solves the hidden constraint at restart.
+// the step's interpolant (cubic Hermite q, linear q̈ and N) by the shared fixed-step locator
+// (event_locator.hpp: Illinois) until the bracket is 1e-12 s wide; the state returned is
+// the interpolated one just past the root (a retaken step of size h′ ≪ h would amplify the
+// Newton tolerance in q̈ and N by 4/h′²). The driver re-solves the hidden constraint at
+// restart. Measured on the chapter scene (generalized-alpha, h = 1e-4 s): the lateral
+// lift-off is 1.0e-5 s late, of which location accounts for ≤ 1e-7 s (the physical N of
+// the located state is 6e-4 N, |Ṅ| = 6.1e3 N/s); the rest is the scheme's global O(h²)
+// error of the state (4.1e-5, 1.0e-5, 2.5e-6, 6.3e-7 s at h = 2e-4 … 2.5e-5 s).
+// Generalized-α with a step other than the one a_n belongs to (output times, halvings,
+// the start) first moves a_n to the new step (RescalePseudoAcceleration). Generalized-α
+// starts each phase on the smooth solution of its error recursion (PerturbedStart: a_0 and
+// an O(h²) velocity perturbation), which removes the O(h) start-up layer of the multipliers.
 // Output times: the last steps before t_out are shortened (Newmark with variable h).
 //
 // The same machinery runs `generalized-alpha` (generalized_alpha.cpp): the scheme
@@ -40,11 +49,13 @@
 #include <Eigen/LU>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "formulations/event_locator.hpp"
 #include "formulations/formulation.hpp"
 #include "formulations/newmark_scheme.hpp"
 #include "solver/consistent_init.hpp"
@@ -61,6 +72,12 @@ constexpr double kMultiplierAcceptFactor = 1.0e-3;  // see header: N round-off
 constexpr double kEventTimeResolution = 1.0e-12;  // s
 constexpr int kMaxEventIterations = 100;
 
+// Fixed-capacity Eigen types (kMaxJetSize = the largest system, checked at Start): no heap
+// allocation in a step, the event location or the Newton solve once a phase has started
+// (issue 11 item 7; the workspaces below are sized in Start).
+using XVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxJetSize, 1>;
+using XMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxJetSize, kMaxJetSize>;
+
 // The integrator state at one time: what Newmark needs to take the next step.
 struct StepState {
   double t = 0.0;
@@ -68,7 +85,8 @@ struct StepState {
   Vector6d qd = Vector6d::Zero();
   Vector6d qdd = Vector6d::Zero();
   Vector6d a = Vector6d::Zero();  // generalized-α pseudo-acceleration (= q̈ for Newmark)
-  VectorXd extra;  // (c_1 … c_k, N_1 … N_k) chapter form, (N_1 … N_k) closed form
+  double h_a = 0.0;  // s, the step a belongs to: a ≈ q̈(t + (αm − αf) h_a)
+  XVector extra;  // (c_1 … c_k, N_1 … N_k) chapter form, (N_1 … N_k) closed form
 };
 
 class NewmarkFormulation final : public Formulation {
@@ -97,6 +115,7 @@ class NewmarkFormulation final : public Formulation {
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
     active_ = state.active;
     events_ = events;
+    locator_.Reserve(events.size());
     per_contact_ = form_ == ContactForm::kChapter ? 4 : 0;
     const int k = static_cast<int>(active_.size());
     n_ = 6 + (per_contact_ + 1) * k;
@@ -107,7 +126,8 @@ class NewmarkFormulation final : public Formulation {
     current_.q = state.q;
     current_.qd = state.qd;
     current_.qdd = state.qdd;
-    current_.a = StartingPseudoAcceleration(state);
+    PerturbedStart(state, &current_);
+    current_.h_a = step_;
     current_.extra.resize(n_ - 6);
     for (int c = 0; c < k; ++c) {
       for (int j = 0; j < per_contact_; ++j) {
@@ -115,6 +135,10 @@ class NewmarkFormulation final : public Formulation {
       }
       current_.extra(per_contact_ * k + c) = state.contact[active_[c]].normal_force;
     }
+    normal_.assign(model_.contacts.size(), 0.0);
+    g_next_.resize(events.size());
+    fired_.reserve(events.size());
+    located_.fired.reserve(events.size());
     g_current_ = Events(current_);
     h_ = step_;
     phase_steps_ = 0;
@@ -137,19 +161,19 @@ class NewmarkFormulation final : public Formulation {
       StepState next;
       const double h_taken = StepWithHalving(current_, h, &next);
       if (lands && h_taken == h) next.t = t_out;  // exact landing despite round-off in t + h
-      const std::vector<double> g_next = Events(next);
-      std::vector<int> fired = Crossed(g_current_, g_next);
-      if (!fired.empty()) {
-        LocateEvent(current_, h_taken, next, g_next, &next, &fired);
+      EventsInto(next, g_next_.data());
+      CrossedEvents(events_, g_current_, g_next_, &fired_);
+      if (!fired_.empty()) {
+        LocateEvent(current_, h_taken, next, g_next_, &next, &fired_);
         current_ = next;
-        g_current_ = Events(current_);
+        EventsInto(current_, g_current_.data());
         ++stats_.steps;
         result.status = AdvanceStatus::kEvent;
-        result.events = fired;
+        result.events = fired_;
         break;
       }
       current_ = next;
-      g_current_ = g_next;
+      g_current_.swap(g_next_);
       ++stats_.steps;
       if (++phase_steps_ > options_.max_steps) {
         Throw<SolverError>("NewmarkFormulation::Advance", "more than --max-steps = ", options_.max_steps,
@@ -205,24 +229,40 @@ class NewmarkFormulation final : public Formulation {
     return true;
   }
 
-  // Arnold & Brüls (2007), section 4: a_0 = q̈(t_0 + Δα h), Δα = αm − αf, so that the
-  // perturbation of the first step is O(h²) (a_0 = q̈_0 adds an O(h) one). Measured on
-  // the manufactured knee its effect is small: the multipliers still show an O(h) initial
-  // layer (damped by ρ∞ < 1; second order after ~0.1 s, tests/exact_solution_test.cpp). q̈(t_0 + s) from the hidden constraint
-  // (solver/constrained_dynamics.hpp) along the Taylor path, forward difference with
-  // s = 1e-6 s (truncation ~1e-6 |q⁗|, round-off ~ε|q̈|/s, both ≪ the O(h²) left). Newmark
-  // (Δα = 0) keeps a_0 = q̈_0.
-  Vector6d StartingPseudoAcceleration(const MechanicalState& state) const {
+  // Starting values of generalized-α (Newmark, Δα = αm − αf = 0 and αf = 0: q̇_0, a_0 = q̈_0
+  // unchanged):
+  //   a_0 = q̈_0 + Δα h q⃛_0                               (≈ q̈(t_0 + Δα h), Arnold & Brüls 2007)
+  //   q̇_0 = q̇(t_0) + h² (1/6 − Δα/2 − β) q⃛_0            (perturbed start)
+  // Why the second: along a constrained direction the positions are exact (φ = 0 each step),
+  // so (e_v, h e_a), the errors of q̇_n and a_n, follow E_{n+1} = A E_n + δ_n with A
+  // independent of h (eigenvalues of modulus ≤ ρ∞) and δ_n the scheme's defects on the exact
+  // solution: position defect d = h³ q⃛ (1/6 − Δα/2 − β) (enters as d/(βh) in h e_a),
+  // velocity defect O(h³) (γ = ½ − Δα). The smooth solution of the recursion is
+  // e_v = d/h = h² q⃛ (1/6 − Δα/2 − β), h e_a = O(h³); an exact start (e_v = 0) differs from it
+  // by O(h²) in e_v, which A turns into an O(h²) transient in h e_a, i.e. O(h) in a, q̈ and
+  // the multipliers, decaying like ρ∞ⁿ (the initial layer seen on the manufactured knee).
+  // Starting on the smooth solution removes it: measured there, max |N − N*| over the whole
+  // run 4.8e-3/2.3e-3/1.1e-3 N (first order) → 2.7e-5/7.0e-6/1.6e-6 N (second order) at
+  // h = 2e-3/1e-3/5e-4 s. The O(h²) velocity perturbation is within the scheme's error.
+  // q⃛_0 from the hidden constraint (solver/constrained_dynamics.hpp) along the Taylor path
+  // q(t_0 ± s) = q_0 ± s q̇_0 + ½ s² q̈_0, q̇(t_0 ± s) = q̇_0 ± s q̈_0, by the central difference
+  // with s = 1e-5 s (truncation ~s² |q⁽⁵⁾|/6, round-off ~ε|q̈|/s ≈ 1e-11 |q̈|; a forward
+  // difference would leave an O(s) term, e.g. ½ s ω² q̈_0 on a linear oscillator whose
+  // q⃛_0 is 0).
+  void PerturbedStart(const MechanicalState& state, StepState* start) const {
     const double delta_alpha = scheme_.alpha_m - scheme_.alpha_f;
-    if (delta_alpha == 0.0) return state.qdd;
-    const double s = 1.0e-6;
-    const Vector6d q1 = state.q + s * state.qd + 0.5 * s * s * state.qdd;
-    const Vector6d qd1 = state.qd + s * state.qdd;
-    const Vector6d qdd0 =
-        SolveConstrainedAcceleration(model_, state.t, state.q, state.qd, active_, {}, &ligament_branch_).qdd;
-    const Vector6d qdd1 =
-        SolveConstrainedAcceleration(model_, state.t + s, q1, qd1, active_, {}, &ligament_branch_).qdd;
-    return state.qdd + delta_alpha * step_ * (qdd1 - qdd0) / s;
+    start->a = state.qdd;
+    if (delta_alpha == 0.0 && scheme_.alpha_f == 0.0) return;  // Newmark
+    const double s = 1.0e-5;
+    const Vector6d q_plus = state.q + s * state.qd + 0.5 * s * s * state.qdd;
+    const Vector6d q_minus = state.q - s * state.qd + 0.5 * s * s * state.qdd;
+    const Vector6d qdd_plus = SolveConstrainedAcceleration(model_, state.t + s, q_plus, state.qd + s * state.qdd,
+                                                           active_, {}, &ligament_branch_).qdd;
+    const Vector6d qdd_minus = SolveConstrainedAcceleration(model_, state.t - s, q_minus, state.qd - s * state.qdd,
+                                                            active_, {}, &ligament_branch_).qdd;
+    const Vector6d jerk = (qdd_plus - qdd_minus) / (2.0 * s);
+    start->a = state.qdd + delta_alpha * step_ * jerk;
+    start->qd = state.qd + step_ * step_ * (1.0 / 6.0 - 0.5 * delta_alpha - scheme_.beta) * jerk;
   }
 
   // The scheme's formulas (Newmark: a = q̈ = 4/h² (q − q_n − h q̇_n) − q̈_n):
@@ -248,22 +288,27 @@ class NewmarkFormulation final : public Formulation {
  private:
   // Newton–Raphson for one step; false on failure (no convergence, bad evaluation,
   // singular tangent). Counts its work in stats_.
-  bool SolveStep(const StepState& from, double h, StepState* to) {
+  bool SolveStep(const StepState& from_given, double h, StepState* to) {
     const int k = static_cast<int>(active_.size());
-    VectorXd x(n_);
+    StepState from = from_given;
+    RescalePseudoAcceleration(h, &from);
+    XVector x(n_);
     x.head<6>() = from.q + h * from.qd + 0.5 * h * h * from.qdd;  // predictor: q̈ constant
     x.tail(n_ - 6) = from.extra;
-    std::vector<JetD> xj(n_), Fj(n_);
-    MatrixXd J(n_, n_);
-    VectorXd F(n_);
+    JetD* xj = xj_.data();
+    JetD* Fj = Fj_.data();
+    XMatrix J(n_, n_);
+    XVector F(n_);
     const int first_force = 6 + per_contact_ * k;
+    int worst = -1;  // the largest weighted Newton update of the last iteration (issue 18)
+    double worst_update = 0.0;
     for (int iter = 0; iter < kMaxNewtonIterations; ++iter) {
       for (int i = 0; i < n_; ++i) {
         xj[i] = JetD(x(i), i);
       }
       bool ok = false;
       try {
-        ok = StepResidual(from, h, xj.data(), Fj.data());
+        ok = StepResidual(from, h, xj, Fj);
         if (!ok) NoteFailure("a contact surface evaluated outside its domain");
       } catch (const SolverError& e) {
         ok = false;  // e.g. the JCS singularity at a Newton iterate: kept for the final error
@@ -280,21 +325,27 @@ class NewmarkFormulation final : public Formulation {
       // Column equilibration: the force columns are h²/4 G (RowScale G); solve for
       // RowScale ΔN instead.
       for (int c = first_force; c < n_; ++c) J.col(c) *= 1.0 / RowScale(h);
-      const Eigen::FullPivLU<MatrixXd> lu(J);
+      const Eigen::FullPivLU<XMatrix> lu(J);
       ++stats_.linear_solver_setups;
       ++stats_.nonlinear_iterations;
       if (!lu.isInvertible()) return NoteFailure("singular tangent matrix");
-      VectorXd dx = lu.solve(-F);
+      XVector dx = lu.solve(-F);
       dx.tail(n_ - first_force) *= 1.0 / RowScale(h);
       x += dx;
       if (!x.allFinite()) return NoteFailure("non-finite Newton iterate");
-      double norm_positions = 0.0, norm_forces = 0.0;
+      double norm_positions = 0.0, norm_forces = 0.0, worst_ratio = -1.0;
       for (int i = 0; i < n_; ++i) {
         const bool force = i >= first_force;
         const double tol = options_.rtol * std::abs(x(i)) +
                            (force ? kForceAtolScale * options_.atol : options_.atol);
         double& norm = force ? norm_forces : norm_positions;
-        norm = std::max(norm, std::abs(dx(i)) / tol);
+        const double ratio = std::abs(dx(i)) / tol;
+        norm = std::max(norm, ratio);
+        if (ratio > worst_ratio) {
+          worst_ratio = ratio;
+          worst = i;
+          worst_update = dx(i);
+        }
       }
       if (norm_positions <= 1.0 &&
           (norm_forces <= 1.0 || norm_positions <= kMultiplierAcceptFactor)) {
@@ -306,10 +357,44 @@ class NewmarkFormulation final : public Formulation {
           to->qd(i) = from.qd(i) + h * ((1.0 - scheme_.gamma) * from.a(i) + scheme_.gamma * to->a(i));
         }
         to->extra = x.tail(n_ - 6);
+        to->h_a = h;
         return true;
       }
     }
-    return NoteFailure(StrCat("no convergence in ", kMaxNewtonIterations, " iterations"));
+    return NoteFailure(StrCat("no convergence in ", kMaxNewtonIterations, " iterations (largest Newton update ",
+                              UnknownName(worst), " = ", worst_update, " ", UnknownUnit(worst), " at t = ",
+                              from.t + h, " s, h = ", h, " s)"));
+  }
+
+  // x = (q: x0 … gamma, contact coordinates (chapter form), N per active contact).
+  std::string UnknownName(int i) const {
+    if (i < 0) return "none";
+    if (i < 6) return CoordinateName(i);
+    const int k = static_cast<int>(active_.size());
+    const int coords = per_contact_ * k;
+    auto compartment = [&](int c) { return CompartmentName(model_.contacts[active_[c]].compartment); };
+    if (i < 6 + coords) {
+      static const char* kCoord[4] = {"x_c", "y_c", "x'_c", "y'_c"};
+      return StrCat(compartment((i - 6) / per_contact_), " ", kCoord[(i - 6) % per_contact_]);
+    }
+    return StrCat("N_", compartment(i - 6 - coords));
+  }
+  const char* UnknownUnit(int i) const {
+    if (i >= 3 && i < 6) return "rad";
+    return i >= 6 + per_contact_ * static_cast<int>(active_.size()) ? "N" : "m";
+  }
+
+  // Generalized-α with a step h different from the one a_n belongs to (output times,
+  // halvings, regrowth, the start): a_n ≈ q̈(t_n + Δα h_a), Δα = αm − αf, is moved to
+  // q̈(t_n + Δα h) along the line through q̈_n, a_n ≈ q̈_n + Δα h_a q⃛, i.e.
+  //   a_n ← q̈_n + (h / h_a)(a_n − q̈_n),
+  // so that a step-size change perturbs a by O(h²) instead of O(h) (an O(h) perturbation
+  // of a excites the O(h) multiplier layer of Arnold & Brüls 2007, section 4). Newmark
+  // (a = q̈) is unchanged.
+  static void RescalePseudoAcceleration(double h, StepState* s) {
+    if (s->h_a <= 0.0 || s->h_a == h) return;
+    s->a = s->qdd + (h / s->h_a) * (s->a - s->qdd);
+    s->h_a = h;
   }
 
   // Records why a Newton solve failed, for the error after the last halving: one entry per
@@ -352,28 +437,15 @@ class NewmarkFormulation final : public Formulation {
 
   std::vector<double> Events(const StepState& s) {
     std::vector<double> g(events_.size());
-    if (events_.empty()) return g;
-    std::vector<double> normal(model_.contacts.size(), 0.0);
-    const int k = static_cast<int>(active_.size());
-    for (int c = 0; c < k; ++c) normal[active_[c]] = s.extra(per_contact_ * k + c);
-    EvaluateEvents(scene_, events_, s.q, normal, g.data());
-    ++stats_.root_evaluations;
+    EventsInto(s, g.data());
     return g;
   }
-
-  // Whether g went from a to b through zero in the spec's direction. A start exactly on
-  // zero does not fire (the driver restarts phases on the root just passed).
-  static bool Crosses(int direction, double a, double b) {
-    const bool down = a > 0.0 && b <= 0.0;
-    const bool up = a < 0.0 && b >= 0.0;
-    return direction < 0 ? down : direction > 0 ? up : (down || up);
-  }
-  std::vector<int> Crossed(const std::vector<double>& a, const std::vector<double>& b) const {
-    std::vector<int> out;
-    for (size_t i = 0; i < events_.size(); ++i) {
-      if (Crosses(events_[i].direction, a[i], b[i])) out.push_back(static_cast<int>(i));
-    }
-    return out;
+  void EventsInto(const StepState& s, double* g) {
+    if (events_.empty()) return;
+    const int k = static_cast<int>(active_.size());
+    for (int c = 0; c < k; ++c) normal_[active_[c]] = s.extra(per_contact_ * k + c);
+    EvaluateEvents(scene_, events_, s.q, normal_, g);
+    ++stats_.root_evaluations;
   }
 
   // The state at t_n + s inside an accepted step: cubic Hermite in (q, q̇) at both ends
@@ -394,45 +466,19 @@ class NewmarkFormulation final : public Formulation {
     return out;
   }
 
-  // Brackets the earliest root in s ∈ (0, h] of the events evaluated on the step's
-  // interpolant and narrows it with the Illinois rule to kEventTimeResolution; returns the
+  // The earliest root in s ∈ (0, h] of the events on the step's interpolant, narrowed by
+  // the shared locator (event_locator.hpp) to kEventTimeResolution; returns the
   // interpolated state at the right end (just past the root) and the events that fired.
   // (Retaking the step with a small h′ instead would amplify the Newton tolerance in q̈
-  // and N by 4/h′², the index-3 ill-conditioning of position-level constraints.)
+  // and N by 4/h′², the index-3 ill-conditioning of position-level constraints, and for
+  // generalized-α it would also pair a_n with a step it does not belong to.)
   void LocateEvent(const StepState& from, double h, const StepState& at_h, const std::vector<double>& g_h,
                    StepState* out, std::vector<int>* fired) {
-    double lo = 0.0, hi = h;
-    std::vector<double> g_lo = g_current_, g_hi = g_h;
-    StepState s_hi = at_h;
-    double w_lo = 1.0, w_hi = 1.0;  // Illinois weights on the retained end
-    int last_moved = 0;             // −1 lo moved, +1 hi moved
-    for (int iter = 0; iter < kMaxEventIterations && hi - lo > kEventTimeResolution; ++iter) {
-      double fraction = 1.0;
-      for (int e : Crossed(g_lo, g_hi)) {
-        const double a = w_lo * g_lo[e], b = w_hi * g_hi[e];
-        fraction = std::min(fraction, a / (a - b));
-      }
-      double s_mid = lo + fraction * (hi - lo);
-      s_mid = std::clamp(s_mid, lo + 0.5 * kEventTimeResolution, hi - 0.5 * kEventTimeResolution);
-      const StepState mid = Interpolate(from, at_h, s_mid);
-      const std::vector<double> g_mid = Events(mid);
-      if (!Crossed(g_lo, g_mid).empty()) {
-        hi = s_mid;
-        g_hi = g_mid;
-        s_hi = mid;
-        w_hi = 1.0;
-        if (last_moved == +1) w_lo *= 0.5;
-        last_moved = +1;
-      } else {
-        lo = s_mid;
-        g_lo = g_mid;
-        w_lo = 1.0;
-        if (last_moved == -1) w_hi *= 0.5;
-        last_moved = -1;
-      }
-    }
-    *out = s_hi;
-    *fired = Crossed(g_current_, g_hi);
+    LocateEarliestEvent(
+        events_, g_current_, g_h, h, kEventTimeResolution, kMaxEventIterations,
+        [&](double s, double* g) { EventsInto(Interpolate(from, at_h, s), g); }, &locator_, &located_);
+    *out = Interpolate(from, at_h, located_.s);
+    fired->assign(located_.fired.begin(), located_.fired.end());
   }
 
   void WriteState(const StepState& s, MechanicalState* state) const {
@@ -469,6 +515,12 @@ class NewmarkFormulation final : public Formulation {
   std::vector<signed char> ligament_branch_;  // locked for the phase
   StepState current_;
   std::vector<double> g_current_;
+  EventLocatorWorkspace locator_;
+  LocatedEvent located_;
+  std::vector<double> g_next_;        // events at the step's end
+  std::vector<int> fired_;            // events that fired in the step
+  std::vector<double> normal_;        // N per model contact, for EvaluateEvents
+  std::array<JetD, kMaxJetSize> xj_, Fj_;  // Newton unknowns and residual with ∂/∂x
   SolverStats stats_;
   struct FailureReason {
     std::string kind, text;

@@ -15,6 +15,7 @@ sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import figures  # noqa: E402
 import global_sensitivity  # noqa: E402  (issue 14: Sobol' indices section)
+import methods_comparison  # noqa: E402  (issue 13: dae / dae-ggl / newmark / generalized-alpha)
 from family_data import load_families  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -489,10 +490,12 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, 
           "<nav><a href='#summary'>Summary</a><a href='#claims'>Claims</a><a href='#figures'>Figures</a>"
           "<a href='#sensitivity'>Sensitivity</a><a href='#reconstruction'>Reconstruction</a>"
           "<a href='#work-precision'>Work-precision</a>"
+          "<a href='#methods'>Methods</a>"
           "<a href='#hard-cases'>Hard cases</a>"
           "<a href='#reproduce'>Reproduction</a></nav>",
           summary_section(fam, members), claims_section(rows), figures_section(outdir),
           sensitivity_section(outdir), reconstruction_section(outdir), global_sensitivity.section(outdir), bench_section(outdir, bench), \
+          methods_comparison.section(outdir, kneedyn, bench), \
           *([bench_section(outdir, peer_bench, "peer_", "kneedyn and Simbody, same run", "peer-work-precision",
                            PEER_INTRO)] if peer_bench else []), hard_cases_section(hard_cases),
           commands_section(outdir, kneedyn, quick, bench, fam)]

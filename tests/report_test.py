@@ -125,6 +125,16 @@ def main():
       for fname, _ in figures.WORK_PRECISION_FIGURES:
         if f"figures/{fname}" not in page:
           errors.append(f"index.html does not reference figures/{fname}")
+    # Issue 13: the methods section with its four live runs (each row a completed run).
+    if "id='methods'" not in page:
+      errors.append("index.html has no methods section (reports/methods_comparison.py)")
+    else:
+      methods_part = page[page.index("id='methods'"):]
+      for m in ("dae", "dae-ggl", "newmark", "generalized-alpha"):
+        if f"<tr><td>{m}</td>" not in methods_part:
+          errors.append(f"methods section: no row for {m}")
+      if "failed (exit" in methods_part.split("</table>")[0]:
+        errors.append("methods section: a live run failed")
     if args.catalog and "<table class='hard'>" not in page:
       errors.append("index.html has no compact hard-case table")
     if args.calibrate:

@@ -1,0 +1,147 @@
+"""Report section (issue 13): drift, digits reached and cost of the chapter's index-2 DAE
+(`dae`), its stabilized GGL form (`dae-ggl`), Newmark's rule on the index-3 reverse EDE
+(`newmark`) and generalized-α on the same (`generalized-alpha`).
+
+Two sources, both named in the section:
+  * four live runs on the chapter scene, one typical setting each (about 2 s together):
+    position-constraint drift (max |gap| over the output rows, the run's summary.json),
+    the (first) lateral lift-off time against the stored reference, contact events beyond the
+    reference's (spurious lift-off / re-contact), steps, residual evaluations, wall time;
+  * the work-precision sweep JSON (--bench): best scd per method and the cheapest run
+    reaching scd 4/6/8/10 (as benchmarks/work_precision_table.py).
+"""
+import html
+import json
+import os
+import subprocess
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCENE = os.path.join(ROOT, "reference-data", "scenes", "chapter_impact.yaml")
+REFERENCE = os.path.join(ROOT, "reference-data", "references", "chapter_impact.json")
+METHODS = ("dae", "dae-ggl", "newmark", "generalized-alpha")
+# One typical setting per method: the adaptive ones at rtol 1e-8, the fixed-step ones at
+# h = 1e-4 s (the chapter's step) with the sweep's Newton tolerance.
+SETTINGS = {
+    "dae": ["--rtol", "1e-8", "--atol", "1e-10"],
+    "dae-ggl": ["--rtol", "1e-8", "--atol", "1e-10"],
+    "newmark": ["--step", "1e-4", "--rtol", "1e-9", "--atol", "1e-11"],
+    "generalized-alpha": ["--step", "1e-4", "--rtol", "1e-9", "--atol", "1e-11"],
+}
+THRESHOLDS = (4, 6, 8, 10)
+
+
+def esc(x):
+  return html.escape(str(x))
+
+
+def table(headers, rows):
+  """A table in a horizontally scrolling box (make_report's CSS class `scroll`)."""
+  out = ["<div class='scroll'><table><thead><tr>" + "".join(f"<th>{esc(h)}</th>" for h in headers) + "</tr></thead><tbody>"]
+  for r in rows:
+    out.append("<tr>" + "".join(f"<td>{esc(c)}</td>" for c in r) + "</tr>")
+  out.append("</tbody></table></div>")
+  return "\n".join(out)
+
+
+def reference_events():
+  with open(REFERENCE) as f:
+    ref = json.load(f)
+  return {e["name"]: e["time_s"] for e in ref["solution"]["events"]}
+
+
+def live_row(kneedyn, outdir, method, ref_events):
+  run_dir = os.path.join(outdir, "methods", method)
+  cmd = [kneedyn, "run", SCENE, "--formulation", method, *SETTINGS[method], "--out", run_dir, "--quiet"]
+  p = subprocess.run(cmd, capture_output=True, text=True)
+  summary_path = os.path.join(run_dir, "summary.json")
+  if p.returncode != 0 or not os.path.exists(summary_path):
+    return [method, " ".join(SETTINGS[method]), f"failed (exit {p.returncode}): {p.stderr.strip()[-200:]}",
+            "", "", "", "", "", ""]
+  with open(summary_path) as f:
+    s = json.load(f)
+  events = s.get("events", [])
+  lift = [e["time"] for e in events if e["name"] == "liftoff_lateral"]
+  lift_err = f"{lift[0] - ref_events['liftoff_lateral']:+.2e}" if lift and "liftoff_lateral" in ref_events else "—"
+  extra = len(events) - len(ref_events)
+  st = s.get("statistics", {})
+  cr = s.get("constraint_residuals", {})
+  return [method, " ".join(SETTINGS[method]), lift_err,
+          "none" if extra == 0 else f"{extra:+d} ({', '.join(e['name'] for e in events)})",
+          f"{cr.get('max_gap_mm', float('nan')):.1e}", f"{cr.get('max_gap_rate_mm_s', float('nan')):.1e}",
+          st.get("steps", ""), st.get("residual_evaluations", ""), f"{s.get('wall_time_s', float('nan')):.3f}"]
+
+
+def bench_rows(bench):
+  with open(bench) as f:
+    results = json.load(f).get("results", [])
+  rows = []
+  for m in METHODS:
+    runs = [r for r in results if r.get("formulation") == m and r.get("status") == "ok"
+            and isinstance((r.get("metrics") or {}).get("scd"), (int, float))]
+    if not runs:
+      rows.append([m, "not in the sweep"] + ["—"] * len(THRESHOLDS))
+      continue
+    best = max(runs, key=lambda r: r["metrics"]["scd"])
+    cells = []
+    for t in THRESHOLDS:
+      ok = [r for r in runs if r["metrics"]["scd"] >= t]
+      if not ok:
+        cells.append("—")
+        continue
+      f = min(ok, key=lambda r: r["cpu_time_s"]["median"])
+      cells.append(f"{f['cpu_time_s']['median']:.3f} ({setting_of(f)})")
+    rows.append([m, f"{best['metrics']['scd']:.2f} ({setting_of(best)})"] + cells)
+  return rows
+
+
+def best_scd(bench, method):
+  with open(bench) as f:
+    scds = [r["metrics"]["scd"] for r in json.load(f).get("results", []) if r.get("formulation") == method
+            and r.get("status") == "ok" and isinstance((r.get("metrics") or {}).get("scd"), (int, float))]
+  return f"{max(scds):.2f}" if scds else "—"
+
+
+def sweep_rtol_min(bench):
+  with open(bench) as f:
+    return (json.load(f).get("header") or {}).get("rtol_min", "?")
+
+
+def setting_of(r):
+  s = r.get("setting", {})
+  return f"h = {s['step']:g} s" if s.get("step") else f"rtol {s.get('rtol', 0):.2g}"
+
+
+def section(outdir, kneedyn=None, bench=None):
+  parts = ["<h2 id='methods'>Index-2, GGL, Newmark and generalized-α</h2>",
+           "<p>The chapter's formulation (<code>dae</code>: velocity-level contact conditions, index 2, IDA) "
+           "lets the positions drift off the contact surfaces between mode switches; <code>dae-ggl</code> "
+           "enforces positions and velocities (Gear–Gupta–Leimkuhler, one extra multiplier per contact); "
+           "<code>newmark</code> and <code>generalized-alpha</code> enforce the positions at every step "
+           "(index 3, Newton at each step, fixed step h). Newmark's trapezoidal rule does not damp the "
+           "index-3 error modes: the normal forces oscillate and the lateral lift-off comes early; "
+           "generalized-α (ρ∞ = 0.9) damps them and its lift-off error is its second-order global error "
+           "(1.0e-5 s at h = 1e-4 s, 2.5e-6 s at 5e-5 s; the event location on the step's dense output adds "
+           "≤ 1e-7 s).</p>"]
+  if kneedyn and os.path.exists(kneedyn):
+    ref_events = reference_events()
+    rows = [live_row(kneedyn, outdir, m, ref_events) for m in METHODS]
+    parts.append("<p>Chapter scene, one setting per method (live runs of this report): lift-off error against "
+                 f"the stored reference ({ref_events.get('liftoff_lateral', float('nan')):.9f} s); contact events "
+                 "beyond the reference's; drift = max |gap| and |gap rate| over the output rows.</p>")
+    parts.append(table(["method", "setting", "lateral lift-off error [s]", "extra events", "max |gap| [mm]",
+                        "max |gap rate| [mm/s]", "steps", "residual evaluations", "wall [s]"], rows))
+  else:
+    parts.append("<p>No kneedyn binary given; live comparison omitted.</p>")
+  if bench and os.path.exists(bench):
+    parts.append(f"<p>Digits and cost from the work-precision sweep (<code>{esc(os.path.basename(bench))}</code>): "
+                 "best scd of the positions and the median CPU time of the cheapest run reaching scd 4/6/8/10. "
+                 "The fixed-step methods gain 0.6 digits per step halving (second order): swept down to "
+                 f"h = 1.5625e-5 s generalized-alpha reaches {esc(best_scd(bench, 'generalized-alpha'))}; 6 digits would take "
+                 "h ≈ 1e-6 s. The adaptive ones stop at "
+                 f"the sweep's tightest rtol ({esc(sweep_rtol_min(bench))}; dae-ggl reaches scd 10.9 at rtol "
+                 "1e-13).</p>")
+    parts.append(table(["method", "best scd (setting)"] + [f"scd ≥ {t}: CPU s (setting)" for t in THRESHOLDS],
+                       bench_rows(bench)))
+  else:
+    parts.append("<p>No benchmark JSON given; digits and cost omitted.</p>")
+  return "\n".join(parts)
