@@ -28,6 +28,8 @@ constexpr int kN = 12;  // y = (q, q̇)
 // Relative size of the directional central differences of g and v (their truncation error
 // ~ε², round-off ~1e-16/ε: both near 1e-11 relative).
 constexpr double kDirectionalStep = 1.0e-6;
+// Absolute tolerance floor of the scaled sensitivities p̄_j s_j (SI units of y).
+constexpr double kSensitivityAtol = 1.0e-8;
 // Relative step of the central difference of the consistent initial state in p.
 constexpr double kInitialStateStep = 1.0e-6;
 
@@ -589,10 +591,15 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
       }
       cv.Check(CVodeSensInit1(cv.mem, np, CV_STAGGERED1, &Cvodes::SensRhsFn, cv.yS), "CVodeSensInit1");
       cv.Check(CVodeSetSensParams(cv.mem, p.data(), pbar.data(), nullptr), "CVodeSetSensParams");
-      cv.Check(CVodeSensEEtolerances(cv.mem), "CVodeSensEEtolerances");
-      // Steps chosen by the state alone: the difference-quotient noise of fS (~u/δ) would
-      // otherwise drive the step to 1e-8 s under the sensitivities' absolute tolerances.
-      cv.Check(CVodeSetSensErrCon(cv.mem, SUNFALSE), "CVodeSetSensErrCon");
+      // Tolerances of p̄_j s_j (SI units of y per 100 % change of p_j): rtol and
+      // kSensitivityAtol. CVODES' default atol/p̄_j sits below the round-off of the
+      // difference-quotient fS (~1e-16 |f|/ε) at tight atol and stalls the step at ~1e-8 s.
+      std::vector<double> atol_s(np);
+      for (int j = 0; j < np; ++j) atol_s[j] = std::max(options.atol, kSensitivityAtol) / pbar[j];
+      cv.Check(CVodeSensSStolerances(cv.mem, options.rtol, atol_s.data()), "CVodeSensSStolerances");
+      // Sensitivities in the error test: without it their error follows the step sequence
+      // (1 % on N90 measured), not the tolerance.
+      cv.Check(CVodeSetSensErrCon(cv.mem, SUNTRUE), "CVodeSetSensErrCon");
     }
     for (;;) {
       double t_reached = t;
