@@ -68,6 +68,12 @@ Outcome ParseOutcome(const Model& m, const std::string& column) {
   Outcome o{column, OutcomeKind::kLiftoffTime, -1};
   if (column == "liftoff_time_s") return o;
   if (column == "liftoff_flexion_deg") return {column, OutcomeKind::kLiftoffFlexion, -1};
+  // Per compartment (not sweep columns): liftoff_time_<compartment>_s, liftoff_flexion_<compartment>_deg.
+  for (const Compartment c : {Compartment::kMedial, Compartment::kLateral}) {
+    const std::string name = CompartmentName(c);
+    if (column == "liftoff_time_" + name + "_s") return {column, OutcomeKind::kLiftoffTime, m.ContactIndex(c)};
+    if (column == "liftoff_flexion_" + name + "_deg") return {column, OutcomeKind::kLiftoffFlexion, m.ContactIndex(c)};
+  }
   if (column == "time_90_s") return {column, OutcomeKind::kTime90, -1};
   const struct {
     const char* prefix;
@@ -420,7 +426,14 @@ std::vector<ParameterSpec> ResolveParameters(const Scene& scene, const std::vect
   return out;
 }
 
-std::vector<std::string> OutcomeNames(const Scene& scene) { return ColumnsOf(scene, AllGroups()); }
+std::vector<std::string> OutcomeNames(const Scene& scene) {
+  std::vector<std::string> names = ColumnsOf(scene, AllGroups());
+  for (const ContactPair& c : scene.model.contacts) {
+    names.push_back(StrCat("liftoff_time_", CompartmentName(c.compartment), "_s"));
+    names.push_back(StrCat("liftoff_flexion_", CompartmentName(c.compartment), "_deg"));
+  }
+  return names;
+}
 
 std::vector<std::string> ResolveOutcomes(const Scene& scene, const std::vector<std::string>& names,
                                          const std::string& field) {
@@ -685,7 +698,12 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
       // Values at the event, on the mode before it (left limits).
       for (size_t k = 0; k < outcomes.size(); ++k) {
         const Outcome& o = outcomes[k];
-        const bool liftoff = mode.events[first].kind == EventKind::kLiftoff;
+        // First lift-off (index −1) or that of one compartment.
+        bool liftoff = false;
+        for (int e = 0; e < n_events; ++e) {
+          liftoff = liftoff || (fired[e] && mode.events[e].kind == EventKind::kLiftoff &&
+                                (o.index < 0 || mode.events[e].contact == o.index));
+        }
         if ((o.kind == OutcomeKind::kLiftoffTime || o.kind == OutcomeKind::kLiftoffFlexion) && liftoff &&
             std::isnan(result.values[k])) {
           const bool time = o.kind == OutcomeKind::kLiftoffTime;

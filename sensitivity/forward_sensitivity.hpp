@@ -21,6 +21,7 @@
 //
 // Outcomes (column names of ensembles::OutcomeColumns, the sweep's):
 //   liftoff_time_s, liftoff_flexion_deg   first lift-off: dτ/dp; dα/dp = s_α + α̇ dτ/dp
+//   liftoff_time_<c>_s, liftoff_flexion_<c>_deg   the same for compartment c (medial, lateral)
 //   time_90_s                             end event: dτ/dp
 //   F90_<element>_N, N90_<compartment>_N  values at the end event: Dv·(dτ/dp, s + f dτ/dp, e_j)
 //   peak_F_<element>_N, peak_N_<c>_N      maxima over the run: interior maxima located as

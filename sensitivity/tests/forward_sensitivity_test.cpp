@@ -58,7 +58,8 @@ TEST(ForwardSensitivity, AgreesWithCentralDifferencesOnTheChapterScene) {
 TEST(ForwardSensitivity, OutcomesMatchTheRunDriver) {
   const Scene scene = Chapter();
   const auto params = ResolveParameters(scene, {"pulse.amplitude"});
-  const auto outcomes = ResolveOutcomes(scene, {"liftoff_time_s", "liftoff_flexion_deg", "time_90_s"});
+  const auto outcomes = ResolveOutcomes(
+      scene, {"liftoff_time_s", "liftoff_flexion_deg", "time_90_s", "liftoff_time_lateral_s", "liftoff_time_medial_s"});
   SensitivityOptions options;
   options.rtol = 1e-10;
   options.atol = 1e-12;
@@ -76,6 +77,8 @@ TEST(ForwardSensitivity, OutcomesMatchTheRunDriver) {
   EXPECT_NEAR(r.values[0], run.events[0].time, 1e-7);
   EXPECT_NEAR(r.values[1], run.events[0].flexion * 180.0 / M_PI, 1e-5);
   EXPECT_NEAR(r.values[2], run.events[1].time, 1e-7);
+  EXPECT_EQ(r.values[3], r.values[0]);      // the lateral compartment lifts off first
+  EXPECT_TRUE(std::isnan(r.values[4]));     // the medial one stays in contact to 90°
   // Without derivatives nothing is claimed.
   EXPECT_TRUE(std::isnan(r.derivatives[0][0]));
 }
