@@ -385,6 +385,10 @@ bool SensitivityOptions::IsValid(std::string* error) const {
     *error = StrCat("--rtol = ", rtol, ": must be in (0, 1)");
     return false;
   }
+  if (!(output_interval >= 0.0 && std::isfinite(output_interval))) {
+    *error = StrCat("--output-interval = ", output_interval, ": must be >= 0 (0: the scene's)");
+    return false;
+  }
   if (!(atol > 0.0 && std::isfinite(atol))) {
     *error = StrCat("--atol = ", atol, ": must be > 0");
     return false;
@@ -520,6 +524,21 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
   VectorXd y(kN);
   y << state.q, state.qd;
   const double t_end = scene.end.time;
+  const double dt_out = options.output_interval > 0.0 ? options.output_interval : scene.output_interval;
+  if (!IsValidOutputInterval(dt_out, t_end, &why)) {
+    Throw<InputError>("RunSensitivity", options.output_interval > 0.0 ? "--output-interval: " : "scene output.interval_s: ", why);
+  }
+  long next_out = 1;
+  auto sample = [&]() {
+    TrajectorySample row;
+    row.t = t;
+    row.q = y.head<6>();
+    if (with_s) {
+      for (int j = 0; j < np; ++j) row.dq.push_back(s[j].head<6>());
+    }
+    result.trajectory.push_back(row);
+  };
+  sample();
 
   std::vector<double> unit(np, 0.0);
   auto unit_vector = [&](int j) {
@@ -617,7 +636,9 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
     for (;;) {
       double t_reached = t;
       cv.failure.clear();
-      const int flag = CVode(cv.mem, t_end, cv.y, &t_reached, CV_NORMAL);
+      while (next_out * dt_out <= t * (1.0 + 1e-12)) ++next_out;  // an event on an output time
+      const double t_out = std::min(next_out * dt_out, t_end);
+      const int flag = CVode(cv.mem, t_out, cv.y, &t_reached, CV_NORMAL);
       if (flag < 0) {
         double h = 0.0;
         CVodeGetCurrentStep(cv.mem, &h);
@@ -635,6 +656,11 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
         for (int j = 0; j < np; ++j) {
           for (int i = 0; i < kN; ++i) s[j](i) = NvData(cv.yS[j])[i];
         }
+      }
+      if (flag != CV_ROOT_RETURN && t < t_end) {  // an output time
+        sample();
+        ++next_out;
+        continue;
       }
       if (flag != CV_ROOT_RETURN) {  // the end time (CV_TSTOP_RETURN or CV_SUCCESS at t_end)
         result.end_reason = "end_time";

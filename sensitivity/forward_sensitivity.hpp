@@ -45,6 +45,7 @@ struct SensitivityOptions {
   double rtol = 1.0e-8;             // CVODES relative tolerance (state and sensitivities)
   double atol = 1.0e-10;            // absolute tolerance (SI units of each state)
   long max_steps = 200000;          // per phase
+  double output_interval = 0.0;     // s between trajectory samples; 0: the scene's
   bool derivatives = true;          // false: outcomes only (for finite differences)
 
   bool IsValid(std::string* error) const;
@@ -57,6 +58,13 @@ struct SensitivityEvent {
   std::vector<double> dtime;   // dτ/dp_j, s per parameter unit (empty without derivatives)
 };
 
+// The trajectory and its sensitivities at one output time (fixed t: dq/dp = s_q(t)).
+struct TrajectorySample {
+  double t = 0.0;                     // s
+  Vector6d q = Vector6d::Zero();      // (x0, y0, z0 [m], α, β, γ [rad])
+  std::vector<Vector6d> dq;           // per parameter, ∂q/∂p_j (SI per parameter unit); empty without derivatives
+};
+
 struct SensitivityResult {
   std::vector<std::string> parameters;   // names as given
   std::vector<std::string> parameter_columns;  // sweep column names (with units)
@@ -67,6 +75,7 @@ struct SensitivityResult {
   std::vector<std::vector<double>> derivatives;
   std::vector<SensitivityEvent> events;
   std::string end_reason;                // flexion_<deg> or end_time
+  std::vector<TrajectorySample> trajectory;  // t = 0 and every output interval before the end
   SolverStats stats;                     // CVODES counters summed over phases
   long sensitivity_rhs_evaluations = 0;  // CVodeGetSensNumRhsEvals (difference quotients)
   long sensitivity_error_test_failures = 0;

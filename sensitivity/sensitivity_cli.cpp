@@ -25,7 +25,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const char* const kFiles[] = {"sensitivity.csv", "sensitivity.json"};
+const char* const kFiles[] = {"sensitivity.csv", "sensitivity.json", "sensitivity_trajectory.csv"};
 
 std::string Number(double v) {
   if (!std::isfinite(v)) return "";
@@ -150,6 +150,7 @@ void WriteSensitivityOutputs(const std::string& dir, const Scene& scene, const S
     j["settings"] = {{"formulation", options.formulation}, {"integrator", "cvodes-bdf"},
                      {"sensitivity_method", "staggered, difference-quotient right-hand side (centred)"},
                      {"rtol", options.rtol}, {"atol", options.atol}, {"max_steps", options.max_steps},
+                     {"output_interval_s", options.output_interval > 0.0 ? options.output_interval : scene.output_interval},
                      {"fd_relative_step", fd ? nlohmann::json(fd_step) : nlohmann::json(nullptr)}};
     j["end_reason"] = r.end_reason;
     nlohmann::json events = nlohmann::json::array();
@@ -168,6 +169,23 @@ void WriteSensitivityOutputs(const std::string& dir, const Scene& scene, const S
                        {"sensitivity_error_test_failures", r.sensitivity_error_test_failures}};
     j["wall_time_s"] = r.wall_time_s;
     j["rows"] = rows;
+    // The trajectory and ∂q/∂p at the output times, one row per (time, parameter).
+    std::ostringstream traj;
+    const char* coords[] = {"x0_mm", "y0_mm", "z0_mm", "flexion_deg", "valgus_deg", "external_rotation_deg"};
+    traj << "time_s,parameter";
+    for (const char* c : coords) traj << ',' << c;
+    for (const char* c : coords) traj << ",d_" << c;
+    traj << "\n";
+    auto unit = [](int i, double v) { return i < 3 ? v * 1e3 : v * 180.0 / M_PI; };
+    for (const TrajectorySample& row : r.trajectory) {
+      for (size_t p = 0; p < r.parameter_columns.size(); ++p) {
+        traj << Number(row.t) << ',' << r.parameter_columns[p];
+        for (int i = 0; i < 6; ++i) traj << ',' << Number(unit(i, row.q(i) - (i == 4 ? M_PI / 2 : 0.0)));
+        for (int i = 0; i < 6; ++i) traj << ',' << (p < row.dq.size() ? Number(unit(i, row.dq[p](i))) : std::string());
+        traj << "\n";
+      }
+    }
+    WriteFile(tmp / "sensitivity_trajectory.csv", traj.str());
     WriteFile(tmp / "sensitivity.csv", csv.str());
     WriteFile(tmp / "sensitivity.json", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
     Publish(tmp, out);
@@ -187,6 +205,8 @@ SensitivityCommand::SensitivityCommand(CLI::App& app) {
   cmd_->add_option("--rtol", options_.rtol, "relative tolerance")->capture_default_str();
   cmd_->add_option("--atol", options_.atol, "absolute tolerance (SI)")->capture_default_str();
   cmd_->add_option("--max-steps", options_.max_steps, "step budget per phase")->capture_default_str();
+  cmd_->add_option("--output-interval", options_.output_interval, "s between trajectory rows (0: scene's)")
+      ->capture_default_str();
   cmd_->add_option("--fd-step", fd_step_, "relative step of central finite differences to print beside (0: none)")
       ->capture_default_str();
   cmd_->add_option("--out", out_dir_, "output directory")->capture_default_str();
@@ -238,7 +258,7 @@ int SensitivityCommand::Run(int argc, char** argv) {
         std::printf("\n");
       }
     }
-    std::printf("  wrote %s/{sensitivity.csv, sensitivity.json}\n", out_dir_.c_str());
+    std::printf("  wrote %s/{sensitivity.csv, sensitivity.json, sensitivity_trajectory.csv}\n", out_dir_.c_str());
     return 0;
   } catch (const InputError& e) {
     std::fprintf(stderr, "kneedyn sensitivity: error: %s\n", e.what());

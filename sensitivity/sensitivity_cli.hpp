@@ -1,8 +1,9 @@
 // `kneedyn sensitivity` (issue 14, item 1): registered on the kneedyn CLI by one line.
 //   kneedyn sensitivity SCENE --parameters a,b,c --outcomes x,y [--formulation ede]
-//                       [--rtol R] [--atol A] [--max-steps N] [--fd-step H] [--out DIR]
+//                       [--rtol R] [--atol A] [--max-steps N] [--output-interval S] [--fd-step H] [--out DIR]
 //   kneedyn sensitivity SCENE --list      the parameter and outcome names the scene accepts
-// Writes DIR/sensitivity.csv and DIR/sensitivity.json (docs/outputs.md), published as one
+// Writes DIR/sensitivity.csv, DIR/sensitivity.json and DIR/sensitivity_trajectory.csv
+// (docs/outputs.md), published as one
 // set like `kneedyn run`'s files. --fd-step H > 0 adds central finite differences with
 // relative step H (two more runs per parameter) beside each derivative.
 // Exit codes: 0 done; 1 solver failure (nothing written: a derivative table is only

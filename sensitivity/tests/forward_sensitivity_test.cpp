@@ -103,6 +103,39 @@ TEST(ForwardSensitivity, SlackLengthAndMassOnNinetyDegreeValues) {
   }
 }
 
+// Trajectory sensitivities at fixed output times (before and after the lift-off and the
+// PCL kinks) against central differences of the same samples.
+TEST(ForwardSensitivity, TrajectoryDerivativesAgreeWithCentralDifferences) {
+  const Scene scene = Chapter();
+  const auto params = ResolveParameters(scene, {"pulse.amplitude", "PCL_anterior.extension_ratio"});
+  const auto outcomes = ResolveOutcomes(scene, {"time_90_s"});
+  SensitivityOptions options;
+  options.rtol = 1e-10;
+  options.atol = 1e-14;
+  options.output_interval = 0.05;
+  const std::vector<double> p = Nominal(params);
+  const SensitivityResult r = RunSensitivity(scene, params, p, outcomes, options);
+  ASSERT_EQ(r.trajectory.size(), 6u);  // t = 0, 0.05, ..., 0.25 (90° at 0.299 s)
+  SensitivityOptions plain = options;
+  plain.derivatives = false;
+  for (size_t j = 0; j < params.size(); ++j) {
+    const double h = 1e-4 * std::abs(p[j]);
+    std::vector<double> up = p, down = p;
+    up[j] += h, down[j] -= h;
+    const SensitivityResult a = RunSensitivity(scene, params, up, outcomes, plain);
+    const SensitivityResult b = RunSensitivity(scene, params, down, outcomes, plain);
+    for (size_t n : {3u, 5u}) {  // 0.15 s (both contacts), 0.25 s (after lift-off, kinks)
+      ASSERT_NEAR(a.trajectory[n].t, r.trajectory[n].t, 1e-15);
+      for (int i : {kY0, kAlpha}) {
+        const double fd = (a.trajectory[n].q(i) - b.trajectory[n].q(i)) / (2 * h);
+        const double d = r.trajectory[n].dq[j](i);
+        EXPECT_LE(std::abs(d - fd), 1e-3 * std::abs(fd) + 1e-4 * std::abs(r.trajectory[n].q(i) / p[j]))
+            << params[j].name << " t = " << r.trajectory[n].t << " coordinate " << i << ": " << d << " vs " << fd;
+      }
+    }
+  }
+}
+
 TEST(ForwardSensitivity, RefusesImpacts) {
   const Scene scene = LoadScene(std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes/hard/lateral_pulse_recontact.yaml");
   const auto params = ResolveParameters(scene, {"pulse.amplitude"});

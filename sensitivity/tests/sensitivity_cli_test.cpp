@@ -55,6 +55,8 @@ TEST(SensitivityCli, WritesCsvAndJsonAsOneSet) {
   const std::string csv = ReadText(out / "sensitivity.csv");
   EXPECT_EQ(csv.substr(0, csv.find('\n')), "outcome,parameter,parameter_value,value,derivative,normalized");
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 5);  // header + 2 outcomes x 2 parameters
+  const std::string traj = ReadText(out / "sensitivity_trajectory.csv");
+  EXPECT_EQ(traj.substr(0, traj.find(',', traj.find(',') + 1)), "time_s,parameter");
   const nlohmann::json j = nlohmann::json::parse(ReadText(out / "sensitivity.json"));
   EXPECT_EQ(j["rows"].size(), 4u);
   EXPECT_EQ(j["end_reason"], "flexion_90");
