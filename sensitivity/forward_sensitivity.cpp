@@ -571,12 +571,12 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
   const std::vector<double> zero_dt(np, 0.0);
   candidate(mode, zero_dt, s);
 
+  SundialsContext ctx;  // outlives cv (destroyed after it)
   Cvodes cv;
   cv.problem = &problem;
   cv.p = p.data();
   std::vector<double> pbar(np);
   for (int j = 0; j < np; ++j) pbar[j] = p[j] != 0.0 ? std::abs(p[j]) : 1.0;
-  SundialsContext ctx;
   double last_h = 0.0;
   bool done = false;
   auto bank = [&]() {
