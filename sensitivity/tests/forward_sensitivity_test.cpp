@@ -5,10 +5,12 @@
 //
 // What finite differences allow: outcomes at rtol 1e-10 carry an error of order
 // 1e-10 |y| (more after 13 phases), so a central difference with relative step h = 1e-4
-// has noise ~1e-6 |y|/(h p) · a few and truncation ~h² ≈ 1e-8 relative. The rule below
+// (1e-3 for the pulse amplitude) has noise ~1e-6 |y|/(h p) · a few and truncation
+// ~h² ≈ 1e-8 relative. The rule below
 // accepts |d − fd| ≤ 1e-3 |fd| + 1e-4 |y/p|, i.e. relative 1e-3, or 1e-4 in the normalised
 // sensitivity (p/y) dy/dp where the derivative is small (pulse amplitude on the peak PCL
-// force: normalised −0.007). Measured: relative 1e-7 … 5e-4 for these nine pairs.
+// force: normalised −0.007). Measured: relative 3e-7 … 9e-4 for these nine pairs
+// (`kneedyn sensitivity ... --fd-step`, docs/outputs.md).
 // Not validated here: IDAS/DAE sensitivities (not implemented); impacts (refused).
 #include <gtest/gtest.h>
 
@@ -41,10 +43,15 @@ TEST(ForwardSensitivity, AgreesWithCentralDifferencesOnTheChapterScene) {
   const std::vector<double> p = Nominal(params);
   const SensitivityResult r = RunSensitivity(scene, params, p, outcomes, options);
   ASSERT_EQ(r.end_reason, "flexion_90");
-  const auto fd = CentralDifferences(scene, params, p, outcomes, options, 1e-4);
-  for (size_t k = 0; k < outcomes.size(); ++k) {
-    for (size_t j = 0; j < params.size(); ++j) {
-      const double d = r.derivatives[k][j], f = fd[k][j];
+  // Relative steps per parameter: 1e-4, except 1e-3 for the pulse amplitude, whose effect
+  // is small (normalised −0.007 on the peak PCL force) and at 1e-4 is buried in the
+  // outcomes' integration noise (its central difference moved by 1 % when only the
+  // output times changed).
+  const double steps[] = {1e-4, 1e-4, 1e-3};
+  for (size_t j = 0; j < params.size(); ++j) {
+    const auto fd = CentralDifferences(scene, {params[j]}, {p[j]}, outcomes, options, steps[j]);
+    for (size_t k = 0; k < outcomes.size(); ++k) {
+      const double d = r.derivatives[k][j], f = fd[k][0];
       ASSERT_TRUE(std::isfinite(d)) << outcomes[k] << " / " << params[j].name;
       EXPECT_NE(d, 0.0) << outcomes[k] << " / " << params[j].name;
       EXPECT_LE(std::abs(d - f), 1e-3 * std::abs(f) + 1e-4 * std::abs(r.values[k] / p[j]))
