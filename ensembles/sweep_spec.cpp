@@ -442,6 +442,18 @@ SweepSpec LoadSweepSpec(const std::string& path) {
   return ParseSweepSpec(ss.str(), path, fs::path(path).parent_path().string());
 }
 
+ParameterSpec ResolveParameterName(const Scene& base, const std::string& name,
+                                   const std::string& label, const std::string& field) {
+  SweepSpec spec;
+  spec.path = label;
+  spec.base = base;
+  ParameterSpec p;
+  p.name = name;
+  ResolveParameter(Node(YAML::Node(name), &spec.path, field), spec, &p);
+  p.a = p.b = p.nominal;
+  return p;
+}
+
 Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values) {
   Scene scene = spec.base;
   Model& m = scene.model;

@@ -77,6 +77,14 @@ ParameterSpec ResolveParameterName(const Model& base, const std::string& name, c
 // (spec §5), so moving an attachment with e fixed moves L0 with it.
 Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values);
 
+// One parameter name resolved against a scene exactly as a spec's parameters[i].name is
+// (kind, element, axis, nominal value in spec units, result column); the distribution is
+// left uniform [nominal, nominal]. Throws InputError naming `label`, `field`, the name and
+// the rule. Used by `kneedyn sensitivity` (sensitivity/), so that both commands accept the
+// same names and apply them through SceneForRun.
+ParameterSpec ResolveParameterName(const Scene& base, const std::string& name,
+                                   const std::string& label, const std::string& field);
+
 // Inverse of the standard normal CDF (Acklam's rational approximation refined by one
 // Halley step; |error| < 1e-15 relative in double precision).
 double InverseNormalCdf(double p);

@@ -24,6 +24,8 @@
 #include "ensembles/sweep.hpp"
 #include "ensembles/sweep_output.hpp"
 #include "ensembles/sweep_spec.hpp"
+#include "sensitivity/forward_sensitivity.hpp"
+#include "sensitivity/sensitivity_cli.hpp"
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
 #include "solver/error.hpp"
@@ -327,4 +329,43 @@ PYBIND11_MODULE(_kneedyn, m) {
     return d;
   }, py::arg("spec_path"), py::arg("threads") = 0, py::arg("out_dir") = "",
      "LoadSweepSpec + RunSweep on `threads` workers (0: all cores) (+ WriteSweepResults) without the GIL");
+
+  // Forward sensitivities (sensitivity/, issue 14 item 1): the same names, results and files
+  // as `kneedyn sensitivity SCENE --parameters ... --outcomes ... [--fd-step H] --out DIR`.
+  m.def("sensitivity", [](std::shared_ptr<Scene> scene, const std::vector<std::string>& parameters,
+                          const std::vector<std::string>& outcomes, double rtol, double atol, double fd_step,
+                          const std::string& out_dir) {
+    using namespace sensitivity;
+    SensitivityOptions options;
+    options.rtol = rtol;
+    options.atol = atol;
+    std::string why;
+    if (!options.IsValid(&why)) Throw<InputError>("kneedyn.sensitivity", why);
+    if (!(fd_step >= 0.0 && fd_step < 0.5)) Throw<InputError>("kneedyn.sensitivity", "fd_step = ", fd_step, ": must be in [0, 0.5)");
+    const auto params = ResolveParameters(*scene, parameters, "parameters");
+    const auto columns = ResolveOutcomes(*scene, outcomes, "outcomes");
+    std::vector<double> values;
+    for (const auto& p : params) values.push_back(p.nominal);
+    SensitivityResult r;
+    std::vector<std::vector<double>> fd;
+    {
+      py::gil_scoped_release release;
+      if (!out_dir.empty()) CheckSensitivityOutputDirectory(out_dir);
+      r = RunSensitivity(*scene, params, values, columns, options);
+      if (fd_step > 0.0) fd = CentralDifferences(*scene, params, values, columns, options, fd_step);
+      if (!out_dir.empty()) WriteSensitivityOutputs(out_dir, *scene, options, r, fd_step > 0.0 ? &fd : nullptr, fd_step, {});
+    }
+    py::dict d;
+    d["parameters"] = r.parameter_columns;
+    d["parameter_values"] = r.parameter_values;
+    d["outcomes"] = r.outcomes;
+    d["values"] = r.values;
+    d["derivatives"] = r.derivatives;
+    if (fd_step > 0.0) d["fd_derivatives"] = fd;
+    d["end_reason"] = r.end_reason;
+    d["steps"] = r.stats.steps;
+    return d;
+  }, py::arg("scene"), py::arg("parameters"), py::arg("outcomes"), py::arg("rtol"), py::arg("atol"),
+     py::arg("fd_step") = 0.0, py::arg("out_dir") = "",
+     "RunSensitivity (+ CentralDifferences, + WriteSensitivityOutputs into out_dir) without the GIL");
 }

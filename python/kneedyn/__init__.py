@@ -25,7 +25,7 @@ import numpy as _np
 from . import _kneedyn
 from ._kneedyn import Error, InputError, SolverError, CompiledScene
 
-__all__ = ["sweep", "SweepResult", "Scene", "Result", "Trajectory", "Event", "load_scene", "run", "formulations",
+__all__ = ["sensitivity", "sweep", "SweepResult", "Scene", "Result", "Trajectory", "Event", "load_scene", "run", "formulations",
            "data_dir", "scene_path", "Error", "InputError", "SolverError"]
 
 
@@ -329,3 +329,17 @@ def sweep(spec_path, threads=0, out=None):
     the GIL released; `out` also writes sweep.csv and sweep.h5 as `kneedyn sweep --out` does.
     The rows do not depend on the thread count."""
     return SweepResult(_kneedyn.sweep(str(spec_path), int(threads), "" if out is None else str(out)))
+
+
+def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0.0, out=None):
+    """Forward sensitivities like `kneedyn sensitivity` (docs/outputs.md): `parameters` and
+    `outcomes` are the sweep's names (e.g. "PCL_anterior.k_linear", "peak_F_PCL_anterior_N"
+    or a group such as "contact_force_at_90"). Returns a dict with `parameters`,
+    `parameter_values`, `outcomes`, `values`, `derivatives` ([outcome][parameter]),
+    `end_reason`, `steps`, and with fd_step > 0 `fd_derivatives` (central differences with
+    that relative step). `out` also writes sensitivity.csv and sensitivity.json. Unknown
+    names raise InputError naming the nearest valid name; a run with an impact SolverError."""
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
+    return _kneedyn.sensitivity(scene.compiled, list(parameters), list(outcomes), float(rtol), float(atol),
+                                float(fd_step), "" if out is None else str(out))

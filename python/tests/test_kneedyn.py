@@ -397,3 +397,21 @@ def test_sweep_equals_cli_sweep_for_any_thread_count():
 def test_sweep_bad_threads_is_an_input_error():
     with pytest.raises(kneedyn.InputError, match="threads = -1"):
         kneedyn.sweep(os.path.join(OUT, "does_not_matter.yaml"), threads=-1)
+
+
+def test_sensitivity_matches_the_cli_and_names_the_nearest_name():
+    """kneedyn.sensitivity runs sensitivity/ in process: the same derivatives as
+    `kneedyn sensitivity`'s CSV (same code path: equal to the CSV's 12 digits)."""
+    cli_out = os.path.join(OUT, "sensitivity_cli")
+    p = subprocess.run([CLI, "sensitivity", CHAPTER, "--parameters", "pulse.amplitude,mass",
+                        "--outcomes", "liftoff_time_s", "--out", cli_out], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    r = kneedyn.sensitivity(CHAPTER, ["pulse.amplitude", "mass"], ["liftoff_time_s"])
+    with open(os.path.join(cli_out, "sensitivity.csv")) as f:
+        rows = list(csv.DictReader(f))
+    assert [row["parameter"] for row in rows] == r["parameters"]
+    for j, row in enumerate(rows):
+        assert math.isclose(float(row["derivative"]), r["derivatives"][0][j], rel_tol=1e-11)
+    assert r["end_reason"] == "flexion_90"
+    with pytest.raises(kneedyn.InputError, match="nearest valid name: 'mass'"):
+        kneedyn.sensitivity(CHAPTER, ["mas"], ["liftoff_time_s"])

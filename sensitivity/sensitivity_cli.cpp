@@ -1,0 +1,272 @@
+#include "sensitivity/sensitivity_cli.hpp"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <stdio.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "formulations/version.hpp"
+#include "solver/error.hpp"
+
+namespace kneedyn::sensitivity {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const char* const kFiles[] = {"sensitivity.csv", "sensitivity.json", "sensitivity_trajectory.csv"};
+
+std::string Number(double v) {
+  if (!std::isfinite(v)) return "";
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.12g", v);
+  return buf;
+}
+
+nlohmann::json JsonNumber(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+fs::path OutputPath(const std::string& dir) {
+  fs::path out = fs::path(dir).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();
+  if (out.empty() || out.filename() == "." || out.filename() == "..") {
+    Throw<InputError>("kneedyn sensitivity", "--out = '", Echo(dir, 256), "': must name a directory of its own (not '.', '..' or '/')");
+  }
+  return out;
+}
+
+void WriteFile(const fs::path& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  if (!out) Throw<InputError>("kneedyn sensitivity", "cannot write '", Echo(path.string(), 256), "'");
+  out << text;
+  out.close();
+  if (!out) Throw<InputError>("kneedyn sensitivity", "failed writing '", Echo(path.string(), 256), "'");
+}
+
+// Replaces `out` by `tmp` in one step (as `kneedyn run` publishes, run_output.hpp).
+void Publish(const fs::path& tmp, const fs::path& out) {
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, out.c_str(), RENAME_NOREPLACE) == 0) return;
+    if (errno != EEXIST) break;
+    if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, out.c_str(), RENAME_EXCHANGE) == 0) return;
+    if (errno != ENOENT) break;
+  }
+  Throw<InputError>("kneedyn sensitivity", "cannot publish '", Echo(tmp.string(), 256), "' as '",
+                    Echo(out.string(), 256), "': ", std::strerror(errno));
+}
+
+// p / y · dy/dp (NaN when y = 0 or not reached).
+double Normalized(double p, double y, double d) { return y != 0.0 ? p / y * d : std::nan(""); }
+
+}  // namespace
+
+void CheckSensitivityOutputDirectory(const std::string& dir) {
+  const fs::path out = OutputPath(dir);
+  std::error_code ec;
+  const fs::file_status st = fs::symlink_status(out, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory) {
+    Throw<InputError>("kneedyn sensitivity", "--out = '", Echo(dir, 256), "': ", ec.message());
+  }
+  if (!fs::exists(st)) return;
+  if (!fs::is_directory(st)) Throw<InputError>("kneedyn sensitivity", "--out = '", Echo(dir, 256), "' exists and is not a directory");
+  for (fs::directory_iterator it(out, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    const bool known = std::find(std::begin(kFiles), std::end(kFiles), name) != std::end(kFiles);
+    if (!known || !it->is_regular_file()) {
+      Throw<InputError>("kneedyn sensitivity", "--out = '", Echo(dir, 256), "' holds '", Echo(name),
+                        "', which is not part of a sensitivity output set; give a new or empty directory");
+    }
+  }
+}
+
+std::vector<std::vector<double>> CentralDifferences(const Scene& scene, const std::vector<ensembles::ParameterSpec>& parameters,
+                                                    const std::vector<double>& values,
+                                                    const std::vector<std::string>& outcomes,
+                                                    const SensitivityOptions& options, double relative_step) {
+  SensitivityOptions plain = options;
+  plain.derivatives = false;
+  std::vector<std::vector<double>> fd(outcomes.size(), std::vector<double>(parameters.size()));
+  for (size_t j = 0; j < parameters.size(); ++j) {
+    const double h = relative_step * (values[j] != 0.0 ? std::abs(values[j]) : 1.0);
+    std::vector<double> up = values, down = values;
+    up[j] += h, down[j] -= h;
+    const SensitivityResult a = RunSensitivity(scene, parameters, up, outcomes, plain);
+    const SensitivityResult b = RunSensitivity(scene, parameters, down, outcomes, plain);
+    for (size_t k = 0; k < outcomes.size(); ++k) fd[k][j] = (a.values[k] - b.values[k]) / (2 * h);
+  }
+  return fd;
+}
+
+void WriteSensitivityOutputs(const std::string& dir, const Scene& scene, const SensitivityOptions& options,
+                             const SensitivityResult& r, const std::vector<std::vector<double>>* fd, double fd_step,
+                             const std::vector<std::string>& command_line) {
+  CheckSensitivityOutputDirectory(dir);
+  const fs::path out = OutputPath(dir);
+  std::error_code ec;
+  if (!out.parent_path().empty()) fs::create_directories(out.parent_path(), ec);
+  std::random_device random;
+  char suffix[64];
+  std::snprintf(suffix, sizeof suffix, "%ld-%08x", static_cast<long>(::getpid()), random());
+  const fs::path tmp = out.parent_path() / ("." + out.filename().string() + ".kneedyn-tmp-" + suffix);
+  if (!fs::create_directory(tmp, ec) || ec) {
+    Throw<InputError>("kneedyn sensitivity", "--out = '", Echo(dir, 256), "': cannot create '", Echo(tmp.string(), 256), "'");
+  }
+  try {
+    std::ostringstream csv;
+    csv << "outcome,parameter,parameter_value,value,derivative,normalized" << (fd ? ",fd_derivative" : "") << "\n";
+    nlohmann::json rows = nlohmann::json::array();
+    for (size_t k = 0; k < r.outcomes.size(); ++k) {
+      for (size_t j = 0; j < r.parameters.size(); ++j) {
+        const double d = r.derivatives[k][j];
+        const double n = Normalized(r.parameter_values[j], r.values[k], d);
+        csv << r.outcomes[k] << ',' << r.parameter_columns[j] << ',' << Number(r.parameter_values[j]) << ','
+            << Number(r.values[k]) << ',' << Number(d) << ',' << Number(n);
+        nlohmann::json row = {{"outcome", r.outcomes[k]}, {"parameter", r.parameter_columns[j]},
+                              {"parameter_value", JsonNumber(r.parameter_values[j])}, {"value", JsonNumber(r.values[k])},
+                              {"derivative", JsonNumber(d)}, {"normalized", JsonNumber(n)}};
+        if (fd) {
+          csv << ',' << Number((*fd)[k][j]);
+          row["fd_derivative"] = JsonNumber((*fd)[k][j]);
+        }
+        csv << "\n";
+        rows.push_back(row);
+      }
+    }
+    nlohmann::json j;
+    j["kneedyn_version"] = KneedynVersion();
+    j["git_commit"] = KneedynGitCommit();
+    j["command_line"] = command_line;
+    j["scene"] = {{"name", scene.name}, {"path", scene.path}};
+    j["settings"] = {{"formulation", options.formulation}, {"integrator", "cvodes-bdf"},
+                     {"sensitivity_method", "staggered, difference-quotient right-hand side (centred)"},
+                     {"rtol", options.rtol}, {"atol", options.atol}, {"max_steps", options.max_steps},
+                     {"output_interval_s", options.output_interval > 0.0 ? options.output_interval : scene.output_interval},
+                     {"fd_relative_step", fd ? nlohmann::json(fd_step) : nlohmann::json(nullptr)}};
+    j["end_reason"] = r.end_reason;
+    nlohmann::json events = nlohmann::json::array();
+    for (const SensitivityEvent& e : r.events) {
+      nlohmann::json dt = nlohmann::json::object();
+      for (size_t p = 0; p < e.dtime.size(); ++p) dt[r.parameter_columns[p]] = JsonNumber(e.dtime[p]);
+      events.push_back({{"name", e.name}, {"time", e.time}, {"flexion_deg", e.flexion * 180.0 / M_PI}, {"dtime_dp", dt}});
+    }
+    j["events"] = events;
+    const SolverStats& s = r.stats;
+    j["statistics"] = {{"steps", s.steps}, {"rhs_evaluations", s.residual_evaluations},
+                       {"jacobian_evaluations", s.jacobian_evaluations}, {"linear_solver_setups", s.linear_solver_setups},
+                       {"nonlinear_iterations", s.nonlinear_iterations}, {"error_test_failures", s.error_test_failures},
+                       {"convergence_failures", s.convergence_failures}, {"root_evaluations", s.root_evaluations},
+                       {"restarts", s.restarts}, {"sensitivity_rhs_evaluations", r.sensitivity_rhs_evaluations},
+                       {"sensitivity_error_test_failures", r.sensitivity_error_test_failures}};
+    j["wall_time_s"] = r.wall_time_s;
+    j["rows"] = rows;
+    // The trajectory and ∂q/∂p at the output times, one row per (time, parameter).
+    std::ostringstream traj;
+    const char* coords[] = {"x0_mm", "y0_mm", "z0_mm", "flexion_deg", "valgus_deg", "external_rotation_deg"};
+    traj << "time_s,parameter";
+    for (const char* c : coords) traj << ',' << c;
+    for (const char* c : coords) traj << ",d_" << c;
+    traj << "\n";
+    auto unit = [](int i, double v) { return i < 3 ? v * 1e3 : v * 180.0 / M_PI; };
+    for (const TrajectorySample& row : r.trajectory) {
+      for (size_t p = 0; p < r.parameter_columns.size(); ++p) {
+        traj << Number(row.t) << ',' << r.parameter_columns[p];
+        for (int i = 0; i < 6; ++i) traj << ',' << Number(unit(i, row.q(i) - (i == 4 ? M_PI / 2 : 0.0)));
+        for (int i = 0; i < 6; ++i) traj << ',' << (p < row.dq.size() ? Number(unit(i, row.dq[p](i))) : std::string());
+        traj << "\n";
+      }
+    }
+    WriteFile(tmp / "sensitivity_trajectory.csv", traj.str());
+    WriteFile(tmp / "sensitivity.csv", csv.str());
+    WriteFile(tmp / "sensitivity.json", j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+    Publish(tmp, out);
+  } catch (...) {
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+  fs::remove_all(tmp, ec);  // the previous set, if there was one
+}
+
+SensitivityCommand::SensitivityCommand(CLI::App& app) {
+  cmd_ = app.add_subcommand("sensitivity", "forward sensitivities (CVODES) of outcomes with respect to named parameters");
+  cmd_->add_option("scene", scene_path_, "scene file (YAML)")->required();
+  cmd_->add_option("--parameters", parameters_, "comma-separated parameter names (as in a sweep spec)")->delimiter(',');
+  cmd_->add_option("--outcomes", outcomes_, "comma-separated outcome columns or groups (as in a sweep spec)")->delimiter(',');
+  cmd_->add_option("--formulation", options_.formulation, "ODE form integrated (ede)")->capture_default_str();
+  cmd_->add_option("--rtol", options_.rtol, "relative tolerance")->capture_default_str();
+  cmd_->add_option("--atol", options_.atol, "absolute tolerance (SI)")->capture_default_str();
+  cmd_->add_option("--max-steps", options_.max_steps, "step budget per phase")->capture_default_str();
+  cmd_->add_option("--output-interval", options_.output_interval, "s between trajectory rows (0: scene's)")
+      ->capture_default_str();
+  cmd_->add_option("--fd-step", fd_step_, "relative step of central finite differences to print beside (0: none)")
+      ->capture_default_str();
+  cmd_->add_option("--out", out_dir_, "output directory")->capture_default_str();
+  cmd_->add_flag("--list", list_, "print the parameter and outcome names of the scene");
+}
+
+int SensitivityCommand::Run(int argc, char** argv) {
+  try {
+    for (const std::string* s : {&scene_path_, &out_dir_, &options_.formulation}) {
+      if (s->size() > 1024) Throw<InputError>("kneedyn sensitivity", "argument '", Echo(*s), "' is longer than 1024 characters");
+    }
+    std::string why;
+    if (!options_.IsValid(&why)) Throw<InputError>("kneedyn sensitivity", why);
+    if (!(fd_step_ >= 0.0 && fd_step_ < 0.5)) Throw<InputError>("kneedyn sensitivity", "--fd-step = ", fd_step_, ": must be in [0, 0.5)");
+    const Scene scene = LoadScene(scene_path_);
+    if (list_) {
+      std::printf("parameters:\n");
+      for (const std::string& n : ParameterNames(scene)) std::printf("  %s\n", n.c_str());
+      std::printf("outcomes:\n");
+      for (const std::string& n : OutcomeNames(scene)) std::printf("  %s\n", n.c_str());
+      return 0;
+    }
+    const std::vector<ensembles::ParameterSpec> params = ResolveParameters(scene, parameters_);
+    const std::vector<std::string> outcomes = ResolveOutcomes(scene, outcomes_);
+    CheckSensitivityOutputDirectory(out_dir_);
+    std::vector<double> values;
+    for (const ensembles::ParameterSpec& p : params) values.push_back(p.nominal);
+    const SensitivityResult r = RunSensitivity(scene, params, values, outcomes, options_);
+    std::vector<std::vector<double>> fd;
+    if (fd_step_ > 0.0) fd = CentralDifferences(scene, params, values, outcomes, options_, fd_step_);
+    WriteSensitivityOutputs(out_dir_, scene, options_, r, fd_step_ > 0.0 ? &fd : nullptr, fd_step_,
+                            std::vector<std::string>(argv, argv + argc));
+    std::printf("%s: %zu outcomes x %zu parameters (%s, CVODES BDF, rtol %g) in %.3f s wall, end %s\n",
+                scene.name.c_str(), outcomes.size(), params.size(), options_.formulation.c_str(), options_.rtol,
+                r.wall_time_s, r.end_reason.c_str());
+    std::printf("  steps %ld, rhs evals %ld, sensitivity rhs evals %ld, restarts %ld\n", r.stats.steps,
+                r.stats.residual_evaluations, r.sensitivity_rhs_evaluations, r.stats.restarts);
+    std::printf("  %-28s %-32s %14s %14s %12s%s\n", "outcome", "parameter", "value", "derivative", "normalized",
+                fd_step_ > 0.0 ? "    fd_derivative   rel.diff" : "");
+    for (size_t k = 0; k < outcomes.size(); ++k) {
+      for (size_t j = 0; j < params.size(); ++j) {
+        const double d = r.derivatives[k][j];
+        std::printf("  %-28s %-32s %14.8g %14.8g %12.5g", outcomes[k].c_str(), params[j].column.c_str(), r.values[k], d,
+                    Normalized(values[j], r.values[k], d));
+        if (fd_step_ > 0.0) {
+          const double f = fd[k][j];
+          std::printf("  %15.8g %10.2e", f, std::abs(d - f) / std::max(std::abs(f), 1e-300));
+        }
+        std::printf("\n");
+      }
+    }
+    std::printf("  wrote %s/{sensitivity.csv, sensitivity.json, sensitivity_trajectory.csv}\n", out_dir_.c_str());
+    return 0;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "kneedyn sensitivity: error: %s\n", e.what());
+    return 2;
+  } catch (const Error& e) {
+    std::fprintf(stderr, "kneedyn sensitivity: error: %s\n", e.what());
+    return 1;
+  }
+}
+
+}  // namespace kneedyn::sensitivity

@@ -1,0 +1,80 @@
+// `kneedyn sensitivity` (sensitivity/sensitivity_cli.hpp): the exit-code contract, nothing
+// written on bad input, the output set's files and fields.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "cli_support.hpp"
+
+namespace kneedyn::cli_test {
+namespace {
+
+const std::string kScene = std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes/chapter_impact.yaml";
+
+fs::path FreshDir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("kneedyn_sensitivity_cli_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  return d;
+}
+
+TEST(SensitivityCli, BadNamesExitTwoNamingTheFieldAndNearestNameWritingNothing) {
+  const fs::path out = FreshDir("bad");
+  CommandResult r = RunKneedyn("sensitivity '" + kScene + "' --parameters PCL_anterior.k_lnear --outcomes time_90_s --out '" +
+                               out.string() + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--parameters"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("'PCL_anterior.k_linear'"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  r = RunKneedyn("sensitivity '" + kScene + "' --parameters mass --outcomes time_at_91 --out '" + out.string() + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--outcomes"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("'time_at_90'"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  r = RunKneedyn("sensitivity '" + kScene + "' --parameters mass --outcomes time_90_s --rtol -1 --out '" + out.string() + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--rtol"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(SensitivityCli, ImpactIsASolverRefusalWithNothingWritten) {
+  const fs::path out = FreshDir("impact");
+  const CommandResult r = RunKneedyn("sensitivity '" + std::string(KNEEDYN_SOURCE_DIR) +
+                                     "/reference-data/scenes/hard/lateral_pulse_recontact.yaml' --parameters mass "
+                                     "--outcomes time_90_s --out '" + out.string() + "'");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("impact"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(SensitivityCli, WritesCsvAndJsonAsOneSet) {
+  const fs::path out = FreshDir("ok");
+  const CommandResult r = RunKneedyn("sensitivity '" + kScene +
+                                     "' --parameters 'PCL anterior.k_linear,pulse.amplitude' --outcomes "
+                                     "liftoff_time_s,peak_F_PCL_anterior_N --out '" + out.string() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string csv = ReadText(out / "sensitivity.csv");
+  EXPECT_EQ(csv.substr(0, csv.find('\n')), "outcome,parameter,parameter_value,value,derivative,normalized");
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 5);  // header + 2 outcomes x 2 parameters
+  const std::string traj = ReadText(out / "sensitivity_trajectory.csv");
+  EXPECT_EQ(traj.substr(0, traj.find(',', traj.find(',') + 1)), "time_s,parameter");
+  const nlohmann::json j = nlohmann::json::parse(ReadText(out / "sensitivity.json"));
+  EXPECT_EQ(j["rows"].size(), 4u);
+  EXPECT_EQ(j["end_reason"], "flexion_90");
+  EXPECT_GT(j["statistics"]["steps"].get<long>(), 0);
+  const auto& row = j["rows"][0];
+  EXPECT_EQ(row["outcome"], "liftoff_time_s");
+  EXPECT_EQ(row["parameter"], "PCL_anterior.k_linear_N_mm");
+  // normalized = p / y · dy/dp
+  EXPECT_NEAR(row["normalized"].get<double>(),
+              row["parameter_value"].get<double>() / row["value"].get<double>() * row["derivative"].get<double>(), 1e-9);
+  // A second run replaces the set; a directory holding anything else is refused.
+  EXPECT_EQ(RunKneedyn("sensitivity '" + kScene + "' --parameters mass --outcomes time_90_s --out '" + out.string() + "'").exit_code, 0);
+  WriteText(out / "other.txt", "x");
+  const CommandResult refused = RunKneedyn("sensitivity '" + kScene + "' --parameters mass --outcomes time_90_s --out '" + out.string() + "'");
+  EXPECT_EQ(refused.exit_code, 2) << refused.output;
+  EXPECT_NE(refused.output.find("other.txt"), std::string::npos) << refused.output;
+  fs::remove_all(out);
+}
+
+}  // namespace
+}  // namespace kneedyn::cli_test
