@@ -444,12 +444,7 @@ SweepSpec LoadSweepSpec(const std::string& path) {
 
 ParameterSpec ResolveParameterName(const Scene& base, const std::string& name,
                                    const std::string& label, const std::string& field) {
-  SweepSpec spec;
-  spec.path = label;
-  spec.base = base;
-  ParameterSpec p;
-  p.name = name;
-  ResolveParameter(Node(YAML::Node(name), &spec.path, field), spec, &p);
+  ParameterSpec p = ResolveParameterName(base.model, name, label + ": field '" + field + "'");
   p.a = p.b = p.nominal;
   return p;
 }
