@@ -6,6 +6,14 @@ with OpenTURNS (Debian python3-openturns), and a ranked bar chart per outcome.
   global_sensitivity.py --sweep DIR/sweep.csv --spec SPEC.yaml --out OUTDIR
                         [--outcomes COL ...] [--bootstrap 300] [--confidence 0.95]
                         [--estimator saltelli|jansen|martinez|mauntz-kucherenko] [--seed 1]
+                        [--local SENSITIVITY.json]
+
+--local takes the sensitivity.json of `kneedyn sensitivity` at the nominal point (issue 14,
+item 1) for the same parameters and outcomes; each outcome then also gets the local
+normalized sensitivity p/y dy/dp and the first-order index a linear model would have,
+S_lin,k = (dy/dp_k sigma_k)^2 / sum_j (dy/dp_j sigma_j)^2, with sigma_k the standard deviation
+of parameter k in the sweep's own samples. Where S_1 and S_lin agree the outcome is close to
+linear over the ranges; where they differ, the local derivative would mislead.
 
 Writes OUTDIR/sobol.json and OUTDIR/sobol_<outcome>.png. The report shows them when they are
 in REPORT_OUT/global_sensitivity/ (section(), hooked into make_report.py).
@@ -73,6 +81,36 @@ def sobol_indices(X, y, n, d, bootstrap, confidence, estimator, seed):
           "total": [st[k] for k in range(d)], "total_ci": [[lot[k], hit[k]] for k in range(d)]}
 
 
+def read_local(path):
+  """(outcome, parameter) -> (derivative, normalized) from kneedyn sensitivity's JSON."""
+  if not os.path.exists(path):
+    fail(f"--local = '{path}': file not found")
+  try:
+    with open(path) as f:
+      rows = json.load(f)["rows"]
+    return {(r["outcome"], r["parameter"]): (float(r["derivative"]), float(r["normalized"])) for r in rows}
+  except (OSError, ValueError, KeyError, TypeError) as e:
+    fail(f"--local = '{path}': not a kneedyn sensitivity.json ({e})")
+
+
+def local_beside(local, outcome, params, X, n):
+  """Local derivatives of one outcome and the linearized first-order indices (see --local)."""
+  d = len(params)
+  rows = X[:2 * n]  # A and B: independent samples of the input distribution
+  sigma = []
+  for k in range(d):
+    m = sum(r[k] for r in rows) / len(rows)
+    sigma.append(math.sqrt(sum((r[k] - m) ** 2 for r in rows) / (len(rows) - 1)))
+  deriv = [local.get((outcome, p), (float("nan"), float("nan"))) for p in params]
+  if any(not math.isfinite(v[0]) for v in deriv):
+    missing = [p for p, v in zip(params, deriv) if not math.isfinite(v[0])]
+    return {"status": f"no local derivative for {', '.join(missing[:3])}{' ...' if len(missing) > 3 else ''}"}
+  var = [(deriv[k][0] * sigma[k]) ** 2 for k in range(d)]
+  total = sum(var)
+  return {"status": "ok", "derivative": [v[0] for v in deriv], "normalized": [v[1] for v in deriv],
+          "sigma": sigma, "linear_first_order": [v / total if total > 0 else 0.0 for v in var]}
+
+
 def bar_chart(path, title, params, r):
   import matplotlib
   matplotlib.use("Agg")
@@ -81,11 +119,19 @@ def bar_chart(path, title, params, r):
   names = [params[k] for k in order]
   fig, ax = plt.subplots(figsize=(8, 0.32 * len(params) + 1.4))
   ypos = list(range(len(order)))
-  for off, key, label, color in ((-0.2, "total", "total S_T", "#c0504d"), (0.2, "first_order", "first-order S_1", "#4f81bd")):
+  local = r.get("local", {}).get("status") == "ok"
+  bars = ((-0.27, "total", "total S_T", "#c0504d"), (0.0, "first_order", "first-order S_1", "#4f81bd")) if local else \
+         ((-0.2, "total", "total S_T", "#c0504d"), (0.2, "first_order", "first-order S_1", "#4f81bd"))
+  height = 0.27 if local else 0.4
+  for off, key, label, color in bars:
     v = [r[key][k] for k in order]
     ci = r[key + "_ci"] if key == "total" else r["first_order_ci"]
     err = [[max(0.0, v[i] - ci[k][0]) for i, k in enumerate(order)], [max(0.0, ci[k][1] - v[i]) for i, k in enumerate(order)]]
-    ax.barh([p + off for p in ypos], v, height=0.4, xerr=err, color=color, label=label, capsize=2)
+    ax.barh([p + off for p in ypos], v, height=height, xerr=err, color=color, label=label, capsize=2)
+  if local:
+    v = [r["local"]["linear_first_order"][k] for k in order]
+    ax.barh([p + 0.27 for p in ypos], v, height=height, color="#9bbb59",
+            label="S_lin from local derivatives (kneedyn sensitivity)")
   ax.set_yticks(ypos)
   ax.set_yticklabels(names, fontsize=7)
   ax.invert_yaxis()
@@ -108,6 +154,7 @@ def main(argv=None):
   ap.add_argument("--estimator", default="saltelli", choices=sorted(ESTIMATORS))
   ap.add_argument("--seed", type=int, default=1)
   ap.add_argument("--no-charts", action="store_true")
+  ap.add_argument("--local", help="sensitivity.json of kneedyn sensitivity at the nominal point")
   a = ap.parse_args(argv)
   import yaml
   for flag, p in (("--sweep", a.sweep), ("--spec", a.spec)):
@@ -130,12 +177,16 @@ def main(argv=None):
   for o in chosen:
     if o not in Y:
       fail(f"--outcomes: '{o}' is not a column of {a.sweep}; columns: {', '.join(outcomes)}")
+  local = read_local(a.local) if a.local else None
   os.makedirs(a.out, exist_ok=True)
   result = {"sweep": os.path.abspath(a.sweep), "spec": os.path.abspath(a.spec), "parameters": params,
             "base_samples": n, "runs": len(X), "estimator": a.estimator, "bootstrap": a.bootstrap,
-            "confidence": a.confidence, "outcomes": {}}
+            "confidence": a.confidence, "outcomes": {},
+            "local": os.path.abspath(a.local) if a.local else None}
   for o in chosen:
     r = sobol_indices(X, Y[o], n, d, a.bootstrap, a.confidence, a.estimator, a.seed)
+    if local is not None and r["status"] == "ok":
+      r["local"] = local_beside(local, o, params, X, n)
     result["outcomes"][o] = r
     if r["status"] == "ok" and not a.no_charts:
       r["chart"] = f"sobol_{o}.png"
@@ -167,13 +218,32 @@ def section(outdir):
            f"<p>Saltelli sweep of {s['runs']} runs (N = {s['base_samples']}, {len(s['parameters'])} parameters), "
            f"estimator {e(s['estimator'])} (OpenTURNS), {int(100 * s['confidence'])} % bootstrap confidence intervals "
            f"({s['bootstrap']} resamples). Ranked by total index. Source: <code>{e(s['sweep'])}</code>.</p>"]
+  if s.get("local"):
+    parts.append("<p>Beside them, the local derivatives at the nominal point (<code>kneedyn sensitivity</code>, CVODES "
+                 "forward sensitivities): the normalized sensitivity p/y dy/dp and S_lin, the first-order index a "
+                 "model linear in the parameters would have over the sweep's ranges, (dy/dp_k &sigma;_k)&sup2; / "
+                 "&Sigma;_j (dy/dp_j &sigma;_j)&sup2;. S_1 &asymp; S_lin means the outcome is close to linear over the "
+                 f"ranges; a gap means the local derivative alone would mislead. Source: <code>{e(s['local'])}</code>.</p>")
   for o, r in s["outcomes"].items():
     if r.get("status") != "ok":
       parts.append(f"<p>{e(o)}: {e(r.get('status'))}</p>")
       continue
-    rows = "".join(f"<tr><td>{e(p)}</td><td>{v:.3f} [{ci[0]:.3f}, {ci[1]:.3f}]</td></tr>" for p, v, ci in top(r, s["parameters"]))
+    loc = r.get("local", {})
+    has_local = loc.get("status") == "ok"
+    params = s["parameters"]
+    rows = ""
+    for p, v, ci in top(r, params):
+      k = params.index(p)
+      c1 = r["first_order_ci"][k]
+      rows += (f"<tr><td>{e(p)}</td><td>{v:.3f} [{ci[0]:.3f}, {ci[1]:.3f}]</td>"
+               f"<td>{r['first_order'][k]:.3f} [{c1[0]:.3f}, {c1[1]:.3f}]</td>")
+      rows += (f"<td>{loc['normalized'][k]:.3g}</td><td>{loc['linear_first_order'][k]:.3f}</td></tr>" if has_local
+               else "</tr>")
+    head = "<tr><th>parameter</th><th>S_T [CI]</th><th>S_1 [CI]</th>"
+    head += "<th>local p/y dy/dp</th><th>S_lin</th></tr>" if has_local else "</tr>"
+    note = "" if has_local or not loc else f" Local derivatives: {e(loc.get('status', ''))}."
     parts.append(f"<h3>{e(o)}</h3><p>{r['groups_used']} complete groups ({r['groups_dropped']} dropped). "
-                 f"Top three by S_T:</p><table><tr><th>parameter</th><th>S_T [CI]</th></tr>{rows}</table>")
+                 f"Top three by S_T:{note}</p><table>{head}{rows}</table>")
     if r.get("chart"):
       rel = os.path.join("global_sensitivity", r["chart"])
       parts.append(f"<figure><img src='{e(rel)}' alt='Sobol indices of {e(o)}'></figure>")

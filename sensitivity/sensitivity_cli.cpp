@@ -198,7 +198,9 @@ void WriteSensitivityOutputs(const std::string& dir, const Scene& scene, const S
 
 SensitivityCommand::SensitivityCommand(CLI::App& app) {
   cmd_ = app.add_subcommand("sensitivity", "forward sensitivities (CVODES) of outcomes with respect to named parameters");
-  cmd_->add_option("scene", scene_path_, "scene file (YAML)")->required();
+  cmd_->add_option("scene", scene_path_, "scene file (YAML); or give --spec");
+  cmd_->add_option("--spec", spec_path_,
+                   "a sweep spec (kneedyn sweep): its scene, parameter names and outcomes, at the nominal values");
   cmd_->add_option("--parameters", parameters_, "comma-separated parameter names (as in a sweep spec)")->delimiter(',');
   cmd_->add_option("--outcomes", outcomes_, "comma-separated outcome columns or groups (as in a sweep spec)")->delimiter(',');
   cmd_->add_option("--formulation", options_.formulation, "ODE form integrated (ede)")->capture_default_str();
@@ -215,13 +217,32 @@ SensitivityCommand::SensitivityCommand(CLI::App& app) {
 
 int SensitivityCommand::Run(int argc, char** argv) {
   try {
-    for (const std::string* s : {&scene_path_, &out_dir_, &options_.formulation}) {
+    for (const std::string* s : {&scene_path_, &spec_path_, &out_dir_, &options_.formulation}) {
       if (s->size() > 1024) Throw<InputError>("kneedyn sensitivity", "argument '", Echo(*s), "' is longer than 1024 characters");
     }
     std::string why;
     if (!options_.IsValid(&why)) Throw<InputError>("kneedyn sensitivity", why);
     if (!(fd_step_ >= 0.0 && fd_step_ < 0.5)) Throw<InputError>("kneedyn sensitivity", "--fd-step = ", fd_step_, ": must be in [0, 0.5)");
-    const Scene scene = LoadScene(scene_path_);
+    if (scene_path_.empty() == spec_path_.empty()) {
+      Throw<InputError>("kneedyn sensitivity", "give either a scene file or --spec (", scene_path_.empty() ? "neither" : "both",
+                        " given)");
+    }
+    Scene scene;
+    if (!spec_path_.empty()) {
+      if (!parameters_.empty() || !outcomes_.empty()) {
+        Throw<InputError>("kneedyn sensitivity", "--spec = '", Echo(spec_path_),
+                          "': takes the parameters and outcomes from the spec; do not also give --parameters/--outcomes");
+      }
+      const ensembles::SweepSpec spec = ensembles::LoadSweepSpec(spec_path_);
+      if (spec.analytic != ensembles::AnalyticModel::kNone) {
+        Throw<InputError>("kneedyn sensitivity", "--spec = '", Echo(spec_path_), "': an analytic test function, not a scene");
+      }
+      scene = spec.base;
+      for (const ensembles::ParameterSpec& p : spec.parameters) parameters_.push_back(p.name);
+      outcomes_ = spec.outcome_groups;
+    } else {
+      scene = LoadScene(scene_path_);
+    }
     if (list_) {
       std::printf("parameters:\n");
       for (const std::string& n : ParameterNames(scene)) std::printf("  %s\n", n.c_str());

@@ -34,6 +34,7 @@ class SensitivityCommand {
   double fd_step_ = 0.0;
   std::string out_dir_ = "out/sensitivity";
   bool list_ = false;
+  std::string spec_path_;  // --spec: scene, parameter names and outcomes of a sweep spec
 };
 
 // Central finite differences of the outcomes: for each parameter j, runs at p_j (1 ± h)

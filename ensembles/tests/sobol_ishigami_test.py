@@ -6,7 +6,10 @@ reports/global_sensitivity.py (OpenTURNS), then compares with the closed-form in
 f = sin x1 + a sin^2 x2 + b x3^4 sin x1 on [-pi, pi]^3 (Ishigami & Homma 1990; a = 7,
 b = 0.1): each true index must lie in its 95 % bootstrap interval widened by 0.01, and the
 estimate within 0.03 of it. Also checks that pick-freeze groups with a failed run are
-dropped, not used. Does not check the chapter model's indices (no closed form).
+dropped, not used, and that --local (derivatives beside the indices) gives the linearized
+first-order indices of the exact gradient at the nominal point x = 0, grad f = (1, 0, 0):
+S_lin = (1, 0, 0), with sigma_k the sample standard deviation, close to pi/sqrt(3) for
+U(-pi, pi). Does not check the chapter model's indices (no closed form).
 
   sobol_ishigami_test.py --kneedyn PATH
 """
@@ -51,6 +54,27 @@ def main():
         print(f"{name}[x{k + 1}] = {est[k]:.4f} CI [{ci[k][0]:.4f}, {ci[k][1]:.4f}], exact {truth[k]:.4f}: {'ok' if ok else 'FAIL'}")
         if not ok:
           failures.append(f"{name}[x{k + 1}]")
+    # Local derivatives beside the indices: the exact gradient at x = 0 as a sensitivity.json.
+    with open(os.path.join(tmp, "sweep.csv"), newline="") as f:
+      names = next(csv.reader(f))[1:4]
+    rows = [{"outcome": "value", "parameter": p, "parameter_value": 0.0, "value": 0.0, "derivative": g,
+             "normalized": 0.0} for p, g in zip(names, (1.0, 0.0, 0.0))]
+    with open(os.path.join(tmp, "local.json"), "w") as f:
+      json.dump({"rows": rows}, f)
+    subprocess.run([sys.executable, script, "--sweep", os.path.join(tmp, "sweep.csv"), "--spec", spec,
+                    "--out", os.path.join(tmp, "gsl"), "--bootstrap", "10", "--local", os.path.join(tmp, "local.json")],
+                   check=True, stdout=subprocess.DEVNULL)
+    with open(os.path.join(tmp, "gsl", "sobol.json")) as f:
+      loc = json.load(f)["outcomes"]["value"].get("local", {})
+    sigma_exact = math.pi / math.sqrt(3.0)
+    ok = (loc.get("status") == "ok" and loc["linear_first_order"] == [1.0, 0.0, 0.0]
+          and all(abs(sg / sigma_exact - 1.0) < 0.03 for sg in loc["sigma"]))
+    print(f"local: {loc.get('status')}, S_lin {loc.get('linear_first_order')}, sigma {loc.get('sigma')} "
+          f"(exact {sigma_exact:.4f}): {'ok' if ok else 'FAIL'}")
+    if not ok:
+      failures.append("local derivatives beside the indices")
+    if not os.path.exists(os.path.join(tmp, "gsl", "sobol_value.png")):
+      failures.append("chart with local bars not written")
     # Failed runs: mark two rows of different groups failed; exactly two groups are dropped.
     with open(os.path.join(tmp, "sweep.csv"), newline="") as f:
       rows = list(csv.reader(f))

@@ -76,5 +76,34 @@ TEST(SensitivityCli, WritesCsvAndJsonAsOneSet) {
   fs::remove_all(out);
 }
 
+// --spec takes the scene, parameter names and outcome groups of a sweep spec: the table must
+// be the one the same names give on the command line; refusals exit 2 and write nothing.
+TEST(SensitivityCli, SpecGivesTheSameTableAsExplicitNames) {
+  const fs::path dir = FreshDir("spec");
+  fs::create_directories(dir);
+  const fs::path spec = dir / "spec.yaml";
+  WriteText(spec, "scene: " + kScene +
+                      "\nparameters:\n  - {name: PCL anterior.k_linear, relative: 0.3}\n"
+                      "  - {name: pulse.amplitude, relative: 0.2}\n"
+                      "design: {type: saltelli, samples: 8}\noutcomes: [liftoff_time, time_at_90]\n");
+  const CommandResult from_spec = RunKneedyn("sensitivity --spec '" + spec.string() + "' --out '" + (dir / "a").string() + "'");
+  ASSERT_EQ(from_spec.exit_code, 0) << from_spec.output;
+  const CommandResult named = RunKneedyn("sensitivity '" + kScene +
+                                         "' --parameters 'PCL anterior.k_linear,pulse.amplitude' --outcomes "
+                                         "liftoff_time,time_at_90 --out '" + (dir / "b").string() + "'");
+  ASSERT_EQ(named.exit_code, 0) << named.output;
+  const std::string a = ReadText(dir / "a" / "sensitivity.csv");
+  EXPECT_GT(std::count(a.begin(), a.end(), '\n'), 4);
+  EXPECT_EQ(a, ReadText(dir / "b" / "sensitivity.csv"));
+  for (const std::string& args : {std::string("--spec '") + spec.string() + "' '" + kScene + "'",
+                                  std::string("--spec '") + spec.string() + "' --parameters mass",
+                                  std::string("--spec '") + (dir / "missing.yaml").string() + "'", std::string()}) {
+    const CommandResult r = RunKneedyn("sensitivity " + args + " --out '" + (dir / "c").string() + "'");
+    EXPECT_EQ(r.exit_code, 2) << args << ": " << r.output;
+    EXPECT_FALSE(fs::exists(dir / "c")) << args;
+  }
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace kneedyn::cli_test
