@@ -39,6 +39,7 @@
 #include "formulations/ida_statistics.hpp"
 #include "formulations/sundials_util.hpp"
 #include "solver/dynamics.hpp"
+#include "solver/newton_euler.hpp"
 
 namespace kneedyn {
 namespace {
@@ -71,6 +72,7 @@ class DaeFormulation final : public Formulation {
     per_contact_ = form_ == ContactForm::kChapter ? 4 : 0;
     n_ = 12 + (per_contact_ + 1) * k;
     if (n_ > kMaxJetSize) Throw<SolverError>("DaeFormulation::Start", "system size ", n_, " exceeds ", kMaxJetSize);
+    if (k > kMaxActiveContacts) Throw<SolverError>("DaeFormulation::Start", k, " active contacts exceed ", kMaxActiveContacts);
     state_contact_ = state.contact;
     ligament_branch_ = state.ligament_branch;
 
@@ -235,40 +237,36 @@ class DaeFormulation final : public Formulation {
     }
     for (int i = 0; i < 6; ++i) F[i] = u(i) - qdot(i);  // F1–F6
     const PoseTpl<T> pose = PoseFromCoordinates(q);
-    DataTpl<T> data(model_);
-    data.ligament_branch = &ligament_branch_;
-    ComputeAppliedWrench(model_, t, pose, &data);
-    // Contact wrenches are added to the applied loads (Eqs. 1.48–1.57 sum both).
-    Vector3<T>& force = data.applied_force_F;
-    Vector3<T>& moment = data.applied_moment_T;
     const Vector6<T> nu = GeneralizedVelocity(q, u);
     const int k = static_cast<int>(active_.size());
+    ContactGeometryTpl<T> geo[kMaxActiveContacts];
     for (int c = 0; c < k; ++c) {
       const ContactPair& pair = model_.contacts[active_[c]];
       T* Fc = F + 12 + 5 * c - (form_ == ContactForm::kClosedForm ? 4 * c : 0);
-      ContactGeometryTpl<T> geo;
       if (form_ == ContactForm::kChapter) {
         T r[5];
-        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo,
+        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo[c],
                                      state_contact_[active_[c]].chart)) {
           return false;
         }
         Fc[0] = r[0];
         Fc[1] = r[1];
         Fc[2] = options_.constraint_level == "position" ? r[2]
-                                                        : T(ContactConstraintRow(pose, geo).dot(nu));
+                                                        : T(ContactConstraintRow(pose, geo[c]).dot(nu));
         Fc[3] = r[3];
         Fc[4] = r[4];
       } else {
-        if (!ContactKinematics(pair, pose, &geo)) return false;
-        Fc[0] = options_.constraint_level == "position" ? geo.gap
-                                                        : T(ContactConstraintRow(pose, geo).dot(nu));
+        if (!ContactKinematics(pair, pose, &geo[c])) return false;
+        Fc[0] = options_.constraint_level == "position" ? geo[c].gap
+                                                        : T(ContactConstraintRow(pose, geo[c]).dot(nu));
       }
-      AddContactWrench(pose, geo, y[NormalIndex(c)], &force, &moment);
     }
-    const Vector6<T> Q = GeneralizedForce(model_, data, Vector3<T>(nu.template tail<3>()));
-    const Vector6<T> residual = Q - MassTimes(model_, GeneralizedAcceleration(q, u, udot));
-    for (int i = 0; i < 6; ++i) F[6 + i] = residual(i);  // F7–F12
+    // F7–F12: Q + Σ N_i G_iᵀ − M ν̇ (Eqs. 1.48–1.57; solver/newton_euler.hpp).
+    DataTpl<T> data(model_);
+    data.ligament_branch = &ligament_branch_;
+    const Vector6<T> residual =
+        NewtonEulerResidual(model_, t, q, u, udot, pose, k, geo, y + NormalIndex(0), &data);
+    for (int i = 0; i < 6; ++i) F[6 + i] = -residual(i);  // F7–F12
     return true;
   }
 

@@ -51,6 +51,7 @@
 #include "formulations/ida_statistics.hpp"
 #include "formulations/sundials_util.hpp"
 #include "solver/dynamics.hpp"
+#include "solver/newton_euler.hpp"
 
 namespace kneedyn {
 namespace {
@@ -98,6 +99,9 @@ class DaeGglFormulation final : public Formulation {
     n_ = 12 + (per_contact_ + 2) * k;
     if (n_ > kMaxJetSize) {
       Throw<SolverError>("DaeGglFormulation::Start", "system size ", n_, " exceeds ", kMaxJetSize);
+    }
+    if (k > kMaxActiveContacts) {
+      Throw<SolverError>("DaeGglFormulation::Start", k, " active contacts exceed ", kMaxActiveContacts);
     }
     state_contact_ = state.contact;
     ligament_branch_ = state.ligament_branch;
@@ -232,21 +236,17 @@ class DaeGglFormulation final : public Formulation {
     }
     for (int i = 0; i < 6; ++i) F[i] = u(i) - qdot(i);  // F1–F6 before stabilization
     const PoseTpl<T> pose = PoseFromCoordinates(q);
-    data->ligament_branch = &ligament_branch_;
-    ComputeAppliedWrench(model_, t, pose, data);
-    Vector3<T>& force = data->applied_force_F;
-    Vector3<T>& moment = data->applied_moment_T;
     const Vector6<T> nu = GeneralizedVelocity(q, u);
     const Matrix3<T> E = AngularVelocityMap(q(kBeta), q(kGamma));
     const int k = static_cast<int>(active_.size());
+    ContactGeometryTpl<T> geo[kMaxActiveContacts];
     for (int c = 0; c < k; ++c) {
       const ContactPair& pair = model_.contacts[active_[c]];
       T* Fc = F + 12 + rows_per_contact_ * c;
-      ContactGeometryTpl<T> geo;
       T phi;
       if (form_ == ContactForm::kChapter) {
         T r[5];
-        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo,
+        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo[c],
                                      state_contact_[active_[c]].chart)) {
           return false;
         }
@@ -256,10 +256,10 @@ class DaeGglFormulation final : public Formulation {
         Fc[3] = r[4];
         phi = r[2];
       } else {
-        if (!ContactKinematics(pair, pose, &geo)) return false;
-        phi = geo.gap;
+        if (!ContactKinematics(pair, pose, &geo[c])) return false;
+        phi = geo[c].gap;
       }
-      const Eigen::Matrix<T, 1, 6> G = ContactConstraintRow(pose, geo);
+      const Eigen::Matrix<T, 1, 6> G = ContactConstraintRow(pose, geo[c]);
       Fc[rows_per_contact_ - 2] = phi;                      // position level
       Fc[rows_per_contact_ - 1] = T(G.dot(nu));             // velocity level
       // Stabilization: F1–F6 += K_iᵀ μ_i, K_i = G_i B(q).
@@ -267,11 +267,12 @@ class DaeGglFormulation final : public Formulation {
       for (int i = 0; i < 3; ++i) F[i] += G(i) * mu;
       const Vector3<T> Kang = E.transpose() * G.template tail<3>().transpose();
       for (int i = 0; i < 3; ++i) F[3 + i] += Kang(i) * mu;
-      AddContactWrench(pose, geo, y[NormalIndex(c)], &force, &moment);
     }
-    const Vector6<T> Q = GeneralizedForce(model_, *data, Vector3<T>(nu.template tail<3>()));
-    const Vector6<T> residual = Q - MassTimes(model_, GeneralizedAcceleration(q, u, udot));
-    for (int i = 0; i < 6; ++i) F[6 + i] = residual(i);  // F7–F12
+    // F7–F12: Q + Σ N_i G_iᵀ − M ν̇ (Eqs. 1.48–1.57; solver/newton_euler.hpp).
+    data->ligament_branch = &ligament_branch_;
+    const Vector6<T> residual =
+        NewtonEulerResidual(model_, t, q, u, udot, pose, k, geo, y + NormalIndex(0), data);
+    for (int i = 0; i < 6; ++i) F[6 + i] = -residual(i);  // F7–F12
     return true;
   }
 
