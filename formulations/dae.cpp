@@ -50,7 +50,8 @@ constexpr double kForceAtolScale = 1.0e4;
 class DaeFormulation final : public Formulation {
  public:
   DaeFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
-      : scene_(scene), model_(scene.model), options_(options), form_(form) {
+      : scene_(scene), model_(scene.model), options_(options), form_(form),
+        data_(model_), data_jet_(model_) {
     if (options.step != 0.0) {
       Throw<InputError>("DaeFormulation", "--step = ", options.step,
                         " s: the IDA formulations choose their own steps; use --max-step");
@@ -75,9 +76,19 @@ class DaeFormulation final : public Formulation {
     if (k > kMaxActiveContacts) Throw<SolverError>("DaeFormulation::Start", k, " active contacts exceed ", kMaxActiveContacts);
     state_contact_ = state.contact;
     ligament_branch_ = state.ligament_branch;
+    yj_.assign(n_, JetD(0.0));
+    ypj_.assign(n_, JetD(0.0));
+    Fj_.assign(n_, JetD(0.0));
+    J_.setZero(n_, n_);
+    normal_.assign(model_.contacts.size(), 0.0);
+    root_flags_.assign(events_.size(), 0);
+    position_level_ = options_.constraint_level == "position";
 
     y_ = N_VNew_Serial(n_, ctx_);
     yp_ = N_VNew_Serial(n_, ctx_);
+    hot_path_r_ = N_VNew_Serial(n_, ctx_);
+    hot_path_g_.assign(events_.size(), 0.0);
+    t_ = state.t;
     N_Vector id = N_VNew_Serial(n_, ctx_);
     N_Vector atol = N_VNew_Serial(n_, ctx_);
     double* y = NvData(y_);
@@ -191,6 +202,7 @@ class DaeFormulation final : public Formulation {
                          failure_.empty() ? "" : " (" + failure_ + ")", LargestErrorComponent(),
                          sundials_messages_.Take());
     }
+    t_ = t_reached;
     const double* y = NvData(y_);
     const double* yp = NvData(yp_);
     state->t = t_reached;
@@ -209,9 +221,8 @@ class DaeFormulation final : public Formulation {
     }
     if (per_contact_ == 0) FillContactCoordinates(model_, state);
     if (flag == IDA_ROOT_RETURN) {
-      std::vector<int> found(events_.size());
-      Check(IDAGetRootInfo(mem_, found.data()), "IDAGetRootInfo");
-      result = EventResult(found);
+      Check(IDAGetRootInfo(mem_, root_flags_.data()), "IDAGetRootInfo");
+      result = EventResult(root_flags_);
     }
     return result;
   }
@@ -224,10 +235,10 @@ class DaeFormulation final : public Formulation {
     return s;
   }
 
-  // F(t, y, ẏ) for any scalar type. Returns false on a recoverable failure (surface
-  // evaluated outside its domain).
+  // F(t, y, ẏ) for T = double or JetD; `data` is the matching preallocated workspace.
+  // Returns false on a recoverable failure (surface evaluated outside its domain).
   template <typename T>
-  bool EvaluateResidual(double t, const T* y, const T* yp, T* F) const {
+  bool EvaluateResidual(double t, const T* y, const T* yp, T* F, DataTpl<T>* data) const {
     Vector6<T> q, u, qdot, udot;
     for (int i = 0; i < 6; ++i) {
       q(i) = y[i];
@@ -251,41 +262,51 @@ class DaeFormulation final : public Formulation {
         }
         Fc[0] = r[0];
         Fc[1] = r[1];
-        Fc[2] = options_.constraint_level == "position" ? r[2]
+        Fc[2] = position_level_ ? r[2]
                                                         : T(ContactConstraintRow(pose, geo[c]).dot(nu));
         Fc[3] = r[3];
         Fc[4] = r[4];
       } else {
         if (!ContactKinematics(pair, pose, &geo[c])) return false;
-        Fc[0] = options_.constraint_level == "position" ? geo[c].gap
+        Fc[0] = position_level_ ? geo[c].gap
                                                         : T(ContactConstraintRow(pose, geo[c]).dot(nu));
       }
     }
     // F7–F12: Q + Σ N_i G_iᵀ − M ν̇ (Eqs. 1.48–1.57; solver/newton_euler.hpp).
-    DataTpl<T> data(model_);
-    data.ligament_branch = &ligament_branch_;
+    data->ligament_branch = &ligament_branch_;
     const Vector6<T> residual =
-        NewtonEulerResidual(model_, t, q, u, udot, pose, k, geo, y + NormalIndex(0), &data);
+        NewtonEulerResidual(model_, t, q, u, udot, pose, k, geo, y + NormalIndex(0), data);
     for (int i = 0; i < 6; ++i) F[6 + i] = -residual(i);  // F7–F12
     return true;
   }
 
-  // dF/dy + cj dF/dẏ by forward AD (two Jet passes).
-  bool EvaluateJacobian(double t, double cj, const double* y, const double* yp, MatrixXd* J) const {
-    std::vector<JetD> yj(n_), ypj(n_), Fj(n_);
-    J->setZero(n_, n_);
+  // dF/dy + cj dF/dẏ into J_ by forward AD (two Jet passes); no allocation.
+  bool EvaluateJacobian(double t, double cj, const double* y, const double* yp) const {
+    J_.setZero();
     for (int pass = 0; pass < 2; ++pass) {
       for (int i = 0; i < n_; ++i) {
-        yj[i] = JetD(y[i]);
-        ypj[i] = JetD(yp[i]);
-        if (pass == 0) yj[i].v[i] = 1.0;
-        else ypj[i].v[i] = 1.0;
+        yj_[i] = JetD(y[i]);
+        ypj_[i] = JetD(yp[i]);
+        if (pass == 0) yj_[i].v[i] = 1.0;
+        else ypj_[i].v[i] = 1.0;
       }
-      if (!EvaluateResidual(t, yj.data(), ypj.data(), Fj.data())) return false;
+      if (!EvaluateResidual(t, yj_.data(), ypj_.data(), Fj_.data(), &data_jet_)) return false;
       const double scale = pass == 0 ? 1.0 : cj;
       for (int r = 0; r < n_; ++r) {
-        for (int c = 0; c < n_; ++c) (*J)(r, c) += scale * Fj[r].v[c];
+        for (int c = 0; c < n_; ++c) J_(r, c) += scale * Fj_[r].v[c];
       }
+    }
+    return true;
+  }
+  const MatrixXd& jacobian() const { return J_; }
+
+  // The residual, Jacobian (cj = 1e4 1/s) and root callbacks IDA calls, at the current y, ẏ.
+  bool EvaluateHotPathForTesting(int n) override {
+    if (mem_ == nullptr) return false;
+    for (int i = 0; i < n; ++i) {
+      if (Residual(t_, y_, yp_, hot_path_r_, this) != 0) return false;
+      if (Jacobian(t_, 1.0e4, y_, yp_, hot_path_r_, A_, this, nullptr, nullptr, nullptr) != 0) return false;
+      if (!events_.empty() && Roots(t_, y_, yp_, hot_path_g_.data(), this) != 0) return false;
     }
     return true;
   }
@@ -298,8 +319,8 @@ class DaeFormulation final : public Formulation {
   // ċ from the time derivative of the contact-coordinate equations (rows x, y of Eq. 1.8
   // and of Eq. 1.13): ∂g/∂c ċ = −∂g/∂(q) q̇, so the predictor starts consistent.
   void ContactCoordinateRates(double t, const double* y, double* yp) const {
-    MatrixXd J;
-    if (!EvaluateJacobian(t, 0.0, y, yp, &J)) return;
+    if (!EvaluateJacobian(t, 0.0, y, yp)) return;
+    const MatrixXd& J = J_;
     for (size_t c = 0; c < active_.size(); ++c) {
       const int row0 = 12 + 5 * static_cast<int>(c);
       const int col0 = 12 + 4 * static_cast<int>(c);
@@ -319,7 +340,7 @@ class DaeFormulation final : public Formulation {
   static int Residual(double t, N_Vector yy, N_Vector yp, N_Vector rr, void* user) {
     auto* self = static_cast<DaeFormulation*>(user);
     try {
-      return self->EvaluateResidual(t, NvData(yy), NvData(yp), NvData(rr)) ? 0 : 1;
+      return self->EvaluateResidual(t, NvData(yy), NvData(yp), NvData(rr), &self->data_) ? 0 : 1;
     } catch (const std::exception& e) {
       self->failure_ = e.what();
       return -1;
@@ -330,11 +351,10 @@ class DaeFormulation final : public Formulation {
                       void* user, N_Vector, N_Vector, N_Vector) {
     auto* self = static_cast<DaeFormulation*>(user);
     try {
-      MatrixXd J;
-      if (!self->EvaluateJacobian(t, cj, NvData(yy), NvData(yp), &J)) return 1;
+      if (!self->EvaluateJacobian(t, cj, NvData(yy), NvData(yp))) return 1;
       for (int c = 0; c < self->n_; ++c) {
         double* col = SUNDenseMatrix_Column(JJ, c);
-        for (int r = 0; r < self->n_; ++r) col[r] = J(r, c);
+        for (int r = 0; r < self->n_; ++r) col[r] = self->J_(r, c);
       }
       return 0;
     } catch (const std::exception& e) {
@@ -349,12 +369,12 @@ class DaeFormulation final : public Formulation {
       const double* y = NvData(yy);
       Vector6d q;
       for (int i = 0; i < 6; ++i) q(i) = y[i];
-      std::vector<double> normal(self->model_.contacts.size(), 0.0);
+      std::fill(self->normal_.begin(), self->normal_.end(), 0.0);
       for (size_t c = 0; c < self->active_.size(); ++c) {
-        normal[self->active_[c]] = y[self->NormalIndex(static_cast<int>(c))];
+        self->normal_[self->active_[c]] = y[self->NormalIndex(static_cast<int>(c))];
       }
       (void)t;
-      EvaluateEvents(self->scene_, self->events_, q, normal, g);
+      EvaluateEvents(self->scene_, self->events_, q, self->normal_, g);
       return 0;
     } catch (const std::exception& e) {
       self->failure_ = e.what();
@@ -379,6 +399,7 @@ class DaeFormulation final : public Formulation {
     if (A_) { SUNMatDestroy(A_); A_ = nullptr; }
     if (y_) { N_VDestroy(y_); y_ = nullptr; }
     if (yp_) { N_VDestroy(yp_); yp_ = nullptr; }
+    if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
   const Scene& scene_;
@@ -388,6 +409,9 @@ class DaeFormulation final : public Formulation {
   SundialsContext ctx_;
   void* mem_ = nullptr;
   N_Vector y_ = nullptr, yp_ = nullptr;
+  double t_ = 0.0;  // s: time of y_, ẏ_ (phase start or last Advance)
+  N_Vector hot_path_r_ = nullptr;   // residual of EvaluateHotPathForTesting
+  std::vector<double> hot_path_g_;  // root values of EvaluateHotPathForTesting
   SUNMatrix A_ = nullptr;
   SUNLinearSolver LS_ = nullptr;
   int n_ = 0;
@@ -400,6 +424,14 @@ class DaeFormulation final : public Formulation {
   SolverStats accumulated_;
   mutable std::string failure_;
   SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason
+  bool position_level_ = false;  // --constraint-level position (index-3 variant)
+  // Workspaces sized in the constructor / Start (no allocation in the callbacks).
+  mutable DataTpl<double> data_;
+  mutable DataTpl<JetD> data_jet_;
+  mutable std::vector<JetD> yj_, ypj_, Fj_;
+  mutable MatrixXd J_;
+  std::vector<double> normal_;  // N per model contact, for the root functions
+  std::vector<int> root_flags_;
 };
 
 }  // namespace
@@ -423,9 +455,13 @@ bool DaeResidualAndJacobianForTesting(const Scene& scene, const FormulationOptio
   if (static_cast<int>(y.size()) != n || static_cast<int>(yp.size()) != n) return false;
   if (F) {
     F->assign(n, 0.0);
-    if (!dae.EvaluateResidual(t, y.data(), yp.data(), F->data())) return false;
+    Data data(scene.model);
+    if (!dae.EvaluateResidual(t, y.data(), yp.data(), F->data(), &data)) return false;
   }
-  if (J && !dae.EvaluateJacobian(t, cj, y.data(), yp.data(), J)) return false;
+  if (J) {
+    if (!dae.EvaluateJacobian(t, cj, y.data(), yp.data())) return false;
+    *J = dae.jacobian();
+  }
   return true;
 }
 

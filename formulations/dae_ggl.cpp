@@ -113,6 +113,9 @@ class DaeGglFormulation final : public Formulation {
 
     y_ = N_VNew_Serial(n_, ctx_);
     yp_ = N_VNew_Serial(n_, ctx_);
+    hot_path_r_ = N_VNew_Serial(n_, ctx_);
+    hot_path_g_.assign(events_.size(), 0.0);
+    t_ = state.t;
     N_Vector id = N_VNew_Serial(n_, ctx_);
     N_Vector atol = N_VNew_Serial(n_, ctx_);
     double* y = NvData(y_);
@@ -193,6 +196,7 @@ class DaeGglFormulation final : public Formulation {
       Throw<SolverError>("IDASolve (dae-ggl)", text, " at t = ", t_cur, " s with step h = ", h, " s",
                          failure_.empty() ? "" : " (" + failure_ + ")");
     }
+    t_ = t_reached;
     const double* y = NvData(y_);
     const double* yp = NvData(yp_);
     state->t = t_reached;
@@ -295,6 +299,17 @@ class DaeGglFormulation final : public Formulation {
     return true;
   }
 
+  // The residual, Jacobian (cj = 1e4 1/s) and root callbacks IDA calls, at the current y, ẏ.
+  bool EvaluateHotPathForTesting(int n) override {
+    if (mem_ == nullptr) return false;
+    for (int i = 0; i < n; ++i) {
+      if (Residual(t_, y_, yp_, hot_path_r_, this) != 0) return false;
+      if (Jacobian(t_, 1.0e4, y_, yp_, hot_path_r_, A_, this, nullptr, nullptr, nullptr) != 0) return false;
+      if (!events_.empty() && Roots(t_, y_, yp_, hot_path_g_.data(), this) != 0) return false;
+    }
+    return true;
+  }
+
   int size() const { return n_; }
   const MatrixXd& jacobian() const { return J_; }
 
@@ -383,6 +398,7 @@ class DaeGglFormulation final : public Formulation {
     if (A_) { SUNMatDestroy(A_); A_ = nullptr; }
     if (y_) { N_VDestroy(y_); y_ = nullptr; }
     if (yp_) { N_VDestroy(yp_); yp_ = nullptr; }
+    if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
   const Scene& scene_;
@@ -392,6 +408,9 @@ class DaeGglFormulation final : public Formulation {
   SundialsContext ctx_;
   void* mem_ = nullptr;
   N_Vector y_ = nullptr, yp_ = nullptr;
+  double t_ = 0.0;  // s: time of y_, ẏ_ (phase start or last Advance)
+  N_Vector hot_path_r_ = nullptr;   // residual of EvaluateHotPathForTesting
+  std::vector<double> hot_path_g_;  // root values of EvaluateHotPathForTesting
   SUNMatrix A_ = nullptr;
   SUNLinearSolver LS_ = nullptr;
   int n_ = 0;

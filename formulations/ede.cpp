@@ -18,6 +18,7 @@
 //               Other integrators: InputError (CVODE projects only with BDF).
 // Events: lift-off g = N_i, re-contact and flexion via solver/events.hpp.
 #include <Eigen/QR>
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -35,7 +36,10 @@ constexpr double kProjectionTolerance = 1.0e-14;  // m
 class EdeFormulation final : public Formulation, public OdeProblem {
  public:
   EdeFormulation(const Scene& scene, const FormulationOptions& options)
-      : scene_(scene), model_(scene.model), options_(options), integrator_(options, "ede") {
+      : scene_(scene), model_(scene.model), options_(options), integrator_(options, "ede"),
+        workspace_(model_) {
+    acc_.normal_force.reserve(kMaxConstrainedContacts);
+    normal_.assign(model_.contacts.size(), 0.0);
     if (options.stabilization == "baumgarte") {
       gains_.alpha = options.baumgarte_alpha;
       gains_.beta = options.baumgarte_beta;
@@ -97,6 +101,7 @@ class EdeFormulation final : public Formulation, public OdeProblem {
   }
 
   std::string integrator() const override { return integrator_.name(); }
+  bool EvaluateHotPathForTesting(int n) override { return integrator_.EvaluateCallbacksForTesting(t_, y_, n); }
   double fixed_step() const override { return integrator_.step(); }
 
   SolverStats stats() const override {
@@ -105,14 +110,14 @@ class EdeFormulation final : public Formulation, public OdeProblem {
     return s;
   }
 
+  // No allocation (workspace_, acc_; tests/zero_allocation_test.cpp).
   bool Rhs(double t, const double* y, double* ydot) override {
     const Vector6d q = Eigen::Map<const Vector6d>(y);
     const Vector6d qd = Eigen::Map<const Vector6d>(y + 6);
-    const ConstrainedAcceleration acc =
-        SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_);
+    SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_, &workspace_, &acc_);
     for (int i = 0; i < 6; ++i) {
       ydot[i] = qd(i);
-      ydot[6 + i] = acc.qdd(i);
+      ydot[6 + i] = acc_.qdd(i);
     }
     return true;
   }
@@ -126,13 +131,12 @@ class EdeFormulation final : public Formulation, public OdeProblem {
   void Roots(double t, const double* y, double* g) override {
     const Vector6d q = Eigen::Map<const Vector6d>(y);
     const Vector6d qd = Eigen::Map<const Vector6d>(y + 6);
-    std::vector<double> normal(model_.contacts.size(), 0.0);
+    std::fill(normal_.begin(), normal_.end(), 0.0);
     if (!active_.empty()) {
-      const ConstrainedAcceleration acc =
-          SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_);
-      for (size_t c = 0; c < active_.size(); ++c) normal[active_[c]] = acc.normal_force[c];
+      SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_, &workspace_, &acc_);
+      for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = acc_.normal_force[c];
     }
-    EvaluateEvents(scene_, events_, q, normal, g);
+    EvaluateEvents(scene_, events_, q, normal_, g);
   }
 
  private:
@@ -166,6 +170,10 @@ class EdeFormulation final : public Formulation, public OdeProblem {
   std::vector<EventSpec> events_;
   std::vector<ContactGuess> state_contact_;
   std::vector<signed char> ligament_branch_;
+  // Workspaces of the right-hand side and root functions (sized once; no allocation there).
+  ConstrainedDynamicsWorkspace workspace_;
+  ConstrainedAcceleration acc_;
+  std::vector<double> normal_;  // N per model contact, for the root functions
 };
 
 }  // namespace

@@ -98,6 +98,11 @@ class Formulation {
   // its fixed step in s (0: adaptive), for summary.json. Defaults: not stated.
   virtual std::string integrator() const { return ""; }
   virtual double fixed_step() const { return 0.0; }
+  // Testing hook (tests/zero_allocation_test.cpp, issue 11 item 7): after Start, calls the
+  // callbacks the solver calls inside a phase (residual or right-hand side, Jacobian, root
+  // functions; Newton step for the steppers) n times at the current state, through the same
+  // code the solver runs. Returns false when the formulation has no such hook.
+  virtual bool EvaluateHotPathForTesting(int n) { (void)n; return false; }
 };
 
 using FormulationFactory =

@@ -167,6 +167,16 @@ class NewmarkFormulation final : public Formulation {
   SolverStats stats() const override { return stats_; }
   std::string integrator() const override { return "newmark-average-acceleration"; }
   double fixed_step() const override { return step_; }
+  // One Newton step from the current state (residual + Jet Jacobian + LU per iteration)
+  // and the event functions, n times.
+  bool EvaluateHotPathForTesting(int n) override {
+    StepState next;
+    for (int i = 0; i < n; ++i) {
+      if (!SolveStep(current_, h_, &next)) return false;
+      g_hot_path_ = Events(next);
+    }
+    return true;
+  }
 
   // Newmark step residual F(x) for any scalar type; false when a surface is evaluated
   // outside its domain (recoverable: the step is halved).
@@ -467,6 +477,7 @@ class NewmarkFormulation final : public Formulation {
   std::vector<ContactGuess> state_contact_;
   std::vector<signed char> ligament_branch_;  // locked for the phase
   StepState current_;
+  std::vector<double> g_hot_path_;  // EvaluateHotPathForTesting
   std::vector<double> g_current_;
   SolverStats stats_;
   struct FailureReason {

@@ -130,6 +130,9 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
   num_roots_ = static_cast<int>(root_directions.size());
   y_ = N_VNew_Serial(n_, ctx_);
   for (int i = 0; i < n_; ++i) NvData(y_)[i] = y0(i);
+  hot_path_y_ = N_VNew_Serial(n_, ctx_);
+  hot_path_ydot_ = N_VNew_Serial(n_, ctx_);
+  hot_path_g_.assign(num_roots_, 0.0);
   std::vector<int> dirs = root_directions;
   if (is_cvode()) {
     mem_ = CVodeCreate(name_ == "cvode-bdf" ? CV_BDF : CV_ADAMS, ctx_);
@@ -343,6 +346,18 @@ void OdeIntegrator::Free() {
   if (LS_) { SUNLinSolFree(LS_); LS_ = nullptr; }
   if (A_) { SUNMatDestroy(A_); A_ = nullptr; }
   if (y_) { N_VDestroy(y_); y_ = nullptr; }
+  if (hot_path_y_) { N_VDestroy(hot_path_y_); hot_path_y_ = nullptr; }
+  if (hot_path_ydot_) { N_VDestroy(hot_path_ydot_); hot_path_ydot_ = nullptr; }
+}
+
+bool OdeIntegrator::EvaluateCallbacksForTesting(double t, const VectorXd& y, int n) {
+  if (mem_ == nullptr || y.size() != n_) return false;
+  for (int i = 0; i < n_; ++i) NvData(hot_path_y_)[i] = y(i);
+  for (int i = 0; i < n; ++i) {
+    if (RhsCallback(t, hot_path_y_, hot_path_ydot_, this) != 0) return false;
+    if (num_roots_ > 0 && RootCallback(t, hot_path_y_, hot_path_g_.data(), this) != 0) return false;
+  }
+  return true;
 }
 
 }  // namespace kneedyn

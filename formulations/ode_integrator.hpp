@@ -79,6 +79,9 @@ class OdeIntegrator {
   // Restarts from a modified state (after a projection), keeping the step size and counters.
   void Reset(double t, const VectorXd& y);
   SolverStats stats() const;
+  // Testing hook (Formulation::EvaluateHotPathForTesting): the right-hand-side and root
+  // callbacks the solver calls, n times at (t, y), through the same glue; false on failure.
+  bool EvaluateCallbacksForTesting(double t, const VectorXd& y, int n);
 
  private:
   static int RhsCallback(double t, N_Vector y, N_Vector ydot, void* user);
@@ -98,6 +101,8 @@ class OdeIntegrator {
   OdeProblem* problem_ = nullptr;
   void* mem_ = nullptr;
   N_Vector y_ = nullptr;
+  N_Vector hot_path_y_ = nullptr, hot_path_ydot_ = nullptr;  // EvaluateCallbacksForTesting
+  std::vector<double> hot_path_g_;
   SUNMatrix A_ = nullptr;
   SUNLinearSolver LS_ = nullptr;
   SUNNonlinearSolver NLS_ = nullptr;
