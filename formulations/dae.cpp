@@ -56,7 +56,7 @@ class DaeFormulation final : public Formulation {
       Throw<InputError>("DaeFormulation", "--step = ", options.step,
                         " s: the IDA formulations choose their own steps; use --max-step");
     }
-    if (options.stabilization != "none") {
+    if (options.Parsed().stabilization != Stabilization::kNone) {
       Throw<InputError>("DaeFormulation", "--stabilization = '", options.stabilization,
                         "' applies to ede only");
     }
@@ -82,7 +82,7 @@ class DaeFormulation final : public Formulation {
     J_.setZero(n_, n_);
     normal_.assign(model_.contacts.size(), 0.0);
     root_flags_.assign(events_.size(), 0);
-    position_level_ = options_.constraint_level == "position";
+    position_level_ = options_.Parsed().constraint_level == ConstraintLevel::kPosition;
 
     y_ = N_VNew_Serial(n_, ctx_);
     yp_ = N_VNew_Serial(n_, ctx_);

@@ -75,11 +75,12 @@ class DaeGglFormulation final : public Formulation {
       Throw<InputError>("DaeGglFormulation", "--step = ", options.step,
                         " s: ", name, " chooses its own steps; use --max-step");
     }
-    if (options.stabilization != "none") {
+    const ParsedFormulationOptions parsed = options.Parsed();
+    if (parsed.stabilization != Stabilization::kNone) {
       Throw<InputError>("DaeGglFormulation", "--stabilization = '", options.stabilization,
                         "' applies to ede only (", name, " enforces both constraint levels)");
     }
-    if (options.constraint_level != "velocity") {
+    if (parsed.constraint_level != ConstraintLevel::kVelocity) {
       Throw<InputError>("DaeGglFormulation", "--constraint-level = '", options.constraint_level,
                         "': ", name, " always enforces position and velocity level; leave the default");
     }

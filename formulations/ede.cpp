@@ -40,18 +40,19 @@ class EdeFormulation final : public Formulation, public OdeProblem {
         workspace_(model_) {
     acc_.normal_force.reserve(kMaxConstrainedContacts);
     normal_.assign(model_.contacts.size(), 0.0);
-    if (options.stabilization == "baumgarte") {
+    const Stabilization stabilization = options.Parsed().stabilization;
+    if (stabilization == Stabilization::kBaumgarte) {
       gains_.alpha = options.baumgarte_alpha;
       gains_.beta = options.baumgarte_beta;
     }
-    project_ = options.stabilization == "projection" || options.stabilization == "cvode-projection";
-    solver_projection_ = options.stabilization == "cvode-projection";
+    project_ = stabilization == Stabilization::kProjection || stabilization == Stabilization::kCvodeProjection;
+    solver_projection_ = stabilization == Stabilization::kCvodeProjection;
     if (solver_projection_ && !integrator_.supports_solver_projection()) {
       Throw<InputError>("EdeFormulation", "--stabilization cvode-projection with --integrator '",
                         integrator_.name(), "': CVODE's projection (CVodeSetProjFn) exists only for "
                         "cvode-bdf; use --integrator cvode-bdf or --stabilization projection");
     }
-    if (project_ && !solver_projection_ && integrator_.name() == "cvode-adams") {
+    if (project_ && !solver_projection_ && integrator_.kind() == IntegratorKind::kCvodeAdams) {
       // The project-and-restart loop would restart the multistep method at order 1 every step.
       Throw<InputError>("EdeFormulation", "--stabilization projection with --integrator cvode-adams: "
                         "not supported (CVODE projects only with BDF); use cvode-bdf or an ERK method");

@@ -71,7 +71,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
       : scene_(scene), model_(scene.model), options_(options), integrator_(options, "mde"),
         data_(model_) {
     normal_.assign(model_.contacts.size(), 0.0);
-    if (options.stabilization != "none") {
+    if (options.Parsed().stabilization != Stabilization::kNone) {
       Throw<InputError>("MdeFormulation", "--stabilization = '", options.stabilization,
                         "' applies to ede only (mde has no drift)");
     }

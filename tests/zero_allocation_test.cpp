@@ -149,9 +149,7 @@ std::vector<HotPathCase> AllCases() {
       std::vector<std::string> integrators = info.integrators;
       if (integrators.empty()) integrators = {""};
       for (const std::string& integrator : integrators) {
-        std::vector<std::string> stabilizations = {"none"};
-        if (info.name == "ede") stabilizations = {"none", "baumgarte", "projection", "cvode-projection"};
-        for (const std::string& stab : stabilizations) cases.push_back({info.name, integrator, stab, scene});
+        for (const std::string& stab : info.stabilizations) cases.push_back({info.name, integrator, stab, scene});
       }
     }
   }
