@@ -35,7 +35,7 @@
 #include <memory>
 
 #include "formulations/dae_testing.hpp"
-#include "formulations/formulation.hpp"
+#include "formulations/formulation_base.hpp"
 #include "formulations/ida_statistics.hpp"
 #include "formulations/sundials_util.hpp"
 #include "solver/dynamics.hpp"
@@ -47,11 +47,10 @@ namespace {
 // Absolute tolerance of the normal forces per unit --atol (N per SI unit of the states).
 constexpr double kForceAtolScale = 1.0e4;
 
-class DaeFormulation final : public Formulation {
+class DaeFormulation final : public FormulationBase {
  public:
   DaeFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
-      : scene_(scene), model_(scene.model), options_(options), form_(form),
-        data_(model_), data_jet_(model_) {
+      : FormulationBase(scene), options_(options), form_(form), data_(model_), data_jet_(model_) {
     if (options.step != 0.0) {
       Throw<InputError>("DaeFormulation", "--step = ", options.step,
                         " s: the IDA formulations choose their own steps; use --max-step");
@@ -67,15 +66,12 @@ class DaeFormulation final : public Formulation {
 
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
     Free();
-    active_ = state.active;
-    events_ = events;
+    BeginPhase(state, events);
     const int k = static_cast<int>(active_.size());
     per_contact_ = form_ == ContactForm::kChapter ? 4 : 0;
     n_ = 12 + (per_contact_ + 1) * k;
     if (n_ > kMaxJetSize) Throw<SolverError>("DaeFormulation::Start", "system size ", n_, " exceeds ", kMaxJetSize);
     if (k > kMaxActiveContacts) Throw<SolverError>("DaeFormulation::Start", k, " active contacts exceed ", kMaxActiveContacts);
-    state_contact_ = state.contact;
-    ligament_branch_ = state.ligament_branch;
     yj_.assign(n_, JetD(0.0));
     ypj_.assign(n_, JetD(0.0));
     Fj_.assign(n_, JetD(0.0));
@@ -205,21 +201,8 @@ class DaeFormulation final : public Formulation {
     t_ = t_reached;
     const double* y = NvData(y_);
     const double* yp = NvData(yp_);
-    state->t = t_reached;
-    for (int i = 0; i < 6; ++i) {
-      state->q(i) = y[i];
-      state->qd(i) = y[6 + i];
-      state->qdd(i) = yp[6 + i];
-    }
-    state->contact = state_contact_;
-    state->ligament_branch = ligament_branch_;
-    for (size_t c = 0; c < active_.size(); ++c) {
-      for (int j = 0; j < per_contact_; ++j) {
-        state->contact[active_[c]].coordinates[j] = y[12 + per_contact_ * c + j];
-      }
-      state->contact[active_[c]].normal_force = y[NormalIndex(static_cast<int>(c))];
-    }
-    if (per_contact_ == 0) FillContactCoordinates(model_, state);
+    WriteBack(t_reached, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
+              Eigen::Map<const Vector6d>(yp + 6), y + NormalIndex(0), y + 12, per_contact_, state);
     if (flag == IDA_ROOT_RETURN) {
       Check(IDAGetRootInfo(mem_, root_flags_.data()), "IDAGetRootInfo");
       result = EventResult(root_flags_);
@@ -402,8 +385,6 @@ class DaeFormulation final : public Formulation {
     if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
-  const Scene& scene_;
-  const Model& model_;
   FormulationOptions options_;
   ContactForm form_;
   SundialsContext ctx_;
@@ -417,10 +398,6 @@ class DaeFormulation final : public Formulation {
   int n_ = 0;
   int per_contact_ = 4;
   double last_step_ = 0.0;  // s: last step of the previous phase, the restart's first step
-  std::vector<int> active_;
-  std::vector<EventSpec> events_;
-  std::vector<ContactGuess> state_contact_;
-  std::vector<signed char> ligament_branch_;  // locked for the phase
   SolverStats accumulated_;
   mutable std::string failure_;
   SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason

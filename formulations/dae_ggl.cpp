@@ -47,7 +47,7 @@
 #include <cmath>
 #include <memory>
 
-#include "formulations/formulation.hpp"
+#include "formulations/formulation_base.hpp"
 #include "formulations/ida_statistics.hpp"
 #include "formulations/sundials_util.hpp"
 #include "solver/dynamics.hpp"
@@ -65,11 +65,10 @@ constexpr double kMuAtolScale = 1.0e4;
 constexpr double kForceAtolFloor = 1.0e-3;
 constexpr double kMuAtolFloor = 1.0e-3;
 
-class DaeGglFormulation final : public Formulation {
+class DaeGglFormulation final : public FormulationBase {
  public:
   DaeGglFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
-      : scene_(scene), model_(scene.model), options_(options), form_(form),
-        data_(model_), data_jet_(model_) {
+      : FormulationBase(scene), options_(options), form_(form), data_(model_), data_jet_(model_) {
     const char* name = form == ContactForm::kChapter ? "dae-ggl" : "dae-ggl-reduced";
     if (options.step != 0.0) {
       Throw<InputError>("DaeGglFormulation", "--step = ", options.step,
@@ -92,8 +91,7 @@ class DaeGglFormulation final : public Formulation {
 
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
     Free();
-    active_ = state.active;
-    events_ = events;
+    BeginPhase(state, events);
     const int k = static_cast<int>(active_.size());
     per_contact_ = form_ == ContactForm::kChapter ? 4 : 0;
     rows_per_contact_ = per_contact_ + 2;
@@ -104,8 +102,6 @@ class DaeGglFormulation final : public Formulation {
     if (k > kMaxActiveContacts) {
       Throw<SolverError>("DaeGglFormulation::Start", k, " active contacts exceed ", kMaxActiveContacts);
     }
-    state_contact_ = state.contact;
-    ligament_branch_ = state.ligament_branch;
     yj_.assign(n_, JetD(0.0));
     ypj_.assign(n_, JetD(0.0));
     Fj_.assign(n_, JetD(0.0));
@@ -200,21 +196,8 @@ class DaeGglFormulation final : public Formulation {
     t_ = t_reached;
     const double* y = NvData(y_);
     const double* yp = NvData(yp_);
-    state->t = t_reached;
-    for (int i = 0; i < 6; ++i) {
-      state->q(i) = y[i];
-      state->qd(i) = y[6 + i];
-      state->qdd(i) = yp[6 + i];
-    }
-    state->contact = state_contact_;
-    state->ligament_branch = ligament_branch_;
-    for (size_t c = 0; c < active_.size(); ++c) {
-      for (int j = 0; j < per_contact_; ++j) {
-        state->contact[active_[c]].coordinates[j] = y[12 + per_contact_ * c + j];
-      }
-      state->contact[active_[c]].normal_force = y[NormalIndex(static_cast<int>(c))];
-    }
-    if (per_contact_ == 0) FillContactCoordinates(model_, state);
+    WriteBack(t_reached, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
+              Eigen::Map<const Vector6d>(yp + 6), y + NormalIndex(0), y + 12, per_contact_, state);
     if (flag == IDA_ROOT_RETURN) {
       Check(IDAGetRootInfo(mem_, root_flags_.data()), "IDAGetRootInfo");
       result = EventResult(root_flags_);
@@ -402,8 +385,6 @@ class DaeGglFormulation final : public Formulation {
     if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
-  const Scene& scene_;
-  const Model& model_;
   FormulationOptions options_;
   ContactForm form_;
   SundialsContext ctx_;
@@ -418,10 +399,6 @@ class DaeGglFormulation final : public Formulation {
   int per_contact_ = 4;
   int rows_per_contact_ = 6;
   double last_step_ = 0.0;  // s: last step of the previous phase, the restart's first step
-  std::vector<int> active_;
-  std::vector<EventSpec> events_;
-  std::vector<ContactGuess> state_contact_;
-  std::vector<signed char> ligament_branch_;  // locked for the phase
   SolverStats accumulated_;
   mutable std::string failure_;
   // Workspaces sized in the constructor / Start (no allocation in the callbacks).

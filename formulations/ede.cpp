@@ -22,7 +22,7 @@
 #include <cmath>
 #include <memory>
 
-#include "formulations/formulation.hpp"
+#include "formulations/formulation_base.hpp"
 #include "formulations/ode_integrator.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -33,10 +33,10 @@ namespace {
 constexpr int kMaxProjectionIterations = 10;
 constexpr double kProjectionTolerance = 1.0e-14;  // m
 
-class EdeFormulation final : public Formulation, public OdeProblem {
+class EdeFormulation final : public FormulationBase, public OdeProblem {
  public:
   EdeFormulation(const Scene& scene, const FormulationOptions& options)
-      : scene_(scene), model_(scene.model), options_(options), integrator_(options, "ede"),
+      : FormulationBase(scene), options_(options), integrator_(options, "ede"),
         workspace_(model_) {
     acc_.normal_force.reserve(kMaxConstrainedContacts);
     normal_.assign(model_.contacts.size(), 0.0);
@@ -62,10 +62,7 @@ class EdeFormulation final : public Formulation, public OdeProblem {
   ContactForm contact_form() const override { return ContactForm::kClosedForm; }
 
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
-    active_ = state.active;
-    events_ = events;
-    state_contact_ = state.contact;
-    ligament_branch_ = state.ligament_branch;
+    BeginPhase(state, events);
     t_ = state.t;
     y_.resize(12);
     y_ << state.q, state.qd;
@@ -90,14 +87,7 @@ class EdeFormulation final : public Formulation, public OdeProblem {
     Vector6d q = y_.head<6>(), qd = y_.tail<6>();
     const ConstrainedAcceleration acc =
         SolveConstrainedAcceleration(model_, t_, q, qd, active_, gains_, &ligament_branch_);
-    state->t = t_;
-    state->q = q;
-    state->qd = qd;
-    state->qdd = acc.qdd;
-    state->contact = state_contact_;
-    state->ligament_branch = ligament_branch_;
-    for (size_t c = 0; c < active_.size(); ++c) state->contact[active_[c]].normal_force = acc.normal_force[c];
-    FillContactCoordinates(model_, state);
+    WriteBack(t_, q, qd, acc.qdd, acc.normal_force.data(), nullptr, 0, state);
     return root ? EventResult(found) : AdvanceResult{};
   }
 
@@ -157,8 +147,6 @@ class EdeFormulation final : public Formulation, public OdeProblem {
     return true;
   }
 
-  const Scene& scene_;
-  const Model& model_;
   FormulationOptions options_;
   OdeIntegrator integrator_;
   BaumgarteGains gains_;
@@ -167,10 +155,6 @@ class EdeFormulation final : public Formulation, public OdeProblem {
   long projections_ = 0;
   double t_ = 0.0;
   VectorXd y_;
-  std::vector<int> active_;
-  std::vector<EventSpec> events_;
-  std::vector<ContactGuess> state_contact_;
-  std::vector<signed char> ligament_branch_;
   // Workspaces of the right-hand side and root functions (sized once; no allocation there).
   ConstrainedDynamicsWorkspace workspace_;
   ConstrainedAcceleration acc_;

@@ -29,7 +29,7 @@
 #include <cmath>
 #include <memory>
 
-#include "formulations/formulation.hpp"
+#include "formulations/formulation_base.hpp"
 #include "formulations/ode_integrator.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -65,10 +65,10 @@ struct MdeKinematics {
   std::array<double, kMaxMdeContacts> normal_force{};  // per active contact, N
 };
 
-class MdeFormulation final : public Formulation, public OdeProblem {
+class MdeFormulation final : public FormulationBase, public OdeProblem {
  public:
   MdeFormulation(const Scene& scene, const FormulationOptions& options)
-      : scene_(scene), model_(scene.model), options_(options), integrator_(options, "mde"),
+      : FormulationBase(scene), options_(options), integrator_(options, "mde"),
         data_(model_) {
     normal_.assign(model_.contacts.size(), 0.0);
     if (options.Parsed().stabilization != Stabilization::kNone) {
@@ -80,10 +80,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
   ContactForm contact_form() const override { return ContactForm::kClosedForm; }
 
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
-    active_ = state.active;
-    events_ = events;
-    state_contact_ = state.contact;
-    ligament_branch_ = state.ligament_branch;
+    BeginPhase(state, events);
     elim_.clear();
     phase_steps_ = 0;
     last_q_ = state.q;
@@ -118,14 +115,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
       if (!root && !active_.empty()) SwitchChartIfBetter();
     } while (!root && t_ < t_out);
     const MdeKinematics kin = Evaluate(t_, y_.data(), nullptr);
-    state->t = t_;
-    state->q = kin.q;
-    state->qd = kin.qd;
-    state->qdd = kin.qdd;
-    state->contact = state_contact_;
-    state->ligament_branch = ligament_branch_;
-    for (size_t c = 0; c < active_.size(); ++c) state->contact[active_[c]].normal_force = kin.normal_force[c];
-    FillContactCoordinates(model_, state);
+    WriteBack(t_, kin.q, kin.qd, kin.qdd, kin.normal_force.data(), nullptr, 0, state);
     return root ? EventResult(found) : AdvanceResult{};
   }
 
@@ -364,22 +354,16 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     return kin;
   }
 
-  const Scene& scene_;
-  const Model& model_;
   FormulationOptions options_;
   OdeIntegrator integrator_;
   double t_ = 0.0;
   VectorXd y_;
-  std::vector<int> active_;
   std::vector<int> free_;  // indices into q of s, ascending
   std::vector<int> elim_;  // eliminated translations (one per active contact)
   long phase_steps_ = 0;
   // The eliminated translations start Newton from the phase start's values, so that the
   // right-hand side is a function of (t, y) alone (no dependence on the call history).
   Vector6d last_q_ = Vector6d::Zero();   // steps since Start (the --max-steps budget is per phase)
-  std::vector<EventSpec> events_;
-  std::vector<ContactGuess> state_contact_;
-  std::vector<signed char> ligament_branch_;
   mutable Data data_;           // applied-load workspace of Evaluate
   std::vector<double> normal_;  // N per model contact, for the root functions
 };
