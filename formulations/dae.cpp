@@ -36,7 +36,7 @@
 
 #include "formulations/dae_testing.hpp"
 #include "formulations/formulation_base.hpp"
-#include "formulations/ida_statistics.hpp"
+#include "formulations/ida_phase.hpp"
 #include "formulations/sundials_util.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/newton_euler.hpp"
@@ -80,15 +80,15 @@ class DaeFormulation final : public FormulationBase {
     root_flags_.assign(events_.size(), 0);
     position_level_ = options_.Parsed().constraint_level == ConstraintLevel::kPosition;
 
-    y_ = N_VNew_Serial(n_, ctx_);
-    yp_ = N_VNew_Serial(n_, ctx_);
+    ida_.y = N_VNew_Serial(n_, ctx_);
+    ida_.yp = N_VNew_Serial(n_, ctx_);
     hot_path_r_ = N_VNew_Serial(n_, ctx_);
     hot_path_g_.assign(events_.size(), 0.0);
     t_ = state.t;
     N_Vector id = N_VNew_Serial(n_, ctx_);
     N_Vector atol = N_VNew_Serial(n_, ctx_);
-    double* y = NvData(y_);
-    double* yp = NvData(yp_);
+    double* y = NvData(ida_.y);
+    double* yp = NvData(ida_.yp);
     for (int i = 0; i < 6; ++i) {
       y[i] = state.q(i);
       y[6 + i] = state.qd(i);
@@ -113,36 +113,8 @@ class DaeFormulation final : public FormulationBase {
       // in the Newton convergence test (KNEEDYN_DAE_FORCE_ATOL_SCALE N per unit atol).
       at[i] = i >= NormalIndex(0) ? options_.atol * kForceAtolScale : options_.atol;
     }
-    mem_ = IDACreate(ctx_);
-    if (mem_ == nullptr) Throw<SolverError>("DaeFormulation::Start", "IDACreate failed");
-    Check(IDASetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "IDASetErrHandlerFn");
-    Check(IDAInit(mem_, &DaeFormulation::Residual, state.t, y_, yp_), "IDAInit");
-    Check(IDASetUserData(mem_, this), "IDASetUserData");
-    Check(IDASVtolerances(mem_, options_.rtol, atol), "IDASVtolerances");
-    Check(IDASetId(mem_, id), "IDASetId");
-    Check(IDASetSuppressAlg(mem_, SUNTRUE), "IDASetSuppressAlg");
-    Check(IDASetMaxNumSteps(mem_, options_.max_steps), "IDASetMaxNumSteps");
-    if (options_.max_step > 0.0) Check(IDASetMaxStep(mem_, options_.max_step), "IDASetMaxStep");
-    Check(IDASetStopTime(mem_, scene_.end.time), "IDASetStopTime");
-    // First step. IDA's own estimate (h ‖ẏ‖_WRMS ≤ 1/2) is ~1e-11 s at rtol 1e-10 when
-    // the tibia moves, and at such steps the O(ε/h²) round-off of the index-2 forces
-    // defeats the Newton test. Restarts after a mode switch begin at a quarter of the last
-    // step taken; a first start at 1e-4 s · sqrt(rtol / 1e-6) (BDF1 local error ∝ h²),
-    // which IDA's error test then adjusts.
-    const double h0 = last_step_ > 0.0
-                          ? 0.25 * last_step_
-                          : std::clamp(1e-4 * std::sqrt(options_.rtol / 1e-6), 1e-8, 1e-3);
-    Check(IDASetInitStep(mem_, h0), "IDASetInitStep");
-    A_ = SUNDenseMatrix(n_, n_, ctx_);
-    LS_ = SUNLinSol_Dense(y_, A_, ctx_);
-    Check(IDASetLinearSolver(mem_, LS_, A_), "IDASetLinearSolver");
-    Check(IDASetJacFn(mem_, &DaeFormulation::Jacobian), "IDASetJacFn");
-    if (!events_.empty()) {
-      Check(IDARootInit(mem_, static_cast<int>(events_.size()), &DaeFormulation::Roots), "IDARootInit");
-      std::vector<int> dir = RootDirections(events_);
-      Check(IDASetRootDirection(mem_, dir.data()), "IDASetRootDirection");
-      Check(IDASetNoInactiveRootWarn(mem_), "IDASetNoInactiveRootWarn");
-    }
+    ida_.Start(ctx_, n_, &DaeFormulation::Residual, &DaeFormulation::Jacobian, &DaeFormulation::Roots, this, state.t, atol, id,
+               options_, scene_.end.time, events_, "DaeFormulation::Start", &sundials_messages_);
     N_VDestroy(id);
     N_VDestroy(atol);
     ++accumulated_.restarts;
@@ -151,9 +123,9 @@ class DaeFormulation final : public FormulationBase {
   // Issue 18: which unknown IDA's failure is about — the component with the largest
   // weighted local error estimate |e_i| w_i (IDAGetEstLocalErrors, IDAGetErrWeights).
   std::string LargestErrorComponent() const {
-    N_Vector e = N_VClone(y_), w = N_VClone(y_);
+    N_Vector e = N_VClone(ida_.y), w = N_VClone(ida_.y);
     std::string out;
-    if (IDAGetEstLocalErrors(mem_, e) == IDA_SUCCESS && IDAGetErrWeights(mem_, w) == IDA_SUCCESS) {
+    if (IDAGetEstLocalErrors(ida_.mem, e) == IDA_SUCCESS && IDAGetErrWeights(ida_.mem, w) == IDA_SUCCESS) {
       const double* ed = NvData(e);
       const double* wd = NvData(w);
       int worst = 0;
@@ -185,12 +157,12 @@ class DaeFormulation final : public FormulationBase {
   AdvanceResult Advance(double t_out, MechanicalState* state) override {
     double t_reached = state->t;
     failure_.clear();
-    const int flag = IDASolve(mem_, t_out, &t_reached, y_, yp_, IDA_NORMAL);
+    const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
     AdvanceResult result;
     if (flag < 0) {
       double h = 0.0, t_cur = 0.0;
-      IDAGetCurrentStep(mem_, &h);
-      IDAGetCurrentTime(mem_, &t_cur);
+      IDAGetCurrentStep(ida_.mem, &h);
+      IDAGetCurrentTime(ida_.mem, &t_cur);
       char* name = IDAGetReturnFlagName(flag);
       const std::string text = name ? name : "?";
       free(name);
@@ -199,12 +171,12 @@ class DaeFormulation final : public FormulationBase {
                          sundials_messages_.Take());
     }
     t_ = t_reached;
-    const double* y = NvData(y_);
-    const double* yp = NvData(yp_);
+    const double* y = NvData(ida_.y);
+    const double* yp = NvData(ida_.yp);
     WriteBack(t_reached, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
               Eigen::Map<const Vector6d>(yp + 6), y + NormalIndex(0), y + 12, per_contact_, state);
     if (flag == IDA_ROOT_RETURN) {
-      Check(IDAGetRootInfo(mem_, root_flags_.data()), "IDAGetRootInfo");
+      Check(IDAGetRootInfo(ida_.mem, root_flags_.data()), "IDAGetRootInfo");
       result = EventResult(root_flags_);
     }
     return result;
@@ -214,7 +186,7 @@ class DaeFormulation final : public FormulationBase {
 
   SolverStats stats() const override {
     SolverStats s = accumulated_;
-    if (mem_ != nullptr) s += CurrentStats();
+    if (ida_.mem != nullptr) s += CurrentStats();
     return s;
   }
 
@@ -285,11 +257,11 @@ class DaeFormulation final : public FormulationBase {
 
   // The residual, Jacobian (cj = 1e4 1/s) and root callbacks IDA calls, at the current y, ẏ.
   bool EvaluateHotPathForTesting(int n) override {
-    if (mem_ == nullptr) return false;
+    if (ida_.mem == nullptr) return false;
     for (int i = 0; i < n; ++i) {
-      if (Residual(t_, y_, yp_, hot_path_r_, this) != 0) return false;
-      if (Jacobian(t_, 1.0e4, y_, yp_, hot_path_r_, A_, this, nullptr, nullptr, nullptr) != 0) return false;
-      if (!events_.empty() && Roots(t_, y_, yp_, hot_path_g_.data(), this) != 0) return false;
+      if (Residual(t_, ida_.y, ida_.yp, hot_path_r_, this) != 0) return false;
+      if (Jacobian(t_, 1.0e4, ida_.y, ida_.yp, hot_path_r_, ida_.A, this, nullptr, nullptr, nullptr) != 0) return false;
+      if (!events_.empty() && Roots(t_, ida_.y, ida_.yp, hot_path_g_.data(), this) != 0) return false;
     }
     return true;
   }
@@ -369,35 +341,23 @@ class DaeFormulation final : public FormulationBase {
     CheckSundials(flag, call, "DaeFormulation", IDAGetReturnFlagName, &sundials_messages_);
   }
 
-  SolverStats CurrentStats() const { return IdaStatistics(mem_, !events_.empty()); }
+  SolverStats CurrentStats() const { return IdaStatistics(ida_.mem, !events_.empty()); }
 
   void Free() {
-    if (mem_ != nullptr) {
-      accumulated_ += CurrentStats();
-      IDAGetLastStep(mem_, &last_step_);
-      IDAFree(&mem_);
-      mem_ = nullptr;
-    }
-    if (LS_) { SUNLinSolFree(LS_); LS_ = nullptr; }
-    if (A_) { SUNMatDestroy(A_); A_ = nullptr; }
-    if (y_) { N_VDestroy(y_); y_ = nullptr; }
-    if (yp_) { N_VDestroy(yp_); yp_ = nullptr; }
+    ida_.Free(&accumulated_, !events_.empty());
     if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
+
 
   FormulationOptions options_;
   ContactForm form_;
   SundialsContext ctx_;
-  void* mem_ = nullptr;
-  N_Vector y_ = nullptr, yp_ = nullptr;
-  double t_ = 0.0;  // s: time of y_, ẏ_ (phase start or last Advance)
+  double t_ = 0.0;  // s: time of the phase's y, ẏ (phase start or last Advance)
   N_Vector hot_path_r_ = nullptr;   // residual of EvaluateHotPathForTesting
   std::vector<double> hot_path_g_;  // root values of EvaluateHotPathForTesting
-  SUNMatrix A_ = nullptr;
-  SUNLinearSolver LS_ = nullptr;
+  IdaPhase ida_;  // IDA memory, y, ẏ, matrix and linear solver of the phase
   int n_ = 0;
   int per_contact_ = 4;
-  double last_step_ = 0.0;  // s: last step of the previous phase, the restart's first step
   SolverStats accumulated_;
   mutable std::string failure_;
   SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason
