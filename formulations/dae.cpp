@@ -35,10 +35,11 @@
 #include <memory>
 
 #include "formulations/dae_testing.hpp"
-#include "formulations/formulation.hpp"
-#include "formulations/ida_statistics.hpp"
+#include "formulations/formulation_base.hpp"
+#include "formulations/ida_phase.hpp"
 #include "formulations/sundials_util.hpp"
 #include "solver/dynamics.hpp"
+#include "solver/newton_euler.hpp"
 
 namespace kneedyn {
 namespace {
@@ -46,15 +47,15 @@ namespace {
 // Absolute tolerance of the normal forces per unit --atol (N per SI unit of the states).
 constexpr double kForceAtolScale = 1.0e4;
 
-class DaeFormulation final : public Formulation {
+class DaeFormulation final : public FormulationBase {
  public:
   DaeFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
-      : scene_(scene), model_(scene.model), options_(options), form_(form) {
+      : FormulationBase(scene), options_(options), form_(form), data_(model_), data_jet_(model_) {
     if (options.step != 0.0) {
       Throw<InputError>("DaeFormulation", "--step = ", options.step,
                         " s: the IDA formulations choose their own steps; use --max-step");
     }
-    if (options.stabilization != "none") {
+    if (options.Parsed().stabilization != Stabilization::kNone) {
       Throw<InputError>("DaeFormulation", "--stabilization = '", options.stabilization,
                         "' applies to ede only");
     }
@@ -65,21 +66,29 @@ class DaeFormulation final : public Formulation {
 
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
     Free();
-    active_ = state.active;
-    events_ = events;
+    BeginPhase(state, events);
     const int k = static_cast<int>(active_.size());
     per_contact_ = form_ == ContactForm::kChapter ? 4 : 0;
     n_ = 12 + (per_contact_ + 1) * k;
     if (n_ > kMaxJetSize) Throw<SolverError>("DaeFormulation::Start", "system size ", n_, " exceeds ", kMaxJetSize);
-    state_contact_ = state.contact;
-    ligament_branch_ = state.ligament_branch;
+    if (k > kMaxActiveContacts) Throw<SolverError>("DaeFormulation::Start", k, " active contacts exceed ", kMaxActiveContacts);
+    yj_.assign(n_, JetD(0.0));
+    ypj_.assign(n_, JetD(0.0));
+    Fj_.assign(n_, JetD(0.0));
+    J_.setZero(n_, n_);
+    normal_.assign(model_.contacts.size(), 0.0);
+    root_flags_.assign(events_.size(), 0);
+    position_level_ = options_.Parsed().constraint_level == ConstraintLevel::kPosition;
 
-    y_ = N_VNew_Serial(n_, ctx_);
-    yp_ = N_VNew_Serial(n_, ctx_);
+    ida_.y = N_VNew_Serial(n_, ctx_);
+    ida_.yp = N_VNew_Serial(n_, ctx_);
+    hot_path_r_ = N_VNew_Serial(n_, ctx_);
+    hot_path_g_.assign(events_.size(), 0.0);
+    t_ = state.t;
     N_Vector id = N_VNew_Serial(n_, ctx_);
     N_Vector atol = N_VNew_Serial(n_, ctx_);
-    double* y = NvData(y_);
-    double* yp = NvData(yp_);
+    double* y = NvData(ida_.y);
+    double* yp = NvData(ida_.yp);
     for (int i = 0; i < 6; ++i) {
       y[i] = state.q(i);
       y[6 + i] = state.qd(i);
@@ -104,36 +113,8 @@ class DaeFormulation final : public Formulation {
       // in the Newton convergence test (KNEEDYN_DAE_FORCE_ATOL_SCALE N per unit atol).
       at[i] = i >= NormalIndex(0) ? options_.atol * kForceAtolScale : options_.atol;
     }
-    mem_ = IDACreate(ctx_);
-    if (mem_ == nullptr) Throw<SolverError>("DaeFormulation::Start", "IDACreate failed");
-    Check(IDASetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "IDASetErrHandlerFn");
-    Check(IDAInit(mem_, &DaeFormulation::Residual, state.t, y_, yp_), "IDAInit");
-    Check(IDASetUserData(mem_, this), "IDASetUserData");
-    Check(IDASVtolerances(mem_, options_.rtol, atol), "IDASVtolerances");
-    Check(IDASetId(mem_, id), "IDASetId");
-    Check(IDASetSuppressAlg(mem_, SUNTRUE), "IDASetSuppressAlg");
-    Check(IDASetMaxNumSteps(mem_, options_.max_steps), "IDASetMaxNumSteps");
-    if (options_.max_step > 0.0) Check(IDASetMaxStep(mem_, options_.max_step), "IDASetMaxStep");
-    Check(IDASetStopTime(mem_, scene_.end.time), "IDASetStopTime");
-    // First step. IDA's own estimate (h ‖ẏ‖_WRMS ≤ 1/2) is ~1e-11 s at rtol 1e-10 when
-    // the tibia moves, and at such steps the O(ε/h²) round-off of the index-2 forces
-    // defeats the Newton test. Restarts after a mode switch begin at a quarter of the last
-    // step taken; a first start at 1e-4 s · sqrt(rtol / 1e-6) (BDF1 local error ∝ h²),
-    // which IDA's error test then adjusts.
-    const double h0 = last_step_ > 0.0
-                          ? 0.25 * last_step_
-                          : std::clamp(1e-4 * std::sqrt(options_.rtol / 1e-6), 1e-8, 1e-3);
-    Check(IDASetInitStep(mem_, h0), "IDASetInitStep");
-    A_ = SUNDenseMatrix(n_, n_, ctx_);
-    LS_ = SUNLinSol_Dense(y_, A_, ctx_);
-    Check(IDASetLinearSolver(mem_, LS_, A_), "IDASetLinearSolver");
-    Check(IDASetJacFn(mem_, &DaeFormulation::Jacobian), "IDASetJacFn");
-    if (!events_.empty()) {
-      Check(IDARootInit(mem_, static_cast<int>(events_.size()), &DaeFormulation::Roots), "IDARootInit");
-      std::vector<int> dir = RootDirections(events_);
-      Check(IDASetRootDirection(mem_, dir.data()), "IDASetRootDirection");
-      Check(IDASetNoInactiveRootWarn(mem_), "IDASetNoInactiveRootWarn");
-    }
+    ida_.Start(ctx_, n_, &DaeFormulation::Residual, &DaeFormulation::Jacobian, &DaeFormulation::Roots, this, state.t, atol, id,
+               options_, scene_.end.time, events_, "DaeFormulation::Start", &sundials_messages_);
     N_VDestroy(id);
     N_VDestroy(atol);
     ++accumulated_.restarts;
@@ -142,9 +123,9 @@ class DaeFormulation final : public Formulation {
   // Issue 18: which unknown IDA's failure is about — the component with the largest
   // weighted local error estimate |e_i| w_i (IDAGetEstLocalErrors, IDAGetErrWeights).
   std::string LargestErrorComponent() const {
-    N_Vector e = N_VClone(y_), w = N_VClone(y_);
+    N_Vector e = N_VClone(ida_.y), w = N_VClone(ida_.y);
     std::string out;
-    if (IDAGetEstLocalErrors(mem_, e) == IDA_SUCCESS && IDAGetErrWeights(mem_, w) == IDA_SUCCESS) {
+    if (IDAGetEstLocalErrors(ida_.mem, e) == IDA_SUCCESS && IDAGetErrWeights(ida_.mem, w) == IDA_SUCCESS) {
       const double* ed = NvData(e);
       const double* wd = NvData(w);
       int worst = 0;
@@ -176,12 +157,12 @@ class DaeFormulation final : public Formulation {
   AdvanceResult Advance(double t_out, MechanicalState* state) override {
     double t_reached = state->t;
     failure_.clear();
-    const int flag = IDASolve(mem_, t_out, &t_reached, y_, yp_, IDA_NORMAL);
+    const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
     AdvanceResult result;
     if (flag < 0) {
       double h = 0.0, t_cur = 0.0;
-      IDAGetCurrentStep(mem_, &h);
-      IDAGetCurrentTime(mem_, &t_cur);
+      IDAGetCurrentStep(ida_.mem, &h);
+      IDAGetCurrentTime(ida_.mem, &t_cur);
       char* name = IDAGetReturnFlagName(flag);
       const std::string text = name ? name : "?";
       free(name);
@@ -189,27 +170,14 @@ class DaeFormulation final : public Formulation {
                          failure_.empty() ? "" : " (" + failure_ + ")", LargestErrorComponent(),
                          sundials_messages_.Take());
     }
-    const double* y = NvData(y_);
-    const double* yp = NvData(yp_);
-    state->t = t_reached;
-    for (int i = 0; i < 6; ++i) {
-      state->q(i) = y[i];
-      state->qd(i) = y[6 + i];
-      state->qdd(i) = yp[6 + i];
-    }
-    state->contact = state_contact_;
-    state->ligament_branch = ligament_branch_;
-    for (size_t c = 0; c < active_.size(); ++c) {
-      for (int j = 0; j < per_contact_; ++j) {
-        state->contact[active_[c]].coordinates[j] = y[12 + per_contact_ * c + j];
-      }
-      state->contact[active_[c]].normal_force = y[NormalIndex(static_cast<int>(c))];
-    }
-    if (per_contact_ == 0) FillContactCoordinates(model_, state);
+    t_ = t_reached;
+    const double* y = NvData(ida_.y);
+    const double* yp = NvData(ida_.yp);
+    WriteBack(t_reached, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
+              Eigen::Map<const Vector6d>(yp + 6), y + NormalIndex(0), y + 12, per_contact_, state);
     if (flag == IDA_ROOT_RETURN) {
-      std::vector<int> found(events_.size());
-      Check(IDAGetRootInfo(mem_, found.data()), "IDAGetRootInfo");
-      result = EventResult(found);
+      Check(IDAGetRootInfo(ida_.mem, root_flags_.data()), "IDAGetRootInfo");
+      result = EventResult(root_flags_);
     }
     return result;
   }
@@ -218,14 +186,14 @@ class DaeFormulation final : public Formulation {
 
   SolverStats stats() const override {
     SolverStats s = accumulated_;
-    if (mem_ != nullptr) s += CurrentStats();
+    if (ida_.mem != nullptr) s += CurrentStats();
     return s;
   }
 
-  // F(t, y, ẏ) for any scalar type. Returns false on a recoverable failure (surface
-  // evaluated outside its domain).
+  // F(t, y, ẏ) for T = double or JetD; `data` is the matching preallocated workspace.
+  // Returns false on a recoverable failure (surface evaluated outside its domain).
   template <typename T>
-  bool EvaluateResidual(double t, const T* y, const T* yp, T* F) const {
+  bool EvaluateResidual(double t, const T* y, const T* yp, T* F, DataTpl<T>* data) const {
     Vector6<T> q, u, qdot, udot;
     for (int i = 0; i < 6; ++i) {
       q(i) = y[i];
@@ -235,59 +203,65 @@ class DaeFormulation final : public Formulation {
     }
     for (int i = 0; i < 6; ++i) F[i] = u(i) - qdot(i);  // F1–F6
     const PoseTpl<T> pose = PoseFromCoordinates(q);
-    DataTpl<T> data(model_);
-    data.ligament_branch = &ligament_branch_;
-    ComputeAppliedWrench(model_, t, pose, &data);
-    // Contact wrenches are added to the applied loads (Eqs. 1.48–1.57 sum both).
-    Vector3<T>& force = data.applied_force_F;
-    Vector3<T>& moment = data.applied_moment_T;
     const Vector6<T> nu = GeneralizedVelocity(q, u);
     const int k = static_cast<int>(active_.size());
+    ContactGeometryTpl<T> geo[kMaxActiveContacts];
     for (int c = 0; c < k; ++c) {
       const ContactPair& pair = model_.contacts[active_[c]];
       T* Fc = F + 12 + 5 * c - (form_ == ContactForm::kClosedForm ? 4 * c : 0);
-      ContactGeometryTpl<T> geo;
       if (form_ == ContactForm::kChapter) {
         T r[5];
-        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo,
+        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo[c],
                                      state_contact_[active_[c]].chart)) {
           return false;
         }
         Fc[0] = r[0];
         Fc[1] = r[1];
-        Fc[2] = options_.constraint_level == "position" ? r[2]
-                                                        : T(ContactConstraintRow(pose, geo).dot(nu));
+        Fc[2] = position_level_ ? r[2]
+                                                        : T(ContactConstraintRow(pose, geo[c]).dot(nu));
         Fc[3] = r[3];
         Fc[4] = r[4];
       } else {
-        if (!ContactKinematics(pair, pose, &geo)) return false;
-        Fc[0] = options_.constraint_level == "position" ? geo.gap
-                                                        : T(ContactConstraintRow(pose, geo).dot(nu));
+        if (!ContactKinematics(pair, pose, &geo[c])) return false;
+        Fc[0] = position_level_ ? geo[c].gap
+                                                        : T(ContactConstraintRow(pose, geo[c]).dot(nu));
       }
-      AddContactWrench(pose, geo, y[NormalIndex(c)], &force, &moment);
     }
-    const Vector6<T> Q = GeneralizedForce(model_, data, Vector3<T>(nu.template tail<3>()));
-    const Vector6<T> residual = Q - MassTimes(model_, GeneralizedAcceleration(q, u, udot));
-    for (int i = 0; i < 6; ++i) F[6 + i] = residual(i);  // F7–F12
+    // F7–F12: Q + Σ N_i G_iᵀ − M ν̇ (Eqs. 1.48–1.57; solver/newton_euler.hpp).
+    data->ligament_branch = &ligament_branch_;
+    const Vector6<T> residual =
+        NewtonEulerResidual(model_, t, q, u, udot, pose, k, geo, y + NormalIndex(0), data);
+    for (int i = 0; i < 6; ++i) F[6 + i] = -residual(i);  // F7–F12
     return true;
   }
 
-  // dF/dy + cj dF/dẏ by forward AD (two Jet passes).
-  bool EvaluateJacobian(double t, double cj, const double* y, const double* yp, MatrixXd* J) const {
-    std::vector<JetD> yj(n_), ypj(n_), Fj(n_);
-    J->setZero(n_, n_);
+  // dF/dy + cj dF/dẏ into J_ by forward AD (two Jet passes); no allocation.
+  bool EvaluateJacobian(double t, double cj, const double* y, const double* yp) const {
+    J_.setZero();
     for (int pass = 0; pass < 2; ++pass) {
       for (int i = 0; i < n_; ++i) {
-        yj[i] = JetD(y[i]);
-        ypj[i] = JetD(yp[i]);
-        if (pass == 0) yj[i].v[i] = 1.0;
-        else ypj[i].v[i] = 1.0;
+        yj_[i] = JetD(y[i]);
+        ypj_[i] = JetD(yp[i]);
+        if (pass == 0) yj_[i].v[i] = 1.0;
+        else ypj_[i].v[i] = 1.0;
       }
-      if (!EvaluateResidual(t, yj.data(), ypj.data(), Fj.data())) return false;
+      if (!EvaluateResidual(t, yj_.data(), ypj_.data(), Fj_.data(), &data_jet_)) return false;
       const double scale = pass == 0 ? 1.0 : cj;
       for (int r = 0; r < n_; ++r) {
-        for (int c = 0; c < n_; ++c) (*J)(r, c) += scale * Fj[r].v[c];
+        for (int c = 0; c < n_; ++c) J_(r, c) += scale * Fj_[r].v[c];
       }
+    }
+    return true;
+  }
+  const MatrixXd& jacobian() const { return J_; }
+
+  // The residual, Jacobian (cj = 1e4 1/s) and root callbacks IDA calls, at the current y, ẏ.
+  bool EvaluateHotPathForTesting(int n) override {
+    if (ida_.mem == nullptr) return false;
+    for (int i = 0; i < n; ++i) {
+      if (Residual(t_, ida_.y, ida_.yp, hot_path_r_, this) != 0) return false;
+      if (Jacobian(t_, 1.0e4, ida_.y, ida_.yp, hot_path_r_, ida_.A, this, nullptr, nullptr, nullptr) != 0) return false;
+      if (!events_.empty() && Roots(t_, ida_.y, ida_.yp, hot_path_g_.data(), this) != 0) return false;
     }
     return true;
   }
@@ -300,8 +274,8 @@ class DaeFormulation final : public Formulation {
   // ċ from the time derivative of the contact-coordinate equations (rows x, y of Eq. 1.8
   // and of Eq. 1.13): ∂g/∂c ċ = −∂g/∂(q) q̇, so the predictor starts consistent.
   void ContactCoordinateRates(double t, const double* y, double* yp) const {
-    MatrixXd J;
-    if (!EvaluateJacobian(t, 0.0, y, yp, &J)) return;
+    if (!EvaluateJacobian(t, 0.0, y, yp)) return;
+    const MatrixXd& J = J_;
     for (size_t c = 0; c < active_.size(); ++c) {
       const int row0 = 12 + 5 * static_cast<int>(c);
       const int col0 = 12 + 4 * static_cast<int>(c);
@@ -321,7 +295,7 @@ class DaeFormulation final : public Formulation {
   static int Residual(double t, N_Vector yy, N_Vector yp, N_Vector rr, void* user) {
     auto* self = static_cast<DaeFormulation*>(user);
     try {
-      return self->EvaluateResidual(t, NvData(yy), NvData(yp), NvData(rr)) ? 0 : 1;
+      return self->EvaluateResidual(t, NvData(yy), NvData(yp), NvData(rr), &self->data_) ? 0 : 1;
     } catch (const std::exception& e) {
       self->failure_ = e.what();
       return -1;
@@ -332,11 +306,10 @@ class DaeFormulation final : public Formulation {
                       void* user, N_Vector, N_Vector, N_Vector) {
     auto* self = static_cast<DaeFormulation*>(user);
     try {
-      MatrixXd J;
-      if (!self->EvaluateJacobian(t, cj, NvData(yy), NvData(yp), &J)) return 1;
+      if (!self->EvaluateJacobian(t, cj, NvData(yy), NvData(yp))) return 1;
       for (int c = 0; c < self->n_; ++c) {
         double* col = SUNDenseMatrix_Column(JJ, c);
-        for (int r = 0; r < self->n_; ++r) col[r] = J(r, c);
+        for (int r = 0; r < self->n_; ++r) col[r] = self->J_(r, c);
       }
       return 0;
     } catch (const std::exception& e) {
@@ -351,12 +324,12 @@ class DaeFormulation final : public Formulation {
       const double* y = NvData(yy);
       Vector6d q;
       for (int i = 0; i < 6; ++i) q(i) = y[i];
-      std::vector<double> normal(self->model_.contacts.size(), 0.0);
+      std::fill(self->normal_.begin(), self->normal_.end(), 0.0);
       for (size_t c = 0; c < self->active_.size(); ++c) {
-        normal[self->active_[c]] = y[self->NormalIndex(static_cast<int>(c))];
+        self->normal_[self->active_[c]] = y[self->NormalIndex(static_cast<int>(c))];
       }
       (void)t;
-      EvaluateEvents(self->scene_, self->events_, q, normal, g);
+      EvaluateEvents(self->scene_, self->events_, q, self->normal_, g);
       return 0;
     } catch (const std::exception& e) {
       self->failure_ = e.what();
@@ -368,40 +341,34 @@ class DaeFormulation final : public Formulation {
     CheckSundials(flag, call, "DaeFormulation", IDAGetReturnFlagName, &sundials_messages_);
   }
 
-  SolverStats CurrentStats() const { return IdaStatistics(mem_, !events_.empty()); }
+  SolverStats CurrentStats() const { return IdaStatistics(ida_.mem, !events_.empty()); }
 
   void Free() {
-    if (mem_ != nullptr) {
-      accumulated_ += CurrentStats();
-      IDAGetLastStep(mem_, &last_step_);
-      IDAFree(&mem_);
-      mem_ = nullptr;
-    }
-    if (LS_) { SUNLinSolFree(LS_); LS_ = nullptr; }
-    if (A_) { SUNMatDestroy(A_); A_ = nullptr; }
-    if (y_) { N_VDestroy(y_); y_ = nullptr; }
-    if (yp_) { N_VDestroy(yp_); yp_ = nullptr; }
+    ida_.Free(&accumulated_, !events_.empty());
+    if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
-  const Scene& scene_;
-  const Model& model_;
+
   FormulationOptions options_;
   ContactForm form_;
   SundialsContext ctx_;
-  void* mem_ = nullptr;
-  N_Vector y_ = nullptr, yp_ = nullptr;
-  SUNMatrix A_ = nullptr;
-  SUNLinearSolver LS_ = nullptr;
+  double t_ = 0.0;  // s: time of the phase's y, ẏ (phase start or last Advance)
+  N_Vector hot_path_r_ = nullptr;   // residual of EvaluateHotPathForTesting
+  std::vector<double> hot_path_g_;  // root values of EvaluateHotPathForTesting
+  IdaPhase ida_;  // IDA memory, y, ẏ, matrix and linear solver of the phase
   int n_ = 0;
   int per_contact_ = 4;
-  double last_step_ = 0.0;  // s: last step of the previous phase, the restart's first step
-  std::vector<int> active_;
-  std::vector<EventSpec> events_;
-  std::vector<ContactGuess> state_contact_;
-  std::vector<signed char> ligament_branch_;  // locked for the phase
   SolverStats accumulated_;
   mutable std::string failure_;
   SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason
+  bool position_level_ = false;  // --constraint-level position (index-3 variant)
+  // Workspaces sized in the constructor / Start (no allocation in the callbacks).
+  mutable DataTpl<double> data_;
+  mutable DataTpl<JetD> data_jet_;
+  mutable std::vector<JetD> yj_, ypj_, Fj_;
+  mutable MatrixXd J_;
+  std::vector<double> normal_;  // N per model contact, for the root functions
+  std::vector<int> root_flags_;
 };
 
 }  // namespace
@@ -425,9 +392,13 @@ bool DaeResidualAndJacobianForTesting(const Scene& scene, const FormulationOptio
   if (static_cast<int>(y.size()) != n || static_cast<int>(yp.size()) != n) return false;
   if (F) {
     F->assign(n, 0.0);
-    if (!dae.EvaluateResidual(t, y.data(), yp.data(), F->data())) return false;
+    Data data(scene.model);
+    if (!dae.EvaluateResidual(t, y.data(), yp.data(), F->data(), &data)) return false;
   }
-  if (J && !dae.EvaluateJacobian(t, cj, y.data(), yp.data(), J)) return false;
+  if (J) {
+    if (!dae.EvaluateJacobian(t, cj, y.data(), yp.data())) return false;
+    *J = dae.jacobian();
+  }
   return true;
 }
 

@@ -47,10 +47,11 @@
 #include <cmath>
 #include <memory>
 
-#include "formulations/formulation.hpp"
-#include "formulations/ida_statistics.hpp"
+#include "formulations/formulation_base.hpp"
+#include "formulations/ida_phase.hpp"
 #include "formulations/sundials_util.hpp"
 #include "solver/dynamics.hpp"
+#include "solver/newton_euler.hpp"
 
 namespace kneedyn {
 namespace {
@@ -64,21 +65,21 @@ constexpr double kMuAtolScale = 1.0e4;
 constexpr double kForceAtolFloor = 1.0e-3;
 constexpr double kMuAtolFloor = 1.0e-3;
 
-class DaeGglFormulation final : public Formulation {
+class DaeGglFormulation final : public FormulationBase {
  public:
   DaeGglFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
-      : scene_(scene), model_(scene.model), options_(options), form_(form),
-        data_(model_), data_jet_(model_) {
+      : FormulationBase(scene), options_(options), form_(form), data_(model_), data_jet_(model_) {
     const char* name = form == ContactForm::kChapter ? "dae-ggl" : "dae-ggl-reduced";
     if (options.step != 0.0) {
       Throw<InputError>("DaeGglFormulation", "--step = ", options.step,
                         " s: ", name, " chooses its own steps; use --max-step");
     }
-    if (options.stabilization != "none") {
+    const ParsedFormulationOptions parsed = options.Parsed();
+    if (parsed.stabilization != Stabilization::kNone) {
       Throw<InputError>("DaeGglFormulation", "--stabilization = '", options.stabilization,
                         "' applies to ede only (", name, " enforces both constraint levels)");
     }
-    if (options.constraint_level != "velocity") {
+    if (parsed.constraint_level != ConstraintLevel::kVelocity) {
       Throw<InputError>("DaeGglFormulation", "--constraint-level = '", options.constraint_level,
                         "': ", name, " always enforces position and velocity level; leave the default");
     }
@@ -90,8 +91,7 @@ class DaeGglFormulation final : public Formulation {
 
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
     Free();
-    active_ = state.active;
-    events_ = events;
+    BeginPhase(state, events);
     const int k = static_cast<int>(active_.size());
     per_contact_ = form_ == ContactForm::kChapter ? 4 : 0;
     rows_per_contact_ = per_contact_ + 2;
@@ -99,20 +99,24 @@ class DaeGglFormulation final : public Formulation {
     if (n_ > kMaxJetSize) {
       Throw<SolverError>("DaeGglFormulation::Start", "system size ", n_, " exceeds ", kMaxJetSize);
     }
-    state_contact_ = state.contact;
-    ligament_branch_ = state.ligament_branch;
+    if (k > kMaxActiveContacts) {
+      Throw<SolverError>("DaeGglFormulation::Start", k, " active contacts exceed ", kMaxActiveContacts);
+    }
     yj_.assign(n_, JetD(0.0));
     ypj_.assign(n_, JetD(0.0));
     Fj_.assign(n_, JetD(0.0));
     J_.setZero(n_, n_);
     root_flags_.assign(events_.size(), 0);
 
-    y_ = N_VNew_Serial(n_, ctx_);
-    yp_ = N_VNew_Serial(n_, ctx_);
+    ida_.y = N_VNew_Serial(n_, ctx_);
+    ida_.yp = N_VNew_Serial(n_, ctx_);
+    hot_path_r_ = N_VNew_Serial(n_, ctx_);
+    hot_path_g_.assign(events_.size(), 0.0);
+    t_ = state.t;
     N_Vector id = N_VNew_Serial(n_, ctx_);
     N_Vector atol = N_VNew_Serial(n_, ctx_);
-    double* y = NvData(y_);
-    double* yp = NvData(yp_);
+    double* y = NvData(ida_.y);
+    double* yp = NvData(ida_.yp);
     std::fill(y, y + n_, 0.0);
     std::fill(yp, yp + n_, 0.0);
     for (int i = 0; i < 6; ++i) {
@@ -138,34 +142,8 @@ class DaeGglFormulation final : public Formulation {
       at[i] = force ? std::max(kForceAtolFloor, options_.atol * kForceAtolScale)
                     : mu ? std::max(kMuAtolFloor, options_.atol * kMuAtolScale) : options_.atol;
     }
-    mem_ = IDACreate(ctx_);
-    if (mem_ == nullptr) Throw<SolverError>("DaeGglFormulation::Start", "IDACreate failed");
-    Check(IDASetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "IDASetErrHandlerFn");
-    Check(IDAInit(mem_, &DaeGglFormulation::Residual, state.t, y_, yp_), "IDAInit");
-    Check(IDASetUserData(mem_, this), "IDASetUserData");
-    Check(IDASVtolerances(mem_, options_.rtol, atol), "IDASVtolerances");
-    Check(IDASetId(mem_, id), "IDASetId");
-    Check(IDASetSuppressAlg(mem_, SUNTRUE), "IDASetSuppressAlg");
-    Check(IDASetMaxNumSteps(mem_, options_.max_steps), "IDASetMaxNumSteps");
-    if (options_.max_step > 0.0) Check(IDASetMaxStep(mem_, options_.max_step), "IDASetMaxStep");
-    Check(IDASetStopTime(mem_, scene_.end.time), "IDASetStopTime");
-    // First step as in dae.cpp: a quarter of the previous phase's last step on restarts,
-    // else 1e-4 s · sqrt(rtol / 1e-6) (BDF1 local error ∝ h²), then IDA's error test.
-    const double h0 = last_step_ > 0.0
-                          ? 0.25 * last_step_
-                          : std::clamp(1e-4 * std::sqrt(options_.rtol / 1e-6), 1e-8, 1e-3);
-    Check(IDASetInitStep(mem_, h0), "IDASetInitStep");
-    A_ = SUNDenseMatrix(n_, n_, ctx_);
-    LS_ = SUNLinSol_Dense(y_, A_, ctx_);
-    Check(IDASetLinearSolver(mem_, LS_, A_), "IDASetLinearSolver");
-    Check(IDASetJacFn(mem_, &DaeGglFormulation::Jacobian), "IDASetJacFn");
-    if (!events_.empty()) {
-      Check(IDARootInit(mem_, static_cast<int>(events_.size()), &DaeGglFormulation::Roots),
-            "IDARootInit");
-      std::vector<int> dir = RootDirections(events_);
-      Check(IDASetRootDirection(mem_, dir.data()), "IDASetRootDirection");
-      Check(IDASetNoInactiveRootWarn(mem_), "IDASetNoInactiveRootWarn");
-    }
+    ida_.Start(ctx_, n_, &DaeGglFormulation::Residual, &DaeGglFormulation::Jacobian, &DaeGglFormulation::Roots, this, state.t, atol, id,
+               options_, scene_.end.time, events_, "DaeGglFormulation::Start", &sundials_messages_);
     N_VDestroy(id);
     N_VDestroy(atol);
     ++accumulated_.restarts;
@@ -176,38 +154,26 @@ class DaeGglFormulation final : public Formulation {
     failure_.clear();
     // Stop at t_out instead of interpolating to it: outputs are step values, on which the
     // position and velocity constraints hold to the Newton tolerance.
-    Check(IDASetStopTime(mem_, std::min(t_out, scene_.end.time)), "IDASetStopTime");
-    const int flag = IDASolve(mem_, t_out, &t_reached, y_, yp_, IDA_NORMAL);
+    Check(IDASetStopTime(ida_.mem, std::min(t_out, scene_.end.time)), "IDASetStopTime");
+    const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
     AdvanceResult result;
     if (flag < 0) {
       double h = 0.0, t_cur = 0.0;
-      IDAGetCurrentStep(mem_, &h);
-      IDAGetCurrentTime(mem_, &t_cur);
+      IDAGetCurrentStep(ida_.mem, &h);
+      IDAGetCurrentTime(ida_.mem, &t_cur);
       char* name = IDAGetReturnFlagName(flag);
       const std::string text = name ? name : "?";
       free(name);
       Throw<SolverError>("IDASolve (dae-ggl)", text, " at t = ", t_cur, " s with step h = ", h, " s",
                          failure_.empty() ? "" : " (" + failure_ + ")");
     }
-    const double* y = NvData(y_);
-    const double* yp = NvData(yp_);
-    state->t = t_reached;
-    for (int i = 0; i < 6; ++i) {
-      state->q(i) = y[i];
-      state->qd(i) = y[6 + i];
-      state->qdd(i) = yp[6 + i];
-    }
-    state->contact = state_contact_;
-    state->ligament_branch = ligament_branch_;
-    for (size_t c = 0; c < active_.size(); ++c) {
-      for (int j = 0; j < per_contact_; ++j) {
-        state->contact[active_[c]].coordinates[j] = y[12 + per_contact_ * c + j];
-      }
-      state->contact[active_[c]].normal_force = y[NormalIndex(static_cast<int>(c))];
-    }
-    if (per_contact_ == 0) FillContactCoordinates(model_, state);
+    t_ = t_reached;
+    const double* y = NvData(ida_.y);
+    const double* yp = NvData(ida_.yp);
+    WriteBack(t_reached, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
+              Eigen::Map<const Vector6d>(yp + 6), y + NormalIndex(0), y + 12, per_contact_, state);
     if (flag == IDA_ROOT_RETURN) {
-      Check(IDAGetRootInfo(mem_, root_flags_.data()), "IDAGetRootInfo");
+      Check(IDAGetRootInfo(ida_.mem, root_flags_.data()), "IDAGetRootInfo");
       result = EventResult(root_flags_);
     }
     return result;
@@ -215,7 +181,7 @@ class DaeGglFormulation final : public Formulation {
 
   SolverStats stats() const override {
     SolverStats s = accumulated_;
-    if (mem_ != nullptr) s += CurrentStats();
+    if (ida_.mem != nullptr) s += CurrentStats();
     return s;
   }
 
@@ -232,21 +198,17 @@ class DaeGglFormulation final : public Formulation {
     }
     for (int i = 0; i < 6; ++i) F[i] = u(i) - qdot(i);  // F1–F6 before stabilization
     const PoseTpl<T> pose = PoseFromCoordinates(q);
-    data->ligament_branch = &ligament_branch_;
-    ComputeAppliedWrench(model_, t, pose, data);
-    Vector3<T>& force = data->applied_force_F;
-    Vector3<T>& moment = data->applied_moment_T;
     const Vector6<T> nu = GeneralizedVelocity(q, u);
     const Matrix3<T> E = AngularVelocityMap(q(kBeta), q(kGamma));
     const int k = static_cast<int>(active_.size());
+    ContactGeometryTpl<T> geo[kMaxActiveContacts];
     for (int c = 0; c < k; ++c) {
       const ContactPair& pair = model_.contacts[active_[c]];
       T* Fc = F + 12 + rows_per_contact_ * c;
-      ContactGeometryTpl<T> geo;
       T phi;
       if (form_ == ContactForm::kChapter) {
         T r[5];
-        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo,
+        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo[c],
                                      state_contact_[active_[c]].chart)) {
           return false;
         }
@@ -256,10 +218,10 @@ class DaeGglFormulation final : public Formulation {
         Fc[3] = r[4];
         phi = r[2];
       } else {
-        if (!ContactKinematics(pair, pose, &geo)) return false;
-        phi = geo.gap;
+        if (!ContactKinematics(pair, pose, &geo[c])) return false;
+        phi = geo[c].gap;
       }
-      const Eigen::Matrix<T, 1, 6> G = ContactConstraintRow(pose, geo);
+      const Eigen::Matrix<T, 1, 6> G = ContactConstraintRow(pose, geo[c]);
       Fc[rows_per_contact_ - 2] = phi;                      // position level
       Fc[rows_per_contact_ - 1] = T(G.dot(nu));             // velocity level
       // Stabilization: F1–F6 += K_iᵀ μ_i, K_i = G_i B(q).
@@ -267,11 +229,12 @@ class DaeGglFormulation final : public Formulation {
       for (int i = 0; i < 3; ++i) F[i] += G(i) * mu;
       const Vector3<T> Kang = E.transpose() * G.template tail<3>().transpose();
       for (int i = 0; i < 3; ++i) F[3 + i] += Kang(i) * mu;
-      AddContactWrench(pose, geo, y[NormalIndex(c)], &force, &moment);
     }
-    const Vector6<T> Q = GeneralizedForce(model_, *data, Vector3<T>(nu.template tail<3>()));
-    const Vector6<T> residual = Q - MassTimes(model_, GeneralizedAcceleration(q, u, udot));
-    for (int i = 0; i < 6; ++i) F[6 + i] = residual(i);  // F7–F12
+    // F7–F12: Q + Σ N_i G_iᵀ − M ν̇ (Eqs. 1.48–1.57; solver/newton_euler.hpp).
+    data->ligament_branch = &ligament_branch_;
+    const Vector6<T> residual =
+        NewtonEulerResidual(model_, t, q, u, udot, pose, k, geo, y + NormalIndex(0), data);
+    for (int i = 0; i < 6; ++i) F[6 + i] = -residual(i);  // F7–F12
     return true;
   }
 
@@ -290,6 +253,17 @@ class DaeGglFormulation final : public Formulation {
       for (int r = 0; r < n_; ++r) {
         for (int c = 0; c < n_; ++c) J_(r, c) += scale * Fj_[r].v[c];
       }
+    }
+    return true;
+  }
+
+  // The residual, Jacobian (cj = 1e4 1/s) and root callbacks IDA calls, at the current y, ẏ.
+  bool EvaluateHotPathForTesting(int n) override {
+    if (ida_.mem == nullptr) return false;
+    for (int i = 0; i < n; ++i) {
+      if (Residual(t_, ida_.y, ida_.yp, hot_path_r_, this) != 0) return false;
+      if (Jacobian(t_, 1.0e4, ida_.y, ida_.yp, hot_path_r_, ida_.A, this, nullptr, nullptr, nullptr) != 0) return false;
+      if (!events_.empty() && Roots(t_, ida_.y, ida_.yp, hot_path_g_.data(), this) != 0) return false;
     }
     return true;
   }
@@ -369,38 +343,24 @@ class DaeGglFormulation final : public Formulation {
     CheckSundials(flag, call, "DaeGglFormulation", IDAGetReturnFlagName, &sundials_messages_);
   }
 
-  SolverStats CurrentStats() const { return IdaStatistics(mem_, !events_.empty()); }
+  SolverStats CurrentStats() const { return IdaStatistics(ida_.mem, !events_.empty()); }
 
   void Free() {
-    if (mem_ != nullptr) {
-      accumulated_ += CurrentStats();
-      IDAGetLastStep(mem_, &last_step_);
-      IDAFree(&mem_);
-      mem_ = nullptr;
-    }
-    if (LS_) { SUNLinSolFree(LS_); LS_ = nullptr; }
-    if (A_) { SUNMatDestroy(A_); A_ = nullptr; }
-    if (y_) { N_VDestroy(y_); y_ = nullptr; }
-    if (yp_) { N_VDestroy(yp_); yp_ = nullptr; }
+    ida_.Free(&accumulated_, !events_.empty());
+    if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
-  const Scene& scene_;
-  const Model& model_;
+
   FormulationOptions options_;
   ContactForm form_;
   SundialsContext ctx_;
-  void* mem_ = nullptr;
-  N_Vector y_ = nullptr, yp_ = nullptr;
-  SUNMatrix A_ = nullptr;
-  SUNLinearSolver LS_ = nullptr;
+  double t_ = 0.0;  // s: time of the phase's y, ẏ (phase start or last Advance)
+  N_Vector hot_path_r_ = nullptr;   // residual of EvaluateHotPathForTesting
+  std::vector<double> hot_path_g_;  // root values of EvaluateHotPathForTesting
+  IdaPhase ida_;  // IDA memory, y, ẏ, matrix and linear solver of the phase
   int n_ = 0;
   int per_contact_ = 4;
   int rows_per_contact_ = 6;
-  double last_step_ = 0.0;  // s: last step of the previous phase, the restart's first step
-  std::vector<int> active_;
-  std::vector<EventSpec> events_;
-  std::vector<ContactGuess> state_contact_;
-  std::vector<signed char> ligament_branch_;  // locked for the phase
   SolverStats accumulated_;
   mutable std::string failure_;
   // Workspaces sized in the constructor / Start (no allocation in the callbacks).

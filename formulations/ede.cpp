@@ -18,10 +18,11 @@
 //               Other integrators: InputError (CVODE projects only with BDF).
 // Events: lift-off g = N_i, re-contact and flexion via solver/events.hpp.
 #include <Eigen/QR>
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
-#include "formulations/formulation.hpp"
+#include "formulations/formulation_base.hpp"
 #include "formulations/ode_integrator.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -32,22 +33,26 @@ namespace {
 constexpr int kMaxProjectionIterations = 10;
 constexpr double kProjectionTolerance = 1.0e-14;  // m
 
-class EdeFormulation final : public Formulation, public OdeProblem {
+class EdeFormulation final : public FormulationBase, public OdeProblem {
  public:
   EdeFormulation(const Scene& scene, const FormulationOptions& options)
-      : scene_(scene), model_(scene.model), options_(options), integrator_(options, "ede") {
-    if (options.stabilization == "baumgarte") {
+      : FormulationBase(scene), options_(options), integrator_(options, "ede"),
+        workspace_(model_) {
+    acc_.normal_force.reserve(kMaxConstrainedContacts);
+    normal_.assign(model_.contacts.size(), 0.0);
+    const Stabilization stabilization = options.Parsed().stabilization;
+    if (stabilization == Stabilization::kBaumgarte) {
       gains_.alpha = options.baumgarte_alpha;
       gains_.beta = options.baumgarte_beta;
     }
-    project_ = options.stabilization == "projection" || options.stabilization == "cvode-projection";
-    solver_projection_ = options.stabilization == "cvode-projection";
+    project_ = stabilization == Stabilization::kProjection || stabilization == Stabilization::kCvodeProjection;
+    solver_projection_ = stabilization == Stabilization::kCvodeProjection;
     if (solver_projection_ && !integrator_.supports_solver_projection()) {
       Throw<InputError>("EdeFormulation", "--stabilization cvode-projection with --integrator '",
                         integrator_.name(), "': CVODE's projection (CVodeSetProjFn) exists only for "
                         "cvode-bdf; use --integrator cvode-bdf or --stabilization projection");
     }
-    if (project_ && !solver_projection_ && integrator_.name() == "cvode-adams") {
+    if (project_ && !solver_projection_ && integrator_.kind() == IntegratorKind::kCvodeAdams) {
       // The project-and-restart loop would restart the multistep method at order 1 every step.
       Throw<InputError>("EdeFormulation", "--stabilization projection with --integrator cvode-adams: "
                         "not supported (CVODE projects only with BDF); use cvode-bdf or an ERK method");
@@ -57,10 +62,7 @@ class EdeFormulation final : public Formulation, public OdeProblem {
   ContactForm contact_form() const override { return ContactForm::kClosedForm; }
 
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
-    active_ = state.active;
-    events_ = events;
-    state_contact_ = state.contact;
-    ligament_branch_ = state.ligament_branch;
+    BeginPhase(state, events);
     t_ = state.t;
     y_.resize(12);
     y_ << state.q, state.qd;
@@ -85,18 +87,12 @@ class EdeFormulation final : public Formulation, public OdeProblem {
     Vector6d q = y_.head<6>(), qd = y_.tail<6>();
     const ConstrainedAcceleration acc =
         SolveConstrainedAcceleration(model_, t_, q, qd, active_, gains_, &ligament_branch_);
-    state->t = t_;
-    state->q = q;
-    state->qd = qd;
-    state->qdd = acc.qdd;
-    state->contact = state_contact_;
-    state->ligament_branch = ligament_branch_;
-    for (size_t c = 0; c < active_.size(); ++c) state->contact[active_[c]].normal_force = acc.normal_force[c];
-    FillContactCoordinates(model_, state);
+    WriteBack(t_, q, qd, acc.qdd, acc.normal_force.data(), nullptr, 0, state);
     return root ? EventResult(found) : AdvanceResult{};
   }
 
   std::string integrator() const override { return integrator_.name(); }
+  bool EvaluateHotPathForTesting(int n) override { return integrator_.EvaluateCallbacksForTesting(t_, y_, n); }
   double fixed_step() const override { return integrator_.step(); }
 
   SolverStats stats() const override {
@@ -105,14 +101,14 @@ class EdeFormulation final : public Formulation, public OdeProblem {
     return s;
   }
 
+  // No allocation (workspace_, acc_; tests/zero_allocation_test.cpp).
   bool Rhs(double t, const double* y, double* ydot) override {
     const Vector6d q = Eigen::Map<const Vector6d>(y);
     const Vector6d qd = Eigen::Map<const Vector6d>(y + 6);
-    const ConstrainedAcceleration acc =
-        SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_);
+    SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_, &workspace_, &acc_);
     for (int i = 0; i < 6; ++i) {
       ydot[i] = qd(i);
-      ydot[6 + i] = acc.qdd(i);
+      ydot[6 + i] = acc_.qdd(i);
     }
     return true;
   }
@@ -126,13 +122,12 @@ class EdeFormulation final : public Formulation, public OdeProblem {
   void Roots(double t, const double* y, double* g) override {
     const Vector6d q = Eigen::Map<const Vector6d>(y);
     const Vector6d qd = Eigen::Map<const Vector6d>(y + 6);
-    std::vector<double> normal(model_.contacts.size(), 0.0);
+    std::fill(normal_.begin(), normal_.end(), 0.0);
     if (!active_.empty()) {
-      const ConstrainedAcceleration acc =
-          SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_);
-      for (size_t c = 0; c < active_.size(); ++c) normal[active_[c]] = acc.normal_force[c];
+      SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_, &workspace_, &acc_);
+      for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = acc_.normal_force[c];
     }
-    EvaluateEvents(scene_, events_, q, normal, g);
+    EvaluateEvents(scene_, events_, q, normal_, g);
   }
 
  private:
@@ -152,8 +147,6 @@ class EdeFormulation final : public Formulation, public OdeProblem {
     return true;
   }
 
-  const Scene& scene_;
-  const Model& model_;
   FormulationOptions options_;
   OdeIntegrator integrator_;
   BaumgarteGains gains_;
@@ -162,10 +155,10 @@ class EdeFormulation final : public Formulation, public OdeProblem {
   long projections_ = 0;
   double t_ = 0.0;
   VectorXd y_;
-  std::vector<int> active_;
-  std::vector<EventSpec> events_;
-  std::vector<ContactGuess> state_contact_;
-  std::vector<signed char> ligament_branch_;
+  // Workspaces of the right-hand side and root functions (sized once; no allocation there).
+  ConstrainedDynamicsWorkspace workspace_;
+  ConstrainedAcceleration acc_;
+  std::vector<double> normal_;  // N per model contact, for the root functions
 };
 
 }  // namespace

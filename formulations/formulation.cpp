@@ -1,6 +1,7 @@
 #include "formulations/formulation.hpp"
 
 #include <cmath>
+#include <utility>
 
 #include "solver/error.hpp"
 
@@ -19,6 +20,53 @@ SolverStats& SolverStats::operator+=(const SolverStats& o) {
   projections += o.projections;
   restarts += o.restarts;
   return *this;
+}
+
+bool FormulationOptions::Parse(ParsedFormulationOptions* out, std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  static const std::pair<const char*, IntegratorKind> kIntegrators[] = {
+      {"", IntegratorKind::kDopri5},          {"euler", IntegratorKind::kEuler},
+      {"rk4", IntegratorKind::kRk4},          {"dopri5", IntegratorKind::kDopri5},
+      {"verner65", IntegratorKind::kVerner65}, {"fehlberg78", IntegratorKind::kFehlberg78},
+      {"cvode-bdf", IntegratorKind::kCvodeBdf}, {"cvode-adams", IntegratorKind::kCvodeAdams}};
+  static const std::pair<const char*, Stabilization> kStabilizations[] = {
+      {"none", Stabilization::kNone}, {"baumgarte", Stabilization::kBaumgarte},
+      {"projection", Stabilization::kProjection}, {"cvode-projection", Stabilization::kCvodeProjection}};
+  static const std::pair<const char*, ConstraintLevel> kLevels[] = {
+      {"velocity", ConstraintLevel::kVelocity}, {"position", ConstraintLevel::kPosition}};
+  ParsedFormulationOptions parsed;
+  bool found = false;
+  for (const auto& [text, kind] : kIntegrators) {
+    if (integrator == text) parsed.integrator = kind, found = true;
+  }
+  if (!found) {
+    return fail("--integrator = '" + integrator +
+                "' is not available; must be euler, rk4, dopri5, verner65, fehlberg78, cvode-bdf or cvode-adams");
+  }
+  found = false;
+  for (const auto& [text, kind] : kStabilizations) {
+    if (stabilization == text) parsed.stabilization = kind, found = true;
+  }
+  if (!found) {
+    return fail("--stabilization = '" + stabilization + "'; must be none, baumgarte, projection or cvode-projection");
+  }
+  found = false;
+  for (const auto& [text, kind] : kLevels) {
+    if (constraint_level == text) parsed.constraint_level = kind, found = true;
+  }
+  if (!found) return fail("--constraint-level = '" + constraint_level + "'; must be velocity or position");
+  if (out) *out = parsed;
+  return true;
+}
+
+ParsedFormulationOptions FormulationOptions::Parsed() const {
+  ParsedFormulationOptions parsed;
+  std::string why;
+  if (!Parse(&parsed, &why)) Throw<InputError>("FormulationOptions::Parse", why);
+  return parsed;
 }
 
 bool FormulationOptions::IsValid(std::string* error) const {
@@ -41,16 +89,10 @@ bool FormulationOptions::IsValid(std::string* error) const {
   if (max_steps < 1 || max_steps > 100000000) {
     return fail(StrCat("--max-steps = ", max_steps, "; must lie in [1, 1e8]"));
   }
-  if (stabilization != "none" && stabilization != "baumgarte" && stabilization != "projection" &&
-      stabilization != "cvode-projection") {
-    return fail("--stabilization = '" + stabilization + "'; must be none, baumgarte, projection or cvode-projection");
-  }
   if (!(baumgarte_alpha >= 0.0) || !(baumgarte_beta >= 0.0)) {
     return fail(StrCat("Baumgarte gains (", baumgarte_alpha, ", ", baumgarte_beta, "); must be >= 0"));
   }
-  if (constraint_level != "velocity" && constraint_level != "position") {
-    return fail("--constraint-level = '" + constraint_level + "'; must be velocity or position");
-  }
+  if (!Parse(nullptr, error)) return false;  // the string options, parsed once
   if (!(rho_inf >= 0.0 && rho_inf <= 1.0)) {
     return fail(StrCat("--rho-inf = ", rho_inf, "; must be in [0, 1]"));
   }
@@ -86,6 +128,10 @@ bool IsFixedStep(const FormulationInfo& info, const std::string& integrator) {
   return info.fixed_step || integrator == "euler" || integrator == "rk4";
 }
 
+bool HasErrorControl(const FormulationInfo& info, const std::string& integrator) {
+  return !IsFixedStep(info, integrator);
+}
+
 const FormulationInfo& FindFormulation(const std::string& name) {
   std::string known;
   for (const FormulationInfo& info : RegisteredFormulations()) {
@@ -114,6 +160,24 @@ std::unique_ptr<Formulation> CreateFormulation(const std::string& name, const Sc
   } else if (info.integrators.empty() && !options.integrator.empty()) {
     Throw<InputError>("CreateFormulation", "--integrator = '", options.integrator,
                       "': formulation '", name, "' has a fixed integrator and takes no --integrator");
+  }
+  auto one_of = [](const std::vector<std::string>& values, const std::string& v, std::string* list) {
+    bool ok = false;
+    for (const std::string& x : values) {
+      ok = ok || x == v;
+      *list += (list->empty() ? "" : ", ") + x;
+    }
+    return ok;
+  };
+  std::string list;
+  if (!one_of(info.stabilizations, options.stabilization, &list)) {
+    Throw<InputError>("CreateFormulation", "--stabilization = '", options.stabilization,
+                      "' is not available for formulation '", name, "'; it accepts: ", list);
+  }
+  list.clear();
+  if (!one_of(info.constraint_levels, options.constraint_level, &list)) {
+    Throw<InputError>("CreateFormulation", "--constraint-level = '", options.constraint_level,
+                      "' is not available for formulation '", name, "'; it accepts: ", list);
   }
   return info.create(scene, options);
 }

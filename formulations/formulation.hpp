@@ -4,8 +4,9 @@
 // formulations: consistent initialization, contact switching (lift-off, re-contact, both
 // separated), the end condition, output times and files.
 //
-// Adding a formulation: one new file defining a Formulation subclass and one line in
-// registry.cpp. It then appears in `kneedyn run --formulation`, the conformance tests,
+// Adding a formulation: one new file defining a Formulation subclass and its Create
+// function, and one line in registry.cpp (KNEEDYN_FACTORY declares the Create function there;
+// CMake globs formulations/*.cpp). It then appears in `kneedyn run --formulation`, the conformance tests,
 // the benchmarks and the reports.
 #pragma once
 
@@ -40,6 +41,17 @@ struct SolverStats {
   long rejected_steps() const { return error_test_failures + convergence_failures + step_halvings; }
 };
 
+// The string-valued options parsed once (FormulationOptions::Parse) into what the
+// formulations branch on.
+enum class IntegratorKind { kEuler, kRk4, kDopri5, kVerner65, kFehlberg78, kCvodeBdf, kCvodeAdams };
+enum class Stabilization { kNone, kBaumgarte, kProjection, kCvodeProjection };
+enum class ConstraintLevel { kVelocity, kPosition };  // dae: index 2 | index-3 variant
+struct ParsedFormulationOptions {
+  IntegratorKind integrator = IntegratorKind::kDopri5;  // "" = dopri5 (mde, ede default)
+  Stabilization stabilization = Stabilization::kNone;
+  ConstraintLevel constraint_level = ConstraintLevel::kVelocity;
+};
+
 // Options every formulation understands; each uses the ones that apply to it and
 // rejects, in its factory, values that make no sense for it.
 struct FormulationOptions {
@@ -65,6 +77,10 @@ struct FormulationOptions {
 
   // Ceres Solver::Options::IsValid style: names the option, its value and the rule.
   bool IsValid(std::string* error) const;
+  // The string options as enums; false (with the IsValid message) when one is unknown.
+  // Throwing variant: InputError with that message.
+  bool Parse(ParsedFormulationOptions* out, std::string* error) const;
+  ParsedFormulationOptions Parsed() const;
 };
 
 enum class AdvanceStatus { kReachedTime, kEvent };
@@ -98,18 +114,44 @@ class Formulation {
   // its fixed step in s (0: adaptive), for summary.json. Defaults: not stated.
   virtual std::string integrator() const { return ""; }
   virtual double fixed_step() const { return 0.0; }
+  // Testing hook (tests/zero_allocation_test.cpp, issue 11 item 7): after Start, calls the
+  // callbacks the solver calls inside a phase (residual or right-hand side, Jacobian, root
+  // functions; Newton step for the steppers) n times at the current state, through the same
+  // code the solver runs. Returns false when the formulation has no such hook.
+  virtual bool EvaluateHotPathForTesting(int n) { (void)n; return false; }
 };
 
 using FormulationFactory =
     std::function<std::unique_ptr<Formulation>(const Scene&, const FormulationOptions&)>;
 
+// What a formulation can do, declared once in its registry line: drivers and tests ask
+// these (and GTEST_SKIP on them) instead of comparing names.
 struct FormulationInfo {
   std::string name;
   std::string summary;
   std::vector<std::string> integrators;  // values --integrator accepts; empty: none
   FormulationFactory create;
   bool fixed_step = false;  // steps only with --step (its tolerances drive a Newton test)
+  // The contact forces are unknowns of the solver (DAE, Newton on the step equations) rather
+  // than computed from the state (ODE formulations through the hidden constraint).
+  bool algebraic_forces = false;
+  std::vector<std::string> stabilizations = {"none"};      // values --stabilization accepts
+  std::vector<std::string> constraint_levels = {"velocity"};  // values --constraint-level accepts
+  bool general_surfaces = true;  // any surface pair (contact_kinematics.hpp), not only sphere on plane
+  bool event_location = true;    // locates event roots inside a step (root finder or event locator)
 };
+
+// Adaptive step size under --rtol/--atol (error control): not IsFixedStep.
+bool HasErrorControl(const FormulationInfo& info, const std::string& integrator);
+
+// A registry line's factory (registry.cpp): a Create function defined in the formulation's
+// own file, declared inside the lambda, so that the registry line is all a new formulation
+// adds outside its file.
+#define KNEEDYN_FACTORY(function)                                                             \
+  [](const Scene& scene, const FormulationOptions& options) {                                 \
+    std::unique_ptr<Formulation> function(const Scene&, const FormulationOptions&);            \
+    return function(scene, options);                                                          \
+  }
 
 // Step a fixed-step method takes when --step is 0 (s).
 constexpr double kDefaultFixedStep = 1.0e-4;

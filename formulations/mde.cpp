@@ -23,12 +23,13 @@
 // Contact forces afterwards from the full equations: Gᵀ N = M ν̇ − Q (least squares).
 // The constraints hold by construction (no drift); lift-off root g = N_i.
 #include <Eigen/LU>
+#include <array>
 #include <algorithm>
 #include <Eigen/QR>
 #include <cmath>
 #include <memory>
 
-#include "formulations/formulation.hpp"
+#include "formulations/formulation_base.hpp"
 #include "formulations/ode_integrator.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -46,16 +47,31 @@ constexpr double kMaxChartDegradation = 1.0e3;
 constexpr double kEliminationTolerance = 1.0e-15;
 constexpr int kMaxEliminationIterations = 20;
 
+// Fixed-capacity Eigen types of the elimination (k ≤ 2 active contacts, m = 6 − k ≤ 6 free
+// coordinates): no heap allocation in the right-hand side (tests/zero_allocation_test.cpp).
+constexpr int kMaxMdeContacts = 2;
+using MatKK = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxMdeContacts, kMaxMdeContacts>;
+using MatK3 = Eigen::Matrix<double, Eigen::Dynamic, 3, 0, kMaxMdeContacts, 3>;
+using MatK6 = Eigen::Matrix<double, Eigen::Dynamic, 6, 0, kMaxMdeContacts, 6>;
+using MatKM = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxMdeContacts, 6>;
+using Mat6M = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, 6>;
+using Mat6K = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxMdeContacts>;
+using MatMM = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 6, 6>;
+using VecK = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxMdeContacts, 1>;
+using VecM = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
+
 struct MdeKinematics {
   Vector6d q, qd, qdd;
-  std::vector<double> normal_force;  // per active contact, N
+  std::array<double, kMaxMdeContacts> normal_force{};  // per active contact, N
 };
 
-class MdeFormulation final : public Formulation, public OdeProblem {
+class MdeFormulation final : public FormulationBase, public OdeProblem {
  public:
   MdeFormulation(const Scene& scene, const FormulationOptions& options)
-      : scene_(scene), model_(scene.model), options_(options), integrator_(options, "mde") {
-    if (options.stabilization != "none") {
+      : FormulationBase(scene), options_(options), integrator_(options, "mde"),
+        data_(model_) {
+    normal_.assign(model_.contacts.size(), 0.0);
+    if (options.Parsed().stabilization != Stabilization::kNone) {
       Throw<InputError>("MdeFormulation", "--stabilization = '", options.stabilization,
                         "' applies to ede only (mde has no drift)");
     }
@@ -64,10 +80,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
   ContactForm contact_form() const override { return ContactForm::kClosedForm; }
 
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
-    active_ = state.active;
-    events_ = events;
-    state_contact_ = state.contact;
-    ligament_branch_ = state.ligament_branch;
+    BeginPhase(state, events);
     elim_.clear();
     phase_steps_ = 0;
     last_q_ = state.q;
@@ -102,24 +115,18 @@ class MdeFormulation final : public Formulation, public OdeProblem {
       if (!root && !active_.empty()) SwitchChartIfBetter();
     } while (!root && t_ < t_out);
     const MdeKinematics kin = Evaluate(t_, y_.data(), nullptr);
-    state->t = t_;
-    state->q = kin.q;
-    state->qd = kin.qd;
-    state->qdd = kin.qdd;
-    state->contact = state_contact_;
-    state->ligament_branch = ligament_branch_;
-    for (size_t c = 0; c < active_.size(); ++c) state->contact[active_[c]].normal_force = kin.normal_force[c];
-    FillContactCoordinates(model_, state);
+    WriteBack(t_, kin.q, kin.qd, kin.qdd, kin.normal_force.data(), nullptr, 0, state);
     return root ? EventResult(found) : AdvanceResult{};
   }
 
   SolverStats stats() const override { return integrator_.stats(); }
   std::string integrator() const override { return integrator_.name(); }
+  bool EvaluateHotPathForTesting(int n) override { return integrator_.EvaluateCallbacksForTesting(t_, y_, n); }
   double fixed_step() const override { return integrator_.step(); }
 
   bool Rhs(double t, const double* y, double* ydot) override {
     const int m = static_cast<int>(free_.size());
-    VectorXd sdd(m);
+    VecM sdd(m);
     Evaluate(t, y, &sdd);
     for (int j = 0; j < m; ++j) {
       ydot[j] = y[m + j];
@@ -130,9 +137,9 @@ class MdeFormulation final : public Formulation, public OdeProblem {
 
   void Roots(double t, const double* y, double* g) override {
     const MdeKinematics kin = Evaluate(t, y, nullptr);
-    std::vector<double> normal(model_.contacts.size(), 0.0);
-    for (size_t c = 0; c < active_.size(); ++c) normal[active_[c]] = kin.normal_force[c];
-    EvaluateEvents(scene_, events_, kin.q, normal, g);
+    std::fill(normal_.begin(), normal_.end(), 0.0);
+    for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = kin.normal_force[c];
+    EvaluateEvents(scene_, events_, kin.q, normal_, g);
   }
 
  private:
@@ -167,19 +174,19 @@ class MdeFormulation final : public Formulation, public OdeProblem {
   }
 
   // |det| of the elimination block of `cand` for the normals n_i = R n̂′_i (rows).
-  static double BlockDeterminant(const MatrixXd& normals, const std::vector<int>& cand) {
+  static double BlockDeterminant(const MatK3& normals, const std::vector<int>& cand) {
     const int k = static_cast<int>(cand.size());
     if (k == 0) return 1.0;
-    MatrixXd block(k, k);
+    MatKK block(k, k);
     for (int c = 0; c < k; ++c) block.col(c) = normals.col(cand[c]);
     return std::abs(block.determinant());
   }
 
   // Contact normals n_F (rows) of the active contacts at the full pose q.
-  MatrixXd ContactNormals(const Vector6d& q) const {
+  MatK3 ContactNormals(const Vector6d& q) const {
     const int k = static_cast<int>(active_.size());
     const Pose pose = PoseFromCoordinates(q);
-    MatrixXd normals(k, 3);
+    MatK3 normals(k, 3);
     for (int r = 0; r < k; ++r) {
       const ContactGeometry g = RequireContactKinematics(model_.contacts[active_[r]], pose, "MdeFormulation");
       normals.row(r) = (pose.R_FT * g.normal_T).transpose();
@@ -191,7 +198,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
   void ChooseEliminated(const Vector6d& q) {
     const int k = static_cast<int>(active_.size());
     if (k > 2) Throw<SolverError>("MdeFormulation::Start", k, " active contacts; at most 2 supported");
-    const MatrixXd normals = ContactNormals(q);
+    const MatK3 normals = ContactNormals(q);
     const std::vector<int> current = elim_;
     double current_det = -1.0;
     elim_.clear();
@@ -216,7 +223,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
   }
 
   // q from s (closed-form elimination); qd = P ṡ; s̈ (if sdd) and q̈, N.
-  MdeKinematics Evaluate(double t, const double* y, VectorXd* sdd_out) const {
+  MdeKinematics Evaluate(double t, const double* y, VecM* sdd_out) const {
     const int m = static_cast<int>(free_.size());
     const int k = static_cast<int>(elim_.size());
     MdeKinematics kin;
@@ -224,15 +231,15 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     for (int j = 0; j < m; ++j) kin.q(free_[j]) = y[j];
     // φ_i(q) = 0 solved for the eliminated translations by Newton (∂φ_i/∂R0 = −n_F,i); one
     // step is exact for a sphere on a plane (φ linear in R0), a few for curved surfaces.
-    std::vector<ContactGeometry> geo(k);
+    std::array<ContactGeometry, kMaxMdeContacts> geo;
     // Closed form where one exists: n_i · R0 = n_i · C_i − d_i − r_i (linear in R0).
     bool closed_form = k > 0;
-    std::vector<SphereOnPlane> sop(k);
+    std::array<SphereOnPlane, kMaxMdeContacts> sop;
     for (int r = 0; r < k; ++r) closed_form = closed_form && SphereOnPlaneForm(model_.contacts[active_[r]], &sop[r]);
     if (closed_form) {
       const Matrix3d R = RotationFT(kin.q(kAlpha), kin.q(kBeta), kin.q(kGamma));
-      MatrixXd ND(k, k);
-      VectorXd rhs(k);
+      MatKK ND(k, k);
+      VecK rhs(k);
       for (int r = 0; r < k; ++r) {
         const Vector3d n = R * sop[r].normal_T;
         rhs(r) = n.dot(sop[r].centre_F) - sop[r].offset - sop[r].radius;
@@ -241,15 +248,15 @@ class MdeFormulation final : public Formulation, public OdeProblem {
         }
         for (int c = 0; c < k; ++c) ND(r, c) = n(elim_[c]);
       }
-      const VectorXd x = ND.partialPivLu().solve(rhs);
+      const VecK x = ND.partialPivLu().solve(rhs);
       for (int c = 0; c < k; ++c) kin.q(elim_[c]) = x(c);
       const Pose pose_c = PoseFromCoordinates(kin.q);
       for (int r = 0; r < k; ++r) geo[r] = SphereOnPlaneContact(sop[r], pose_c);
     }
     for (int iter = 0; k > 0 && !closed_form; ++iter) {
       const Pose pose_i = PoseFromCoordinates(kin.q);
-      MatrixXd ND(k, k);
-      VectorXd phi(k);
+      MatKK ND(k, k);
+      VecK phi(k);
       for (int r = 0; r < k; ++r) {
         geo[r] = RequireContactKinematics(model_.contacts[active_[r]], pose_i, "MdeFormulation::Evaluate");
         phi(r) = geo[r].gap;
@@ -263,12 +270,17 @@ class MdeFormulation final : public Formulation, public OdeProblem {
                            " s: max |gap| = ", phi.cwiseAbs().maxCoeff(), " m after ", iter,
                            " Newton steps (rule: <= ", kEliminationTolerance, " m)");
       }
-      const VectorXd dx = ND.partialPivLu().solve(phi);
+      const VecK dx = ND.partialPivLu().solve(phi);
       for (int c = 0; c < k; ++c) kin.q(elim_[c]) -= dx(c);
     }
     if (k > 0) {
-      // The chart in use must still be usable here (see kMaxChartDegradation).
-      const MatrixXd normals = ContactNormals(kin.q);
+      // The chart in use must still be usable here (see kMaxChartDegradation). geo[r] is the
+      // contact at kin.q already (the elimination stops before updating q), so the normals
+      // come from it instead of another k local contact solves (perf: a third of the
+      // right-hand side's time on general surfaces).
+      MatK3 normals(k, 3);
+      const Matrix3d R_FT = RotationFT(kin.q(kAlpha), kin.q(kBeta), kin.q(kGamma));
+      for (int r = 0; r < k; ++r) normals.row(r) = (R_FT * geo[r].normal_T).transpose();
       double best = 0.0;
       for (const std::vector<int>& cand : Candidates(k)) best = std::max(best, BlockDeterminant(normals, cand));
       const double det = BlockDeterminant(normals, elim_);
@@ -282,24 +294,25 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     const Pose pose = PoseFromCoordinates(kin.q);
     const Matrix3d E = AngularVelocityMap(kin.q(kBeta), kin.q(kGamma));
     // J = ∂φ/∂q = G B, and P = ∂q/∂s.
-    MatrixXd J(k, 6), G(k, 6);
+    MatK6 J(k, 6), G(k, 6);
     for (int r = 0; r < k; ++r) {
       G.row(r) = ContactConstraintRow(pose, geo[r]);
       J.block(r, 0, 1, 3) = G.block(r, 0, 1, 3);
       J.block(r, 3, 1, 3) = G.block(r, 3, 1, 3) * E;
     }
-    MatrixXd P = MatrixXd::Zero(6, m);
+    Mat6M P = Mat6M::Zero(6, m);
     for (int j = 0; j < m; ++j) P(free_[j], j) = 1.0;
-    Eigen::PartialPivLU<MatrixXd> JD_lu;
+    Eigen::PartialPivLU<MatKK> JD_lu;
     if (k > 0) {
-      MatrixXd JD(k, k), JF(k, m);
+      MatKK JD(k, k);
+      MatKM JF(k, m);
       for (int c = 0; c < k; ++c) JD.col(c) = J.col(elim_[c]);
       for (int j = 0; j < m; ++j) JF.col(j) = J.col(free_[j]);
       JD_lu.compute(JD);
-      const MatrixXd PD = -JD_lu.solve(JF);
+      const MatKM PD = -JD_lu.solve(JF);
       for (int c = 0; c < k; ++c) P.row(elim_[c]) = PD.row(c);
     }
-    const VectorXd sd = Eigen::Map<const VectorXd>(y + m, m);
+    const VecM sd = Eigen::Map<const VectorXd>(y + m, m);
     kin.qd = P * sd;
     const Vector6d nu = GeneralizedVelocity(kin.q, kin.qd);
     const Vector3d qd_ang = kin.qd.tail<3>();
@@ -307,55 +320,52 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     // q̈ = P s̈ + p;  c_i = G_w,i Ė θ̇ + κ_i.
     Vector6d p = Vector6d::Zero();
     if (k > 0) {
-      VectorXd c(k);
+      VecK c(k);
       for (int r = 0; r < k; ++r) {
         c(r) = (G.block(r, 3, 1, 3) * Edot_thetadot)(0) +
                ContactRateTerm(model_.contacts[active_[r]], kin.q, kin.qd);
       }
-      const VectorXd pD = -JD_lu.solve(c);
+      const VecK pD = -JD_lu.solve(c);
       for (int r = 0; r < k; ++r) p(elim_[r]) = pD(r);
     }
     // ν̇ = A s̈ + b.
-    MatrixXd A(6, m);
+    Mat6M A(6, m);
     A.topRows(3) = P.topRows(3);
     A.bottomRows(3) = E * P.bottomRows(3);
     Vector6d b;
     b.head<3>() = p.head<3>();
     b.tail<3>() = E * p.tail<3>() + Edot_thetadot;
-    Data data(model_);
+    Data& data = data_;
     data.ligament_branch = &ligament_branch_;
     ComputeAppliedWrench(model_, t, pose, &data);
     const Vector6d Q = GeneralizedForce(model_, data, Vector3d(nu.tail<3>()));
     const Matrix6d M = MassMatrix(model_);
-    const MatrixXd AtMA = A.transpose() * M * A;
-    const VectorXd sdd = AtMA.ldlt().solve(A.transpose() * (Q - M * b));
+    const MatMM AtMA = A.transpose() * M * A;
+    const VecM sdd = AtMA.ldlt().solve(A.transpose() * (Q - M * b));
     if (sdd_out) *sdd_out = sdd;
     kin.qdd = P * sdd + p;
     // Gᵀ N = M ν̇ − Q.
     if (k > 0) {
       const Vector6d residual = M * (A * sdd + b) - Q;
-      const VectorXd N = G.transpose().colPivHouseholderQr().solve(residual);
-      kin.normal_force.assign(N.data(), N.data() + k);
+      const Mat6K Gt = G.transpose();
+      const VecK N = Gt.colPivHouseholderQr().solve(residual);
+      for (int c = 0; c < k; ++c) kin.normal_force[c] = N(c);
     }
     return kin;
   }
 
-  const Scene& scene_;
-  const Model& model_;
   FormulationOptions options_;
   OdeIntegrator integrator_;
   double t_ = 0.0;
   VectorXd y_;
-  std::vector<int> active_;
   std::vector<int> free_;  // indices into q of s, ascending
   std::vector<int> elim_;  // eliminated translations (one per active contact)
   long phase_steps_ = 0;
   // The eliminated translations start Newton from the phase start's values, so that the
   // right-hand side is a function of (t, y) alone (no dependence on the call history).
   Vector6d last_q_ = Vector6d::Zero();   // steps since Start (the --max-steps budget is per phase)
-  std::vector<EventSpec> events_;
-  std::vector<ContactGuess> state_contact_;
-  std::vector<signed char> ligament_branch_;
+  mutable Data data_;           // applied-load workspace of Evaluate
+  std::vector<double> normal_;  // N per model contact, for the root functions
 };
 
 }  // namespace

@@ -61,6 +61,7 @@
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/dynamics.hpp"
+#include "solver/newton_euler.hpp"
 
 namespace kneedyn {
 namespace {
@@ -120,6 +121,7 @@ class NewmarkFormulation final : public Formulation {
     const int k = static_cast<int>(active_.size());
     n_ = 6 + (per_contact_ + 1) * k;
     if (n_ > kMaxJetSize) Throw<SolverError>("NewmarkFormulation::Start", "system size ", n_, " exceeds ", kMaxJetSize);
+    if (k > kMaxActiveContacts) Throw<SolverError>("NewmarkFormulation::Start", k, " active contacts exceed ", kMaxActiveContacts);
     state_contact_ = state.contact;
     ligament_branch_ = state.ligament_branch;
     current_.t = state.t;
@@ -189,6 +191,16 @@ class NewmarkFormulation final : public Formulation {
   SolverStats stats() const override { return stats_; }
   std::string integrator() const override { return "newmark-average-acceleration"; }
   double fixed_step() const override { return step_; }
+  // One Newton step from the current state (residual + Jet Jacobian + LU per iteration)
+  // and the event functions, n times.
+  bool EvaluateHotPathForTesting(int n) override {
+    StepState next;
+    for (int i = 0; i < n; ++i) {
+      if (!SolveStep(current_, h_, &next)) return false;
+      g_hot_path_ = Events(next);
+    }
+    return true;
+  }
 
   // Newmark step residual F(x) for any scalar type; false when a surface is evaluated
   // outside its domain (recoverable: the step is halved).
@@ -203,29 +215,26 @@ class NewmarkFormulation final : public Formulation {
       qd(i) = from.qd(i) + h * ((1.0 - scheme_.gamma) * from.a(i) + scheme_.gamma * a);
     }
     const PoseTpl<T> pose = PoseFromCoordinates(q);
-    DataTpl<T> data(model_);
-    data.ligament_branch = &ligament_branch_;
-    ComputeAppliedWrench(model_, from.t + h, pose, &data);
     const T* N = x + 6 + per_contact_ * k;
+    ContactGeometryTpl<T> geo[kMaxActiveContacts];
     for (int c = 0; c < k; ++c) {
       const ContactPair& pair = model_.contacts[active_[c]];
-      ContactGeometryTpl<T> geo;
       if (form_ == ContactForm::kChapter) {
-        if (!ChapterContactResiduals(pair, pose, x + 6 + 4 * c, F + 6 + 5 * c, &geo,
+        if (!ChapterContactResiduals(pair, pose, x + 6 + 4 * c, F + 6 + 5 * c, &geo[c],
                                      state_contact_[active_[c]].chart)) {
           return false;
         }
       } else {
-        if (!ContactKinematics(pair, pose, &geo)) return false;
-        F[6 + c] = geo.gap;  // φ_i = 0
+        if (!ContactKinematics(pair, pose, &geo[c])) return false;
+        F[6 + c] = geo[c].gap;  // φ_i = 0
       }
-      AddContactWrench(pose, geo, N[c], &data.applied_force_F, &data.applied_moment_T);
     }
-    const Vector6<T> nu = GeneralizedVelocity(q, qd);
+    // Q + Σ N_i G_iᵀ − M ν̇ at t_{n+1} (Eqs. 1.48–1.57; solver/newton_euler.hpp).
+    DataTpl<T> data(model_);
+    data.ligament_branch = &ligament_branch_;
     const Vector6<T> residual =
-        GeneralizedForce(model_, data, Vector3<T>(nu.template tail<3>())) -
-        MassTimes(model_, GeneralizedAcceleration(q, qd, qdd));
-    for (int i = 0; i < 6; ++i) F[i] = RowScale(h) * residual(i);
+        NewtonEulerResidual(model_, from.t + h, q, qd, qdd, pose, k, geo, N, &data);
+    for (int i = 0; i < 6; ++i) F[i] = RowScale(h) * -residual(i);
     return true;
   }
 
@@ -514,6 +523,7 @@ class NewmarkFormulation final : public Formulation {
   std::vector<ContactGuess> state_contact_;
   std::vector<signed char> ligament_branch_;  // locked for the phase
   StepState current_;
+  std::vector<double> g_hot_path_;  // EvaluateHotPathForTesting
   std::vector<double> g_current_;
   EventLocatorWorkspace locator_;
   LocatedEvent located_;

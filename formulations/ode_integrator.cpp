@@ -67,6 +67,7 @@ OdeIntegrator::OdeIntegrator(const FormulationOptions& options, std::string owne
     Throw<InputError>("OdeIntegrator", "--integrator = '", name_, "' for ", owner_,
                       "; must be euler, rk4, dopri5, verner65, fehlberg78, cvode-bdf or cvode-adams");
   }
+  kind_ = options.Parsed().integrator;
   if (fixed_step()) {
     step_ = options.step > 0.0 ? options.step : kDefaultFixedStep;
   } else if (options.step != 0.0) {
@@ -130,9 +131,12 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
   num_roots_ = static_cast<int>(root_directions.size());
   y_ = N_VNew_Serial(n_, ctx_);
   for (int i = 0; i < n_; ++i) NvData(y_)[i] = y0(i);
+  hot_path_y_ = N_VNew_Serial(n_, ctx_);
+  hot_path_ydot_ = N_VNew_Serial(n_, ctx_);
+  hot_path_g_.assign(num_roots_, 0.0);
   std::vector<int> dirs = root_directions;
   if (is_cvode()) {
-    mem_ = CVodeCreate(name_ == "cvode-bdf" ? CV_BDF : CV_ADAMS, ctx_);
+    mem_ = CVodeCreate(kind_ == IntegratorKind::kCvodeBdf ? CV_BDF : CV_ADAMS, ctx_);
     if (mem_ == nullptr) Throw<SolverError>("OdeIntegrator::Start", "CVodeCreate failed");
     Check(CVodeSetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "CVodeSetErrHandlerFn");
     Check(CVodeInit(mem_, &OdeIntegrator::RhsCallback, t0, y_), "CVodeInit");
@@ -140,7 +144,7 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
     Check(CVodeSStolerances(mem_, options_.rtol, options_.atol), "CVodeSStolerances");
     Check(CVodeSetMaxNumSteps(mem_, options_.max_steps), "CVodeSetMaxNumSteps");
     if (options_.max_step > 0.0) Check(CVodeSetMaxStep(mem_, options_.max_step), "CVodeSetMaxStep");
-    if (name_ == "cvode-bdf") {
+    if (kind_ == IntegratorKind::kCvodeBdf) {
       // Dense LU; no Jacobian function: CVODE's difference-quotient Jacobian.
       A_ = SUNDenseMatrix(n_, n_, ctx_);
       LS_ = SUNLinSol_Dense(y_, A_, ctx_);
@@ -171,13 +175,13 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
     if (fixed_step()) {
       Check(ARKStepSetFixedStep(mem_, step_), "ARKStepSetFixedStep");
       table = FixedStepTable(name_);
-      q = name_ == "euler" ? 1 : 4;
+      q = kind_ == IntegratorKind::kEuler ? 1 : 4;
     } else {
       Check(ARKStepSStolerances(mem_, options_.rtol, options_.atol), "ARKStepSStolerances");
       if (options_.max_step > 0.0) Check(ARKStepSetMaxStep(mem_, options_.max_step), "ARKStepSetMaxStep");
-      if (name_ == "dopri5") {
+      if (kind_ == IntegratorKind::kDopri5) {
         table = ARKodeButcherTable_LoadERK(ARKODE_DORMAND_PRINCE_7_4_5), q = 5, p = 4;
-      } else if (name_ == "verner65") {
+      } else if (kind_ == IntegratorKind::kVerner65) {
         table = ARKodeButcherTable_LoadERK(ARKODE_VERNER_8_5_6), q = 6, p = 5;
       } else {
         table = ARKodeButcherTable_LoadERK(ARKODE_FEHLBERG_13_7_8), q = 8, p = 7;
@@ -306,7 +310,7 @@ SolverStats OdeIntegrator::CurrentCounters() const {
     CVodeGetNumErrTestFails(mem_, &v); s.error_test_failures = v;
     CVodeGetNumNonlinSolvIters(mem_, &v); s.nonlinear_iterations = v;
     CVodeGetNumNonlinSolvConvFails(mem_, &v); s.convergence_failures = v;
-    if (name_ == "cvode-bdf") {
+    if (kind_ == IntegratorKind::kCvodeBdf) {
       CVodeGetNumJacEvals(mem_, &v); s.jacobian_evaluations = v;
       CVodeGetNumLinSolvSetups(mem_, &v); s.linear_solver_setups = v;
       CVodeGetNumLinRhsEvals(mem_, &v); s.residual_evaluations += v;  // difference quotients
@@ -343,6 +347,18 @@ void OdeIntegrator::Free() {
   if (LS_) { SUNLinSolFree(LS_); LS_ = nullptr; }
   if (A_) { SUNMatDestroy(A_); A_ = nullptr; }
   if (y_) { N_VDestroy(y_); y_ = nullptr; }
+  if (hot_path_y_) { N_VDestroy(hot_path_y_); hot_path_y_ = nullptr; }
+  if (hot_path_ydot_) { N_VDestroy(hot_path_ydot_); hot_path_ydot_ = nullptr; }
+}
+
+bool OdeIntegrator::EvaluateCallbacksForTesting(double t, const VectorXd& y, int n) {
+  if (mem_ == nullptr || y.size() != n_) return false;
+  for (int i = 0; i < n_; ++i) NvData(hot_path_y_)[i] = y(i);
+  for (int i = 0; i < n; ++i) {
+    if (RhsCallback(t, hot_path_y_, hot_path_ydot_, this) != 0) return false;
+    if (num_roots_ > 0 && RootCallback(t, hot_path_y_, hot_path_g_.data(), this) != 0) return false;
+  }
+  return true;
 }
 
 }  // namespace kneedyn

@@ -59,7 +59,8 @@ class OdeIntegrator {
   OdeIntegrator& operator=(const OdeIntegrator&) = delete;
 
   const std::string& name() const { return name_; }
-  bool fixed_step() const { return name_ == "euler" || name_ == "rk4"; }
+  IntegratorKind kind() const { return kind_; }
+  bool fixed_step() const { return kind_ == IntegratorKind::kEuler || kind_ == IntegratorKind::kRk4; }
   double step() const { return fixed_step() ? step_ : 0.0; }  // s; 0: adaptive
 
   // Builds the solver for a phase (sizes may change between phases). `solver_projection`:
@@ -67,7 +68,7 @@ class OdeIntegrator {
   // caller's own project-and-Reset loop (which restarts a multistep method at order 1).
   void Start(OdeProblem* problem, double t0, const VectorXd& y0, const std::vector<int>& root_directions,
              bool solver_projection = false);
-  bool supports_solver_projection() const { return name_ == "cvode-bdf"; }
+  bool supports_solver_projection() const { return kind_ == IntegratorKind::kCvodeBdf; }
   // Integrates towards t_out (stop time t_out): to t_out, or one step if `one_step`, or to a
   // root. On entry *t is the current time (of the last Start, Reset or Evolve). Writes t and
   // y reached; returns true when roots were found (`roots`: their flags). t_out equal to *t
@@ -79,12 +80,15 @@ class OdeIntegrator {
   // Restarts from a modified state (after a projection), keeping the step size and counters.
   void Reset(double t, const VectorXd& y);
   SolverStats stats() const;
+  // Testing hook (Formulation::EvaluateHotPathForTesting): the right-hand-side and root
+  // callbacks the solver calls, n times at (t, y), through the same glue; false on failure.
+  bool EvaluateCallbacksForTesting(double t, const VectorXd& y, int n);
 
  private:
   static int RhsCallback(double t, N_Vector y, N_Vector ydot, void* user);
   static int RootCallback(double t, N_Vector y, double* g, void* user);
   static int ProjCallback(double t, N_Vector y, N_Vector corr, double eps, N_Vector err, void* user);
-  bool is_cvode() const { return name_ == "cvode-bdf" || name_ == "cvode-adams"; }
+  bool is_cvode() const { return kind_ == IntegratorKind::kCvodeBdf || kind_ == IntegratorKind::kCvodeAdams; }
   void Check(int flag, const char* call);
   SolverStats CurrentCounters() const;
   double LastStep() const;
@@ -93,11 +97,14 @@ class OdeIntegrator {
   FormulationOptions options_;
   std::string owner_;
   std::string name_;
+  IntegratorKind kind_ = IntegratorKind::kDopri5;  // name_ parsed once (FormulationOptions::Parse)
   double step_ = 0.0;  // s, fixed-step methods
   SundialsContext ctx_;
   OdeProblem* problem_ = nullptr;
   void* mem_ = nullptr;
   N_Vector y_ = nullptr;
+  N_Vector hot_path_y_ = nullptr, hot_path_ydot_ = nullptr;  // EvaluateCallbacksForTesting
+  std::vector<double> hot_path_g_;
   SUNMatrix A_ = nullptr;
   SUNLinearSolver LS_ = nullptr;
   SUNNonlinearSolver NLS_ = nullptr;

@@ -45,21 +45,26 @@ void ProjectOntoContacts(const Model& model, const std::vector<int>& contacts, d
   }
 }
 
-ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double t,
-                                                     const Vector6d& q, const Vector6d& qd,
-                                                     const std::vector<int>& active,
-                                                     BaumgarteGains gains,
-                                                     const std::vector<signed char>* ligament_branch) {
+void SolveConstrainedAcceleration(const Model& model, double t, const Vector6d& q, const Vector6d& qd,
+                                  const std::vector<int>& active, BaumgarteGains gains,
+                                  const std::vector<signed char>* ligament_branch,
+                                  ConstrainedDynamicsWorkspace* ws, ConstrainedAcceleration* out) {
+  const int k = static_cast<int>(active.size());
+  if (k > kMaxConstrainedContacts) {
+    Throw<SolverError>("SolveConstrainedAcceleration", k, " active contacts exceed ",
+                       kMaxConstrainedContacts, " (kMaxConstrainedContacts)");
+  }
   const Pose pose = PoseFromCoordinates(q);
   const Vector6d nu = GeneralizedVelocity(q, qd);
-  Data data(model);
+  Data& data = ws->data;
   data.ligament_branch = ligament_branch;
   ComputeAppliedWrench(model, t, pose, &data);
   const Vector6d Q = GeneralizedForce(model, data, Vector3d(nu.tail<3>()));
 
-  const int k = static_cast<int>(active.size());
-  MatrixXd A = MatrixXd::Zero(6 + k, 6 + k);
-  VectorXd b(6 + k);
+  ConstrainedDynamicsWorkspace::Matrix& A = ws->A;
+  ConstrainedDynamicsWorkspace::Vector& b = ws->b;
+  A.setZero(6 + k, 6 + k);
+  b.resize(6 + k);
   A.topLeftCorner<6, 6>() = MassMatrix(model);
   b.head<6>() = Q;
   for (int r = 0; r < k; ++r) {
@@ -71,16 +76,25 @@ ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double 
     b(6 + r) = -ContactRateTerm(pair, q, qd) - 2.0 * gains.alpha * G.dot(nu) -
                gains.beta * gains.beta * geo.gap;
   }
-  Eigen::FullPivLU<MatrixXd> lu(A);
-  if (!lu.isInvertible()) {
+  ws->lu.compute(A);
+  if (!ws->lu.isInvertible()) {
     Throw<SolverError>("SolveConstrainedAcceleration", "the contact constraint rows are dependent (rank ",
-                       lu.rank(), " of ", 6 + k, ") at t = ", t, " s");
+                       ws->lu.rank(), " of ", 6 + k, ") at t = ", t, " s");
   }
-  const VectorXd x = lu.solve(b);
+  ws->x = ws->lu.solve(b);
+  out->nu_dot = ws->x.head<6>();
+  out->qdd = CoordinateAcceleration(q, qd, out->nu_dot);
+  out->normal_force.assign(ws->x.data() + 6, ws->x.data() + 6 + k);
+}
+
+ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double t,
+                                                     const Vector6d& q, const Vector6d& qd,
+                                                     const std::vector<int>& active,
+                                                     BaumgarteGains gains,
+                                                     const std::vector<signed char>* ligament_branch) {
+  ConstrainedDynamicsWorkspace workspace(model);
   ConstrainedAcceleration out;
-  out.nu_dot = x.head<6>();
-  out.qdd = CoordinateAcceleration(q, qd, out.nu_dot);
-  out.normal_force.assign(x.data() + 6, x.data() + 6 + k);
+  SolveConstrainedAcceleration(model, t, q, qd, active, gains, ligament_branch, &workspace, &out);
   return out;
 }
 

@@ -12,6 +12,8 @@
 
 #include <vector>
 
+#include <Eigen/LU>
+
 #include "solver/dynamics.hpp"
 
 namespace kneedyn {
@@ -26,6 +28,32 @@ struct BaumgarteGains {
   double alpha = 0.0;  // 1/s, velocity feedback (2a φ̇)
   double beta = 0.0;   // 1/s, position feedback (b² φ)
 };
+
+// Largest number of active contacts the allocation-free variant below handles.
+constexpr int kMaxConstrainedContacts = 8;
+
+// Workspace of the allocation-free SolveConstrainedAcceleration (style.md §1: data apart
+// from model): the applied-load workspace and the saddle-point system in fixed-capacity
+// Eigen types (at most 6 + kMaxConstrainedContacts rows, on the stack or in this object).
+struct ConstrainedDynamicsWorkspace {
+  static constexpr int kMaxRows = 6 + kMaxConstrainedContacts;
+  using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxRows, kMaxRows>;
+  using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxRows, 1>;
+  explicit ConstrainedDynamicsWorkspace(const Model& model) : data(model) {}
+  Data data;
+  Matrix A;  // [M −Gᵀ; G 0]
+  Vector b;  // [Q; −κ − 2a φ̇ − b² φ]
+  Vector x;  // [ν̇; N]
+  Eigen::FullPivLU<Matrix> lu;
+};
+
+// The same solve without allocation after the first call with a given number of active
+// contacts: into `out` (its normal_force keeps its capacity), using `workspace`.
+// Throws SolverError when more than kMaxConstrainedContacts contacts are active.
+void SolveConstrainedAcceleration(const Model& model, double t, const Vector6d& q, const Vector6d& qd,
+                                  const std::vector<int>& active, BaumgarteGains gains,
+                                  const std::vector<signed char>* ligament_branch,
+                                  ConstrainedDynamicsWorkspace* workspace, ConstrainedAcceleration* out);
 
 // `active` lists indices into model.contacts.
 // Throws SolverError when the constraint rows are dependent.

@@ -40,10 +40,11 @@ std::string EventList(const RunResult& r) {
 RunSettings SettingsFor(const std::string& name) {
   RunSettings settings;
   settings.formulation = name;
-  if (IsFixedStep(FindFormulation(name), "")) {
+  const FormulationInfo& info = FindFormulation(name);
+  if (IsFixedStep(info, "")) {
     settings.options.step = kDefaultFixedStep;
-  } else if (name == "mde" || name == "ede") {
-    settings.options.rtol = 1e-8;  // default (adaptive) integrator
+  } else if (!info.algebraic_forces) {
+    settings.options.rtol = 1e-8;  // ODE formulations, default (adaptive) integrator
   } else {
     settings.options.rtol = 1e-8;
     settings.options.atol = 1e-10;

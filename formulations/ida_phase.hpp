@@ -1,0 +1,82 @@
+// The SUNDIALS IDA set-up and tear-down of one contact phase, shared by the IDA formulations
+// (dae.cpp, dae_ggl.cpp) instead of each writing the same sequence of calls.
+#pragma once
+
+#include <ida/ida.h>
+#include <sunlinsol/sunlinsol_dense.h>
+#include <sunmatrix/sunmatrix_dense.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "formulations/formulation.hpp"
+#include "formulations/ida_statistics.hpp"
+#include "formulations/sundials_util.hpp"
+
+namespace kneedyn {
+
+// The IDA objects of one phase; Free() returns them (adding their counters to `accumulated`
+// and keeping the last step for the next phase's first step).
+struct IdaPhase {
+  void* mem = nullptr;
+  N_Vector y = nullptr, yp = nullptr;
+  SUNMatrix A = nullptr;
+  SUNLinearSolver LS = nullptr;
+  double last_step = 0.0;  // s: last step of the previous phase, the restart's first step
+
+  void Free(SolverStats* accumulated, bool watches_roots) {
+    if (mem != nullptr) {
+      *accumulated += IdaStatistics(mem, watches_roots);
+      IDAGetLastStep(mem, &last_step);
+      IDAFree(&mem);
+      mem = nullptr;
+    }
+    if (LS) { SUNLinSolFree(LS); LS = nullptr; }
+    if (A) { SUNMatDestroy(A); A = nullptr; }
+    if (y) { N_VDestroy(y); y = nullptr; }
+    if (yp) { N_VDestroy(yp); yp = nullptr; }
+  }
+
+  // After y, yp are filled: IDACreate … IDARootInit for the phase. The unknowns marked 1 in
+  // `id` are differential, the others algebraic and excluded from the error test
+  // (IDASetSuppressAlg: index-2 multipliers); per-component tolerances (rtol, atol); stop at
+  // `end_time`. First step: a quarter of the previous phase's last step on restarts, else
+  // 1e-4 s · sqrt(rtol / 1e-6) (BDF1 local error ∝ h²; IDA's own estimate, ~1e-11 s at rtol
+  // 1e-10, is so small that the O(ε/h²) round-off of the index-2 forces defeats the Newton
+  // test), which IDA's error test then adjusts. `owner` names the formulation in errors.
+  void Start(SUNContext ctx, int n, IDAResFn residual, IDALsJacFn jacobian, IDARootFn roots,
+             void* user, double t0, N_Vector atol, N_Vector id, const FormulationOptions& options,
+             double end_time, const std::vector<EventSpec>& events, const char* owner,
+             SundialsMessages* messages) {
+    auto check = [&](int flag, const char* call) {
+      CheckSundials(flag, call, owner, IDAGetReturnFlagName, messages);
+    };
+    mem = IDACreate(ctx);
+    if (mem == nullptr) Throw<SolverError>(owner, "IDACreate failed");
+    check(IDASetErrHandlerFn(mem, &SundialsMessages::Handler, messages), "IDASetErrHandlerFn");
+    check(IDAInit(mem, residual, t0, y, yp), "IDAInit");
+    check(IDASetUserData(mem, user), "IDASetUserData");
+    check(IDASVtolerances(mem, options.rtol, atol), "IDASVtolerances");
+    check(IDASetId(mem, id), "IDASetId");
+    check(IDASetSuppressAlg(mem, SUNTRUE), "IDASetSuppressAlg");
+    check(IDASetMaxNumSteps(mem, options.max_steps), "IDASetMaxNumSteps");
+    if (options.max_step > 0.0) check(IDASetMaxStep(mem, options.max_step), "IDASetMaxStep");
+    check(IDASetStopTime(mem, end_time), "IDASetStopTime");
+    const double h0 = last_step > 0.0 ? 0.25 * last_step
+                                      : std::clamp(1e-4 * std::sqrt(options.rtol / 1e-6), 1e-8, 1e-3);
+    check(IDASetInitStep(mem, h0), "IDASetInitStep");
+    A = SUNDenseMatrix(n, n, ctx);
+    LS = SUNLinSol_Dense(y, A, ctx);
+    check(IDASetLinearSolver(mem, LS, A), "IDASetLinearSolver");
+    check(IDASetJacFn(mem, jacobian), "IDASetJacFn");
+    if (!events.empty()) {
+      check(IDARootInit(mem, static_cast<int>(events.size()), roots), "IDARootInit");
+      std::vector<int> dir = RootDirections(events);
+      check(IDASetRootDirection(mem, dir.data()), "IDASetRootDirection");
+      check(IDASetNoInactiveRootWarn(mem), "IDASetNoInactiveRootWarn");
+    }
+  }
+};
+
+}  // namespace kneedyn
