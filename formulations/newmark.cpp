@@ -94,7 +94,8 @@ class NewmarkFormulation final : public Formulation {
  public:
   NewmarkFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form,
                      const NewmarkScheme& scheme = NewmarkScheme(), const char* name = nullptr)
-      : scene_(scene), model_(scene.model), options_(options), form_(form), scheme_(scheme) {
+      : scene_(scene), model_(scene.model), options_(options), form_(form), scheme_(scheme), data_(model_),
+        data_jet_(model_) {
     if (name == nullptr) name = form == ContactForm::kChapter ? "newmark" : "newmark-reduced";
     if (options.stabilization != "none") {
       Throw<InputError>("NewmarkFormulation", "--stabilization = '", options.stabilization,
@@ -117,6 +118,7 @@ class NewmarkFormulation final : public Formulation {
     active_ = state.active;
     events_ = events;
     locator_.Reserve(events.size());
+    g_hot_path_.resize(events.size());
     per_contact_ = form_ == ContactForm::kChapter ? 4 : 0;
     const int k = static_cast<int>(active_.size());
     n_ = 6 + (per_contact_ + 1) * k;
@@ -197,7 +199,7 @@ class NewmarkFormulation final : public Formulation {
     StepState next;
     for (int i = 0; i < n; ++i) {
       if (!SolveStep(current_, h_, &next)) return false;
-      g_hot_path_ = Events(next);
+      EventsInto(next, g_hot_path_.data());
     }
     return true;
   }
@@ -230,7 +232,7 @@ class NewmarkFormulation final : public Formulation {
       }
     }
     // Q + Σ N_i G_iᵀ − M ν̇ at t_{n+1} (Eqs. 1.48–1.57; solver/newton_euler.hpp).
-    DataTpl<T> data(model_);
+    DataTpl<T>& data = Workspace(static_cast<T*>(nullptr));  // no allocation per call
     data.ligament_branch = &ligament_branch_;
     const Vector6<T> residual =
         NewtonEulerResidual(model_, from.t + h, q, qd, qdd, pose, k, geo, N, &data);
@@ -531,6 +533,12 @@ class NewmarkFormulation final : public Formulation {
   std::vector<int> fired_;            // events that fired in the step
   std::vector<double> normal_;        // N per model contact, for EvaluateEvents
   std::array<JetD, kMaxJetSize> xj_, Fj_;  // Newton unknowns and residual with ∂/∂x
+  // Newton–Euler workspaces of StepResidual (ligament lengths and tensions per element),
+  // sized once from the model.
+  mutable DataTpl<double> data_;
+  mutable DataTpl<JetD> data_jet_;
+  DataTpl<double>& Workspace(double*) const { return data_; }
+  DataTpl<JetD>& Workspace(JetD*) const { return data_jet_; }
   SolverStats stats_;
   struct FailureReason {
     std::string kind, text;

@@ -116,12 +116,6 @@ void operator delete[](void* p, size_t) noexcept { KNEEDYN_RAW_FREE(p); }
 namespace kneedyn {
 namespace {
 
-// TODO(methods2 branch, issue 13): newmark and generalized-alpha (newmark.cpp's Newton step,
-// newmark_scheme.hpp) are made allocation-free on the methods2 branch; after merging it,
-// empty this set so that they are held to zero like the others.
-const std::set<std::string> kExpectedToAllocate = {"newmark", "newmark-reduced", "generalized-alpha",
-                                                   "generalized-alpha-reduced"};
-
 constexpr int kEvaluations = 300;
 
 struct HotPathCase {
@@ -190,13 +184,6 @@ TEST_P(ZeroAllocation, HotPathAllocatesNothingAfterStart) {
   std::printf("[allocations] %-60s %ld over %d evaluations\n", c.Name().c_str(), allocations,
               kEvaluations);
   ASSERT_TRUE(ok) << c.formulation << " has no hot-path hook or its evaluation failed";
-  if (kExpectedToAllocate.count(c.formulation)) {
-    if (allocations == 0) {
-      std::printf("[allocations] %s is allocation-free now: remove it from kExpectedToAllocate\n",
-                  c.formulation.c_str());
-    }
-    return;
-  }
   EXPECT_EQ(allocations, 0) << c.Name() << ": heap allocations in " << kEvaluations
                             << " hot-path evaluations after Start";
 }
