@@ -356,7 +356,7 @@ class DaeFormulation final : public Formulation {
         normal[self->active_[c]] = y[self->NormalIndex(static_cast<int>(c))];
       }
       (void)t;
-      EvaluateEvents(self->scene_, self->events_, q, normal, g);
+      EvaluateEvents(self->scene_.model, self->events_, q, normal, g);
       return 0;
     } catch (const std::exception& e) {
       self->failure_ = e.what();

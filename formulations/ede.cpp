@@ -132,7 +132,7 @@ class EdeFormulation final : public Formulation, public OdeProblem {
           SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_);
       for (size_t c = 0; c < active_.size(); ++c) normal[active_[c]] = acc.normal_force[c];
     }
-    EvaluateEvents(scene_, events_, q, normal, g);
+    EvaluateEvents(scene_.model, events_, q, normal, g);
   }
 
  private:

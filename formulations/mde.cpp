@@ -132,7 +132,7 @@ class MdeFormulation final : public Formulation, public OdeProblem {
     const MdeKinematics kin = Evaluate(t, y, nullptr);
     std::vector<double> normal(model_.contacts.size(), 0.0);
     for (size_t c = 0; c < active_.size(); ++c) normal[active_[c]] = kin.normal_force[c];
-    EvaluateEvents(scene_, events_, kin.q, normal, g);
+    EvaluateEvents(scene_.model, events_, kin.q, normal, g);
   }
 
  private:

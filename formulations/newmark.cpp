@@ -356,7 +356,7 @@ class NewmarkFormulation final : public Formulation {
     std::vector<double> normal(model_.contacts.size(), 0.0);
     const int k = static_cast<int>(active_.size());
     for (int c = 0; c < k; ++c) normal[active_[c]] = s.extra(per_contact_ * k + c);
-    EvaluateEvents(scene_, events_, s.q, normal, g.data());
+    EvaluateEvents(scene_.model, events_, s.q, normal, g.data());
     ++stats_.root_evaluations;
     return g;
   }
