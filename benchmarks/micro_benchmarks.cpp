@@ -47,7 +47,7 @@
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/dynamics.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
@@ -67,7 +67,7 @@ std::vector<int> AllContacts(const Model& m) {
 MechanicalState Consistent(ContactForm form) {
   ConsistentInitOptions o;
   o.form = form;
-  return ConsistentInitialize(Chapter(), AllContacts(Chapter().model), o, nullptr);
+  return ConsistentInitialize(Chapter().model, Chapter().initial, AllContacts(Chapter().model), o, nullptr);
 }
 
 // A consistent start moved into the pulse (t = 0.03 s) and the dae unknowns at it, in
@@ -208,7 +208,7 @@ void BM_ConsistentInit(benchmark::State& st, ContactForm form) {
   o.form = form;
   const std::vector<int> active = AllContacts(Chapter().model);
   InitReport report;
-  for (auto _ : st) benchmark::DoNotOptimize(ConsistentInitialize(Chapter(), active, o, &report));
+  for (auto _ : st) benchmark::DoNotOptimize(ConsistentInitialize(Chapter().model, Chapter().initial, active, o, &report));
   st.counters["position_iterations"] = report.position.iterations;
   st.counters["hidden_iterations"] = report.hidden.iterations;
 }

@@ -1,19 +1,19 @@
 # `cmake --install BUILD --prefix P` (issue 10): the kneedyn and kneedyn_catalog tools in
-# P/bin, the libraries in P/lib, the headers in P/include/kneedyn/{solver,formulations},
+# P/bin, the libraries in P/lib, the headers in P/include/kneedyn/{solver,scene,formulations},
 # reference-data/ as P/share/kneedyn (found there by the installed tools at run time), the
 # CMake package kneedyn (find_package(kneedyn CONFIG REQUIRED); targets kneedyn::solver,
-# kneedyn::formulations) and pkg-config's kneedyn.pc.
+# kneedyn::scene, kneedyn::formulations) and pkg-config's kneedyn.pc.
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
 set(KNEEDYN_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/kneedyn)
 
-install(TARGETS kneedyn_solver kneedyn_formulations EXPORT kneedynTargets
+install(TARGETS kneedyn_solver kneedyn_scene kneedyn_formulations EXPORT kneedynTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn)
 install(TARGETS kneedyn kneedyn_catalog RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
-foreach(dir solver formulations)
+foreach(dir solver scene formulations)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn/${dir}
           FILES_MATCHING PATTERN "*.hpp")

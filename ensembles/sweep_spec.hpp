@@ -12,7 +12,7 @@
 
 #include "ensembles/design.hpp"
 #include "formulations/run.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 
 namespace kneedyn::ensembles {
 

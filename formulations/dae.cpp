@@ -329,7 +329,7 @@ class DaeFormulation final : public FormulationBase {
         self->normal_[self->active_[c]] = y[self->NormalIndex(static_cast<int>(c))];
       }
       (void)t;
-      EvaluateEvents(self->scene_, self->events_, q, self->normal_, g);
+      EvaluateEvents(self->scene_.model, self->events_, q, self->normal_, g);
       return 0;
     } catch (const std::exception& e) {
       self->failure_ = e.what();

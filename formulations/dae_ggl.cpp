@@ -331,7 +331,7 @@ class DaeGglFormulation final : public FormulationBase {
       for (size_t c = 0; c < self->active_.size(); ++c) {
         self->normal_[self->active_[c]] = y[self->NormalIndex(static_cast<int>(c))];
       }
-      EvaluateEvents(self->scene_, self->events_, q, self->normal_, g);
+      EvaluateEvents(self->scene_.model, self->events_, q, self->normal_, g);
       return 0;
     } catch (const std::exception& e) {
       self->failure_ = e.what();

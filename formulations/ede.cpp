@@ -127,7 +127,7 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
       SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_, &workspace_, &acc_);
       for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = acc_.normal_force[c];
     }
-    EvaluateEvents(scene_, events_, q, normal_, g);
+    EvaluateEvents(scene_.model, events_, q, normal_, g);
   }
 
  private:

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "scene/scene.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/events.hpp"
 #include "solver/state.hpp"

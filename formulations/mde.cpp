@@ -139,7 +139,7 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
     const MdeKinematics kin = Evaluate(t, y, nullptr);
     std::fill(normal_.begin(), normal_.end(), 0.0);
     for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = kin.normal_force[c];
-    EvaluateEvents(scene_, events_, kin.q, normal_, g);
+    EvaluateEvents(scene_.model, events_, kin.q, normal_, g);
   }
 
  private:

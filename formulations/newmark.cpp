@@ -455,7 +455,7 @@ class NewmarkFormulation final : public Formulation {
     if (events_.empty()) return;
     const int k = static_cast<int>(active_.size());
     for (int c = 0; c < k; ++c) normal_[active_[c]] = s.extra(per_contact_ * k + c);
-    EvaluateEvents(scene_, events_, s.q, normal_, g);
+    EvaluateEvents(scene_.model, events_, s.q, normal_, g);
     ++stats_.root_evaluations;
   }
 

@@ -51,7 +51,7 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
   init_options.chart = settings.options.contact_chart;
   std::vector<int> active;
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
-  MechanicalState state = ConsistentInitialize(scene, active, init_options, &result.init);
+  MechanicalState state = ConsistentInitialize(scene.model, scene.initial, active, init_options, &result.init);
   // Refusals the input causes are raised here, before integration (exit code 2): contact
   // rows that are dependent at the start (e.g. two compartments given the same surfaces).
   SolveConstrainedAcceleration(model, state.t, state.q, state.qd, state.active);
@@ -78,10 +78,10 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
       const double gap_tolerance =
           10.0 * std::max(result.max_position_residual,
                           settings.options.rtol * state.q.head<3>().norm() + settings.options.atol);
-      const std::vector<EventSpec> specs = EventsForPhase(scene, state, gap_tolerance);
+      const std::vector<EventSpec> specs = EventsForPhase(scene.model, scene.end, state, gap_tolerance);
       if (model.ligament_law == LigamentLaw::kPublished) {
         state.ligament_branch = LigamentBranchesAt(model, state.q, state.qd);
-        CompleteHiddenConstraint(scene, &state);  // forces on the locked branches
+        CompleteHiddenConstraint(scene.model, &state);  // forces on the locked branches
       }
       formulation->Start(state, specs);
       bool phase_over = false;
@@ -138,7 +138,7 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
         std::sort(new_active.begin(), new_active.end());
         state.active = new_active;
         if (impact) ApplyPlasticImpact(model, &state);
-        CompleteHiddenConstraint(scene, &state);
+        CompleteHiddenConstraint(scene.model, &state);
         // A contact whose consistent force would pull (N < 0) separates at once: drop the
         // most negative one and solve again (e.g. a re-contact that bounces off, or the
         // second compartment unloading as the first lifts off).
@@ -155,7 +155,7 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
                                    state.t, state.q(kAlpha)});
           state.active.erase(std::remove(state.active.begin(), state.active.end(), worst), state.active.end());
           state.contact[worst].normal_force = 0.0;
-          CompleteHiddenConstraint(scene, &state);
+          CompleteHiddenConstraint(scene.model, &state);
         }
       }
     }

@@ -21,7 +21,7 @@
 #include "solver/constrained_dynamics.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/error.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 
 namespace {
 

@@ -1,5 +1,5 @@
 // _kneedyn: the compiled half of the `kneedyn` Python package (issue 17). It binds the
-// public API only — the scene loader (solver/scene.hpp), the formulation registry
+// public API only — the scene loader (scene/scene.hpp), the formulation registry
 // (formulations/formulation.hpp), the run driver (formulations/run.hpp) and the output
 // builders (formulations/run_output.hpp) — and adds no physics and no validation:
 //   - a scene given as a Python dict is turned into a YAML document and handed to
@@ -30,7 +30,7 @@
 #include "formulations/run_output.hpp"
 #include "solver/error.hpp"
 #include "solver/loads.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "solver/units.hpp"
 
 namespace py = pybind11;

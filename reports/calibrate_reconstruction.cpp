@@ -36,7 +36,7 @@
 #include "solver/error.hpp"
 #include "solver/loads.hpp"
 #include "solver/pose.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "solver/units.hpp"
 
 using namespace kneedyn;

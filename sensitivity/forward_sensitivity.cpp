@@ -175,7 +175,7 @@ class Problem {
     for (EventSpec& e : specs) {
       if (e.kind == EventKind::kLigamentKink) e.offset = LigamentKinkLength(scene.model.ligaments[e.ligament]);
     }
-    EvaluateEvents(scene, specs, Vector6d(Eigen::Map<const Vector6d>(y)), normal, g);
+    EvaluateEvents(scene.model, specs, Vector6d(Eigen::Map<const Vector6d>(y)), normal, g);
   }
   double Event(const Mode& mode, int k, double t, const double* y, const double* p) {
     std::vector<double> g(mode.events.size());
@@ -500,7 +500,7 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
   auto initial = [&](const std::vector<double>& pv) {
     InitReport report;
     const Scene s = problem.SceneCopyAt(pv);
-    return ConsistentInitialize(s, all, init, &report);
+    return ConsistentInitialize(s.model, s.initial, all, init, &report);
   };
   MechanicalState state = initial(p);
   std::vector<VectorXd> s(np, VectorXd::Zero(kN));
@@ -519,7 +519,7 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
   Mode mode;
   mode.active = state.active;
   if (model_p.ligament_law == LigamentLaw::kPublished) mode.branch = LigamentBranchesAt(model_p, state.q, state.qd);
-  mode.events = EventsForPhase(scene_p, state);
+  mode.events = EventsForPhase(scene_p.model, scene_p.end, state);
   double t = state.t;
   VectorXd y(kN);
   y << state.q, state.qd;
@@ -767,7 +767,8 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
           }
         }
       }
-      next.events = EventsForPhase(problem.SceneAt(p.data()), at);
+      const Scene& scene_at = problem.SceneAt(p.data());
+      next.events = EventsForPhase(scene_at.model, scene_at.end, at);
       // s⁺ = s⁻ + (f⁻ − f⁺) dτ/dp where the vector field changes.
       double fp[kN];
       problem.Rhs(next, t, y.data(), p.data(), fp);

@@ -204,9 +204,8 @@ void ConvertContactCoordinates(const Model& model, ContactChart chart, Mechanica
 
 // Levels 2–3 with given velocity holds. Returns the two level reports.
 std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
-    const Scene& scene, const std::vector<int>& held_velocities,
+    const Model& model, const std::vector<int>& held_velocities,
     const ConsistentInitOptions& options, MechanicalState* state) {
-  const Model& model = scene.model;
   const int k = static_cast<int>(state->active.size());
   const Pose pose = PoseFromCoordinates(state->q);
   MatrixXd G(k, 6);
@@ -268,19 +267,18 @@ std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
 
 }  // namespace
 
-MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>& active,
+MechanicalState ConsistentInitialize(const Model& model, const InitialState& init,
+                                     const std::vector<int>& active,
                                      const ConsistentInitOptions& options, InitReport* report) {
   std::string why;
   if (!options.IsValid(&why)) Throw<InputError>("ConsistentInitialize", why);
-  const Model& model = scene.model;
-  const InitialState& init = scene.initial;
   MechanicalState state;
   state.t = 0.0;
   state.q = init.q;
   state.qd = init.qd;
   state.active = active;
   state.contact = init.contact_guesses;
-  ConvertContactCoordinates(scene.model, options.chart, &state);
+  ConvertContactCoordinates(model, options.chart, &state);
   InitReport rep;
   rep.form = options.form == ContactForm::kChapter ? "chapter" : "closed_form";
   for (int i : init.held) rep.held.push_back(CoordinateName(i));
@@ -320,7 +318,7 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
   }
   CheckJcsRegular(state.q(kBeta), "ConsistentInitialize");
   std::tie(rep.velocity, rep.hidden) =
-      SolveVelocityAndHidden(scene, init.held_velocities, options, &state);
+      SolveVelocityAndHidden(model, init.held_velocities, options, &state);
   for (const ContactGuess& g : state.contact) rep.normal_force.push_back(g.normal_force);
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) {
     if (!state.IsActive(i)) rep.normal_force[i] = 0.0;
@@ -329,7 +327,7 @@ MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>&
   return state;
 }
 
-void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state) {
+void CompleteHiddenConstraint(const Model& model, MechanicalState* state) {
   // After a mode switch the remaining velocity constraints hold to the integrator's
   // tolerance (lift-off) or exactly (after the impact impulse): the minimum-norm
   // correction over all rates removes that residual before the restart.
@@ -339,9 +337,9 @@ void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state) {
   // φ = 0. At a 4e-12 m gap `dae` restarted off them and its first step moved u by
   // ~3e-11 m/s at any step size (gravity_only, rtol 1e-10: IDA_ERR_FAIL after a kink).
   constexpr double kGapTolerance = 1.0e-14;  // m
-  ProjectOntoContacts(scene.model, state->active, kGapTolerance, 20, &state->q);
-  SolveVelocityAndHidden(scene, {}, options, state);
-  FillContactCoordinates(scene.model, state);
+  ProjectOntoContacts(model, state->active, kGapTolerance, 20, &state->q);
+  SolveVelocityAndHidden(model, {}, options, state);
+  FillContactCoordinates(model, state);
 }
 
 }  // namespace kneedyn

@@ -46,15 +46,17 @@ struct InitReport {
   std::string form;                             // "chapter" / "closed_form"
 };
 
-// `active`: contacts in contact at the start (indices into model.contacts).
-MechanicalState ConsistentInitialize(const Scene& scene, const std::vector<int>& active,
+// `active`: contacts in contact at the start (indices into model.contacts); `initial`: the
+// starting point, the held coordinates and rates and the contact guesses.
+MechanicalState ConsistentInitialize(const Model& model, const InitialState& initial,
+                                     const std::vector<int>& active,
                                      const ConsistentInitOptions& options, InitReport* report);
 
 // After a mode switch: projects the positions onto the active contacts' gaps φ_i = 0
 // (Gauss–Newton, minimum-norm corrections; removes the drift of velocity-level
 // formulations and the hysteresis penetration of a re-contact), then levels 2–3; fills
 // qdd, normal forces and (from the contact kinematics) contact coordinates.
-void CompleteHiddenConstraint(const Scene& scene, MechanicalState* state);
+void CompleteHiddenConstraint(const Model& model, MechanicalState* state);
 
 // Chapter-form contact coordinates of the active contacts from the contact kinematics
 // (contact_kinematics.hpp).

@@ -2,9 +2,15 @@
 // Every message names the function, the offending value and the rule broken.
 #pragma once
 
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 namespace kneedyn {
 
@@ -25,20 +31,43 @@ class SolverError : public Error {
   using Error::Error;
 };
 
+// The shortest decimal that reads back as exactly `v` (std::to_chars' round trip: 1e-6
+// prints as 1e-06, not 9.9999999999999995e-07 as 17 digits do; issue 18), written %g-style:
+// fixed for exponents -5 … 16 with every integer digit (100000, not 1e+05), else
+// scientific. Non-finite values: inf, -inf, nan.
+inline std::string ShortestDouble(double v) {
+  if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
+  char buf[64];
+  const std::to_chars_result r = std::to_chars(buf, buf + sizeof(buf), v, std::chars_format::scientific);
+  *r.ptr = '\0';
+  // buf = [-]d[.ddd]e±xx: significant digits and the decimal exponent.
+  int digits = 0;
+  const char* p = buf;
+  for (; *p && *p != 'e'; ++p) digits += (*p >= '0' && *p <= '9');
+  const int exponent = *p == 'e' ? std::atoi(p + 1) : 0;
+  const int precision = (exponent >= -5 && exponent < 17) ? std::max(digits, exponent + 1) : digits;
+  std::snprintf(buf, sizeof(buf), "%.*g", precision, v);
+  return buf;
+}
+
 namespace internal {
 inline void AppendAll(std::ostringstream&) {}
 template <typename Head, typename... Tail>
 void AppendAll(std::ostringstream& os, const Head& head, const Tail&... tail) {
-  os << head;
+  if constexpr (std::is_floating_point_v<Head>) {
+    os << ShortestDouble(static_cast<double>(head));
+  } else {
+    os << head;
+  }
   AppendAll(os, tail...);
 }
 }  // namespace internal
 
-// Concatenates its arguments with full double precision.
+// Concatenates its arguments; floating-point values as the shortest decimal that reads
+// back exactly (ShortestDouble).
 template <typename... Args>
 std::string StrCat(const Args&... args) {
   std::ostringstream os;
-  os.precision(17);
   internal::AppendAll(os, args...);
   return os.str();
 }

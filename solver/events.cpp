@@ -23,10 +23,9 @@ std::string FlexionEventName(double flexion_rad) {
   return buf;
 }
 
-std::vector<EventSpec> EventsForPhase(const Scene& scene, const MechanicalState& state,
-                                      double gap_tolerance) {
+std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& end,
+                                      const MechanicalState& state, double gap_tolerance) {
   std::vector<EventSpec> specs;
-  const Model& model = scene.model;
   const Pose pose = PoseFromCoordinates(state.q);
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) {
     const std::string comp = CompartmentName(model.contacts[i].compartment);
@@ -38,8 +37,8 @@ std::vector<EventSpec> EventsForPhase(const Scene& scene, const MechanicalState&
                        std::min(gap, 0.0) - std::max(gap_tolerance, kMinRecontactHysteresis), "recontact_" + comp});
     }
   }
-  if (scene.end.flexion) {
-    specs.push_back({EventKind::kFlexionEnd, -1, -1, +1, 0.0, FlexionEventName(*scene.end.flexion)});
+  if (end.flexion) {
+    specs.push_back({EventKind::kFlexionEnd, -1, -1, +1, *end.flexion, FlexionEventName(*end.flexion)});
   }
   if (model.ligament_law == LigamentLaw::kPublished) {
     for (int j = 0; j < static_cast<int>(model.ligaments.size()); ++j) {
@@ -51,7 +50,7 @@ std::vector<EventSpec> EventsForPhase(const Scene& scene, const MechanicalState&
   return specs;
 }
 
-void EvaluateEvents(const Scene& scene, const std::vector<EventSpec>& specs, const Vector6d& q,
+void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const std::vector<double>& normal_force, double* g) {
   const Pose pose = PoseFromCoordinates(q);
   for (size_t k = 0; k < specs.size(); ++k) {
@@ -61,14 +60,14 @@ void EvaluateEvents(const Scene& scene, const std::vector<EventSpec>& specs, con
         g[k] = normal_force[s.contact];
         break;
       case EventKind::kRecontact:
-        g[k] = RequireContactKinematics(scene.model.contacts[s.contact], pose, "EvaluateEvents").gap -
+        g[k] = RequireContactKinematics(model.contacts[s.contact], pose, "EvaluateEvents").gap -
                s.offset;
         break;
       case EventKind::kFlexionEnd:
-        g[k] = q(kAlpha) - *scene.end.flexion;
+        g[k] = q(kAlpha) - s.offset;
         break;
       case EventKind::kLigamentKink: {
-        const Ligament& lig = scene.model.ligaments[s.ligament];
+        const Ligament& lig = model.ligaments[s.ligament];
         g[k] = LigamentSpan_F(lig, pose).norm() - s.offset;
         break;
       }

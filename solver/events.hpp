@@ -21,7 +21,7 @@ struct EventSpec {
   int contact = -1;   // index into model.contacts (lift-off / re-contact)
   int ligament = -1;  // index into model.ligaments (kink)
   int direction = 0;  // −1: root only while decreasing; +1: increasing (SUNDIALS convention)
-  double offset = 0.0;  // g = value − offset (re-contact hysteresis, kink length)
+  double offset = 0.0;  // g = value − offset (re-contact hysteresis, α_end, kink length)
   std::string name;   // "liftoff_lateral", "recontact_medial", "flexion_90"
 };
 
@@ -31,12 +31,14 @@ struct EventSpec {
 constexpr double kMinRecontactHysteresis = 1.0e-9;  // m
 
 // The events watched during a phase starting at `state` (its active contacts).
-std::vector<EventSpec> EventsForPhase(const Scene& scene, const MechanicalState& state,
+std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& end,
+                                      const MechanicalState& state,
                                       double gap_tolerance = kMinRecontactHysteresis);
 
-// g_k(state) for each spec, in order: N_i (lift-off), φ_i − offset (re-contact), α − α_end (flexion), L_j − (1 + 2ε1) L0_j (kink). `normal_force` is indexed like model.contacts.
+// g_k(state) for each spec, in order: N_i (lift-off), φ_i − offset (re-contact), α − offset
+// (flexion; offset = α_end), L_j − offset (kink; offset = (1 + 2ε1) L0_j). `normal_force` is indexed like model.contacts.
 // Throws SolverError when a gap has no contact point (contact_kinematics.hpp).
-void EvaluateEvents(const Scene& scene, const std::vector<EventSpec>& specs, const Vector6d& q,
+void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const std::vector<double>& normal_force, double* g);
 
 // "flexion_90" for 90°; integer degrees when whole, else one decimal.

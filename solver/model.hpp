@@ -1,5 +1,5 @@
 // The constant model of one scene (style.md §1: model apart from workspace).
-// Built once from reference-data/ and a scene file (scene.hpp); never modified by a run.
+// Built once from reference-data/ and a scene file (the loader, scene/scene.hpp); never modified by a run.
 // All quantities SI. Only what the scene names is present.
 #pragma once
 

@@ -7,7 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "solver/scene.hpp"
+#include "solver/initial_state.hpp"
+#include "solver/model.hpp"
 
 namespace kneedyn {
 

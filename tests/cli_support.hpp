@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 
 namespace kneedyn::cli_test {
 

@@ -25,7 +25,7 @@
 #include <ceres/version.h>
 #include <sundials/sundials_config.h>
 
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "tests/cli_support.hpp"
 
 namespace kneedyn {

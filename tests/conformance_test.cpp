@@ -18,7 +18,7 @@
 #include <vector>
 
 #include "formulations/run.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "solver/units.hpp"
 #include "tests/test_support.hpp"
 

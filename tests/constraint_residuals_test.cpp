@@ -44,7 +44,7 @@ TEST_P(ResidualsOnConsistentState, VanishForEveryActiveContact) {
   ConsistentInitOptions o;
   o.form = GetParam();
   InitReport report;
-  const MechanicalState s = ConsistentInitialize(scene, {0, 1}, o, &report);
+  const MechanicalState s = ConsistentInitialize(scene.model, scene.initial, {0, 1}, o, &report);
   ASSERT_GT(std::abs(s.qd(kAlpha)), 1.0) << "the state must move for φ̇ = 0 to mean something";
   std::vector<double> gap, rate;
   ConstraintResiduals(scene.model, s, &gap, &rate);

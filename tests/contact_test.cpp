@@ -25,7 +25,7 @@
 #include "solver/contact_kinematics.hpp"
 #include "tests/test_support.hpp"
 #include "solver/error.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {

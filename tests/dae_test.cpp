@@ -23,7 +23,7 @@
 #include "formulations/run.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/dynamics.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "tests/test_support.hpp"
 #include "solver/units.hpp"
 
@@ -47,7 +47,7 @@ Point PerturbedPoint(ContactForm form) {
   ConsistentInitOptions options;
   options.form = form;
   Point p;
-  p.state = ConsistentInitialize(scene, {0, 1}, options, nullptr);
+  p.state = ConsistentInitialize(scene.model, scene.initial, {0, 1}, options, nullptr);
   MechanicalState& s = p.state;
   s.t = 0.03;  // inside the pulse
   std::mt19937 rng(12345);

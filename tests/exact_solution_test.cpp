@@ -172,7 +172,7 @@ TEST_P(ExactSolution, HangingByOneLinearElement) {
   const double y0_ref_mm = -5.740280082863;
   const Scene scene = Parse(StrCat(R"(
 name: exact_hanging
-parameter_set: exact/hanging_element_knee.yaml
+parameter_set: ../hanging_element_knee.yaml
 ligaments: [hanger]
 contacts: []
 gravity: {enabled: true}

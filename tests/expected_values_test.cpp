@@ -13,7 +13,7 @@
 #include <string>
 
 #include "solver/constrained_dynamics.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {

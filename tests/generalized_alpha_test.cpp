@@ -36,7 +36,7 @@
 #include "solver/events.hpp"
 #include "solver/error.hpp"
 #include "solver/ligament.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "solver/units.hpp"
 #include "tests/test_support.hpp"
 
@@ -394,10 +394,10 @@ TEST(GeneralizedAlpha, NoAllocationAfterStart) {
     ConsistentInitOptions init;
     init.form = f->contact_form();
     InitReport report;
-    MechanicalState state = ConsistentInitialize(scene, {0, 1}, init, &report);
+    MechanicalState state = ConsistentInitialize(scene.model, scene.initial, {0, 1}, init, &report);
     state.ligament_branch = LigamentBranchesAt(scene.model, state.q, state.qd);
-    CompleteHiddenConstraint(scene, &state);
-    const std::vector<EventSpec> specs = EventsForPhase(scene, state, 1e-9);
+    CompleteHiddenConstraint(scene.model, &state);
+    const std::vector<EventSpec> specs = EventsForPhase(scene.model, scene.end, state, 1e-9);
     f->Start(state, specs);
     f->Advance(1e-3, &state);  // warm-up: the caller's state vectors take their sizes
     const long before_allocations = g_allocations.load();

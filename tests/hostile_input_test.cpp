@@ -178,16 +178,36 @@ TEST_F(HostileInput, DependentContactRowsExitTwo) {
 }
 
 TEST_F(HostileInput, ShippedScenesStillLoad) {
-  // The strict loader accepts every shipped scene (no shipped key is unknown) except the
-  // hard case that exists to be refused.
+  // The strict loader accepts every YAML file under scenes/ as a scene (no shipped key is
+  // unknown; no parameter set hides among the scenes) except the hard case that exists to
+  // be refused, which is refused.
   int n = 0;
   for (const auto& e : fs::recursive_directory_iterator(ReferenceDataDir() + "/scenes")) {
-    if (e.path().extension() != ".yaml" || e.path().stem() == "jcs_singular_pose") continue;
-    if (ReadText(e.path()).find("parameter_set:") == std::string::npos) continue;  // a parameter set
+    if (e.path().extension() != ".yaml") continue;
+    if (e.path().stem() == "jcs_singular_pose") {
+      EXPECT_THROW(LoadScene(e.path().string()), InputError) << e.path();
+      continue;
+    }
     ++n;
     EXPECT_NO_THROW(LoadScene(e.path().string())) << e.path();
   }
   EXPECT_GT(n, 20);
+}
+
+TEST_F(HostileInput, ShippedParameterSetsPassTheStrictLoader) {
+  // Every parameter set beside chapter_knee.yaml, with all its ligaments and both
+  // compartments, through a minimal scene naming it.
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(ReferenceDataDir())) {
+    if (e.path().extension() != ".yaml") continue;
+    ++n;
+    const std::string text = "name: ps_check\nparameter_set: " + e.path().string() +
+                             "\nligaments: all\ncontacts: [medial, lateral]\ngravity: {enabled: true}\n"
+                             "pulse: {shape: none}\n"
+                             "initial_state: {pose: reference}\nend: {time_s: 0.01}\n";
+    EXPECT_NO_THROW(ParseScene(text, "ps_check.yaml", ReferenceDataDir())) << e.path();
+  }
+  EXPECT_GE(n, 2);  // chapter_knee.yaml, hanging_element_knee.yaml
 }
 
 }  // namespace

@@ -62,7 +62,7 @@ class PlasticImpact : public ::testing::Test {
     ConsistentInitOptions o;
     o.form = ContactForm::kClosedForm;
     InitReport r;
-    q_ = ConsistentInitialize(ChapterScene(), {0, 1}, o, &r).q;
+    q_ = ConsistentInitialize(ChapterScene().model, ChapterScene().initial, {0, 1}, o, &r).q;
   }
   Vector6d q_;
 };

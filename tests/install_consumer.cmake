@@ -22,7 +22,7 @@ endfunction()
 run(${CMAKE_COMMAND} --install ${BUILD} --prefix ${prefix})
 foreach(f bin/kneedyn bin/kneedyn_catalog share/kneedyn/scenes/chapter_impact.yaml
           share/kneedyn/chapter_knee.yaml include/kneedyn/formulations/run.hpp
-          include/kneedyn/solver/scene.hpp)
+          include/kneedyn/scene/scene.hpp)
   if(NOT EXISTS ${prefix}/${f})
     message(FATAL_ERROR "not installed: ${prefix}/${f}")
   endif()

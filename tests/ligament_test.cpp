@@ -15,7 +15,7 @@
 
 #include "solver/dynamics.hpp"
 #include "solver/ligament.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {

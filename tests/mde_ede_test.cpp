@@ -11,7 +11,7 @@
 #include "formulations/run.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/dynamics.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 
 namespace kneedyn {
 namespace {

@@ -129,7 +129,7 @@ TEST(Observables, ContactPointsAtConsistentPoseFromBothSources) {
   const Scene& scene = ChapterScene();
   ConsistentInitOptions o;
   InitReport report;
-  const MechanicalState s = ConsistentInitialize(scene, {0, 1}, o, &report);
+  const MechanicalState s = ConsistentInitialize(scene.model, scene.initial, {0, 1}, o, &report);
   const Pose pose = PoseFromCoordinates(s.q);
   for (ContactPointSource source : {ContactPointSource::kStateCoordinates, ContactPointSource::kPose}) {
     Observables obs;

@@ -1,4 +1,4 @@
-// Tests of scene reading and validation (solver/scene.hpp).
+// Tests of scene reading and validation (scene/scene.hpp).
 //
 // Validates: every kind of bad input is refused with InputError whose message names the
 // file label, the field path and the offending value (style.md §2); a scene builds exactly
@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "solver/error.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {

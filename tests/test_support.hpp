@@ -11,7 +11,7 @@
 
 #include "formulations/formulation.hpp"
 #include "solver/contact_kinematics.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 
 namespace kneedyn::test_support {
 

@@ -26,7 +26,7 @@
 #include "formulations/formulation.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/events.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 #include "tests/test_support.hpp"
 
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
@@ -171,8 +171,8 @@ TEST_P(ZeroAllocation, HotPathAllocatesNothingAfterStart) {
   std::vector<int> active;
   for (int i = 0; i < static_cast<int>(scene.model.contacts.size()); ++i) active.push_back(i);
   InitReport report;
-  MechanicalState state = ConsistentInitialize(scene, active, init, &report);
-  const std::vector<EventSpec> events = EventsForPhase(scene, state);
+  MechanicalState state = ConsistentInitialize(scene.model, scene.initial, active, init, &report);
+  const std::vector<EventSpec> events = EventsForPhase(scene.model, scene.end, state);
   f->Start(state, events);
   f->Advance(state.t + 2.0e-3, &state);
 

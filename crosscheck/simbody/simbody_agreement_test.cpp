@@ -24,7 +24,7 @@
 #include "benchmarks/bench_run.hpp"
 #include "crosscheck/simbody/simbody_solution.hpp"
 #include "solver/loads.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 
 namespace kneedyn {
 namespace {

@@ -1,7 +1,7 @@
 // The chapter knee rebuilt in Simbody (issue 16): a second engine that shares none of
 // kneedyn's physics, as an independent check and as the peer benchmark.
 //
-// What comes from kneedyn: the Scene (solver/scene.hpp: parameter set, selection of
+// What comes from kneedyn: the Scene (scene/scene.hpp: parameter set, selection of
 // elements and contacts, pulse, initial pose, end condition) — data only — and, for the
 // *output* conversion only, the pure JCS kinematics of solver/pose.hpp (q̇ and q̈ from
 // the body's spatial velocity and acceleration). Everything that makes the motion is
@@ -29,7 +29,7 @@
 #include <vector>
 
 #include "formulations/run.hpp"
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 
 namespace kneedyn {
 namespace simbody {

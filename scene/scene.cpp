@@ -1,4 +1,4 @@
-#include "solver/scene.hpp"
+#include "scene/scene.hpp"
 
 #include <dlfcn.h>
 
@@ -770,8 +770,25 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
     }
     if (f.Has("normal_force_guesses_N")) f.Required("normal_force_guesses_N").Keys({"medial", "lateral"});
     const std::string from = f.Required("pose").String();
+    std::vector<int> given;  // pose: assemble — the coordinates the scene gives (held)
     if (from == "reference") {
       init.q = ps.reference_q;
+    } else if (from == "assemble") {
+      // OpenSim's assemble: the given coordinates are held, the others start from the
+      // reference (default) pose and are solved by the consistent initialization so that
+      // the contacts close and the hidden constraints hold (consistent_init.hpp).
+      init.q = ps.reference_q;
+      if (!f.Has("coordinates")) {
+        f.Required("pose").Fail("'assemble' needs initial_state.coordinates with the coordinates to hold");
+      }
+      const Field c = f.Required("coordinates");
+      for (int i = 0; i < kNumCoordinates; ++i) {
+        const std::string key = StrCat(CoordinateName(i), "_", kCoordinateUnits[i]);
+        if (!c.Has(key)) continue;
+        init.q(i) = CoordinateToSi(i, CoordinateValue(i, c.Required(key)));
+        given.push_back(i);
+      }
+      if (given.empty()) c.Fail("'assemble' needs at least one coordinate here");
     } else if (from == "explicit") {
       init.q = ps.reference_q;  // overridden below; all six required
       for (int i = 0; i < kNumCoordinates; ++i) {
@@ -779,7 +796,7 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
         init.q(i) = CoordinateToSi(i, CoordinateValue(i, f.Required("coordinates").Required(key)));
       }
     } else {
-      f.Required("pose").Fail("must be 'reference' or 'explicit'");
+      f.Required("pose").Fail("must be 'reference', 'explicit' or 'assemble'");
     }
     if (from == "reference" && f.Has("coordinates")) {
       const Field c = f.Required("coordinates");
@@ -800,6 +817,12 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
                     " deg (|sin beta| < ", kJcsSingularityTolerance,
                     "); the angular-velocity map E is singular there (spec §2)"));
     }
+    if (from == "assemble") {
+      // The given coordinates, plus any coordinate `hold` names; rates as `hold` says,
+      // all six by default.
+      init.held = given;
+      if (!f.Has("hold")) init.held_velocities = {0, 1, 2, 3, 4, 5};
+    }
     if (f.Has("hold")) {
       const Field h = f.Required("hold");
       for (size_t i = 0; i < h.Size(); ++i) {
@@ -809,10 +832,11 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
         } else if (name.size() > 4 && name.compare(name.size() - 4, 4, "_dot") == 0) {
           init.held_velocities.push_back(CoordinateIndexByName(h.Item(i), name.substr(0, name.size() - 4)));
         } else {
-          init.held.push_back(CoordinateIndexByName(h.Item(i), name));
+          const int index = CoordinateIndexByName(h.Item(i), name);
+          if (std::find(init.held.begin(), init.held.end(), index) == init.held.end()) init.held.push_back(index);
         }
       }
-    } else {
+    } else if (from != "assemble") {
       init.held = {kAlpha, kBeta, kGamma, kY0};
       init.held_velocities = {0, 1, 2, 3, 4, 5};
     }
@@ -825,7 +849,8 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label,
       ContactGuess guess;
       ContactGeometry geo;
       if (ContactKinematics(pair, pose, &geo)) {
-        if (std::abs(geo.gap) > MmToM(10.0)) {
+        // (Not for 'assemble': its starting pose is not meant to be in contact.)
+        if (from != "assemble" && std::abs(geo.gap) > MmToM(10.0)) {
           Throw<InputError>("LoadScene", label, ": field 'contacts' names the ",
                             CompartmentName(pair.compartment),
                             " compartment, but its surfaces are not in contact at the initial "

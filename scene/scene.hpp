@@ -3,6 +3,11 @@
 // the ligament-law variant, the initial state and the end condition. Only what a scene
 // names is built. See reference-data/scenes/README.md for the format.
 //
+// The loader (library kneedyn_scene, the only one linking yaml-cpp) is apart from the
+// physics (kneedyn_solver, issue 11 item 5): it fills the plain structs Model
+// (solver/model.hpp), InitialState and EndCondition (solver/initial_state.hpp) that the
+// physics functions take; solver/ includes nothing from here.
+//
 // Every rule a scene can break is reported as InputError naming the file, the field, the
 // value and the rule.
 #pragma once
@@ -12,37 +17,11 @@
 #include <string>
 #include <vector>
 
+#include "solver/initial_state.hpp"
 #include "solver/model.hpp"
 #include "solver/pose.hpp"
 
 namespace kneedyn {
-
-// Chapter-form unknowns of one contact: c = (xc, yc, x′c, y′c) in m, and N in newtons.
-struct ContactGuess {
-  std::array<double, 4> coordinates = {0.0, 0.0, 0.0, 0.0};
-  // The chart the coordinates are given in (contact.hpp); scenes give height-field (x, y)
-  // coordinates, the consistent initialization converts them to the run's chart.
-  ContactChart chart = ContactChart::kHeightField;
-  double normal_force = 0.0;
-};
-
-struct InitialState {
-  Vector6d q = Vector6d::Zero();   // SI
-  Vector6d qd = Vector6d::Zero();  // SI
-  // What the consistent initialization keeps fixed (consistent_init.hpp): coordinates
-  // (indices into q) and rates (indices into q̇). Scene key initial_state.hold lists names:
-  // x0 … gamma, x0_dot … gamma_dot, or 'velocities' for all six rates.
-  std::vector<int> held;
-  std::vector<int> held_velocities;  // indices into q̇ held by the velocity level
-  // Per model.contacts entry: starting guesses for the chapter-form unknowns.
-  std::vector<ContactGuess> contact_guesses;
-  std::string guesses_source;  // "chapter" or "pose"
-};
-
-struct EndCondition {
-  std::optional<double> flexion;  // rad: stop when α reaches it (event flexion_<deg>)
-  double time = 2.0;              // s: stop at this time at the latest
-};
 
 struct Scene {
   std::string path;         // file it was read from

@@ -1,0 +1,107 @@
+#!/usr/bin/python3
+"""Fails if the physics library depends on the loader or the formulations (issue 11 item 5):
+
+  layering_test.py --probe BIN --yaml-user BIN [--root DIR]
+
+  1. no file in solver/ includes anything from scene/ or formulations/, or yaml-cpp, or
+     names YAML:: ; solver/CMakeLists.txt links neither yaml-cpp nor kneedyn_scene /
+     kneedyn_formulations;
+  2. `ldd BIN` of --probe (tests/solver_only_probe.cpp, linked with kneedyn_solver alone)
+     lists no libyaml-cpp, and the probe runs (exit 0: its own exact check);
+  3. so that the test can fail, before scanning: planted bad lines must each be flagged,
+     and `ldd` of --yaml-user (the kneedyn CLI, which links the loader) must list
+     libyaml-cpp, i.e. the ldd check sees the library when it is there.
+"""
+import argparse
+import os
+import re
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+SOURCE_RULES = [
+    ("includes the loader", re.compile(r'#\s*include\s*[<"]scene/')),
+    ("includes a formulation", re.compile(r'#\s*include\s*[<"]formulations/')),
+    ("includes yaml-cpp", re.compile(r'#\s*include\s*[<"]yaml-cpp/')),
+    ("uses yaml-cpp", re.compile(r"\bYAML::")),
+]
+CMAKE_RULES = [
+    ("links yaml-cpp", re.compile(r"target_link_libraries\([^)]*yaml-cpp", re.S)),
+    ("links the loader or the formulations",
+     re.compile(r"target_link_libraries\([^)]*kneedyn_(scene|formulations)", re.S)),
+]
+YAML_LIB = re.compile(r"libyaml-cpp")
+
+
+def scan_source(rel, text):
+  hits = []
+  for n, line in enumerate(text.splitlines(), 1):
+    for what, rx in SOURCE_RULES:
+      if rx.search(line):
+        hits.append(f"{rel}:{n}: {what}: {line.strip()}")
+  return hits
+
+
+def scan_cmake(rel, text):
+  # Comments are not links.
+  text = "\n".join(line.split("#", 1)[0] for line in text.splitlines())
+  return [f"{rel}: {what}" for what, rx in CMAKE_RULES if rx.search(text)]
+
+
+def ldd(binary):
+  out = subprocess.run(["ldd", binary], capture_output=True, text=True)
+  if out.returncode != 0:
+    sys.exit(f"layering: ldd {binary} failed: {out.stderr.strip()}")
+  return out.stdout
+
+
+def main():
+  ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+  ap.add_argument("--root", default=ROOT)
+  ap.add_argument("--probe", required=True)
+  ap.add_argument("--yaml-user", required=True)
+  args = ap.parse_args()
+  solver = os.path.join(os.path.abspath(args.root), "solver")
+
+  # 3. The checks must be able to fail.
+  planted = ['#include "scene/scene.hpp"', '#include "formulations/run.hpp"',
+             "#include <yaml-cpp/yaml.h>", "  const YAML::Node n = YAML::Load(text);"]
+  missed = [p for p in planted if not scan_source("solver/planted.hpp", p)]
+  planted_cmake = ["target_link_libraries(kneedyn_solver PUBLIC Eigen3::Eigen\n  yaml-cpp)",
+                   "target_link_libraries(kneedyn_solver PUBLIC kneedyn_scene)"]
+  missed += [p for p in planted_cmake if not scan_cmake("solver/CMakeLists.txt", p)]
+  clean = '#include "solver/state.hpp"  // filled by the loader (scene/scene.hpp)'
+  if missed or scan_source("solver/x.hpp", clean) or \
+     scan_cmake("solver/CMakeLists.txt", "# links no yaml-cpp\ntarget_link_libraries(kneedyn_solver PUBLIC Eigen3::Eigen)"):
+    sys.exit(f"layering: self-check failed (missed planted lines {missed} or flagged a clean one)")
+  if not YAML_LIB.search(ldd(args.yaml_user)):
+    sys.exit(f"layering: self-check failed: ldd {args.yaml_user} (links the loader) lists no libyaml-cpp, "
+             "so the ldd check below could not see it either")
+
+  # 1. Sources and CMake of solver/.
+  hits = []
+  for name in sorted(os.listdir(solver)):
+    path = os.path.join(solver, name)
+    with open(path, encoding="utf-8") as f:
+      text = f.read()
+    rel = os.path.join("solver", name)
+    if name == "CMakeLists.txt":
+      hits += scan_cmake(rel, text)
+    elif name.endswith((".hpp", ".cpp", ".h")):
+      hits += scan_source(rel, text)
+  # 2. The binary linked with kneedyn_solver alone.
+  libs = [l.strip() for l in ldd(args.probe).splitlines() if YAML_LIB.search(l)]
+  if libs:
+    hits.append(f"{args.probe} (kneedyn_solver only) loads {libs}")
+  run = subprocess.run([args.probe], capture_output=True, text=True)
+  if run.returncode != 0:
+    hits.append(f"{args.probe} exit {run.returncode}: {run.stdout.strip()} {run.stderr.strip()}")
+  for h in hits:
+    print("layering:", h)
+  print(f"layering: {len(hits)} violation(s); self-check caught {len(planted) + len(planted_cmake)} planted lines")
+  return 1 if hits else 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())
