@@ -287,7 +287,7 @@ HangingCase MakeHanging(double end_s, double output_s) {
   std::snprintf(num[2], 64, "%.17g", output_s);
   HangingCase c{ParseScene(StrCat(R"(
 name: scalar_hanging
-parameter_set: exact/hanging_element_knee.yaml
+parameter_set: hanging_element_knee.yaml
 ligaments: [hanger]
 contacts: []
 gravity: {enabled: true}
