@@ -33,8 +33,14 @@ if(NOT config OR NOT pc)
   message(FATAL_ERROR "no kneedynConfig.cmake ('${config}') or kneedyn.pc ('${pc}') under ${prefix}")
 endif()
 
+# A sanitizer build installs instrumented static libraries: the consumer links the runtime.
+set(consumer_flags)
+if(SANITIZE)
+  set(consumer_flags "-DCMAKE_CXX_FLAGS=-fsanitize=address,undefined"
+                     "-DCMAKE_EXE_LINKER_FLAGS=-fsanitize=address,undefined")
+endif()
 run(${CMAKE_COMMAND} -S ${SOURCE}/tests/consumer -B ${WORK}/consumer-build
-    -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix})
+    -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix} ${consumer_flags})
 run(${CMAKE_COMMAND} --build ${WORK}/consumer-build)
 run(${WORK}/consumer-build/consumer)
 message(STATUS "consumer: ${out}")
