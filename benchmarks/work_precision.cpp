@@ -121,9 +121,13 @@ std::vector<BenchConfig> Grid(bool short_mode, double rtol_min, const std::strin
       } else {
         // ede: also the two projections (issue 13): kneedyn's project-and-restart with an
         // explicit RK method, CVODE's own (CVodeSetProjFn) with BDF.
+        // Which formulations have them is their declared capability (FormulationInfo).
+        const auto declares = [&info](const char* s) {
+          return std::find(info.stabilizations.begin(), info.stabilizations.end(), s) != info.stabilizations.end();
+        };
         std::vector<std::string> stabilizations = {"none"};
-        if (info.name == "ede" && integ == "dopri5") stabilizations.push_back("projection");
-        if (info.name == "ede" && integ == "cvode-bdf") stabilizations.push_back("cvode-projection");
+        if (declares("projection") && integ == "dopri5") stabilizations.push_back("projection");
+        if (declares("cvode-projection") && integ == "cvode-bdf") stabilizations.push_back("cvode-projection");
         for (const std::string& stab : stabilizations) {
           c.stabilization = stab;
           for (double r : rtols) {
