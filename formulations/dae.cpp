@@ -117,7 +117,7 @@ class DaeFormulation final : public FormulationBase {
                options_, scene_.end.time, events_, "DaeFormulation::Start", &sundials_messages_);
     N_VDestroy(id);
     N_VDestroy(atol);
-    ++accumulated_.restarts;
+    ++finished_phases_.restarts;
   }
 
   // Issue 18: which unknown IDA's failure is about — the component with the largest
@@ -184,11 +184,7 @@ class DaeFormulation final : public FormulationBase {
 
   std::string integrator() const override { return "ida"; }  // variable-order BDF, adaptive
 
-  SolverStats stats() const override {
-    SolverStats s = accumulated_;
-    if (ida_.mem != nullptr) s += CurrentStats();
-    return s;
-  }
+  SolverStats PhaseStats() const override { return ida_.mem != nullptr ? CurrentStats() : SolverStats(); }
 
   // F(t, y, ẏ) for T = double or JetD; `data` is the matching preallocated workspace.
   // Returns false on a recoverable failure (surface evaluated outside its domain).
@@ -344,7 +340,7 @@ class DaeFormulation final : public FormulationBase {
   SolverStats CurrentStats() const { return IdaStatistics(ida_.mem, !events_.empty()); }
 
   void Free() {
-    ida_.Free(&accumulated_, !events_.empty());
+    ida_.Free(&finished_phases_, !events_.empty());
     if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
@@ -358,7 +354,6 @@ class DaeFormulation final : public FormulationBase {
   IdaPhase ida_;  // IDA memory, y, ẏ, matrix and linear solver of the phase
   int n_ = 0;
   int per_contact_ = 4;
-  SolverStats accumulated_;
   mutable std::string failure_;
   SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason
   bool position_level_ = false;  // --constraint-level position (index-3 variant)

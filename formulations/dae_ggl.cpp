@@ -146,7 +146,7 @@ class DaeGglFormulation final : public FormulationBase {
                options_, scene_.end.time, events_, "DaeGglFormulation::Start", &sundials_messages_);
     N_VDestroy(id);
     N_VDestroy(atol);
-    ++accumulated_.restarts;
+    ++finished_phases_.restarts;
   }
 
   AdvanceResult Advance(double t_out, MechanicalState* state) override {
@@ -179,11 +179,7 @@ class DaeGglFormulation final : public FormulationBase {
     return result;
   }
 
-  SolverStats stats() const override {
-    SolverStats s = accumulated_;
-    if (ida_.mem != nullptr) s += CurrentStats();
-    return s;
-  }
+  SolverStats PhaseStats() const override { return ida_.mem != nullptr ? CurrentStats() : SolverStats(); }
 
   // F(t, y, ẏ) for T = double or JetD; `data` is the matching preallocated workspace.
   // Returns false on a recoverable failure (surface evaluated outside its domain).
@@ -346,7 +342,7 @@ class DaeGglFormulation final : public FormulationBase {
   SolverStats CurrentStats() const { return IdaStatistics(ida_.mem, !events_.empty()); }
 
   void Free() {
-    ida_.Free(&accumulated_, !events_.empty());
+    ida_.Free(&finished_phases_, !events_.empty());
     if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
@@ -361,7 +357,6 @@ class DaeGglFormulation final : public FormulationBase {
   int n_ = 0;
   int per_contact_ = 4;
   int rows_per_contact_ = 6;
-  SolverStats accumulated_;
   mutable std::string failure_;
   // Workspaces sized in the constructor / Start (no allocation in the callbacks).
   mutable DataTpl<double> data_;

@@ -95,7 +95,8 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
   bool EvaluateHotPathForTesting(int n) override { return integrator_.EvaluateCallbacksForTesting(t_, y_, n); }
   double fixed_step() const override { return integrator_.step(); }
 
-  SolverStats stats() const override {
+  // The OdeIntegrator lives across phases and counts over the whole run.
+  SolverStats PhaseStats() const override {
     SolverStats s = integrator_.stats();
     s.projections += projections_;
     return s;

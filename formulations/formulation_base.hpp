@@ -1,7 +1,8 @@
 // The plumbing every formulation shares, written once (issue 11 item 6; Drake's
 // IntegratorBase plays this role there): the scene and model, the phase's bookkeeping (active
 // contacts, events, contact-chart guesses, locked ligament branches, recorded by BeginPhase
-// in Start) and the write-back of the state reached at the end of Advance. Formulations
+// in Start), the run's statistics and the write-back of the state reached at the end of
+// Advance. Formulations
 // derive from it and keep only their method.
 #pragma once
 
@@ -13,7 +14,21 @@
 namespace kneedyn {
 
 class FormulationBase : public Formulation {
+ public:
+  // Cumulative statistics over the run (Formulation::stats): the counters of the finished
+  // phases, which the base keeps, plus those of the phase in progress, which only the
+  // method's solver knows.
+  SolverStats stats() const final {
+    SolverStats s = finished_phases_;
+    s += PhaseStats();
+    return s;
+  }
+
  protected:
+  // Counters not yet in finished_phases_: the phase in progress (0 when there is none), or
+  // the whole run for a method whose solver object lives across phases and counts on.
+  virtual SolverStats PhaseStats() const = 0;
+
   explicit FormulationBase(const Scene& scene) : scene_(scene), model_(scene.model) {}
 
   // Records the phase that starts at `state` with `events` to watch.
@@ -53,6 +68,7 @@ class FormulationBase : public Formulation {
   std::vector<EventSpec> events_;             // roots watched in this phase
   std::vector<ContactGuess> state_contact_;   // contact guesses (charts) at the phase start
   std::vector<signed char> ligament_branch_;  // locked for the phase
+  SolverStats finished_phases_;               // counters of finished phases, and restarts
 };
 
 }  // namespace kneedyn

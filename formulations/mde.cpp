@@ -119,7 +119,8 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
     return root ? EventResult(found) : AdvanceResult{};
   }
 
-  SolverStats stats() const override { return integrator_.stats(); }
+  // The OdeIntegrator lives across phases and counts over the whole run.
+  SolverStats PhaseStats() const override { return integrator_.stats(); }
   std::string integrator() const override { return integrator_.name(); }
   bool EvaluateHotPathForTesting(int n) override { return integrator_.EvaluateCallbacksForTesting(t_, y_, n); }
   double fixed_step() const override { return integrator_.step(); }

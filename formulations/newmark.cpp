@@ -57,6 +57,7 @@
 
 #include "formulations/event_locator.hpp"
 #include "formulations/formulation.hpp"
+#include "formulations/formulation_base.hpp"
 #include "formulations/newmark_scheme.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -90,11 +91,11 @@ struct StepState {
   XVector extra;  // (c_1 … c_k, N_1 … N_k) chapter form, (N_1 … N_k) closed form
 };
 
-class NewmarkFormulation final : public Formulation {
+class NewmarkFormulation final : public FormulationBase {
  public:
   NewmarkFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form,
                      const NewmarkScheme& scheme = NewmarkScheme(), const char* name = nullptr)
-      : scene_(scene), model_(scene.model), options_(options), form_(form), scheme_(scheme), data_(model_),
+      : FormulationBase(scene), options_(options), form_(form), scheme_(scheme), data_(model_),
         data_jet_(model_) {
     if (name == nullptr) name = form == ContactForm::kChapter ? "newmark" : "newmark-reduced";
     if (options.stabilization != "none") {
@@ -115,8 +116,7 @@ class NewmarkFormulation final : public Formulation {
   ContactForm contact_form() const override { return form_; }
 
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
-    active_ = state.active;
-    events_ = events;
+    BeginPhase(state, events);
     locator_.Reserve(events.size());
     g_hot_path_.resize(events.size());
     per_contact_ = form_ == ContactForm::kChapter ? 4 : 0;
@@ -124,8 +124,6 @@ class NewmarkFormulation final : public Formulation {
     n_ = 6 + (per_contact_ + 1) * k;
     if (n_ > kMaxJetSize) Throw<SolverError>("NewmarkFormulation::Start", "system size ", n_, " exceeds ", kMaxJetSize);
     if (k > kMaxActiveContacts) Throw<SolverError>("NewmarkFormulation::Start", k, " active contacts exceed ", kMaxActiveContacts);
-    state_contact_ = state.contact;
-    ligament_branch_ = state.ligament_branch;
     current_.t = state.t;
     current_.q = state.q;
     current_.qd = state.qd;
@@ -190,7 +188,8 @@ class NewmarkFormulation final : public Formulation {
     return result;
   }
 
-  SolverStats stats() const override { return stats_; }
+  // stats_ counts over the whole run (the stepper lives across phases).
+  SolverStats PhaseStats() const override { return stats_; }
   std::string integrator() const override { return "newmark-average-acceleration"; }
   double fixed_step() const override { return step_; }
   // One Newton step from the current state (residual + Jet Jacobian + LU per iteration)
@@ -492,26 +491,14 @@ class NewmarkFormulation final : public Formulation {
     fired->assign(located_.fired.begin(), located_.fired.end());
   }
 
+  // extra = (chapter coordinates, per_contact_ per active contact; normal forces).
   void WriteState(const StepState& s, MechanicalState* state) const {
     const int k = static_cast<int>(active_.size());
-    state->t = s.t;
-    state->q = s.q;
-    state->qd = s.qd;
-    state->qdd = s.qdd;
+    WriteBack(s.t, s.q, s.qd, s.qdd, s.extra.data() + per_contact_ * k, per_contact_ > 0 ? s.extra.data() : nullptr,
+              per_contact_, state);
     state->active = active_;
-    state->contact = state_contact_;
-    state->ligament_branch = ligament_branch_;
-    for (int c = 0; c < k; ++c) {
-      for (int j = 0; j < per_contact_; ++j) {
-        state->contact[active_[c]].coordinates[j] = s.extra(per_contact_ * c + j);
-      }
-      state->contact[active_[c]].normal_force = s.extra(per_contact_ * k + c);
-    }
-    if (per_contact_ == 0) FillContactCoordinates(model_, state);
   }
 
-  const Scene& scene_;
-  const Model& model_;
   FormulationOptions options_;
   ContactForm form_;
   NewmarkScheme scheme_;
@@ -520,10 +507,6 @@ class NewmarkFormulation final : public Formulation {
   int n_ = 6;
   int per_contact_ = 4;
   long phase_steps_ = 0;
-  std::vector<int> active_;
-  std::vector<EventSpec> events_;
-  std::vector<ContactGuess> state_contact_;
-  std::vector<signed char> ligament_branch_;  // locked for the phase
   StepState current_;
   std::vector<double> g_hot_path_;  // EvaluateHotPathForTesting
   std::vector<double> g_current_;
