@@ -95,6 +95,11 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
   bool EvaluateHotPathForTesting(int n) override { return integrator_.EvaluateCallbacksForTesting(t_, y_, n); }
   double fixed_step() const override { return integrator_.step(); }
 
+  // y = (q, q̇): "alpha", "alpha_rate", ...
+  std::string StateName(int i) const override {
+    return i < 6 ? std::string(CoordinateName(i)) : std::string(CoordinateName(i - 6)) + "_rate";
+  }
+
   // The OdeIntegrator lives across phases and counts over the whole run.
   SolverStats PhaseStats() const override {
     SolverStats s = integrator_.stats();

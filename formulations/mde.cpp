@@ -119,6 +119,12 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
     return root ? EventResult(found) : AdvanceResult{};
   }
 
+  // y = (s, ṡ), s the free coordinates of the phase: "alpha", "alpha_rate", ...
+  std::string StateName(int i) const override {
+    const int m = static_cast<int>(free_.size());
+    return i < m ? std::string(CoordinateName(free_[i])) : std::string(CoordinateName(free_[i - m])) + "_rate";
+  }
+
   // The OdeIntegrator lives across phases and counts over the whole run.
   SolverStats PhaseStats() const override { return integrator_.stats(); }
   std::string integrator() const override { return integrator_.name(); }

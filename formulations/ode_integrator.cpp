@@ -245,7 +245,7 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
     const std::string text = name ? name : "?";
     free(name);
     Throw<SolverError>("OdeIntegrator::Evolve", owner_, " (", name_, "): ", text, " at t = ", t_cur, " s with step h = ", h, " s",
-                       failure_.empty() ? "" : " (" + failure_ + ")", sundials_messages_.Take());
+                       LargestErrorComponent(), failure_.empty() ? "" : " (" + failure_ + ")", sundials_messages_.Take());
   }
   *t = t_reached;
   y->resize(n_);
@@ -324,6 +324,32 @@ SolverStats OdeIntegrator::CurrentCounters() const {
     if (num_roots_ > 0) { ARKStepGetNumGEvals(mem_, &v); s.root_evaluations = v; }
   }
   return s;
+}
+
+// Issue 18: which state component a failure is about — the largest weighted local error
+// estimate |e_i| w_i of the last attempted step (CVodeGetEstLocalErrors/ARKStepGetEstLocalErrors
+// with the error weights); empty when the solver has none (fixed steps: all zero).
+std::string OdeIntegrator::LargestErrorComponent() const {
+  N_Vector e = N_VClone(y_), w = N_VClone(y_);
+  const bool ok = is_cvode() ? CVodeGetEstLocalErrors(mem_, e) == CV_SUCCESS && CVodeGetErrWeights(mem_, w) == CV_SUCCESS
+                             : ARKStepGetEstLocalErrors(mem_, e) == ARK_SUCCESS && ARKStepGetErrWeights(mem_, w) == ARK_SUCCESS;
+  std::string out;
+  if (ok) {
+    const double* ed = N_VGetArrayPointer(e);
+    const double* wd = N_VGetArrayPointer(w);
+    int worst = 0;
+    for (int i = 1; i < n_; ++i) {
+      if (std::abs(ed[i] * wd[i]) > std::abs(ed[worst] * wd[worst])) worst = i;
+    }
+    const double weighted = std::abs(ed[worst] * wd[worst]);
+    if (weighted > 0.0 && std::isfinite(weighted)) {
+      out = StrCat("; largest weighted local error estimate: ", problem_ ? problem_->StateName(worst) : StrCat("y[", worst, "]"),
+                   " (", weighted, " of the tolerance)");
+    }
+  }
+  N_VDestroy(e);
+  N_VDestroy(w);
+  return out;
 }
 
 SolverStats OdeIntegrator::stats() const {

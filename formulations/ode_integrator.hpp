@@ -45,6 +45,8 @@ class OdeProblem {
   virtual void ProjectionCorrection(double t, const double* y, double* corr) {
     (void)t, (void)y, (void)corr;
   }
+  // Name of state component i in failure messages ("alpha", "alpha_rate", ...).
+  virtual std::string StateName(int i) const { return "y[" + std::to_string(i) + "]"; }
 };
 
 class OdeIntegrator {
@@ -101,6 +103,7 @@ class OdeIntegrator {
   double step_ = 0.0;  // s, fixed-step methods
   SundialsContext ctx_;
   OdeProblem* problem_ = nullptr;
+  std::string LargestErrorComponent() const;
   void* mem_ = nullptr;
   N_Vector y_ = nullptr;
   N_Vector hot_path_y_ = nullptr, hot_path_ydot_ = nullptr;  // EvaluateCallbacksForTesting

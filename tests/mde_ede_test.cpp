@@ -11,6 +11,7 @@
 #include "formulations/run.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/dynamics.hpp"
+#include "solver/pose.hpp"
 #include "scene/scene.hpp"
 
 namespace kneedyn {
@@ -378,6 +379,29 @@ TEST(MdeEde, RejectsBadIntegratorOptions) {
   o = FormulationOptions();
   o.integrator = "rk5";
   EXPECT_THROW(CreateFormulation("ede", scene, o), InputError);
+}
+
+// Issue 18 item 4: a SUNDIALS failure of an ODE form names the state component with the
+// largest weighted local error estimate, by its name in that form. The step budget of 30
+// makes CVODE stop (CV_TOO_MUCH_WORK) early in the first phase.
+TEST(OdeFailures, NameTheLargestWeightedLocalErrorComponent) {
+  const Scene scene = ChapterScene();
+  RunSettings settings;
+  settings.formulation = "ede";
+  settings.options.integrator = "cvode-bdf";
+  settings.options.max_steps = 30;
+  const RunResult r = RunScene(scene, settings);
+  ASSERT_FALSE(r.completed);
+  const std::string key = "largest weighted local error estimate: ";
+  const size_t at = r.failure.find(key);
+  ASSERT_NE(at, std::string::npos) << r.failure;
+  const std::string name = r.failure.substr(at + key.size(), r.failure.find(' ', at + key.size()) - at - key.size());
+  bool known = false;
+  for (int i = 0; i < 6; ++i) {
+    known = known || name == CoordinateName(i) || name == std::string(CoordinateName(i)) + "_rate";
+  }
+  EXPECT_TRUE(known) << "'" << name << "' in: " << r.failure;
+  EXPECT_NE(r.failure.find("CV_TOO_MUCH_WORK"), std::string::npos) << r.failure;
 }
 
 }  // namespace
