@@ -14,24 +14,6 @@ namespace kneedyn::ensembles {
 
 namespace {
 
-// The sweep's outcome groups (sweep.hpp OutcomeColumns).
-const char* const kOutcomeGroups[] = {"liftoff_time",        "liftoff_flexion",    "peak_ligament_force",
-                                      "peak_contact_force",  "time_at_90",         "ligament_force_at_90",
-                                      "contact_force_at_90"};
-
-// Physical lower bounds, as for a sweep's ranges: at or below them there is no model.
-bool MustBePositive(ParameterKind k) {
-  switch (k) {
-    case ParameterKind::kLigamentLinearStiffness:
-    case ParameterKind::kLigamentParabolicStiffness:
-    case ParameterKind::kLigamentSlackLength:
-    case ParameterKind::kLigamentExtensionRatio:
-    case ParameterKind::kPulseDuration:
-    case ParameterKind::kMass: return true;
-    default: return false;
-  }
-}
-
 std::string Trim(const std::string& s) {
   const size_t a = s.find_first_not_of(" \t\r");
   if (a == std::string::npos) return "";
@@ -138,7 +120,7 @@ BatchVariants LoadBatchVariants(const std::string& path, const Model& base) {
 
 Batch::Batch(Scene base, RunSettings run, std::vector<std::string> outcome_groups) {
   for (const std::string& g : outcome_groups) {
-    if (std::find(std::begin(kOutcomeGroups), std::end(kOutcomeGroups), g) == std::end(kOutcomeGroups)) {
+    if (OutcomeGroups().count(g) == 0) {
       Throw<InputError>("kneedyn batch", "--outcomes: unknown outcome '", g,
                         "'; expected liftoff_time, liftoff_flexion, peak_ligament_force, peak_contact_force, "
                         "time_at_90, ligament_force_at_90, contact_force_at_90");

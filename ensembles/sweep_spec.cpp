@@ -189,7 +189,8 @@ void ResolveParameter(const Where& where, AnalyticModel analytic, const Model& m
   }
 }
 
-// Physical lower bounds: a sampled value at or below them makes no model.
+}  // namespace
+
 bool MustBePositive(ParameterKind k) {
   switch (k) {
     case ParameterKind::kLigamentLinearStiffness:
@@ -209,7 +210,6 @@ const std::set<std::string>& OutcomeGroups() {
   return kGroups;
 }
 
-}  // namespace
 
 double InverseNormalCdf(double p) {
   if (!(p > 0.0 && p < 1.0)) {

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -71,6 +72,11 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
 // resolved against a model (kind, element, axis, nominal value, result column); no
 // range. Throws InputError naming `where`, the name and the rule.
 ParameterSpec ResolveParameterName(const Model& base, const std::string& name, const std::string& where);
+
+// Physical lower bounds: a value at or below them makes no model (spec ranges, batch rows).
+bool MustBePositive(ParameterKind k);
+// The outcome groups a spec's `outcomes` (and `kneedyn batch --outcomes`) may name.
+const std::set<std::string>& OutcomeGroups();
 
 // The base scene with the parameter values of one run (spec units) applied. Attachments
 // and slack lengths keep the chapter's definition L0 = L_ref / e at the reference pose
