@@ -20,9 +20,13 @@
 // `dae-reduced`: the same physics with the closed-form sphere-on-plane contact:
 // y = (q, u, N_i), n = 12 + k, constraint φ̇_i = 0 (or φ_i = 0 at position level).
 //
+// The system itself (unknowns, residual rows, exact Jacobian) is formulations/dae_system.hpp,
+// shared with dae-ggl and the IDAS sensitivities.
+//
 // IDA settings: IDASetId (q, u differential; c, N algebraic) with IDASetSuppressAlg, so
 // the index-2 algebraic variables are excluded from the error test; dense Jacobian
-// dF/dy + cj dF/dẏ by forward-mode AD (ceres::Jet); root functions from solver/events.hpp.
+// dF/dy + cj dF/dẏ exact from the system's blocks (--jacobian jet: the Jet<24> reference;
+// difference-quotient: IDA's own); root functions from solver/events.hpp.
 // A contact-mode switch rebuilds IDA at the new size from the driver's consistent state
 // (IDAReInit cannot change the size). IDACalcIC is not used (it is only valid for index 1);
 // the initial y, ẏ come from the consistent initialization.
@@ -34,6 +38,7 @@
 #include <algorithm>
 #include <memory>
 
+#include "formulations/dae_system.hpp"
 #include "formulations/dae_testing.hpp"
 #include "formulations/formulation_base.hpp"
 #include "formulations/ida_phase.hpp"
@@ -50,12 +55,16 @@ constexpr double kForceAtolScale = 1.0e4;
 class DaeFormulation final : public FormulationBase {
  public:
   DaeFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
-      : FormulationBase(scene), options_(options), form_(form), data_(model_), data_jet_(model_) {
+      : FormulationBase(scene),
+        options_(options),
+        parsed_(options.Parsed()),
+        form_(form),
+        system_(model_, form, parsed_.constraint_level, /*ggl=*/false) {
     if (options.step != 0.0) {
       Throw<InputError>("DaeFormulation", "--step = ", options.step,
                         " s: the IDA formulations choose their own steps; use --max-step");
     }
-    if (options.Parsed().stabilization != Stabilization::kNone) {
+    if (parsed_.stabilization != Stabilization::kNone) {
       Throw<InputError>("DaeFormulation", "--stabilization = '", options.stabilization,
                         "' applies to ede only");
     }
@@ -67,18 +76,10 @@ class DaeFormulation final : public FormulationBase {
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
     Free();
     BeginPhase(state, events);
-    const int k = static_cast<int>(active_.size());
-    per_contact_ = form_ == ContactForm::kChapter ? 4 : 0;
-    n_ = 12 + (per_contact_ + 1) * k;
-    if (n_ > kMaxJetSize) Throw<SolverError>("DaeFormulation::Start", "system size ", n_, " exceeds ", kMaxJetSize);
-    if (k > kMaxActiveContacts) Throw<SolverError>("DaeFormulation::Start", k, " active contacts exceed ", kMaxActiveContacts);
-    yj_.assign(n_, JetD(0.0));
-    ypj_.assign(n_, JetD(0.0));
-    Fj_.assign(n_, JetD(0.0));
-    J_.setZero(n_, n_);
+    system_.SetPhase(active_, state.contact, ligament_branch_);
+    n_ = system_.size();
     normal_.assign(model_.contacts.size(), 0.0);
     root_flags_.assign(events_.size(), 0);
-    position_level_ = options_.Parsed().constraint_level == ConstraintLevel::kPosition;
 
     ida_.y = N_VNew_Serial(n_, ctx_);
     ida_.yp = N_VNew_Serial(n_, ctx_);
@@ -87,34 +88,20 @@ class DaeFormulation final : public FormulationBase {
     t_ = state.t;
     N_Vector id = N_VNew_Serial(n_, ctx_);
     N_Vector atol = N_VNew_Serial(n_, ctx_);
-    double* y = NvData(ida_.y);
-    double* yp = NvData(ida_.yp);
-    for (int i = 0; i < 6; ++i) {
-      y[i] = state.q(i);
-      y[6 + i] = state.qd(i);
-      yp[i] = state.qd(i);
-      yp[6 + i] = state.qdd(i);
-    }
-    for (int c = 0; c < k; ++c) {
-      for (int j = 0; j < per_contact_; ++j) {
-        y[12 + per_contact_ * c + j] = state.contact[active_[c]].coordinates[j];
-        yp[12 + per_contact_ * c + j] = 0.0;
-      }
-      y[NormalIndex(c)] = state.contact[active_[c]].normal_force;
-      yp[NormalIndex(c)] = 0.0;
-    }
-    if (per_contact_ > 0) ContactCoordinateRates(state.t, y, yp);
+    system_.InitialValues(state, NvData(ida_.y), NvData(ida_.yp));
     double* idp = NvData(id);
     double* at = NvData(atol);
     for (int i = 0; i < n_; ++i) {
-      idp[i] = i < 12 ? 1.0 : 0.0;
+      idp[i] = system_.IsDifferential(i) ? 1.0 : 0.0;
       // Index-2 multipliers N (newtons) carry round-off of order ε/h² in Newton corrections;
       // they are excluded from the error test and get a force-scaled absolute tolerance
-      // in the Newton convergence test (KNEEDYN_DAE_FORCE_ATOL_SCALE N per unit atol).
-      at[i] = i >= NormalIndex(0) ? options_.atol * kForceAtolScale : options_.atol;
+      // in the Newton convergence test (kForceAtolScale N per unit atol).
+      at[i] = i >= system_.NormalIndex(0) ? options_.atol * kForceAtolScale : options_.atol;
     }
-    ida_.Start(ctx_, n_, &DaeFormulation::Residual, &DaeFormulation::Jacobian, &DaeFormulation::Roots, this, state.t, atol, id,
-               options_, scene_.end.time, events_, "DaeFormulation::Start", &sundials_messages_);
+    ida_.Start(ctx_, n_, &DaeFormulation::Residual,
+               parsed_.jacobian == JacobianKind::kDifferenceQuotient ? nullptr : &DaeFormulation::Jacobian,
+               &DaeFormulation::Roots, this, state.t, atol, id, options_, scene_.end.time, events_,
+               "DaeFormulation::Start", &sundials_messages_);
     N_VDestroy(id);
     N_VDestroy(atol);
     ++finished_phases_.restarts;
@@ -132,27 +119,13 @@ class DaeFormulation final : public FormulationBase {
       for (int i = 1; i < n_; ++i) {
         if (std::abs(ed[i] * wd[i]) > std::abs(ed[worst] * wd[worst])) worst = i;
       }
-      out = StrCat("; largest weighted local error estimate: ", UnknownName(worst), " (",
+      out = StrCat("; largest weighted local error estimate: ", system_.UnknownName(worst), " (",
                    std::abs(ed[worst] * wd[worst]), " of the tolerance)");
     }
     N_VDestroy(e);
     N_VDestroy(w);
     return out;
   }
-  // y = (q: x0 … gamma, u: generalized velocity, contact coordinates, N per contact).
-  std::string UnknownName(int i) const {
-    if (i < 6) return CoordinateName(i);
-    if (i < 12) return StrCat("u[", i - 6, "]");
-    const int k = static_cast<int>(active_.size());
-    const int coords = per_contact_ * k;
-    if (i < 12 + coords) {
-      static const char* kCoord[4] = {"x_c", "y_c", "x'_c", "y'_c"};
-      return StrCat(CompartmentName(state_contact_compartment((i - 12) / per_contact_)), " ",
-                    kCoord[(i - 12) % per_contact_]);
-    }
-    return StrCat("N_", CompartmentName(state_contact_compartment(i - 12 - coords)));
-  }
-  Compartment state_contact_compartment(int c) const { return model_.contacts[active_[c]].compartment; }
 
   AdvanceResult Advance(double t_out, MechanicalState* state) override {
     double t_reached = state->t;
@@ -174,7 +147,8 @@ class DaeFormulation final : public FormulationBase {
     const double* y = NvData(ida_.y);
     const double* yp = NvData(ida_.yp);
     WriteBack(t_reached, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
-              Eigen::Map<const Vector6d>(yp + 6), y + NormalIndex(0), y + 12, per_contact_, state);
+              Eigen::Map<const Vector6d>(yp + 6), y + system_.NormalIndex(0), y + 12,
+              system_.per_contact(), state);
     if (flag == IDA_ROOT_RETURN) {
       Check(IDAGetRootInfo(ida_.mem, root_flags_.data()), "IDAGetRootInfo");
       result = EventResult(root_flags_);
@@ -185,71 +159,6 @@ class DaeFormulation final : public FormulationBase {
   std::string integrator() const override { return "ida"; }  // variable-order BDF, adaptive
 
   SolverStats PhaseStats() const override { return ida_.mem != nullptr ? CurrentStats() : SolverStats(); }
-
-  // F(t, y, ẏ) for T = double or JetD; `data` is the matching preallocated workspace.
-  // Returns false on a recoverable failure (surface evaluated outside its domain).
-  template <typename T>
-  bool EvaluateResidual(double t, const T* y, const T* yp, T* F, DataTpl<T>* data) const {
-    Vector6<T> q, u, qdot, udot;
-    for (int i = 0; i < 6; ++i) {
-      q(i) = y[i];
-      u(i) = y[6 + i];
-      qdot(i) = yp[i];
-      udot(i) = yp[6 + i];
-    }
-    for (int i = 0; i < 6; ++i) F[i] = u(i) - qdot(i);  // F1–F6
-    const PoseTpl<T> pose = PoseFromCoordinates(q);
-    const Vector6<T> nu = GeneralizedVelocity(q, u);
-    const int k = static_cast<int>(active_.size());
-    ContactGeometryTpl<T> geo[kMaxActiveContacts];
-    for (int c = 0; c < k; ++c) {
-      const ContactPair& pair = model_.contacts[active_[c]];
-      T* Fc = F + 12 + 5 * c - (form_ == ContactForm::kClosedForm ? 4 * c : 0);
-      if (form_ == ContactForm::kChapter) {
-        T r[5];
-        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo[c],
-                                     state_contact_[active_[c]].chart)) {
-          return false;
-        }
-        Fc[0] = r[0];
-        Fc[1] = r[1];
-        Fc[2] = position_level_ ? r[2]
-                                                        : T(ContactConstraintRow(pose, geo[c]).dot(nu));
-        Fc[3] = r[3];
-        Fc[4] = r[4];
-      } else {
-        if (!ContactKinematics(pair, pose, &geo[c])) return false;
-        Fc[0] = position_level_ ? geo[c].gap
-                                                        : T(ContactConstraintRow(pose, geo[c]).dot(nu));
-      }
-    }
-    // F7–F12: Q + Σ N_i G_iᵀ − M ν̇ (Eqs. 1.48–1.57; solver/newton_euler.hpp).
-    data->ligament_branch = &ligament_branch_;
-    const Vector6<T> residual =
-        NewtonEulerResidual(model_, t, q, u, udot, pose, k, geo, y + NormalIndex(0), data);
-    for (int i = 0; i < 6; ++i) F[6 + i] = -residual(i);  // F7–F12
-    return true;
-  }
-
-  // dF/dy + cj dF/dẏ into J_ by forward AD (two Jet passes); no allocation.
-  bool EvaluateJacobian(double t, double cj, const double* y, const double* yp) const {
-    J_.setZero();
-    for (int pass = 0; pass < 2; ++pass) {
-      for (int i = 0; i < n_; ++i) {
-        yj_[i] = JetD(y[i]);
-        ypj_[i] = JetD(yp[i]);
-        if (pass == 0) yj_[i].v[i] = 1.0;
-        else ypj_[i].v[i] = 1.0;
-      }
-      if (!EvaluateResidual(t, yj_.data(), ypj_.data(), Fj_.data(), &data_jet_)) return false;
-      const double scale = pass == 0 ? 1.0 : cj;
-      for (int r = 0; r < n_; ++r) {
-        for (int c = 0; c < n_; ++c) J_(r, c) += scale * Fj_[r].v[c];
-      }
-    }
-    return true;
-  }
-  const MatrixXd& jacobian() const { return J_; }
 
   // The residual, Jacobian (cj = 1e4 1/s) and root callbacks IDA calls, at the current y, ẏ.
   bool EvaluateHotPathForTesting(int n) override {
@@ -262,59 +171,36 @@ class DaeFormulation final : public FormulationBase {
     return true;
   }
 
-  int size() const { return n_; }
+  const DaeSystem& system() const { return system_; }
 
  private:
-  int NormalIndex(int c) const { return 12 + per_contact_ * static_cast<int>(active_.size()) + c; }
-
-  // ċ from the time derivative of the contact-coordinate equations (rows x, y of Eq. 1.8
-  // and of Eq. 1.13): ∂g/∂c ċ = −∂g/∂(q) q̇, so the predictor starts consistent.
-  void ContactCoordinateRates(double t, const double* y, double* yp) const {
-    if (!EvaluateJacobian(t, 0.0, y, yp)) return;
-    const MatrixXd& J = J_;
-    for (size_t c = 0; c < active_.size(); ++c) {
-      const int row0 = 12 + 5 * static_cast<int>(c);
-      const int col0 = 12 + 4 * static_cast<int>(c);
-      const int rows[4] = {row0, row0 + 1, row0 + 3, row0 + 4};
-      Eigen::Matrix4d A;
-      Eigen::Vector4d b;
-      for (int r = 0; r < 4; ++r) {
-        b(r) = 0.0;
-        for (int i = 0; i < 6; ++i) b(r) -= J(rows[r], i) * yp[i];
-        for (int j = 0; j < 4; ++j) A(r, j) = J(rows[r], col0 + j);
-      }
-      const Eigen::Vector4d cd = A.fullPivLu().solve(b);
-      for (int j = 0; j < 4; ++j) yp[col0 + j] = cd(j);
-    }
-  }
-
   static int Residual(double t, N_Vector yy, N_Vector yp, N_Vector rr, void* user) {
     auto* self = static_cast<DaeFormulation*>(user);
     try {
-      return self->EvaluateResidual(t, NvData(yy), NvData(yp), NvData(rr), &self->data_) ? 0 : 1;
+      return self->system_.Residual(t, NvData(yy), NvData(yp), NvData(rr)) ? 0 : 1;
     } catch (const std::exception& e) {
       self->failure_ = e.what();
       return -1;
     }
   }
 
+  // dF/dy + cj dF/dẏ straight into IDA's column-major dense matrix.
   static int Jacobian(double t, double cj, N_Vector yy, N_Vector yp, N_Vector, SUNMatrix JJ,
                       void* user, N_Vector, N_Vector, N_Vector) {
     auto* self = static_cast<DaeFormulation*>(user);
     try {
-      if (!self->EvaluateJacobian(t, cj, NvData(yy), NvData(yp))) return 1;
-      for (int c = 0; c < self->n_; ++c) {
-        double* col = SUNDenseMatrix_Column(JJ, c);
-        for (int r = 0; r < self->n_; ++r) col[r] = self->J_(r, c);
-      }
-      return 0;
+      double* J = SUNDenseMatrix_Data(JJ);
+      const bool ok = self->parsed_.jacobian == JacobianKind::kJet
+                          ? self->system_.JacobianByJets(t, cj, NvData(yy), NvData(yp), J)
+                          : self->system_.Jacobian(t, cj, NvData(yy), NvData(yp), J);
+      return ok ? 0 : 1;
     } catch (const std::exception& e) {
       self->failure_ = e.what();
       return -1;
     }
   }
 
-  static int Roots(double t, N_Vector yy, N_Vector, double* g, void* user) {
+  static int Roots(double, N_Vector yy, N_Vector, double* g, void* user) {
     auto* self = static_cast<DaeFormulation*>(user);
     try {
       const double* y = NvData(yy);
@@ -322,9 +208,8 @@ class DaeFormulation final : public FormulationBase {
       for (int i = 0; i < 6; ++i) q(i) = y[i];
       std::fill(self->normal_.begin(), self->normal_.end(), 0.0);
       for (size_t c = 0; c < self->active_.size(); ++c) {
-        self->normal_[self->active_[c]] = y[self->NormalIndex(static_cast<int>(c))];
+        self->normal_[self->active_[c]] = y[self->system_.NormalIndex(static_cast<int>(c))];
       }
-      (void)t;
       EvaluateEvents(self->scene_.model, self->events_, q, self->normal_, g);
       return 0;
     } catch (const std::exception& e) {
@@ -344,24 +229,18 @@ class DaeFormulation final : public FormulationBase {
     if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
-
   FormulationOptions options_;
+  ParsedFormulationOptions parsed_;
   ContactForm form_;
   SundialsContext ctx_;
+  DaeSystem system_;  // unknowns, residual, Jacobian (dae_system.hpp)
   double t_ = 0.0;  // s: time of the phase's y, ẏ (phase start or last Advance)
   N_Vector hot_path_r_ = nullptr;   // residual of EvaluateHotPathForTesting
   std::vector<double> hot_path_g_;  // root values of EvaluateHotPathForTesting
   IdaPhase ida_;  // IDA memory, y, ẏ, matrix and linear solver of the phase
   int n_ = 0;
-  int per_contact_ = 4;
   mutable std::string failure_;
   SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason
-  bool position_level_ = false;  // --constraint-level position (index-3 variant)
-  // Workspaces sized in the constructor / Start (no allocation in the callbacks).
-  mutable DataTpl<double> data_;
-  mutable DataTpl<JetD> data_jet_;
-  mutable std::vector<JetD> yj_, ypj_, Fj_;
-  mutable MatrixXd J_;
   std::vector<double> normal_;  // N per model contact, for the root functions
   std::vector<int> root_flags_;
 };
@@ -380,19 +259,21 @@ bool DaeResidualAndJacobianForTesting(const Scene& scene, const FormulationOptio
                                       ContactForm form, const MechanicalState& state, double t,
                                       const std::vector<double>& y, const std::vector<double>& yp,
                                       double cj, std::vector<double>* F, MatrixXd* J, int* size) {
-  DaeFormulation dae(scene, options, form);
-  dae.Start(state, {});
-  const int n = dae.size();
+  DaeSystem system(scene.model, form, options.Parsed().constraint_level, /*ggl=*/false);
+  system.SetPhase(state.active, state.contact, state.ligament_branch);
+  const int n = system.size();
   if (size) *size = n;
   if (static_cast<int>(y.size()) != n || static_cast<int>(yp.size()) != n) return false;
   if (F) {
     F->assign(n, 0.0);
-    Data data(scene.model);
-    if (!dae.EvaluateResidual(t, y.data(), yp.data(), F->data(), &data)) return false;
+    if (!system.Residual(t, y.data(), yp.data(), F->data())) return false;
   }
   if (J) {
-    if (!dae.EvaluateJacobian(t, cj, y.data(), yp.data())) return false;
-    *J = dae.jacobian();
+    J->resize(n, n);
+    const bool ok = options.Parsed().jacobian == JacobianKind::kJet
+                        ? system.JacobianByJets(t, cj, y.data(), yp.data(), J->data())
+                        : system.Jacobian(t, cj, y.data(), yp.data(), J->data());
+    if (!ok) return false;
   }
   return true;
 }

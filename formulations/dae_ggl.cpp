@@ -36,9 +36,9 @@
 // scene). Scaling the unknowns instead (N/N_ref) would be equivalent for IDA's WRMS tests.
 // IDASetId marks q, u differential and c, N, μ algebraic; IDASetSuppressAlg excludes the
 // algebraic unknowns from the local error test (their BDF error is not O(h^{p+1}) for
-// index 2), as in idaSlCrank_dns.c. The Jacobian dF/dy + cj dF/dẏ comes from forward AD
-// (ceres::Jet). All workspaces are allocated in Start; the residual, Jacobian and root
-// callbacks allocate nothing.
+// index 2), as in idaSlCrank_dns.c. The system (unknowns, residual, the exact Jacobian
+// dF/dy + cj dF/dẏ) is formulations/dae_system.hpp, shared with dae. All workspaces are
+// allocated in Start; the residual, Jacobian and root callbacks allocate nothing.
 #include <ida/ida.h>
 #include <sunlinsol/sunlinsol_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>
@@ -47,6 +47,7 @@
 #include <cmath>
 #include <memory>
 
+#include "formulations/dae_system.hpp"
 #include "formulations/formulation_base.hpp"
 #include "formulations/ida_phase.hpp"
 #include "formulations/sundials_util.hpp"
@@ -68,18 +69,21 @@ constexpr double kMuAtolFloor = 1.0e-3;
 class DaeGglFormulation final : public FormulationBase {
  public:
   DaeGglFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
-      : FormulationBase(scene), options_(options), form_(form), data_(model_), data_jet_(model_) {
+      : FormulationBase(scene),
+        options_(options),
+        parsed_(options.Parsed()),
+        form_(form),
+        system_(model_, form, ConstraintLevel::kVelocity, /*ggl=*/true) {
     const char* name = form == ContactForm::kChapter ? "dae-ggl" : "dae-ggl-reduced";
     if (options.step != 0.0) {
       Throw<InputError>("DaeGglFormulation", "--step = ", options.step,
                         " s: ", name, " chooses its own steps; use --max-step");
     }
-    const ParsedFormulationOptions parsed = options.Parsed();
-    if (parsed.stabilization != Stabilization::kNone) {
+    if (parsed_.stabilization != Stabilization::kNone) {
       Throw<InputError>("DaeGglFormulation", "--stabilization = '", options.stabilization,
                         "' applies to ede only (", name, " enforces both constraint levels)");
     }
-    if (parsed.constraint_level != ConstraintLevel::kVelocity) {
+    if (parsed_.constraint_level != ConstraintLevel::kVelocity) {
       Throw<InputError>("DaeGglFormulation", "--constraint-level = '", options.constraint_level,
                         "': ", name, " always enforces position and velocity level; leave the default");
     }
@@ -92,20 +96,9 @@ class DaeGglFormulation final : public FormulationBase {
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
     Free();
     BeginPhase(state, events);
+    system_.SetPhase(active_, state.contact, ligament_branch_);
+    n_ = system_.size();
     const int k = static_cast<int>(active_.size());
-    per_contact_ = form_ == ContactForm::kChapter ? 4 : 0;
-    rows_per_contact_ = per_contact_ + 2;
-    n_ = 12 + (per_contact_ + 2) * k;
-    if (n_ > kMaxJetSize) {
-      Throw<SolverError>("DaeGglFormulation::Start", "system size ", n_, " exceeds ", kMaxJetSize);
-    }
-    if (k > kMaxActiveContacts) {
-      Throw<SolverError>("DaeGglFormulation::Start", k, " active contacts exceed ", kMaxActiveContacts);
-    }
-    yj_.assign(n_, JetD(0.0));
-    ypj_.assign(n_, JetD(0.0));
-    Fj_.assign(n_, JetD(0.0));
-    J_.setZero(n_, n_);
     root_flags_.assign(events_.size(), 0);
 
     ida_.y = N_VNew_Serial(n_, ctx_);
@@ -115,35 +108,20 @@ class DaeGglFormulation final : public FormulationBase {
     t_ = state.t;
     N_Vector id = N_VNew_Serial(n_, ctx_);
     N_Vector atol = N_VNew_Serial(n_, ctx_);
-    double* y = NvData(ida_.y);
-    double* yp = NvData(ida_.yp);
-    std::fill(y, y + n_, 0.0);
-    std::fill(yp, yp + n_, 0.0);
-    for (int i = 0; i < 6; ++i) {
-      y[i] = state.q(i);
-      y[6 + i] = state.qd(i);
-      yp[i] = state.qd(i);
-      yp[6 + i] = state.qdd(i);
-    }
-    for (int c = 0; c < k; ++c) {
-      for (int j = 0; j < per_contact_; ++j) {
-        y[12 + per_contact_ * c + j] = state.contact[active_[c]].coordinates[j];
-      }
-      y[NormalIndex(c)] = state.contact[active_[c]].normal_force;
-      y[MuIndex(c)] = 0.0;  // μ = 0 on the exact solution
-    }
-    if (per_contact_ > 0) ContactCoordinateRates(state.t, y, yp);
+    system_.InitialValues(state, NvData(ida_.y), NvData(ida_.yp));  // μ = 0 on the exact solution
     double* idp = NvData(id);
     double* at = NvData(atol);
     for (int i = 0; i < n_; ++i) {
-      idp[i] = i < 12 ? 1.0 : 0.0;
-      const bool force = k > 0 && i >= NormalIndex(0) && i < MuIndex(0);
-      const bool mu = k > 0 && i >= MuIndex(0);
+      idp[i] = system_.IsDifferential(i) ? 1.0 : 0.0;
+      const bool force = k > 0 && i >= system_.NormalIndex(0) && i < system_.MuIndex(0);
+      const bool mu = k > 0 && i >= system_.MuIndex(0);
       at[i] = force ? std::max(kForceAtolFloor, options_.atol * kForceAtolScale)
                     : mu ? std::max(kMuAtolFloor, options_.atol * kMuAtolScale) : options_.atol;
     }
-    ida_.Start(ctx_, n_, &DaeGglFormulation::Residual, &DaeGglFormulation::Jacobian, &DaeGglFormulation::Roots, this, state.t, atol, id,
-               options_, scene_.end.time, events_, "DaeGglFormulation::Start", &sundials_messages_);
+    ida_.Start(ctx_, n_, &DaeGglFormulation::Residual,
+               parsed_.jacobian == JacobianKind::kDifferenceQuotient ? nullptr : &DaeGglFormulation::Jacobian,
+               &DaeGglFormulation::Roots, this, state.t, atol, id, options_, scene_.end.time, events_,
+               "DaeGglFormulation::Start", &sundials_messages_);
     N_VDestroy(id);
     N_VDestroy(atol);
     ++finished_phases_.restarts;
@@ -171,7 +149,8 @@ class DaeGglFormulation final : public FormulationBase {
     const double* y = NvData(ida_.y);
     const double* yp = NvData(ida_.yp);
     WriteBack(t_reached, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
-              Eigen::Map<const Vector6d>(yp + 6), y + NormalIndex(0), y + 12, per_contact_, state);
+              Eigen::Map<const Vector6d>(yp + 6), y + system_.NormalIndex(0), y + 12,
+              system_.per_contact(), state);
     if (flag == IDA_ROOT_RETURN) {
       Check(IDAGetRootInfo(ida_.mem, root_flags_.data()), "IDAGetRootInfo");
       result = EventResult(root_flags_);
@@ -180,78 +159,6 @@ class DaeGglFormulation final : public FormulationBase {
   }
 
   SolverStats PhaseStats() const override { return ida_.mem != nullptr ? CurrentStats() : SolverStats(); }
-
-  // F(t, y, ẏ) for T = double or JetD; `data` is the matching preallocated workspace.
-  // Returns false on a recoverable failure (surface evaluated outside its domain).
-  template <typename T>
-  bool EvaluateResidual(double t, const T* y, const T* yp, T* F, DataTpl<T>* data) const {
-    Vector6<T> q, u, qdot, udot;
-    for (int i = 0; i < 6; ++i) {
-      q(i) = y[i];
-      u(i) = y[6 + i];
-      qdot(i) = yp[i];
-      udot(i) = yp[6 + i];
-    }
-    for (int i = 0; i < 6; ++i) F[i] = u(i) - qdot(i);  // F1–F6 before stabilization
-    const PoseTpl<T> pose = PoseFromCoordinates(q);
-    const Vector6<T> nu = GeneralizedVelocity(q, u);
-    const Matrix3<T> E = AngularVelocityMap(q(kBeta), q(kGamma));
-    const int k = static_cast<int>(active_.size());
-    ContactGeometryTpl<T> geo[kMaxActiveContacts];
-    for (int c = 0; c < k; ++c) {
-      const ContactPair& pair = model_.contacts[active_[c]];
-      T* Fc = F + 12 + rows_per_contact_ * c;
-      T phi;
-      if (form_ == ContactForm::kChapter) {
-        T r[5];
-        if (!ChapterContactResiduals(pair, pose, y + 12 + 4 * c, r, &geo[c],
-                                     state_contact_[active_[c]].chart)) {
-          return false;
-        }
-        Fc[0] = r[0];
-        Fc[1] = r[1];
-        Fc[2] = r[3];
-        Fc[3] = r[4];
-        phi = r[2];
-      } else {
-        if (!ContactKinematics(pair, pose, &geo[c])) return false;
-        phi = geo[c].gap;
-      }
-      const Eigen::Matrix<T, 1, 6> G = ContactConstraintRow(pose, geo[c]);
-      Fc[rows_per_contact_ - 2] = phi;                      // position level
-      Fc[rows_per_contact_ - 1] = T(G.dot(nu));             // velocity level
-      // Stabilization: F1–F6 += K_iᵀ μ_i, K_i = G_i B(q).
-      const T& mu = y[MuIndex(c)];
-      for (int i = 0; i < 3; ++i) F[i] += G(i) * mu;
-      const Vector3<T> Kang = E.transpose() * G.template tail<3>().transpose();
-      for (int i = 0; i < 3; ++i) F[3 + i] += Kang(i) * mu;
-    }
-    // F7–F12: Q + Σ N_i G_iᵀ − M ν̇ (Eqs. 1.48–1.57; solver/newton_euler.hpp).
-    data->ligament_branch = &ligament_branch_;
-    const Vector6<T> residual =
-        NewtonEulerResidual(model_, t, q, u, udot, pose, k, geo, y + NormalIndex(0), data);
-    for (int i = 0; i < 6; ++i) F[6 + i] = -residual(i);  // F7–F12
-    return true;
-  }
-
-  // dF/dy + cj dF/dẏ into J_ by forward AD (two Jet passes); no allocation.
-  bool EvaluateJacobian(double t, double cj, const double* y, const double* yp) const {
-    J_.setZero();
-    for (int pass = 0; pass < 2; ++pass) {
-      for (int i = 0; i < n_; ++i) {
-        yj_[i] = JetD(y[i]);
-        ypj_[i] = JetD(yp[i]);
-        if (pass == 0) yj_[i].v[i] = 1.0;
-        else ypj_[i].v[i] = 1.0;
-      }
-      if (!EvaluateResidual(t, yj_.data(), ypj_.data(), Fj_.data(), &data_jet_)) return false;
-      const double scale = pass == 0 ? 1.0 : cj;
-      for (int r = 0; r < n_; ++r) {
-        for (int c = 0; c < n_; ++c) J_(r, c) += scale * Fj_[r].v[c];
-      }
-    }
-    return true;
-  }
 
   // The residual, Jacobian (cj = 1e4 1/s) and root callbacks IDA calls, at the current y, ẏ.
   bool EvaluateHotPathForTesting(int n) override {
@@ -264,53 +171,27 @@ class DaeGglFormulation final : public FormulationBase {
     return true;
   }
 
-  int size() const { return n_; }
-  const MatrixXd& jacobian() const { return J_; }
-
  private:
-  int NormalIndex(int c) const { return 12 + per_contact_ * static_cast<int>(active_.size()) + c; }
-  int MuIndex(int c) const { return NormalIndex(static_cast<int>(active_.size())) + c; }
-
-  // ċ from the derivative of the contact-coordinate rows (x, y of Eqs. 1.8 and 1.13):
-  // ∂g/∂c ċ = −∂g/∂q q̇, so the predictor starts consistent.
-  void ContactCoordinateRates(double t, const double* y, double* yp) const {
-    if (!EvaluateJacobian(t, 0.0, y, yp)) return;
-    for (size_t c = 0; c < active_.size(); ++c) {
-      const int row0 = 12 + rows_per_contact_ * static_cast<int>(c);
-      const int col0 = 12 + 4 * static_cast<int>(c);
-      const int rows[4] = {row0, row0 + 1, row0 + 2, row0 + 3};
-      Eigen::Matrix4d A;
-      Eigen::Vector4d b;
-      for (int r = 0; r < 4; ++r) {
-        b(r) = 0.0;
-        for (int i = 0; i < 6; ++i) b(r) -= J_(rows[r], i) * yp[i];
-        for (int j = 0; j < 4; ++j) A(r, j) = J_(rows[r], col0 + j);
-      }
-      const Eigen::Vector4d cd = A.fullPivLu().solve(b);
-      for (int j = 0; j < 4; ++j) yp[col0 + j] = cd(j);
-    }
-  }
-
   static int Residual(double t, N_Vector yy, N_Vector yp, N_Vector rr, void* user) {
     auto* self = static_cast<DaeGglFormulation*>(user);
     try {
-      return self->EvaluateResidual(t, NvData(yy), NvData(yp), NvData(rr), &self->data_) ? 0 : 1;
+      return self->system_.Residual(t, NvData(yy), NvData(yp), NvData(rr)) ? 0 : 1;
     } catch (const std::exception& e) {
       self->failure_ = e.what();
       return -1;
     }
   }
 
+  // dF/dy + cj dF/dẏ straight into IDA's column-major dense matrix.
   static int Jacobian(double t, double cj, N_Vector yy, N_Vector yp, N_Vector, SUNMatrix JJ,
                       void* user, N_Vector, N_Vector, N_Vector) {
     auto* self = static_cast<DaeGglFormulation*>(user);
     try {
-      if (!self->EvaluateJacobian(t, cj, NvData(yy), NvData(yp))) return 1;
-      for (int c = 0; c < self->n_; ++c) {
-        double* col = SUNDenseMatrix_Column(JJ, c);
-        for (int r = 0; r < self->n_; ++r) col[r] = self->J_(r, c);
-      }
-      return 0;
+      double* J = SUNDenseMatrix_Data(JJ);
+      const bool ok = self->parsed_.jacobian == JacobianKind::kJet
+                          ? self->system_.JacobianByJets(t, cj, NvData(yy), NvData(yp), J)
+                          : self->system_.Jacobian(t, cj, NvData(yy), NvData(yp), J);
+      return ok ? 0 : 1;
     } catch (const std::exception& e) {
       self->failure_ = e.what();
       return -1;
@@ -325,7 +206,7 @@ class DaeGglFormulation final : public FormulationBase {
       for (int i = 0; i < 6; ++i) q(i) = y[i];
       std::fill(self->normal_.begin(), self->normal_.end(), 0.0);
       for (size_t c = 0; c < self->active_.size(); ++c) {
-        self->normal_[self->active_[c]] = y[self->NormalIndex(static_cast<int>(c))];
+        self->normal_[self->active_[c]] = y[self->system_.NormalIndex(static_cast<int>(c))];
       }
       EvaluateEvents(self->scene_.model, self->events_, q, self->normal_, g);
       return 0;
@@ -346,23 +227,17 @@ class DaeGglFormulation final : public FormulationBase {
     if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
-
   FormulationOptions options_;
+  ParsedFormulationOptions parsed_;
   ContactForm form_;
   SundialsContext ctx_;
+  DaeSystem system_;  // unknowns, residual, Jacobian (dae_system.hpp)
   double t_ = 0.0;  // s: time of the phase's y, ẏ (phase start or last Advance)
   N_Vector hot_path_r_ = nullptr;   // residual of EvaluateHotPathForTesting
   std::vector<double> hot_path_g_;  // root values of EvaluateHotPathForTesting
   IdaPhase ida_;  // IDA memory, y, ẏ, matrix and linear solver of the phase
   int n_ = 0;
-  int per_contact_ = 4;
-  int rows_per_contact_ = 6;
   mutable std::string failure_;
-  // Workspaces sized in the constructor / Start (no allocation in the callbacks).
-  mutable DataTpl<double> data_;
-  mutable DataTpl<JetD> data_jet_;
-  mutable std::vector<JetD> yj_, ypj_, Fj_;
-  mutable MatrixXd J_;
   std::vector<double> normal_;  // N per model contact, for the root functions
   std::vector<int> root_flags_;
   mutable SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason

@@ -58,6 +58,14 @@ bool FormulationOptions::Parse(ParsedFormulationOptions* out, std::string* error
     if (constraint_level == text) parsed.constraint_level = kind, found = true;
   }
   if (!found) return fail("--constraint-level = '" + constraint_level + "'; must be velocity or position");
+  static const std::pair<const char*, JacobianKind> kJacobians[] = {
+      {"", JacobianKind::kExact}, {"exact", JacobianKind::kExact}, {"jet", JacobianKind::kJet},
+      {"difference-quotient", JacobianKind::kDifferenceQuotient}};
+  found = false;
+  for (const auto& [text, kind] : kJacobians) {
+    if (jacobian == text) parsed.jacobian = kind, found = true;
+  }
+  if (!found) return fail("--jacobian = '" + jacobian + "'; must be exact, jet or difference-quotient");
   if (out) *out = parsed;
   return true;
 }
@@ -177,6 +185,15 @@ std::unique_ptr<Formulation> CreateFormulation(const std::string& name, const Sc
   list.clear();
   if (!one_of(info.constraint_levels, options.constraint_level, &list)) {
     Throw<InputError>("CreateFormulation", "--constraint-level = '", options.constraint_level,
+                      "' is not available for formulation '", name, "'; it accepts: ", list);
+  }
+  list.clear();
+  if (!options.jacobian.empty() && !one_of(info.jacobians, options.jacobian, &list)) {
+    if (info.jacobians.empty()) {
+      Throw<InputError>("CreateFormulation", "--jacobian = '", options.jacobian, "': formulation '", name,
+                        "' forms no Newton matrix of its own; the option does not apply");
+    }
+    Throw<InputError>("CreateFormulation", "--jacobian = '", options.jacobian,
                       "' is not available for formulation '", name, "'; it accepts: ", list);
   }
   return info.create(scene, options);

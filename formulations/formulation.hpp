@@ -47,10 +47,15 @@ struct SolverStats {
 enum class IntegratorKind { kEuler, kRk4, kDopri5, kVerner65, kFehlberg78, kCvodeBdf, kCvodeAdams };
 enum class Stabilization { kNone, kBaumgarte, kProjection, kCvodeProjection };
 enum class ConstraintLevel { kVelocity, kPosition };  // dae: index 2 | index-3 variant
+// How a Newton-based formulation gets its iteration matrix (issue 12 item 1): exact from
+// blocks differentiated at their own size (default), the Jet<24> derivative of the whole
+// residual (the reference), or the integrator's own difference quotients (IDA).
+enum class JacobianKind { kExact, kJet, kDifferenceQuotient };
 struct ParsedFormulationOptions {
   IntegratorKind integrator = IntegratorKind::kDopri5;  // "" = dopri5 (mde, ede default)
   Stabilization stabilization = Stabilization::kNone;
   ConstraintLevel constraint_level = ConstraintLevel::kVelocity;
+  JacobianKind jacobian = JacobianKind::kExact;  // "" = exact
 };
 
 // Options every formulation understands; each uses the ones that apply to it and
@@ -68,6 +73,9 @@ struct FormulationOptions {
   // dae, newmark: chart of the contact coordinates (contact.hpp): regular | height-field
   ContactChart contact_chart = ContactChart::kRegular;
   std::string constraint_level = "velocity";  // dae: velocity (index 2) | position (index 3)
+  // dae*, dae-ggl*, newmark*, generalized-alpha*: exact | jet | difference-quotient (IDA
+  // only); "" = exact (FormulationInfo::jacobians lists what a formulation accepts).
+  std::string jacobian;
   // generalized-alpha (newmark_scheme.hpp): spectral radius at infinity ρ∞ ∈ [0, 1], or
   // the four parameters explicitly (all four finite; NaN = from ρ∞).
   double rho_inf = 0.9;
@@ -140,6 +148,7 @@ struct FormulationInfo {
   std::vector<std::string> constraint_levels = {"velocity"};  // values --constraint-level accepts
   bool general_surfaces = true;  // any surface pair (contact_kinematics.hpp), not only sphere on plane
   bool event_location = true;    // locates event roots inside a step (root finder or event locator)
+  std::vector<std::string> jacobians;  // values --jacobian accepts; empty: the option does not apply
 };
 
 // Adaptive step size under --rtol/--atol (error control): not IsFixedStep.

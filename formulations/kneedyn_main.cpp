@@ -101,6 +101,9 @@ int Main(int argc, char** argv) {
   run->add_option("--alpha-f", settings.options.alpha_f, "generalized-alpha: alpha_f");
   run->add_option("--beta", settings.options.newmark_beta, "generalized-alpha: beta");
   run->add_option("--gamma", settings.options.newmark_gamma, "generalized-alpha: gamma");
+  run->add_option("--jacobian", settings.options.jacobian,
+                  "dae*, newmark*, generalized-alpha*: Newton matrix exact (default) | jet (the Jet<24> "
+                  "reference) | difference-quotient (IDA's own)");
   run->add_option("--contact-chart", settings.options.contact_chart,
                   "dae, newmark: chart of the contact coordinates: regular | height-field "
                   "(the chapter's, singular at the condyle rim)")
@@ -126,7 +129,7 @@ int Main(int argc, char** argv) {
   if (sensitivity.parsed()) return sensitivity.Run(argc, argv);
   for (const std::string* s : {&scene_path, &info_scene, &out_dir, &settings.formulation,
                                &settings.options.integrator, &settings.options.stabilization,
-                               &settings.options.constraint_level}) {
+                               &settings.options.constraint_level, &settings.options.jacobian}) {
     if (s->size() > 1024) {
       std::fprintf(stderr, "kneedyn: error: argument '%s' is longer than 1024 characters\n", Echo(*s).c_str());
       return 2;

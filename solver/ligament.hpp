@@ -41,6 +41,18 @@ T LigamentTension(const Ligament& lig, const T& length, LigamentBranch branch = 
   return lig.k_linear * (length - (1.0 + kLigamentToeStrain) * L0);
 }
 
+// dF/dL of LigamentTension on the same branch (N/m): 2 k_par (L − L0) on the toe (0 when
+// slack), k_lin on the linear branch. For exact Jacobians (newton_euler_jacobian.hpp).
+inline double LigamentStiffness(const Ligament& lig, double length, LigamentBranch branch = kBranchAuto) {
+  const double L0 = lig.slack_length;
+  const double elongation = length - L0;
+  if (branch == kBranchAuto) {
+    branch = elongation <= 2.0 * kLigamentToeStrain * L0 ? kBranchToe : kBranchLinear;
+  }
+  if (branch == kBranchToe) return elongation <= 0.0 ? 0.0 : 2.0 * lig.k_parabolic * elongation;
+  return lig.k_linear;
+}
+
 // Length at the kink, (1 + 2ε1) L0 (m).
 inline double LigamentKinkLength(const Ligament& lig) {
   return (1.0 + 2.0 * kLigamentToeStrain) * lig.slack_length;
