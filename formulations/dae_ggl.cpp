@@ -50,6 +50,7 @@
 #include "formulations/dae_system.hpp"
 #include "formulations/formulation_base.hpp"
 #include "formulations/ida_phase.hpp"
+#include "formulations/sundials_kernels.hpp"
 #include "formulations/sundials_util.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/newton_euler.hpp"
@@ -101,13 +102,13 @@ class DaeGglFormulation final : public FormulationBase {
     const int k = static_cast<int>(active_.size());
     root_flags_.assign(events_.size(), 0);
 
-    ida_.y = N_VNew_Serial(n_, ctx_);
-    ida_.yp = N_VNew_Serial(n_, ctx_);
-    hot_path_r_ = N_VNew_Serial(n_, ctx_);
+    ida_.y = NewSerialVector(n_, ctx_);
+    ida_.yp = NewSerialVector(n_, ctx_);
+    hot_path_r_ = NewSerialVector(n_, ctx_);
     hot_path_g_.assign(events_.size(), 0.0);
     t_ = state.t;
-    N_Vector id = N_VNew_Serial(n_, ctx_);
-    N_Vector atol = N_VNew_Serial(n_, ctx_);
+    N_Vector id = NewSerialVector(n_, ctx_);
+    N_Vector atol = NewSerialVector(n_, ctx_);
     system_.InitialValues(state, NvData(ida_.y), NvData(ida_.yp));  // μ = 0 on the exact solution
     double* idp = NvData(id);
     double* at = NvData(atol);

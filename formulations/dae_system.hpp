@@ -106,8 +106,7 @@ bool DaeSystem::Residual(double t, const T* y, const T* yp, T* F, DataTpl<T>* da
   const PoseTpl<T> pose = PoseFromCoordinates(q);
   const Vector6<T> nu = GeneralizedVelocity(q, u);
   ContactGeometryTpl<T> geo[kMaxActiveContacts];
-  Matrix3<T> E;
-  if (ggl_) E = AngularVelocityMap(q(kBeta), q(kGamma));
+  const Matrix3<T> E = ggl_ ? AngularVelocityMap(q(kBeta), q(kGamma)) : Matrix3<T>::Zero().eval();
   for (int c = 0; c < k_; ++c) {
     const ContactPair& pair = model_->contacts[active_[c]];
     T* Fc = F + FirstContactRow(c);

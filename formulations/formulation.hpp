@@ -148,7 +148,7 @@ struct FormulationInfo {
   std::vector<std::string> constraint_levels = {"velocity"};  // values --constraint-level accepts
   bool general_surfaces = true;  // any surface pair (contact_kinematics.hpp), not only sphere on plane
   bool event_location = true;    // locates event roots inside a step (root finder or event locator)
-  std::vector<std::string> jacobians;  // values --jacobian accepts; empty: the option does not apply
+  std::vector<std::string> jacobians = {};  // values --jacobian accepts; empty: the option does not apply
 };
 
 // Adaptive step size under --rtol/--atol (error control): not IsFixedStep.

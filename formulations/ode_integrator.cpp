@@ -1,5 +1,7 @@
 #include "formulations/ode_integrator.hpp"
 
+#include "formulations/sundials_kernels.hpp"
+
 #include <arkode/arkode_arkstep.h>
 #include <arkode/arkode_butcher_erk.h>
 #include <cvode/cvode.h>
@@ -129,10 +131,10 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
   problem_ = problem;
   n_ = static_cast<int>(y0.size());
   num_roots_ = static_cast<int>(root_directions.size());
-  y_ = N_VNew_Serial(n_, ctx_);
+  y_ = NewSerialVector(n_, ctx_);
   for (int i = 0; i < n_; ++i) NvData(y_)[i] = y0(i);
-  hot_path_y_ = N_VNew_Serial(n_, ctx_);
-  hot_path_ydot_ = N_VNew_Serial(n_, ctx_);
+  hot_path_y_ = NewSerialVector(n_, ctx_);
+  hot_path_ydot_ = NewSerialVector(n_, ctx_);
   hot_path_g_.assign(num_roots_, 0.0);
   std::vector<int> dirs = root_directions;
   if (is_cvode()) {
@@ -147,7 +149,7 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
     if (kind_ == IntegratorKind::kCvodeBdf) {
       // Dense LU; no Jacobian function: CVODE's difference-quotient Jacobian.
       A_ = SUNDenseMatrix(n_, n_, ctx_);
-      LS_ = SUNLinSol_Dense(y_, A_, ctx_);
+      LS_ = NewDenseLinearSolver(y_, A_, ctx_);
       Check(CVodeSetLinearSolver(mem_, LS_, A_), "CVodeSetLinearSolver");
       if (solver_projection) Check(CVodeSetProjFn(mem_, &OdeIntegrator::ProjCallback), "CVodeSetProjFn");
     } else {
