@@ -7,24 +7,25 @@
 // Chapter scene (reference-data/scenes/chapter_impact.yaml), both compartments in contact,
 // the consistent start moved into the pulse (t = 0.03 s) for the residual and RHS.
 //
-//   dae/residual, dae/jacobian   one F(t, y, ẏ) resp. one dF/dy + cj dF/dẏ of `dae`, through
-//       the test hook DaeResidualAndJacobianForTesting (formulations/dae_testing.hpp). The
-//       hook builds and starts a DaeFormulation on every call, so the time reported is
-//       manual: per iteration, thread CPU time(hook with F or J) − time(hook without), the
-//       mean of the difference (unbiased, but noisy against the Start it subtracts). A hook that
-//       keeps the formulation (dae.cpp) would remove the subtraction.
-//   dae/hook_overhead            the hook without F or J: DaeFormulation + Start.
+//   dae/residual                 one F(t, y, ẏ) of `dae` (formulations/dae_system.hpp), the
+//       function IDA calls, at the chapter start moved into the pulse.
+//   dae/jacobian, dae/jacobian_jet   one dF/dy + cj dF/dẏ of `dae`: exact from blocks (the
+//       default) and the Jet<24> derivative of the whole residual (--jacobian jet), in the
+//       same run so that their ratio is meaningful on a shared machine.
 //   ede/rhs                      SolveConstrainedAcceleration with both contacts, the solve
 //       ede's right-hand side consists of (formulations/ede.cpp) — mde's right-hand side
 //       is a member of mde.cpp with no hook; its amortized in-run cost per evaluation is
 //       the counter s_per_residual_eval of run/mde.
 //   physics/applied_wrench       ligament, gravity and pulse loads (ComputeAppliedWrench),
 //       shared by every residual and RHS.
-//   lu/eigen, lu/sundials        factorization + solve of dae's Jacobian (the actual
-//       matrix, size in the counter n): Eigen PartialPivLU and SUNDIALS' dense
-//       getrf/getrs, the routine IDA's dense linear solver calls.
+//   lu/kneedyn, lu/sundials, lu/eigen   factorization + solve of dae's Jacobian (the
+//       actual matrix, size in the counter n): kneedyn's LU (formulations/sundials_kernels.hpp,
+//       what IDA and CVODE now call), the library's dense getrf/getrs (Debian builds it at
+//       -O0) and Eigen's PartialPivLU.
 //   init/<form>                  ConsistentInitialize (three levels, Ceres), counters: the
 //       Ceres iterations of the position and hidden levels.
+//   restart/hidden_constraint    CompleteHiddenConstraint, the driver's part of a restart
+//       (projection onto the contacts, velocity level, direct hidden-level solve).
 //   start/<formulation>          Formulation::Start from a consistent state (one restart
 //       of the driver, without the driver's CompleteHiddenConstraint).
 //   run/<formulation>            RunScene, whole chapter run (to 90°), no files; counters:
@@ -33,16 +34,23 @@
 //       (benchmarks/baseline_counters.json, instruction_counts): rtol 1e-8, atol 1e-10
 //       (dae*, and mde, ede with cvode-adams, ede without stabilization); newmark* and
 //       generalized-alpha* --step 1e-3.
+//   run/<formulation>/library_kernels  the same with the library's own vector kernels and
+//       dense solver (KNEEDYN_SUNDIALS_KERNELS=library) for the SUNDIALS formulations: the
+//       ratio to run/<formulation> is what the kernels buy (identical results).
 #include <benchmark/benchmark.h>
 
 #include <sundials/sundials_dense.h>
+#include <sunmatrix/sunmatrix_dense.h>
 
-#include <time.h>
+#include <algorithm>
+
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "formulations/dae_testing.hpp"
+#include "formulations/dae_system.hpp"
+#include "formulations/sundials_kernels.hpp"
+#include "formulations/sundials_util.hpp"
 #include "formulations/run.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -70,10 +78,11 @@ MechanicalState Consistent(ContactForm form) {
   return ConsistentInitialize(Chapter().model, Chapter().initial, AllContacts(Chapter().model), o, nullptr);
 }
 
-// A consistent start moved into the pulse (t = 0.03 s) and the dae unknowns at it, in
-// dae.cpp's layout: q, q̇, the chapter contact coordinates (4 per contact), N per contact.
+// A consistent start moved into the pulse (t = 0.03 s) and the dae system with its unknowns
+// there (dae_system.hpp layout).
 struct DaePoint {
   MechanicalState state;
+  std::unique_ptr<DaeSystem> system;
   std::vector<double> y, yp;
 };
 
@@ -82,60 +91,36 @@ DaePoint MakeDaePoint() {
   p.state = Consistent(ContactForm::kChapter);
   p.state.t = 0.03;
   p.state.ligament_branch = LigamentBranchesAt(Chapter().model, p.state.q, p.state.qd);
-  for (int i = 0; i < 6; ++i) p.y.push_back(p.state.q(i)), p.yp.push_back(p.state.qd(i));
-  for (int i = 0; i < 6; ++i) p.y.push_back(p.state.qd(i)), p.yp.push_back(p.state.qdd(i));
-  for (const auto& c : p.state.contact) {
-    for (double x : c.coordinates) p.y.push_back(x), p.yp.push_back(0.0);
-  }
-  for (const auto& c : p.state.contact) p.y.push_back(c.normal_force), p.yp.push_back(0.0);
+  p.system = std::make_unique<DaeSystem>(Chapter().model, ContactForm::kChapter, ConstraintLevel::kVelocity, false);
+  p.system->SetPhase(p.state.active, p.state.contact, p.state.ligament_branch);
+  p.y.resize(p.system->size());
+  p.yp.resize(p.system->size());
+  p.system->InitialValues(p.state, p.y.data(), p.yp.data());
   return p;
 }
 
 constexpr double kCj = 850.0;  // a typical IDA cj = α/h, 1/s
 
-// Thread CPU time in s (the machine is shared: wall-clock differences of a few hundred ns
-// drown in preemptions).
-double ThreadCpuSeconds() {
-  timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-// what: 0 none, 1 residual, 2 Jacobian.
-bool Hook(const DaePoint& p, int what, std::vector<double>* F, MatrixXd* J) {
-  return DaeResidualAndJacobianForTesting(Chapter(), FormulationOptions{}, ContactForm::kChapter, p.state,
-                                          p.state.t, p.y, p.yp, kCj, what == 1 ? F : nullptr,
-                                          what == 2 ? J : nullptr, nullptr);
-}
-
-void DaeDifference(benchmark::State& st, int what) {
+void BM_DaeResidual(benchmark::State& st) {
   const DaePoint p = MakeDaePoint();
-  std::vector<double> F;
-  MatrixXd J;
-  int n = 0;
-  if (!DaeResidualAndJacobianForTesting(Chapter(), FormulationOptions{}, ContactForm::kChapter, p.state,
-                                        p.state.t, p.y, p.yp, kCj, &F, &J, &n)) {
-    st.SkipWithError("dae hook: residual failed at the benchmark point");
-    return;
-  }
+  std::vector<double> F(p.system->size());
   for (auto _ : st) {
-    const double t0 = ThreadCpuSeconds();
-    benchmark::DoNotOptimize(Hook(p, what, &F, &J));
-    const double t1 = ThreadCpuSeconds();
-    benchmark::DoNotOptimize(Hook(p, 0, &F, &J));
-    const double t2 = ThreadCpuSeconds();
-    st.SetIterationTime((t1 - t0) - (t2 - t1));
+    benchmark::DoNotOptimize(p.system->Residual(p.state.t, p.y.data(), p.yp.data(), F.data()));
+    benchmark::ClobberMemory();
+  }
+  st.counters["n"] = p.system->size();
+}
+
+void BM_DaeJacobian(benchmark::State& st, bool jets) {
+  const DaePoint p = MakeDaePoint();
+  const int n = p.system->size();
+  std::vector<double> J(static_cast<size_t>(n) * n);
+  for (auto _ : st) {
+    benchmark::DoNotOptimize(jets ? p.system->JacobianByJets(p.state.t, kCj, p.y.data(), p.yp.data(), J.data())
+                                  : p.system->Jacobian(p.state.t, kCj, p.y.data(), p.yp.data(), J.data()));
+    benchmark::ClobberMemory();
   }
   st.counters["n"] = n;
-}
-
-void BM_DaeResidual(benchmark::State& st) { DaeDifference(st, 1); }
-void BM_DaeJacobian(benchmark::State& st) { DaeDifference(st, 2); }
-void BM_DaeHookOverhead(benchmark::State& st) {
-  const DaePoint p = MakeDaePoint();
-  std::vector<double> F;
-  MatrixXd J;
-  for (auto _ : st) benchmark::DoNotOptimize(Hook(p, 0, &F, &J));
 }
 
 void BM_EdeRhs(benchmark::State& st) {
@@ -160,11 +145,37 @@ void BM_AppliedWrench(benchmark::State& st) {
 
 MatrixXd DaeJacobian(int* n) {
   const DaePoint p = MakeDaePoint();
-  std::vector<double> F;
-  MatrixXd J;
-  DaeResidualAndJacobianForTesting(Chapter(), FormulationOptions{}, ContactForm::kChapter, p.state, p.state.t,
-                                   p.y, p.yp, kCj, nullptr, &J, n);
+  *n = p.system->size();
+  MatrixXd J(*n, *n);
+  p.system->Jacobian(p.state.t, kCj, p.y.data(), p.yp.data(), J.data());
   return J;
+}
+
+// kneedyn's dense LU as IDA calls it: SUNLinSolSetup (factor in place) + SUNLinSolSolve.
+void BM_LuKneedyn(benchmark::State& st) {
+  int n = 0;
+  const MatrixXd J = DaeJacobian(&n);
+  SundialsContext ctx;
+  SUNMatrix A = SUNDenseMatrix(n, n, ctx);
+  N_Vector b = NewSerialVector(n, ctx), x = NewSerialVector(n, ctx);
+  SetKneedynSundialsKernels(true);
+  SUNLinearSolver S = NewDenseLinearSolver(x, A, ctx);
+  SUNLinSolInitialize(S);
+  for (auto _ : st) {
+    std::copy(J.data(), J.data() + n * n, SUNDenseMatrix_Data(A));
+    N_VConst(1.0, b);
+    if (SUNLinSolSetup(S, A) != 0) {
+      st.SkipWithError("singular Jacobian");
+      break;
+    }
+    SUNLinSolSolve(S, A, x, b, 0.0);
+    benchmark::DoNotOptimize(NV_DATA_S(x));
+  }
+  SUNLinSolFree(S);
+  SUNMatDestroy(A);
+  N_VDestroy(b);
+  N_VDestroy(x);
+  st.counters["n"] = n;
 }
 
 void BM_LuEigen(benchmark::State& st) {
@@ -234,10 +245,11 @@ void BM_Start(benchmark::State& st, const FormulationInfo* info) {
   st.counters["restarts"] = benchmark::Counter(static_cast<double>(f->stats().restarts) / st.iterations());
 }
 
-void BM_Run(benchmark::State& st, const FormulationInfo* info) {
+void BM_Run(benchmark::State& st, const FormulationInfo* info, bool library_kernels) {
   RunSettings settings;
   settings.formulation = info->name;
   settings.options = OptionsFor(*info);
+  SetKneedynSundialsKernels(!library_kernels);
   RunResult r;
   for (auto _ : st) {
     r = RunScene(Chapter(), settings);
@@ -246,6 +258,7 @@ void BM_Run(benchmark::State& st, const FormulationInfo* info) {
       break;
     }
   }
+  SetKneedynSundialsKernels(true);
   const SolverStats& s = r.stats;
   st.counters["steps"] = s.steps;
   st.counters["residual_evaluations"] = s.residual_evaluations;
@@ -256,22 +269,39 @@ void BM_Run(benchmark::State& st, const FormulationInfo* info) {
                          benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
+void BM_RestartHiddenConstraint(benchmark::State& st) {
+  const MechanicalState start = Consistent(ContactForm::kChapter);
+  MechanicalState s = start;
+  s.ligament_branch = LigamentBranchesAt(Chapter().model, s.q, s.qd);
+  for (auto _ : st) {
+    MechanicalState t = s;
+    CompleteHiddenConstraint(Chapter().model, &t);
+    benchmark::DoNotOptimize(t.qdd.data());
+  }
+}
+
 void Register() {
-  benchmark::RegisterBenchmark("dae/residual", BM_DaeResidual)->UseManualTime()->Unit(benchmark::kNanosecond);
-  benchmark::RegisterBenchmark("dae/jacobian", BM_DaeJacobian)->UseManualTime()->Unit(benchmark::kMicrosecond);
-  benchmark::RegisterBenchmark("dae/hook_overhead", BM_DaeHookOverhead)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("dae/residual", BM_DaeResidual)->Unit(benchmark::kNanosecond);
+  benchmark::RegisterBenchmark("dae/jacobian", BM_DaeJacobian, false)->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("dae/jacobian_jet", BM_DaeJacobian, true)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("ede/rhs", BM_EdeRhs)->Unit(benchmark::kNanosecond);
   benchmark::RegisterBenchmark("physics/applied_wrench", BM_AppliedWrench)->Unit(benchmark::kNanosecond);
-  benchmark::RegisterBenchmark("lu/eigen", BM_LuEigen)->Unit(benchmark::kNanosecond);
+  benchmark::RegisterBenchmark("lu/kneedyn", BM_LuKneedyn)->Unit(benchmark::kNanosecond);
   benchmark::RegisterBenchmark("lu/sundials", BM_LuSundials)->Unit(benchmark::kNanosecond);
+  benchmark::RegisterBenchmark("lu/eigen", BM_LuEigen)->Unit(benchmark::kNanosecond);
   benchmark::RegisterBenchmark("init/chapter", BM_ConsistentInit, ContactForm::kChapter)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("init/closed_form", BM_ConsistentInit, ContactForm::kClosedForm)
       ->Unit(benchmark::kMicrosecond);
+  benchmark::RegisterBenchmark("restart/hidden_constraint", BM_RestartHiddenConstraint)->Unit(benchmark::kMicrosecond);
   for (const FormulationInfo& info : RegisteredFormulations()) {
     benchmark::RegisterBenchmark(("start/" + info.name).c_str(), BM_Start, &info)->Unit(benchmark::kMicrosecond);
   }
   for (const FormulationInfo& info : RegisteredFormulations()) {
-    benchmark::RegisterBenchmark(("run/" + info.name).c_str(), BM_Run, &info)->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark(("run/" + info.name).c_str(), BM_Run, &info, false)->Unit(benchmark::kMillisecond);
+    if (!info.fixed_step) {  // the SUNDIALS formulations
+      benchmark::RegisterBenchmark(("run/" + info.name + "/library_kernels").c_str(), BM_Run, &info, true)
+          ->Unit(benchmark::kMillisecond);
+    }
   }
 }
 

@@ -20,6 +20,7 @@
 #include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <memory>
 
 #include "formulations/formulation_base.hpp"
@@ -63,6 +64,7 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
 
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
     BeginPhase(state, events);
+    cache_valid_ = false;  // new active set and ligament branches
     t_ = state.t;
     y_.resize(12);
     y_ << state.q, state.qd;
@@ -109,9 +111,8 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
 
   // No allocation (workspace_, acc_; tests/zero_allocation_test.cpp).
   bool Rhs(double t, const double* y, double* ydot) override {
-    const Vector6d q = Eigen::Map<const Vector6d>(y);
     const Vector6d qd = Eigen::Map<const Vector6d>(y + 6);
-    SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_, &workspace_, &acc_);
+    AccelerationAt(t, y);
     for (int i = 0; i < 6; ++i) {
       ydot[i] = qd(i);
       ydot[6 + i] = acc_.qdd(i);
@@ -130,13 +131,27 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
     const Vector6d qd = Eigen::Map<const Vector6d>(y + 6);
     std::fill(normal_.begin(), normal_.end(), 0.0);
     if (!active_.empty()) {
-      SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_, &workspace_, &acc_);
+      AccelerationAt(t, y);
       for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = acc_.normal_force[c];
     }
     EvaluateEvents(scene_.model, events_, q, normal_, g);
   }
 
  private:
+  // acc_ at (t, y): the hidden-constraint solve, or its last result when (t, y) are bitwise
+  // those of the previous call (the root functions at a step's end and the right-hand side
+  // that follows, e.g. FSAL of the Dormand–Prince pair, ask for the same point).
+  void AccelerationAt(double t, const double* y) {
+    if (cache_valid_ && t == cache_t_ && std::memcmp(y, cache_y_, sizeof cache_y_) == 0) return;
+    const Vector6d q = Eigen::Map<const Vector6d>(y);
+    const Vector6d qd = Eigen::Map<const Vector6d>(y + 6);
+    cache_valid_ = false;  // a throwing solve leaves no stale entry
+    SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_, &workspace_, &acc_);
+    cache_t_ = t;
+    std::memcpy(cache_y_, y, sizeof cache_y_);
+    cache_valid_ = true;
+  }
+
   // φ (k) and J = ∂φ/∂q = G B(q) (k×6) of the active contacts.
   // Projects y = (q, q̇) onto φ = 0, J q̇ = 0. Returns true when y changed.
   bool Project(VectorXd* y) {
@@ -164,6 +179,9 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
   // Workspaces of the right-hand side and root functions (sized once; no allocation there).
   ConstrainedDynamicsWorkspace workspace_;
   ConstrainedAcceleration acc_;
+  bool cache_valid_ = false;  // acc_ belongs to (cache_t_, cache_y_)
+  double cache_t_ = 0.0;
+  double cache_y_[12] = {};
   std::vector<double> normal_;  // N per model contact, for the root functions
 };
 

@@ -63,6 +63,7 @@
 #include "solver/constrained_dynamics.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/newton_euler.hpp"
+#include "solver/newton_euler_jacobian.hpp"
 
 namespace kneedyn {
 namespace {
@@ -106,6 +107,7 @@ class NewmarkFormulation final : public FormulationBase {
       Throw<InputError>("NewmarkFormulation", "--max-step = ", options.max_step, " s: ", name,
                         " takes fixed steps; use --step");
     }
+    jet_jacobian_ = options.Parsed().jacobian == JacobianKind::kJet;
     step_ = options.step > 0.0 ? options.step : kDefaultFixedStep;
     if (step_ > scene.end.time) {
       Throw<InputError>("NewmarkFormulation", "--step = ", step_, " s exceeds the scene's end time ",
@@ -239,6 +241,58 @@ class NewmarkFormulation final : public FormulationBase {
     return true;
   }
 
+  // ∂F/∂x of StepResidual, exact from the blocks of solver/newton_euler_jacobian.hpp (issue
+  // 12 item 1): q̇_{n+1} and q̈_{n+1} are affine in q_{n+1} (slopes γ/(βh) and
+  // (1 − αm)/((1 − αf) β h²)), so ∂r/∂q_{n+1} = ∂r/∂q + γ/(βh) ∂r/∂q̇ + … ∂r/∂q̈; each contact
+  // as a Jet of 10 over (q, c_i). False when a surface is evaluated outside its domain.
+  bool StepJacobian(const StepState& from, double h, const double* x, XMatrix* Jout) const {
+    XMatrix& J = *Jout;
+    J.setZero(n_, n_);
+    const int k = static_cast<int>(active_.size());
+    Vector6d q, qd, qdd;
+    for (int i = 0; i < 6; ++i) {
+      q(i) = x[i];
+      const double a = PseudoAcceleration(from, h, i, x[i]);
+      qdd(i) = Acceleration(from, i, a);
+      qd(i) = from.qd(i) + h * ((1.0 - scheme_.gamma) * from.a(i) + scheme_.gamma * a);
+    }
+    const double dqd_dq = scheme_.gamma / (scheme_.beta * h);
+    const double dqdd_dq = (1.0 - scheme_.alpha_m) / ((1.0 - scheme_.alpha_f) * scheme_.beta * h * h);
+    const double row_scale = RowScale(h);
+    data_.ligament_branch = &ligament_branch_;
+    NewtonEulerPartials free;
+    FreeNewtonEulerPartials(model_, from.t + h, q, qd, qdd, data_, &free);
+    J.topLeftCorner(6, 6) = -row_scale * (free.d_q + dqd_dq * free.d_qd + dqdd_dq * free.d_qdd);
+    const PoseTpl<ContactJet> pose = PoseWithCoordinateDerivatives<kContactJetSize>(q);
+    const double* N = x + 6 + per_contact_ * k;
+    for (int c = 0; c < k; ++c) {
+      const ContactPair& pair = model_.contacts[active_[c]];
+      const int col_c = 6 + per_contact_ * c;
+      auto put = [&](int row, const ContactJet& v, double scale) {
+        for (int j = 0; j < 6; ++j) J(row, j) += scale * v.v[j];
+        for (int j = 0; j < per_contact_; ++j) J(row, col_c + j) += scale * v.v[6 + j];
+      };
+      ContactGeometryTpl<ContactJet> geo;
+      if (form_ == ContactForm::kChapter) {
+        ContactJet coords[4], r[5];
+        for (int j = 0; j < 4; ++j) coords[j] = ContactJet(x[col_c + j], 6 + j);
+        if (!ChapterContactResiduals(pair, pose, coords, r, &geo, state_contact_[active_[c]].chart)) return false;
+        for (int j = 0; j < 5; ++j) put(6 + 5 * c + j, r[j], 1.0);
+      } else {
+        if (!ContactKinematics(pair, pose, &geo)) return false;
+        put(6 + c, geo.gap, 1.0);
+      }
+      // F_NE = −RowScale (r_free − Σ N_i G_iᵀ).
+      const Eigen::Matrix<ContactJet, 1, 6> G = ContactConstraintRow(pose, geo);
+      const int col_N = 6 + per_contact_ * k + c;
+      for (int i = 0; i < 6; ++i) {
+        J(i, col_N) += row_scale * G(i).a;
+        put(i, G(i), row_scale * N[c]);
+      }
+    }
+    return true;
+  }
+
   // Starting values of generalized-α (Newmark, Δα = αm − αf = 0 and αf = 0: q̇_0, a_0 = q̈_0
   // unchanged):
   //   a_0 = q̈_0 + Δα h q⃛_0                               (≈ q̈(t_0 + Δα h), Arnold & Brüls 2007)
@@ -313,24 +367,28 @@ class NewmarkFormulation final : public FormulationBase {
     int worst = -1;  // the largest weighted Newton update of the last iteration (issue 18)
     double worst_update = 0.0;
     for (int iter = 0; iter < kMaxNewtonIterations; ++iter) {
-      for (int i = 0; i < n_; ++i) {
-        xj[i] = JetD(x(i), i);
-      }
       bool ok = false;
       try {
-        ok = StepResidual(from, h, xj, Fj);
+        if (jet_jacobian_) {  // --jacobian jet: one Jet<24> pass gives F and ∂F/∂x
+          for (int i = 0; i < n_; ++i) xj[i] = JetD(x(i), i);
+          ok = StepResidual(from, h, xj, Fj);
+          if (ok) {
+            for (int r = 0; r < n_; ++r) {
+              F(r) = Fj[r].a;
+              for (int c = 0; c < n_; ++c) J(r, c) = Fj[r].v[c];
+            }
+          }
+        } else {
+          ok = StepResidual(from, h, x.data(), F.data()) && StepJacobian(from, h, x.data(), &J);
+        }
         if (!ok) NoteFailure("a contact surface evaluated outside its domain");
       } catch (const SolverError& e) {
         ok = false;  // e.g. the JCS singularity at a Newton iterate: kept for the final error
         NoteFailure(e.what());
       }
-      ++stats_.residual_evaluations;  // one Jet pass gives F and ∂F/∂x
+      ++stats_.residual_evaluations;
       ++stats_.jacobian_evaluations;
       if (!ok) return false;
-      for (int r = 0; r < n_; ++r) {
-        F(r) = Fj[r].a;
-        for (int c = 0; c < n_; ++c) J(r, c) = Fj[r].v[c];
-      }
       if (!F.allFinite() || !J.allFinite()) return NoteFailure("non-finite residual or tangent");
       // Column equilibration: the force columns are h²/4 G (RowScale G); solve for
       // RowScale ΔN instead.
@@ -502,6 +560,7 @@ class NewmarkFormulation final : public FormulationBase {
   FormulationOptions options_;
   ContactForm form_;
   NewmarkScheme scheme_;
+  bool jet_jacobian_ = false;  // --jacobian jet: the Jet<24> tangent (the reference)
   double step_ = kDefaultFixedStep;  // s, nominal
   double h_ = kDefaultFixedStep;     // s, next step to try
   int n_ = 6;

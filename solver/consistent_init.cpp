@@ -202,10 +202,15 @@ void ConvertContactCoordinates(const Model& model, ContactChart chart, Mechanica
   }
 }
 
+// How the hidden level (linear in ν̇, N) is solved: by Ceres from the scene's force guesses
+// (the initialization, which reports the iterations), or directly by the saddle-point
+// solve of constrained_dynamics.hpp (the restarts: exact, no guess, no iteration).
+enum class HiddenLevelSolve { kCeres, kDirect };
+
 // Levels 2–3 with given velocity holds. Returns the two level reports.
 std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
     const Model& model, const std::vector<int>& held_velocities,
-    const ConsistentInitOptions& options, MechanicalState* state) {
+    const ConsistentInitOptions& options, HiddenLevelSolve hidden_solve, MechanicalState* state) {
   const int k = static_cast<int>(state->active.size());
   const Pose pose = PoseFromCoordinates(state->q);
   MatrixXd G(k, 6);
@@ -242,6 +247,13 @@ std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
                          " m/s exceeds the tolerance ", options.velocity_tolerance,
                          " (the held velocities violate the contact constraints; free some)");
     }
+  }
+  if (hidden_solve == HiddenLevelSolve::kDirect) {
+    const ConstrainedAcceleration a =
+        SolveConstrainedAcceleration(model, state->t, state->q, state->qd, state->active, {}, &state->ligament_branch);
+    state->qdd = a.qdd;
+    for (int c = 0; c < k; ++c) state->contact[state->active[c]].normal_force = a.normal_force[c];
+    return {vel, InitLevelReport{}};
   }
   // Hidden level (Ceres), from the guesses in state->contact[].normal_force.
   const Vector6d nu = GeneralizedVelocity(state->q, state->qd);
@@ -318,7 +330,7 @@ MechanicalState ConsistentInitialize(const Model& model, const InitialState& ini
   }
   CheckJcsRegular(state.q(kBeta), "ConsistentInitialize");
   std::tie(rep.velocity, rep.hidden) =
-      SolveVelocityAndHidden(model, init.held_velocities, options, &state);
+      SolveVelocityAndHidden(model, init.held_velocities, options, HiddenLevelSolve::kCeres, &state);
   for (const ContactGuess& g : state.contact) rep.normal_force.push_back(g.normal_force);
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) {
     if (!state.IsActive(i)) rep.normal_force[i] = 0.0;
@@ -338,7 +350,9 @@ void CompleteHiddenConstraint(const Model& model, MechanicalState* state) {
   // ~3e-11 m/s at any step size (gravity_only, rtol 1e-10: IDA_ERR_FAIL after a kink).
   constexpr double kGapTolerance = 1.0e-14;  // m
   ProjectOntoContacts(model, state->active, kGapTolerance, 20, &state->q);
-  SolveVelocityAndHidden(model, {}, options, state);
+  // Issue 12 item 2 (cheap restarts): the hidden level is linear in (ν̇, N); at a restart
+  // it is solved directly (a (6 + k)² system) instead of by Ceres from guesses.
+  SolveVelocityAndHidden(model, {}, options, HiddenLevelSolve::kDirect, state);
   FillContactCoordinates(model, state);
 }
 

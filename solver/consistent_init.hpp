@@ -54,8 +54,9 @@ MechanicalState ConsistentInitialize(const Model& model, const InitialState& ini
 
 // After a mode switch: projects the positions onto the active contacts' gaps φ_i = 0
 // (Gauss–Newton, minimum-norm corrections; removes the drift of velocity-level
-// formulations and the hysteresis penetration of a re-contact), then levels 2–3; fills
-// qdd, normal forces and (from the contact kinematics) contact coordinates.
+// formulations and the hysteresis penetration of a re-contact), then levels 2–3 (the
+// hidden level by the direct saddle-point solve of constrained_dynamics.hpp, not Ceres);
+// fills qdd, normal forces and (from the contact kinematics) contact coordinates.
 void CompleteHiddenConstraint(const Model& model, MechanicalState* state);
 
 // Chapter-form contact coordinates of the active contacts from the contact kinematics

@@ -61,30 +61,35 @@ void SolveConstrainedAcceleration(const Model& model, double t, const Vector6d& 
   ComputeAppliedWrench(model, t, pose, &data);
   const Vector6d Q = GeneralizedForce(model, data, Vector3d(nu.tail<3>()));
 
-  ConstrainedDynamicsWorkspace::Matrix& A = ws->A;
-  ConstrainedDynamicsWorkspace::Vector& b = ws->b;
-  A.setZero(6 + k, 6 + k);
-  b.resize(6 + k);
-  A.topLeftCorner<6, 6>() = MassMatrix(model);
-  b.head<6>() = Q;
+  Vector6d M_inverse;
+  M_inverse.head<3>().setConstant(1.0 / model.mass);
+  M_inverse.tail<3>() = model.inertia_T.cwiseInverse();
+  const Vector6d a_free = M_inverse.cwiseProduct(Q);  // M⁻¹ Q
+  ws->G.resize(k, 6);
+  ws->b.resize(k);
   for (int r = 0; r < k; ++r) {
     const ContactPair& pair = model.contacts[active[r]];
     const ContactGeometry geo = RequireContactKinematics(pair, pose, "SolveConstrainedAcceleration");
     const Eigen::Matrix<double, 1, 6> G = ContactConstraintRow(pose, geo);
-    A.block<1, 6>(6 + r, 0) = G;
-    A.block<6, 1>(0, 6 + r) = -G.transpose();
-    b(6 + r) = -ContactRateTerm(pair, q, qd) - 2.0 * gains.alpha * G.dot(nu) -
-               gains.beta * gains.beta * geo.gap;
+    ws->G.row(r) = G;
+    ws->b(r) = -ContactRateTerm(pair, q, qd) - 2.0 * gains.alpha * G.dot(nu) - gains.beta * gains.beta * geo.gap -
+               G.dot(a_free);
   }
-  ws->lu.compute(A);
-  if (!ws->lu.isInvertible()) {
-    Throw<SolverError>("SolveConstrainedAcceleration", "the contact constraint rows are dependent (rank ",
-                       ws->lu.rank(), " of ", 6 + k, ") at t = ", t, " s");
+  Vector6d nu_dot = a_free;
+  out->normal_force.resize(k);
+  if (k > 0) {
+    ws->S.noalias() = ws->G * M_inverse.asDiagonal() * ws->G.transpose();
+    ws->lu.compute(ws->S);
+    if (!ws->lu.isInvertible()) {
+      Throw<SolverError>("SolveConstrainedAcceleration", "the contact constraint rows are dependent (rank ",
+                         6 + ws->lu.rank(), " of ", 6 + k, ") at t = ", t, " s");
+    }
+    ws->N = ws->lu.solve(ws->b);
+    nu_dot += M_inverse.cwiseProduct(ws->G.transpose() * ws->N);
+    for (int r = 0; r < k; ++r) out->normal_force[r] = ws->N(r);
   }
-  ws->x = ws->lu.solve(b);
-  out->nu_dot = ws->x.head<6>();
+  out->nu_dot = nu_dot;
   out->qdd = CoordinateAcceleration(q, qd, out->nu_dot);
-  out->normal_force.assign(ws->x.data() + 6, ws->x.data() + 6 + k);
 }
 
 ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double t,

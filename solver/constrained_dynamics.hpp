@@ -7,7 +7,10 @@
 //   [ M   −Gᵀ ] [ ν̇ ]   [ Q                          ]
 //   [ G    0  ] [ N ] = [ −κ − 2a φ̇ − b² φ (Baumgarte) ]
 //
-// with a = b = 0 the exact index-reduced constraint φ̈ = 0.
+// with a = b = 0 the exact index-reduced constraint φ̈ = 0. M is diagonal in
+// ν-coordinates (dynamics.hpp), so the system is solved through its Schur complement
+// (issue 12: a k×k system instead of a (6 + k)² LU):
+//   (G M⁻¹ Gᵀ) N = rhs − G M⁻¹ Q,   ν̇ = M⁻¹ (Q + Gᵀ N).
 #pragma once
 
 #include <vector>
@@ -33,18 +36,19 @@ struct BaumgarteGains {
 constexpr int kMaxConstrainedContacts = 8;
 
 // Workspace of the allocation-free SolveConstrainedAcceleration (style.md §1: data apart
-// from model): the applied-load workspace and the saddle-point system in fixed-capacity
-// Eigen types (at most 6 + kMaxConstrainedContacts rows, on the stack or in this object).
+// from model): the applied-load workspace and the Schur-complement system in
+// fixed-capacity Eigen types (at most kMaxConstrainedContacts rows, in this object).
 struct ConstrainedDynamicsWorkspace {
-  static constexpr int kMaxRows = 6 + kMaxConstrainedContacts;
-  using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxRows, kMaxRows>;
-  using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxRows, 1>;
+  using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxConstrainedContacts, kMaxConstrainedContacts>;
+  using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxConstrainedContacts, 1>;
+  using Rows = Eigen::Matrix<double, Eigen::Dynamic, 6, 0, kMaxConstrainedContacts, 6>;
   explicit ConstrainedDynamicsWorkspace(const Model& model) : data(model) {}
   Data data;
-  Matrix A;  // [M −Gᵀ; G 0]
-  Vector b;  // [Q; −κ − 2a φ̇ − b² φ]
-  Vector x;  // [ν̇; N]
-  Eigen::FullPivLU<Matrix> lu;
+  Rows G;    // constraint rows G_i (k×6)
+  Matrix S;  // G M⁻¹ Gᵀ (k×k, symmetric positive definite for independent rows)
+  Vector b;  // −κ − 2a φ̇ − b² φ − G M⁻¹ Q
+  Vector N;  // normal forces
+  Eigen::FullPivLU<Matrix> lu;  // of S: rank-revealing, for dependent rows
 };
 
 // The same solve without allocation after the first call with a given number of active

@@ -133,6 +133,34 @@ TEST(Newmark, AgreesWithDaeOnChapterScene) {
   }
 }
 
+// The exact step tangent (blocks of solver/newton_euler_jacobian.hpp) against the Jet<24>
+// tangent (--jacobian jet): both are the exact derivative, so Newton takes the same number
+// of iterations (an error of 1e-3 in the tangent makes Newton linear with that rate and
+// costs about one more iteration per step at these tolerances) and converges to the same
+// states. Chapter and closed form, Newmark and generalized-α, h = 1e-3 s.
+TEST(Newmark, ExactTangentEqualsTheJetTangent) {
+  const Scene scene = LoadScene(ReferenceDataDir() + "/scenes/chapter_impact.yaml");
+  for (const char* name : {"newmark", "newmark-reduced", "generalized-alpha", "generalized-alpha-reduced"}) {
+    RunSettings settings;
+    settings.formulation = name;
+    settings.options.step = 1e-3;
+    settings.options.rtol = 1e-10;
+    settings.options.atol = 1e-12;
+    settings.options.jacobian = "jet";
+    const RunResult jet = RunScene(scene, settings);
+    settings.options.jacobian = "exact";
+    const RunResult exact = RunScene(scene, settings);
+    ASSERT_TRUE(jet.completed && exact.completed) << name << ": " << jet.failure << exact.failure;
+    EXPECT_EQ(exact.stats.steps, jet.stats.steps) << name;
+    EXPECT_NEAR(exact.stats.nonlinear_iterations, jet.stats.nonlinear_iterations,
+                0.01 * jet.stats.nonlinear_iterations) << name;
+    ASSERT_EQ(exact.samples.size(), jet.samples.size()) << name;
+    for (size_t k = 0; k < exact.samples.size(); ++k) {
+      EXPECT_LE((exact.samples[k].q - jet.samples[k].q).cwiseAbs().maxCoeff(), 1e-9) << name << " sample " << k;
+    }
+  }
+}
+
 // Newton cannot reach a tolerance below round-off: every step fails, is halved 20 times
 // and the run ends with a SolverError that names t and h.
 TEST(Newmark, NewtonFailureHalvesThenReportsTandH) {

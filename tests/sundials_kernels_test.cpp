@@ -233,7 +233,9 @@ TEST(DenseLinearSolver, BitwiseTheLibrarysFactorsAndSolutions) {
       const int f_lib = SUNLinSolSetup(S_lib, A_lib), f_ours = SUNLinSolSetup(S_ours, A_ours);
       EXPECT_EQ(f_lib, f_ours) << "n = " << n;
       EXPECT_EQ(SUNLinSolLastFlag(S_lib), SUNLinSolLastFlag(S_ours)) << "n = " << n;
-      if (singular) EXPECT_EQ(f_ours, SUNLS_LUFACT_FAIL);
+      if (singular) {
+        EXPECT_EQ(f_ours, SUNLS_LUFACT_FAIL);
+      }
       if (f_lib == 0) {
         for (int i = 0; i < n * n; ++i) {
           ASSERT_TRUE(SameBits(SUNDenseMatrix_Data(A_lib)[i], SUNDenseMatrix_Data(A_ours)[i])) << "n = " << n << ", factor entry " << i;
