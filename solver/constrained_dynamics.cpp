@@ -72,7 +72,7 @@ void SolveConstrainedAcceleration(const Model& model, double t, const Vector6d& 
     const ContactGeometry geo = RequireContactKinematics(pair, pose, "SolveConstrainedAcceleration");
     const Eigen::Matrix<double, 1, 6> G = ContactConstraintRow(pose, geo);
     ws->G.row(r) = G;
-    ws->b(r) = -ContactRateTerm(pair, q, qd) - 2.0 * gains.alpha * G.dot(nu) - gains.beta * gains.beta * geo.gap -
+    ws->b(r) = -ContactRateTerm(pair, q, qd, pose, nu) - 2.0 * gains.alpha * G.dot(nu) - gains.beta * gains.beta * geo.gap -
                G.dot(a_free);
   }
   Vector6d nu_dot = a_free;

@@ -115,11 +115,14 @@ ContactGeometry RequireContactKinematics(const ContactPair& pair, const Pose& po
 }
 
 double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6d& qd) {
-  const Vector6d nu = GeneralizedVelocity(q, qd);
+  return ContactRateTerm(pair, q, qd, PoseFromCoordinates(q), GeneralizedVelocity(q, qd));
+}
+
+double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6d& qd, const Pose& pose,
+                       const Vector6d& nu) {
   SphereOnPlane sop;
   if (SphereOnPlaneForm(pair, &sop)) {
     // κ = (w_F × (w_F × n)) · (C − R0) − 2 (w_F × n) · v_F  (gap linear in R0, n = R n̂′).
-    const Pose pose = PoseFromCoordinates(q);
     const Vector3d n = pose.R_FT * sop.normal_T;
     const Vector3d w_F = pose.R_FT * nu.tail<3>();
     const Vector3d v_F = nu.head<3>();
@@ -133,12 +136,12 @@ double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6
     qj(i) = Jet1(q(i));
     qj(i).v(0) = qd(i);
   }
-  const PoseTpl<Jet1> pose = PoseFromCoordinates(qj);
+  const PoseTpl<Jet1> pose_path = PoseFromCoordinates(qj);
   ContactGeometryTpl<Jet1> geo;
-  if (!ContactKinematics(pair, pose, &geo)) {
-    RequireContactKinematics(pair, ScalarPose(pose), "ContactRateTerm");
+  if (!ContactKinematics(pair, pose_path, &geo)) {
+    RequireContactKinematics(pair, ScalarPose(pose_path), "ContactRateTerm");
   }
-  const Eigen::Matrix<Jet1, 1, 6> G = ContactConstraintRow(pose, geo);
+  const Eigen::Matrix<Jet1, 1, 6> G = ContactConstraintRow(pose_path, geo);
   double kappa = 0.0;
   for (int i = 0; i < 6; ++i) kappa += G(i).v(0) * nu(i);
   return kappa;

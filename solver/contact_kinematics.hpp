@@ -128,5 +128,9 @@ ContactGeometry RequireContactKinematics(const ContactPair& pair, const Pose& po
 
 // κ in φ̈ = G ν̇ + κ at (q, q̇) (header comment). Throws like RequireContactKinematics.
 double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6d& qd);
+// The same with the pose and ν = (v_F, w_T) of (q, q̇) already at hand (the hidden-constraint
+// solve computes them once for all contacts).
+double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6d& qd, const Pose& pose,
+                       const Vector6d& nu);
 
 }  // namespace kneedyn

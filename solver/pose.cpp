@@ -1,6 +1,6 @@
 #include "solver/pose.hpp"
 
-#include <Eigen/LU>
+#include <cmath>
 
 namespace kneedyn {
 
@@ -9,21 +9,35 @@ const char* CoordinateName(int i) {
   return (i >= 0 && i < kNumCoordinates) ? kNames[i] : "?";
 }
 
+namespace {
+// x = E(β, γ)⁻¹ r in closed form (rotation.hpp: the leading 2×2 block of E has
+// determinant sin β, its third column is −k̂′). Throws at the JCS singularity.
+Vector3d SolveAngularVelocityMap(double beta, double gamma, const Vector3d& r, const char* caller) {
+  CheckJcsRegular(beta, caller);
+  const double sb = std::sin(beta), cb = std::cos(beta);
+  const double sg = std::sin(gamma), cg = std::cos(gamma);
+  Vector3d x;
+  x(0) = (-cg * r(0) - sg * r(1)) / sb;
+  x(1) = sg * r(0) - cg * r(1);
+  x(2) = -r(2) - cb * x(0);
+  return x;
+}
+}  // namespace
+
 Vector6d CoordinateAcceleration(const Vector6d& q, const Vector6d& qd, const Vector6d& nu_dot) {
-  const Matrix3d E = AngularVelocityMap(q(kBeta), q(kGamma));
   const Vector3d qd_ang = qd.tail<3>();
   Vector6d qdd;
   qdd.head<3>() = nu_dot.head<3>();
-  qdd.tail<3>() = E.partialPivLu().solve(
-      nu_dot.tail<3>() - AngularVelocityMapRateTimesRate(q(kBeta), q(kGamma), qd_ang));
+  qdd.tail<3>() = SolveAngularVelocityMap(
+      q(kBeta), q(kGamma), nu_dot.tail<3>() - AngularVelocityMapRateTimesRate(q(kBeta), q(kGamma), qd_ang),
+      "CoordinateAcceleration");
   return qdd;
 }
 
 Vector6d CoordinateVelocity(const Vector6d& q, const Vector6d& nu) {
-  const Matrix3d E = AngularVelocityMap(q(kBeta), q(kGamma));
   Vector6d qd;
   qd.head<3>() = nu.head<3>();
-  qd.tail<3>() = E.partialPivLu().solve(Vector3d(nu.tail<3>()));
+  qd.tail<3>() = SolveAngularVelocityMap(q(kBeta), q(kGamma), Vector3d(nu.tail<3>()), "CoordinateVelocity");
   return qd;
 }
 
