@@ -2,7 +2,7 @@
 // (dae.cpp, dae_ggl.cpp) instead of each writing the same sequence of calls.
 #pragma once
 
-#include <ida/ida.h>
+#include <idas/idas.h>
 #include <sunlinsol/sunlinsol_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>
 
