@@ -89,7 +89,8 @@ struct SensitivityResult {
   long sensitivity_rhs_evaluations = 0;  // CVodeGetSensNumRhsEvals / IDAGetSensNumResEvals
   long sensitivity_error_test_failures = 0;
   // DAE forms: the largest |F_y s + F_ẏ ṡ + F_p| of the consistent initial sensitivities at
-  // a phase start, relative to the largest of its terms (0 for ede, or without derivatives).
+  // a phase start, relative to the size of its row's terms (dae_sensitivity.cpp; 0 for ede,
+  // or without derivatives).
   double initial_sensitivity_residual = 0.0;
   double wall_time_s = 0.0;
 };
