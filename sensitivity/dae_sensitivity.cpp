@@ -676,47 +676,12 @@ void DaeSensitivity::Run(SensitivityResult* result) {
         std::fill(dtau.begin(), dtau.end(), kNaN);
       }
       std::vector<int> next_active = mode_.active;
-      for (int k = 0; k < n_events; ++k) {
-        if (!fired[k]) continue;
-        const EventSpec& ev = mode_.events[k];
-        result->events.push_back({ev.name, t, y[kAlpha], with_s_ ? dtau : std::vector<double>()});
-        switch (ev.kind) {
-          case EventKind::kRecontact:
-            Throw<SolverError>("RunSensitivity", ev.name, " at t = ", t, " s, flexion = ", RadToDeg(y[kAlpha]),
-                               " deg: a re-contact is a plastic impact (a state reset); sensitivities across impacts "
-                               "are not implemented");
-          case EventKind::kFlexionEnd:
-            result->end_reason = ev.name;
-            done = true;
-            break;
-          case EventKind::kLiftoff:
-            next_active.erase(std::remove(next_active.begin(), next_active.end(), ev.contact), next_active.end());
-            break;
-          case EventKind::kLigamentKink:
-            break;
-        }
-      }
-      // Values at the event, in the mode before it (left limits).
-      for (size_t k = 0; k < outcomes.size(); ++k) {
+      std::vector<double> dalpha(np_, kNaN);
+      for (int j = 0; j < np_ && with_s_; ++j) dalpha[j] = w[j][kAlpha];
+      done = RecordEvent(mode_, fired, t, y[kAlpha], dtau, dalpha, with_s_, outcomes, &next_active, result);
+      // 90° values, in the mode before the end event (left limits).
+      for (size_t k = 0; k < outcomes.size() && done; ++k) {
         const Outcome& o = outcomes[k];
-        bool liftoff = false;
-        for (int ev = 0; ev < n_events; ++ev) {
-          liftoff = liftoff || (fired[ev] && mode_.events[ev].kind == EventKind::kLiftoff &&
-                                (o.index < 0 || mode_.events[ev].contact == o.index));
-        }
-        if ((o.kind == OutcomeKind::kLiftoffTime || o.kind == OutcomeKind::kLiftoffFlexion) && liftoff &&
-            std::isnan(result->values[k])) {
-          const bool time = o.kind == OutcomeKind::kLiftoffTime;
-          result->values[k] = time ? t : RadToDeg(y[kAlpha]);
-          for (int j = 0; j < np_; ++j) {
-            result->derivatives[k][j] = time ? dtau[j] : (with_s_ ? RadToDeg(w[j][kAlpha]) : kNaN);
-          }
-        }
-        if (!done) continue;
-        if (o.kind == OutcomeKind::kTime90) {
-          result->values[k] = t;
-          result->derivatives[k] = dtau;
-        }
         if (o.kind == OutcomeKind::kLigamentAt90 || o.kind == OutcomeKind::kContactAt90) {
           result->values[k] = Value(o, t, y);
           result->derivatives[k] = Total(o, t, y, dtau, w);

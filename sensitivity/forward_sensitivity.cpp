@@ -476,46 +476,12 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
         for (int j = 0; j < np; ++j) w[j] = VectorXd::Zero(kN), dtau[j] = kNaN;
       }
       Mode next = mode;
-      for (int k = 0; k < n_events; ++k) {
-        if (!fired[k]) continue;
-        const EventSpec& e = mode.events[k];
-        result.events.push_back({e.name, t, y(kAlpha), with_s ? dtau : std::vector<double>()});
-        switch (e.kind) {
-          case EventKind::kRecontact:
-            Throw<SolverError>("RunSensitivity", e.name, " at t = ", t, " s, flexion = ", RadToDeg(y(kAlpha)),
-                               " deg: a re-contact is a plastic impact (a state reset); sensitivities across impacts "
-                               "are not implemented");
-          case EventKind::kFlexionEnd:
-            result.end_reason = e.name;
-            done = true;
-            break;
-          case EventKind::kLiftoff:
-            next.active.erase(std::remove(next.active.begin(), next.active.end(), e.contact), next.active.end());
-            break;
-          case EventKind::kLigamentKink:
-            break;
-        }
-      }
-      // Values at the event, on the mode before it (left limits).
-      for (size_t k = 0; k < outcomes.size(); ++k) {
+      std::vector<double> dalpha(np, kNaN);
+      for (int j = 0; j < np && with_s; ++j) dalpha[j] = w[j](kAlpha);
+      done = RecordEvent(mode, fired, t, y(kAlpha), dtau, dalpha, with_s, outcomes, &next.active, &result);
+      // 90° values, on the mode before the end event (left limits).
+      for (size_t k = 0; k < outcomes.size() && done; ++k) {
         const Outcome& o = outcomes[k];
-        // First lift-off (index −1) or that of one compartment.
-        bool liftoff = false;
-        for (int e = 0; e < n_events; ++e) {
-          liftoff = liftoff || (fired[e] && mode.events[e].kind == EventKind::kLiftoff &&
-                                (o.index < 0 || mode.events[e].contact == o.index));
-        }
-        if ((o.kind == OutcomeKind::kLiftoffTime || o.kind == OutcomeKind::kLiftoffFlexion) && liftoff &&
-            std::isnan(result.values[k])) {
-          const bool time = o.kind == OutcomeKind::kLiftoffTime;
-          result.values[k] = time ? t : RadToDeg(y(kAlpha));
-          for (int j = 0; j < np; ++j) result.derivatives[k][j] = time ? dtau[j] : (with_s ? RadToDeg(w[j](kAlpha)) : kNaN);
-        }
-        if (!done) continue;
-        if (o.kind == OutcomeKind::kTime90) {
-          result.values[k] = t;
-          result.derivatives[k] = dtau;
-        }
         if (o.kind == OutcomeKind::kLigamentAt90 || o.kind == OutcomeKind::kContactAt90) {
           result.values[k] = problem.Value(mode, o, t, y.data(), p.data());
           result.derivatives[k] = with_s ? total(mode, o, dtau, w) : std::vector<double>(np, kNaN);

@@ -15,6 +15,7 @@
 #include "solver/constrained_dynamics.hpp"
 #include "solver/error.hpp"
 #include "solver/events.hpp"
+#include "solver/units.hpp"
 
 namespace kneedyn::sensitivity::detail {
 
@@ -272,6 +273,61 @@ struct Peak {
   double value = -std::numeric_limits<double>::infinity();
   std::vector<double> derivative;
 };
+
+// What an event does, in both drivers: records the fired events of `mode` at time t (s) and
+// flexion α (rad) with dτ/dp (empty without derivatives), refuses a re-contact (a plastic
+// impact), removes lifted-off contacts from *next_active and sets the end reason at the end
+// flexion; then fills the outcomes this event decides: lift-off time and flexion (the first
+// lift-off, or that of the outcome's compartment; dα/dp = dalpha, rad per parameter unit)
+// and, at the end, time_90. Returns true at the end event (the driver then adds the 90°
+// force values with its own value functions).
+inline bool RecordEvent(const Mode& mode, const std::vector<int>& fired, double t, double alpha,
+                        const std::vector<double>& dtau, const std::vector<double>& dalpha, bool with_s,
+                        const std::vector<Outcome>& outcomes, std::vector<int>* next_active, SensitivityResult* result) {
+  bool end = false;
+  const int n_events = static_cast<int>(mode.events.size());
+  for (int k = 0; k < n_events; ++k) {
+    if (!fired[k]) continue;
+    const EventSpec& e = mode.events[k];
+    result->events.push_back({e.name, t, alpha, with_s ? dtau : std::vector<double>()});
+    switch (e.kind) {
+      case EventKind::kRecontact:
+        Throw<SolverError>("RunSensitivity", e.name, " at t = ", t, " s, flexion = ", RadToDeg(alpha),
+                           " deg: a re-contact is a plastic impact (a state reset); sensitivities across impacts "
+                           "are not implemented");
+      case EventKind::kFlexionEnd:
+        result->end_reason = e.name;
+        end = true;
+        break;
+      case EventKind::kLiftoff:
+        next_active->erase(std::remove(next_active->begin(), next_active->end(), e.contact), next_active->end());
+        break;
+      case EventKind::kLigamentKink:
+        break;
+    }
+  }
+  const int np = static_cast<int>(dtau.size());
+  for (size_t k = 0; k < outcomes.size(); ++k) {
+    const Outcome& o = outcomes[k];
+    // First lift-off (index −1) or that of one compartment.
+    bool liftoff = false;
+    for (int e = 0; e < n_events; ++e) {
+      liftoff = liftoff || (fired[e] && mode.events[e].kind == EventKind::kLiftoff &&
+                            (o.index < 0 || mode.events[e].contact == o.index));
+    }
+    if ((o.kind == OutcomeKind::kLiftoffTime || o.kind == OutcomeKind::kLiftoffFlexion) && liftoff &&
+        std::isnan(result->values[k])) {
+      const bool time = o.kind == OutcomeKind::kLiftoffTime;
+      result->values[k] = time ? t : RadToDeg(alpha);
+      for (int j = 0; j < np; ++j) result->derivatives[k][j] = time ? dtau[j] : (with_s ? RadToDeg(dalpha[j]) : kNaN);
+    }
+    if (end && o.kind == OutcomeKind::kTime90) {
+      result->values[k] = t;
+      result->derivatives[k] = dtau;
+    }
+  }
+  return end;
+}
 
 // The DAE forms (dae_sensitivity.cpp): integrates `problem`'s scene at `values` with IDAS on
 // formulations/dae_system.hpp and fills `result` (sized by the caller: outcomes, NaN values
