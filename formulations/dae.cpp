@@ -30,7 +30,7 @@
 // A contact-mode switch rebuilds IDA at the new size from the driver's consistent state
 // (IDAReInit cannot change the size). IDACalcIC is not used (it is only valid for index 1);
 // the initial y, ẏ come from the consistent initialization.
-#include <ida/ida.h>
+#include <idas/idas.h>
 #include <sunlinsol/sunlinsol_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>
 

@@ -39,7 +39,7 @@
 // index 2), as in idaSlCrank_dns.c. The system (unknowns, residual, the exact Jacobian
 // dF/dy + cj dF/dẏ) is formulations/dae_system.hpp, shared with dae. All workspaces are
 // allocated in Start; the residual, Jacobian and root callbacks allocate nothing.
-#include <ida/ida.h>
+#include <idas/idas.h>
 #include <sunlinsol/sunlinsol_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>
 

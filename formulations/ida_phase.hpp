@@ -2,7 +2,7 @@
 // (dae.cpp, dae_ggl.cpp) instead of each writing the same sequence of calls.
 #pragma once
 
-#include <ida/ida.h>
+#include <idas/idas.h>
 #include <sunlinsol/sunlinsol_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>
 
@@ -46,10 +46,12 @@ struct IdaPhase {
   // 1e-4 s · sqrt(rtol / 1e-6) (BDF1 local error ∝ h²; IDA's own estimate, ~1e-11 s at rtol
   // 1e-10, is so small that the O(ε/h²) round-off of the index-2 forces defeats the Newton
   // test), which IDA's error test then adjusts. `owner` names the formulation in errors.
+  // `extra_root_directions`: root functions `roots` evaluates after the events' (the IDAS
+  // sensitivities' peak conditions dv/dt = 0), with their directions.
   void Start(SUNContext ctx, int n, IDAResFn residual, IDALsJacFn jacobian, IDARootFn roots,
              void* user, double t0, N_Vector atol, N_Vector id, const FormulationOptions& options,
              double end_time, const std::vector<EventSpec>& events, const char* owner,
-             SundialsMessages* messages) {
+             SundialsMessages* messages, const std::vector<int>& extra_root_directions = {}) {
     auto check = [&](int flag, const char* call) {
       CheckSundials(flag, call, owner, IDAGetReturnFlagName, messages);
     };
@@ -71,9 +73,10 @@ struct IdaPhase {
     LS = NewDenseLinearSolver(y, A, ctx);  // kneedyn's LU (sundials_kernels.hpp)
     check(IDASetLinearSolver(mem, LS, A), "IDASetLinearSolver");
     check(IDASetJacFn(mem, jacobian), "IDASetJacFn");
-    if (!events.empty()) {
-      check(IDARootInit(mem, static_cast<int>(events.size()), roots), "IDARootInit");
+    if (!events.empty() || !extra_root_directions.empty()) {
       std::vector<int> dir = RootDirections(events);
+      dir.insert(dir.end(), extra_root_directions.begin(), extra_root_directions.end());
+      check(IDARootInit(mem, static_cast<int>(dir.size()), roots), "IDARootInit");
       check(IDASetRootDirection(mem, dir.data()), "IDASetRootDirection");
       check(IDASetNoInactiveRootWarn(mem), "IDASetNoInactiveRootWarn");
     }

@@ -2,7 +2,7 @@
 // (dae.cpp, dae_ggl.cpp) instead of each reading the same nine getters.
 #pragma once
 
-#include <ida/ida.h>
+#include <idas/idas.h>
 
 #include "formulations/formulation.hpp"
 

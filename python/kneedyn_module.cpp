@@ -334,9 +334,10 @@ PYBIND11_MODULE(_kneedyn, m) {
   // as `kneedyn sensitivity SCENE --parameters ... --outcomes ... [--fd-step H] --out DIR`.
   m.def("sensitivity", [](std::shared_ptr<Scene> scene, const std::vector<std::string>& parameters,
                           const std::vector<std::string>& outcomes, double rtol, double atol, double fd_step,
-                          const std::string& out_dir) {
+                          const std::string& out_dir, const std::string& formulation) {
     using namespace sensitivity;
     SensitivityOptions options;
+    options.formulation = formulation;
     options.rtol = rtol;
     options.atol = atol;
     std::string why;
@@ -366,6 +367,6 @@ PYBIND11_MODULE(_kneedyn, m) {
     d["steps"] = r.stats.steps;
     return d;
   }, py::arg("scene"), py::arg("parameters"), py::arg("outcomes"), py::arg("rtol"), py::arg("atol"),
-     py::arg("fd_step") = 0.0, py::arg("out_dir") = "",
+     py::arg("fd_step") = 0.0, py::arg("out_dir") = "", py::arg("formulation") = "ede",
      "RunSensitivity (+ CentralDifferences, + WriteSensitivityOutputs into out_dir) without the GIL");
 }

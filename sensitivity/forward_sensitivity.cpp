@@ -12,6 +12,7 @@
 
 #include "ensembles/sweep.hpp"
 #include "formulations/sundials_util.hpp"
+#include "sensitivity/sensitivity_problem.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -19,87 +20,9 @@
 namespace kneedyn::sensitivity {
 
 using ensembles::ParameterSpec;
+using namespace detail;
 
 namespace {
-
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr int kN = 12;  // y = (q, q̇)
-
-// Relative size of the directional central differences of g and v (their truncation error
-// ~ε², round-off ~1e-16/ε: both near 1e-11 relative).
-constexpr double kDirectionalStep = 1.0e-6;
-// Absolute tolerance floor of the scaled sensitivities p̄_j s_j (SI units of y).
-constexpr double kSensitivityAtol = 1.0e-8;
-// Relative step of the central difference of the consistent initial state in p.
-constexpr double kInitialStateStep = 1.0e-6;
-
-enum class OutcomeKind { kLiftoffTime, kLiftoffFlexion, kTime90, kLigamentAt90, kContactAt90, kPeakLigament, kPeakContact };
-
-struct Outcome {
-  std::string column;
-  OutcomeKind kind;
-  int index = -1;  // ligament (model.ligaments) or contact (model.contacts)
-};
-
-std::string Sanitize(const std::string& s) {
-  std::string out = s;
-  for (char& c : out) {
-    if (c == ' ' || c == '/') c = '_';
-  }
-  return out;
-}
-
-const std::vector<std::string>& AllGroups() {
-  static const std::vector<std::string> kGroups = {"liftoff_time", "liftoff_flexion", "peak_ligament_force",
-                                                   "peak_contact_force", "time_at_90", "ligament_force_at_90",
-                                                   "contact_force_at_90"};
-  return kGroups;
-}
-
-std::vector<std::string> ColumnsOf(const Scene& scene, const std::vector<std::string>& groups) {
-  ensembles::SweepSpec spec;
-  spec.base = scene;
-  spec.outcome_groups = groups;
-  return ensembles::OutcomeColumns(spec);
-}
-
-// Maps an outcome column back to what it measures.
-Outcome ParseOutcome(const Model& m, const std::string& column) {
-  Outcome o{column, OutcomeKind::kLiftoffTime, -1};
-  if (column == "liftoff_time_s") return o;
-  if (column == "liftoff_flexion_deg") return {column, OutcomeKind::kLiftoffFlexion, -1};
-  // Per compartment (not sweep columns): liftoff_time_<compartment>_s, liftoff_flexion_<compartment>_deg.
-  for (const Compartment c : {Compartment::kMedial, Compartment::kLateral}) {
-    const std::string name = CompartmentName(c);
-    if (column == "liftoff_time_" + name + "_s") return {column, OutcomeKind::kLiftoffTime, m.ContactIndex(c)};
-    if (column == "liftoff_flexion_" + name + "_deg") return {column, OutcomeKind::kLiftoffFlexion, m.ContactIndex(c)};
-  }
-  if (column == "time_90_s") return {column, OutcomeKind::kTime90, -1};
-  const struct {
-    const char* prefix;
-    OutcomeKind kind;
-    bool ligament;
-  } kPrefixes[] = {{"peak_F_", OutcomeKind::kPeakLigament, true},
-                   {"F90_", OutcomeKind::kLigamentAt90, true},
-                   {"peak_N_", OutcomeKind::kPeakContact, false},
-                   {"N90_", OutcomeKind::kContactAt90, false}};
-  for (const auto& p : kPrefixes) {
-    const std::string prefix = p.prefix;
-    if (column.rfind(prefix, 0) != 0 || column.size() < prefix.size() + 2) continue;
-    const std::string name = column.substr(prefix.size(), column.size() - prefix.size() - 2);
-    if (p.ligament) {
-      for (size_t j = 0; j < m.ligaments.size(); ++j) {
-        if (Sanitize(m.ligaments[j].name) == name) return {column, p.kind, static_cast<int>(j)};
-      }
-    } else {
-      const Compartment c = name == "medial" ? Compartment::kMedial : Compartment::kLateral;
-      return {column, p.kind, m.ContactIndex(c)};  // −1 when the scene lacks it (value 0)
-    }
-  }
-  Throw<InputError>("RunSensitivity", "outcome column '", Echo(column), "' is not known");
-}
-
-bool IsPeak(const Outcome& o) { return o.kind == OutcomeKind::kPeakLigament || o.kind == OutcomeKind::kPeakContact; }
 
 [[noreturn]] void UnknownName(const std::string& field, const std::string& value,
                               const std::vector<std::string>& valid, const std::string& what) {
@@ -112,172 +35,6 @@ bool IsPeak(const Outcome& o) { return o.kind == OutcomeKind::kPeakLigament || o
   Throw<InputError>("kneedyn sensitivity", field, ": '", Echo(value), "' is not ", what, "; nearest valid name: '",
                     nearest, "' (all names: `kneedyn sensitivity --list SCENE`)");
 }
-
-// The mode of a phase: active contacts, locked ligament branches and the events watched.
-struct Mode {
-  std::vector<int> active;
-  std::vector<signed char> branch;
-  std::vector<EventSpec> events;
-};
-
-// What a phase integrates, with p read from an array (CVODES' copy of the parameters).
-class Problem {
- public:
-  Problem(const Scene& scene, const std::vector<ParameterSpec>& parameters, const std::vector<Outcome>& outcomes)
-      : outcomes_(outcomes) {
-    spec_.base = scene;
-    spec_.parameters = parameters;
-    for (size_t k = 0; k < outcomes.size(); ++k) {
-      if (IsPeak(outcomes[k])) peaks_.push_back(static_cast<int>(k));
-    }
-  }
-
-  int num_parameters() const { return static_cast<int>(spec_.parameters.size()); }
-  const std::vector<int>& peaks() const { return peaks_; }
-  const std::vector<Outcome>& outcomes() const { return outcomes_; }
-
-  // The scene with parameter values p (cached: f is called with the same p most times).
-  const Scene& SceneAt(const double* p) {
-    const int np = num_parameters();
-    if (!have_scene_ || !std::equal(p, p + np, applied_.begin())) {
-      applied_.assign(p, p + np);
-      scene_ = ensembles::SceneForRun(spec_, applied_);
-      have_scene_ = true;
-    }
-    return scene_;
-  }
-  Scene SceneCopyAt(const std::vector<double>& p) { return ensembles::SceneForRun(spec_, p); }
-
-  ConstrainedAcceleration Accel(const Mode& mode, double t, const double* y, const double* p) {
-    const Model& model = SceneAt(p).model;
-    const Vector6d q = Eigen::Map<const Vector6d>(y), qd = Eigen::Map<const Vector6d>(y + 6);
-    return SolveConstrainedAcceleration(model, t, q, qd, mode.active, {}, mode.branch.empty() ? nullptr : &mode.branch);
-  }
-
-  void Rhs(const Mode& mode, double t, const double* y, const double* p, double* ydot) {
-    const ConstrainedAcceleration a = Accel(mode, t, y, p);
-    for (int i = 0; i < 6; ++i) {
-      ydot[i] = y[6 + i];
-      ydot[6 + i] = a.qdd(i);
-    }
-  }
-
-  // g_k of the mode's events at p (kink lengths (1 + 2ε1) L0 follow p).
-  void Events(const Mode& mode, double t, const double* y, const double* p, double* g) {
-    std::vector<double> normal;
-    const Scene& scene = SceneAt(p);
-    normal.assign(scene.model.contacts.size(), 0.0);
-    if (!mode.active.empty()) {
-      const ConstrainedAcceleration a = Accel(mode, t, y, p);
-      for (size_t c = 0; c < mode.active.size(); ++c) normal[mode.active[c]] = a.normal_force[c];
-    }
-    std::vector<EventSpec> specs = mode.events;
-    for (EventSpec& e : specs) {
-      if (e.kind == EventKind::kLigamentKink) e.offset = LigamentKinkLength(scene.model.ligaments[e.ligament]);
-    }
-    EvaluateEvents(scene.model, specs, Vector6d(Eigen::Map<const Vector6d>(y)), normal, g);
-  }
-  double Event(const Mode& mode, int k, double t, const double* y, const double* p) {
-    std::vector<double> g(mode.events.size());
-    Events(mode, t, y, p, g.data());
-    return g[k];
-  }
-
-  // A force outcome's instantaneous value v(t, y, p): ligament tension (on the mode's
-  // branch) or contact normal force (0 while separated).
-  double Value(const Mode& mode, const Outcome& o, double t, const double* y, const double* p) {
-    if (o.kind == OutcomeKind::kPeakLigament || o.kind == OutcomeKind::kLigamentAt90) {
-      const Model& model = SceneAt(p).model;
-      Data data(model);
-      if (!mode.branch.empty()) data.ligament_branch = &mode.branch;
-      ComputeAppliedWrench(model, t, PoseFromCoordinates(Vector6d(Eigen::Map<const Vector6d>(y))), &data);
-      return data.ligament_tension[o.index];
-    }
-    const auto it = std::find(mode.active.begin(), mode.active.end(), o.index);
-    if (o.index < 0 || it == mode.active.end()) return 0.0;
-    return Accel(mode, t, y, p).normal_force[it - mode.active.begin()];
-  }
-
-  // Central difference of fn along (dt, dy, dp) at (t, y, p): ∂fn/∂t dt + ∂fn/∂y dy + ∂fn/∂p dp.
-  // Step ε of a directional difference: the largest relative change of a component of
-  // (t, y, p) is kDirectionalStep (components near 0 relative to 0.1 s, 1e-3 SI, 1).
-  double DirectionalStep(double t, const double* y, const double* p, double dt, const double* dy, const double* dp) const {
-    const int np = static_cast<int>(spec_.parameters.size());
-    double r = std::abs(dt) / std::max(std::abs(t), 0.1);
-    for (int i = 0; i < kN; ++i) r = std::max(r, std::abs(dy[i]) / std::max(std::abs(y[i]), 1.0e-3));
-    for (int j = 0; j < np; ++j) r = std::max(r, std::abs(dp[j]) / (p[j] != 0.0 ? std::abs(p[j]) : 1.0));
-    return r == 0.0 ? 0.0 : kDirectionalStep / r;
-  }
-
-  // The sensitivity right-hand side ṡ_j = ∂f/∂y s_j + ∂f/∂p_j (CVodeSensInit1's fS1) by a
-  // central difference along (s_j, e_j), scaled per component (DirectionalStep); CVODES'
-  // own quotient scales y by the error weights, which with atol ≪ |y| makes the p step
-  // ~1e-11 relative and the quotient round-off bound.
-  void SensitivityRhs(const Mode& mode, double t, const double* y, const double* p, int j, const double* s, double* sdot) {
-    const int np = num_parameters();
-    std::vector<double> e(np, 0.0);
-    e[j] = 1.0;
-    const double eps = DirectionalStep(t, y, p, 0.0, s, e.data());
-    if (eps == 0.0) {
-      std::fill(sdot, sdot + kN, 0.0);
-      return;
-    }
-    double yp[kN], ym[kN], fp[kN], fm[kN];
-    std::vector<double> pp(p, p + np), pm(p, p + np);
-    for (int i = 0; i < kN; ++i) yp[i] = y[i] + eps * s[i], ym[i] = y[i] - eps * s[i];
-    pp[j] += eps, pm[j] -= eps;
-    Rhs(mode, t, yp, pp.data(), fp);
-    Rhs(mode, t, ym, pm.data(), fm);
-    for (int i = 0; i < kN; ++i) sdot[i] = (fp[i] - fm[i]) / (2.0 * eps);
-  }
-
-  template <typename Fn>
-  double Directional(Fn fn, double t, const double* y, const double* p, double dt, const double* dy, const double* dp) {
-    const int np = num_parameters();
-    const double eps = DirectionalStep(t, y, p, dt, dy, dp);
-    if (eps == 0.0) return 0.0;
-    double yp[kN], ym[kN];
-    std::vector<double> pp(p, p + np), pm(p, p + np);
-    for (int i = 0; i < kN; ++i) yp[i] = y[i] + eps * dy[i], ym[i] = y[i] - eps * dy[i];
-    for (int j = 0; j < np; ++j) pp[j] += eps * dp[j], pm[j] -= eps * dp[j];
-    const double plus = fn(t + eps * dt, yp, pp.data());
-    const double minus = fn(t - eps * dt, ym, pm.data());
-    return (plus - minus) / (2.0 * eps);
-  }
-
-  // Root functions of a phase: its events, then dv/dt of every peak outcome.
-  void Roots(const Mode& mode, double t, const double* y, const double* p, double* g) {
-    Events(mode, t, y, p, g);
-    if (peaks_.empty()) return;
-    double f[kN];
-    Rhs(mode, t, y, p, f);
-    std::vector<double> zero(num_parameters(), 0.0);
-    for (size_t k = 0; k < peaks_.size(); ++k) {
-      const Outcome& o = outcomes_[peaks_[k]];
-      // A slack ligament or a separated contact (v = 0) has dv/dt ≡ 0, which the root finder
-      // refuses (a root on an interval): −1 there, so only rising-then-falling v crosses 0.
-      if (!(Value(mode, o, t, y, p) > 0.0)) {
-        g[mode.events.size() + k] = -1.0;
-        continue;
-      }
-      const double rate = Directional(
-          [&](double tt, const double* yy, const double* pp) { return Value(mode, o, tt, yy, pp); }, t, y, p, 1.0, f,
-          zero.data());
-      // Near the maximum the difference quotient is quantized (plus == minus to the last
-      // bit over a short interval); an exact 0 there would be a root on an interval, which
-      // CVODES refuses. The first exact 0 counts as just past the maximum.
-      g[mode.events.size() + k] = rate != 0.0 ? rate : -std::numeric_limits<double>::min();
-    }
-  }
-
- private:
-  ensembles::SweepSpec spec_;
-  std::vector<Outcome> outcomes_;
-  std::vector<int> peaks_;  // indices into outcomes_
-  Scene scene_;
-  std::vector<double> applied_;
-  bool have_scene_ = false;
-};
 
 // One CVODES instance per phase (sizes of the root set change between phases).
 struct Cvodes {
@@ -353,12 +110,6 @@ SolverStats CountersOf(void* mem, bool roots) {
   return s;
 }
 
-// A maximum candidate of a peak outcome.
-struct Peak {
-  double value = -std::numeric_limits<double>::infinity();
-  std::vector<double> derivative;
-};
-
 }  // namespace
 
 int EditDistance(const std::string& a, const std::string& b) {
@@ -376,9 +127,22 @@ int EditDistance(const std::string& a, const std::string& b) {
   return row[b.size()];
 }
 
+const char* SensitivityIntegrator(const std::string& formulation) {
+  return formulation == "ede" ? "cvodes-bdf" : "idas-bdf";
+}
+
+const char* SensitivityMethod(const std::string& formulation) {
+  return formulation == "ede" ? "staggered, difference-quotient right-hand side (centred)"
+                              : "staggered, own residual F_y s + F_ydot s' + F_p: F_y, F_ydot exact (DaeSystem::Jacobian), "
+                                "F_p by central differences over perturbed models (relative step 1e-5)";
+}
+
 bool SensitivityOptions::IsValid(std::string* error) const {
-  if (formulation != "ede") {
-    *error = StrCat("--formulation = '", Echo(formulation), "': sensitivities are implemented for ede (CVODES on y = (q, q'))");
+  if (std::find(std::begin(kSensitivityFormulations), std::end(kSensitivityFormulations), formulation) ==
+      std::end(kSensitivityFormulations)) {
+    *error = StrCat("--formulation = '", Echo(formulation),
+                    "': sensitivities are implemented for ede (CVODES on y = (q, q')) and dae, dae-reduced, dae-ggl, "
+                    "dae-ggl-reduced (IDAS on the DAE of formulations/dae_system.hpp)");
     return false;
   }
   if (!(rtol > 0.0 && rtol < 1.0)) {
@@ -489,6 +253,17 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
   result.outcomes = outcome_columns;
   result.values.assign(outcomes.size(), kNaN);
   result.derivatives.assign(outcomes.size(), std::vector<double>(np, kNaN));
+  auto finish = [&]() {
+    if (!options.derivatives) {
+      for (auto& row : result.derivatives) std::fill(row.begin(), row.end(), kNaN);
+    }
+    result.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+    return result;
+  };
+  if (options.formulation != "ede") {  // the DAE forms, on IDAS (dae_sensitivity.cpp)
+    RunDaeSensitivity(problem, values, options, &result);
+    return finish();
+  }
 
   // Consistent initial state at p, and s0 = ∂y0/∂p by central differences of the
   // initialization (zero when, as for the chapter scene, p does not enter it).
@@ -701,46 +476,12 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
         for (int j = 0; j < np; ++j) w[j] = VectorXd::Zero(kN), dtau[j] = kNaN;
       }
       Mode next = mode;
-      for (int k = 0; k < n_events; ++k) {
-        if (!fired[k]) continue;
-        const EventSpec& e = mode.events[k];
-        result.events.push_back({e.name, t, y(kAlpha), with_s ? dtau : std::vector<double>()});
-        switch (e.kind) {
-          case EventKind::kRecontact:
-            Throw<SolverError>("RunSensitivity", e.name, " at t = ", t, " s, flexion = ", RadToDeg(y(kAlpha)),
-                               " deg: a re-contact is a plastic impact (a state reset); sensitivities across impacts "
-                               "are not implemented");
-          case EventKind::kFlexionEnd:
-            result.end_reason = e.name;
-            done = true;
-            break;
-          case EventKind::kLiftoff:
-            next.active.erase(std::remove(next.active.begin(), next.active.end(), e.contact), next.active.end());
-            break;
-          case EventKind::kLigamentKink:
-            break;
-        }
-      }
-      // Values at the event, on the mode before it (left limits).
-      for (size_t k = 0; k < outcomes.size(); ++k) {
+      std::vector<double> dalpha(np, kNaN);
+      for (int j = 0; j < np && with_s; ++j) dalpha[j] = w[j](kAlpha);
+      done = RecordEvent(mode, fired, t, y(kAlpha), dtau, dalpha, with_s, outcomes, &next.active, &result);
+      // 90° values, on the mode before the end event (left limits).
+      for (size_t k = 0; k < outcomes.size() && done; ++k) {
         const Outcome& o = outcomes[k];
-        // First lift-off (index −1) or that of one compartment.
-        bool liftoff = false;
-        for (int e = 0; e < n_events; ++e) {
-          liftoff = liftoff || (fired[e] && mode.events[e].kind == EventKind::kLiftoff &&
-                                (o.index < 0 || mode.events[e].contact == o.index));
-        }
-        if ((o.kind == OutcomeKind::kLiftoffTime || o.kind == OutcomeKind::kLiftoffFlexion) && liftoff &&
-            std::isnan(result.values[k])) {
-          const bool time = o.kind == OutcomeKind::kLiftoffTime;
-          result.values[k] = time ? t : RadToDeg(y(kAlpha));
-          for (int j = 0; j < np; ++j) result.derivatives[k][j] = time ? dtau[j] : (with_s ? RadToDeg(w[j](kAlpha)) : kNaN);
-        }
-        if (!done) continue;
-        if (o.kind == OutcomeKind::kTime90) {
-          result.values[k] = t;
-          result.derivatives[k] = dtau;
-        }
         if (o.kind == OutcomeKind::kLigamentAt90 || o.kind == OutcomeKind::kContactAt90) {
           result.values[k] = problem.Value(mode, o, t, y.data(), p.data());
           result.derivatives[k] = with_s ? total(mode, o, dtau, w) : std::vector<double>(np, kNaN);
@@ -787,11 +528,7 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
     result.values[k] = peak[k].value;
     result.derivatives[k] = peak[k].derivative;
   }
-  if (!options.derivatives) {
-    for (auto& row : result.derivatives) std::fill(row.begin(), row.end(), kNaN);
-  }
-  result.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-  return result;
+  return finish();
 }
 
 }  // namespace kneedyn::sensitivity

@@ -30,6 +30,11 @@
 //       value-at-event formula above.
 // Partial derivatives of g and v (∂/∂y·s + ∂/∂p, ∂/∂t + ∂/∂y·f) are directional central
 // differences of the solver/ functions (no physics re-derived here).
+//
+// --formulation dae | dae-reduced | dae-ggl | dae-ggl-reduced: the same outcomes, names and
+// result from the index-2 DAE of formulations/dae_system.hpp on SUNDIALS IDAS
+// (dae_sensitivity.cpp: consistent initial sensitivities, the sensitivity residual, the
+// algebraic unknowns re-solved at each restart).
 #pragma once
 
 #include <string>
@@ -40,9 +45,13 @@
 
 namespace kneedyn::sensitivity {
 
+// The forms with sensitivities: ede on CVODES (this header), the DAE forms on IDAS
+// (dae_sensitivity.cpp: the chapter-form and closed-form contact, plain and GGL).
+inline constexpr const char* kSensitivityFormulations[] = {"ede", "dae", "dae-reduced", "dae-ggl", "dae-ggl-reduced"};
+
 struct SensitivityOptions {
-  std::string formulation = "ede";  // the ODE form integrated (ede only so far)
-  double rtol = 1.0e-8;             // CVODES relative tolerance (state and sensitivities)
+  std::string formulation = "ede";  // one of kSensitivityFormulations
+  double rtol = 1.0e-8;             // CVODES / IDAS relative tolerance (state and sensitivities)
   double atol = 1.0e-10;            // absolute tolerance (SI units of each state)
   long max_steps = 200000;          // per phase
   double output_interval = 0.0;     // s between trajectory samples; 0: the scene's
@@ -76,9 +85,13 @@ struct SensitivityResult {
   std::vector<SensitivityEvent> events;
   std::string end_reason;                // flexion_<deg> or end_time
   std::vector<TrajectorySample> trajectory;  // t = 0 and every output interval before the end
-  SolverStats stats;                     // CVODES counters summed over phases
-  long sensitivity_rhs_evaluations = 0;  // CVodeGetSensNumRhsEvals (difference quotients)
+  SolverStats stats;                     // CVODES / IDAS counters summed over phases
+  long sensitivity_rhs_evaluations = 0;  // CVodeGetSensNumRhsEvals / IDAGetSensNumResEvals
   long sensitivity_error_test_failures = 0;
+  // DAE forms: the largest |F_y s + F_ẏ ṡ + F_p| of the consistent initial sensitivities at
+  // a phase start, relative to the size of its row's terms (dae_sensitivity.cpp; 0 for ede,
+  // or without derivatives).
+  double initial_sensitivity_residual = 0.0;
   double wall_time_s = 0.0;
 };
 
@@ -102,6 +115,11 @@ std::vector<std::string> OutcomeNames(const Scene& scene);
 SensitivityResult RunSensitivity(const Scene& scene, const std::vector<ensembles::ParameterSpec>& parameters,
                                  const std::vector<double>& values, const std::vector<std::string>& outcomes,
                                  const SensitivityOptions& options);
+
+// What the result files say integrated: "cvodes-bdf" (ede) or "idas-bdf" (the DAE forms),
+// and how the sensitivity equations' right-hand side / residual was formed.
+const char* SensitivityIntegrator(const std::string& formulation);
+const char* SensitivityMethod(const std::string& formulation);
 
 // Levenshtein distance (for "nearest valid name").
 int EditDistance(const std::string& a, const std::string& b);

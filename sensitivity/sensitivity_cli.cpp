@@ -147,8 +147,8 @@ void WriteSensitivityOutputs(const std::string& dir, const Scene& scene, const S
     j["git_commit"] = KneedynGitCommit();
     j["command_line"] = command_line;
     j["scene"] = {{"name", scene.name}, {"path", scene.path}};
-    j["settings"] = {{"formulation", options.formulation}, {"integrator", "cvodes-bdf"},
-                     {"sensitivity_method", "staggered, difference-quotient right-hand side (centred)"},
+    j["settings"] = {{"formulation", options.formulation}, {"integrator", SensitivityIntegrator(options.formulation)},
+                     {"sensitivity_method", SensitivityMethod(options.formulation)},
                      {"rtol", options.rtol}, {"atol", options.atol}, {"max_steps", options.max_steps},
                      {"output_interval_s", options.output_interval > 0.0 ? options.output_interval : scene.output_interval},
                      {"fd_relative_step", fd ? nlohmann::json(fd_step) : nlohmann::json(nullptr)}};
@@ -166,7 +166,10 @@ void WriteSensitivityOutputs(const std::string& dir, const Scene& scene, const S
                        {"nonlinear_iterations", s.nonlinear_iterations}, {"error_test_failures", s.error_test_failures},
                        {"convergence_failures", s.convergence_failures}, {"root_evaluations", s.root_evaluations},
                        {"restarts", s.restarts}, {"sensitivity_rhs_evaluations", r.sensitivity_rhs_evaluations},
-                       {"sensitivity_error_test_failures", r.sensitivity_error_test_failures}};
+                       {"sensitivity_error_test_failures", r.sensitivity_error_test_failures},
+                       {"initial_sensitivity_residual",
+                        options.formulation == "ede" || r.parameters.empty() ? nlohmann::json(nullptr)
+                                                                             : nlohmann::json(r.initial_sensitivity_residual)}};
     j["wall_time_s"] = r.wall_time_s;
     j["rows"] = rows;
     // The trajectory and ∂q/∂p at the output times, one row per (time, parameter).
@@ -197,13 +200,17 @@ void WriteSensitivityOutputs(const std::string& dir, const Scene& scene, const S
 }
 
 SensitivityCommand::SensitivityCommand(CLI::App& app) {
-  cmd_ = app.add_subcommand("sensitivity", "forward sensitivities (CVODES) of outcomes with respect to named parameters");
+  cmd_ = app.add_subcommand("sensitivity",
+                            "forward sensitivities (CVODES for ede, IDAS for the DAE forms) of outcomes with respect to "
+                            "named parameters");
   cmd_->add_option("scene", scene_path_, "scene file (YAML); or give --spec");
   cmd_->add_option("--spec", spec_path_,
                    "a sweep spec (kneedyn sweep): its scene, parameter names and outcomes, at the nominal values");
   cmd_->add_option("--parameters", parameters_, "comma-separated parameter names (as in a sweep spec)")->delimiter(',');
   cmd_->add_option("--outcomes", outcomes_, "comma-separated outcome columns or groups (as in a sweep spec)")->delimiter(',');
-  cmd_->add_option("--formulation", options_.formulation, "ODE form integrated (ede)")->capture_default_str();
+  cmd_->add_option("--formulation", options_.formulation,
+                   "form integrated: ede (CVODES) | dae | dae-reduced | dae-ggl | dae-ggl-reduced (IDAS)")
+      ->capture_default_str();
   cmd_->add_option("--rtol", options_.rtol, "relative tolerance")->capture_default_str();
   cmd_->add_option("--atol", options_.atol, "absolute tolerance (SI)")->capture_default_str();
   cmd_->add_option("--max-steps", options_.max_steps, "step budget per phase")->capture_default_str();
@@ -260,11 +267,13 @@ int SensitivityCommand::Run(int argc, char** argv) {
     if (fd_step_ > 0.0) fd = CentralDifferences(scene, params, values, outcomes, options_, fd_step_);
     WriteSensitivityOutputs(out_dir_, scene, options_, r, fd_step_ > 0.0 ? &fd : nullptr, fd_step_,
                             std::vector<std::string>(argv, argv + argc));
-    std::printf("%s: %zu outcomes x %zu parameters (%s, CVODES BDF, rtol %g) in %.3f s wall, end %s\n",
-                scene.name.c_str(), outcomes.size(), params.size(), options_.formulation.c_str(), options_.rtol,
-                r.wall_time_s, r.end_reason.c_str());
-    std::printf("  steps %ld, rhs evals %ld, sensitivity rhs evals %ld, restarts %ld\n", r.stats.steps,
-                r.stats.residual_evaluations, r.sensitivity_rhs_evaluations, r.stats.restarts);
+    const bool ode = options_.formulation == "ede";
+    std::printf("%s: %zu outcomes x %zu parameters (%s, %s BDF, rtol %g) in %.3f s wall, end %s\n",
+                scene.name.c_str(), outcomes.size(), params.size(), options_.formulation.c_str(), ode ? "CVODES" : "IDAS",
+                options_.rtol, r.wall_time_s, r.end_reason.c_str());
+    std::printf("  steps %ld, %s evals %ld, sensitivity %s evals %ld, restarts %ld\n", r.stats.steps, ode ? "rhs" : "residual",
+                r.stats.residual_evaluations, ode ? "rhs" : "residual", r.sensitivity_rhs_evaluations, r.stats.restarts);
+    if (!ode) std::printf("  consistent initial sensitivities: relative residual %.2g\n", r.initial_sensitivity_residual);
     std::printf("  %-28s %-32s %14s %14s %12s%s\n", "outcome", "parameter", "value", "derivative", "normalized",
                 fd_step_ > 0.0 ? "    fd_derivative   rel.diff" : "");
     for (size_t k = 0; k < outcomes.size(); ++k) {

@@ -347,7 +347,7 @@ TEST_F(CliTest, CatalogAndWorkPrecisionKeepTheContract) {
 // summary.json. Without a terminal there are no `\r` progress updates.
 TEST_F(CliTest, SundialsMessagesGoIntoTheFailureReasonNotToStderr) {
   const std::vector<std::pair<std::string, std::string>> runs = {
-      {"--formulation dae", "IDA"},
+      {"--formulation dae", "IDAS"},  // IDA's API from libsundials_idas
       {"--formulation ede --integrator cvode-adams", "CVODES"},  // CVODE's API from libsundials_cvodes
       {"--formulation ede --integrator dopri5", "ARKODE"}};
   for (const auto& [options, module] : runs) {

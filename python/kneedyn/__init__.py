@@ -331,10 +331,11 @@ def sweep(spec_path, threads=0, out=None):
     return SweepResult(_kneedyn.sweep(str(spec_path), int(threads), "" if out is None else str(out)))
 
 
-def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0.0, out=None):
+def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0.0, out=None, formulation="ede"):
     """Forward sensitivities like `kneedyn sensitivity` (docs/outputs.md): `parameters` and
     `outcomes` are the sweep's names (e.g. "PCL_anterior.k_linear", "peak_F_PCL_anterior_N"
-    or a group such as "contact_force_at_90"). Returns a dict with `parameters`,
+    or a group such as "contact_force_at_90"); `formulation` "ede" (CVODES) or a DAE form
+    "dae", "dae-reduced", "dae-ggl", "dae-ggl-reduced" (IDAS). Returns a dict with `parameters`,
     `parameter_values`, `outcomes`, `values`, `derivatives` ([outcome][parameter]),
     `end_reason`, `steps`, and with fd_step > 0 `fd_derivatives` (central differences with
     that relative step). `out` also writes sensitivity.csv and sensitivity.json. Unknown
@@ -342,4 +343,4 @@ def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     return _kneedyn.sensitivity(scene.compiled, list(parameters), list(outcomes), float(rtol), float(atol),
-                                float(fd_step), "" if out is None else str(out))
+                                float(fd_step), "" if out is None else str(out), str(formulation))

@@ -415,3 +415,18 @@ def test_sensitivity_matches_the_cli_and_names_the_nearest_name():
     assert r["end_reason"] == "flexion_90"
     with pytest.raises(kneedyn.InputError, match="nearest valid name: 'mass'"):
         kneedyn.sensitivity(CHAPTER, ["mas"], ["liftoff_time_s"])
+
+
+def test_sensitivity_formulation_dae_matches_the_cli():
+    """formulation="dae" is `kneedyn sensitivity --formulation dae` (IDAS), to the CSV's
+    12 digits; an unknown formulation is an InputError naming it."""
+    cli_out = os.path.join(OUT, "sensitivity_cli_dae")
+    p = subprocess.run([CLI, "sensitivity", CHAPTER, "--formulation", "dae", "--parameters", "pulse.amplitude",
+                        "--outcomes", "liftoff_time_s", "--out", cli_out], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    r = kneedyn.sensitivity(CHAPTER, ["pulse.amplitude"], ["liftoff_time_s"], formulation="dae")
+    with open(os.path.join(cli_out, "sensitivity.csv")) as f:
+        rows = list(csv.DictReader(f))
+    assert math.isclose(float(rows[0]["derivative"]), r["derivatives"][0][0], rel_tol=1e-11)
+    with pytest.raises(kneedyn.InputError, match="--formulation = 'newmark'"):
+        kneedyn.sensitivity(CHAPTER, ["mass"], ["liftoff_time_s"], formulation="newmark")

@@ -11,7 +11,7 @@
 // sensitivity (p/y) dy/dp where the derivative is small (pulse amplitude on the peak PCL
 // force: normalised −0.007). Measured: relative 3e-7 … 9e-4 for these nine pairs
 // (`kneedyn sensitivity ... --fd-step`, docs/outputs.md).
-// Not validated here: IDAS/DAE sensitivities (not implemented); impacts (refused).
+// Not validated here: IDAS/DAE sensitivities (dae_sensitivity_test.cpp); impacts (refused).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -174,11 +174,19 @@ TEST(ForwardSensitivity, UnknownNamesNameTheNearestValidOne) {
   EXPECT_THROW(ResolveParameters(scene, {"mass", "mass"}), InputError);
   // Groups expand to the sweep's columns.
   EXPECT_EQ(ResolveOutcomes(scene, {"contact_force_at_90"}), (std::vector<std::string>{"N90_medial_N", "N90_lateral_N"}));
+  // A formulation without sensitivities: the message names the field, the value and the
+  // forms that have them.
   SensitivityOptions bad;
-  bad.formulation = "dae";
+  bad.formulation = "newmark";
   std::string why;
   EXPECT_FALSE(bad.IsValid(&why));
-  EXPECT_NE(why.find("--formulation"), std::string::npos);
+  EXPECT_NE(why.find("--formulation = 'newmark'"), std::string::npos) << why;
+  EXPECT_NE(why.find("dae-reduced"), std::string::npos) << why;
+  for (const char* ok : kSensitivityFormulations) {
+    SensitivityOptions good;
+    good.formulation = ok;
+    EXPECT_TRUE(good.IsValid(&why)) << ok << ": " << why;
+  }
 }
 
 TEST(ForwardSensitivity, EditDistance) {

@@ -105,5 +105,36 @@ TEST(SensitivityCli, SpecGivesTheSameTableAsExplicitNames) {
   fs::remove_all(dir);
 }
 
+// --formulation dae: the same files and fields (extended, not renamed), the JSON naming IDAS;
+// a formulation without sensitivities exits 2 naming the field and value, writing nothing.
+TEST(SensitivityCli, DaeFormulationWritesTheSameSetNamingIdas) {
+  const fs::path out = FreshDir("dae");
+  CommandResult r = RunKneedyn("sensitivity '" + kScene + "' --formulation newmark --parameters mass --outcomes time_90_s --out '" +
+                               out.string() + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--formulation = 'newmark'"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  r = RunKneedyn("sensitivity '" + kScene + "' --formulation dae --parameters 'PCL anterior.k_linear,pulse.amplitude' "
+                 "--outcomes liftoff_time_s,peak_F_PCL_anterior_N --out '" + out.string() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("IDAS BDF"), std::string::npos) << r.output;
+  const std::string csv = ReadText(out / "sensitivity.csv");
+  EXPECT_EQ(csv.substr(0, csv.find('\n')), "outcome,parameter,parameter_value,value,derivative,normalized");
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 5);
+  const std::string traj = ReadText(out / "sensitivity_trajectory.csv");
+  EXPECT_EQ(traj.substr(0, traj.find('\n')),
+            "time_s,parameter,x0_mm,y0_mm,z0_mm,flexion_deg,valgus_deg,external_rotation_deg,d_x0_mm,d_y0_mm,d_z0_mm,"
+            "d_flexion_deg,d_valgus_deg,d_external_rotation_deg");
+  const nlohmann::json j = nlohmann::json::parse(ReadText(out / "sensitivity.json"));
+  EXPECT_EQ(j["settings"]["formulation"], "dae");
+  EXPECT_EQ(j["settings"]["integrator"], "idas-bdf");
+  EXPECT_EQ(j["end_reason"], "flexion_90");
+  EXPECT_GT(j["statistics"]["sensitivity_rhs_evaluations"].get<long>(), 0);
+  EXPECT_LT(j["statistics"]["initial_sensitivity_residual"].get<double>(), 1e-7);
+  EXPECT_EQ(j["rows"][0]["outcome"], "liftoff_time_s");
+  EXPECT_TRUE(j["rows"][0]["derivative"].is_number());
+  fs::remove_all(out);
+}
+
 }  // namespace
 }  // namespace kneedyn::cli_test

@@ -1,0 +1,733 @@
+// Forward sensitivities of the DAE forms `dae`, `dae-reduced`, `dae-ggl` and `dae-ggl-reduced`
+// with SUNDIALS IDAS (issue 14, item 1), on the system that formulations/dae_system.hpp
+// writes once (the residual, the unknown layout, the exact Jacobian and the consistent
+// starting values are DaeSystem's).
+//
+// State: F(t, y, ẏ; p) = 0, y = (q, u, c_i, N_i) (chapter form; closed form y = (q, u, N_i);
+// GGL adds μ_i, ≡ 0 on the exact solution, so s_μ starts at 0), index 2 (normal approach
+// velocity G ν = 0). Each phase mirrors `kneedyn run --formulation <form>` (formulations/
+// dae.cpp, dae_ggl.cpp, run.cpp): the same consistent state at every phase start
+// (ConsistentInitialize; LigamentBranchesAt + CompleteHiddenConstraint), tolerances (N, μ:
+// 1e4 per unit atol, GGL with floors; GGL stops at each output time), first step (IdaPhase)
+// and root functions (lift-off g = N_i, the DAE unknown).
+//
+// Sensitivities s_j = ∂y/∂p_j solve F_y s_j + F_ẏ ṡ_j + F_pj = 0 with our own IDASensResFn:
+//   F_y = Jacobian(cj = 0), F_ẏ = Jacobian(cj = 1) − Jacobian(cj = 0) (DaeSystem, exact);
+//   F_pj = [F(model at p + h_j e_j) − F(model at p − h_j e_j)] / 2h_j, h_j = 1e-5 p̄_j, over
+//   models built once per run and swapped in with DaeSystem::SetModel.
+// Not IDAS' difference quotients: they perturb p in place, so every residual call would
+// rebuild the scene (ensembles::SceneForRun), and they scale the y step with the error
+// weights, which at atol ≪ |y| puts the quotient near round-off (the CVODES note in
+// forward_sensitivity.hpp). F_y, F_ẏ and F_p are evaluated once per (t, y, ẏ): the
+// staggered corrector calls the residual with the same state in each of its iterations.
+//
+// Error test: IDASetId (q, u differential; c, N algebraic) with IDASetSuppressAlg masks the
+// sensitivities' error weights as well (IDAS: IDASensWrmsNorm with the same id), and
+// IDASetSensErrCon(true) puts s_q, s_u into the error test; s_c (index 1) and s_N (index 2)
+// are held by the Newton test only, with the state's absolute tolerances per p̄_j. Staggered
+// corrector (IDA_STAGGERED). Measured on the chapter scene at rtol 1e-8 (20 derivatives
+// against ede at rtol 1e-10): largest relative difference 4.4e-6 as configured (ede itself
+// at rtol 1e-8: 9.6e-6), 9e-5 without the sensitivity error test, 1.1e-4 with the
+// simultaneous corrector.
+//
+// Consistent sensitivities (IDACalcIC is for index 1; not used):
+//   t = 0: central differences in p_j (step h_j) of the driver's map p -> (y0, ẏ0):
+//     ConsistentInitialize, the nominal ligament branches, CompleteHiddenConstraint,
+//     DaeSystem::InitialValues.
+//   A restart at an event τ (lift-off, ligament kink): x = (q, u) is continuous, and its
+//     sensitivity jumps where the vector field changes (Hiskens & Pai 2000, Eq. 9),
+//       s_x⁺ = s_x⁻ + (ẋ⁻ − ẋ⁺) dτ/dp,   ẋ = (q̇, q̈) of the old / new mode at the event state
+//     (hidden-constraint accelerations, solver/constrained_dynamics.hpp); the algebraic
+//     unknowns are re-solved: on the new mode's constraint manifold z(t) = Z(x(t), t, p), so
+//     at fixed t s_z = Z_x s_x + Z_p (no Z_t dτ term), and ẏ = Y(x, t, p) likewise. (s⁺, ṡ⁺)
+//     is the directional central difference of the restart map (x, p) -> (y, ẏ)
+//     (CompleteHiddenConstraint + InitialValues in the new mode) along (s_x⁺, e_j), step h_j.
+//     ṡ_N = 0 as InitialValues' Ṅ = 0 (Ṅ never enters F; IDA's predictor corrects it).
+//   Check: max over phases, parameters and rows of |F_y s + F_ẏ ṡ + F_p| relative to the
+//     size of the row's terms (SensitivityResidual; SensitivityResult::
+//     initial_sensitivity_residual): ≤ 2e-9 on the chapter scene (dae, dae-reduced,
+//     dae-ggl; rtol 1e-8 and 1e-10).
+//
+// Outcomes (as ede, forward_sensitivity.hpp): the values are the DAE's (contact forces are
+// its unknowns N_i, lift-off is its root N_i = 0, as in `kneedyn run --formulation dae`);
+// the derivatives use IDAS' differential sensitivities s_x with the solver/ functions of
+// x = (q, u): event times dτ/dp = −(∂g/∂x s_x + ∂g/∂p) / (∂g/∂t + ∂g/∂x ẋ) (implicit-
+// function relation at the root; lift-off g is the hidden-constraint force, equal to the
+// DAE's N to the integration error), values at an event ∂v/∂t dτ + ∂v/∂x (s_x + ẋ dτ) +
+// ∂v/∂p, peaks ∂v/∂x s_x + ∂v/∂p (envelope theorem). Not s_N: at a root IDAS interpolates
+// it without error control; measured at a peak of N_medial 4.7 ms after lift-off (rtol
+// 1e-10, one parameter) s_N was 3.5e-4 off, the hidden-constraint derivative along s_x
+// 8e-7 from ede's.
+#include <idas/idas.h>
+#include <sunlinsol/sunlinsol_dense.h>
+#include <sunmatrix/sunmatrix_dense.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "formulations/dae_system.hpp"
+#include "formulations/ida_phase.hpp"
+#include "formulations/sundials_util.hpp"
+#include "sensitivity/sensitivity_problem.hpp"
+#include "solver/consistent_init.hpp"
+#include "solver/constraint_residuals.hpp"
+#include "solver/units.hpp"
+
+namespace kneedyn::sensitivity::detail {
+namespace {
+
+// Absolute tolerance of the normal forces per unit --atol (N per SI unit of the states):
+// dae.cpp's kForceAtolScale, so that the phases take dae's steps.
+constexpr double kForceAtolScale = 1.0e4;
+// dae_ggl.cpp's floor of the N and μ tolerances (N, m/s); their scale is kForceAtolScale.
+constexpr double kGglAtolFloor = 1.0e-3;
+// Relative step h_j / p̄_j of F_p and of the consistent-value maps. Their central
+// differences have truncation ~h² and round-off ~δ/h, δ ~ 1e-13 relative from the hidden-
+// constraint solve in the maps; the residual of the consistent initial sensitivities
+// (initial_sensitivity_residual, chapter scene, 5 parameters, dae, rtol 1e-10) measured
+// 1.6e-8 at 1e-7, 1.8e-9 at 1e-6, 5.8e-10 at 1e-5 and 3.5e-8 at 1e-4.
+constexpr double kParameterStep = 1.0e-5;
+
+struct DaeForm {
+  ContactForm contact;
+  bool ggl;
+};
+
+DaeForm DaeFormOf(const std::string& name) {
+  if (name == "dae") return {ContactForm::kChapter, false};
+  if (name == "dae-reduced") return {ContactForm::kClosedForm, false};
+  if (name == "dae-ggl") return {ContactForm::kChapter, true};
+  if (name == "dae-ggl-reduced") return {ContactForm::kClosedForm, true};
+  Throw<InputError>("RunDaeSensitivity", "--formulation = '", Echo(name), "' is not a DAE form");
+}
+
+class DaeSensitivity {
+ public:
+  DaeSensitivity(Problem& problem, const std::vector<double>& p, const SensitivityOptions& options)
+      : problem_(problem),
+        options_(options),
+        form_(DaeFormOf(options.formulation)),
+        p_(p),
+        np_(static_cast<int>(p.size())),
+        with_s_(options.derivatives && !p.empty()),
+        nominal_(problem.SceneCopyAt(p)),
+        system_(nominal_.model, form_.contact, ConstraintLevel::kVelocity, form_.ggl) {
+    // The perturbed models of F_p and of the consistent-value maps, built once.
+    for (int j = 0; j < np_; ++j) {
+      pbar_.push_back(p_[j] != 0.0 ? std::abs(p_[j]) : 1.0);
+      h_.push_back(kParameterStep * pbar_[j]);
+      if (!with_s_) continue;
+      std::vector<double> plus = p_, minus = p_;
+      plus[j] += h_[j];
+      minus[j] -= h_[j];
+      plus_.push_back(problem.SceneCopyAt(plus));
+      minus_.push_back(problem.SceneCopyAt(minus));
+    }
+    ida_options_.rtol = options.rtol;
+    ida_options_.atol = options.atol;
+    ida_options_.max_steps = options.max_steps;
+    normal_.assign(nominal_.model.contacts.size(), 0.0);
+    zero_p_.assign(np_, 0.0);
+  }
+  ~DaeSensitivity() { FreePhase(); }
+  DaeSensitivity(const DaeSensitivity&) = delete;
+  DaeSensitivity& operator=(const DaeSensitivity&) = delete;
+
+  void Run(SensitivityResult* result);
+
+ private:
+  const Model& model() const { return nominal_.model; }
+
+  // --- The phase's IDAS instance. ---
+  void StartPhase(double t, const std::vector<std::vector<double>>& s, const std::vector<std::vector<double>>& sdot);
+  void FreePhase();
+  void Check(int flag, const char* call) {
+    CheckSundials(flag, call, "RunSensitivity", IDAGetReturnFlagName, &messages_);
+  }
+
+  // --- Values on the DAE unknowns of the current phase. ---
+  // The outcome's instantaneous value: a ligament tension (q), or the DAE's normal force N.
+  double Value(const Outcome& o, double t, const double* y) const {
+    if (!IsContact(o)) return problem_.Value(mode_, o, t, y, p_.data());
+    const int a = ActiveSlot(o);
+    return a < 0 ? 0.0 : y[system_.NormalIndex(a)];
+  }
+  static bool IsContact(const Outcome& o) {
+    return o.kind == OutcomeKind::kPeakContact || o.kind == OutcomeKind::kContactAt90;
+  }
+  int ActiveSlot(const Outcome& o) const {
+    const auto it = std::find(mode_.active.begin(), mode_.active.end(), o.index);
+    return o.index < 0 || it == mode_.active.end() ? -1 : static_cast<int>(it - mode_.active.begin());
+  }
+  // d/dt along the trajectory (t, x, ẋ) of the hidden-constraint value of o (N per s).
+  double Rate(const Outcome& o, double t, const double* y, const double* xdot) {
+    return problem_.Directional([&](double tt, const double* yy, const double* pv) { return problem_.Value(mode_, o, tt, yy, pv); },
+                                t, y, p_.data(), 1.0, xdot, zero_p_.data());
+  }
+  // Total derivative per parameter of o at (t, y) moving with dτ/dp: ∂v/∂t dτ + ∂v/∂x w + ∂v/∂p
+  // (w = s_x + ẋ dτ) of the solver/ value on x = (q, u): a ligament tension, or the
+  // hidden-constraint normal force, not s_N (see the header: IDAS' s_N at a root is
+  // interpolated without error control).
+  std::vector<double> Total(const Outcome& o, double t, const double* y, const std::vector<double>& dtau,
+                            const std::vector<std::vector<double>>& w) {
+    std::vector<double> d(np_, kNaN);
+    if (!with_s_) return d;
+    if (IsContact(o) && ActiveSlot(o) < 0) return std::vector<double>(np_, 0.0);  // separated: v ≡ 0
+    std::vector<double> e(np_, 0.0);
+    for (int j = 0; j < np_; ++j) {
+      std::fill(e.begin(), e.end(), 0.0);
+      e[j] = 1.0;
+      d[j] = problem_.Directional([&](double tt, const double* yy, const double* pv) { return problem_.Value(mode_, o, tt, yy, pv); },
+                                  t, y, p_.data(), dtau[j], w[j].data(), e.data());
+    }
+    return d;
+  }
+  // A maximum candidate for every peak outcome at (t, y) (only == k: that one alone).
+  void Candidates(double t, const double* y, const std::vector<double>& dtau, const std::vector<std::vector<double>>& w,
+                  int only = -1) {
+    for (int k : problem_.peaks()) {
+      if (only >= 0 && k != only) continue;
+      const double v = Value(problem_.outcomes()[k], t, y);
+      if (v > peak_[k].value) {
+        peak_[k].value = v;
+        peak_[k].derivative = Total(problem_.outcomes()[k], t, y, dtau, w);
+      }
+    }
+  }
+
+  // --- Consistent values and their sensitivities. ---
+  // (y, ẏ) of the phase at `state` (t, q, q̇, active, contacts, branches) under `m`: the
+  // driver's CompleteHiddenConstraint, then DaeSystem::InitialValues.
+  void ConsistentValues(const Model& m, MechanicalState state, double* y, double* yp) {
+    CompleteHiddenConstraint(m, &state);
+    system_.SetModel(m);
+    system_.InitialValues(state, y, yp);
+    system_.SetModel(model());
+  }
+  void InitialSensitivities(const MechanicalState& nominal, std::vector<std::vector<double>>* s,
+                            std::vector<std::vector<double>>* sdot);
+  void RestartSensitivities(const MechanicalState& state, const std::vector<std::vector<double>>& s_x,
+                            std::vector<std::vector<double>>* s, std::vector<std::vector<double>>* sdot);
+  double SensitivityResidual(double t, const double* y, const double* yp, const std::vector<std::vector<double>>& s,
+                             const std::vector<std::vector<double>>& sdot);
+
+  // --- IDAS callbacks. ---
+  static int ResidualFn(double t, N_Vector yy, N_Vector yp, N_Vector rr, void* user) {
+    auto* self = static_cast<DaeSensitivity*>(user);
+    try {
+      return self->system_.Residual(t, NvData(yy), NvData(yp), NvData(rr)) ? 0 : 1;
+    } catch (const std::exception& e) {
+      self->failure_ = e.what();
+      return -1;
+    }
+  }
+  static int JacobianFn(double t, double cj, N_Vector yy, N_Vector yp, N_Vector, SUNMatrix J, void* user, N_Vector,
+                        N_Vector, N_Vector) {
+    auto* self = static_cast<DaeSensitivity*>(user);
+    try {
+      return self->system_.Jacobian(t, cj, NvData(yy), NvData(yp), SUNDenseMatrix_Data(J)) ? 0 : 1;
+    } catch (const std::exception& e) {
+      self->failure_ = e.what();
+      return -1;
+    }
+  }
+  static int RootFn(double t, N_Vector yy, N_Vector yp, double* g, void* user) {
+    auto* self = static_cast<DaeSensitivity*>(user);
+    try {
+      self->Roots(t, NvData(yy), NvData(yp), g);
+      return 0;
+    } catch (const std::exception& e) {
+      self->failure_ = e.what();
+      return -1;
+    }
+  }
+  static int SensResidualFn(int ns, double t, N_Vector yy, N_Vector yp, N_Vector, N_Vector* yS, N_Vector* ypS,
+                            N_Vector* rS, void* user, N_Vector, N_Vector, N_Vector) {
+    auto* self = static_cast<DaeSensitivity*>(user);
+    try {
+      if (!self->PartialDerivatives(t, NvData(yy), NvData(yp))) return 1;
+      const int n = self->n_;
+      const Eigen::Map<const MatrixXd> Fy(self->Fy_.data(), n, n), Fyp(self->Fyp_.data(), n, n);
+      for (int j = 0; j < ns; ++j) {
+        Eigen::Map<VectorXd> r(NvData(rS[j]), n);
+        r.noalias() = Fy * Eigen::Map<const VectorXd>(NvData(yS[j]), n);
+        r.noalias() += Fyp * Eigen::Map<const VectorXd>(NvData(ypS[j]), n);
+        r += Eigen::Map<const VectorXd>(self->Fp_.data() + static_cast<size_t>(n) * j, n);
+      }
+      return 0;
+    } catch (const std::exception& e) {
+      self->failure_ = e.what();
+      return -1;
+    }
+  }
+  // dae's root functions (events with N_i the DAE unknown), then dv/dt of each peak outcome.
+  void Roots(double t, const double* y, const double* yp, double* g);
+  // F_y, F_ẏ, F_p at (t, y, ẏ), cached for repeated calls at the same state. False when a
+  // surface is evaluated outside its domain (IDAS retries with a smaller step).
+  bool PartialDerivatives(double t, const double* y, const double* yp);
+
+  Problem& problem_;
+  SensitivityOptions options_;
+  DaeForm form_;
+  std::vector<double> p_;
+  int np_;
+  bool with_s_;
+  Scene nominal_;                    // the scene at p (DaeSystem points at its model)
+  std::vector<Scene> plus_, minus_;  // at p ± h_j e_j
+  std::vector<double> pbar_, h_;     // |p_j| (1 when 0) and the central-difference steps
+  DaeSystem system_;
+  FormulationOptions ida_options_;   // rtol, atol, max_steps for IdaPhase
+  Mode mode_;                        // the phase's contacts, branches and events
+  int n_ = 0;
+
+  SundialsContext ctx_;  // outlives ida_ (FreePhase in the destructor)
+  SundialsMessages messages_;
+  std::string failure_;
+  IdaPhase ida_;
+  N_Vector* yS_ = nullptr;
+  N_Vector* ypS_ = nullptr;
+  SolverStats stats_;
+  long sensitivity_residual_evaluations_ = 0;
+  long sensitivity_error_test_failures_ = 0;
+
+  std::vector<double> normal_;  // N per model contact, for the event functions
+  std::vector<double> zero_p_;  // dp = 0 of the directional differences along the trajectory
+  std::vector<Peak> peak_;
+  // Cache of PartialDerivatives.
+  bool have_partials_ = false;
+  double partials_t_ = 0.0;
+  std::vector<double> partials_y_, partials_yp_, Fy_, Fyp_, Fp_, r_plus_, r_minus_;
+};
+
+void DaeSensitivity::FreePhase() {
+  if (ida_.mem != nullptr) {
+    long v = 0;
+    if (yS_ != nullptr) {
+      IDAGetSensNumResEvals(ida_.mem, &v), sensitivity_residual_evaluations_ += v;
+      IDAGetSensNumErrTestFails(ida_.mem, &v), sensitivity_error_test_failures_ += v;
+    }
+    ++stats_.restarts;
+  }
+  ida_.Free(&stats_, true);
+  if (yS_) N_VDestroyVectorArray(yS_, np_), yS_ = nullptr;
+  if (ypS_) N_VDestroyVectorArray(ypS_, np_), ypS_ = nullptr;
+}
+
+void DaeSensitivity::StartPhase(double t, const std::vector<std::vector<double>>& s,
+                                const std::vector<std::vector<double>>& sdot) {
+  const int k = static_cast<int>(mode_.active.size());
+  N_Vector id = N_VNew_Serial(n_, ctx_);
+  N_Vector atol = N_VNew_Serial(n_, ctx_);
+  // Absolute tolerances of the unknowns (dae.cpp, dae_ggl.cpp) and the row scale of the
+  // sensitivities' (per unit atol).
+  std::vector<double> scale(n_, 1.0);
+  for (int i = 0; i < n_; ++i) {
+    NvData(id)[i] = system_.IsDifferential(i) ? 1.0 : 0.0;
+    const bool force = k > 0 && i >= system_.NormalIndex(0) && (!form_.ggl || i < system_.MuIndex(0));
+    const bool mu = form_.ggl && k > 0 && i >= system_.MuIndex(0);
+    double a = options_.atol;
+    if (force || mu) {
+      a = form_.ggl ? std::max(kGglAtolFloor, options_.atol * kForceAtolScale) : options_.atol * kForceAtolScale;
+      scale[i] = kForceAtolScale;
+    }
+    NvData(atol)[i] = a;
+  }
+  std::vector<int> peak_directions(problem_.peaks().size(), -1);  // dv/dt falling through 0: a maximum
+  ida_.Start(ctx_, n_, &DaeSensitivity::ResidualFn, &DaeSensitivity::JacobianFn, &DaeSensitivity::RootFn, this, t, atol,
+             id, ida_options_, nominal_.end.time, mode_.events, "RunSensitivity", &messages_, peak_directions);
+  N_VDestroy(id);
+  N_VDestroy(atol);
+  if (!with_s_) return;
+  yS_ = N_VCloneVectorArray(np_, ida_.y);
+  ypS_ = N_VCloneVectorArray(np_, ida_.y);
+  N_Vector* atolS = N_VCloneVectorArray(np_, ida_.y);
+  for (int j = 0; j < np_; ++j) {
+    std::copy(s[j].begin(), s[j].end(), NvData(yS_[j]));
+    std::copy(sdot[j].begin(), sdot[j].end(), NvData(ypS_[j]));
+    // Tolerances of p̄_j s_j as the ede driver's (kSensitivityAtol floor), forces scaled.
+    for (int i = 0; i < n_; ++i) NvData(atolS[j])[i] = std::max(options_.atol, kSensitivityAtol) * scale[i] / pbar_[j];
+  }
+  try {
+    Check(IDASensInit(ida_.mem, np_, IDA_STAGGERED, &DaeSensitivity::SensResidualFn, yS_, ypS_), "IDASensInit");
+    Check(IDASensSVtolerances(ida_.mem, options_.rtol, atolS), "IDASensSVtolerances");
+    Check(IDASetSensErrCon(ida_.mem, SUNTRUE), "IDASetSensErrCon");
+  } catch (...) {
+    N_VDestroyVectorArray(atolS, np_);
+    throw;
+  }
+  N_VDestroyVectorArray(atolS, np_);
+}
+
+bool DaeSensitivity::PartialDerivatives(double t, const double* y, const double* yp) {
+  const int n = n_;
+  if (have_partials_ && t == partials_t_ && std::equal(y, y + n, partials_y_.begin()) &&
+      std::equal(yp, yp + n, partials_yp_.begin())) {
+    return true;
+  }
+  have_partials_ = false;
+  if (!system_.Jacobian(t, 0.0, y, yp, Fy_.data())) return false;
+  if (!system_.Jacobian(t, 1.0, y, yp, Fyp_.data())) return false;
+  for (size_t i = 0; i < Fyp_.size(); ++i) Fyp_[i] -= Fy_[i];
+  bool ok = true;
+  for (int j = 0; j < np_ && ok; ++j) {
+    system_.SetModel(plus_[j].model);
+    ok = system_.Residual(t, y, yp, r_plus_.data());
+    system_.SetModel(minus_[j].model);
+    ok = ok && system_.Residual(t, y, yp, r_minus_.data());
+    for (int i = 0; i < n; ++i) Fp_[static_cast<size_t>(n) * j + i] = (r_plus_[i] - r_minus_[i]) / (2.0 * h_[j]);
+  }
+  system_.SetModel(model());
+  if (!ok) return false;
+  std::copy(y, y + n, partials_y_.begin());
+  std::copy(yp, yp + n, partials_yp_.begin());
+  partials_t_ = t;
+  have_partials_ = true;
+  return true;
+}
+
+void DaeSensitivity::Roots(double t, const double* y, const double* yp, double* g) {
+  Vector6d q;
+  for (int i = 0; i < 6; ++i) q(i) = y[i];
+  std::fill(normal_.begin(), normal_.end(), 0.0);
+  for (size_t c = 0; c < mode_.active.size(); ++c) normal_[mode_.active[c]] = y[system_.NormalIndex(static_cast<int>(c))];
+  EvaluateEvents(model(), mode_.events, q, normal_, g);
+  const size_t n_events = mode_.events.size();
+  for (size_t k = 0; k < problem_.peaks().size(); ++k) {
+    const Outcome& o = problem_.outcomes()[problem_.peaks()[k]];
+    // A slack ligament or a separated contact has dv/dt ≡ 0, which the root finder refuses
+    // (a root on an interval): −1 there (as in ede).
+    if (!(Value(o, t, y) > 0.0)) {
+      g[n_events + k] = -1.0;
+      continue;
+    }
+    // Along (1, q̇, u̇) of IDA's ẏ; contact forces: the hidden-constraint force's rate.
+    const double rate = Rate(o, t, y, yp);
+    g[n_events + k] = rate != 0.0 ? rate : -std::numeric_limits<double>::min();
+  }
+}
+
+void DaeSensitivity::InitialSensitivities(const MechanicalState& nominal, std::vector<std::vector<double>>* s,
+                                          std::vector<std::vector<double>>* sdot) {
+  std::vector<double> yp_plus(n_), yp_minus(n_), y_plus(n_), y_minus(n_);
+  ConsistentInitOptions init;
+  init.form = form_.contact;
+  init.chart = FormulationOptions().contact_chart;
+  std::vector<int> all;
+  for (int i = 0; i < static_cast<int>(model().contacts.size()); ++i) all.push_back(i);
+  auto at = [&](const Scene& scene, double* y, double* yp) {
+    InitReport report;
+    MechanicalState state = ConsistentInitialize(scene.model, scene.initial, all, init, &report);
+    state.ligament_branch = nominal.ligament_branch;  // locked to the nominal branches
+    if (state.active != nominal.active) {
+      Throw<SolverError>("RunSensitivity", "the active contacts at t = 0 change with the parameters: not differentiable");
+    }
+    ConsistentValues(scene.model, state, y, yp);
+  };
+  for (int j = 0; j < np_; ++j) {
+    at(plus_[j], y_plus.data(), yp_plus.data());
+    at(minus_[j], y_minus.data(), yp_minus.data());
+    for (int i = 0; i < n_; ++i) {
+      (*s)[j][i] = (y_plus[i] - y_minus[i]) / (2.0 * h_[j]);
+      (*sdot)[j][i] = (yp_plus[i] - yp_minus[i]) / (2.0 * h_[j]);
+    }
+  }
+}
+
+void DaeSensitivity::RestartSensitivities(const MechanicalState& state, const std::vector<std::vector<double>>& s_x,
+                                          std::vector<std::vector<double>>* s, std::vector<std::vector<double>>* sdot) {
+  std::vector<double> yp_plus(n_), yp_minus(n_), y_plus(n_), y_minus(n_);
+  for (int j = 0; j < np_; ++j) {
+    MechanicalState up = state, down = state;
+    for (int i = 0; i < 6; ++i) {
+      up.q(i) += h_[j] * s_x[j][i], down.q(i) -= h_[j] * s_x[j][i];
+      up.qd(i) += h_[j] * s_x[j][6 + i], down.qd(i) -= h_[j] * s_x[j][6 + i];
+    }
+    ConsistentValues(plus_[j].model, up, y_plus.data(), yp_plus.data());
+    ConsistentValues(minus_[j].model, down, y_minus.data(), yp_minus.data());
+    for (int i = 0; i < n_; ++i) {
+      (*s)[j][i] = (y_plus[i] - y_minus[i]) / (2.0 * h_[j]);
+      (*sdot)[j][i] = (yp_plus[i] - yp_minus[i]) / (2.0 * h_[j]);
+    }
+  }
+}
+
+double DaeSensitivity::SensitivityResidual(double t, const double* y, const double* yp,
+                                           const std::vector<std::vector<double>>& s,
+                                           const std::vector<std::vector<double>>& sdot) {
+  if (!PartialDerivatives(t, y, yp)) return kNaN;
+  // Row i, parameter j: |r_ij| p̄_j (the residual for a 100 % change of p_j) over the size of
+  // the row's terms for a 100 % change of the state and of p_j, Σ_c |F_y,ic y_c| +
+  // |F_ẏ,ic ẏ_c| + p̄_j |F_p,ij| — a scale that does not vanish where s_j does (e.g. right
+  // after the kink at which a stiffness starts to act, where all of s_j is round-off).
+  double worst = 0.0;
+  for (int i = 0; i < n_; ++i) {
+    double scale = 0.0;
+    for (int c = 0; c < n_; ++c) {
+      scale += std::abs(Fy_[i + static_cast<size_t>(n_) * c] * y[c]) + std::abs(Fyp_[i + static_cast<size_t>(n_) * c] * yp[c]);
+    }
+    for (int j = 0; j < np_; ++j) {
+      const double fp = Fp_[static_cast<size_t>(n_) * j + i];
+      double r = fp;
+      for (int c = 0; c < n_; ++c) {
+        r += Fy_[i + static_cast<size_t>(n_) * c] * s[j][c] + Fyp_[i + static_cast<size_t>(n_) * c] * sdot[j][c];
+      }
+      const double size = scale + pbar_[j] * std::abs(fp);
+      if (size > 0.0) worst = std::max(worst, pbar_[j] * std::abs(r) / size);
+    }
+  }
+  return worst;
+}
+
+void DaeSensitivity::Run(SensitivityResult* result) {
+  const Model& m = model();
+  const std::vector<Outcome>& outcomes = problem_.outcomes();
+  peak_.assign(outcomes.size(), Peak());
+
+  // The driver's consistent start (run.cpp), in the DAE's contact form.
+  ConsistentInitOptions init;
+  init.form = form_.contact;
+  init.chart = FormulationOptions().contact_chart;
+  std::vector<int> all;
+  for (int i = 0; i < static_cast<int>(m.contacts.size()); ++i) all.push_back(i);
+  InitReport report;
+  MechanicalState state = ConsistentInitialize(m, nominal_.initial, all, init, &report);
+  SolveConstrainedAcceleration(m, state.t, state.q, state.qd, state.active);  // dependent rows: refused here
+
+  const double t_end = nominal_.end.time;
+  const double dt_out = options_.output_interval > 0.0 ? options_.output_interval : nominal_.output_interval;
+  std::string why;
+  if (!IsValidOutputInterval(dt_out, t_end, &why)) {
+    Throw<InputError>("RunSensitivity", options_.output_interval > 0.0 ? "--output-interval: " : "scene output.interval_s: ", why);
+  }
+  long next_out = 1;
+  double max_gap = 0.0;  // the driver's record of position drift (re-contact hysteresis)
+  auto note_drift = [&](const MechanicalState& st) {
+    double gap = 0.0, rate = 0.0;
+    MaxActiveConstraintResiduals(m, st, &gap, &rate);
+    max_gap = std::max(max_gap, gap);
+  };
+  note_drift(state);
+
+  // The DAE state as a MechanicalState (FormulationBase::WriteBack).
+  auto write_back = [&](double t, const double* y, const double* yp, MechanicalState* st) {
+    st->t = t;
+    for (int i = 0; i < 6; ++i) st->q(i) = y[i], st->qd(i) = y[6 + i], st->qdd(i) = yp[6 + i];
+    for (size_t c = 0; c < mode_.active.size(); ++c) {
+      ContactGuess& guess = st->contact[mode_.active[c]];
+      for (int j = 0; j < system_.per_contact(); ++j) guess.coordinates[j] = y[system_.CoordinateIndex(static_cast<int>(c)) + j];
+      guess.normal_force = y[system_.NormalIndex(static_cast<int>(c))];
+    }
+    if (system_.per_contact() == 0) FillContactCoordinates(m, st);
+  };
+
+  std::vector<std::vector<double>> s(np_), sdot(np_);  // full DAE sensitivities of the phase
+  std::vector<std::vector<double>> s_x(np_, std::vector<double>(kN, 0.0));  // (q, u) part at an event
+  std::vector<std::vector<double>> w(np_, std::vector<double>(kN, 0.0));    // s_x + ẋ dτ at an event
+  std::vector<double> dtau(np_, 0.0), zero_dtau(np_, 0.0);
+  double f_minus[kN];  // ẋ of the mode before the event
+  double event_x[kN];  // x = (q, u) at the event (before the restart's projection)
+  bool first_phase = true, done = false;
+  std::vector<double> e(np_, 0.0);
+  auto unit = [&](int j) {
+    std::fill(e.begin(), e.end(), 0.0);
+    e[j] = 1.0;
+    return e.data();
+  };
+
+  while (!done) {
+    // Phase start (run.cpp): events, branches and the hidden constraint on them.
+    const double gap_tolerance = 10.0 * std::max(max_gap, options_.rtol * state.q.head<3>().norm() + options_.atol);
+    const std::vector<EventSpec> specs = EventsForPhase(m, nominal_.end, state, gap_tolerance);
+    if (m.ligament_law == LigamentLaw::kPublished) {
+      state.ligament_branch = LigamentBranchesAt(m, state.q, state.qd);
+      CompleteHiddenConstraint(m, &state);
+    }
+    mode_.active = state.active;
+    mode_.branch = state.ligament_branch;
+    mode_.events = specs;
+    system_.SetPhase(state.active, state.contact, state.ligament_branch);
+    n_ = system_.size();
+    for (auto* v : {&partials_y_, &partials_yp_, &r_plus_, &r_minus_}) v->assign(n_, 0.0);
+    Fy_.assign(static_cast<size_t>(n_) * n_, 0.0);
+    Fyp_.assign(static_cast<size_t>(n_) * n_, 0.0);
+    Fp_.assign(static_cast<size_t>(n_) * np_, 0.0);
+    have_partials_ = false;
+
+    FreePhase();
+    ida_.y = N_VNew_Serial(n_, ctx_);
+    ida_.yp = N_VNew_Serial(n_, ctx_);
+    double* y = NvData(ida_.y);
+    double* yp = NvData(ida_.yp);
+    system_.InitialValues(state, y, yp);
+    for (int j = 0; j < np_; ++j) s[j].assign(n_, 0.0), sdot[j].assign(n_, 0.0);
+    if (with_s_) {
+      if (first_phase) {
+        InitialSensitivities(state, &s, &sdot);
+      } else {
+        // s_x⁺ = s_x⁻ + (ẋ⁻ − ẋ⁺) dτ/dp (Hiskens & Pai 2000, Eq. 9), ẋ⁺ in the new mode at
+        // the event state; then the algebraic unknowns re-solved along (s_x⁺, e_j).
+        double f_plus[kN];
+        problem_.Rhs(mode_, state.t, event_x, p_.data(), f_plus);
+        for (int j = 0; j < np_; ++j) {
+          for (int i = 0; i < kN; ++i) s_x[j][i] += (f_minus[i] - f_plus[i]) * dtau[j];
+        }
+        RestartSensitivities(state, s_x, &s, &sdot);
+      }
+      result->initial_sensitivity_residual =
+          std::max(result->initial_sensitivity_residual, SensitivityResidual(state.t, y, yp, s, sdot));
+    }
+    if (first_phase) {
+      // t = 0: the first trajectory row and the peak candidates.
+      TrajectorySample row;
+      row.t = state.t;
+      row.q = state.q;
+      if (with_s_) {
+        for (int j = 0; j < np_; ++j) row.dq.push_back(Eigen::Map<const Vector6d>(s[j].data()));
+      }
+      result->trajectory.push_back(row);
+      Candidates(state.t, y, zero_dtau, s);
+    } else {
+      // Right limits at the event (e.g. the far side of a kink's force jump).
+      Candidates(state.t, y, dtau, w);
+    }
+    first_phase = false;
+    StartPhase(state.t, s, sdot);
+
+    const int n_events = static_cast<int>(mode_.events.size());
+    const int n_roots = n_events + static_cast<int>(problem_.peaks().size());
+    std::vector<int> fired(n_roots, 0);
+    double t = state.t;
+    for (;;) {
+      while (next_out * dt_out <= t * (1.0 + 1e-12)) ++next_out;  // an event on an output time
+      const double t_out = std::min(next_out * dt_out, t_end);
+      if (form_.ggl) Check(IDASetStopTime(ida_.mem, t_out), "IDASetStopTime");  // dae_ggl.cpp: outputs are steps
+      failure_.clear();
+      double t_reached = t;
+      const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
+      if (flag < 0) {
+        double h = 0.0, t_cur = 0.0;
+        IDAGetCurrentStep(ida_.mem, &h);
+        IDAGetCurrentTime(ida_.mem, &t_cur);
+        char* name = IDAGetReturnFlagName(flag);
+        const std::string text = name ? name : "?";
+        free(name);
+        Throw<SolverError>("RunSensitivity", "IDAS ", text, " at t = ", t_cur, " s with step h = ", h, " s",
+                           failure_.empty() ? "" : " (" + failure_ + ")", messages_.Take());
+      }
+      t = t_reached;
+      if (with_s_) {
+        double ts = 0.0;
+        Check(IDAGetSens(ida_.mem, &ts, yS_), "IDAGetSens");
+        for (int j = 0; j < np_; ++j) std::copy(NvData(yS_[j]), NvData(yS_[j]) + n_, s[j].begin());
+      }
+      if (flag != IDA_ROOT_RETURN && t < t_end) {  // an output time
+        MechanicalState st = state;
+        write_back(t, y, yp, &st);
+        note_drift(st);
+        TrajectorySample row;
+        row.t = t;
+        row.q = st.q;
+        if (with_s_) {
+          for (int j = 0; j < np_; ++j) row.dq.push_back(Eigen::Map<const Vector6d>(s[j].data()));
+        }
+        result->trajectory.push_back(row);
+        ++next_out;
+        continue;
+      }
+      if (flag != IDA_ROOT_RETURN) {  // the end time
+        result->end_reason = "end_time";
+        Candidates(t, y, zero_dtau, s);
+        done = true;
+        break;
+      }
+      Check(IDAGetRootInfo(ida_.mem, fired.data()), "IDAGetRootInfo");
+      // Interior maxima (dv/dt = 0): envelope theorem, dV/dp = ∂v/∂y s + ∂v/∂p.
+      for (size_t k = 0; k < problem_.peaks().size(); ++k) {
+        if (fired[n_events + k]) Candidates(t, y, zero_dtau, s, problem_.peaks()[k]);
+      }
+      int first = -1;
+      for (int k = 0; k < n_events && first < 0; ++k) {
+        if (fired[k]) first = k;
+      }
+      if (first < 0) continue;  // only peaks: IDAS continues the same phase
+
+      // An event at τ(p): g(τ, y(τ; p), p) = 0 (implicit-function relation).
+      problem_.Rhs(mode_, t, y, p_.data(), f_minus);  // ẋ⁻ = (q̇, q̈) of the old mode
+      std::copy(y, y + kN, event_x);
+      const EventSpec& g_event = mode_.events[first];
+      if (with_s_) {
+        // g of solver/events.hpp on x = (q, u) (lift-off: the hidden-constraint force, whose
+        // root is the DAE's N_i = 0 to the integration error).
+        auto g = [&](double tt, const double* yy, const double* pv) { return problem_.Event(mode_, first, tt, yy, pv); };
+        const double gdot = problem_.Directional(g, t, y, p_.data(), 1.0, f_minus, zero_p_.data());
+        if (!(std::abs(gdot) > 0.0)) {
+          Throw<SolverError>("RunSensitivity", "event ", g_event.name, " at t = ", t,
+                             " s is tangential (dg/dt = ", gdot, "): its time is not differentiable in p");
+        }
+        for (int j = 0; j < np_; ++j) {
+          dtau[j] = -problem_.Directional(g, t, y, p_.data(), 0.0, s[j].data(), unit(j)) / gdot;
+          for (int i = 0; i < kN; ++i) {
+            s_x[j][i] = s[j][i];
+            w[j][i] = s[j][i] + f_minus[i] * dtau[j];
+          }
+        }
+      } else {
+        std::fill(dtau.begin(), dtau.end(), kNaN);
+      }
+      std::vector<int> next_active = mode_.active;
+      std::vector<double> dalpha(np_, kNaN);
+      for (int j = 0; j < np_ && with_s_; ++j) dalpha[j] = w[j][kAlpha];
+      done = RecordEvent(mode_, fired, t, y[kAlpha], dtau, dalpha, with_s_, outcomes, &next_active, result);
+      // 90° values, in the mode before the end event (left limits).
+      for (size_t k = 0; k < outcomes.size() && done; ++k) {
+        const Outcome& o = outcomes[k];
+        if (o.kind == OutcomeKind::kLigamentAt90 || o.kind == OutcomeKind::kContactAt90) {
+          result->values[k] = Value(o, t, y);
+          result->derivatives[k] = Total(o, t, y, dtau, w);
+        }
+      }
+      Candidates(t, y, dtau, w);
+      if (done) break;
+
+      // The restart (run.cpp): the DAE state, contacts removed, the hidden constraint.
+      MechanicalState st = state;
+      write_back(t, y, yp, &st);
+      note_drift(st);
+      for (int c : st.active) {
+        if (std::find(next_active.begin(), next_active.end(), c) == next_active.end()) st.contact[c].normal_force = 0.0;
+      }
+      std::sort(next_active.begin(), next_active.end());
+      const bool switched = next_active != st.active;
+      st.active = next_active;
+      if (switched) CompleteHiddenConstraint(m, &st);
+      for (int c : st.active) {
+        if (st.contact[c].normal_force < 0.0) {
+          Throw<SolverError>("RunSensitivity", "at t = ", t, " s the ", CompartmentName(m.contacts[c].compartment),
+                             " contact would pull (N = ", st.contact[c].normal_force,
+                             " N) after the switch: simultaneous lift-off is not differentiable here");
+        }
+      }
+      state = st;
+      break;
+    }
+  }
+  FreePhase();
+  for (int k : problem_.peaks()) {
+    result->values[k] = peak_[k].value;
+    result->derivatives[k] = peak_[k].derivative;
+  }
+  result->stats = stats_;
+  result->sensitivity_rhs_evaluations = sensitivity_residual_evaluations_;
+  result->sensitivity_error_test_failures = sensitivity_error_test_failures_;
+}
+
+}  // namespace
+
+void RunDaeSensitivity(Problem& problem, const std::vector<double>& values, const SensitivityOptions& options,
+                       SensitivityResult* result) {
+  DaeSensitivity run(problem, values, options);
+  run.Run(result);
+}
+
+}  // namespace kneedyn::sensitivity::detail
