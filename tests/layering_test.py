@@ -9,8 +9,8 @@
   2. `ldd BIN` of --probe (tests/solver_only_probe.cpp, linked with kneedyn_solver alone)
      lists no libyaml (-cpp or -0), and the probe runs (exit 0: its own exact check);
   3. so that the test can fail, before scanning: planted bad lines must each be flagged,
-     and `ldd` of --yaml-user (the kneedyn CLI, which links the loader) must list a
-     libyaml, i.e. the ldd check sees the library when it is there.
+     and `ldd` of --yaml-user (a program linking the loader with the shared libyaml, e.g.
+     scene_test) must list a libyaml, i.e. the ldd check sees the library when it is there.
 """
 import argparse
 import os

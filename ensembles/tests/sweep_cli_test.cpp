@@ -188,3 +188,22 @@ TEST(SweepCli, MissingPluginIsAClearErrorAndWritesNothing) {
                (work / "merged").string() + " > /dev/null 2>&1"), 2);
   EXPECT_FALSE(fs::exists(work / "merged"));
 }
+
+// Issue 12 (cmake/static_tool.cmake): with KNEEDYN_STATIC_TOOL the kneedyn binary takes
+// Ceres' dependencies, SUNDIALS, yaml-cpp and libyaml from their archives: none of them is
+// a DT_NEEDED entry; libgcc_s comes before libunwind, so that C++ exceptions keep GCC's
+// unwinder (libunwind.so.8 also defines _Unwind_RaiseException).
+TEST(SweepCli, StaticToolNeedsOnlyRuntimeLibraries) {
+  if (!KNEEDYN_STATIC_TOOL) GTEST_SKIP() << "KNEEDYN_STATIC_TOOL off";
+  const std::string needed = Output("readelf -d " + Kneedyn());
+  ASSERT_NE(needed.find("(NEEDED)"), std::string::npos) << needed;
+  for (const char* lib : {"libglog", "libgflags", "libsundials", "libyaml", "libcholmod", "libcxsparse", "liblapack",
+                          "libatlas", "libceres"}) {
+    EXPECT_EQ(needed.find(lib), std::string::npos) << lib << " in DT_NEEDED:\n" << needed;
+  }
+  const size_t gcc_s = needed.find("[libgcc_s.so"), unwind = needed.find("[libunwind.so");
+  if (unwind != std::string::npos) {
+    ASSERT_NE(gcc_s, std::string::npos) << needed;
+    EXPECT_LT(gcc_s, unwind) << needed;
+  }
+}
