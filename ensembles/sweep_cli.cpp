@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "ensembles/sweep.hpp"
+#include "ensembles/sweep_io.hpp"
 #include "ensembles/sweep_mpi.hpp"
 #include "ensembles/sweep_output.hpp"
 #include "solver/error.hpp"
@@ -58,6 +59,7 @@ int SweepCommand::Run() {
   try {
     if (!merge_.empty()) {
       if (!spec_path_.empty()) Throw<InputError>("kneedyn sweep", "--merge takes part files, not a spec ('", spec_path_, "')");
+      SweepIo();  // sweep.h5: a missing plugin is refused before reading or writing
       std::vector<SweepTable> parts;
       for (const std::string& p : merge_) parts.push_back(ReadPart(p));
       const SweepTable all = MergeParts(parts);
@@ -75,6 +77,7 @@ int SweepCommand::Run() {
       Throw<InputError>("kneedyn sweep", "--shard and mpirun exclude each other: ranks already split the runs");
     }
     const SweepSpec spec = LoadSweepSpec(spec_path_);
+    if (shard_.empty()) SweepIo();  // sweep.h5: a missing plugin is refused before the runs
     int threads = threads_;
     if (threads == 0) {
       const int cores = std::max(1u, std::thread::hardware_concurrency());

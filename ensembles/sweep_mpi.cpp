@@ -5,12 +5,12 @@
 #include <string>
 #include <vector>
 
+#include "ensembles/sweep_io.hpp"
 #include "ensembles/sweep_output.hpp"
 #include "solver/error.hpp"
 
-#ifdef KNEEDYN_WITH_MPI
-#include <mpi.h>
-#endif
+// Open MPI itself is in the sweep I/O plugin (sweep_io_plugin.hpp), loaded here only when
+// the process was launched by an MPI launcher.
 
 namespace kneedyn::ensembles {
 
@@ -23,64 +23,63 @@ bool LaunchedByMpi() {
   return false;
 }
 
+void RefuseWithoutMpi() {
+  if (std::getenv("OMPI_COMM_WORLD_RANK") && std::string(std::getenv("OMPI_COMM_WORLD_SIZE")) != "1") {
+    Throw<InputError>("kneedyn sweep", "launched by mpirun, but this kneedyn was built without MPI "
+                      "(CMake option KNEEDYN_WITH_MPI); use --shard i/n and --merge instead");
+  }
+}
+
 }  // namespace
 
+bool MpiSession::Available() {
 #ifdef KNEEDYN_WITH_MPI
-
-bool MpiSession::Available() { return true; }
+  return true;
+#else
+  return false;
+#endif
+}
 
 MpiSession::MpiSession() {
   if (!LaunchedByMpi()) return;
-  int initialized = 0;
-  MPI_Initialized(&initialized);
-  if (!initialized) MPI_Init(nullptr, nullptr);
+  if (!Available()) {
+    RefuseWithoutMpi();
+    return;
+  }
+  const KneedynSweepIo& io = SweepIo();  // throws InputError when the plugin is missing
+  if (!io.with_mpi) {
+    RefuseWithoutMpi();
+    return;
+  }
+  char error[512] = "";
+  if (io.mpi_init(&rank_, &size_, &ranks_on_node_, error, sizeof error) != 0) {
+    Throw<Error>("MpiSession", "MPI_Init failed: ", error);
+  }
   active_ = true;
-  MPI_Comm_rank(MPI_COMM_WORLD, &rank_);
-  MPI_Comm_size(MPI_COMM_WORLD, &size_);
-  MPI_Comm node;
-  MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, rank_, MPI_INFO_NULL, &node);
-  MPI_Comm_size(node, &ranks_on_node_);
-  MPI_Comm_free(&node);
 }
 
 MpiSession::~MpiSession() {
-  if (!active_) return;
-  int finalized = 0;
-  MPI_Finalized(&finalized);
-  if (!finalized) MPI_Finalize();
+  if (active_) SweepIo().mpi_finalize();
 }
 
 MpiGathered MpiSession::Gather(SweepTable* table, double wall_s, long failed) {
-  MpiGathered g;
-  MPI_Reduce(&wall_s, &g.wall_s, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
-  MPI_Reduce(&failed, &g.failed, 1, MPI_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
+  MpiGathered g{wall_s, failed};
+  if (!active_) return g;
+  const KneedynSweepIo& io = SweepIo();
+  io.mpi_reduce(wall_s, failed, &g.wall_s, &g.failed);
   const std::string mine = SerializeRows(table->rows);
-  const long long my_size = static_cast<long long>(mine.size());
   std::vector<long long> sizes(size_);
-  MPI_Gather(&my_size, 1, MPI_LONG_LONG, sizes.data(), 1, MPI_LONG_LONG, 0, MPI_COMM_WORLD);
-  // Point-to-point receives: a part may exceed MPI_Gatherv's int displacements.
-  if (rank_ != 0) {
-    const char* p = mine.data();
-    long long left = my_size;
-    while (left > 0) {
-      const int chunk = static_cast<int>(std::min<long long>(left, 1 << 30));
-      MPI_Send(p, chunk, MPI_CHAR, 0, 7, MPI_COMM_WORLD);
-      p += chunk;
-      left -= chunk;
-    }
-    return g;
+  io.mpi_gather_sizes(static_cast<long long>(mine.size()), sizes.data());
+  std::vector<std::string> parts(rank_ == 0 ? size_ : 0);
+  std::vector<char*> buffers(parts.size(), nullptr);
+  for (int r = 1; r < static_cast<int>(parts.size()); ++r) {
+    parts[r].assign(static_cast<size_t>(sizes[r]), '\0');
+    buffers[r] = parts[r].data();
   }
+  io.mpi_gather_bytes(mine.data(), static_cast<long long>(mine.size()), buffers.data(), sizes.data());
+  if (rank_ != 0) return g;
   for (int r = 1; r < size_; ++r) {
-    std::string buf(static_cast<size_t>(sizes[r]), '\0');
-    char* p = buf.data();
-    long long left = sizes[r];
-    while (left > 0) {
-      const int chunk = static_cast<int>(std::min<long long>(left, 1 << 30));
-      MPI_Recv(p, chunk, MPI_CHAR, r, 7, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-      p += chunk;
-      left -= chunk;
-    }
-    for (RunRow& row : DeserializeRows(buf)) {
+    for (RunRow& row : DeserializeRows(parts[r])) {
       if (row.parameters.size() != table->parameter_columns.size() ||
           row.outcomes.size() != table->outcome_columns.size()) {
         Throw<Error>("MpiSession::Gather", "rank ", r, " sent a row of another shape (index ", row.index, ")");
@@ -94,20 +93,5 @@ MpiGathered MpiSession::Gather(SweepTable* table, double wall_s, long failed) {
   }
   return g;
 }
-
-#else  // built without MPI
-
-bool MpiSession::Available() { return false; }
-
-MpiSession::MpiSession() {
-  if (LaunchedByMpi() && std::getenv("OMPI_COMM_WORLD_RANK") && std::string(std::getenv("OMPI_COMM_WORLD_SIZE")) != "1") {
-    Throw<InputError>("kneedyn sweep", "launched by mpirun, but this kneedyn was built without MPI "
-                      "(CMake option KNEEDYN_WITH_MPI); use --shard i/n and --merge instead");
-  }
-}
-MpiSession::~MpiSession() = default;
-MpiGathered MpiSession::Gather(SweepTable*, double wall_s, long failed) { return {wall_s, failed}; }
-
-#endif
 
 }  // namespace kneedyn::ensembles

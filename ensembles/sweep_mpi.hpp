@@ -4,7 +4,9 @@
 // i % size == r (sweep.hpp ShardIndices); rank 0 gathers the rows, orders them by index
 // and writes the one result file, byte-identical to a single-process run.
 // Built without MPI (CMake option KNEEDYN_WITH_MPI off or MPI not found) the session is
-// always inactive.
+// always inactive. Open MPI is called through the sweep I/O plugin (sweep_io.hpp), loaded
+// by the constructor only when launched by an MPI launcher: a missing plugin is an
+// InputError (exit 2) there.
 #pragma once
 
 #include "ensembles/sweep.hpp"

@@ -1,6 +1,5 @@
 #include "ensembles/sweep_output.hpp"
 
-#include <hdf5.h>
 #include <nlohmann/json.hpp>
 
 #include <cmath>
@@ -11,6 +10,7 @@
 #include <limits>
 #include <set>
 
+#include "ensembles/sweep_io.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn::ensembles {
@@ -41,13 +41,6 @@ void Publish(const std::string& tmp, const std::string& path) {
   if (ec) Throw<Error>("WriteSweepResults", "cannot rename '", tmp, "' to '", path, "': ", ec.message());
 }
 
-// HDF5 calls return < 0 on failure; one checked-call helper (style.md §4).
-template <typename T>
-T H5Check(T value, const char* call, const std::string& path) {
-  if (value < 0) Throw<Error>("WriteHdf5", call, " failed for '", path, "'");
-  return value;
-}
-
 }  // namespace
 
 void WriteCsv(const std::string& path, const SweepTable& table) {
@@ -71,58 +64,52 @@ void WriteCsv(const std::string& path, const SweepTable& table) {
   Publish(tmp, path);
 }
 
+// The HDF5 library is in the sweep I/O plugin (sweep_io_plugin.hpp): the table goes there as
+// plain columns.
 void WriteHdf5(const std::string& path, const SweepTable& table) {
+  const KneedynSweepIo& io = SweepIo();  // throws InputError when the plugin is missing
   const std::string tmp = path + ".tmp";
-  const hsize_t n = table.rows.size();
-  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // errors become exceptions, not stderr dumps
-  const hid_t file = H5Check(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), "H5Fcreate", tmp);
-  // No modification times in the object headers: equal tables → equal bytes.
-  const hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
-  H5Pset_obj_track_times(dcpl, false);
-  const hid_t gcpl = H5Pcreate(H5P_GROUP_CREATE);
-  H5Pset_obj_track_times(gcpl, false);
-  const hid_t space = H5Screate_simple(1, &n, nullptr);
-  auto write = [&](hid_t where, const std::string& name, hid_t type, const void* data) {
-    const hid_t ds = H5Check(H5Dcreate2(where, name.c_str(), type, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
-                             "H5Dcreate2", tmp);
-    if (n > 0) H5Check(H5Dwrite(ds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), "H5Dwrite", tmp);
-    H5Dclose(ds);
-  };
-  std::vector<long long> ints(n);
-  for (hsize_t i = 0; i < n; ++i) ints[i] = table.rows[i].index;
-  write(file, "index", H5T_NATIVE_LLONG, ints.data());
-  std::vector<double> col(n);
-  auto columns = [&](const char* group, const std::vector<std::string>& names, bool params) {
-    const hid_t g = H5Check(H5Gcreate2(file, group, H5P_DEFAULT, gcpl, H5P_DEFAULT), "H5Gcreate2", tmp);
+  const size_t n = table.rows.size();
+  std::vector<long long> index(n), steps(n);
+  std::vector<const char*> status(n), end_reason(n), failure(n);
+  for (size_t i = 0; i < n; ++i) {
+    const RunRow& r = table.rows[i];
+    index[i] = r.index;
+    steps[i] = r.steps;
+    status[i] = r.completed ? "completed" : "failed";
+    end_reason[i] = r.end_reason.c_str();
+    failure[i] = r.failure.c_str();
+  }
+  std::vector<std::vector<double>> values;
+  auto columns = [&](const std::vector<std::string>& names, bool params) {
+    std::vector<KneedynHdf5Column> cols;
     for (size_t k = 0; k < names.size(); ++k) {
-      for (hsize_t i = 0; i < n; ++i) col[i] = params ? table.rows[i].parameters[k] : table.rows[i].outcomes[k];
-      write(g, names[k], H5T_NATIVE_DOUBLE, col.data());
+      std::vector<double>& v = values.emplace_back(n);
+      for (size_t i = 0; i < n; ++i) v[i] = params ? table.rows[i].parameters[k] : table.rows[i].outcomes[k];
+      cols.push_back({names[k].c_str(), v.data()});
     }
-    H5Gclose(g);
+    return cols;
   };
-  columns("parameters", table.parameter_columns, true);
-  columns("outcomes", table.outcome_columns, false);
-  const hid_t str = H5Tcopy(H5T_C_S1);
-  H5Tset_size(str, H5T_VARIABLE);
-  H5Tset_cset(str, H5T_CSET_UTF8);
-  std::vector<const char*> text(n);
-  for (hsize_t i = 0; i < n; ++i) text[i] = table.rows[i].completed ? "completed" : "failed";
-  write(file, "status", str, text.data());
-  for (hsize_t i = 0; i < n; ++i) text[i] = table.rows[i].end_reason.c_str();
-  write(file, "end_reason", str, text.data());
-  for (hsize_t i = 0; i < n; ++i) ints[i] = table.rows[i].steps;
-  write(file, "steps", H5T_NATIVE_LLONG, ints.data());
-  for (hsize_t i = 0; i < n; ++i) text[i] = table.rows[i].failure.c_str();
-  write(file, "failure", str, text.data());
-  H5Tclose(str);
-  H5Sclose(space);
-  H5Pclose(dcpl);
-  H5Pclose(gcpl);
-  H5Check(H5Fclose(file), "H5Fclose", tmp);
+  values.reserve(table.parameter_columns.size() + table.outcome_columns.size());
+  const std::vector<KneedynHdf5Column> parameters = columns(table.parameter_columns, true);
+  const std::vector<KneedynHdf5Column> outcomes = columns(table.outcome_columns, false);
+  const KneedynHdf5Table t{n,
+                           index.data(),
+                           parameters.data(),
+                           parameters.size(),
+                           outcomes.data(),
+                           outcomes.size(),
+                           status.data(),
+                           end_reason.data(),
+                           steps.data(),
+                           failure.data()};
+  char error[1024] = "";
+  if (io.write_hdf5(tmp.c_str(), &t, error, sizeof error) != 0) Throw<Error>("WriteHdf5", error);
   Publish(tmp, path);
 }
 
 void WriteSweepResults(const std::string& dir, const SweepTable& table) {
+  SweepIo();  // a missing plugin (sweep.h5) is refused before anything is written
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) Throw<Error>("WriteSweepResults", "cannot create directory '", dir, "': ", ec.message());

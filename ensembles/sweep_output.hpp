@@ -6,6 +6,8 @@
 //              equal tables give equal bytes
 //   part-<i>-of-<n>.json  one shard's rows (--shard i/n), for `kneedyn sweep --merge`
 // Every file is written to a temporary name and renamed: complete or absent.
+// sweep.h5 is written by the sweep I/O plugin (HDF5; sweep_io.hpp): WriteHdf5 and
+// WriteSweepResults throw InputError, before writing anything, when it is missing.
 #pragma once
 
 #include <string>

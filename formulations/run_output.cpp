@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -13,8 +14,6 @@
 #include <random>
 #include <filesystem>
 #include <fstream>
-#include <iomanip>
-#include <sstream>
 
 #include <ceres/version.h>
 #include <sundials/sundials_config.h>
@@ -34,6 +33,14 @@ std::string ColumnSafeName(const std::string& name) {
     if (c == ' ' || c == '-' || c == '/') c = '_';
   }
   return out;
+}
+
+size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
+  // std::to_chars(general, precision) is specified as printf's %.*g in the "C" locale
+  // (C++17 [charconv.to.chars]); libstdc++ formats it exactly (Ryu printf), without the
+  // multi-precision arithmetic of glibc's printf (about 10x fewer instructions).
+  const std::to_chars_result r = std::to_chars(out, out + kTrajectoryNumberChars, v, std::chars_format::general, 12);
+  return static_cast<size_t>(r.ptr - out);  // 12 significant digits fit: never errc::value_too_large
 }
 
 TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result) {
@@ -129,13 +136,6 @@ nlohmann::json StateJson(const Scene& scene, const MechanicalState& st) {
   }
   j["contacts"] = contacts;
   return j;
-}
-
-std::string FormatDouble(double v) {
-  if (!std::isfinite(v)) return "";
-  char buf[40];
-  std::snprintf(buf, sizeof(buf), "%.12g", v);
-  return buf;
 }
 
 const char* const kOutputFiles[] = {"trajectory.csv", "trajectory.sto", "summary.json"};
@@ -295,27 +295,40 @@ void WriteRunOutputs(const std::string& dir_name, const Scene& scene, const RunS
   }
   try {
     const TrajectoryTable table = MakeTrajectoryTable(scene, result);
-    std::ostringstream csv, sto;
-    for (size_t c = 0; c < table.columns.size(); ++c) csv << (c ? "," : "") << table.columns[c];
-    csv << "\n";
-    sto << "kneedyn_" << scene.name << "\nversion=1\nnRows=" << table.rows.size()
-        << "\nnColumns=" << table.columns.size() << "\ninDegrees=yes\n"
-        << "// lengths in mm, forces in N, angles in deg; formulation " << settings.formulation
-        << (result.completed ? "" : "; PARTIAL: solver failed") << "\nendheader\n";
-    for (size_t c = 0; c < table.columns.size(); ++c) {
-      sto << (c ? "\t" : "") << (c == 0 ? std::string("time") : table.columns[c]);
-    }
-    sto << "\n";
+    // Each number is formatted once, for both files (empty in the CSV, NaN in the .sto
+    // when not finite).
+    std::string csv, sto;
+    const size_t bytes = (table.rows.size() + 1) * table.columns.size() * 20 + 512;
+    csv.reserve(bytes);
+    sto.reserve(bytes);
+    for (size_t c = 0; c < table.columns.size(); ++c) (csv += c ? "," : "") += table.columns[c];
+    csv += '\n';
+    sto += StrCat("kneedyn_", scene.name, "\nversion=1\nnRows=", table.rows.size(), "\nnColumns=",
+                  table.columns.size(), "\ninDegrees=yes\n",
+                  "// lengths in mm, forces in N, angles in deg; formulation ", settings.formulation,
+                  result.completed ? "" : "; PARTIAL: solver failed", "\nendheader\n");
+    for (size_t c = 0; c < table.columns.size(); ++c) (sto += c ? "\t" : "") += c == 0 ? "time" : table.columns[c];
+    sto += '\n';
+    char number[kTrajectoryNumberChars];
     for (const auto& row : table.rows) {
       for (size_t c = 0; c < row.size(); ++c) {
-        csv << (c ? "," : "") << FormatDouble(row[c]);
-        sto << (c ? "\t" : "") << (std::isfinite(row[c]) ? FormatDouble(row[c]) : "NaN");
+        if (c) {
+          csv += ',';
+          sto += '\t';
+        }
+        if (std::isfinite(row[c])) {
+          const size_t n = FormatTrajectoryNumber(row[c], number);
+          csv.append(number, n);
+          sto.append(number, n);
+        } else {
+          sto += "NaN";
+        }
       }
-      csv << "\n";
-      sto << "\n";
+      csv += '\n';
+      sto += '\n';
     }
-    WriteFile(tmp / "trajectory.csv", csv.str());
-    WriteFile(tmp / "trajectory.sto", sto.str());
+    WriteFile(tmp / "trajectory.csv", csv);
+    WriteFile(tmp / "trajectory.sto", sto);
     // Invalid UTF-8 (e.g. in a file path) is replaced, never thrown on.
     WriteFile(tmp / "summary.json",
               SummaryJson(scene, settings, result).dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");

@@ -46,6 +46,11 @@ void CheckOutputDirectory(const std::string& dir);
 void WriteRunOutputs(const std::string& dir, const Scene& scene, const RunSettings& settings,
                      const RunResult& result);
 
+// The bytes of printf("%.12g", v) for the numbers of trajectory.csv/.sto, written into
+// `out` (no terminating NUL); returns their count. Through std::to_chars.
+constexpr size_t kTrajectoryNumberChars = 32;  // "-1.23456789012e-308": 19
+size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]);
+
 // "ACL anterior" -> "ACL_anterior".
 std::string ColumnSafeName(const std::string& name);
 

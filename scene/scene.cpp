@@ -2,15 +2,19 @@
 
 #include <dlfcn.h>
 
-#include <yaml-cpp/yaml.h>
+#include <yaml.h>
 
 #include <Eigen/LU>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <map>
+#include <memory>
 #include <sstream>
+#include <string_view>
 
 #include "solver/contact_kinematics.hpp"
 #include "solver/ellipsoid_cap.hpp"
@@ -62,84 +66,259 @@ bool IsName(const std::string& s, bool element) {
   return true;
 }
 
+// `text` with each byte that does not start a valid UTF-8 sequence, and each character
+// outside YAML's printable set (libyaml's reader: tab, LF, CR, 0x20-0x7E, 0x85,
+// 0xA0-0xD7FF, 0xE000-0xFFFD, 0x10000-0x10FFFF), replaced by U+FFFD. A UTF-16 stream (byte
+// order mark) is left to libyaml.
+std::string AllowedUtf8(const std::string& text) {
+  if (text.size() >= 2 && ((text[0] == '\xFF' && text[1] == '\xFE') || (text[0] == '\xFE' && text[1] == '\xFF'))) {
+    return text;
+  }
+  std::string out;
+  bool changed = false;
+  const auto* p = reinterpret_cast<const unsigned char*>(text.data());
+  const size_t n = text.size();
+  for (size_t i = 0; i < n;) {
+    const unsigned char c = p[i];
+    size_t len = 0;
+    uint32_t cp = 0;
+    if (c < 0x80) {
+      len = 1, cp = c;
+    } else if ((c & 0xE0) == 0xC0) {
+      len = 2, cp = c & 0x1Fu;
+    } else if ((c & 0xF0) == 0xE0) {
+      len = 3, cp = c & 0x0Fu;
+    } else if ((c & 0xF8) == 0xF0) {
+      len = 4, cp = c & 0x07u;
+    }
+    bool ok = len > 0 && i + len <= n;
+    for (size_t k = 1; ok && k < len; ++k) {
+      ok = (p[i + k] & 0xC0) == 0x80;
+      cp = (cp << 6) | (p[i + k] & 0x3Fu);
+    }
+    // Shortest form only, and the printable set.
+    ok = ok && !(len == 2 && cp < 0x80) && !(len == 3 && cp < 0x800) && !(len == 4 && cp < 0x10000) &&
+         (cp == 0x09 || cp == 0x0A || cp == 0x0D || (cp >= 0x20 && cp <= 0x7E) || cp == 0x85 ||
+          (cp >= 0xA0 && cp <= 0xD7FF) || (cp >= 0xE000 && cp <= 0xFFFD) || (cp >= 0x10000 && cp <= 0x10FFFF));
+    if (!ok) {
+      if (!changed) out.assign(text, 0, i);
+      changed = true;
+      out += "\xEF\xBF\xBD";
+      ++i;
+      continue;
+    }
+    if (changed) out.append(text, i, len);
+    i += len;
+  }
+  return changed ? out : text;
+}
+
+// A YAML document parsed by libyaml's document API (aliases are the node they name). The
+// loader used yaml-cpp before (issue 12): its scanner spent about 1,700 instructions a byte,
+// 8.2 M of the 11.7 M of loading the chapter scene and its parameter set; libyaml about 250.
+// Values keep yaml-cpp's meaning (what the loader accepted is unchanged):
+//  - a plain scalar ~, null, Null, NULL or empty is null: not a string, number or boolean;
+//  - a number is the whole scalar read as by an istream in the "C" locale (as yaml-cpp's
+//    convert<double>), or .inf/.nan in yaml-cpp's spellings (then refused as not finite);
+//  - a boolean is y, yes, true, on / n, no, false, off, all lower, all upper or capitalised.
+//  - bytes that are not UTF-8, and characters YAML does not allow in a stream (control
+//    characters but tab and line ends), become U+FFFD before parsing: libyaml refuses the
+//    whole file for them, yaml-cpp kept them, so that a name holding one was refused as
+//    not a name (naming the field) and free text accepted. That stays so.
+class YamlDocument {
+ public:
+  YamlDocument(const std::string& raw, std::string label) : label_(std::move(label)) {
+    const std::string text = AllowedUtf8(raw);
+    yaml_parser_t parser;
+    if (!yaml_parser_initialize(&parser)) Throw<InputError>("LoadScene", Echo(label_), ": out of memory");
+    yaml_parser_set_input_string(&parser, reinterpret_cast<const unsigned char*>(text.data()), text.size());
+    loaded_ = yaml_parser_load(&parser, &doc_) != 0;
+    std::string problem;
+    if (!loaded_) {
+      const char* what = parser.problem ? parser.problem : "unknown error";
+      if (parser.error == YAML_READER_ERROR) {  // no mark: the byte offset
+        const size_t at = std::min(parser.problem_offset, text.size());
+        problem = StrCat("line ", 1 + std::count(text.begin(), text.begin() + at, '\n'), ", byte ", at, ": ", what);
+      } else {
+        problem = StrCat("line ", parser.problem_mark.line + 1, ", column ", parser.problem_mark.column + 1, ": ", what);
+        if (parser.context) problem += StrCat(" (", parser.context, " at line ", parser.context_mark.line + 1, ")");
+      }
+    }
+    yaml_parser_delete(&parser);
+    if (!loaded_) Throw<InputError>("LoadScene", Echo(label_), ": not valid YAML: ", Echo(problem));
+  }
+  ~YamlDocument() {
+    if (loaded_) yaml_document_delete(&doc_);
+  }
+  YamlDocument(const YamlDocument&) = delete;
+  YamlDocument& operator=(const YamlDocument&) = delete;
+
+  const yaml_node_t* Root() const { return yaml_document_get_root_node(Doc()); }
+  const yaml_node_t* Node(int index) const { return yaml_document_get_node(Doc(), index); }
+  const std::string& label() const { return label_; }
+  // One stream for every number of the document: its locale is built once.
+  std::istringstream& NumberStream() const { return numbers_; }
+
+ private:
+  yaml_document_t* Doc() const { return const_cast<yaml_document_t*>(&doc_); }
+  std::string label_;
+  yaml_document_t doc_{};
+  bool loaded_ = false;
+  mutable std::istringstream numbers_;
+};
+
+enum class YamlKind { kUndefined, kNull, kScalar, kSequence, kMap };
+
+std::string_view ScalarText(const yaml_node_t* n) {
+  return {reinterpret_cast<const char*>(n->data.scalar.value), n->data.scalar.length};
+}
+
+YamlKind KindOf(const yaml_node_t* n) {
+  if (!n) return YamlKind::kUndefined;
+  switch (n->type) {
+    case YAML_SCALAR_NODE: {
+      if (n->data.scalar.style != YAML_PLAIN_SCALAR_STYLE) return YamlKind::kScalar;
+      const std::string_view v = ScalarText(n);
+      return v.empty() || v == "~" || v == "null" || v == "Null" || v == "NULL" ? YamlKind::kNull : YamlKind::kScalar;
+    }
+    case YAML_SEQUENCE_NODE:
+      return YamlKind::kSequence;
+    case YAML_MAPPING_NODE:
+      return YamlKind::kMap;
+    default:
+      return YamlKind::kUndefined;
+  }
+}
+
+// yaml-cpp's convert<double>::decode: `stream >> std::noskipws >> v` must succeed and only
+// white space may follow; else its spellings of infinity and NaN.
+bool YamlCppDouble(std::istringstream& stream, std::string_view text, double* v) {
+  stream.clear();
+  stream.str(std::string(text));
+  if ((stream >> std::noskipws >> *v) && (stream >> std::ws).eof()) return true;
+  if (text == ".inf" || text == ".Inf" || text == ".INF" || text == "+.inf" || text == "+.Inf" || text == "+.INF") {
+    *v = std::numeric_limits<double>::infinity();
+    return true;
+  }
+  if (text == "-.inf" || text == "-.Inf" || text == "-.INF") {
+    *v = -std::numeric_limits<double>::infinity();
+    return true;
+  }
+  if (text == ".nan" || text == ".NaN" || text == ".NAN") {
+    *v = std::numeric_limits<double>::quiet_NaN();
+    return true;
+  }
+  return false;
+}
+
+// yaml-cpp's convert<bool>::decode.
+bool YamlCppBool(std::string_view text, bool* v) {
+  const auto lower = [](char c) { return c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c; };
+  const auto all = [&](size_t from, bool upper) {
+    for (size_t i = from; i < text.size(); ++i) {
+      if (upper ? (text[i] >= 'a' && text[i] <= 'z') : (text[i] >= 'A' && text[i] <= 'Z')) return false;
+    }
+    return true;
+  };
+  // Flexible case: all lower, all upper, or one upper letter then lower.
+  const bool flexible = text.empty() || all(0, false) || all(0, true) ||
+                        (text[0] >= 'A' && text[0] <= 'Z' && all(1, false));
+  if (!flexible) return false;
+  std::string l(text);
+  for (char& c : l) c = lower(c);
+  for (const auto& [yes, no] : {std::pair{"y", "n"}, {"yes", "no"}, {"true", "false"}, {"on", "off"}}) {
+    if (l == yes || l == no) {
+      *v = l == yes;
+      return true;
+    }
+  }
+  return false;
+}
+
 // A YAML node with the path that leads to it, so that every message names file and field.
 class Field {
  public:
-  Field(YAML::Node node, std::string file, std::string path)
-      : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)) {}
+  Field(std::shared_ptr<const YamlDocument> doc, const yaml_node_t* node, std::string path)
+      : doc_(std::move(doc)), node_(node), kind_(KindOf(node)), path_(std::move(path)) {}
 
   [[noreturn]] void Fail(const std::string& rule) const {
-    Throw<InputError>("LoadScene", Echo(file_, 256), Line(node_), ": field '", path_.empty() ? "(top level)" : path_, "'",
-                      node_ && node_.IsScalar() ? " = '" + Echo(node_.Scalar()) + "'" : std::string(),
+    Throw<InputError>("LoadScene", Echo(doc_->label(), 256), Line(node_), ": field '", path_.empty() ? "(top level)" : path_,
+                      "'", kind_ == YamlKind::kScalar ? " = '" + Echo(std::string(ScalarText(node_))) + "'" : std::string(),
                       ": ", rule);
   }
   // This node must be a mapping whose keys are all in `keys`, each once. An unknown key is
   // refused with its line and the nearest valid key.
   const Field& Keys(std::initializer_list<const char*> keys) const {
-    if (!node_.IsMap()) Fail("must be a mapping");
-    std::vector<std::string> seen;
-    for (auto it = node_.begin(); it != node_.end(); ++it) {
-      const YAML::Node key = it->first;  // a copy: *it is a temporary (ASan, fuzz_scene)
-      const std::string k = key.IsScalar() ? key.Scalar() : std::string("(non-scalar key)");
-      const std::string where = path_.empty() ? k : path_ + "." + k;
-      if (std::find(seen.begin(), seen.end(), k) != seen.end()) {
-        Throw<InputError>("LoadScene", Echo(file_, 256), Line(key), ": key '", Echo(where),
-                          "' given twice (a key may appear once per mapping)");
+    if (kind_ != YamlKind::kMap) Fail("must be a mapping");
+    const yaml_node_pair_t* const begin = node_->data.mapping.pairs.start;
+    const yaml_node_pair_t* const end = node_->data.mapping.pairs.top;
+    for (const yaml_node_pair_t* pair = begin; pair != end; ++pair) {
+      const yaml_node_t* key = doc_->Node(pair->key);
+      const std::string_view k = KindOf(key) == YamlKind::kScalar ? ScalarText(key) : "(non-scalar key)";
+      for (const yaml_node_pair_t* earlier = begin; earlier != pair; ++earlier) {
+        const yaml_node_t* e = doc_->Node(earlier->key);
+        if ((KindOf(e) == YamlKind::kScalar ? ScalarText(e) : "(non-scalar key)") == k) {
+          Throw<InputError>("LoadScene", Echo(doc_->label(), 256), Line(key), ": key '", Echo(Where(k)),
+                            "' given twice (a key may appear once per mapping)");
+        }
       }
-      seen.push_back(k);
+      if (std::any_of(keys.begin(), keys.end(), [&](const char* valid) { return k == valid; })) continue;
+      // Unknown: the nearest valid key (edit distance) for the message.
       const char* nearest = nullptr;
       size_t best = std::string::npos;
+      std::string list;
       for (const char* valid : keys) {
-        if (k == valid) { best = 0; nearest = valid; break; }
-        const size_t d = EditDistance(k, valid);
-        if (d < best) { best = d; nearest = valid; }
+        const size_t d = EditDistance(std::string(k), valid);
+        if (d < best) {
+          best = d;
+          nearest = valid;
+        }
+        list += (list.empty() ? "" : ", ") + std::string(valid);
       }
-      if (best != 0) {
-        std::string list;
-        for (const char* valid : keys) list += (list.empty() ? "" : ", ") + std::string(valid);
-        Throw<InputError>("LoadScene", Echo(file_, 256), Line(key), ": unknown key '", Echo(where), "'",
-                          nearest ? StrCat("; nearest valid key '", nearest, "'") : std::string(),
-                          " (valid here: ", list, ")");
-      }
+      Throw<InputError>("LoadScene", Echo(doc_->label(), 256), Line(key), ": unknown key '", Echo(Where(k)), "'",
+                        nearest ? StrCat("; nearest valid key '", nearest, "'") : std::string(), " (valid here: ", list,
+                        ")");
     }
     return *this;
   }
-  bool Has(const std::string& key) const {
-    if (node_ && !node_.IsMap()) Fail("must be a mapping");
-    return node_.IsMap() && node_[key];
+  bool Has(std::string_view key) const {
+    if (kind_ != YamlKind::kUndefined && kind_ != YamlKind::kMap) Fail("must be a mapping");
+    return kind_ == YamlKind::kMap && Find(key);
   }
-  Field Child(const std::string& key) const {
-    if (!node_.IsMap()) Fail("must be a mapping");
-    return Field(node_[key], file_, path_.empty() ? key : path_ + "." + key);
+  Field Child(std::string_view key) const {
+    if (kind_ != YamlKind::kMap) Fail("must be a mapping");
+    return Field(doc_, Find(key), Where(key));
   }
-  Field Required(const std::string& key) const {
+  Field Required(std::string_view key) const {
     Field f = Child(key);
-    if (!f.node_) Fail("missing required field '" + key + "'");
+    if (f.kind_ == YamlKind::kUndefined) Fail(StrCat("missing required field '", key, "'"));
     return f;
   }
   Field Item(size_t i) const {
-    return Field(node_[i], file_, StrCat(path_, "[", i, "]"));
+    const yaml_node_t* item = nullptr;
+    if (kind_ == YamlKind::kSequence && i < Count()) item = doc_->Node(node_->data.sequence.items.start[i]);
+    return Field(doc_, item, StrCat(path_, "[", i, "]"));
   }
   size_t Size() const {
-    if (!node_.IsSequence()) Fail("must be a list");
-    return node_.size();
+    if (kind_ != YamlKind::kSequence) Fail("must be a list");
+    return Count();
   }
-  bool IsSequence() const { return node_.IsSequence(); }
+  bool IsSequence() const { return kind_ == YamlKind::kSequence; }
   std::vector<std::string> Keys() const {
-    if (!node_.IsMap()) Fail("must be a mapping");
+    if (kind_ != YamlKind::kMap) Fail("must be a mapping");
     std::vector<std::string> keys;
-    for (const auto& kv : node_) keys.push_back(kv.first.Scalar());
+    for (const yaml_node_pair_t* p = node_->data.mapping.pairs.start; p != node_->data.mapping.pairs.top; ++p) {
+      const yaml_node_t* key = doc_->Node(p->key);
+      keys.emplace_back(KindOf(key) == YamlKind::kScalar ? ScalarText(key) : std::string_view());
+    }
     return keys;
   }
-  bool IsScalar() const { return node_.IsScalar(); }
+  bool IsScalar() const { return kind_ == YamlKind::kScalar; }
   const std::string& path() const { return path_; }
 
   double Double() const {
-    if (!node_ || !node_.IsScalar()) Fail("must be a number");
     double v;
-    try {
-      v = node_.as<double>();
-    } catch (const YAML::Exception&) {
+    if (kind_ != YamlKind::kScalar || !YamlCppDouble(doc_->NumberStream(), ScalarText(node_), &v)) {
       Fail("must be a number");
     }
     if (!std::isfinite(v)) Fail("must be finite");
@@ -164,8 +343,8 @@ class Field {
     return v;
   }
   std::string String() const {
-    if (!node_ || !node_.IsScalar()) Fail("must be a string");
-    return node_.Scalar();
+    if (kind_ != YamlKind::kScalar) Fail("must be a string");
+    return std::string(ScalarText(node_));
   }
   // A name that goes into output headers (see IsName).
   std::string Name(bool element = false) const {
@@ -178,51 +357,53 @@ class Field {
     return s;
   }
   bool Bool() const {
-    if (!node_ || !node_.IsScalar()) Fail("must be true or false");
-    try {
-      return node_.as<bool>();
-    } catch (const YAML::Exception&) {
-      Fail("must be true or false");
-    }
+    bool v;
+    if (kind_ != YamlKind::kScalar || !YamlCppBool(ScalarText(node_), &v)) Fail("must be true or false");
+    return v;
   }
   // Three numbers, each with |v| <= limit.
   Vector3d Vec3(double limit = kMaxLengthMm) const {
-    if (!node_.IsSequence() || node_.size() != 3) Fail("must be a list of 3 numbers");
+    if (kind_ != YamlKind::kSequence || Count() != 3) Fail("must be a list of 3 numbers");
     return Vector3d(Item(0).Range(-limit, limit), Item(1).Range(-limit, limit),
                     Item(2).Range(-limit, limit));
   }
   std::array<double, 2> Vec2(double limit = kMaxLengthMm) const {
-    if (!node_.IsSequence() || node_.size() != 2) Fail("must be a list of 2 numbers");
+    if (kind_ != YamlKind::kSequence || Count() != 2) Fail("must be a list of 2 numbers");
     return {Item(0).Range(-limit, limit), Item(1).Range(-limit, limit)};
   }
 
  private:
-  static std::string Line(const YAML::Node& n) {
-    try {
-      if (n.IsDefined()) {
-        const YAML::Mark m = n.Mark();
-        if (m.line >= 0) return StrCat(":", m.line + 1);
-      }
-    } catch (const YAML::Exception&) {
-    }
-    return "";
+  static std::string Line(const yaml_node_t* n) { return n ? StrCat(":", n->start_mark.line + 1) : std::string(); }
+  std::string Where(std::string_view key) const {
+    return path_.empty() ? std::string(key) : StrCat(path_, ".", key);
   }
-  YAML::Node node_;
-  std::string file_;
+  size_t Count() const {
+    return static_cast<size_t>(node_->data.sequence.items.top - node_->data.sequence.items.start);
+  }
+  // The value of the first scalar key equal to `key` (yaml-cpp's lookup), else null.
+  const yaml_node_t* Find(std::string_view key) const {
+    for (const yaml_node_pair_t* p = node_->data.mapping.pairs.start; p != node_->data.mapping.pairs.top; ++p) {
+      const yaml_node_t* k = doc_->Node(p->key);
+      if (KindOf(k) == YamlKind::kScalar && ScalarText(k) == key) return doc_->Node(p->value);
+    }
+    return nullptr;
+  }
+  std::shared_ptr<const YamlDocument> doc_;
+  const yaml_node_t* node_;
+  YamlKind kind_;
   std::string path_;
 };
 
-YAML::Node ParseYaml(const std::string& text, const std::string& label) {
-  try {
-    YAML::Node root = YAML::Load(text);
-    if (!root.IsMap()) {
-      Throw<InputError>("LoadScene", Echo(label), ": the top level must be a mapping of keys "
-                        "(name, parameter_set, ...); got ", root.IsSequence() ? "a list" : root.IsScalar() ? "a scalar" : "nothing");
-    }
-    return root;
-  } catch (const YAML::Exception& e) {
-    Throw<InputError>("LoadScene", Echo(label), ": not valid YAML: ", Echo(e.what()));
+// The document's top level, which must be a mapping.
+Field ParseYaml(const std::string& text, const std::string& label) {
+  auto doc = std::make_shared<const YamlDocument>(text, label);
+  const yaml_node_t* root = doc->Root();
+  const YamlKind kind = KindOf(root);
+  if (kind != YamlKind::kMap) {
+    Throw<InputError>("LoadScene", Echo(label), ": the top level must be a mapping of keys "
+                      "(name, parameter_set, ...); got ", kind == YamlKind::kSequence ? "a list" : kind == YamlKind::kScalar ? "a scalar" : "nothing");
   }
+  return Field(doc, root, "");
 }
 
 // A scene or parameter-set file: an existing regular file (not a device, FIFO or
@@ -418,8 +599,7 @@ Vector6d SolveReferencePose(const ParameterSet& ps, const std::string& file) {
 }
 
 ParameterSet LoadParameterSet(const std::string& path) {
-  const YAML::Node root = ParseYaml(ReadFile(path, "parameter set"), path);
-  const Field top(root, path, "");
+  const Field top = ParseYaml(ReadFile(path, "parameter set"), path);
   top.Keys({"name", "description", "body", "gravity", "compartments", "ligaments",
             "reference_pose", "chapter_initial_guesses"});
   ParameterSet ps;
@@ -567,8 +747,7 @@ Scene LoadScene(const std::string& path) {
 
 Scene ParseScene(const std::string& yaml_text, const std::string& label,
                  const std::string& base_dir) {
-  const YAML::Node root = ParseYaml(yaml_text, label);
-  const Field top(root, label, "");
+  const Field top = ParseYaml(yaml_text, label);
   top.Keys({"name", "description", "parameter_set", "body", "ligament_law", "ligaments",
             "ligament_stiffness_scale", "ligament_parameters", "contacts", "surfaces", "gravity",
             "pulse", "constant_load", "initial_state", "end", "output"});

@@ -3,7 +3,7 @@
 // the ligament-law variant, the initial state and the end condition. Only what a scene
 // names is built. See reference-data/scenes/README.md for the format.
 //
-// The loader (library kneedyn_scene, the only one linking yaml-cpp) is apart from the
+// The loader (library kneedyn_scene, parsing with libyaml) is apart from the
 // physics (kneedyn_solver, issue 11 item 5): it fills the plain structs Model
 // (solver/model.hpp), InitialState and EndCondition (solver/initial_state.hpp) that the
 // physics functions take; solver/ includes nothing from here.

@@ -54,6 +54,24 @@ if(NOT rc EQUAL 0 OR NOT EXISTS ${WORK}/elsewhere/catalog/hard_cases.md)
   message(FATAL_ERROR "installed kneedyn_catalog failed (${rc}):\n${out}\n${err}")
 endif()
 
+# Issue 12: the installed kneedyn loads its installed sweep I/O plugin (Open MPI + HDF5,
+# <prefix>/<libdir>/kneedyn/kneedyn_sweep_io.so) for sweep.h5; the binary itself links neither.
+file(GLOB_RECURSE plugin ${prefix}/*/kneedyn_sweep_io.so)
+if(NOT plugin)
+  message(FATAL_ERROR "not installed: kneedyn_sweep_io.so under ${prefix}")
+endif()
+file(WRITE ${WORK}/elsewhere/spec.yaml
+  "scene: ${prefix}/share/kneedyn/scenes/chapter_impact.yaml\n"
+  "parameters: [{name: pulse.amplitude, uniform: [90, 110]}]\n"
+  "design: {type: lhs, samples: 2, seed: 1}\noutcomes: [liftoff_time]\n"
+  "solver: {formulation: dae-reduced, rtol: 1.0e-6, atol: 1.0e-8}\n")
+execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=KNEEDYN_DATA_DIR
+                ${prefix}/bin/kneedyn sweep ${WORK}/elsewhere/spec.yaml --threads 1 --out ${WORK}/elsewhere/sweep
+                WORKING_DIRECTORY ${WORK}/elsewhere RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+if(NOT rc EQUAL 0 OR NOT EXISTS ${WORK}/elsewhere/sweep/sweep.h5)
+  message(FATAL_ERROR "installed kneedyn sweep failed (${rc}):\n${out}\n${err}")
+endif()
+
 find_program(PKG_CONFIG pkg-config)
 if(PKG_CONFIG)
   get_filename_component(pcdir ${pc} DIRECTORY)

@@ -3,14 +3,14 @@
 
   layering_test.py --probe BIN --yaml-user BIN [--root DIR]
 
-  1. no file in solver/ includes anything from scene/ or formulations/, or yaml-cpp, or
-     names YAML:: ; solver/CMakeLists.txt links neither yaml-cpp nor kneedyn_scene /
-     kneedyn_formulations;
+  1. no file in solver/ includes anything from scene/ or formulations/, or yaml-cpp or
+     libyaml, or names YAML:: ; solver/CMakeLists.txt links neither yaml-cpp, libyaml nor
+     kneedyn_scene / kneedyn_formulations;
   2. `ldd BIN` of --probe (tests/solver_only_probe.cpp, linked with kneedyn_solver alone)
-     lists no libyaml-cpp, and the probe runs (exit 0: its own exact check);
+     lists no libyaml (-cpp or -0), and the probe runs (exit 0: its own exact check);
   3. so that the test can fail, before scanning: planted bad lines must each be flagged,
-     and `ldd` of --yaml-user (the kneedyn CLI, which links the loader) must list
-     libyaml-cpp, i.e. the ldd check sees the library when it is there.
+     and `ldd` of --yaml-user (a program linking the loader with the shared libyaml, e.g.
+     scene_test) must list a libyaml, i.e. the ldd check sees the library when it is there.
 """
 import argparse
 import os
@@ -24,14 +24,17 @@ SOURCE_RULES = [
     ("includes the loader", re.compile(r'#\s*include\s*[<"]scene/')),
     ("includes a formulation", re.compile(r'#\s*include\s*[<"]formulations/')),
     ("includes yaml-cpp", re.compile(r'#\s*include\s*[<"]yaml-cpp/')),
+    ("includes libyaml", re.compile(r'#\s*include\s*[<"]yaml\.h[>"]')),
     ("uses yaml-cpp", re.compile(r"\bYAML::")),
 ]
 CMAKE_RULES = [
     ("links yaml-cpp", re.compile(r"target_link_libraries\([^)]*yaml-cpp", re.S)),
+    ("links libyaml", re.compile(r"target_link_libraries\([^)]*\byaml\b(?!-)", re.S)),
     ("links the loader or the formulations",
      re.compile(r"target_link_libraries\([^)]*kneedyn_(scene|formulations)", re.S)),
 ]
-YAML_LIB = re.compile(r"libyaml-cpp")
+# Both YAML libraries: yaml-cpp (sweep specs, ensembles/) and libyaml (the scene loader).
+YAML_LIB = re.compile(r"libyaml")
 
 
 def scan_source(rel, text):
@@ -66,9 +69,10 @@ def main():
 
   # 3. The checks must be able to fail.
   planted = ['#include "scene/scene.hpp"', '#include "formulations/run.hpp"',
-             "#include <yaml-cpp/yaml.h>", "  const YAML::Node n = YAML::Load(text);"]
+             "#include <yaml-cpp/yaml.h>", "  const YAML::Node n = YAML::Load(text);", "#include <yaml.h>"]
   missed = [p for p in planted if not scan_source("solver/planted.hpp", p)]
   planted_cmake = ["target_link_libraries(kneedyn_solver PUBLIC Eigen3::Eigen\n  yaml-cpp)",
+                   "target_link_libraries(kneedyn_solver PRIVATE yaml)",
                    "target_link_libraries(kneedyn_solver PUBLIC kneedyn_scene)"]
   missed += [p for p in planted_cmake if not scan_cmake("solver/CMakeLists.txt", p)]
   clean = '#include "solver/state.hpp"  // filled by the loader (scene/scene.hpp)'
@@ -76,7 +80,7 @@ def main():
      scan_cmake("solver/CMakeLists.txt", "# links no yaml-cpp\ntarget_link_libraries(kneedyn_solver PUBLIC Eigen3::Eigen)"):
     sys.exit(f"layering: self-check failed (missed planted lines {missed} or flagged a clean one)")
   if not YAML_LIB.search(ldd(args.yaml_user)):
-    sys.exit(f"layering: self-check failed: ldd {args.yaml_user} (links the loader) lists no libyaml-cpp, "
+    sys.exit(f"layering: self-check failed: ldd {args.yaml_user} (links the loader) lists no libyaml, "
              "so the ldd check below could not see it either")
 
   # 1. Sources and CMake of solver/.

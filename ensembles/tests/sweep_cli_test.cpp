@@ -129,3 +129,81 @@ TEST(SweepCli, BadInputExitsTwoNamingFieldAndValueAndWritesNothing) {
   EXPECT_NE(Slurp(work / "shard.err").find("--shard = '2/2'"), std::string::npos) << Slurp(work / "shard.err");
   EXPECT_FALSE(fs::exists(out));
 }
+
+namespace {
+
+std::string Output(const std::string& command) {
+  std::string out;
+  if (FILE* p = popen(command.c_str(), "r")) {
+    char buf[4096];
+    for (size_t n; (n = fread(buf, 1, sizeof buf, p)) > 0;) out.append(buf, n);
+    pclose(p);
+  }
+  return out;
+}
+
+}  // namespace
+
+// Issue 12: Open MPI and HDF5 are in the plugin kneedyn_sweep_io.so (ensembles/sweep_io.hpp),
+// not in the kneedyn binary: neither its DT_NEEDED entries nor the whole ldd closure name
+// them, while the plugin's do (the same check sees them where they are).
+TEST(SweepCli, KneedynBinaryMapsNeitherMpiNorHdf5) {
+  const std::string needed = Output("readelf -d " + Kneedyn());
+  ASSERT_NE(needed.find("(NEEDED)"), std::string::npos) << needed;  // readelf ran
+  const std::string closure = Output("ldd " + Kneedyn());
+  ASSERT_NE(closure.find("libc.so"), std::string::npos) << closure;  // ldd ran
+  for (const char* lib : {"libmpi", "libhdf5", "libopen-pal", "libcurl"}) {
+    EXPECT_EQ(needed.find(lib), std::string::npos) << lib << " in DT_NEEDED:\n" << needed;
+    EXPECT_EQ(closure.find(lib), std::string::npos) << lib << " in ldd:\n" << closure;
+  }
+  const std::string plugin = Output("readelf -d " KNEEDYN_SWEEP_IO);
+  EXPECT_NE(plugin.find("libhdf5"), std::string::npos) << plugin;
+  if (!std::string(KNEEDYN_MPIEXEC).empty()) EXPECT_NE(plugin.find("libmpi"), std::string::npos) << plugin;
+}
+
+// A kneedyn without its plugin (a copy of the binary in a directory with no
+// lib/kneedyn/ above it): `kneedyn run` and `--shard` work; what needs the plugin (sweep.h5,
+// --merge) exits 2 with a message naming it and what works instead, before writing anything.
+TEST(SweepCli, MissingPluginIsAClearErrorAndWritesNothing) {
+  const fs::path work = WorkDir();
+  fs::remove_all(work);
+  const fs::path spec = WriteSpec(work);
+  fs::create_directories(work / "bin");
+  fs::copy_file(Kneedyn(), work / "bin" / "kneedyn");
+  const std::string lone = (work / "bin" / "kneedyn").string();
+  EXPECT_EQ(Sh(lone + " run " KNEEDYN_SOURCE_DIR "/reference-data/scenes/chapter_impact.yaml --formulation ede --out " +
+               (work / "run").string() + " > /dev/null 2>&1"), 0);
+  EXPECT_TRUE(fs::exists(work / "run" / "trajectory.csv"));
+  EXPECT_EQ(Sh(lone + " sweep " + spec.string() + " --threads 1 --shard 0/2 --out " + (work / "parts").string() +
+               " > /dev/null 2>&1"), 0);
+  EXPECT_TRUE(fs::exists(work / "parts" / "part-0-of-2.json"));
+  EXPECT_EQ(Sh(lone + " sweep " + spec.string() + " --threads 1 --out " + (work / "all").string() + " > /dev/null 2> " +
+               (work / "all.err").string()), 2);
+  const std::string err = Slurp(work / "all.err");
+  EXPECT_NE(err.find("kneedyn_sweep_io.so"), std::string::npos) << err;
+  EXPECT_NE(err.find((work / "lib" / "kneedyn" / "kneedyn_sweep_io.so").string()), std::string::npos) << err;
+  EXPECT_NE(err.find("--shard i/n"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(work / "all"));
+  EXPECT_EQ(Sh(lone + " sweep --merge " + (work / "parts/part-0-of-2.json").string() + " --out " +
+               (work / "merged").string() + " > /dev/null 2>&1"), 2);
+  EXPECT_FALSE(fs::exists(work / "merged"));
+}
+
+// Issue 12 (cmake/static_tool.cmake): with KNEEDYN_STATIC_TOOL the kneedyn binary takes
+// Ceres' dependencies, SUNDIALS, yaml-cpp and libyaml from their archives: none of them is
+// a DT_NEEDED entry; libgcc_s comes before libunwind, so that C++ exceptions keep GCC's
+// unwinder (libunwind.so.8 also defines _Unwind_RaiseException).
+TEST(SweepCli, StaticToolNeedsOnlyRuntimeLibraries) {
+  if (!KNEEDYN_STATIC_TOOL) GTEST_SKIP() << "KNEEDYN_STATIC_TOOL off";
+  const std::string needed = Output("readelf -d " + Kneedyn());
+  ASSERT_NE(needed.find("(NEEDED)"), std::string::npos) << needed;
+  for (const char* lib : {"libglog", "libgflags", "libsundials", "libyaml", "libcholmod", "libcxsparse", "liblapack",
+                          "libatlas", "libceres"}) {
+    EXPECT_EQ(needed.find(lib), std::string::npos) << lib << " in DT_NEEDED:\n" << needed;
+  }
+  const size_t gcc_s = needed.find("[libgcc_s.so"), unwind = needed.find("[libunwind.so");
+  if (unwind != std::string::npos) {
+    ASSERT_NE(gcc_s, std::string::npos) << needed;
+    EXPECT_LT(gcc_s, unwind) << needed;
+  }
+}

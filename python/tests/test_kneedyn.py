@@ -298,11 +298,19 @@ def test_import_from_install_prefix():
                     "--prefix", prefix], check=True, capture_output=True)
     site = os.path.join(prefix, os.environ["KNEEDYN_PYTHON_INSTALL_DIR"])
     env = dict(os.environ, PYTHONPATH=site)
-    p = subprocess.run([sys.executable, "-c", "import kneedyn; print(kneedyn.__file__); "
-                        "print(kneedyn.run(kneedyn.scene_path('chapter_impact'), 'dae-reduced').status)"],
+    # A sweep with out= writes sweep.h5 through the installed sweep I/O plugin (HDF5),
+    # found from the installed module (issue 12).
+    spec = os.path.join(OUT, "install_sweep_spec.yaml")
+    with open(spec, "w") as f:
+        f.write(SWEEP_SPEC.format(scene=os.path.abspath(CHAPTER)))
+    sweep_out = os.path.join(OUT, "install_sweep")
+    p = subprocess.run([sys.executable, "-c", "import kneedyn, sys; print(kneedyn.__file__); "
+                        "print(kneedyn.run(kneedyn.scene_path('chapter_impact'), 'dae-reduced').status); "
+                        "kneedyn.sweep(sys.argv[1], threads=1, out=sys.argv[2])", spec, sweep_out],
                        capture_output=True, text=True, env=env, cwd=prefix)
     assert p.returncode == 0, p.stderr
     assert p.stdout.split() == [os.path.join(site, "kneedyn", "__init__.py"), "completed"]
+    assert os.path.getsize(os.path.join(sweep_out, "sweep.h5")) > 0
 
 
 def test_report_runner_module_equals_subprocess(monkeypatch):

@@ -1,0 +1,69 @@
+# Issue 12: the kneedyn tools (kneedyn, kneedyn_catalog) link the static archives Debian
+# ships of their libraries — Ceres' dependencies (glog, gflags, SuiteSparse, CXSparse,
+# LAPACK/BLAS/ATLAS), SUNDIALS, yaml-cpp and libyaml — instead of the shared objects, so
+# that the dynamic loader maps and relocates 8 objects at start-up instead of 31
+# (benchmarks/README.md, "Start-up"). Everything else keeps the shared libraries: the
+# libraries' consumers (the installed CMake package, kneedyn.pc), the tests, the Python
+# module (a shared object, which cannot take these archives) and the Simbody cross-check.
+#
+# How: Ceres::ceres (already libceres.a) gets, first in its link interface and only for a
+# target whose property KNEEDYN_STATIC_TOOL is true, the archives in one linker group.
+# They come after libceres.a and the kneedyn libraries on the link line, so they resolve
+# every symbol those need; the shared libraries named later are then unused and, with
+# -Wl,--as-needed (Debian's GCC default, made explicit here), not recorded as DT_NEEDED.
+# SUNDIALS: the <package>_static twin of each SUNDIALS::<package>_shared the kneedyn
+# libraries link, whatever they are (ida or idas...). libgcc_s is recorded before
+# libunwind (which glog's archive needs): C++ exceptions keep GCC's unwinder, as when
+# libunwind came in behind libglog.so.
+#
+#   kneedyn_static_tool(<target>...)   after every kneedyn library is defined
+
+function(kneedyn_static_tool)
+  set(missing)
+  set(archives)
+  foreach(name glog gflags spqr cholmod amd camd ccolamd colamd suitesparseconfig cxsparse
+               lapack f77blas atlas blas cblas yaml-cpp yaml)
+    string(MAKE_C_IDENTIFIER "KNEEDYN_ARCHIVE_${name}" var)
+    find_library(${var} NAMES lib${name}.a)
+    if(${var})
+      list(APPEND archives ${${var}})
+    else()
+      list(APPEND missing lib${name}.a)
+    endif()
+  endforeach()
+  set(sundials)
+  foreach(lib kneedyn_solver kneedyn_scene kneedyn_formulations kneedyn_ensembles kneedyn_sensitivity)
+    if(TARGET ${lib})
+      get_target_property(deps ${lib} LINK_LIBRARIES)
+      foreach(dep IN LISTS deps)
+        if(dep MATCHES "^SUNDIALS::(.+)_shared$")
+          if(TARGET SUNDIALS::${CMAKE_MATCH_1}_static)
+            list(APPEND sundials "$<TARGET_FILE:SUNDIALS::${CMAKE_MATCH_1}_static>")
+          else()
+            list(APPEND missing SUNDIALS::${CMAKE_MATCH_1}_static)
+          endif()
+        endif()
+      endforeach()
+    endif()
+  endforeach()
+  list(REMOVE_DUPLICATES sundials)
+  find_library(KNEEDYN_RUNTIME_METIS NAMES metis libmetis.so.5)  # SuiteSparse: no -dev link
+  if(NOT KNEEDYN_RUNTIME_METIS)
+    list(APPEND missing libmetis)
+  endif()
+  if(missing)
+    message(STATUS "KNEEDYN_STATIC_TOOL: not found ${missing}; the kneedyn tools link the shared libraries")
+    return()
+  endif()
+  # Runtime libraries the archives need, shared: libgcc_s first (see above).
+  set(runtime "-Wl,--push-state,--no-as-needed" -lgcc_s "-Wl,--pop-state" -lunwind ${KNEEDYN_RUNTIME_METIS}
+              -lgomp -lgfortran -lpthread -lrt -ldl -lm)
+  set(static_link "-Wl,--as-needed" "-Wl,--start-group" ${archives} ${sundials} "-Wl,--end-group" ${runtime})
+  get_target_property(ceres_interface Ceres::ceres INTERFACE_LINK_LIBRARIES)
+  set_property(TARGET Ceres::ceres PROPERTY INTERFACE_LINK_LIBRARIES
+    "$<$<BOOL:$<TARGET_PROPERTY:KNEEDYN_STATIC_TOOL>>:${static_link}>" ${ceres_interface})
+  foreach(tool ${ARGN})
+    set_property(TARGET ${tool} PROPERTY KNEEDYN_STATIC_TOOL ON)
+  endforeach()
+  message(STATUS "KNEEDYN_STATIC_TOOL: ${ARGN} link static archives of Ceres' dependencies, SUNDIALS, yaml-cpp, libyaml")
+endfunction()

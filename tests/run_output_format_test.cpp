@@ -1,0 +1,173 @@
+// Issue 12: the numbers of trajectory.csv and trajectory.sto are formatted by std::to_chars
+// (FormatTrajectoryNumber) instead of snprintf("%.12g"). The files must stay byte-identical:
+//  - the formatter agrees with snprintf("%.12g") on special values, decade and rounding
+//    boundaries and 600,000 doubles of every magnitude (random bit patterns, and values of
+//    the ranges the columns hold);
+//  - the files WriteRunOutputs writes equal those of the snprintf writer they replaced, kept
+//    below verbatim as the oracle (formulations/run_output.cpp of 68610df), on several scenes
+//    and formulations, with separated contacts (empty CSV cells, NaN in the .sto) and a
+//    partial run (the PARTIAL header line).
+#include <gtest/gtest.h>
+
+#include <cfloat>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <sstream>
+
+#include "formulations/run.hpp"
+#include "formulations/run_output.hpp"
+#include "scene/scene.hpp"
+
+using namespace kneedyn;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string Printf12g(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.12g", v);
+  return buf;
+}
+
+std::string ToChars12g(double v) {
+  char buf[kTrajectoryNumberChars];
+  return std::string(buf, FormatTrajectoryNumber(v, buf));
+}
+
+// The writer before issue 12 (run_output.cpp, 68610df), verbatim but for returning strings.
+std::string OracleFormatDouble(double v) {
+  if (!std::isfinite(v)) return "";
+  char buf[40];
+  std::snprintf(buf, sizeof(buf), "%.12g", v);
+  return buf;
+}
+void OracleFiles(const Scene& scene, const RunSettings& settings, const RunResult& result, std::string* csv_text,
+                 std::string* sto_text) {
+  const TrajectoryTable table = MakeTrajectoryTable(scene, result);
+  std::ostringstream csv, sto;
+  for (size_t c = 0; c < table.columns.size(); ++c) csv << (c ? "," : "") << table.columns[c];
+  csv << "\n";
+  sto << "kneedyn_" << scene.name << "\nversion=1\nnRows=" << table.rows.size()
+      << "\nnColumns=" << table.columns.size() << "\ninDegrees=yes\n"
+      << "// lengths in mm, forces in N, angles in deg; formulation " << settings.formulation
+      << (result.completed ? "" : "; PARTIAL: solver failed") << "\nendheader\n";
+  for (size_t c = 0; c < table.columns.size(); ++c) {
+    sto << (c ? "\t" : "") << (c == 0 ? std::string("time") : table.columns[c]);
+  }
+  sto << "\n";
+  for (const auto& row : table.rows) {
+    for (size_t c = 0; c < row.size(); ++c) {
+      csv << (c ? "," : "") << OracleFormatDouble(row[c]);
+      sto << (c ? "\t" : "") << (std::isfinite(row[c]) ? OracleFormatDouble(row[c]) : "NaN");
+    }
+    csv << "\n";
+    sto << "\n";
+  }
+  *csv_text = csv.str();
+  *sto_text = sto.str();
+}
+
+std::string Slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+TEST(TrajectoryNumber, SpecialAndBoundaryValuesAsPrintf) {
+  std::vector<double> values = {0.0, -0.0, 1.0, -1.0, 0.1, 0.5, 1.5, 2.5, 1e-5, 1e-4, 9.99999999999e-5,
+                                9.999999999995e-5, 0.0001, 0.00012345678901234, 123456789012.0,
+                                999999999999.0, 999999999999.5, 1e12, 1e15, 1e16, 1e17, 1e22, 1e100,
+                                DBL_MAX, -DBL_MAX, DBL_MIN, -DBL_MIN, DBL_TRUE_MIN, 4.9406564584124654e-324,
+                                2.2250738585072009e-308, 1.0 / 3.0, 2.0 / 3.0, M_PI, 1e-300, 123.456,
+                                0.30000000000000004, 5e-324, 1.00000000000050, 1.0000000000005,
+                                0.15000000000000002, 6.02214076e23, 90.0, -90.0, 180.0};
+  for (int e = -320; e <= 308; ++e) {
+    const double p = std::pow(10.0, e);
+    for (double v : {p, std::nextafter(p, 0.0), std::nextafter(p, INFINITY), 5.0 * p, 9.9999999999950 * p,
+                     9.9999999999949 * p, 1.2345678901245 * p}) {
+      values.push_back(v);
+      values.push_back(-v);
+    }
+  }
+  for (double v : values) {
+    if (!std::isfinite(v)) continue;
+    EXPECT_EQ(ToChars12g(v), Printf12g(v)) << "bits of v: " << std::hexfloat << v;
+  }
+}
+
+TEST(TrajectoryNumber, RandomDoublesOfEveryMagnitudeAsPrintf) {
+  std::mt19937_64 rng(20261125);
+  long mismatches = 0;
+  for (int i = 0; i < 400000; ++i) {
+    const uint64_t bits = rng();
+    double v;
+    std::memcpy(&v, &bits, sizeof v);
+    if (!std::isfinite(v)) continue;
+    if (ToChars12g(v) != Printf12g(v) && ++mismatches <= 5) {
+      ADD_FAILURE() << std::hexfloat << v << ": to_chars " << ToChars12g(v) << ", printf " << Printf12g(v);
+    }
+  }
+  // The columns' own ranges: angles, mm, N, strains, times; values with few digits.
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::uniform_int_distribution<int> decade(-12, 6);
+  for (int i = 0; i < 200000; ++i) {
+    double v = unit(rng) * std::pow(10.0, decade(rng));
+    if (i % 4 == 0) v = std::round(v * 1e6) / 1e6;  // short decimals: ties and trailing zeros
+    if (ToChars12g(v) != Printf12g(v) && ++mismatches <= 5) {
+      ADD_FAILURE() << std::hexfloat << v << ": to_chars " << ToChars12g(v) << ", printf " << Printf12g(v);
+    }
+  }
+  EXPECT_EQ(mismatches, 0);
+}
+
+TEST(TrajectoryFiles, ByteIdenticalToTheSnprintfWriter) {
+  struct Case {
+    const char* scene;
+    const char* formulation;
+    long max_steps;  // > 0: a budget that stops the run (partial)
+  };
+  const Case cases[] = {
+      {"reference-data/scenes/chapter_impact.yaml", "dae", 0},
+      {"reference-data/scenes/chapter_impact.yaml", "ede", 0},
+      {"reference-data/scenes/hard/lateral_pulse_recontact.yaml", "dae-reduced", 0},  // separations
+      {"reference-data/scenes/no_contact.yaml", "mde", 0},
+      {"reference-data/scenes/one_ligament.yaml", "newmark", 0},
+      {"reference-data/scenes/chapter_impact.yaml", "dae", 10},  // partial (its first row)
+  };
+  const fs::path work = fs::temp_directory_path() / "kneedyn_run_output_format_test";
+  fs::remove_all(work);
+  fs::create_directories(work);
+  int with_empty_cells = 0, partial = 0, index = 0;
+  for (const Case& c : cases) {
+    SCOPED_TRACE(std::string(c.scene) + " with " + c.formulation);
+    const Scene scene = LoadScene(c.scene);
+    RunSettings settings;
+    settings.formulation = c.formulation;
+    settings.options.rtol = 1e-6;
+    settings.options.atol = 1e-8;
+    if (c.max_steps > 0) settings.options.max_steps = c.max_steps;
+    const RunResult result = RunScene(scene, settings);
+    EXPECT_EQ(result.completed, c.max_steps == 0) << result.failure;
+    partial += !result.completed;
+    const fs::path out = work / std::to_string(index++);
+    WriteRunOutputs(out.string(), scene, settings, result);
+    std::string csv, sto;
+    OracleFiles(scene, settings, result, &csv, &sto);
+    EXPECT_GE(result.samples.size(), c.max_steps > 0 ? 1u : 3u);
+    EXPECT_EQ(Slurp(out / "trajectory.csv"), csv);
+    EXPECT_EQ(Slurp(out / "trajectory.sto"), sto);
+    with_empty_cells += csv.find(",,") != std::string::npos && sto.find("\tNaN") != std::string::npos;
+  }
+  // The cases cover what they claim: cells of separated contacts and a partial run.
+  EXPECT_GE(with_empty_cells, 1);
+  EXPECT_EQ(partial, 1);
+  fs::remove_all(work);
+}

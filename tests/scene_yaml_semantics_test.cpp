@@ -1,0 +1,119 @@
+// Issue 12: the scene loader parses with libyaml instead of yaml-cpp (scene/scene.cpp). What
+// it accepts must not change: for numbers, booleans, nulls and strings in many spellings,
+// the loader's verdict (accepted with the same value, or refused with the same rule) is
+// the one yaml-cpp — the previous parser, used here as the oracle — gives for the same
+// scalar (Node type, convert<double>, convert<bool>).
+#include <gtest/gtest.h>
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "scene/scene.hpp"
+#include "solver/error.hpp"
+
+namespace kneedyn {
+namespace {
+
+std::string SceneText(const std::string& name, const std::string& enabled, const std::string& scale) {
+  return "name: " + name + "\nparameter_set: ../chapter_knee.yaml\nligaments: all\ncontacts: [medial, lateral]\n"
+         "gravity: {enabled: " + enabled + "}\nligament_stiffness_scale: " + scale + "\n"
+         "pulse: {shape: reconstructed, amplitude_N: 100.0, duration_s: 0.1}\ninitial_state: {pose: reference}\n"
+         "end: {flexion_deg: 90.0, time_s: 2.0}\n";
+}
+
+// The loader's verdict: "" when accepted (and *scene filled), else the message.
+std::string Verdict(const std::string& text, Scene* scene) {
+  try {
+    *scene = ParseScene(text, "semantics.yaml", ReferenceDataDir() + "/scenes");
+    return "";
+  } catch (const InputError& e) {
+    return e.what();
+  }
+}
+
+// yaml-cpp's view of `value` as the scalar of a mapping entry.
+YAML::Node Oracle(const std::string& value) { return YAML::Load("v: " + value)["v"]; }
+
+const std::vector<std::string> kNumbers = {
+    "1", "1.0", "+1", "-0", ".5", "5.", "2e0", "1E+2", "1e-2", "1e", "e3", "0x10", "0o7", "1_000", "1,5", "'2.5'",
+    "\"2.5\"", "\" 3\"", "\"4 \"", "4 # comment", ".inf", "+.INF", "-.Inf", ".NaN", ".nan", "inf", "nan", "~",
+    "null", "NULL", "''", "1e999", "1e-400", "0.001", "1000", "1000.0000001", "[1]", "{a: 1}", "1:2", "true",
+    "2.5.1", "--1", "1e+", "+-1", "007", "1.5e1", "'1e1'", "!!float 2", "!!str 3"};
+
+TEST(SceneYamlSemantics, NumbersAsYamlCpp) {
+  Scene base;
+  ASSERT_EQ(Verdict(SceneText("base", "true", "1.0"), &base), "");
+  for (const std::string& s : kNumbers) {
+    SCOPED_TRACE("ligament_stiffness_scale: " + s);
+    Scene scene;
+    const std::string verdict = Verdict(SceneText("n", "true", s), &scene);
+    const YAML::Node n = Oracle(s);
+    double v = 0.0;
+    if (!n.IsScalar()) {
+      EXPECT_NE(verdict.find("must be a number"), std::string::npos) << verdict;
+    } else if (!YAML::convert<double>::decode(n, v)) {
+      EXPECT_NE(verdict.find("must be a number"), std::string::npos) << verdict;
+    } else if (!std::isfinite(v)) {
+      EXPECT_NE(verdict.find("must be finite"), std::string::npos) << verdict;
+    } else if (!(v >= 1e-3 && v <= 1e3)) {
+      EXPECT_NE(verdict.find("must lie in"), std::string::npos) << verdict;
+    } else {
+      ASSERT_EQ(verdict, "");
+      EXPECT_EQ(scene.model.ligaments[0].k_linear, base.model.ligaments[0].k_linear * v);
+    }
+  }
+}
+
+TEST(SceneYamlSemantics, BooleansAsYamlCpp) {
+  for (const std::string& s : {"true", "True", "TRUE", "tRue", "yes", "Yes", "YES", "y", "Y", "on", "On", "ON", "oN",
+                               "false", "False", "no", "n", "N", "off", "OFF", "Off", "1", "0", "'true'", "\"no\"",
+                               "~", "''", "t", "nO", "[true]"}) {
+    SCOPED_TRACE(std::string("gravity.enabled: ") + s);
+    Scene scene;
+    const std::string verdict = Verdict(SceneText("b", s, "1.0"), &scene);
+    const YAML::Node n = Oracle(s);
+    bool b = false;
+    if (!n.IsScalar() || !YAML::convert<bool>::decode(n, b)) {
+      EXPECT_NE(verdict.find("must be true or false"), std::string::npos) << verdict;
+    } else {
+      ASSERT_EQ(verdict, "");
+      EXPECT_EQ(scene.model.gravity_F.norm() > 0.0, b);
+    }
+  }
+}
+
+TEST(SceneYamlSemantics, NullsAndStringsAsYamlCpp) {
+  for (const std::string& s : {"abc", "~", "null", "Null", "NULL", "nUll", "''", "\"~\"", "'null'", "\"a b\"",
+                               "a.b-c_d", "\"\"", "[a]", "{a: b}", "&x abc", "abc # c"}) {
+    SCOPED_TRACE(std::string("name: ") + s);
+    Scene scene;
+    const std::string verdict = Verdict(SceneText(s, "true", "1.0"), &scene);
+    const YAML::Node n = Oracle(s);
+    if (!n.IsScalar()) {
+      EXPECT_NE(verdict.find("must be a string"), std::string::npos) << verdict;
+    } else if (verdict.empty()) {
+      EXPECT_EQ(scene.name, n.Scalar());
+    } else {  // a scalar refused: only by the name rule
+      EXPECT_NE(verdict.find("must be a name"), std::string::npos) << verdict;
+      EXPECT_NE(verdict.find("field 'name' = '" + n.Scalar() + "'"), std::string::npos) << verdict;
+    }
+  }
+}
+
+// Aliases name the node of their anchor, as in yaml-cpp.
+TEST(SceneYamlSemantics, AliasesAreTheirAnchorsValue) {
+  Scene scene;
+  const std::string text =
+      "name: alias\nparameter_set: ../chapter_knee.yaml\nligaments: all\ncontacts: [medial, lateral]\n"
+      "gravity: {enabled: true}\npulse: {shape: reconstructed, amplitude_N: &a 120.0, duration_s: 0.1}\n"
+      "constant_load: {force_F_N: [*a, 0, 0]}\ninitial_state: {pose: reference}\nend: {flexion_deg: 90.0}\n";
+  ASSERT_EQ(Verdict(text, &scene), "");
+  EXPECT_EQ(scene.model.pulse.amplitude, 120.0);
+  EXPECT_EQ(scene.model.constant_load.force_F.x(), 120.0);
+}
+
+}  // namespace
+}  // namespace kneedyn
