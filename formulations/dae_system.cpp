@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include <Eigen/LU>
+
 #include "solver/newton_euler_jacobian.hpp"
 
 namespace kneedyn {
@@ -33,7 +35,6 @@ void DaeSystem::SetPhase(const std::vector<int>& active, const std::vector<Conta
   yj_.assign(n_, JetD(0.0));
   ypj_.assign(n_, JetD(0.0));
   Fj_.assign(n_, JetD(0.0));
-  dF_dy_.assign(static_cast<size_t>(n_) * n_, 0.0);
 }
 
 std::string DaeSystem::UnknownName(int i) const {
@@ -63,21 +64,25 @@ void DaeSystem::InitialValues(const MechanicalState& state, double* y, double* y
   }
   if (per_contact_ == 0) return;
   // ċ: ∂g/∂c ċ = −∂g/∂q q̇ for the four contact-coordinate rows g of each contact (x, y of
-  // Eqs. 1.8 and 1.13), from ∂F/∂y (cj = 0).
-  if (!Jacobian(state.t, 0.0, y, yp, dF_dy_.data())) return;
-  const Eigen::Map<const MatrixXd> J(dF_dy_.data(), n_, n_);
+  // Eqs. 1.8 and 1.13), differentiated alone (a Jet of 10 over (q, c_i)).
+  const Vector6d q = Eigen::Map<const Vector6d>(y);
+  const PoseTpl<ContactJet> pose = PoseWithCoordinateDerivatives<kContactJetSize>(q);
   for (int c = 0; c < k_; ++c) {
-    const int row0 = FirstContactRow(c);
     const int col0 = CoordinateIndex(c);
-    const int plain_rows[4] = {row0, row0 + 1, row0 + 3, row0 + 4};
-    const int ggl_rows[4] = {row0, row0 + 1, row0 + 2, row0 + 3};
-    const int* rows = ggl_ ? ggl_rows : plain_rows;
+    ContactJet coords[4], r[5];
+    for (int j = 0; j < 4; ++j) coords[j] = ContactJet(y[col0 + j], 6 + j);
+    if (!ChapterContactResiduals(model_->contacts[active_[c]], pose, coords, r,
+                                 static_cast<ContactGeometryTpl<ContactJet>*>(nullptr), chart_[c])) {
+      return;
+    }
+    const int rows[4] = {0, 1, 3, 4};  // residual entries: x, y of Eq. 1.8; x, y of Eq. 1.13
     Eigen::Matrix4d A;
     Eigen::Vector4d b;
-    for (int r = 0; r < 4; ++r) {
-      b(r) = 0.0;
-      for (int i = 0; i < 6; ++i) b(r) -= J(rows[r], i) * yp[i];
-      for (int j = 0; j < 4; ++j) A(r, j) = J(rows[r], col0 + j);
+    for (int i = 0; i < 4; ++i) {
+      const ContactJet& g = r[rows[i]];
+      b(i) = 0.0;
+      for (int j = 0; j < 6; ++j) b(i) -= g.v[j] * yp[j];
+      for (int j = 0; j < 4; ++j) A(i, j) = g.v[6 + j];
     }
     const Eigen::Vector4d cd = A.fullPivLu().solve(b);
     for (int j = 0; j < 4; ++j) yp[col0 + j] = cd(j);

@@ -90,7 +90,6 @@ class DaeSystem {
   mutable Data data_;
   mutable DataTpl<JetD> data_jet_;
   mutable std::vector<JetD> yj_, ypj_, Fj_;
-  mutable std::vector<double> dF_dy_;  // column-major n×n, InitialValues
 };
 
 template <typename T>

@@ -68,6 +68,7 @@
 
 #include "formulations/dae_system.hpp"
 #include "formulations/ida_phase.hpp"
+#include "formulations/sundials_kernels.hpp"
 #include "formulations/sundials_util.hpp"
 #include "sensitivity/sensitivity_problem.hpp"
 #include "solver/consistent_init.hpp"
@@ -317,8 +318,8 @@ void DaeSensitivity::FreePhase() {
 void DaeSensitivity::StartPhase(double t, const std::vector<std::vector<double>>& s,
                                 const std::vector<std::vector<double>>& sdot) {
   const int k = static_cast<int>(mode_.active.size());
-  N_Vector id = N_VNew_Serial(n_, ctx_);
-  N_Vector atol = N_VNew_Serial(n_, ctx_);
+  N_Vector id = NewSerialVector(n_, ctx_);
+  N_Vector atol = NewSerialVector(n_, ctx_);
   // Absolute tolerances of the unknowns (dae.cpp, dae_ggl.cpp) and the row scale of the
   // sensitivities' (per unit atol).
   std::vector<double> scale(n_, 1.0);
@@ -555,8 +556,8 @@ void DaeSensitivity::Run(SensitivityResult* result) {
     have_partials_ = false;
 
     FreePhase();
-    ida_.y = N_VNew_Serial(n_, ctx_);
-    ida_.yp = N_VNew_Serial(n_, ctx_);
+    ida_.y = NewSerialVector(n_, ctx_);
+    ida_.yp = NewSerialVector(n_, ctx_);
     double* y = NvData(ida_.y);
     double* yp = NvData(ida_.yp);
     system_.InitialValues(state, y, yp);

@@ -11,6 +11,7 @@
 #include <set>
 
 #include "ensembles/sweep.hpp"
+#include "formulations/sundials_kernels.hpp"
 #include "formulations/sundials_util.hpp"
 #include "sensitivity/sensitivity_problem.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -369,7 +370,7 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
     bank();
     cv.Free();
     cv.mode = &mode;
-    cv.y = N_VNew_Serial(kN, ctx);
+    cv.y = NewSerialVector(kN, ctx);
     for (int i = 0; i < kN; ++i) NvData(cv.y)[i] = y(i);
     cv.mem = CVodeCreate(CV_BDF, ctx);
     if (!cv.mem) Throw<SolverError>("RunSensitivity", "CVodeCreate failed");
@@ -381,7 +382,7 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
     cv.Check(CVodeSetStopTime(cv.mem, t_end), "CVodeSetStopTime");
     if (last_h > 0.0) cv.Check(CVodeSetInitStep(cv.mem, 0.25 * last_h), "CVodeSetInitStep");
     cv.A = SUNDenseMatrix(kN, kN, ctx);
-    cv.LS = SUNLinSol_Dense(cv.y, cv.A, ctx);
+    cv.LS = NewDenseLinearSolver(cv.y, cv.A, ctx);
     cv.Check(CVodeSetLinearSolver(cv.mem, cv.LS, cv.A), "CVodeSetLinearSolver");
     const int n_events = static_cast<int>(mode.events.size());
     const int n_roots = n_events + static_cast<int>(problem.peaks().size());

@@ -118,6 +118,41 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"anatomical", ContactForm::kClosedForm, ConstraintLevel::kVelocity, true, true}),
     [](const ::testing::TestParamInfo<Case>& info) { return CaseName(info.param); });
 
+// InitialValues' contact-coordinate rates ċ keep the contact-coordinate rows (x, y of Eqs.
+// 1.8 and 1.13) stationary along (q̇, ċ): the rows' derivative along ẏ, from the Jet<24>
+// Jacobian (an independent path), vanishes at a consistent state.
+TEST(DaeSystem, InitialContactCoordinateRatesKeepTheRowsStationary) {
+  const Scene& scene = ChapterScene();
+  for (const Scene* sc : {&scene, &AnatomicalScene()}) {
+    MechanicalState s = ConsistentInitialize(sc->model, sc->initial, {0, 1}, ConsistentInitOptions{}, nullptr);
+    s.qd << 0.01, -0.03, 0.02, 2.0, -0.3, 0.5;  // moving (the rows need not vanish in y)
+    s.ligament_branch = LigamentBranchesAt(sc->model, s.q, s.qd);
+    for (bool ggl : {false, true}) {
+      DaeSystem system(sc->model, ContactForm::kChapter, ConstraintLevel::kVelocity, ggl);
+      system.SetPhase(s.active, s.contact, s.ligament_branch);
+      const int n = system.size();
+      std::vector<double> y(n), yp(n), J(n * n);
+      system.InitialValues(s, y.data(), yp.data());
+      ASSERT_TRUE(system.JacobianByJets(s.t, 0.0, y.data(), yp.data(), J.data()));
+      for (int c = 0; c < 2; ++c) {
+        const int row0 = system.FirstContactRow(c);
+        const std::vector<int> rows = ggl ? std::vector<int>{row0, row0 + 1, row0 + 2, row0 + 3}
+                                          : std::vector<int>{row0, row0 + 1, row0 + 3, row0 + 4};
+        for (int r : rows) {
+          double rate = 0.0, scale = 0.0;
+          for (int j = 0; j < system.NormalIndex(0); ++j) {
+            if (j >= 6 && j < 12) continue;  // the rows read q and c only
+            rate += J[r + n * j] * yp[j];
+            scale += std::abs(J[r + n * j] * yp[j]);
+          }
+          EXPECT_LE(std::abs(rate), 1e-12 * (1.0 + scale)) << "row " << r << (ggl ? " (GGL)" : "");
+          EXPECT_GT(scale, 1e-6) << "the state does not move the row: the check would be empty";
+        }
+      }
+    }
+  }
+}
+
 // The free Newton–Euler partials against central differences of the double residual
 // NewtonEulerResidual with no contact (k = 0): independent of any Jet.
 TEST(FreeNewtonEulerPartials, MatchCentralDifferences) {
