@@ -114,6 +114,15 @@ nlohmann::json StatsJson(const SolverStats& s) {
 
 namespace {
 
+// The Newton matrix the run used (--jacobian; exact when not given), or null for a
+// formulation that forms none of its own (FormulationInfo::jacobians empty).
+nlohmann::json JacobianSetting(const RunSettings& settings) {
+  const FormulationInfo& info = FindFormulation(settings.formulation);
+  if (info.jacobians.empty()) return nullptr;
+  return settings.options.jacobian.empty() ? std::string("exact") : settings.options.jacobian;
+}
+
+
 nlohmann::json LevelJson(const InitLevelReport& r) {
   return {{"residual_before", r.residual_before}, {"residual_after", r.residual_after},
           {"iterations", r.iterations}};
@@ -248,6 +257,7 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
                    {"requested", {{"integrator", o.integrator}, {"step_s", o.step}}},
                    {"max_step_s", o.max_step},
                    {"stabilization", o.stabilization}, {"constraint_level", o.constraint_level},
+                   {"jacobian", JacobianSetting(settings)},
                    {"output_interval_s", settings.output_interval > 0 ? settings.output_interval : scene.output_interval}};
   const InitReport& ir = result.init;
   nlohmann::json forces_guess = nlohmann::json::object(), forces = nlohmann::json::object();

@@ -238,6 +238,7 @@ PYBIND11_MODULE(_kneedyn, m) {
     d["max_steps"] = o.max_steps;
     d["stabilization"] = o.stabilization;
     d["constraint_level"] = o.constraint_level;
+    d["jacobian"] = o.jacobian;
     d["default_fixed_step"] = kDefaultFixedStep;
     return d;
   });
@@ -245,7 +246,7 @@ PYBIND11_MODULE(_kneedyn, m) {
   m.def("run", [](std::shared_ptr<Scene> scene, const std::string& formulation, double rtol, double atol,
                   const std::string& integrator, double step, double max_step, long max_steps,
                   const std::string& stabilization, const std::string& constraint_level,
-                  double output_interval, const std::string& out_dir) {
+                  const std::string& jacobian, double output_interval, const std::string& out_dir) {
     RunSettings settings;
     settings.formulation = formulation;
     settings.options.rtol = rtol;
@@ -256,6 +257,7 @@ PYBIND11_MODULE(_kneedyn, m) {
     settings.options.max_steps = max_steps;
     settings.options.stabilization = stabilization;
     settings.options.constraint_level = constraint_level;
+    settings.options.jacobian = jacobian;
     settings.output_interval = output_interval;
     auto out = std::make_shared<RunOutput>();
     {
@@ -280,7 +282,7 @@ PYBIND11_MODULE(_kneedyn, m) {
     return d;
   }, py::arg("scene"), py::arg("formulation"), py::arg("rtol"), py::arg("atol"), py::arg("integrator"),
      py::arg("step"), py::arg("max_step"), py::arg("max_steps"), py::arg("stabilization"),
-     py::arg("constraint_level"), py::arg("output_interval"), py::arg("out_dir") = "",
+     py::arg("constraint_level"), py::arg("jacobian"), py::arg("output_interval"), py::arg("out_dir") = "",
      "RunScene + MakeTrajectoryTable + SummaryJson (+ WriteRunOutputs into out_dir) without the GIL");
 
   // The sweep API of ensembles/ (issue 14): the same spec, design, runs and result files as

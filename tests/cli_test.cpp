@@ -212,6 +212,27 @@ TEST_F(CliTest, NanRtolIsRefusedWithoutOutput) {
   ExpectRefused("run '" + ChapterScenePath() + "' --rtol nan --quiet --out '" + Out() + "'", {"rtol", "nan"});
 }
 
+// --jacobian (issue 12 item 1): an unknown value and a formulation without a Newton matrix
+// of its own are refused (exit 2, nothing written); the choice is recorded in summary.json.
+TEST_F(CliTest, JacobianOptionIsCheckedAndRecorded) {
+  ExpectRefused("run '" + ChapterScenePath() + "' --jacobian symbolic --quiet --out '" + Out() + "'",
+                {"--jacobian", "symbolic"});
+  ExpectRefused("run '" + ChapterScenePath() + "' --formulation ede --jacobian jet --quiet --out '" + Out() + "'",
+                {"--jacobian", "jet", "ede"});
+  for (const char* jacobian : {"jet", "difference-quotient"}) {
+    fs::remove_all(Out());
+    const CommandResult r = RunKneedyn("run '" + ChapterScenePath() + "' --formulation dae-reduced --jacobian " +
+                                       jacobian + " --quiet --out '" + Out() + "'");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const nlohmann::json j = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
+    EXPECT_EQ(j.at("settings").at("jacobian"), jacobian);
+  }
+  fs::remove_all(Out());
+  const CommandResult r = RunKneedyn("run '" + ChapterScenePath() + "' --formulation mde --quiet --out '" + Out() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json")).at("settings").at("jacobian").is_null());
+}
+
 TEST_F(CliTest, MalformedSceneIsRefusedWithoutOutput) {
   std::string text = ReadText(ChapterScenePath());
   const std::string from = "amplitude_N: 100.0";

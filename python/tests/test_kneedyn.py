@@ -38,6 +38,7 @@ CASES = [
     ("newmark", dict(step=2e-4)),
     ("mde", dict(integrator="dopri5", rtol=1e-7, atol=1e-9)),
     ("ede", dict(integrator="cvode-bdf", stabilization="projection")),
+    ("dae-reduced", dict(rtol=1e-8, atol=1e-10, jacobian="jet")),
 ]
 
 
