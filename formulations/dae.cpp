@@ -21,7 +21,8 @@
 // y = (q, u, N_i), n = 12 + k, constraint φ̇_i = 0 (or φ_i = 0 at position level).
 //
 // The system itself (unknowns, residual rows, exact Jacobian) is formulations/dae_system.hpp,
-// shared with dae-ggl and the IDAS sensitivities.
+// shared with dae-ggl and the IDAS sensitivities. The IDA driver below (DaeOnIda) serves
+// dae, dae-reduced and, with the GGL variant of dae_ggl.cpp, dae-ggl and dae-ggl-reduced.
 //
 // IDA settings: IDASetId (q, u differential; c, N algebraic) with IDASetSuppressAlg, so
 // the index-2 algebraic variables are excluded from the error test; dense Jacobian
@@ -34,10 +35,11 @@
 #include <sunlinsol/sunlinsol_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <memory>
 
+#include "formulations/dae_on_ida.hpp"
 #include "formulations/dae_system.hpp"
 #include "formulations/dae_testing.hpp"
 #include "formulations/formulation_base.hpp"
@@ -45,32 +47,33 @@
 #include "formulations/sundials_kernels.hpp"
 #include "formulations/sundials_util.hpp"
 #include "solver/dynamics.hpp"
-#include "solver/newton_euler.hpp"
 
 namespace kneedyn {
 namespace {
 
-// Absolute tolerance of the normal forces per unit --atol (N per SI unit of the states).
-constexpr double kForceAtolScale = 1.0e4;
-
-class DaeFormulation final : public FormulationBase {
+class DaeOnIda final : public FormulationBase {
  public:
-  DaeFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
+  DaeOnIda(const Scene& scene, const FormulationOptions& options, ContactForm form, const DaeOnIdaVariant& variant)
       : FormulationBase(scene),
         options_(options),
         parsed_(options.Parsed()),
         form_(form),
-        system_(model_, form, parsed_.constraint_level, /*ggl=*/false) {
+        variant_(variant),
+        system_(model_, form, parsed_.constraint_level, variant.ggl) {
     if (options.step != 0.0) {
-      Throw<InputError>("DaeFormulation", "--step = ", options.step,
-                        " s: the IDA formulations choose their own steps; use --max-step");
+      Throw<InputError>(variant_.name, "--step = ", options.step, " s: ", variant_.name,
+                        " chooses its own steps (IDA); use --max-step");
     }
     if (parsed_.stabilization != Stabilization::kNone) {
-      Throw<InputError>("DaeFormulation", "--stabilization = '", options.stabilization,
-                        "' applies to ede only");
+      Throw<InputError>(variant_.name, "--stabilization = '", options.stabilization, "' applies to ede only",
+                        variant_.ggl ? " (GGL enforces both constraint levels)" : "");
+    }
+    if (variant_.ggl && parsed_.constraint_level != ConstraintLevel::kVelocity) {
+      Throw<InputError>(variant_.name, "--constraint-level = '", options.constraint_level, "': ", variant_.name,
+                        " always enforces position and velocity level; leave the default");
     }
   }
-  ~DaeFormulation() override { Free(); }
+  ~DaeOnIda() override { Free(); }
 
   ContactForm contact_form() const override { return form_; }
 
@@ -79,6 +82,7 @@ class DaeFormulation final : public FormulationBase {
     BeginPhase(state, events);
     system_.SetPhase(active_, state.contact, ligament_branch_);
     n_ = system_.size();
+    const int k = static_cast<int>(active_.size());
     normal_.assign(model_.contacts.size(), 0.0);
     root_flags_.assign(events_.size(), 0);
 
@@ -89,20 +93,24 @@ class DaeFormulation final : public FormulationBase {
     t_ = state.t;
     N_Vector id = NewSerialVector(n_, ctx_);
     N_Vector atol = NewSerialVector(n_, ctx_);
-    system_.InitialValues(state, NvData(ida_.y), NvData(ida_.yp));
+    system_.InitialValues(state, NvData(ida_.y), NvData(ida_.yp));  // μ = 0 on the exact solution
     double* idp = NvData(id);
     double* at = NvData(atol);
     for (int i = 0; i < n_; ++i) {
       idp[i] = system_.IsDifferential(i) ? 1.0 : 0.0;
-      // Index-2 multipliers N (newtons) carry round-off of order ε/h² in Newton corrections;
-      // they are excluded from the error test and get a force-scaled absolute tolerance
-      // in the Newton convergence test (kForceAtolScale N per unit atol).
-      at[i] = i >= system_.NormalIndex(0) ? options_.atol * kForceAtolScale : options_.atol;
+      // Index-2 multipliers N (newtons) and μ carry round-off of order ε/h² in Newton
+      // corrections; they are excluded from the error test and get scaled absolute
+      // tolerances in the Newton test (DaeOnIdaVariant: units per unit --atol, floors).
+      const bool force = k > 0 && i >= system_.NormalIndex(0) && i < system_.NormalIndex(k);
+      const bool mu = variant_.ggl && k > 0 && i >= system_.MuIndex(0);
+      at[i] = force ? std::max(variant_.force_atol_floor, options_.atol * variant_.force_atol_scale)
+              : mu  ? std::max(variant_.mu_atol_floor, options_.atol * variant_.mu_atol_scale)
+                    : options_.atol;
     }
-    ida_.Start(ctx_, n_, &DaeFormulation::Residual,
-               parsed_.jacobian == JacobianKind::kDifferenceQuotient ? nullptr : &DaeFormulation::Jacobian,
-               &DaeFormulation::Roots, this, state.t, atol, id, options_, scene_.end.time, events_,
-               "DaeFormulation::Start", &sundials_messages_);
+    ida_.Start(ctx_, n_, &DaeOnIda::Residual,
+               parsed_.jacobian == JacobianKind::kDifferenceQuotient ? nullptr : &DaeOnIda::Jacobian,
+               &DaeOnIda::Roots, this, state.t, atol, id, options_, scene_.end.time, events_, variant_.name,
+               &sundials_messages_);
     N_VDestroy(id);
     N_VDestroy(atol);
     ++finished_phases_.restarts;
@@ -131,6 +139,9 @@ class DaeFormulation final : public FormulationBase {
   AdvanceResult Advance(double t_out, MechanicalState* state) override {
     double t_reached = state->t;
     failure_.clear();
+    // GGL stops at t_out instead of interpolating to it: outputs are step values, on which
+    // the position and velocity constraints hold to the Newton tolerance.
+    if (variant_.stop_at_outputs) Check(IDASetStopTime(ida_.mem, std::min(t_out, scene_.end.time)), "IDASetStopTime");
     const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
     AdvanceResult result;
     if (flag < 0) {
@@ -140,9 +151,9 @@ class DaeFormulation final : public FormulationBase {
       char* name = IDAGetReturnFlagName(flag);
       const std::string text = name ? name : "?";
       free(name);
-      Throw<SolverError>("IDASolve", text, " at t = ", t_cur, " s with step h = ", h, " s",
-                         failure_.empty() ? "" : " (" + failure_ + ")", LargestErrorComponent(),
-                         sundials_messages_.Take());
+      Throw<SolverError>(variant_.ggl ? "IDASolve (dae-ggl)" : "IDASolve", text, " at t = ", t_cur,
+                         " s with step h = ", h, " s", failure_.empty() ? "" : " (" + failure_ + ")",
+                         LargestErrorComponent(), sundials_messages_.Take());
     }
     t_ = t_reached;
     const double* y = NvData(ida_.y);
@@ -159,7 +170,9 @@ class DaeFormulation final : public FormulationBase {
 
   std::string integrator() const override { return "ida"; }  // variable-order BDF, adaptive
 
-  SolverStats PhaseStats() const override { return ida_.mem != nullptr ? CurrentStats() : SolverStats(); }
+  SolverStats PhaseStats() const override {
+    return ida_.mem != nullptr ? IdaStatistics(ida_.mem, !events_.empty()) : SolverStats();
+  }
 
   // The residual, Jacobian (cj = 1e4 1/s) and root callbacks IDA calls, at the current y, ẏ.
   bool EvaluateHotPathForTesting(int n) override {
@@ -172,11 +185,9 @@ class DaeFormulation final : public FormulationBase {
     return true;
   }
 
-  const DaeSystem& system() const { return system_; }
-
  private:
   static int Residual(double t, N_Vector yy, N_Vector yp, N_Vector rr, void* user) {
-    auto* self = static_cast<DaeFormulation*>(user);
+    auto* self = static_cast<DaeOnIda*>(user);
     try {
       return self->system_.Residual(t, NvData(yy), NvData(yp), NvData(rr)) ? 0 : 1;
     } catch (const std::exception& e) {
@@ -188,7 +199,7 @@ class DaeFormulation final : public FormulationBase {
   // dF/dy + cj dF/dẏ straight into IDA's column-major dense matrix.
   static int Jacobian(double t, double cj, N_Vector yy, N_Vector yp, N_Vector, SUNMatrix JJ,
                       void* user, N_Vector, N_Vector, N_Vector) {
-    auto* self = static_cast<DaeFormulation*>(user);
+    auto* self = static_cast<DaeOnIda*>(user);
     try {
       double* J = SUNDenseMatrix_Data(JJ);
       const bool ok = self->parsed_.jacobian == JacobianKind::kJet
@@ -202,7 +213,7 @@ class DaeFormulation final : public FormulationBase {
   }
 
   static int Roots(double, N_Vector yy, N_Vector, double* g, void* user) {
-    auto* self = static_cast<DaeFormulation*>(user);
+    auto* self = static_cast<DaeOnIda*>(user);
     try {
       const double* y = NvData(yy);
       Vector6d q;
@@ -220,10 +231,8 @@ class DaeFormulation final : public FormulationBase {
   }
 
   void Check(int flag, const char* call) {
-    CheckSundials(flag, call, "DaeFormulation", IDAGetReturnFlagName, &sundials_messages_);
+    CheckSundials(flag, call, variant_.name, IDAGetReturnFlagName, &sundials_messages_);
   }
-
-  SolverStats CurrentStats() const { return IdaStatistics(ida_.mem, !events_.empty()); }
 
   void Free() {
     ida_.Free(&finished_phases_, !events_.empty());
@@ -233,6 +242,7 @@ class DaeFormulation final : public FormulationBase {
   FormulationOptions options_;
   ParsedFormulationOptions parsed_;
   ContactForm form_;
+  DaeOnIdaVariant variant_;
   SundialsContext ctx_;
   DaeSystem system_;  // unknowns, residual, Jacobian (dae_system.hpp)
   double t_ = 0.0;  // s: time of the phase's y, ẏ (phase start or last Advance)
@@ -246,13 +256,22 @@ class DaeFormulation final : public FormulationBase {
   std::vector<int> root_flags_;
 };
 
+// `dae`: only the force tolerance (N per unit --atol), no floor.
+constexpr DaeOnIdaVariant kPlain = {"dae", false, 1.0e4, 0.0, 0.0, 0.0, false};
+constexpr DaeOnIdaVariant kPlainReduced = {"dae-reduced", false, 1.0e4, 0.0, 0.0, 0.0, false};
+
 }  // namespace
 
+std::unique_ptr<Formulation> CreateDaeOnIda(const Scene& scene, const FormulationOptions& options,
+                                            ContactForm form, const DaeOnIdaVariant& variant) {
+  return std::make_unique<DaeOnIda>(scene, options, form, variant);
+}
+
 std::unique_ptr<Formulation> CreateDae(const Scene& scene, const FormulationOptions& options) {
-  return std::make_unique<DaeFormulation>(scene, options, ContactForm::kChapter);
+  return CreateDaeOnIda(scene, options, ContactForm::kChapter, kPlain);
 }
 std::unique_ptr<Formulation> CreateDaeReduced(const Scene& scene, const FormulationOptions& options) {
-  return std::make_unique<DaeFormulation>(scene, options, ContactForm::kClosedForm);
+  return CreateDaeOnIda(scene, options, ContactForm::kClosedForm, kPlainReduced);
 }
 
 // Test hook (dae_testing.hpp).

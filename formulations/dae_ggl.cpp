@@ -37,220 +37,33 @@
 // IDASetId marks q, u differential and c, N, μ algebraic; IDASetSuppressAlg excludes the
 // algebraic unknowns from the local error test (their BDF error is not O(h^{p+1}) for
 // index 2), as in idaSlCrank_dns.c. The system (unknowns, residual, the exact Jacobian
-// dF/dy + cj dF/dẏ) is formulations/dae_system.hpp, shared with dae. All workspaces are
-// allocated in Start; the residual, Jacobian and root callbacks allocate nothing.
-#include <idas/idas.h>
-#include <sunlinsol/sunlinsol_dense.h>
-#include <sunmatrix/sunmatrix_dense.h>
-
-#include <algorithm>
-#include <cmath>
+// dF/dy + cj dF/dẏ) is formulations/dae_system.hpp and the IDA driver that of dae
+// (dae_on_ida.hpp), both shared with dae; this file declares what GGL changes: the
+// stabilized system, the tolerances above and stopping at every output time.
 #include <memory>
 
-#include "formulations/dae_system.hpp"
-#include "formulations/formulation_base.hpp"
-#include "formulations/ida_phase.hpp"
-#include "formulations/sundials_kernels.hpp"
-#include "formulations/sundials_util.hpp"
-#include "solver/dynamics.hpp"
-#include "solver/newton_euler.hpp"
+#include "formulations/dae_on_ida.hpp"
 
 namespace kneedyn {
 namespace {
 
-// Absolute tolerance of the normal forces per unit --atol (N per SI unit of the states).
-constexpr double kForceAtolScale = 1.0e4;
-// Absolute tolerance of the stabilizing multipliers μ per unit --atol (s⁻¹; see header).
-constexpr double kMuAtolScale = 1.0e4;
-// Floors of those tolerances (N, m/s): above the round-off of the index-2 unknowns at the
-// smallest steps IDA takes at rtol 1e-13 (see header).
-constexpr double kForceAtolFloor = 1.0e-3;
-constexpr double kMuAtolFloor = 1.0e-3;
+// The tolerances of the header comment: N and μ per unit --atol, and their floors.
+constexpr double kForceAtolScale = 1.0e4;  // N
+constexpr double kMuAtolScale = 1.0e4;     // m/s
+constexpr double kForceAtolFloor = 1.0e-3;  // N
+constexpr double kMuAtolFloor = 1.0e-3;     // m/s
 
-class DaeGglFormulation final : public FormulationBase {
- public:
-  DaeGglFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form)
-      : FormulationBase(scene),
-        options_(options),
-        parsed_(options.Parsed()),
-        form_(form),
-        system_(model_, form, ConstraintLevel::kVelocity, /*ggl=*/true) {
-    const char* name = form == ContactForm::kChapter ? "dae-ggl" : "dae-ggl-reduced";
-    if (options.step != 0.0) {
-      Throw<InputError>("DaeGglFormulation", "--step = ", options.step,
-                        " s: ", name, " chooses its own steps; use --max-step");
-    }
-    if (parsed_.stabilization != Stabilization::kNone) {
-      Throw<InputError>("DaeGglFormulation", "--stabilization = '", options.stabilization,
-                        "' applies to ede only (", name, " enforces both constraint levels)");
-    }
-    if (parsed_.constraint_level != ConstraintLevel::kVelocity) {
-      Throw<InputError>("DaeGglFormulation", "--constraint-level = '", options.constraint_level,
-                        "': ", name, " always enforces position and velocity level; leave the default");
-    }
-    normal_.assign(model_.contacts.size(), 0.0);
-  }
-  ~DaeGglFormulation() override { Free(); }
-
-  ContactForm contact_form() const override { return form_; }
-
-  void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
-    Free();
-    BeginPhase(state, events);
-    system_.SetPhase(active_, state.contact, ligament_branch_);
-    n_ = system_.size();
-    const int k = static_cast<int>(active_.size());
-    root_flags_.assign(events_.size(), 0);
-
-    ida_.y = NewSerialVector(n_, ctx_);
-    ida_.yp = NewSerialVector(n_, ctx_);
-    hot_path_r_ = NewSerialVector(n_, ctx_);
-    hot_path_g_.assign(events_.size(), 0.0);
-    t_ = state.t;
-    N_Vector id = NewSerialVector(n_, ctx_);
-    N_Vector atol = NewSerialVector(n_, ctx_);
-    system_.InitialValues(state, NvData(ida_.y), NvData(ida_.yp));  // μ = 0 on the exact solution
-    double* idp = NvData(id);
-    double* at = NvData(atol);
-    for (int i = 0; i < n_; ++i) {
-      idp[i] = system_.IsDifferential(i) ? 1.0 : 0.0;
-      const bool force = k > 0 && i >= system_.NormalIndex(0) && i < system_.MuIndex(0);
-      const bool mu = k > 0 && i >= system_.MuIndex(0);
-      at[i] = force ? std::max(kForceAtolFloor, options_.atol * kForceAtolScale)
-                    : mu ? std::max(kMuAtolFloor, options_.atol * kMuAtolScale) : options_.atol;
-    }
-    ida_.Start(ctx_, n_, &DaeGglFormulation::Residual,
-               parsed_.jacobian == JacobianKind::kDifferenceQuotient ? nullptr : &DaeGglFormulation::Jacobian,
-               &DaeGglFormulation::Roots, this, state.t, atol, id, options_, scene_.end.time, events_,
-               "DaeGglFormulation::Start", &sundials_messages_);
-    N_VDestroy(id);
-    N_VDestroy(atol);
-    ++finished_phases_.restarts;
-  }
-
-  AdvanceResult Advance(double t_out, MechanicalState* state) override {
-    double t_reached = state->t;
-    failure_.clear();
-    // Stop at t_out instead of interpolating to it: outputs are step values, on which the
-    // position and velocity constraints hold to the Newton tolerance.
-    Check(IDASetStopTime(ida_.mem, std::min(t_out, scene_.end.time)), "IDASetStopTime");
-    const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
-    AdvanceResult result;
-    if (flag < 0) {
-      double h = 0.0, t_cur = 0.0;
-      IDAGetCurrentStep(ida_.mem, &h);
-      IDAGetCurrentTime(ida_.mem, &t_cur);
-      char* name = IDAGetReturnFlagName(flag);
-      const std::string text = name ? name : "?";
-      free(name);
-      Throw<SolverError>("IDASolve (dae-ggl)", text, " at t = ", t_cur, " s with step h = ", h, " s",
-                         failure_.empty() ? "" : " (" + failure_ + ")");
-    }
-    t_ = t_reached;
-    const double* y = NvData(ida_.y);
-    const double* yp = NvData(ida_.yp);
-    WriteBack(t_reached, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
-              Eigen::Map<const Vector6d>(yp + 6), y + system_.NormalIndex(0), y + 12,
-              system_.per_contact(), state);
-    if (flag == IDA_ROOT_RETURN) {
-      Check(IDAGetRootInfo(ida_.mem, root_flags_.data()), "IDAGetRootInfo");
-      result = EventResult(root_flags_);
-    }
-    return result;
-  }
-
-  SolverStats PhaseStats() const override { return ida_.mem != nullptr ? CurrentStats() : SolverStats(); }
-
-  // The residual, Jacobian (cj = 1e4 1/s) and root callbacks IDA calls, at the current y, ẏ.
-  bool EvaluateHotPathForTesting(int n) override {
-    if (ida_.mem == nullptr) return false;
-    for (int i = 0; i < n; ++i) {
-      if (Residual(t_, ida_.y, ida_.yp, hot_path_r_, this) != 0) return false;
-      if (Jacobian(t_, 1.0e4, ida_.y, ida_.yp, hot_path_r_, ida_.A, this, nullptr, nullptr, nullptr) != 0) return false;
-      if (!events_.empty() && Roots(t_, ida_.y, ida_.yp, hot_path_g_.data(), this) != 0) return false;
-    }
-    return true;
-  }
-
- private:
-  static int Residual(double t, N_Vector yy, N_Vector yp, N_Vector rr, void* user) {
-    auto* self = static_cast<DaeGglFormulation*>(user);
-    try {
-      return self->system_.Residual(t, NvData(yy), NvData(yp), NvData(rr)) ? 0 : 1;
-    } catch (const std::exception& e) {
-      self->failure_ = e.what();
-      return -1;
-    }
-  }
-
-  // dF/dy + cj dF/dẏ straight into IDA's column-major dense matrix.
-  static int Jacobian(double t, double cj, N_Vector yy, N_Vector yp, N_Vector, SUNMatrix JJ,
-                      void* user, N_Vector, N_Vector, N_Vector) {
-    auto* self = static_cast<DaeGglFormulation*>(user);
-    try {
-      double* J = SUNDenseMatrix_Data(JJ);
-      const bool ok = self->parsed_.jacobian == JacobianKind::kJet
-                          ? self->system_.JacobianByJets(t, cj, NvData(yy), NvData(yp), J)
-                          : self->system_.Jacobian(t, cj, NvData(yy), NvData(yp), J);
-      return ok ? 0 : 1;
-    } catch (const std::exception& e) {
-      self->failure_ = e.what();
-      return -1;
-    }
-  }
-
-  static int Roots(double, N_Vector yy, N_Vector, double* g, void* user) {
-    auto* self = static_cast<DaeGglFormulation*>(user);
-    try {
-      const double* y = NvData(yy);
-      Vector6d q;
-      for (int i = 0; i < 6; ++i) q(i) = y[i];
-      std::fill(self->normal_.begin(), self->normal_.end(), 0.0);
-      for (size_t c = 0; c < self->active_.size(); ++c) {
-        self->normal_[self->active_[c]] = y[self->system_.NormalIndex(static_cast<int>(c))];
-      }
-      EvaluateEvents(self->scene_.model, self->events_, q, self->normal_, g);
-      return 0;
-    } catch (const std::exception& e) {
-      self->failure_ = e.what();
-      return -1;
-    }
-  }
-
-  void Check(int flag, const char* call) const {
-    CheckSundials(flag, call, "DaeGglFormulation", IDAGetReturnFlagName, &sundials_messages_);
-  }
-
-  SolverStats CurrentStats() const { return IdaStatistics(ida_.mem, !events_.empty()); }
-
-  void Free() {
-    ida_.Free(&finished_phases_, !events_.empty());
-    if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
-  }
-
-  FormulationOptions options_;
-  ParsedFormulationOptions parsed_;
-  ContactForm form_;
-  SundialsContext ctx_;
-  DaeSystem system_;  // unknowns, residual, Jacobian (dae_system.hpp)
-  double t_ = 0.0;  // s: time of the phase's y, ẏ (phase start or last Advance)
-  N_Vector hot_path_r_ = nullptr;   // residual of EvaluateHotPathForTesting
-  std::vector<double> hot_path_g_;  // root values of EvaluateHotPathForTesting
-  IdaPhase ida_;  // IDA memory, y, ẏ, matrix and linear solver of the phase
-  int n_ = 0;
-  mutable std::string failure_;
-  std::vector<double> normal_;  // N per model contact, for the root functions
-  std::vector<int> root_flags_;
-  mutable SundialsMessages sundials_messages_;  // SUNDIALS' error text, for the failure reason
-};
+constexpr DaeOnIdaVariant kGgl = {"dae-ggl", true, kForceAtolScale, kForceAtolFloor, kMuAtolScale, kMuAtolFloor, true};
+constexpr DaeOnIdaVariant kGglReduced = {"dae-ggl-reduced", true, kForceAtolScale, kForceAtolFloor,
+                                         kMuAtolScale, kMuAtolFloor, true};
 
 }  // namespace
 
 std::unique_ptr<Formulation> CreateDaeGgl(const Scene& scene, const FormulationOptions& options) {
-  return std::make_unique<DaeGglFormulation>(scene, options, ContactForm::kChapter);
+  return CreateDaeOnIda(scene, options, ContactForm::kChapter, kGgl);
 }
 std::unique_ptr<Formulation> CreateDaeGglReduced(const Scene& scene, const FormulationOptions& options) {
-  return std::make_unique<DaeGglFormulation>(scene, options, ContactForm::kClosedForm);
+  return CreateDaeOnIda(scene, options, ContactForm::kClosedForm, kGglReduced);
 }
 
 }  // namespace kneedyn
