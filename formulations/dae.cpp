@@ -82,7 +82,6 @@ class DaeOnIda final : public FormulationBase {
     BeginPhase(state, events);
     system_.SetPhase(active_, state.contact, ligament_branch_);
     n_ = system_.size();
-    const int k = static_cast<int>(active_.size());
     normal_.assign(model_.contacts.size(), 0.0);
     root_flags_.assign(events_.size(), 0);
 
@@ -98,14 +97,7 @@ class DaeOnIda final : public FormulationBase {
     double* at = NvData(atol);
     for (int i = 0; i < n_; ++i) {
       idp[i] = system_.IsDifferential(i) ? 1.0 : 0.0;
-      // Index-2 multipliers N (newtons) and μ carry round-off of order ε/h² in Newton
-      // corrections; they are excluded from the error test and get scaled absolute
-      // tolerances in the Newton test (DaeOnIdaVariant: units per unit --atol, floors).
-      const bool force = k > 0 && i >= system_.NormalIndex(0) && i < system_.NormalIndex(k);
-      const bool mu = variant_.ggl && k > 0 && i >= system_.MuIndex(0);
-      at[i] = force ? std::max(variant_.force_atol_floor, options_.atol * variant_.force_atol_scale)
-              : mu  ? std::max(variant_.mu_atol_floor, options_.atol * variant_.mu_atol_scale)
-                    : options_.atol;
+      at[i] = DaeUnknownAtol(variant_.ggl, system_, i, options_.atol);  // dae_on_ida.hpp
     }
     ida_.Start(ctx_, n_, &DaeOnIda::Residual,
                parsed_.jacobian == JacobianKind::kDifferenceQuotient ? nullptr : &DaeOnIda::Jacobian,
@@ -141,7 +133,7 @@ class DaeOnIda final : public FormulationBase {
     failure_.clear();
     // GGL stops at t_out instead of interpolating to it: outputs are step values, on which
     // the position and velocity constraints hold to the Newton tolerance.
-    if (variant_.stop_at_outputs) Check(IDASetStopTime(ida_.mem, std::min(t_out, scene_.end.time)), "IDASetStopTime");
+    if (variant_.ggl) Check(IDASetStopTime(ida_.mem, std::min(t_out, scene_.end.time)), "IDASetStopTime");
     const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
     AdvanceResult result;
     if (flag < 0) {
@@ -256,9 +248,8 @@ class DaeOnIda final : public FormulationBase {
   std::vector<int> root_flags_;
 };
 
-// `dae`: only the force tolerance (N per unit --atol), no floor.
-constexpr DaeOnIdaVariant kPlain = {"dae", false, 1.0e4, 0.0, 0.0, 0.0, false};
-constexpr DaeOnIdaVariant kPlainReduced = {"dae-reduced", false, 1.0e4, 0.0, 0.0, 0.0, false};
+constexpr DaeOnIdaVariant kPlain = {"dae", false};
+constexpr DaeOnIdaVariant kPlainReduced = {"dae-reduced", false};
 
 }  // namespace
 

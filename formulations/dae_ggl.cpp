@@ -47,15 +47,9 @@
 namespace kneedyn {
 namespace {
 
-// The tolerances of the header comment: N and μ per unit --atol, and their floors.
-constexpr double kForceAtolScale = 1.0e4;  // N
-constexpr double kMuAtolScale = 1.0e4;     // m/s
-constexpr double kForceAtolFloor = 1.0e-3;  // N
-constexpr double kMuAtolFloor = 1.0e-3;     // m/s
-
-constexpr DaeOnIdaVariant kGgl = {"dae-ggl", true, kForceAtolScale, kForceAtolFloor, kMuAtolScale, kMuAtolFloor, true};
-constexpr DaeOnIdaVariant kGglReduced = {"dae-ggl-reduced", true, kForceAtolScale, kForceAtolFloor,
-                                         kMuAtolScale, kMuAtolFloor, true};
+// The tolerances of the header comment: DaeUnknownAtol (dae_on_ida.hpp).
+constexpr DaeOnIdaVariant kGgl = {"dae-ggl", true};
+constexpr DaeOnIdaVariant kGglReduced = {"dae-ggl-reduced", true};
 
 }  // namespace
 

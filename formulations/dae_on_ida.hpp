@@ -3,22 +3,33 @@
 // differs between the variants is declared here.
 #pragma once
 
+#include <algorithm>
 #include <memory>
 
+#include "formulations/dae_system.hpp"
 #include "formulations/formulation.hpp"
 
 namespace kneedyn {
 
 struct DaeOnIdaVariant {
-  const char* name;            // the formulation's name, in messages
-  bool ggl;                    // Gear–Gupta–Leimkuhler stabilized form (dae_system.hpp)
-  // Absolute tolerances of the index-2 unknowns in IDA's Newton test: max(floor, scale · --atol).
-  double force_atol_scale;     // N per unit --atol (normal forces)
-  double force_atol_floor;     // N
-  double mu_atol_scale;        // GGL multipliers μ, m/s per unit --atol
-  double mu_atol_floor;        // m/s
-  bool stop_at_outputs;        // IDASetStopTime at every output time (outputs are step values)
+  const char* name;  // the formulation's name, in messages
+  // Gear–Gupta–Leimkuhler stabilized form (dae_system.hpp); it also stops IDA at every output
+  // time (outputs are step values, on which both constraint levels hold).
+  bool ggl;
 };
+
+// Absolute tolerance of unknown i in IDA's Newton test (dae.cpp, dae_ggl.cpp; also the IDAS
+// sensitivities, so that their phases take the formulations' steps). The index-2 unknowns
+// (N, newtons, and GGL's μ, m/s: every unknown from NormalIndex(0) on) carry round-off of
+// order ε/h² in Newton corrections; they get kDaeIndexTwoAtolScale per unit --atol, floored
+// at kGglIndexTwoAtolFloor for GGL (dae_ggl.cpp's header comment says why).
+constexpr double kDaeIndexTwoAtolScale = 1.0e4;
+constexpr double kGglIndexTwoAtolFloor = 1.0e-3;
+inline double DaeUnknownAtol(bool ggl, const DaeSystem& system, int i, double atol) {
+  if (i < system.NormalIndex(0)) return atol;
+  const double scaled = atol * kDaeIndexTwoAtolScale;
+  return ggl ? std::max(kGglIndexTwoAtolFloor, scaled) : scaled;
+}
 
 std::unique_ptr<Formulation> CreateDaeOnIda(const Scene& scene, const FormulationOptions& options,
                                             ContactForm form, const DaeOnIdaVariant& variant);

@@ -330,7 +330,7 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
       VecK c(k);
       for (int r = 0; r < k; ++r) {
         c(r) = (G.block(r, 3, 1, 3) * Edot_thetadot)(0) +
-               ContactRateTerm(model_.contacts[active_[r]], kin.q, kin.qd);
+               ContactRateTerm(model_.contacts[active_[r]], kin.q, kin.qd, pose, nu);
       }
       const VecK pD = -JD_lu.solve(c);
       for (int r = 0; r < k; ++r) p(elim_[r]) = pD(r);

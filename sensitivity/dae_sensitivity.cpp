@@ -66,6 +66,7 @@
 #include <cmath>
 #include <limits>
 
+#include "formulations/dae_on_ida.hpp"
 #include "formulations/dae_system.hpp"
 #include "formulations/ida_phase.hpp"
 #include "formulations/sundials_kernels.hpp"
@@ -78,11 +79,6 @@
 namespace kneedyn::sensitivity::detail {
 namespace {
 
-// Absolute tolerance of the normal forces per unit --atol (N per SI unit of the states):
-// dae.cpp's kForceAtolScale, so that the phases take dae's steps.
-constexpr double kForceAtolScale = 1.0e4;
-// dae_ggl.cpp's floor of the N and μ tolerances (N, m/s); their scale is kForceAtolScale.
-constexpr double kGglAtolFloor = 1.0e-3;
 // Relative step h_j / p̄_j of F_p and of the consistent-value maps. Their central
 // differences have truncation ~h² and round-off ~δ/h, δ ~ 1e-13 relative from the hidden-
 // constraint solve in the maps; the residual of the consistent initial sensitivities
@@ -317,7 +313,6 @@ void DaeSensitivity::FreePhase() {
 
 void DaeSensitivity::StartPhase(double t, const std::vector<std::vector<double>>& s,
                                 const std::vector<std::vector<double>>& sdot) {
-  const int k = static_cast<int>(mode_.active.size());
   N_Vector id = NewSerialVector(n_, ctx_);
   N_Vector atol = NewSerialVector(n_, ctx_);
   // Absolute tolerances of the unknowns (dae.cpp, dae_ggl.cpp) and the row scale of the
@@ -325,13 +320,8 @@ void DaeSensitivity::StartPhase(double t, const std::vector<std::vector<double>>
   std::vector<double> scale(n_, 1.0);
   for (int i = 0; i < n_; ++i) {
     NvData(id)[i] = system_.IsDifferential(i) ? 1.0 : 0.0;
-    const bool force = k > 0 && i >= system_.NormalIndex(0) && (!form_.ggl || i < system_.MuIndex(0));
-    const bool mu = form_.ggl && k > 0 && i >= system_.MuIndex(0);
-    double a = options_.atol;
-    if (force || mu) {
-      a = form_.ggl ? std::max(kGglAtolFloor, options_.atol * kForceAtolScale) : options_.atol * kForceAtolScale;
-      scale[i] = kForceAtolScale;
-    }
+    const double a = DaeUnknownAtol(form_.ggl, system_, i, options_.atol);  // dae_on_ida.hpp
+    if (i >= system_.NormalIndex(0)) scale[i] = kDaeIndexTwoAtolScale;
     NvData(atol)[i] = a;
   }
   std::vector<int> peak_directions(problem_.peaks().size(), -1);  // dv/dt falling through 0: a maximum

@@ -258,7 +258,7 @@ std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
   // Hidden level (Ceres), from the guesses in state->contact[].normal_force.
   const Vector6d nu = GeneralizedVelocity(state->q, state->qd);
   for (int c = 0; c < k; ++c) {
-    kappa(c) = ContactRateTerm(model.contacts[state->active[c]], state->q, state->qd);
+    kappa(c) = ContactRateTerm(model.contacts[state->active[c]], state->q, state->qd, pose, nu);
   }
   Data data(model);
   data.ligament_branch = &state->ligament_branch;

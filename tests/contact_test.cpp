@@ -243,11 +243,8 @@ TEST(ContactRateTerm, GapSecondDerivativeIsRowTimesAccelerationPlusKappa) {
                         (12 * h * h);
       const double analytic =
           ContactConstraintRow(pose, SphereOnPlaneContact(sop, pose)).dot(nu_dot) +
-          ContactRateTerm(pair, q, qd);
+          ContactRateTerm(pair, q, qd, pose, nu);  // the overload the solvers call
       EXPECT_NEAR(analytic, fd, 1e-6 * (1.0 + std::abs(fd))) << CompartmentName(pair.compartment);
-      // The overload the hidden-constraint solve calls, with the pose and ν already at hand.
-      EXPECT_EQ(ContactRateTerm(pair, q, qd, pose, nu), ContactRateTerm(pair, q, qd))
-          << CompartmentName(pair.compartment);
     }
   }
 }
