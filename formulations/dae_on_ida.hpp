@@ -21,13 +21,12 @@ struct DaeOnIdaVariant {
 // Absolute tolerance of unknown i in IDA's Newton test (dae.cpp, dae_ggl.cpp; also the IDAS
 // sensitivities, so that their phases take the formulations' steps). The index-2 unknowns
 // (N, newtons, and GGL's μ, m/s: every unknown from NormalIndex(0) on) carry round-off of
-// order ε/h² in Newton corrections; they get kDaeIndexTwoAtolScale per unit --atol, floored
+// order ε/h² in Newton corrections; they get kForceAtolScale (formulation.hpp) per unit --atol, floored
 // at kGglIndexTwoAtolFloor for GGL (dae_ggl.cpp's header comment says why).
-constexpr double kDaeIndexTwoAtolScale = 1.0e4;
 constexpr double kGglIndexTwoAtolFloor = 1.0e-3;
 inline double DaeUnknownAtol(bool ggl, const DaeSystem& system, int i, double atol) {
   if (i < system.NormalIndex(0)) return atol;
-  const double scaled = atol * kDaeIndexTwoAtolScale;
+  const double scaled = atol * kForceAtolScale;
   return ggl ? std::max(kGglIndexTwoAtolFloor, scaled) : scaled;
 }
 

@@ -128,7 +128,6 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
 
   void Roots(double t, const double* y, double* g) override {
     const Vector6d q = Eigen::Map<const Vector6d>(y);
-    const Vector6d qd = Eigen::Map<const Vector6d>(y + 6);
     std::fill(normal_.begin(), normal_.end(), 0.0);
     if (!active_.empty()) {
       AccelerationAt(t, y);

@@ -166,6 +166,13 @@ bool HasErrorControl(const FormulationInfo& info, const std::string& integrator)
 // Step a fixed-step method takes when --step is 0 (s).
 constexpr double kDefaultFixedStep = 1.0e-4;
 
+// Absolute Newton tolerance of a multiplier (contact force N, newtons; GGL's μ) per unit
+// --atol (m, rad), in every method that solves for the multipliers as unknowns (dae, dae-ggl
+// and the IDAS sensitivities through dae_on_ida.hpp; newmark, generalized-alpha): the
+// multipliers of position- or velocity-level constraints carry Newton round-off of order
+// ε/h² (index 2 and 3), so they cannot be held to the positions' tolerance.
+constexpr double kForceAtolScale = 1.0e4;
+
 // Whether (formulation, integrator) advances with a fixed --step rather than error control:
 // a fixed-step formulation, or the fixed-step integrators euler and rk4. Drivers (tests,
 // catalog, benchmarks) use it to choose a step grid or a tolerance grid.

@@ -70,7 +70,6 @@ namespace {
 
 constexpr int kMaxNewtonIterations = 20;
 constexpr int kMaxHalvings = 20;                  // below the nominal step
-constexpr double kForceAtolScale = 1.0e4;         // N per unit --atol (as dae.cpp)
 constexpr double kMultiplierAcceptFactor = 1.0e-3;  // see header: N round-off
 constexpr double kEventTimeResolution = 1.0e-12;  // s
 constexpr int kMaxEventIterations = 100;
@@ -210,13 +209,8 @@ class NewmarkFormulation final : public FormulationBase {
   template <typename T>
   bool StepResidual(const StepState& from, double h, const T* x, T* F) const {
     const int k = static_cast<int>(active_.size());
-    Vector6<T> q, qd, qdd;
-    for (int i = 0; i < 6; ++i) {
-      q(i) = x[i];
-      const T a = PseudoAcceleration(from, h, i, x[i]);
-      qdd(i) = Acceleration(from, i, a);
-      qd(i) = from.qd(i) + h * ((1.0 - scheme_.gamma) * from.a(i) + scheme_.gamma * a);
-    }
+    Vector6<T> q, qd, qdd, a;
+    StepKinematics(from, h, x, &q, &qd, &qdd, &a);
     const PoseTpl<T> pose = PoseFromCoordinates(q);
     const T* N = x + 6 + per_contact_ * k;
     ContactGeometryTpl<T> geo[kMaxActiveContacts];
@@ -249,13 +243,8 @@ class NewmarkFormulation final : public FormulationBase {
     XMatrix& J = *Jout;
     J.setZero(n_, n_);
     const int k = static_cast<int>(active_.size());
-    Vector6d q, qd, qdd;
-    for (int i = 0; i < 6; ++i) {
-      q(i) = x[i];
-      const double a = PseudoAcceleration(from, h, i, x[i]);
-      qdd(i) = Acceleration(from, i, a);
-      qd(i) = from.qd(i) + h * ((1.0 - scheme_.gamma) * from.a(i) + scheme_.gamma * a);
-    }
+    Vector6d q, qd, qdd, a;
+    StepKinematics(from, h, x, &q, &qd, &qdd, &a);
     const double dqd_dq = scheme_.gamma / (scheme_.beta * h);
     const double dqdd_dq = (1.0 - scheme_.alpha_m) / ((1.0 - scheme_.alpha_f) * scheme_.beta * h * h);
     const double row_scale = RowScale(h);
@@ -343,6 +332,19 @@ class NewmarkFormulation final : public FormulationBase {
     return ((1.0 - scheme_.alpha_m) * a_next + scheme_.alpha_m * from.a(i) - scheme_.alpha_f * from.qdd(i)) /
            (1.0 - scheme_.alpha_f);
   }
+  // q_{n+1} (the first six unknowns x) and what the scheme makes of it: a_{n+1}, q̈_{n+1},
+  // q̇_{n+1} by the three formulas above. The residual, its Jacobian and the accepted step
+  // all take them from here.
+  template <typename T>
+  void StepKinematics(const StepState& from, double h, const T* x, Vector6<T>* q, Vector6<T>* qd,
+                      Vector6<T>* qdd, Vector6<T>* a) const {
+    for (int i = 0; i < 6; ++i) {
+      (*q)(i) = x[i];
+      (*a)(i) = PseudoAcceleration(from, h, i, x[i]);
+      (*qdd)(i) = Acceleration(from, i, (*a)(i));
+      (*qd)(i) = from.qd(i) + h * ((1.0 - scheme_.gamma) * from.a(i) + scheme_.gamma * (*a)(i));
+    }
+  }
   // ∂q̈_{n+1}/∂q_{n+1} inverted: the Newton–Euler rows are scaled by it (h²/4 for
   // Newmark) so that they read ~ M Δq.
   double RowScale(double h) const {
@@ -418,12 +420,7 @@ class NewmarkFormulation final : public FormulationBase {
       if (norm_positions <= 1.0 &&
           (norm_forces <= 1.0 || norm_positions <= kMultiplierAcceptFactor)) {
         to->t = from.t + h;
-        to->q = x.head<6>();
-        for (int i = 0; i < 6; ++i) {
-          to->a(i) = PseudoAcceleration(from, h, i, to->q(i));
-          to->qdd(i) = Acceleration(from, i, to->a(i));
-          to->qd(i) = from.qd(i) + h * ((1.0 - scheme_.gamma) * from.a(i) + scheme_.gamma * to->a(i));
-        }
+        StepKinematics(from, h, x.data(), &to->q, &to->qd, &to->qdd, &to->a);
         to->extra = x.tail(n_ - 6);
         to->h_a = h;
         return true;

@@ -321,7 +321,7 @@ void DaeSensitivity::StartPhase(double t, const std::vector<std::vector<double>>
   for (int i = 0; i < n_; ++i) {
     NvData(id)[i] = system_.IsDifferential(i) ? 1.0 : 0.0;
     const double a = DaeUnknownAtol(form_.ggl, system_, i, options_.atol);  // dae_on_ida.hpp
-    if (i >= system_.NormalIndex(0)) scale[i] = kDaeIndexTwoAtolScale;
+    if (i >= system_.NormalIndex(0)) scale[i] = kForceAtolScale;
     NvData(atol)[i] = a;
   }
   std::vector<int> peak_directions(problem_.peaks().size(), -1);  // dv/dt falling through 0: a maximum

@@ -202,61 +202,60 @@ void ConvertContactCoordinates(const Model& model, ContactChart chart, Mechanica
   }
 }
 
-// How the hidden level (linear in ν̇, N) is solved: by Ceres from the scene's force guesses
-// (the initialization, which reports the iterations), or directly by the saddle-point
-// solve of constrained_dynamics.hpp (the restarts: exact, no guess, no iteration).
-enum class HiddenLevelSolve { kCeres, kDirect };
-
-// Levels 2–3 with given velocity holds. Returns the two level reports.
-std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
-    const Model& model, const std::vector<int>& held_velocities,
-    const ConsistentInitOptions& options, HiddenLevelSolve hidden_solve, MechanicalState* state) {
-  const int k = static_cast<int>(state->active.size());
-  const Pose pose = PoseFromCoordinates(state->q);
+// Constraint rows G_i (k×6, contact.hpp) of the active contacts at `pose`.
+MatrixXd ActiveConstraintRows(const Model& model, const MechanicalState& state, const Pose& pose) {
+  const int k = static_cast<int>(state.active.size());
   MatrixXd G(k, 6);
-  VectorXd kappa(k);
   for (int c = 0; c < k; ++c) {
     G.row(c) = ContactConstraintRow(
-        pose, RequireContactKinematics(model.contacts[state->active[c]], pose, "ConsistentInitialize"));
+        pose, RequireContactKinematics(model.contacts[state.active[c]], pose, "ConsistentInitialize"));
   }
-  // Velocity level: φ̇ = G B(q) q̇ = 0, minimum-norm correction of the free rates.
+  return G;
+}
+
+// Level 2: φ̇ = G B(q) q̇ = 0 by the minimum-norm correction of the rates not held.
+InitLevelReport SolveVelocityLevel(const Model& model, const std::vector<int>& held_velocities,
+                                   const ConsistentInitOptions& options, MechanicalState* state) {
+  const Pose pose = PoseFromCoordinates(state->q);
+  const MatrixXd G = ActiveConstraintRows(model, *state, pose);
   InitLevelReport vel;
-  {
-    Matrix6d B = Matrix6d::Identity();
-    B.bottomRightCorner<3, 3>() = AngularVelocityMap(state->q(kBeta), state->q(kGamma));
-    const MatrixXd A = G * B;
-    vel.residual_before = MaxAbs(A * state->qd);
-    if (vel.residual_before > options.velocity_tolerance) {
-      std::vector<int> free;
-      for (int i = 0; i < 6; ++i) {
-        if (std::find(held_velocities.begin(), held_velocities.end(), i) == held_velocities.end()) free.push_back(i);
-      }
-      if (free.empty()) {
-        Throw<SolverError>("ConsistentInitialize", "velocity level: residual ", vel.residual_before,
-                           " m/s exceeds the tolerance ", options.velocity_tolerance,
-                           " and every velocity is held; free some (initial_state.hold)");
-      }
-      MatrixXd Af(k, free.size());
-      for (size_t j = 0; j < free.size(); ++j) Af.col(j) = A.col(free[j]);
-      const VectorXd delta = Af.completeOrthogonalDecomposition().solve(-(A * state->qd));
-      for (size_t j = 0; j < free.size(); ++j) state->qd(free[j]) += delta(j);
+  Matrix6d B = Matrix6d::Identity();
+  B.bottomRightCorner<3, 3>() = AngularVelocityMap(state->q(kBeta), state->q(kGamma));
+  const MatrixXd A = G * B;
+  vel.residual_before = MaxAbs(A * state->qd);
+  if (vel.residual_before > options.velocity_tolerance) {
+    std::vector<int> free;
+    for (int i = 0; i < 6; ++i) {
+      if (std::find(held_velocities.begin(), held_velocities.end(), i) == held_velocities.end()) free.push_back(i);
     }
-    vel.residual_after = MaxAbs(A * state->qd);
-    if (!(vel.residual_after <= options.velocity_tolerance)) {
-      Throw<SolverError>("ConsistentInitialize", "velocity level: residual ", vel.residual_after,
+    if (free.empty()) {
+      Throw<SolverError>("ConsistentInitialize", "velocity level: residual ", vel.residual_before,
                          " m/s exceeds the tolerance ", options.velocity_tolerance,
-                         " (the held velocities violate the contact constraints; free some)");
+                         " and every velocity is held; free some (initial_state.hold)");
     }
+    MatrixXd Af(G.rows(), free.size());
+    for (size_t j = 0; j < free.size(); ++j) Af.col(j) = A.col(free[j]);
+    const VectorXd delta = Af.completeOrthogonalDecomposition().solve(-(A * state->qd));
+    for (size_t j = 0; j < free.size(); ++j) state->qd(free[j]) += delta(j);
   }
-  if (hidden_solve == HiddenLevelSolve::kDirect) {
-    const ConstrainedAcceleration a =
-        SolveConstrainedAcceleration(model, state->t, state->q, state->qd, state->active, {}, &state->ligament_branch);
-    state->qdd = a.qdd;
-    for (int c = 0; c < k; ++c) state->contact[state->active[c]].normal_force = a.normal_force[c];
-    return {vel, InitLevelReport{}};
+  vel.residual_after = MaxAbs(A * state->qd);
+  if (!(vel.residual_after <= options.velocity_tolerance)) {
+    Throw<SolverError>("ConsistentInitialize", "velocity level: residual ", vel.residual_after,
+                       " m/s exceeds the tolerance ", options.velocity_tolerance,
+                       " (the held velocities violate the contact constraints; free some)");
   }
-  // Hidden level (Ceres), from the guesses in state->contact[].normal_force.
+  return vel;
+}
+
+// Level 3, the hidden constraint (linear in ν̇, N), by Ceres from the force guesses in
+// state->contact[].normal_force: the initialization reports its iterations. (A restart
+// solves it directly instead: CompleteHiddenConstraint.)
+InitLevelReport SolveHiddenLevel(const Model& model, const ConsistentInitOptions& options, MechanicalState* state) {
+  const int k = static_cast<int>(state->active.size());
+  const Pose pose = PoseFromCoordinates(state->q);
+  const MatrixXd G = ActiveConstraintRows(model, *state, pose);
   const Vector6d nu = GeneralizedVelocity(state->q, state->qd);
+  VectorXd kappa(k);
   for (int c = 0; c < k; ++c) {
     kappa(c) = ContactRateTerm(model.contacts[state->active[c]], state->q, state->qd, pose, nu);
   }
@@ -274,7 +273,7 @@ std::pair<InitLevelReport, InitLevelReport> SolveVelocityAndHidden(
   for (int i = 0; i < 6; ++i) nu_dot(i) = x[i];
   state->qdd = CoordinateAcceleration(state->q, state->qd, nu_dot);
   for (int c = 0; c < k; ++c) state->contact[state->active[c]].normal_force = x[6 + c];
-  return {vel, hid};
+  return hid;
 }
 
 }  // namespace
@@ -329,8 +328,8 @@ MechanicalState ConsistentInitialize(const Model& model, const InitialState& ini
     }
   }
   CheckJcsRegular(state.q(kBeta), "ConsistentInitialize");
-  std::tie(rep.velocity, rep.hidden) =
-      SolveVelocityAndHidden(model, init.held_velocities, options, HiddenLevelSolve::kCeres, &state);
+  rep.velocity = SolveVelocityLevel(model, init.held_velocities, options, &state);
+  rep.hidden = SolveHiddenLevel(model, options, &state);
   for (const ContactGuess& g : state.contact) rep.normal_force.push_back(g.normal_force);
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) {
     if (!state.IsActive(i)) rep.normal_force[i] = 0.0;
@@ -350,9 +349,14 @@ void CompleteHiddenConstraint(const Model& model, MechanicalState* state) {
   // ~3e-11 m/s at any step size (gravity_only, rtol 1e-10: IDA_ERR_FAIL after a kink).
   constexpr double kGapTolerance = 1.0e-14;  // m
   ProjectOntoContacts(model, state->active, kGapTolerance, 20, &state->q);
+  SolveVelocityLevel(model, {}, options, state);
   // Issue 12 item 2 (cheap restarts): the hidden level is linear in (ν̇, N); at a restart
-  // it is solved directly (a (6 + k)² system) instead of by Ceres from guesses.
-  SolveVelocityAndHidden(model, {}, options, HiddenLevelSolve::kDirect, state);
+  // it is solved directly (the Schur-complement solve of constrained_dynamics.hpp) instead
+  // of by Ceres from guesses.
+  const ConstrainedAcceleration a =
+      SolveConstrainedAcceleration(model, state->t, state->q, state->qd, state->active, {}, &state->ligament_branch);
+  state->qdd = a.qdd;
+  for (size_t c = 0; c < state->active.size(); ++c) state->contact[state->active[c]].normal_force = a.normal_force[c];
   FillContactCoordinates(model, state);
 }
 
