@@ -87,7 +87,7 @@ int WriteHdf5(const char* path, const KneedynHdf5Table* table, char* error, size
 
 #ifdef KNEEDYN_WITH_MPI
 
-int MpiInit(int* rank, int* size, int* ranks_on_node, char*, size_t) {
+void MpiInit(int* rank, int* size, int* ranks_on_node) {
   int initialized = 0;
   MPI_Initialized(&initialized);
   if (!initialized) MPI_Init(nullptr, nullptr);  // MPI's default handler aborts on errors
@@ -97,7 +97,6 @@ int MpiInit(int* rank, int* size, int* ranks_on_node, char*, size_t) {
   MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, *rank, MPI_INFO_NULL, &node);
   MPI_Comm_size(node, ranks_on_node);
   MPI_Comm_free(&node);
-  return 0;
 }
 
 void MpiFinalize() {

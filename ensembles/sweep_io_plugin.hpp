@@ -14,7 +14,7 @@
 extern "C" {
 
 // Raised whenever a struct or function below changes; the loader refuses another value.
-#define KNEEDYN_SWEEP_IO_ABI 1
+#define KNEEDYN_SWEEP_IO_ABI 2
 // The one exported symbol: const KneedynSweepIo* kneedyn_sweep_io_v1(void).
 #define KNEEDYN_SWEEP_IO_ENTRY "kneedyn_sweep_io_v1"
 
@@ -43,7 +43,9 @@ struct KneedynSweepIo {
   // Creates `path` (truncating) with the datasets of sweep.h5; no timestamps.
   int (*write_hdf5)(const char* path, const struct KneedynHdf5Table* table, char* error, size_t error_size);
   // MPI_Init (unless already initialised); this rank, the world size, ranks on this node.
-  int (*mpi_init)(int* rank, int* size, int* ranks_on_node, char* error, size_t error_size);
+  // No error return: MPI's default error handler (MPI_ERRORS_ARE_FATAL) aborts the job on
+  // a failure (ABI 1 had an error buffer that nothing ever filled).
+  void (*mpi_init)(int* rank, int* size, int* ranks_on_node);
   void (*mpi_finalize)(void);
   // Collective: rank 0 receives the largest wall_s and the sum of failed.
   void (*mpi_reduce)(double wall_s, long failed, double* max_wall_s, long* sum_failed);

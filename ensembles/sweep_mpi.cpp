@@ -42,19 +42,13 @@ bool MpiSession::Available() {
 
 MpiSession::MpiSession() {
   if (!LaunchedByMpi()) return;
-  if (!Available()) {
+  // Without MPI in this kneedyn or in its plugin (SweepIo throws InputError when the plugin
+  // is missing): refused under an Open MPI launch of more than one rank, else one process.
+  if (!Available() || !SweepIo().with_mpi) {
     RefuseWithoutMpi();
     return;
   }
-  const KneedynSweepIo& io = SweepIo();  // throws InputError when the plugin is missing
-  if (!io.with_mpi) {
-    RefuseWithoutMpi();
-    return;
-  }
-  char error[512] = "";
-  if (io.mpi_init(&rank_, &size_, &ranks_on_node_, error, sizeof error) != 0) {
-    Throw<Error>("MpiSession", "MPI_Init failed: ", error);
-  }
+  SweepIo().mpi_init(&rank_, &size_, &ranks_on_node_);  // no error return: MPI aborts on errors
   active_ = true;
 }
 

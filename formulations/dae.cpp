@@ -143,7 +143,10 @@ class DaeOnIda final : public FormulationBase {
       char* name = IDAGetReturnFlagName(flag);
       const std::string text = name ? name : "?";
       free(name);
-      Throw<SolverError>(variant_.ggl ? "IDASolve (dae-ggl)" : "IDASolve", text, " at t = ", t_cur,
+      // GGL failures name their formulation (dae-ggl or dae-ggl-reduced); dae's and
+      // dae-reduced's keep the plain prefix.
+      const std::string function = variant_.ggl ? StrCat("IDASolve (", variant_.name, ")") : std::string("IDASolve");
+      Throw<SolverError>(function.c_str(), text, " at t = ", t_cur,
                          " s with step h = ", h, " s", failure_.empty() ? "" : " (" + failure_ + ")",
                          LargestErrorComponent(), sundials_messages_.Take());
     }

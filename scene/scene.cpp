@@ -132,9 +132,9 @@ class YamlDocument {
     yaml_parser_t parser;
     if (!yaml_parser_initialize(&parser)) Throw<InputError>("LoadScene", Echo(label_), ": out of memory");
     yaml_parser_set_input_string(&parser, reinterpret_cast<const unsigned char*>(text.data()), text.size());
-    loaded_ = yaml_parser_load(&parser, &doc_) != 0;
+    const bool loaded = yaml_parser_load(&parser, &doc_) != 0;
     std::string problem;
-    if (!loaded_) {
+    if (!loaded) {
       const char* what = parser.problem ? parser.problem : "unknown error";
       if (parser.error == YAML_READER_ERROR) {  // no mark: the byte offset
         const size_t at = std::min(parser.problem_offset, text.size());
@@ -145,11 +145,11 @@ class YamlDocument {
       }
     }
     yaml_parser_delete(&parser);
-    if (!loaded_) Throw<InputError>("LoadScene", Echo(label_), ": not valid YAML: ", Echo(problem));
+    // On failure yaml_parser_load has deleted the partial document itself, and a throwing
+    // constructor runs no destructor: a constructed YamlDocument always holds a document.
+    if (!loaded) Throw<InputError>("LoadScene", Echo(label_), ": not valid YAML: ", Echo(problem));
   }
-  ~YamlDocument() {
-    if (loaded_) yaml_document_delete(&doc_);
-  }
+  ~YamlDocument() { yaml_document_delete(&doc_); }
   YamlDocument(const YamlDocument&) = delete;
   YamlDocument& operator=(const YamlDocument&) = delete;
 
@@ -163,7 +163,6 @@ class YamlDocument {
   yaml_document_t* Doc() const { return const_cast<yaml_document_t*>(&doc_); }
   std::string label_;
   yaml_document_t doc_{};
-  bool loaded_ = false;
   mutable std::istringstream numbers_;
 };
 
@@ -188,6 +187,12 @@ YamlKind KindOf(const yaml_node_t* n) {
     default:
       return YamlKind::kUndefined;
   }
+}
+
+// The text of a mapping key when it is a scalar, else `fallback` (YAML allows any node,
+// null included, as a key).
+std::string_view KeyText(const yaml_node_t* key, std::string_view fallback) {
+  return KindOf(key) == YamlKind::kScalar ? ScalarText(key) : fallback;
 }
 
 // yaml-cpp's convert<double>::decode: `stream >> std::noskipws >> v` must succeed and only
@@ -254,10 +259,10 @@ class Field {
     const yaml_node_pair_t* const end = node_->data.mapping.pairs.top;
     for (const yaml_node_pair_t* pair = begin; pair != end; ++pair) {
       const yaml_node_t* key = doc_->Node(pair->key);
-      const std::string_view k = KindOf(key) == YamlKind::kScalar ? ScalarText(key) : "(non-scalar key)";
+      const std::string_view k = KeyText(key, "(non-scalar key)");
       for (const yaml_node_pair_t* earlier = begin; earlier != pair; ++earlier) {
         const yaml_node_t* e = doc_->Node(earlier->key);
-        if ((KindOf(e) == YamlKind::kScalar ? ScalarText(e) : "(non-scalar key)") == k) {
+        if (KeyText(e, "(non-scalar key)") == k) {
           Throw<InputError>("LoadScene", Echo(doc_->label(), 256), Line(key), ": key '", Echo(Where(k)),
                             "' given twice (a key may appear once per mapping)");
         }
@@ -309,7 +314,7 @@ class Field {
     std::vector<std::string> keys;
     for (const yaml_node_pair_t* p = node_->data.mapping.pairs.start; p != node_->data.mapping.pairs.top; ++p) {
       const yaml_node_t* key = doc_->Node(p->key);
-      keys.emplace_back(KindOf(key) == YamlKind::kScalar ? ScalarText(key) : std::string_view());
+      keys.emplace_back(KeyText(key, std::string_view()));
     }
     return keys;
   }

@@ -1,5 +1,7 @@
 // Shared by the command-line tests (cli_test.cpp, hostile_input_test.cpp, output_publish_test.cpp):
-// runs `kneedyn` as a child process and checks the exit-code contract on every call.
+// runs `kneedyn` as a child process and checks the exit-code contract on every call. The
+// shell and file helpers (RunShell, ReadText, WriteText, ...) also serve tests that do not
+// run kneedyn (ensembles/tests/sweep_cli_test.cpp, run_output_format_test.cpp).
 #pragma once
 
 #include <gtest/gtest.h>
@@ -38,16 +40,6 @@ inline CommandResult RunShell(const std::string& shell_command) {
   return result;
 }
 
-// Runs `kneedyn <args>` with stderr merged into stdout. The contract (README "Exit codes")
-// is checked here for every call: the process exits normally with 0, 1 or 2.
-inline CommandResult RunKneedyn(const std::string& args) {
-  const CommandResult result = RunShell(std::string("'") + KNEEDYN_EXE + "' " + args);
-  EXPECT_NE(result.exit_code, -1) << "killed by a signal: " << args.substr(0, 300);
-  EXPECT_TRUE(result.exit_code == 0 || result.exit_code == 1 || result.exit_code == 2)
-      << "exit code " << result.exit_code << " outside the contract from: " << args.substr(0, 300);
-  return result;
-}
-
 inline std::string ReadText(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
   std::stringstream ss;
@@ -76,6 +68,20 @@ inline std::string ChapterParameterSetPath() { return ReferenceDataDir() + "/cha
 inline std::string ChapterSceneText() {
   return Replaced(ReadText(ChapterScenePath()), "parameter_set: ../chapter_knee.yaml",
                   "parameter_set: " + ChapterParameterSetPath());
+}
+
+// What runs kneedyn itself needs its path, KNEEDYN_EXE (a compile definition of the tests
+// that run it); the helpers above serve any test.
+#ifdef KNEEDYN_EXE
+
+// Runs `kneedyn <args>` with stderr merged into stdout. The contract (README "Exit codes")
+// is checked here for every call: the process exits normally with 0, 1 or 2.
+inline CommandResult RunKneedyn(const std::string& args) {
+  const CommandResult result = RunShell(std::string("'") + KNEEDYN_EXE + "' " + args);
+  EXPECT_NE(result.exit_code, -1) << "killed by a signal: " << args.substr(0, 300);
+  EXPECT_TRUE(result.exit_code == 0 || result.exit_code == 1 || result.exit_code == 2)
+      << "exit code " << result.exit_code << " outside the contract from: " << args.substr(0, 300);
+  return result;
 }
 
 // A fresh, empty temporary directory per test; removed at the end.
@@ -130,5 +136,7 @@ class CliFixture : public ::testing::Test {
 
   fs::path dir_;
 };
+
+#endif  // KNEEDYN_EXE
 
 }  // namespace kneedyn::cli_test

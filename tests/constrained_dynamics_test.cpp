@@ -7,7 +7,10 @@
 // (sphere on plane) and anatomical (general contact kinematics) scenes, with one and two
 // contacts and with Baumgarte gains; q̈ maps back to ν̇; dependent contact rows (two
 // identical contacts) are refused with SolverError; the allocation-free overload equals
-// the allocating one bitwise.
+// the allocating one (a fresh workspace per call) bitwise with ONE workspace and one result
+// reused per scene across states and active sets — both contacts, one, the other, none,
+// both again, as ede reuses its own — so that state left over from an earlier call (rows,
+// sizes, forces of another active set) would show.
 #include <gtest/gtest.h>
 
 #include <random>
@@ -24,7 +27,9 @@ namespace {
 
 using test_support::ScenesDir;
 
-void CheckSaddlePoint(const Scene& scene, const std::vector<int>& active, BaumgarteGains gains, unsigned seed) {
+// `workspace` and `reused` are shared by every call for the scene (see the header comment).
+void CheckSaddlePoint(const Scene& scene, const std::vector<int>& active, BaumgarteGains gains, unsigned seed,
+                      ConstrainedDynamicsWorkspace* workspace, ConstrainedAcceleration* reused) {
   const Model& model = scene.model;
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -58,24 +63,30 @@ void CheckSaddlePoint(const Scene& scene, const std::vector<int>& active, Baumga
   EXPECT_LE((GeneralizedAcceleration(q, qd, a.qdd) - a.nu_dot).cwiseAbs().maxCoeff(),
             1e-12 * (1.0 + a.nu_dot.cwiseAbs().maxCoeff()));
 
-  ConstrainedDynamicsWorkspace ws(model);
-  ConstrainedAcceleration b;
-  SolveConstrainedAcceleration(model, t, q, qd, active, gains, &branch, &ws, &b);
-  EXPECT_EQ(a.nu_dot, b.nu_dot);
-  EXPECT_EQ(a.normal_force, b.normal_force);
+  SolveConstrainedAcceleration(model, t, q, qd, active, gains, &branch, workspace, reused);
+  EXPECT_EQ(a.nu_dot, reused->nu_dot) << "reused workspace, " << active.size() << " active contacts";
+  EXPECT_EQ(a.qdd, reused->qdd) << "reused workspace, " << active.size() << " active contacts";
+  EXPECT_EQ(a.normal_force, reused->normal_force) << "reused workspace, " << active.size() << " active contacts";
 }
 
 TEST(SolveConstrainedAcceleration, SatisfiesTheSaddlePointSystem) {
   const Scene& chapter = test_support::ChapterScene();
   const Scene anatomical = LoadScene(ScenesDir() + "/anatomical_surfaces.yaml");
+  // One workspace and one result per scene for the whole loop: each seed runs both
+  // contacts, one, the other, none, and the next seed both again.
+  ConstrainedDynamicsWorkspace chapter_ws(chapter.model), anatomical_ws(anatomical.model);
+  ConstrainedAcceleration chapter_out, anatomical_out;
   for (unsigned seed = 1; seed <= 5; ++seed) {
     SCOPED_TRACE(seed);
-    CheckSaddlePoint(chapter, {0, 1}, {}, seed);
-    CheckSaddlePoint(chapter, {1}, {}, seed);
-    CheckSaddlePoint(chapter, {0, 1}, {20.0, 20.0}, seed);
-    CheckSaddlePoint(anatomical, {0, 1}, {}, seed);
-    CheckSaddlePoint(anatomical, {0}, {5.0, 7.0}, seed);
-    CheckSaddlePoint(chapter, {}, {}, seed);
+    CheckSaddlePoint(chapter, {0, 1}, {}, seed, &chapter_ws, &chapter_out);
+    CheckSaddlePoint(chapter, {1}, {}, seed, &chapter_ws, &chapter_out);
+    CheckSaddlePoint(chapter, {0, 1}, {20.0, 20.0}, seed, &chapter_ws, &chapter_out);
+    CheckSaddlePoint(chapter, {0}, {}, seed, &chapter_ws, &chapter_out);
+    CheckSaddlePoint(chapter, {}, {}, seed, &chapter_ws, &chapter_out);
+    CheckSaddlePoint(anatomical, {0, 1}, {}, seed, &anatomical_ws, &anatomical_out);
+    CheckSaddlePoint(anatomical, {0}, {5.0, 7.0}, seed, &anatomical_ws, &anatomical_out);
+    CheckSaddlePoint(anatomical, {1}, {}, seed, &anatomical_ws, &anatomical_out);
+    CheckSaddlePoint(anatomical, {}, {}, seed, &anatomical_ws, &anatomical_out);
   }
 }
 

@@ -14,7 +14,6 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <random>
 #include <sstream>
@@ -22,8 +21,12 @@
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
 #include "scene/scene.hpp"
+#include "tests/cli_support.hpp"
+#include "tests/test_support.hpp"
 
 using namespace kneedyn;
+using kneedyn::cli_test::ReadText;
+using kneedyn::test_support::ScenesDir;
 namespace fs = std::filesystem;
 
 namespace {
@@ -70,13 +73,6 @@ void OracleFiles(const Scene& scene, const RunSettings& settings, const RunResul
   }
   *csv_text = csv.str();
   *sto_text = sto.str();
-}
-
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
 }
 
 }  // namespace
@@ -130,17 +126,17 @@ TEST(TrajectoryNumber, RandomDoublesOfEveryMagnitudeAsPrintf) {
 
 TEST(TrajectoryFiles, ByteIdenticalToTheSnprintfWriter) {
   struct Case {
-    const char* scene;
+    const char* scene;  // under reference-data/scenes/
     const char* formulation;
     long max_steps;  // > 0: a budget that stops the run (partial)
   };
   const Case cases[] = {
-      {"reference-data/scenes/chapter_impact.yaml", "dae", 0},
-      {"reference-data/scenes/chapter_impact.yaml", "ede", 0},
-      {"reference-data/scenes/hard/lateral_pulse_recontact.yaml", "dae-reduced", 0},  // separations
-      {"reference-data/scenes/no_contact.yaml", "mde", 0},
-      {"reference-data/scenes/one_ligament.yaml", "newmark", 0},
-      {"reference-data/scenes/chapter_impact.yaml", "dae", 10},  // partial (its first row)
+      {"chapter_impact.yaml", "dae", 0},
+      {"chapter_impact.yaml", "ede", 0},
+      {"hard/lateral_pulse_recontact.yaml", "dae-reduced", 0},  // separations
+      {"no_contact.yaml", "mde", 0},
+      {"one_ligament.yaml", "newmark", 0},
+      {"chapter_impact.yaml", "dae", 10},  // partial (its first row)
   };
   const fs::path work = fs::temp_directory_path() / "kneedyn_run_output_format_test";
   fs::remove_all(work);
@@ -148,7 +144,7 @@ TEST(TrajectoryFiles, ByteIdenticalToTheSnprintfWriter) {
   int with_empty_cells = 0, partial = 0, index = 0;
   for (const Case& c : cases) {
     SCOPED_TRACE(std::string(c.scene) + " with " + c.formulation);
-    const Scene scene = LoadScene(c.scene);
+    const Scene scene = LoadScene(ScenesDir() + "/" + c.scene);
     RunSettings settings;
     settings.formulation = c.formulation;
     settings.options.rtol = 1e-6;
@@ -162,8 +158,8 @@ TEST(TrajectoryFiles, ByteIdenticalToTheSnprintfWriter) {
     std::string csv, sto;
     OracleFiles(scene, settings, result, &csv, &sto);
     EXPECT_GE(result.samples.size(), c.max_steps > 0 ? 1u : 3u);
-    EXPECT_EQ(Slurp(out / "trajectory.csv"), csv);
-    EXPECT_EQ(Slurp(out / "trajectory.sto"), sto);
+    EXPECT_EQ(ReadText(out / "trajectory.csv"), csv);
+    EXPECT_EQ(ReadText(out / "trajectory.sto"), sto);
     with_empty_cells += csv.find(",,") != std::string::npos && sto.find("\tNaN") != std::string::npos;
   }
   // The cases cover what they claim: cells of separated contacts and a partial run.

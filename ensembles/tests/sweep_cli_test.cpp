@@ -9,12 +9,16 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
+
+#include "tests/cli_support.hpp"
 
 using namespace std::string_literals;
 namespace fs = std::filesystem;
 
 namespace {
+
+using kneedyn::cli_test::ReadText;
+using kneedyn::cli_test::RunShell;
 
 // Each test has its own directory: ctest -j runs them concurrently.
 fs::path WorkDir() {
@@ -25,13 +29,6 @@ fs::path WorkDir() {
 int Sh(const std::string& command) {
   const int status = std::system(command.c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
 }
 
 // Seven runs of the chapter scene (a Sobol' design over three parameters).
@@ -61,12 +58,12 @@ TEST(SweepCli, SameBytesWithOneAndTwoThreadsAndFromMergedShards) {
                " > /dev/null 2> " + (work / "t1.err").string()), 0);
   ASSERT_EQ(Sh(Kneedyn() + " sweep " + spec.string() + " --threads 2 --out " + (work / "t2").string() + " > /dev/null"), 0);
   for (const char* f : {"sweep.csv", "sweep.h5"}) {
-    const std::string a = Slurp(work / "t1" / f);
+    const std::string a = ReadText(work / "t1" / f);
     ASSERT_FALSE(a.empty()) << f;
-    EXPECT_EQ(a, Slurp(work / "t2" / f)) << f << " differs between 1 and 2 threads";
+    EXPECT_EQ(a, ReadText(work / "t2" / f)) << f << " differs between 1 and 2 threads";
   }
-  EXPECT_EQ(Slurp(work / "t1.err"), "");  // not a terminal: no progress line
-  const std::string csv = Slurp(work / "t1" / "sweep.csv");
+  EXPECT_EQ(ReadText(work / "t1.err"), "");  // not a terminal: no progress line
+  const std::string csv = ReadText(work / "t1" / "sweep.csv");
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 8);  // header + 7 runs
   EXPECT_EQ(csv.rfind("index,pulse.amplitude_N,PCL_anterior.k_linear_N_mm,MCL_anterior.femoral_y_mm,"
                       "liftoff_time_s,liftoff_flexion_deg,peak_F_ACL_anterior_N", 0), 0u);
@@ -78,7 +75,7 @@ TEST(SweepCli, SameBytesWithOneAndTwoThreadsAndFromMergedShards) {
   ASSERT_EQ(Sh(Kneedyn() + " sweep --merge " + (work / "parts/part-1-of-2.json").string() + " " +
                (work / "parts/part-0-of-2.json").string() + " --out " + (work / "merged").string() + " > /dev/null"), 0);
   for (const char* f : {"sweep.csv", "sweep.h5"}) {
-    EXPECT_EQ(Slurp(work / "t1" / f), Slurp(work / "merged" / f)) << f << " differs after merging shards";
+    EXPECT_EQ(ReadText(work / "t1" / f), ReadText(work / "merged" / f)) << f << " differs after merging shards";
   }
   // One part alone is refused (runs missing): exit 2, nothing written.
   EXPECT_EQ(Sh(Kneedyn() + " sweep --merge " + (work / "parts/part-1-of-2.json").string() + " --out " +
@@ -103,11 +100,11 @@ TEST(SweepCli, TwoMpiRanksGiveTheSameBytes) {
       "ASAN_OPTIONS=detect_leaks=0 ";
   ASSERT_EQ(Sh(env + mpiexec + " -n 2 --oversubscribe " + Kneedyn() + " sweep " + spec.string() +
                " --threads 1 --out " + (work / "mpi").string() + " > " + (work / "mpi.log").string() + " 2>&1"), 0)
-      << Slurp(work / "mpi.log");
+      << ReadText(work / "mpi.log");
   for (const char* f : {"sweep.csv", "sweep.h5"}) {
-    EXPECT_EQ(Slurp(work / "t1" / f), Slurp(work / "mpi" / f)) << f << " differs under 2 MPI ranks";
+    EXPECT_EQ(ReadText(work / "t1" / f), ReadText(work / "mpi" / f)) << f << " differs under 2 MPI ranks";
   }
-  EXPECT_NE(Slurp(work / "mpi.log").find("on 2 MPI ranks"), std::string::npos) << Slurp(work / "mpi.log");
+  EXPECT_NE(ReadText(work / "mpi.log").find("on 2 MPI ranks"), std::string::npos) << ReadText(work / "mpi.log");
 }
 
 TEST(SweepCli, BadInputExitsTwoNamingFieldAndValueAndWritesNothing) {
@@ -121,42 +118,28 @@ TEST(SweepCli, BadInputExitsTwoNamingFieldAndValueAndWritesNothing) {
   fs::remove_all(out);
   EXPECT_EQ(Sh(Kneedyn() + " sweep " + bad.string() + " --out " + out.string() + " > /dev/null 2> " +
                (work / "bad.err").string()), 2);
-  const std::string err = Slurp(work / "bad.err");
+  const std::string err = ReadText(work / "bad.err");
   EXPECT_NE(err.find("parameters[0].uniform[1]' = '3'"), std::string::npos) << err;
   EXPECT_FALSE(fs::exists(out));
   EXPECT_EQ(Sh(Kneedyn() + " sweep " + bad.string() + " --shard 2/2 --out " + out.string() + " > /dev/null 2> " +
                (work / "shard.err").string()), 2);
-  EXPECT_NE(Slurp(work / "shard.err").find("--shard = '2/2'"), std::string::npos) << Slurp(work / "shard.err");
+  EXPECT_NE(ReadText(work / "shard.err").find("--shard = '2/2'"), std::string::npos) << ReadText(work / "shard.err");
   EXPECT_FALSE(fs::exists(out));
 }
-
-namespace {
-
-std::string Output(const std::string& command) {
-  std::string out;
-  if (FILE* p = popen(command.c_str(), "r")) {
-    char buf[4096];
-    for (size_t n; (n = fread(buf, 1, sizeof buf, p)) > 0;) out.append(buf, n);
-    pclose(p);
-  }
-  return out;
-}
-
-}  // namespace
 
 // Issue 12: Open MPI and HDF5 are in the plugin kneedyn_sweep_io.so (ensembles/sweep_io.hpp),
 // not in the kneedyn binary: neither its DT_NEEDED entries nor the whole ldd closure name
 // them, while the plugin's do (the same check sees them where they are).
 TEST(SweepCli, KneedynBinaryMapsNeitherMpiNorHdf5) {
-  const std::string needed = Output("readelf -d " + Kneedyn());
+  const std::string needed = RunShell("readelf -d " + Kneedyn()).output;
   ASSERT_NE(needed.find("(NEEDED)"), std::string::npos) << needed;  // readelf ran
-  const std::string closure = Output("ldd " + Kneedyn());
+  const std::string closure = RunShell("ldd " + Kneedyn()).output;
   ASSERT_NE(closure.find("libc.so"), std::string::npos) << closure;  // ldd ran
   for (const char* lib : {"libmpi", "libhdf5", "libopen-pal", "libcurl"}) {
     EXPECT_EQ(needed.find(lib), std::string::npos) << lib << " in DT_NEEDED:\n" << needed;
     EXPECT_EQ(closure.find(lib), std::string::npos) << lib << " in ldd:\n" << closure;
   }
-  const std::string plugin = Output("readelf -d " KNEEDYN_SWEEP_IO);
+  const std::string plugin = RunShell("readelf -d " KNEEDYN_SWEEP_IO).output;
   EXPECT_NE(plugin.find("libhdf5"), std::string::npos) << plugin;
   if (!std::string(KNEEDYN_MPIEXEC).empty()) EXPECT_NE(plugin.find("libmpi"), std::string::npos) << plugin;
 }
@@ -179,7 +162,7 @@ TEST(SweepCli, MissingPluginIsAClearErrorAndWritesNothing) {
   EXPECT_TRUE(fs::exists(work / "parts" / "part-0-of-2.json"));
   EXPECT_EQ(Sh(lone + " sweep " + spec.string() + " --threads 1 --out " + (work / "all").string() + " > /dev/null 2> " +
                (work / "all.err").string()), 2);
-  const std::string err = Slurp(work / "all.err");
+  const std::string err = ReadText(work / "all.err");
   EXPECT_NE(err.find("kneedyn_sweep_io.so"), std::string::npos) << err;
   EXPECT_NE(err.find((work / "lib" / "kneedyn" / "kneedyn_sweep_io.so").string()), std::string::npos) << err;
   EXPECT_NE(err.find("--shard i/n"), std::string::npos) << err;
@@ -195,7 +178,7 @@ TEST(SweepCli, MissingPluginIsAClearErrorAndWritesNothing) {
 // unwinder (libunwind.so.8 also defines _Unwind_RaiseException).
 TEST(SweepCli, StaticToolNeedsOnlyRuntimeLibraries) {
   if (!KNEEDYN_STATIC_TOOL) GTEST_SKIP() << "KNEEDYN_STATIC_TOOL off";
-  const std::string needed = Output("readelf -d " + Kneedyn());
+  const std::string needed = RunShell("readelf -d " + Kneedyn()).output;
   ASSERT_NE(needed.find("(NEEDED)"), std::string::npos) << needed;
   for (const char* lib : {"libglog", "libgflags", "libsundials", "libyaml", "libcholmod", "libcxsparse", "liblapack",
                           "libatlas", "libceres"}) {
