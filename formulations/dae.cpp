@@ -137,17 +137,10 @@ class DaeOnIda final : public FormulationBase {
     const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
     AdvanceResult result;
     if (flag < 0) {
-      double h = 0.0, t_cur = 0.0;
-      IDAGetCurrentStep(ida_.mem, &h);
-      IDAGetCurrentTime(ida_.mem, &t_cur);
-      char* name = IDAGetReturnFlagName(flag);
-      const std::string text = name ? name : "?";
-      free(name);
       // GGL failures name their formulation (dae-ggl or dae-ggl-reduced); dae's and
       // dae-reduced's keep the plain prefix.
       const std::string function = variant_.ggl ? StrCat("IDASolve (", variant_.name, ")") : std::string("IDASolve");
-      Throw<SolverError>(function.c_str(), text, " at t = ", t_cur,
-                         " s with step h = ", h, " s", failure_.empty() ? "" : " (" + failure_ + ")",
+      Throw<SolverError>(function.c_str(), ida_.SolveFailure(flag), failure_.empty() ? "" : " (" + failure_ + ")",
                          LargestErrorComponent(), sundials_messages_.Take());
     }
     t_ = t_reached;

@@ -8,6 +8,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <string>
 #include <vector>
 
 #include "formulations/formulation.hpp"
@@ -37,6 +39,19 @@ struct IdaPhase {
     if (A) { SUNMatDestroy(A); A = nullptr; }
     if (y) { N_VDestroy(y); y = nullptr; }
     if (yp) { N_VDestroy(yp); yp = nullptr; }
+  }
+
+  // What IDASolve's failure `flag` was and where: "<FLAG_NAME> at t = … s with step h = … s"
+  // (the message text both IDA drivers, dae.cpp and the IDAS sensitivities, put after their
+  // function name).
+  std::string SolveFailure(int flag) const {
+    double h = 0.0, t_cur = 0.0;
+    IDAGetCurrentStep(mem, &h);
+    IDAGetCurrentTime(mem, &t_cur);
+    char* name = IDAGetReturnFlagName(flag);
+    const std::string text = name ? name : "?";
+    free(name);
+    return StrCat(text, " at t = ", t_cur, " s with step h = ", h, " s");
   }
 
   // After y, yp are filled: IDACreate … IDARootInit for the phase. The unknowns marked 1 in

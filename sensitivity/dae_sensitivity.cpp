@@ -597,14 +597,7 @@ void DaeSensitivity::Run(SensitivityResult* result) {
       double t_reached = t;
       const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
       if (flag < 0) {
-        double h = 0.0, t_cur = 0.0;
-        IDAGetCurrentStep(ida_.mem, &h);
-        IDAGetCurrentTime(ida_.mem, &t_cur);
-        char* name = IDAGetReturnFlagName(flag);
-        const std::string text = name ? name : "?";
-        free(name);
-        Throw<SolverError>("RunSensitivity", "IDAS ", text, " at t = ", t_cur, " s with step h = ", h, " s",
-                           failure_.empty() ? "" : " (" + failure_ + ")", messages_.Take());
+        Throw<SolverError>("RunSensitivity", "IDAS ", ida_.SolveFailure(flag), failure_.empty() ? "" : " (" + failure_ + ")", messages_.Take());
       }
       t = t_reached;
       if (with_s_) {

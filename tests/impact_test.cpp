@@ -112,7 +112,9 @@ TEST_F(PlasticImpact, OneContactMatchesClosedFormImpulse) {
     EXPECT_NEAR(P[0], P_expected, 1e-6 * std::abs(P_expected));
     const Vector6d nu_expected = nu + Minv * G.transpose() * P_expected;
     EXPECT_LT((GeneralizedVelocity(q_, qd_after) - nu_expected).norm(), 1e-6 * nu.norm());
-    if (G.dot(nu) < 0.0) EXPECT_GT(P[0], 0.0) << "approaching contact: compressive impulse";
+    if (G.dot(nu) < 0.0) {
+      EXPECT_GT(P[0], 0.0) << "approaching contact: compressive impulse";
+    }
   }
 }
 

@@ -141,7 +141,9 @@ TEST(SweepCli, KneedynBinaryMapsNeitherMpiNorHdf5) {
   }
   const std::string plugin = RunShell("readelf -d " KNEEDYN_SWEEP_IO).output;
   EXPECT_NE(plugin.find("libhdf5"), std::string::npos) << plugin;
-  if (!std::string(KNEEDYN_MPIEXEC).empty()) EXPECT_NE(plugin.find("libmpi"), std::string::npos) << plugin;
+  if (!std::string(KNEEDYN_MPIEXEC).empty()) {
+    EXPECT_NE(plugin.find("libmpi"), std::string::npos) << plugin;
+  }
 }
 
 // A kneedyn without its plugin (a copy of the binary in a directory with no
