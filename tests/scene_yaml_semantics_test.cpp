@@ -68,7 +68,7 @@ TEST(SceneYamlSemantics, NumbersAsYamlCpp) {
 }
 
 TEST(SceneYamlSemantics, BooleansAsYamlCpp) {
-  for (const std::string& s : {"true", "True", "TRUE", "tRue", "yes", "Yes", "YES", "y", "Y", "on", "On", "ON", "oN",
+  for (const char* s : {"true", "True", "TRUE", "tRue", "yes", "Yes", "YES", "y", "Y", "on", "On", "ON", "oN",
                                "false", "False", "no", "n", "N", "off", "OFF", "Off", "1", "0", "'true'", "\"no\"",
                                "~", "''", "t", "nO", "[true]"}) {
     SCOPED_TRACE(std::string("gravity.enabled: ") + s);
@@ -86,7 +86,7 @@ TEST(SceneYamlSemantics, BooleansAsYamlCpp) {
 }
 
 TEST(SceneYamlSemantics, NullsAndStringsAsYamlCpp) {
-  for (const std::string& s : {"abc", "~", "null", "Null", "NULL", "nUll", "''", "\"~\"", "'null'", "\"a b\"",
+  for (const char* s : {"abc", "~", "null", "Null", "NULL", "nUll", "''", "\"~\"", "'null'", "\"a b\"",
                                "a.b-c_d", "\"\"", "[a]", "{a: b}", "&x abc", "abc # c"}) {
     SCOPED_TRACE(std::string("name: ") + s);
     Scene scene;
