@@ -71,17 +71,26 @@ def live_row(kneedyn, outdir, method, ref_events):
           st.get("steps", ""), st.get("residual_evaluations", ""), f"{s.get('wall_time_s', float('nan')):.3f}"]
 
 
-def bench_rows(bench):
-  with open(bench) as f:
-    results = json.load(f).get("results", [])
+def completed_runs(results, method):
+  """A method's runs of the sweep that completed with an scd."""
+  return [r for r in results if r.get("formulation") == method and r.get("status") == "ok"
+          and isinstance((r.get("metrics") or {}).get("scd"), (int, float))]
+
+
+def best_run(results, method):
+  """The method's completed run with the highest scd, or None."""
+  runs = completed_runs(results, method)
+  return max(runs, key=lambda r: r["metrics"]["scd"]) if runs else None
+
+
+def bench_rows(results):
   rows = []
   for m in METHODS:
-    runs = [r for r in results if r.get("formulation") == m and r.get("status") == "ok"
-            and isinstance((r.get("metrics") or {}).get("scd"), (int, float))]
+    runs = completed_runs(results, m)
     if not runs:
       rows.append([m, "not in the sweep"] + ["—"] * len(THRESHOLDS))
       continue
-    best = max(runs, key=lambda r: r["metrics"]["scd"])
+    best = best_run(results, m)
     cells = []
     for t in THRESHOLDS:
       ok = [r for r in runs if r["metrics"]["scd"] >= t]
@@ -94,41 +103,22 @@ def bench_rows(bench):
   return rows
 
 
-def best_run(bench, method):
-  """(best scd, its setting) of a method's completed runs in the sweep, or (None, {})."""
-  with open(bench) as f:
-    runs = [(r["metrics"]["scd"], r.get("setting", {})) for r in json.load(f).get("results", [])
-            if r.get("formulation") == method and r.get("status") == "ok"
-            and isinstance((r.get("metrics") or {}).get("scd"), (int, float))]
-  return max(runs, key=lambda x: x[0]) if runs else (None, {})
-
-
-def best_scd(bench, method):
-  scd, _ = best_run(bench, method)
-  return f"{scd:.2f}" if scd is not None else "—"
-
-
-def best_adaptive_sentence(bench, method):
-  scd, setting = best_run(bench, method)
-  if scd is None:
+def best_adaptive_sentence(results, method):
+  best = best_run(results, method)
+  if best is None:
     return f"{method}: no completed run in the sweep"
-  return f"{method}'s best is scd {scd:.2f} at {setting_of({'setting': setting})}"
+  return f"{method}'s best is scd {best['metrics']['scd']:.2f} at {setting_of(best)}"
 
 
-def fixed_step_sentence(bench, method, digits=6.0):
+def fixed_step_sentence(results, method, digits=6.0):
   """Best scd of a second-order fixed-step method and the step `digits` would take at order 2
   (scd grows by log10(4) per halving: h_digits = h_best · 10^(−(digits − scd_best)/2))."""
-  scd, setting = best_run(bench, method)
-  if scd is None or not setting.get("step"):
+  best = best_run(results, method)
+  if best is None or not best.get("setting", {}).get("step"):
     return f"{method}: no completed run in the sweep"
-  h = setting["step"]
+  h, scd = best["setting"]["step"], best["metrics"]["scd"]
   return (f"swept down to h = {h:g} s {method} reaches {scd:.2f}; {digits:g} digits would take "
           f"h ≈ {h * 10 ** (-(digits - scd) / 2):.1g} s")
-
-
-def sweep_rtol_min(bench):
-  with open(bench) as f:
-    return (json.load(f).get("header") or {}).get("rtol_min", "?")
 
 
 def setting_of(r):
@@ -158,14 +148,18 @@ def section(outdir, kneedyn=None, bench=None):
   else:
     parts.append("<p>No kneedyn binary given; live comparison omitted.</p>")
   if bench and os.path.exists(bench):
+    with open(bench) as f:
+      sweep = json.load(f)
+    results = sweep.get("results", [])
+    rtol_min = (sweep.get("header") or {}).get("rtol_min", "?")
     parts.append(f"<p>Digits and cost from the work-precision sweep (<code>{esc(os.path.basename(bench))}</code>): "
                  "best scd of the positions and the median CPU time of the cheapest run reaching scd 4/6/8/10. "
                  "The fixed-step methods gain 0.6 digits per step halving (second order): "
-                 f"{esc(fixed_step_sentence(bench, 'generalized-alpha'))}. The adaptive ones stop at "
-                 f"the sweep's tightest rtol ({esc(sweep_rtol_min(bench))}; {esc(best_adaptive_sentence(bench, 'dae-ggl'))})."
+                 f"{esc(fixed_step_sentence(results, 'generalized-alpha'))}. The adaptive ones stop at "
+                 f"the sweep's tightest rtol ({esc(rtol_min)}; {esc(best_adaptive_sentence(results, 'dae-ggl'))})."
                  "</p>")
     parts.append(table(["method", "best scd (setting)"] + [f"scd ≥ {t}: CPU s (setting)" for t in THRESHOLDS],
-                       bench_rows(bench)))
+                       bench_rows(results)))
   else:
     parts.append("<p>No benchmark JSON given; digits and cost omitted.</p>")
   return "\n".join(parts)
