@@ -21,8 +21,8 @@ struct DaeOnIdaVariant {
 // Absolute tolerance of unknown i in IDA's Newton test (dae.cpp, dae_ggl.cpp; also the IDAS
 // sensitivities, so that their phases take the formulations' steps). The index-2 unknowns
 // (N, newtons, and GGL's μ, m/s: every unknown from NormalIndex(0) on) carry round-off of
-// order ε/h² in Newton corrections; they get kForceAtolScale (formulation.hpp) per unit --atol, floored
-// at kGglIndexTwoAtolFloor for GGL (dae_ggl.cpp's header comment says why).
+// order ε/h² in Newton corrections; they get kForceAtolScale (formulation.hpp) per unit
+// --atol, floored at kGglIndexTwoAtolFloor for GGL (dae_ggl.cpp's header comment says why).
 constexpr double kGglIndexTwoAtolFloor = 1.0e-3;
 inline double DaeUnknownAtol(bool ggl, const DaeSystem& system, int i, double atol) {
   if (i < system.NormalIndex(0)) return atol;

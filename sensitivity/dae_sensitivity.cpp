@@ -597,7 +597,8 @@ void DaeSensitivity::Run(SensitivityResult* result) {
       double t_reached = t;
       const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
       if (flag < 0) {
-        Throw<SolverError>("RunSensitivity", "IDAS ", ida_.SolveFailure(flag), failure_.empty() ? "" : " (" + failure_ + ")", messages_.Take());
+        Throw<SolverError>("RunSensitivity", "IDAS ", ida_.SolveFailure(flag),
+                           failure_.empty() ? "" : " (" + failure_ + ")", messages_.Take());
       }
       t = t_reached;
       if (with_s_) {

@@ -213,11 +213,10 @@ MatrixXd ActiveConstraintRows(const Model& model, const MechanicalState& state, 
   return G;
 }
 
-// Level 2: φ̇ = G B(q) q̇ = 0 by the minimum-norm correction of the rates not held.
-InitLevelReport SolveVelocityLevel(const Model& model, const std::vector<int>& held_velocities,
+// Level 2: φ̇ = G B(q) q̇ = 0 by the minimum-norm correction of the rates not held; G are
+// the active contacts' rows at state->q (ActiveConstraintRows).
+InitLevelReport SolveVelocityLevel(const MatrixXd& G, const std::vector<int>& held_velocities,
                                    const ConsistentInitOptions& options, MechanicalState* state) {
-  const Pose pose = PoseFromCoordinates(state->q);
-  const MatrixXd G = ActiveConstraintRows(model, *state, pose);
   InitLevelReport vel;
   Matrix6d B = Matrix6d::Identity();
   B.bottomRightCorner<3, 3>() = AngularVelocityMap(state->q(kBeta), state->q(kGamma));
@@ -250,10 +249,10 @@ InitLevelReport SolveVelocityLevel(const Model& model, const std::vector<int>& h
 // Level 3, the hidden constraint (linear in ν̇, N), by Ceres from the force guesses in
 // state->contact[].normal_force: the initialization reports its iterations. (A restart
 // solves it directly instead: CompleteHiddenConstraint.)
-InitLevelReport SolveHiddenLevel(const Model& model, const ConsistentInitOptions& options, MechanicalState* state) {
+// `pose` and `G` at state->q, as the velocity level had them.
+InitLevelReport SolveHiddenLevel(const Model& model, const Pose& pose, const MatrixXd& G,
+                                 const ConsistentInitOptions& options, MechanicalState* state) {
   const int k = static_cast<int>(state->active.size());
-  const Pose pose = PoseFromCoordinates(state->q);
-  const MatrixXd G = ActiveConstraintRows(model, *state, pose);
   const Vector6d nu = GeneralizedVelocity(state->q, state->qd);
   VectorXd kappa(k);
   for (int c = 0; c < k; ++c) {
@@ -328,8 +327,10 @@ MechanicalState ConsistentInitialize(const Model& model, const InitialState& ini
     }
   }
   CheckJcsRegular(state.q(kBeta), "ConsistentInitialize");
-  rep.velocity = SolveVelocityLevel(model, init.held_velocities, options, &state);
-  rep.hidden = SolveHiddenLevel(model, options, &state);
+  const Pose pose = PoseFromCoordinates(state.q);
+  const MatrixXd G = ActiveConstraintRows(model, state, pose);
+  rep.velocity = SolveVelocityLevel(G, init.held_velocities, options, &state);
+  rep.hidden = SolveHiddenLevel(model, pose, G, options, &state);
   for (const ContactGuess& g : state.contact) rep.normal_force.push_back(g.normal_force);
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) {
     if (!state.IsActive(i)) rep.normal_force[i] = 0.0;
@@ -349,7 +350,7 @@ void CompleteHiddenConstraint(const Model& model, MechanicalState* state) {
   // ~3e-11 m/s at any step size (gravity_only, rtol 1e-10: IDA_ERR_FAIL after a kink).
   constexpr double kGapTolerance = 1.0e-14;  // m
   ProjectOntoContacts(model, state->active, kGapTolerance, 20, &state->q);
-  SolveVelocityLevel(model, {}, options, state);
+  SolveVelocityLevel(ActiveConstraintRows(model, *state, PoseFromCoordinates(state->q)), {}, options, state);
   // Issue 12 item 2 (cheap restarts): the hidden level is linear in (ν̇, N); at a restart
   // it is solved directly (the Schur-complement solve of constrained_dynamics.hpp) instead
   // of by Ceres from guesses.

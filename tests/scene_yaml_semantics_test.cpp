@@ -69,8 +69,8 @@ TEST(SceneYamlSemantics, NumbersAsYamlCpp) {
 
 TEST(SceneYamlSemantics, BooleansAsYamlCpp) {
   for (const char* s : {"true", "True", "TRUE", "tRue", "yes", "Yes", "YES", "y", "Y", "on", "On", "ON", "oN",
-                               "false", "False", "no", "n", "N", "off", "OFF", "Off", "1", "0", "'true'", "\"no\"",
-                               "~", "''", "t", "nO", "[true]"}) {
+                        "false", "False", "no", "n", "N", "off", "OFF", "Off", "1", "0", "'true'", "\"no\"",
+                        "~", "''", "t", "nO", "[true]"}) {
     SCOPED_TRACE(std::string("gravity.enabled: ") + s);
     Scene scene;
     const std::string verdict = Verdict(SceneText("b", s, "1.0"), &scene);
@@ -87,7 +87,7 @@ TEST(SceneYamlSemantics, BooleansAsYamlCpp) {
 
 TEST(SceneYamlSemantics, NullsAndStringsAsYamlCpp) {
   for (const char* s : {"abc", "~", "null", "Null", "NULL", "nUll", "''", "\"~\"", "'null'", "\"a b\"",
-                               "a.b-c_d", "\"\"", "[a]", "{a: b}", "&x abc", "abc # c"}) {
+                        "a.b-c_d", "\"\"", "[a]", "{a: b}", "&x abc", "abc # c"}) {
     SCOPED_TRACE(std::string("name: ") + s);
     Scene scene;
     const std::string verdict = Verdict(SceneText(s, "true", "1.0"), &scene);
