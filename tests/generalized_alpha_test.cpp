@@ -254,6 +254,8 @@ TEST(GeneralizedAlpha, LiftoffLocatedOnTheStateAndErrorIsSecondOrder) {
       ++compared;
     }
   }
+  std::printf("position error before the lift-off: ||e_h|| / ||e_h/2|| = %.2f, ||e_h - 4 e_h/2|| / ||e_h|| = %.3f\n",
+              std::sqrt(norm_h / norm_half), std::sqrt(norm_misfit / norm_h));
   EXPECT_GE(compared, 60);  // 11 compared times before the lift-off (0 … 0.2 s) × 6 components
   EXPECT_NEAR(std::sqrt(norm_h / norm_half), 4.0, 0.3);
   EXPECT_LT(std::sqrt(norm_misfit / norm_h), 0.15);
