@@ -19,10 +19,10 @@
 //       the counter s_per_residual_eval of run/mde.
 //   physics/applied_wrench       ligament, gravity and pulse loads (ComputeAppliedWrench),
 //       shared by every residual and RHS.
-//   lu/kneedyn, lu/sundials, lu/eigen   factorization + solve of dae's Jacobian (the
-//       actual matrix, size in the counter n): kneedyn's LU (formulations/sundials_kernels.hpp,
-//       what IDA and CVODE now call), the library's dense getrf/getrs (Debian builds it at
-//       -O0) and Eigen's PartialPivLU.
+//   lu/sundials, lu/eigen        factorization + solve of dae's Jacobian (the actual
+//       matrix, size in the counter n): SUNDIALS' dense getrf/getrs (what IDA and CVODE
+//       call through SUNLinSol_Dense; built with kneedyn's flags, cmake/sundials.cmake) and
+//       Eigen's PartialPivLU.
 //   init/<form>                  ConsistentInitialize (three levels, Ceres), counters: the
 //       Ceres iterations of the position and hidden levels.
 //   restart/hidden_constraint    CompleteHiddenConstraint, the driver's part of a restart
@@ -35,9 +35,6 @@
 //       (benchmarks/baseline_counters.json, instruction_counts): rtol 1e-8, atol 1e-10
 //       (dae*, and mde, ede with cvode-adams, ede without stabilization); newmark* and
 //       generalized-alpha* --step 1e-3.
-//   run/<formulation>/library_kernels  the same with the library's own vector kernels and
-//       dense solver (KNEEDYN_SUNDIALS_KERNELS=library) for the SUNDIALS formulations: the
-//       ratio to run/<formulation> is what the kernels buy (identical results).
 #include <benchmark/benchmark.h>
 
 #include <sundials/sundials_dense.h>
@@ -50,7 +47,6 @@
 #include <vector>
 
 #include "formulations/dae_system.hpp"
-#include "formulations/sundials_kernels.hpp"
 #include "formulations/sundials_util.hpp"
 #include "formulations/run.hpp"
 #include "solver/consistent_init.hpp"
@@ -157,33 +153,6 @@ MatrixXd DaeJacobian(int* n) {
   return J;
 }
 
-// kneedyn's dense LU as IDA calls it: SUNLinSolSetup (factor in place) + SUNLinSolSolve.
-void BM_LuKneedyn(benchmark::State& st) {
-  int n = 0;
-  const MatrixXd J = DaeJacobian(&n);
-  SundialsContext ctx;
-  SUNMatrix A = SUNDenseMatrix(n, n, ctx);
-  N_Vector b = NewSerialVector(n, ctx), x = NewSerialVector(n, ctx);
-  SetKneedynSundialsKernels(true);
-  SUNLinearSolver S = NewDenseLinearSolver(x, A, ctx);
-  SUNLinSolInitialize(S);
-  for (auto _ : st) {
-    std::copy(J.data(), J.data() + n * n, SUNDenseMatrix_Data(A));
-    N_VConst(1.0, b);
-    if (SUNLinSolSetup(S, A) != 0) {
-      st.SkipWithError("singular Jacobian");
-      break;
-    }
-    SUNLinSolSolve(S, A, x, b, 0.0);
-    benchmark::DoNotOptimize(NV_DATA_S(x));
-  }
-  SUNLinSolFree(S);
-  SUNMatDestroy(A);
-  N_VDestroy(b);
-  N_VDestroy(x);
-  st.counters["n"] = n;
-}
-
 void BM_LuEigen(benchmark::State& st) {
   int n = 0;
   const MatrixXd J = DaeJacobian(&n);
@@ -251,11 +220,10 @@ void BM_Start(benchmark::State& st, const FormulationInfo* info) {
   st.counters["restarts"] = benchmark::Counter(static_cast<double>(f->stats().restarts) / st.iterations());
 }
 
-void BM_Run(benchmark::State& st, const FormulationInfo* info, bool library_kernels) {
+void BM_Run(benchmark::State& st, const FormulationInfo* info) {
   RunSettings settings;
   settings.formulation = info->name;
   settings.options = OptionsFor(*info);
-  SetKneedynSundialsKernels(!library_kernels);
   RunResult r;
   for (auto _ : st) {
     r = RunScene(Chapter(), settings);
@@ -264,7 +232,6 @@ void BM_Run(benchmark::State& st, const FormulationInfo* info, bool library_kern
       break;
     }
   }
-  SetKneedynSundialsKernels(true);
   const SolverStats& s = r.stats;
   st.counters["steps"] = s.steps;
   st.counters["residual_evaluations"] = s.residual_evaluations;
@@ -292,7 +259,6 @@ void Register() {
   benchmark::RegisterBenchmark("dae/jacobian_jet", BM_DaeJacobian, true)->Unit(benchmark::kMicrosecond);
   benchmark::RegisterBenchmark("ede/rhs", BM_EdeRhs)->Unit(benchmark::kNanosecond);
   benchmark::RegisterBenchmark("physics/applied_wrench", BM_AppliedWrench)->Unit(benchmark::kNanosecond);
-  benchmark::RegisterBenchmark("lu/kneedyn", BM_LuKneedyn)->Unit(benchmark::kNanosecond);
   benchmark::RegisterBenchmark("lu/sundials", BM_LuSundials)->Unit(benchmark::kNanosecond);
   benchmark::RegisterBenchmark("lu/eigen", BM_LuEigen)->Unit(benchmark::kNanosecond);
   benchmark::RegisterBenchmark("init/chapter", BM_ConsistentInit, ContactForm::kChapter)->Unit(benchmark::kMicrosecond);
@@ -303,11 +269,7 @@ void Register() {
     benchmark::RegisterBenchmark(("start/" + info.name).c_str(), BM_Start, &info)->Unit(benchmark::kMicrosecond);
   }
   for (const FormulationInfo& info : RegisteredFormulations()) {
-    benchmark::RegisterBenchmark(("run/" + info.name).c_str(), BM_Run, &info, false)->Unit(benchmark::kMillisecond);
-    if (!info.fixed_step) {  // the SUNDIALS formulations
-      benchmark::RegisterBenchmark(("run/" + info.name + "/library_kernels").c_str(), BM_Run, &info, true)
-          ->Unit(benchmark::kMillisecond);
-    }
+    benchmark::RegisterBenchmark(("run/" + info.name).c_str(), BM_Run, &info)->Unit(benchmark::kMillisecond);
   }
 }
 

@@ -305,6 +305,14 @@ int main(int argc, char** argv) {
     out["context"]["git_commit"] = KneedynGitCommit();
     out["context"]["kneedyn_mode"] = short_mode ? "short" : "full";
     out["context"]["kneedyn_scene"] = scene.name;
+    // The fairness manifest: how every component on the time axis was built (the report
+    // prints it beside the diagrams; peers such as Simbody and SciPy append their own).
+    nlohmann::json components = nlohmann::json::array();
+    for (const BuildComponent& c : BuildManifest()) {
+      components.push_back({{"name", c.name}, {"version", c.version}, {"origin", c.origin},
+                            {"compile_flags", c.compile_flags}});
+    }
+    out["context"]["components"] = components;
     nlohmann::json& h = out["header"];
     h["machine"] = MachineJson();
     h["scene"] = scene.name;

@@ -20,10 +20,23 @@ foreach(dir solver scene formulations)
 endforeach()
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/reference-data/ DESTINATION ${CMAKE_INSTALL_DATADIR}/kneedyn)
 
+# The optimized SUNDIALS the libraries were linked against (cmake/sundials.cmake): its
+# archives, headers and CMake package, private to kneedyn (lib/kneedyn/sundials).
+set(KNEEDYN_SUNDIALS_INSTALL_DIR ${CMAKE_INSTALL_LIBDIR}/kneedyn/sundials)
+if(KNEEDYN_SUNDIALS STREQUAL "bundled")
+  install(DIRECTORY ${KNEEDYN_SUNDIALS_PREFIX}/include ${KNEEDYN_SUNDIALS_PREFIX}/lib
+          DESTINATION ${KNEEDYN_SUNDIALS_INSTALL_DIR})
+  set(KNEEDYN_PC_SUNDIALS_CFLAGS "-I\${libdir}/kneedyn/sundials/include")
+  set(KNEEDYN_PC_SUNDIALS_LIBS "-L\${libdir}/kneedyn/sundials/lib -lsundials_idas -lsundials_cvodes -lsundials_arkode")
+else()
+  set(KNEEDYN_PC_SUNDIALS_CFLAGS "")
+  set(KNEEDYN_PC_SUNDIALS_LIBS "-lsundials_idas -lsundials_cvodes -lsundials_arkode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense")
+endif()
+
 install(EXPORT kneedynTargets NAMESPACE kneedyn:: DESTINATION ${KNEEDYN_CMAKE_DIR})
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/kneedynConfig.cmake.in
   ${PROJECT_BINARY_DIR}/kneedynConfig.cmake INSTALL_DESTINATION ${KNEEDYN_CMAKE_DIR}
-  PATH_VARS CMAKE_INSTALL_DATADIR)
+  PATH_VARS CMAKE_INSTALL_DATADIR KNEEDYN_SUNDIALS_INSTALL_DIR)
 write_basic_package_version_file(${PROJECT_BINARY_DIR}/kneedynConfigVersion.cmake
   COMPATIBILITY SameMinorVersion)
 install(FILES ${PROJECT_BINARY_DIR}/kneedynConfig.cmake ${PROJECT_BINARY_DIR}/kneedynConfigVersion.cmake

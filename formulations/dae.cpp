@@ -44,7 +44,6 @@
 #include "formulations/dae_testing.hpp"
 #include "formulations/formulation_base.hpp"
 #include "formulations/ida_phase.hpp"
-#include "formulations/sundials_kernels.hpp"
 #include "formulations/sundials_util.hpp"
 #include "solver/dynamics.hpp"
 

@@ -14,7 +14,6 @@
 
 #include "formulations/formulation.hpp"
 #include "formulations/ida_statistics.hpp"
-#include "formulations/sundials_kernels.hpp"
 #include "formulations/sundials_util.hpp"
 
 namespace kneedyn {
@@ -85,7 +84,7 @@ struct IdaPhase {
                                       : std::clamp(1e-4 * std::sqrt(options.rtol / 1e-6), 1e-8, 1e-3);
     check(IDASetInitStep(mem, h0), "IDASetInitStep");
     A = SUNDenseMatrix(n, n, ctx);
-    LS = NewDenseLinearSolver(y, A, ctx);  // kneedyn's LU (sundials_kernels.hpp)
+    LS = SUNLinSol_Dense(y, A, ctx);
     check(IDASetLinearSolver(mem, LS, A), "IDASetLinearSolver");
     check(IDASetJacFn(mem, jacobian), "IDASetJacFn");
     if (!events.empty() || !extra_root_directions.empty()) {

@@ -1,6 +1,6 @@
 #include "formulations/ode_integrator.hpp"
 
-#include "formulations/sundials_kernels.hpp"
+#include "formulations/sundials_util.hpp"
 
 #include <arkode/arkode_arkstep.h>
 #include <arkode/arkode_butcher_erk.h>
@@ -149,7 +149,7 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
     if (kind_ == IntegratorKind::kCvodeBdf) {
       // Dense LU; no Jacobian function: CVODE's difference-quotient Jacobian.
       A_ = SUNDenseMatrix(n_, n_, ctx_);
-      LS_ = NewDenseLinearSolver(y_, A_, ctx_);
+      LS_ = SUNLinSol_Dense(y_, A_, ctx_);
       Check(CVodeSetLinearSolver(mem_, LS_, A_), "CVodeSetLinearSolver");
       if (solver_projection) Check(CVodeSetProjFn(mem_, &OdeIntegrator::ProjCallback), "CVodeSetProjFn");
     } else {

@@ -9,6 +9,20 @@
 #ifndef KNEEDYN_VERSION
 #define KNEEDYN_VERSION "unknown"
 #endif
+// Set by formulations/CMakeLists.txt from the configured build (cmake/sundials.cmake for
+// SUNDIALS' origin and flags).
+#ifndef KNEEDYN_CXX_COMPILER
+#define KNEEDYN_CXX_COMPILER "unknown"
+#endif
+#ifndef KNEEDYN_CXX_FLAGS
+#define KNEEDYN_CXX_FLAGS "unknown"
+#endif
+#ifndef KNEEDYN_SUNDIALS_ORIGIN
+#define KNEEDYN_SUNDIALS_ORIGIN "unknown"
+#endif
+#ifndef KNEEDYN_SUNDIALS_C_FLAGS
+#define KNEEDYN_SUNDIALS_C_FLAGS "unknown"
+#endif
 
 namespace kneedyn {
 
@@ -29,6 +43,21 @@ std::string VersionReport(const std::string& program) {
                                 : program + " (kneedyn " + KneedynVersion() + ", " + origin + ")";
   return first + "\nSUNDIALS " +
          SundialsVersion() + ", Ceres " + CeresVersion() + ", Eigen " + EigenVersion();
+}
+
+std::vector<BuildComponent> BuildManifest() {
+  const std::string kneedyn_flags = std::string(KNEEDYN_CXX_COMPILER) + " " + KNEEDYN_CXX_FLAGS;
+  const std::string commit = KneedynGitCommit();
+  return {
+      {"kneedyn", KneedynVersion(), commit.empty() ? "this repository" : "this repository, git " + commit,
+       kneedyn_flags},
+      {"SUNDIALS", SundialsVersion(), KNEEDYN_SUNDIALS_ORIGIN, KNEEDYN_SUNDIALS_C_FLAGS},
+      // Header-only: compiled into kneedyn's objects with kneedyn's flags.
+      {"Eigen", EigenVersion(), "Debian 12 package libeigen3-dev (header-only)", kneedyn_flags},
+      // Consistent initialization only; not on any method's time axis.
+      {"Ceres", CeresVersion(), "Debian 12 binary package libceres-dev (static libceres.a)",
+       "as built by Debian (dpkg-buildflags: -O2)"},
+  };
 }
 
 }  // namespace kneedyn

@@ -69,7 +69,6 @@
 #include "formulations/dae_on_ida.hpp"
 #include "formulations/dae_system.hpp"
 #include "formulations/ida_phase.hpp"
-#include "formulations/sundials_kernels.hpp"
 #include "formulations/sundials_util.hpp"
 #include "sensitivity/sensitivity_problem.hpp"
 #include "solver/consistent_init.hpp"

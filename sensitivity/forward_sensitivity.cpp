@@ -11,7 +11,6 @@
 #include <set>
 
 #include "ensembles/sweep.hpp"
-#include "formulations/sundials_kernels.hpp"
 #include "formulations/sundials_util.hpp"
 #include "sensitivity/sensitivity_problem.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -382,7 +381,7 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
     cv.Check(CVodeSetStopTime(cv.mem, t_end), "CVodeSetStopTime");
     if (last_h > 0.0) cv.Check(CVodeSetInitStep(cv.mem, 0.25 * last_h), "CVodeSetInitStep");
     cv.A = SUNDenseMatrix(kN, kN, ctx);
-    cv.LS = NewDenseLinearSolver(cv.y, cv.A, ctx);
+    cv.LS = SUNLinSol_Dense(cv.y, cv.A, ctx);
     cv.Check(CVodeSetLinearSolver(cv.mem, cv.LS, cv.A), "CVodeSetLinearSolver");
     const int n_events = static_cast<int>(mode.events.size());
     const int n_roots = n_events + static_cast<int>(problem.peaks().size());

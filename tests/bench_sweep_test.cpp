@@ -127,6 +127,31 @@ TEST_F(ShortSweep, CsvHasOneRowPerResult) {
 }
 
 // Issue 10: the file is Google Benchmark's own JSON (what its tools/compare.py reads): a
+// The fairness manifest (context.components): every component compiled into the methods on
+// the time axis, with its version, origin and flags; with the bundled SUNDIALS
+// (cmake/sundials.cmake) SUNDIALS carries kneedyn's own optimization flags.
+TEST_F(ShortSweep, FairnessManifestNamesEveryComponentAndSundialsIsBuiltLikeKneedyn) {
+  ASSERT_EQ(exit_code_, 0);
+  ASSERT_TRUE(json_["context"].contains("components"));
+  std::map<std::string, nlohmann::json> by_name;
+  for (const auto& c : json_["context"]["components"]) by_name[c.at("name").get<std::string>()] = c;
+  for (const char* name : {"kneedyn", "SUNDIALS", "Eigen", "Ceres"}) {
+    ASSERT_TRUE(by_name.count(name)) << name;
+    for (const char* field : {"version", "origin", "compile_flags"}) {
+      EXPECT_FALSE(by_name[name].at(field).get<std::string>().empty()) << name << "." << field;
+    }
+  }
+  EXPECT_EQ(by_name["SUNDIALS"]["version"], "6.4.1");
+#ifdef KNEEDYN_SUNDIALS_BUNDLED
+  const std::string sundials_flags = by_name["SUNDIALS"]["compile_flags"].get<std::string>();
+  const std::string kneedyn_flags = by_name["kneedyn"]["compile_flags"].get<std::string>();
+  EXPECT_NE(sundials_flags.find("-O"), std::string::npos) << sundials_flags;
+  EXPECT_NE(kneedyn_flags.find(sundials_flags), std::string::npos)
+      << "SUNDIALS '" << sundials_flags << "' vs kneedyn '" << kneedyn_flags << "'";
+  EXPECT_NE(by_name["SUNDIALS"]["origin"].get<std::string>().find("source package"), std::string::npos);
+#endif
+}
+
 // context, and in `benchmarks` one `iteration` entry per repetition of every setting plus
 // the aggregates, with time units; names carry no sweep mode, min_time or repeat count
 // (a short and a full run compare name by name). The mean aggregate equals the mean of

@@ -41,6 +41,7 @@
 
 #include "benchmarks/bench_run.hpp"
 #include "crosscheck/simbody/simbody_solution.hpp"
+#include "formulations/version.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -432,6 +433,17 @@ int main(int argc, char** argv) {
       if (!measured_keys.count(key)) results.push_back(r);
     }
     out["results"] = results;
+    // The fairness manifest (formulations/version.hpp): this program's kneedyn build, plus
+    // Simbody as Debian ships it.
+    nlohmann::json components = nlohmann::json::array();
+    for (const BuildComponent& c : BuildManifest()) {
+      components.push_back({{"name", c.name}, {"version", c.version}, {"origin", c.origin},
+                            {"compile_flags", c.compile_flags}});
+    }
+    components.push_back({{"name", "Simbody"}, {"version", "3.7"},
+                          {"origin", "Debian 12 binary package libsimbody-dev (shared)"},
+                          {"compile_flags", "as built by Debian (dpkg-buildflags: -O2)"}});
+    out["context"]["components"] = components;
 
     nlohmann::json tta = nlohmann::json::object();
     double best_k[2] = {INFINITY, INFINITY}, best_s[2] = {INFINITY, INFINITY};

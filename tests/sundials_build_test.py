@@ -1,0 +1,84 @@
+#!/usr/bin/env python3
+"""The SUNDIALS inside kneedyn's programs is the optimized build (cmake/sundials.cmake).
+
+For each binary given: no dynamic dependency on a libsundials shared object (every SUNDIALS
+symbol resolves inside the binary), IDASolve and CVode are defined in it, and the SUNDIALS
+functions in it are optimized code. The measure: the share of instructions that address
+memory through the frame pointer %rbp. Code compiled at -O0 keeps every local and argument
+in the stack frame and reaches it through %rbp (Debian's libsundials_idas.so: 34 %); at -O2
+or -O3 GCC keeps them in registers and omits the frame pointer (a few per cent at most).
+
+  sundials_build_test.py BINARY...            check the binaries
+  sundials_build_test.py --share LIB_OR_BIN   print the %rbp share of its SUNDIALS functions
+"""
+import re
+import subprocess
+import sys
+
+# SUNDIALS' public and internal C prefixes (IDAS, CVODES, ARKODE, vectors, matrices,
+# linear and nonlinear solvers, the context).
+SUNDIALS_FUNCTION = re.compile(
+    r"^(IDA|ida|CVode|cvode|cv[A-Z]|ARK|ark|ERKStep|erkStep|N_V|SUN|sun|SUNDlsMat|dense|band)")
+MAX_FRAME_SHARE = 0.10
+
+
+def frame_pointer_share(path):
+    """(instructions, of which address (%rbp)) over the SUNDIALS functions of path."""
+    dis = subprocess.run(["objdump", "-d", "--no-show-raw-insn", path], check=True,
+                         capture_output=True, text=True).stdout
+    total = through_rbp = functions = 0
+    current = None
+    for line in dis.splitlines():
+        m = re.match(r"^[0-9a-f]+ <([^>]+)>:$", line)
+        if m:
+            name = m.group(1)
+            current = name if SUNDIALS_FUNCTION.match(name) else None
+            functions += current is not None
+            continue
+        if current and re.match(r"^\s+[0-9a-f]+:\s+\S", line):
+            total += 1
+            through_rbp += "(%rbp)" in line
+    return functions, total, through_rbp
+
+
+def check(path):
+    errors = []
+    needed = subprocess.run(["readelf", "-d", path], check=True, capture_output=True,
+                            text=True).stdout
+    for lib in re.findall(r"\[(libsundials[^\]]*)\]", needed):
+        errors.append(f"{path}: needs {lib} (Debian's unoptimized SUNDIALS)")
+    symbols = subprocess.run(["nm", path], check=True, capture_output=True, text=True).stdout
+    for name in ("IDASolve", "CVode"):
+        if not re.search(rf" [Tt] {name}$", symbols, re.M):
+            errors.append(f"{path}: {name} is not defined in the binary")
+    functions, total, through_rbp = frame_pointer_share(path)
+    share = through_rbp / total if total else 1.0
+    print(f"{path}: {functions} SUNDIALS functions, {total} instructions, "
+          f"{100 * share:.1f} % address (%rbp) (limit {100 * MAX_FRAME_SHARE:.0f} %)")
+    if total == 0:
+        errors.append(f"{path}: no SUNDIALS functions found")
+    elif share > MAX_FRAME_SHARE:
+        errors.append(f"{path}: {100 * share:.1f} % of the SUNDIALS instructions address the "
+                      f"stack frame through %rbp (> {100 * MAX_FRAME_SHARE:.0f} %): unoptimized code")
+    return errors
+
+
+def main(argv):
+    if len(argv) == 3 and argv[1] == "--share":
+        functions, total, through_rbp = frame_pointer_share(argv[2])
+        print(f"{argv[2]}: {functions} functions, {total} instructions, "
+              f"{100 * through_rbp / max(total, 1):.1f} % (%rbp)")
+        return 0
+    if len(argv) < 2:
+        print(__doc__, file=sys.stderr)
+        return 2
+    errors = [e for path in argv[1:] for e in check(path)]
+    for e in errors:
+        print("FAIL:", e)
+    print(f"{len(argv) - 1 - len({e.split(':')[0] for e in errors})} passed, "
+          f"{len({e.split(':')[0] for e in errors})} failed")
+    return 1 if errors else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
