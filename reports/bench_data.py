@@ -63,20 +63,20 @@ def load_bench(path):
     if not isinstance(data.get("results"), list) and isinstance(data.get("benchmarks"), list):
       return header, _from_google_benchmark(data["benchmarks"])
     data = data.get("results", data.get("runs", []))
-  runs = []
-  for r in data:
-    if not isinstance(r, dict):
-      continue
-    m = r.get("metrics") or {}
-    cpu = r.get("cpu_time_s")
-    cpu = cpu.get("median") if isinstance(cpu, dict) else cpu
-    runs.append({"formulation": r.get("formulation", "?"), "integrator": r.get("integrator") or "",
-                 "setting": r.get("setting") or {}, "status": r.get("status", "ok"),
-                 "reason": r.get("reason") or "", "scd": m.get("scd"),
-                 "event_time_error_s": m.get("event_time_error_s") or {},
-                 "cpu_s": cpu, "residual_evaluations": (r.get("counters") or {}).get("residual_evaluations"),
-                 "events": r.get("events")})
-  return header, runs
+  return header, [normalize_result(r) for r in data if isinstance(r, dict)]
+
+
+def normalize_result(r):
+  """One entry of a sweep's `results` in the form the readers use (cpu_s = median CPU time)."""
+  m = r.get("metrics") or {}
+  cpu = r.get("cpu_time_s")
+  cpu = cpu.get("median") if isinstance(cpu, dict) else cpu
+  return {"formulation": r.get("formulation", "?"), "integrator": r.get("integrator") or "",
+          "setting": r.get("setting") or {}, "status": r.get("status", "ok"),
+          "reason": r.get("reason") or "", "scd": m.get("scd"),
+          "event_time_error_s": m.get("event_time_error_s") or {},
+          "cpu_s": cpu, "residual_evaluations": (r.get("counters") or {}).get("residual_evaluations"),
+          "events": r.get("events")}
 
 
 def _from_google_benchmark(entries):
