@@ -251,7 +251,8 @@ def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark):
   for f in forms:
     front = pareto_front([r for r in ok_runs if r["formulation"] == f])
     titles.append(failure_title(f, nfail.get(f, 0)))
-    if not front:
+    if not front:  # still in the legend, with its failures
+      ax.plot([], [], color=fcol[f], lw=1.6, ls=":", label=f"{f} (none on a front, {nfail.get(f, 0)} failed / wrong event)")
       continue
     err = [10.0 ** -r["scd"] for r in front]
     cpu = [r["cpu_s"] for r in front]
@@ -267,19 +268,23 @@ def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark):
   ax.set_xlabel("max relative position error 10^(−scd)  (accuracy grows to the right)")
   ax.set_ylabel("CPU time per run (median) [s]")
   ax.grid(alpha=0.3, which="both")
+  legends = []
   if ax.get_legend_handles_labels()[0]:
     first = ax.legend(title="formulation: best configuration at each accuracy", fontsize=7, title_fontsize=8,
                       loc="upper left", bbox_to_anchor=(1.01, 1.0))
     ax.add_artist(first)
     integs = sorted({r["integrator"] or "-" for r in ok_runs})
     handles = [plt.Line2D([], [], ls="none", marker=imark[g], color="0.3", mfc="white", ms=6) for g in integs]
-    ax.legend(handles, [g if g != "-" else "built-in (IDA / Newmark)" for g in integs], title="integrator (marker)",
-              fontsize=7, title_fontsize=8, loc="lower left", bbox_to_anchor=(1.01, 0.0))
+    second = ax.legend(handles, [g if g != "-" else "built-in (IDA / Newmark)" for g in integs],
+                       title="integrator (marker)", fontsize=7, title_fontsize=8, loc="lower left",
+                       bbox_to_anchor=(1.01, 0.0))
+    legends = [first, second]
   title = (f"Pareto fronts, scene {header.get('scene', '?')}, {header.get('mode', '?')} sweep: "
            f"{len(ok_runs)} runs are results; {len(failed)} failed or wrong event (on no front)")
   ax.set_title(title, fontsize=10)
   fig.tight_layout()
-  _save(fig, path, title, titles, bbox_inches="tight")  # the legends sit right of the axis
+  # The legends sit right of the axis; a tight box counts an add_artist legend only if named.
+  _save(fig, path, title, titles, bbox_inches="tight", bbox_extra_artists=legends)
 
 
 def make_work_precision(outdir, bench_path, prefix=""):
