@@ -242,9 +242,10 @@ def _save(fig, path, title, panel_titles, **savefig_args):
 
 
 def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark):
-  """One axis, every formulation's front (SciMLBenchmarks' layout: error right to left,
-  time up, both logarithmic): the cheapest run reaching each accuracy, as a staircase (the
-  minimal cost among runs reaching at least that scd is constant between front points)."""
+  """One axis, every formulation's front (SciMLBenchmarks' layout: error against time, both
+  logarithmic; here the error falls to the right, as scd grows in the panels): the cheapest
+  run reaching each accuracy, as a staircase (the minimal cost among runs reaching at least
+  that scd is constant between front points)."""
   fig, ax = plt.subplots(figsize=(10.5, 6.2))
   titles = []
   nfail = failure_counts(runs)
@@ -296,7 +297,8 @@ def make_work_precision(outdir, bench_path, prefix=""):
   ok_runs, failed = split_runs(runs)
   forms = sorted({r["formulation"] for r in runs})
   integs = sorted({r["integrator"] or "-" for r in runs})
-  palette = plt.get_cmap("tab10").colors
+  # Ten formulations and Simbody's methods: eleven colours on the Pareto axis.
+  palette = plt.get_cmap("tab10").colors + ("k",) + plt.get_cmap("Dark2").colors
   fcol = {f: palette[i % len(palette)] for i, f in enumerate(forms)}
   markers = "osD^v<>pP*Xh"
   imark = {g: markers[i % len(markers)] for i, g in enumerate(integs)}
