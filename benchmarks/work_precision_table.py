@@ -1,55 +1,82 @@
 #!/usr/bin/python3
-"""Fastest run reaching scd 4/6/8/10, per method, from a work_precision JSON (issue 13).
+"""Fastest run reaching scd 4/6/8/10, per method, from work-precision JSON files (issue 13).
 
     build/benchmarks/work_precision --rtol-min 1e-13 --json wp.json
-    /usr/bin/python3 benchmarks/work_precision_table.py wp.json
+    /usr/bin/python3 benchmarks/work_precision_table.py wp.json [MORE.json ...]
 
-A method is formulation[:integrator][/stabilization]; a run counts when its status is ok and
-its scd (metrics.hpp, against the stored reference) reaches the threshold. Prints a
-markdown table: median CPU time (s) and the setting of the cheapest such run, '—' if none.
+Reads the full sweep (benchmarks/recorded/), the short one (`work_precision --short`) and
+a short one with Simbody's methods merged in (`simbody_work_precision --merge`). A method is
+formulation[:integrator][/stabilization]. A run counts when the report's diagrams plot it
+(reports/bench_data.py: status ok, an scd, every reference event and no other, each event
+within 1 ms); the others are counted in the column "failed / wrong event". Prints one
+markdown table per file: median CPU time (s) and the setting of the cheapest counted run
+reaching each threshold, '—' if none.
 """
-import json
+import math
+import os
 import sys
+
+sys.dont_write_bytecode = True  # keep the source tree clean
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "reports"))
+from bench_data import load_bench, method_of, split_runs  # noqa: E402
 
 THRESHOLDS = (4, 6, 8, 10)
 
 
-def method_of(r):
-    name = r["formulation"] + (":" + r["integrator"] if r.get("integrator") else "")
-    stab = r.get("setting", {}).get("stabilization")
-    return name + ("/" + stab if stab else "")
-
-
 def setting_of(r):
-    s = r.get("setting", {})
-    return f"h={s['step']:g}" if "step" in s else f"rtol={s['rtol']:.2g}"
+  s = r.get("setting", {})
+  for key, name in (("step", "h"), ("rtol", "rtol"), ("accuracy", "accuracy")):
+    if key in s:
+      return f"{name}={s[key]:g}" if key == "step" else f"{name}={s[key]:.2g}"
+  return "?"
 
 
-def main(path):
-    results = json.load(open(path))["results"]
-    methods = []
-    for r in results:
-        m = method_of(r)
-        if m not in methods:
-            methods.append(m)
-    print("| method | best scd | " + " | ".join(f"scd ≥ {t}: CPU s (setting)" for t in THRESHOLDS) + " |")
-    print("|---|---|" + "---|" * len(THRESHOLDS))
-    for m in methods:
-        runs = [r for r in results if method_of(r) == m and r["status"] == "ok"
-                and isinstance(r.get("metrics", {}).get("scd"), (int, float))]
-        best = max((r["metrics"]["scd"] for r in runs), default=float("nan"))
-        cells = []
-        for t in THRESHOLDS:
-            ok = [r for r in runs if r["metrics"]["scd"] >= t]
-            if not ok:
-                cells.append("—")
-                continue
-            f = min(ok, key=lambda r: r["cpu_time_s"]["median"])
-            cells.append(f"{f['cpu_time_s']['median']:.3f} ({setting_of(f)})")
-        print(f"| {m} | {best:.2f} | " + " | ".join(cells) + " |")
+def rows(runs):
+  """[method, runs, failed / wrong event, best scd, cell per threshold] in order of appearance."""
+  ok, failed = split_runs(runs)
+  methods = list(dict.fromkeys(method_of(r) for r in runs))
+  out = []
+  for m in methods:
+    mine = [r for r in ok if method_of(r) == m]
+    n_failed = sum(method_of(r) == m for r, _ in failed)
+    best = max((r["scd"] for r in mine), default=math.nan)
+    cells = []
+    for t in THRESHOLDS:
+      reach = [r for r in mine if r["scd"] >= t and isinstance(r.get("cpu_s"), (int, float))]
+      if not reach:
+        cells.append("—")
+        continue
+      f = min(reach, key=lambda r: r["cpu_s"])
+      cells.append(f"{f['cpu_s']:.3f} ({setting_of(f)})")
+    out.append([m, str(len(mine) + n_failed), str(n_failed), "—" if math.isnan(best) else f"{best:.2f}"] + cells)
+  return out
+
+
+def table(path):
+  try:
+    _, runs = load_bench(path)
+  except (ValueError, UnicodeDecodeError) as e:  # json.JSONDecodeError is a ValueError
+    print(f"work_precision_table: '{path}': not a JSON file ({e})", file=sys.stderr)
+    sys.exit(2)
+  lines = ["| method | runs | failed / wrong event | best scd | "
+           + " | ".join(f"scd ≥ {t}: CPU s (setting)" for t in THRESHOLDS) + " |",
+           "|---|---|---|---|" + "---|" * len(THRESHOLDS)]
+  lines += ["| " + " | ".join(r) + " |" for r in rows(runs)]
+  return lines
+
+
+def main(paths):
+  for i, path in enumerate(paths):
+    if len(paths) > 1:
+      print(("\n" if i else "") + f"{path}:\n")
+    print("\n".join(table(path)))
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        sys.exit("usage: work_precision_table.py WORK_PRECISION.json")
-    main(sys.argv[1])
+  if len(sys.argv) < 2:
+    sys.exit("usage: work_precision_table.py WORK_PRECISION.json [MORE.json ...]")
+  missing = [p for p in sys.argv[1:] if not os.path.exists(p)]
+  if missing:
+    print(f"work_precision_table: '{missing[0]}': file not found", file=sys.stderr)
+    sys.exit(2)
+  main(sys.argv[1:])

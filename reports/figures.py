@@ -8,7 +8,6 @@ Frames (spec knee-model.md): x lateral, y anterior, z proximal; valgus = beta - 
 external tibial rotation = gamma (+).
 """
 import argparse
-import json
 import math
 import os
 import sys
@@ -66,6 +65,9 @@ FIGURES = [
 ] + [(ligament_figure(n), ligament_caption(n) + LIFTOFF_NOTE) for n in LIGAMENTS]
 
 WORK_PRECISION_FIGURES = [
+    ("work_precision_pareto.png", "Pareto front of every formulation on one axis: for each accuracy, the CPU time "
+     "of its cheapest run (any integrator, tolerance or step) reaching at least that scd; failed and "
+     "wrong-event runs are on no front"),
     ("work_precision_cpu.png", "Work-precision: significant correct digits of the positions (scd) vs CPU time"),
     ("work_precision_residuals.png", "Work-precision: scd of the positions vs residual (right-hand-side) evaluations"),
     ("work_precision_events.png", "Work-precision: event-time digits vs CPU time"),
@@ -210,175 +212,114 @@ def make_family_figures(outdir, members):
 
 
 # ---------------------------------------------------------------- work-precision
-# A run is drawn as a failure (not a point) when it failed, lacks a reference event, has
-# contact events the reference lacks, or misses an event time by more than this. 1 ms is
-# 0.5° of flexion at the end of the chapter run (α̇ ≈ 460°/s): any run whose positions
-# carry 2 or more digits must place its events closer than that.
-WRONG_EVENT_TIME_S = 1e-3
-UNIT_TO_S = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
+# Reading the sweep file and deciding which runs are results: bench_data.py (shared with
+# benchmarks/work_precision_table.py). Re-exported here for the report and its tests.
+from bench_data import (WRONG_EVENT_TIME_S, bench_key, classify_run, event_digits,  # noqa: E402,F401
+                        failure_counts, load_bench, pareto_front, setting_str, split_runs)
+
+POSITION_SCD_LABEL = "scd of positions vs reference\n−log10 max|e|/(|ref| + 1 mm or 1°)"
+FAILURE_MARKER = dict(marker="x", color="k", ms=8, mew=1.6, ls="none")
 
 
-def _parse_name(name):
-  """Google-Benchmark name 'formulation[:integrator]/rtol=X[/...]' or '/step=X' -> parts."""
-  parts = name.split("/")
-  form, _, integ = parts[0].partition(":")
-  setting = {}
-  for p in parts[1:]:
-    k, _, v = p.partition("=")
-    if k in ("rtol", "atol", "step"):
-      try:
-        setting[k] = float(v)
-      except ValueError:
-        pass
-  return form, integ, setting
+def failure_title(formulation, n_failed, n_untimed=0):
+  """A panel's title: the formulation and how many of its runs are drawn as failures."""
+  untimed = f", {n_untimed} without a time" if n_untimed else ""
+  return f"{formulation}  ({n_failed} failed / wrong event{untimed})"
 
 
-def load_bench(path):
-  """Benchmark JSON -> (header, [run dicts]) in one normalized form. Accepts
-    (a) benchmarks/work_precision.cpp's layout {"header", "results": [{formulation, integrator,
-        setting, status, reason, metrics{scd, event_time_error_s}, cpu_time_s{median}, counters,
-        events}]} (or a bare list of such results), and
-    (b) Google Benchmark's own layout {"context", "benchmarks": [{name, run_name, run_type,
-        aggregate_name, cpu_time, time_unit, <counters>, ...}]}: one run per run_name (the
-        median aggregate if present, else the mean of the iterations); formulation, integrator
-        and setting from the fields of the same name, else from the benchmark name; scd and
-        event errors from fields `scd`, `metrics` or `event_time_error_s[.<event>]`.
-  A top-level "provenance" {command, commit, date} is passed through in the header."""
-  with open(path, encoding="utf-8") as f:
-    data = json.load(f)
-  header = {}
-  if isinstance(data, dict):
-    header = dict(data.get("header") or data.get("context") or {})
-    if "provenance" in data:
-      header["provenance"] = data["provenance"]
-    if isinstance(data.get("benchmarks"), list):
-      return header, _from_google_benchmark(data["benchmarks"])
-    data = data.get("results", data.get("runs", []))
-  runs = []
-  for r in data:
-    if not isinstance(r, dict):
+def failure_row(values):
+  """The y of a panel's failure row: a full unit below the lowest plotted value and below 0,
+  so that no cross reads as a result (scd 0 and below are results some coarse runs reach);
+  the dashed line between sits half a unit above it."""
+  return math.floor(min(list(values) + [0.0])) - 1.0
+
+
+def _save(fig, path, title, panel_titles, **savefig_args):
+  """PNG with its titles also as text chunks (Title, Description): what a reader of the file
+  (and the report's tests) can check without looking at the pixels."""
+  fig.savefig(path, dpi=80, metadata={"Title": title, "Description": "\n".join(panel_titles)}, **savefig_args)
+  plt.close(fig)
+
+
+def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark):
+  """One axis, every formulation's front (SciMLBenchmarks' layout: error against time, both
+  logarithmic; here the error falls to the right, as scd grows in the panels): the cheapest
+  run reaching each accuracy, as a staircase (the minimal cost among runs reaching at least
+  that scd is constant between front points)."""
+  fig, ax = plt.subplots(figsize=(10.5, 6.2))
+  titles = []
+  nfail = failure_counts(runs)
+  for f in forms:
+    front = pareto_front([r for r in ok_runs if r["formulation"] == f])
+    titles.append(failure_title(f, nfail.get(f, 0)))
+    if not front:  # still in the legend, with its failures
+      ax.plot([], [], color=fcol[f], lw=1.6, ls=":", label=f"{f} (none on a front, {nfail.get(f, 0)} failed / wrong event)")
       continue
-    m = r.get("metrics") or {}
-    cpu = r.get("cpu_time_s")
-    cpu = cpu.get("median") if isinstance(cpu, dict) else cpu
-    runs.append({"formulation": r.get("formulation", "?"), "integrator": r.get("integrator") or "",
-                 "setting": r.get("setting") or {}, "status": r.get("status", "ok"),
-                 "reason": r.get("reason") or "", "scd": m.get("scd"),
-                 "event_time_error_s": m.get("event_time_error_s") or {},
-                 "cpu_s": cpu, "residual_evaluations": (r.get("counters") or {}).get("residual_evaluations"),
-                 "events": r.get("events")})
-  return header, runs
-
-
-def _from_google_benchmark(entries):
-  groups = {}
-  for e in entries:
-    if isinstance(e, dict) and e.get("name"):
-      groups.setdefault(e.get("run_name") or e["name"], []).append(e)
-  runs = []
-  for name, es in groups.items():
-    med = [e for e in es if e.get("run_type") == "aggregate" and e.get("aggregate_name") == "median"]
-    its = [e for e in es if e.get("run_type", "iteration") == "iteration"]
-    e = med[0] if med else (its[0] if its else es[0])
-    unit = UNIT_TO_S.get(e.get("time_unit", "ns"), 1e-9)
-    if med:
-      cpu = e.get("cpu_time")
-      cpu = cpu * unit if isinstance(cpu, (int, float)) else None
-    else:
-      ts = [x["cpu_time"] * UNIT_TO_S.get(x.get("time_unit", "ns"), 1e-9) for x in its
-            if isinstance(x.get("cpu_time"), (int, float))]
-      cpu = float(np.mean(ts)) if ts else None
-    form, integ, setting = _parse_name(name)
-    metrics = e.get("metrics") if isinstance(e.get("metrics"), dict) else {}
-    ev = dict(metrics.get("event_time_error_s") or e.get("event_time_error_s") or {})
-    for k, v in e.items():
-      if k.startswith("event_time_error_s.") or k.startswith("event_time_error_s_"):
-        ev[k[len("event_time_error_s") + 1:]] = v
-    failed = bool(e.get("error_occurred")) or str(e.get("status", "ok")) not in ("ok", "completed")
-    runs.append({"formulation": e.get("formulation", form), "integrator": e.get("integrator", integ) or "",
-                 "setting": e.get("setting") if isinstance(e.get("setting"), dict) else setting,
-                 "status": "failed" if failed else "ok",
-                 "reason": e.get("error_message") or e.get("reason") or e.get("label") or "",
-                 "scd": metrics.get("scd", e.get("scd")), "event_time_error_s": ev, "cpu_s": cpu,
-                 "residual_evaluations": e.get("residual_evaluations"), "events": e.get("events")})
-  return runs
-
-
-def setting_str(s):
-  if "step" in s:
-    return f"h = {s['step']:.3g} s"
-  if "rtol" in s:
-    return f"rtol = {s['rtol']:.3g}"
-  return json.dumps(s)
-
-
-def classify_run(r):
-  """'ok', or the reason the run is drawn as a failure. The reference's events are the keys
-  of event_time_error_s (one per reference event)."""
-  if r["status"] != "ok":
-    return f"failed: {r['reason'] or r['status']}"
-  scd = r.get("scd")
-  if scd is None or not math.isfinite(float(scd)):
-    return "no scd (comparison times missing: ended early or failed)"
-  ev = r.get("event_time_error_s") or {}
-  missing = [k for k, v in ev.items() if v is None or not math.isfinite(float(v))]
-  if missing:
-    return f"wrong events: reference event(s) {', '.join(missing)} missing"
-  late = {k: float(v) for k, v in ev.items() if float(v) > WRONG_EVENT_TIME_S}
-  if late:
-    k = max(late, key=late.get)
-    return f"wrong event time: {k} off by {late[k] * 1e3:.1f} ms (> {WRONG_EVENT_TIME_S * 1e3:g} ms)"
-  if ev and r.get("events") is not None:
-    extra = sorted({e["name"] for e in r["events"]} - set(ev) - {"flexion_90"})
-    if extra:
-      return f"wrong events: {', '.join(extra)} not in the reference"
-  return "ok"
-
-
-def event_digits(r):
-  """Event-time digits: −log10 of the largest |t − t_ref| [s] over the reference's events."""
-  ev = [float(v) for v in (r.get("event_time_error_s") or {}).values() if v is not None]
-  if not ev:
-    return None
-  worst = max(ev)
-  return 16.0 if worst <= 0 else -math.log10(worst)
-
-
-def bench_key(r):
-  return f"{r.get('formulation', '?')} / {r.get('integrator') or '-'}"
+    err = [10.0 ** -r["scd"] for r in front]
+    cpu = [r["cpu_s"] for r in front]
+    # Staircase in order of growing error: between front points i and i+1 the cheapest run
+    # reaching the accuracy is point i.
+    ax.plot(err[::-1], cpu[::-1], drawstyle="steps-post", color=fcol[f], lw=1.6,
+            label=f"{f} ({len(front)} on the front, {nfail.get(f, 0)} failed / wrong event)")
+    for r, x, y in zip(front, err, cpu):
+      ax.plot([x], [y], ls="none", marker=imark[r["integrator"] or "-"], color=fcol[f], ms=6, mfc="white")
+  ax.set_xscale("log")
+  ax.set_yscale("log")
+  ax.invert_xaxis()
+  ax.set_xlabel("max relative position error 10^(−scd)  (accuracy grows to the right)")
+  ax.set_ylabel("CPU time per run (median) [s]")
+  ax.grid(alpha=0.3, which="both")
+  legends = []
+  if ax.get_legend_handles_labels()[0]:
+    first = ax.legend(title="formulation: best configuration at each accuracy", fontsize=7, title_fontsize=8,
+                      loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.add_artist(first)
+    integs = sorted({r["integrator"] or "-" for r in ok_runs})
+    handles = [plt.Line2D([], [], ls="none", marker=imark[g], color="0.3", mfc="white", ms=6) for g in integs]
+    second = ax.legend(handles, [g if g != "-" else "built-in (IDA / Newmark)" for g in integs],
+                       title="integrator (marker)", fontsize=7, title_fontsize=8, loc="lower left",
+                       bbox_to_anchor=(1.01, 0.0))
+    legends = [first, second]
+  title = (f"Pareto fronts, scene {header.get('scene', '?')}, {header.get('mode', '?')} sweep: "
+           f"{len(ok_runs)} runs are results; {len(failed)} failed or wrong event (on no front)")
+  ax.set_title(title, fontsize=10)
+  fig.tight_layout()
+  # The legends sit right of the axis; a tight box counts an add_artist legend only if named.
+  _save(fig, path, title, titles, bbox_inches="tight", bbox_extra_artists=legends)
 
 
 def make_work_precision(outdir, bench_path, prefix=""):
   """Returns (figure files, not-plotted rows [(key, setting, reason)], header). `prefix` keeps a
-  second diagram set (e.g. the Simbody peer sweep) from overwriting the first."""
+  second diagram set (e.g. the Simbody peer sweep) from overwriting the first. The first
+  figure overlays each formulation's Pareto front; the others have one panel per formulation
+  with every integrator and setting, failures as crosses on a row below the data."""
   header, runs = load_bench(bench_path)
-  ok_runs, failed = [], []
-  for r in runs:
-    why = classify_run(r)
-    if why == "ok":
-      ok_runs.append(r)
-    else:
-      failed.append((bench_key(r), setting_str(r["setting"]), why, r))
+  ok_runs, failed = split_runs(runs)
   forms = sorted({r["formulation"] for r in runs})
   integs = sorted({r["integrator"] or "-" for r in runs})
-  palette = plt.get_cmap("tab10").colors
+  # Ten formulations and Simbody's methods: eleven colours on the Pareto axis.
+  palette = plt.get_cmap("tab10").colors + ("k",) + plt.get_cmap("Dark2").colors
   fcol = {f: palette[i % len(palette)] for i, f in enumerate(forms)}
   markers = "osD^v<>pP*Xh"
   imark = {g: markers[i % len(markers)] for i, g in enumerate(integs)}
   figdir = os.path.join(outdir, "figures")
   os.makedirs(figdir, exist_ok=True)
-  files = []
+  files = [prefix + "work_precision_pareto.png"]
+  _pareto_figure(os.path.join(figdir, files[0]), header, runs, ok_runs, failed, forms, fcol, imark)
   specs = [("work_precision_cpu.png", "cpu_s", "CPU time per run (median) [s]", lambda r: r["scd"],
-            "scd of positions vs reference\n−log10 max|e|/(|ref| + 1 mm or 1°)"),
+            POSITION_SCD_LABEL),
            ("work_precision_residuals.png", "residual_evaluations", "Residual (right-hand-side) evaluations",
-            lambda r: r["scd"], "scd of positions vs reference\n−log10 max|e|/(|ref| + 1 mm or 1°)"),
+            lambda r: r["scd"], POSITION_SCD_LABEL),
            ("work_precision_events.png", "cpu_s", "CPU time per run (median) [s]", event_digits,
             "event-time digits\n−log10 max over events |t − t_ref| [s]")]
   def order(r):  # tolerance / step order along a series
     st = r["setting"]
-    return -(st.get("rtol") or st.get("step") or 0.0)
+    return -(st.get("rtol") or st.get("step") or st.get("accuracy") or 0.0)
 
-  FAIL_Y = -0.6  # the failure row below each panel's data
+  # One curve per integrator and stabilization (ede:dopri5 with and without projection are
+  # two curves, dashed with).
+  series = sorted({(r["integrator"] or "-", r["setting"].get("stabilization")) for r in runs},
+                  key=lambda s: (s[0], s[1] or ""))
   for fname, xkey, xlabel, yfn, ylabel in specs:
     ncol = min(3, max(1, len(forms)))
     nrow = max(1, math.ceil(len(forms) / ncol))
@@ -386,20 +327,29 @@ def make_work_precision(outdir, bench_path, prefix=""):
                              squeeze=False)
     ys = [yfn(r) for r in ok_runs if yfn(r) is not None]
     top = max(ys) + 0.5 if ys else 10.0
+    fail_y = failure_row(ys)
+    titles = []
     for ax, f in zip(axes.flat, forms):
-      for g in integs:
+      for g, stab in series:
         pts = sorted((r for r in ok_runs if r["formulation"] == f and (r["integrator"] or "-") == g
-                      and r.get(xkey) and yfn(r) is not None), key=order)
+                      and r["setting"].get("stabilization") == stab and r.get(xkey) and yfn(r) is not None),
+                     key=order)
         if pts:
-          ax.semilogx([r[xkey] for r in pts], [yfn(r) for r in pts], "-", color=fcol[f], marker=imark[g],
-                      ms=5, mfc="none", lw=0.8, label=g if g != "-" else "built-in (IDA / Newmark)")
-      bad = [row[3] for row in failed if row[3]["formulation"] == f and row[3].get(xkey)]
-      if bad:
-        ax.semilogx([r[xkey] for r in bad], [FAIL_Y] * len(bad), "x", color=fcol[f], ms=7, ls="none")
-      ax.axhline(FAIL_Y + 0.45, color="k", lw=0.5, ls="--")
-      ax.set_title(f"{f}  ({len(bad)} failed / wrong event)", color=fcol[f], fontsize=10, fontweight="bold")
+          label = (g if g != "-" else "built-in (IDA / Newmark)") + (f" / {stab}" if stab else "")
+          ax.semilogx([r[xkey] for r in pts], [yfn(r) for r in pts], "--" if stab else "-", color=fcol[f],
+                      marker=imark[g], ms=5, mfc="none", lw=0.8, label=label)
+      mine = [r for r, _ in failed if r["formulation"] == f]
+      placed = [r for r in mine if r.get(xkey)]
+      if placed:
+        ax.semilogx([r[xkey] for r in placed], [fail_y] * len(placed), label=f"failed / wrong event ({len(mine)})",
+                    **FAILURE_MARKER)
+      ax.axhline(fail_y + 0.5, color="k", lw=0.5, ls="--")
+      titles.append(failure_title(f, len(mine), len(mine) - len(placed)))
+      ax.set_title(titles[-1], color=fcol[f], fontsize=10, fontweight="bold")
       ax.grid(alpha=0.3, which="both")
-      ax.set_ylim(FAIL_Y - 0.5, top)
+      ax.set_ylim(fail_y - 0.7, top)
+      ticks = [t for t in ax.get_yticks() if fail_y + 0.5 < t <= top]
+      ax.set_yticks([fail_y] + ticks, ["✗"] + [f"{t:g}" for t in ticks])
       if ax.get_legend_handles_labels()[0]:
         ax.legend(title="integrator (marker)", fontsize=7, title_fontsize=7, loc="upper left")
     for ax in axes.flat[len(forms):]:
@@ -408,14 +358,13 @@ def make_work_precision(outdir, bench_path, prefix=""):
       ax.set_xlabel(xlabel)
     for ax in axes[:, 0]:
       ax.set_ylabel(ylabel, fontsize=9)
-    fig.suptitle(f"Work-precision, scene {header.get('scene', '?')}, {header.get('mode', '?')} sweep: "
-                 f"{len(ok_runs)} runs plotted; {len(failed)} failed or wrong event (× on the bottom row)",
-                 fontsize=11)
+    title = (f"Work-precision, scene {header.get('scene', '?')}, {header.get('mode', '?')} sweep: "
+             f"{len(ok_runs)} runs plotted; {len(failed)} failed or wrong event (× on the row below the dashed line)")
+    fig.suptitle(title, fontsize=11)
     fig.tight_layout()
-    fig.savefig(os.path.join(figdir, prefix + fname), dpi=80)
-    plt.close(fig)
+    _save(fig, os.path.join(figdir, prefix + fname), title, titles)
     files.append(prefix + fname)
-  return files, [row[:3] for row in failed], header
+  return files, [(bench_key(r), setting_str(r["setting"]), why) for r, why in failed], header
 
 
 def main(argv=None):

@@ -13,6 +13,7 @@ import sys
 
 sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import bench_data  # noqa: E402  (the sweep JSON and its fairness manifest)
 import figures  # noqa: E402
 import global_sensitivity  # noqa: E402  (issue 14: Sobol' indices section)
 import methods_comparison  # noqa: E402  (issue 13: dae / dae-ggl / newmark / generalized-alpha)
@@ -353,13 +354,16 @@ def bench_section(outdir, bench, prefix="", title="Work-precision", anchor="work
         ("Command", prov.get("command", "?")),
         ("Machine", (header.get("machine") or {}).get("uname", "?") if isinstance(header.get("machine"), dict) else "?")]
   parts.append("<dl class='kv'>" + "".join(f"<dt>{esc(k)}</dt><dd>{esc(v)}</dd>" for k, v in kv) + "</dl>")
+  parts.append(components_table(header))
   parts.append("<p>Error metrics (<code>benchmarks/metrics.hpp</code>): <b>scd</b> = −log10 max |x − x_ref| / "
                "(|x_ref| + floor) over the positions x0, y0, z0 (floor 1 mm) and α, β, γ (floor 1°) at every 0.02 s "
                "and at the end event; <b>event-time digits</b> = −log10 of the largest |t − t_ref| in seconds over "
-               "the reference's events (lateral lift-off, 90°). Colour = formulation, marker = integrator; runs that "
-               f"failed, lack a reference event, add a contact event, or miss an event by more than "
-               f"{figures.WRONG_EVENT_TIME_S * 1e3:g} ms are not points: they are the crosses on the bottom row of each "
-               "panel and are listed underneath.</p>")
+               "the reference's events (lateral lift-off, 90°). The first diagram overlays each formulation's "
+               "Pareto front (for each accuracy, the CPU time of its cheapest run reaching at least that scd, any "
+               "integrator or setting); the others have one panel per formulation, colour = formulation, marker = "
+               "integrator. Runs that failed, lack a reference event, add a contact event, or miss an event by more "
+               f"than {figures.WRONG_EVENT_TIME_S * 1e3:g} ms are not points: each panel's title counts them, they "
+               "are the crosses (✗) below the dashed line of each panel, on no front, and are listed underneath.</p>")
   for (fname, caption) in figures.WORK_PRECISION_FIGURES:
     if prefix + fname in files:
       parts.append(f"<figure><img src='figures/{esc(prefix + fname)}' alt='{esc(caption)}'>"
@@ -371,6 +375,20 @@ def bench_section(outdir, bench, prefix="", title="Work-precision", anchor="work
   else:
     parts.append("<p>No failed runs.</p>")
   return "\n".join(parts)
+
+
+def components_table(header):
+  """The fairness manifest (context.components of the sweep JSON): for every component in the
+  diagrams, its version, where it came from and its compile flags, so that a reader can see
+  whether the solvers compared were built alike."""
+  rows = bench_data.components(header)
+  head = "<h3>Components (fairness manifest)</h3>"
+  if rows is None:
+    return head + ("<p>Components: not recorded (this sweep JSON has no <code>context.components</code>: "
+                   "versions, origins and compile flags of the solvers compared are unknown).</p>")
+  if isinstance(rows, str):
+    return head + f"<p class='warn'>Components: {esc(rows)}.</p>"
+  return head + "<div class='scroll'>" + table(["component", "version", "origin", "compile flags"], rows) + "</div>"
 
 
 STATUS_MARK = {"ok": "✓", "solver_failure": "✗", "error": "⊘"}

@@ -1,9 +1,15 @@
-"""Report section (issue 13): drift, digits reached and cost of the chapter's index-2 DAE
-(`dae`), its stabilized GGL form (`dae-ggl`), Newmark's rule on the index-3 reverse EDE
-(`newmark`) and generalized-α on the same (`generalized-alpha`).
+"""Report section (issue 13): drift, digits reached and cost of the formulations that bring
+their own integrator: the chapter's index-2 DAE (`dae`), its stabilized GGL form
+(`dae-ggl`), Newmark's rule on the index-3 reverse EDE (`newmark`), generalized-α on the
+same (`generalized-alpha`) and their closed-form-contact (`-reduced`) variants.
+
+Which formulations: those `kneedyn formulations` lists without an `--integrator` choice (the
+registry, so a new one appears here by itself); without a kneedyn binary, those of the sweep
+JSON whose runs have no integrator. Which of them step with a fixed h: the sweep JSON's
+settings (`step`), else the `settings.step_mode` of the run's summary.json.
 
 Two sources, both named in the section:
-  * four live runs on the chapter scene, one typical setting each (about 2 s together):
+  * live runs on the chapter scene, one typical setting each (about 0.5 s each):
     position-constraint drift (max |gap| over the output rows, the run's summary.json),
     the (first) lateral lift-off time against the stored reference, contact events beyond the
     reference's (spurious lift-off / re-contact), steps, residual evaluations, wall time;
@@ -14,19 +20,18 @@ import html
 import json
 import os
 import subprocess
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import bench_data  # noqa: E402  (which sweep runs count: the diagrams' rule)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENE = os.path.join(ROOT, "reference-data", "scenes", "chapter_impact.yaml")
 REFERENCE = os.path.join(ROOT, "reference-data", "references", "chapter_impact.json")
-METHODS = ("dae", "dae-ggl", "newmark", "generalized-alpha")
-# One typical setting per method: the adaptive ones at rtol 1e-8, the fixed-step ones at
-# h = 1e-4 s (the chapter's step) with the sweep's Newton tolerance.
-SETTINGS = {
-    "dae": ["--rtol", "1e-8", "--atol", "1e-10"],
-    "dae-ggl": ["--rtol", "1e-8", "--atol", "1e-10"],
-    "newmark": ["--step", "1e-4", "--rtol", "1e-9", "--atol", "1e-11"],
-    "generalized-alpha": ["--step", "1e-4", "--rtol", "1e-9", "--atol", "1e-11"],
-}
+# One typical setting per kind of method: the adaptive ones at rtol 1e-8, the fixed-step ones
+# at h = 1e-4 s (the chapter's step) with the sweep's Newton tolerance.
+ADAPTIVE_SETTING = ["--rtol", "1e-8", "--atol", "1e-10"]
+FIXED_STEP_SETTING = ["--step", "1e-4", "--rtol", "1e-9", "--atol", "1e-11"]
 THRESHOLDS = (4, 6, 8, 10)
 
 
@@ -49,32 +54,64 @@ def reference_events():
   return {e["name"]: e["time_s"] for e in ref["solution"]["events"]}
 
 
-def live_row(kneedyn, outdir, method, ref_events):
-  run_dir = os.path.join(outdir, "methods", method)
-  cmd = [kneedyn, "run", SCENE, "--formulation", method, *SETTINGS[method], "--out", run_dir, "--quiet"]
+def builtin_integrator_methods(kneedyn=None, results=()):
+  """The formulations that bring their own integrator (IDA, or a Newton step), in registry
+  order: `kneedyn formulations` lines without an `--integrator` list, else the sweep's
+  formulations whose runs have no integrator."""
+  if kneedyn and os.path.exists(kneedyn):
+    p = subprocess.run([kneedyn, "formulations"], capture_output=True, text=True)
+    if p.returncode == 0:
+      return [line.split()[0] for line in p.stdout.splitlines() if line.strip() and "--integrator" not in line]
+  return list(dict.fromkeys(r.get("formulation") for r in results if not r.get("integrator")))
+
+
+def fixed_step_in_sweep(results, method):
+  """True / False when the sweep has runs of the method (fixed step: its settings have a
+  step), None when it has none."""
+  settings = [r.get("setting") or {} for r in results if r.get("formulation") == method]
+  return any("step" in s for s in settings) if settings else None
+
+
+def run_live(kneedyn, run_dir, method, setting):
+  cmd = [kneedyn, "run", SCENE, "--formulation", method, *setting, "--out", run_dir, "--quiet"]
   p = subprocess.run(cmd, capture_output=True, text=True)
   summary_path = os.path.join(run_dir, "summary.json")
   if p.returncode != 0 or not os.path.exists(summary_path):
-    return [method, " ".join(SETTINGS[method]), f"failed (exit {p.returncode}): {p.stderr.strip()[-200:]}",
-            "", "", "", "", "", ""]
+    return p, None
   with open(summary_path) as f:
-    s = json.load(f)
+    return p, json.load(f)
+
+
+def live_row(kneedyn, outdir, method, ref_events, fixed_step=None):
+  """One live run; fixed_step None: the adaptive setting first, and the fixed-step one when
+  the run's summary says the formulation stepped with a fixed h (its default step)."""
+  run_dir = os.path.join(outdir, "methods", method)
+  setting = FIXED_STEP_SETTING if fixed_step else ADAPTIVE_SETTING
+  p, s = run_live(kneedyn, run_dir, method, setting)
+  if fixed_step is None and s is not None and (s.get("settings") or {}).get("step_mode") == "fixed":
+    setting = FIXED_STEP_SETTING
+    p, s = run_live(kneedyn, run_dir, method, setting)
+  if s is None:
+    return [method, " ".join(setting), f"failed (exit {p.returncode}): {p.stderr.strip()[-200:]}",
+            "", "", "", "", "", ""]
   events = s.get("events", [])
   lift = [e["time"] for e in events if e["name"] == "liftoff_lateral"]
   lift_err = f"{lift[0] - ref_events['liftoff_lateral']:+.2e}" if lift and "liftoff_lateral" in ref_events else "—"
   extra = len(events) - len(ref_events)
   st = s.get("statistics", {})
   cr = s.get("constraint_residuals", {})
-  return [method, " ".join(SETTINGS[method]), lift_err,
+  return [method, " ".join(setting), lift_err,
           "none" if extra == 0 else f"{extra:+d} ({', '.join(e['name'] for e in events)})",
           f"{cr.get('max_gap_mm', float('nan')):.1e}", f"{cr.get('max_gap_rate_mm_s', float('nan')):.1e}",
           st.get("steps", ""), st.get("residual_evaluations", ""), f"{s.get('wall_time_s', float('nan')):.3f}"]
 
 
 def completed_runs(results, method):
-  """A method's runs of the sweep that completed with an scd."""
+  """A method's runs of the sweep that count as results: completed with an scd and the
+  reference's events (the rule of the work-precision diagrams, bench_data.classify_run)."""
   return [r for r in results if r.get("formulation") == method and r.get("status") == "ok"
-          and isinstance((r.get("metrics") or {}).get("scd"), (int, float))]
+          and isinstance((r.get("metrics") or {}).get("scd"), (int, float))
+          and bench_data.classify_run(bench_data.normalize_result(r)) == "ok"]
 
 
 def best_run(results, method):
@@ -83,12 +120,14 @@ def best_run(results, method):
   return max(runs, key=lambda r: r["metrics"]["scd"]) if runs else None
 
 
-def bench_rows(results):
+def bench_rows(results, methods):
   rows = []
-  for m in METHODS:
+  for m in methods:
     runs = completed_runs(results, m)
     if not runs:
-      rows.append([m, "not in the sweep"] + ["—"] * len(THRESHOLDS))
+      n = sum(r.get("formulation") == m for r in results)
+      rows.append([m, f"none of its {n} runs counts (failed or wrong event)" if n else "not in the sweep"]
+                  + ["—"] * len(THRESHOLDS))
       continue
     best = best_run(results, m)
     cells = []
@@ -137,9 +176,15 @@ def section(outdir, kneedyn=None, bench=None):
            "generalized-α (ρ∞ = 0.9) damps them and its lift-off error is its second-order global error "
            "(1.0e-5 s at h = 1e-4 s, 2.5e-6 s at 5e-5 s; the event location on the step's dense output adds "
            "≤ 1e-7 s).</p>"]
+  sweep, results = None, []
+  if bench and os.path.exists(bench):
+    with open(bench) as f:
+      sweep = json.load(f)
+    results = sweep.get("results", [])
+  methods = builtin_integrator_methods(kneedyn, results)
   if kneedyn and os.path.exists(kneedyn):
     ref_events = reference_events()
-    rows = [live_row(kneedyn, outdir, m, ref_events) for m in METHODS]
+    rows = [live_row(kneedyn, outdir, m, ref_events, fixed_step_in_sweep(results, m)) for m in methods]
     parts.append("<p>Chapter scene, one setting per method (live runs of this report): lift-off error against "
                  f"the stored reference ({ref_events.get('liftoff_lateral', float('nan')):.9f} s); contact events "
                  "beyond the reference's; drift = max |gap| and |gap rate| over the output rows.</p>")
@@ -147,19 +192,18 @@ def section(outdir, kneedyn=None, bench=None):
                         "max |gap rate| [mm/s]", "steps", "residual evaluations", "wall [s]"], rows))
   else:
     parts.append("<p>No kneedyn binary given; live comparison omitted.</p>")
-  if bench and os.path.exists(bench):
-    with open(bench) as f:
-      sweep = json.load(f)
-    results = sweep.get("results", [])
+  if sweep is not None:
     rtol_min = (sweep.get("header") or {}).get("rtol_min", "?")
     parts.append(f"<p>Digits and cost from the work-precision sweep (<code>{esc(os.path.basename(bench))}</code>): "
-                 "best scd of the positions and the median CPU time of the cheapest run reaching scd 4/6/8/10. "
+                 "best scd of the positions and the median CPU time of the cheapest run reaching scd 4/6/8/10, "
+                 "over the runs the diagrams plot (a failed run, or one with a contact event the reference lacks, "
+                 "without one it has, or more than 1 ms off, does not count). "
                  "The fixed-step methods gain 0.6 digits per step halving (second order): "
                  f"{esc(fixed_step_sentence(results, 'generalized-alpha'))}. The adaptive ones stop at "
                  f"the sweep's tightest rtol ({esc(rtol_min)}; {esc(best_adaptive_sentence(results, 'dae-ggl'))})."
                  "</p>")
     parts.append(table(["method", "best scd (setting)"] + [f"scd ≥ {t}: CPU s (setting)" for t in THRESHOLDS],
-                       bench_rows(results)))
+                       bench_rows(results, methods)))
   else:
     parts.append("<p>No benchmark JSON given; digits and cost omitted.</p>")
   return "\n".join(parts)

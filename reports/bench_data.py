@@ -1,0 +1,225 @@
+"""Work-precision sweep files read into one form, and the rules that decide which runs are
+results: shared by the report's diagrams (figures.py, make_report.py) and
+benchmarks/work_precision_table.py, so that a diagram and the table never disagree on which
+runs failed. No plotting here (the table must not need matplotlib).
+
+Files: benchmarks/work_precision.cpp's JSON (Google Benchmark's `context` and `benchmarks`
+beside kneedyn's `header` and `results`; docs/outputs.md), the same after
+crosscheck/simbody/simbody_work_precision --merge (`header`, `results` only), or Google
+Benchmark's layout alone.
+"""
+import json
+import math
+
+# A run is drawn as a failure (not a point) when it failed, lacks a reference event, has
+# contact events the reference lacks, or misses an event time by more than this. 1 ms is
+# 0.5° of flexion at the end of the chapter run (α̇ ≈ 460°/s): any run whose positions
+# carry 2 or more digits must place its events closer than that.
+WRONG_EVENT_TIME_S = 1e-3
+UNIT_TO_S = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
+COMPONENT_FIELDS = ("name", "version", "origin", "compile_flags")
+
+
+def _parse_name(name):
+  """Google-Benchmark name 'formulation[:integrator]/rtol=X[/...]' or '/step=X' -> parts."""
+  parts = name.split("/")
+  form, _, integ = parts[0].partition(":")
+  setting = {}
+  for p in parts[1:]:
+    k, _, v = p.partition("=")
+    if k in ("rtol", "atol", "step"):
+      try:
+        setting[k] = float(v)
+      except ValueError:
+        pass
+  return form, integ, setting
+
+
+def load_bench(path):
+  """Benchmark JSON -> (header, [run dicts]) in one normalized form. Accepts
+    (a) kneedyn's `results` [{formulation, integrator, setting, status, reason, metrics{scd,
+        event_time_error_s}, cpu_time_s{median}, counters, events}] under {"header", ...} (or a
+        bare list of such results). A file that has both `results` and Google Benchmark's
+        `benchmarks` (what work_precision writes) is read from `results`: the `benchmarks`
+        entries carry no status, and a failed run's `scd` counter there is 0, so read from
+        them every failed run would be a point at scd 0;
+    (b) Google Benchmark's own layout alone {"context", "benchmarks": [{name, run_name, run_type,
+        aggregate_name, cpu_time, time_unit, <counters>, ...}]}: one run per run_name (the
+        median aggregate if present, else the mean of the iterations); formulation, integrator
+        and setting from the fields of the same name, else from the benchmark name; scd and
+        event errors from fields `scd`, `metrics` or `event_time_error_s[.<event>]`.
+  A top-level "provenance" {command, commit, date} is passed through in the header, and
+  `context.components` (the fairness manifest) as header["components"]."""
+  with open(path, encoding="utf-8") as f:
+    data = json.load(f)
+  header = {}
+  if isinstance(data, dict):
+    header = dict(data.get("header") or data.get("context") or {})
+    if "provenance" in data:
+      header["provenance"] = data["provenance"]
+    context = data.get("context")
+    if isinstance(context, dict) and "components" in context:
+      header["components"] = context["components"]
+    if not isinstance(data.get("results"), list) and isinstance(data.get("benchmarks"), list):
+      return header, _from_google_benchmark(data["benchmarks"])
+    data = data.get("results", data.get("runs", []))
+  return header, [normalize_result(r) for r in data if isinstance(r, dict)]
+
+
+def normalize_result(r):
+  """One entry of a sweep's `results` in the form the readers use (cpu_s = median CPU time)."""
+  m = r.get("metrics") or {}
+  cpu = r.get("cpu_time_s")
+  cpu = cpu.get("median") if isinstance(cpu, dict) else cpu
+  return {"formulation": r.get("formulation", "?"), "integrator": r.get("integrator") or "",
+          "setting": r.get("setting") or {}, "status": r.get("status", "ok"),
+          "reason": r.get("reason") or "", "scd": m.get("scd"),
+          "event_time_error_s": m.get("event_time_error_s") or {},
+          "cpu_s": cpu, "residual_evaluations": (r.get("counters") or {}).get("residual_evaluations"),
+          "events": r.get("events")}
+
+
+def _from_google_benchmark(entries):
+  groups = {}
+  for e in entries:
+    if isinstance(e, dict) and e.get("name"):
+      groups.setdefault(e.get("run_name") or e["name"], []).append(e)
+  runs = []
+  for name, es in groups.items():
+    med = [e for e in es if e.get("run_type") == "aggregate" and e.get("aggregate_name") == "median"]
+    its = [e for e in es if e.get("run_type", "iteration") == "iteration"]
+    e = med[0] if med else (its[0] if its else es[0])
+    unit = UNIT_TO_S.get(e.get("time_unit", "ns"), 1e-9)
+    if med:
+      cpu = e.get("cpu_time")
+      cpu = cpu * unit if isinstance(cpu, (int, float)) else None
+    else:
+      ts = [x["cpu_time"] * UNIT_TO_S.get(x.get("time_unit", "ns"), 1e-9) for x in its
+            if isinstance(x.get("cpu_time"), (int, float))]
+      cpu = sum(ts) / len(ts) if ts else None
+    form, integ, setting = _parse_name(name)
+    metrics = e.get("metrics") if isinstance(e.get("metrics"), dict) else {}
+    ev = dict(metrics.get("event_time_error_s") or e.get("event_time_error_s") or {})
+    for k, v in e.items():
+      if k.startswith("event_time_error_s.") or k.startswith("event_time_error_s_"):
+        ev[k[len("event_time_error_s") + 1:]] = v
+    failed = bool(e.get("error_occurred")) or str(e.get("status", "ok")) not in ("ok", "completed")
+    runs.append({"formulation": e.get("formulation", form), "integrator": e.get("integrator", integ) or "",
+                 "setting": e.get("setting") if isinstance(e.get("setting"), dict) else setting,
+                 "status": "failed" if failed else "ok",
+                 "reason": e.get("error_message") or e.get("reason") or e.get("label") or "",
+                 "scd": metrics.get("scd", e.get("scd")), "event_time_error_s": ev, "cpu_s": cpu,
+                 "residual_evaluations": e.get("residual_evaluations"), "events": e.get("events")})
+  return runs
+
+
+def setting_str(s):
+  """A run's setting as a reader writes it: fixed step, tolerance, or Simbody's accuracy."""
+  if "step" in s:
+    text = f"h = {s['step']:.3g} s"
+  elif "rtol" in s:
+    text = f"rtol = {s['rtol']:.3g}"
+  elif "accuracy" in s:
+    text = f"accuracy = {s['accuracy']:.3g}"
+  else:
+    return json.dumps(s)
+  if "max_steps" in s:
+    text += f", max_steps = {s['max_steps']}"
+  return text
+
+
+def method_of(r):
+  """formulation[:integrator][/stabilization]: one curve of the sweep."""
+  name = r["formulation"] + (":" + r["integrator"] if r.get("integrator") else "")
+  stab = (r.get("setting") or {}).get("stabilization")
+  return name + ("/" + stab if stab else "")
+
+
+def classify_run(r):
+  """'ok', or the reason the run is drawn as a failure. The reference's events are the keys
+  of event_time_error_s (one per reference event)."""
+  if r["status"] != "ok":
+    return f"failed: {r['reason'] or r['status']}"
+  scd = r.get("scd")
+  if scd is None or not math.isfinite(float(scd)):
+    return "no scd (comparison times missing: ended early or failed)"
+  ev = r.get("event_time_error_s") or {}
+  missing = [k for k, v in ev.items() if v is None or not math.isfinite(float(v))]
+  if missing:
+    return f"wrong events: reference event(s) {', '.join(missing)} missing"
+  late = {k: float(v) for k, v in ev.items() if float(v) > WRONG_EVENT_TIME_S}
+  if late:
+    k = max(late, key=late.get)
+    return f"wrong event time: {k} off by {late[k] * 1e3:.1f} ms (> {WRONG_EVENT_TIME_S * 1e3:g} ms)"
+  if ev and r.get("events") is not None:
+    extra = sorted({e["name"] for e in r["events"]} - set(ev) - {"flexion_90"})
+    if extra:
+      return f"wrong events: {', '.join(extra)} not in the reference"
+  return "ok"
+
+
+def split_runs(runs):
+  """(runs that are results, [(run, why)] drawn as failures) by classify_run."""
+  ok, failed = [], []
+  for r in runs:
+    why = classify_run(r)
+    if why == "ok":
+      ok.append(r)
+    else:
+      failed.append((r, why))
+  return ok, failed
+
+
+def failure_counts(runs, key=lambda r: r["formulation"]):
+  """{key(run): number of its runs drawn as failures} over every key that has runs."""
+  counts = {}
+  for r in runs:
+    k = key(r)
+    counts[k] = counts.get(k, 0) + (classify_run(r) != "ok")
+  return counts
+
+
+def event_digits(r):
+  """Event-time digits: −log10 of the largest |t − t_ref| [s] over the reference's events."""
+  ev = [float(v) for v in (r.get("event_time_error_s") or {}).values() if v is not None]
+  if not ev:
+    return None
+  worst = max(ev)
+  return 16.0 if worst <= 0 else -math.log10(worst)
+
+
+def bench_key(r):
+  return f"{r.get('formulation', '?')} / {r.get('integrator') or '-'}"
+
+
+def pareto_front(runs, cost="cpu_s"):
+  """The runs on the work-precision front of `runs` (results only; pass one formulation's):
+  for each accuracy s, the cheapest run with scd >= s is on the front. Returned in order of
+  increasing scd (and increasing cost); a run costlier than one at least as accurate is not
+  on it."""
+  pts = [r for r in runs if isinstance(r.get(cost), (int, float)) and isinstance(r.get("scd"), (int, float))
+         and math.isfinite(r["scd"]) and classify_run(r) == "ok"]
+  front, cheapest = [], math.inf
+  for r in sorted(pts, key=lambda r: (-r["scd"], r[cost])):  # most accurate first
+    if r[cost] < cheapest:
+      front.append(r)
+      cheapest = r[cost]
+  return front[::-1]
+
+
+def components(header):
+  """The fairness manifest (context.components) as rows [name, version, origin, compile_flags],
+  None when the file does not record it, or a string saying why it cannot be read."""
+  comps = header.get("components")
+  if comps is None:
+    return None
+  if not isinstance(comps, list) or not all(isinstance(c, dict) for c in comps):
+    return f"context.components is not a list of objects ({type(comps).__name__})"
+  rows = []
+  for c in comps:
+    row = []
+    for k in COMPONENT_FIELDS:
+      v = c.get(k)
+      row.append("—" if v in (None, "") else " ".join(map(str, v)) if isinstance(v, list) else str(v))
+    rows.append(row)
+  return rows

@@ -1,0 +1,203 @@
+#!/usr/bin/python3
+"""Failed and wrong-event runs in the work-precision diagrams, the table and the report, on
+small hand-made sweep files in the layouts the project writes:
+
+  * work_precision's (Google Benchmark's `context` and `benchmarks` beside kneedyn's `header`
+    and `results`): there a failed run's `scd` counter in `benchmarks` is 0 and carries no
+    status, so only `results` tells that it failed;
+  * simbody_work_precision --merge's (`header` and `results`; Simbody's settings are
+    {accuracy, constraint_tolerance}, no rtol).
+
+Checks: the failure count per formulation in the figures' titles (read back from the PNG's
+text chunks) and from bench_data.failure_counts; the Pareto front of a formulation whose
+fixed-step run is dominated; benchmarks/work_precision_table.py's rows for both files; the
+report's fairness manifest (context.components) as a table, and "not recorded" without it.
+Every expected value is typed in here from the planted runs, not copied from a run.
+"""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.dont_write_bytecode = True
+sys.path.insert(0, os.path.join(ROOT, "reports"))
+TABLE = os.path.join(ROOT, "benchmarks", "work_precision_table.py")
+
+EVENTS_OK = {"liftoff_lateral": 2e-7, "flexion_90": 1e-7}
+REF_EVENTS = [{"name": "liftoff_lateral", "time_s": 0.2163}, {"name": "flexion_90", "time_s": 0.2996}]
+
+
+def result(form, integ, setting, scd, cpu, status="ok", reason="", events=None, event_errors=None):
+  name = form + (":" + integ if integ else "") + "/" + "/".join(f"{k}={v:g}" for k, v in setting.items())
+  return {"name": name, "formulation": form, "integrator": integ, "setting": setting, "status": status,
+          "reason": reason, "metrics": {"scd": scd, "event_time_error_s": event_errors or dict(EVENTS_OK)},
+          "cpu_time_s": {"median": cpu, "min": cpu, "max": cpu},
+          "counters": {"residual_evaluations": int(cpu * 1e5)}, "events": REF_EVENTS if events is None else events}
+
+
+RESULTS = [
+    result("dae", "", {"rtol": 1e-4, "atol": 1e-6}, 3.0, 0.010),
+    result("dae", "", {"rtol": 1e-6, "atol": 1e-8}, 5.0, 0.020),
+    result("dae", "", {"rtol": 1e-8, "atol": 1e-10}, 7.0, 0.030),
+    # Planted failure: IDA gives up at a tight tolerance; its metrics are partial (scd null).
+    result("dae", "", {"rtol": 1e-12, "atol": 1e-14}, None, 0.050, status="failed",
+           reason="IDASolve(): IDA_CONV_FAIL at t = 0.19 s", events=[],
+           event_errors={"liftoff_lateral": None, "flexion_90": None}),
+    result("ede", "dopri5", {"rtol": 1e-5, "atol": 1e-7}, 4.5, 0.004),
+    result("ede", "dopri5", {"rtol": 1e-7, "atol": 1e-9}, 6.5, 0.008),
+    # Planted wrong event: completes with scd 2.5 but its lift-off is 5 ms late (> 1 ms).
+    result("ede", "dopri5", {"rtol": 1e-3, "atol": 1e-5}, 2.5, 0.002,
+           event_errors={"liftoff_lateral": 5e-3, "flexion_90": 1e-4}),
+    # Dominated: rk4 reaches scd 4.2 at 0.012 s, dopri5 scd 6.5 at 0.008 s.
+    result("ede", "rk4", {"step": 5e-4}, 4.2, 0.012),
+]
+
+
+def google_entries(results):
+  """work_precision's `benchmarks`: per setting a median aggregate with the `scd` counter,
+  0 for a run without an scd (work_precision.cpp writes 0.0 when it is not finite)."""
+  out = []
+  for r in results:
+    scd = r["metrics"]["scd"]
+    out.append({"name": r["name"] + "_median", "run_name": r["name"], "run_type": "aggregate",
+                "aggregate_name": "median", "cpu_time": r["cpu_time_s"]["median"] * 1e3, "time_unit": "ms",
+                "scd": 0.0 if scd is None else scd,
+                "residual_evaluations": r["counters"]["residual_evaluations"]})
+  return out
+
+
+COMPONENTS = [
+    {"name": "kneedyn", "version": "0.1.0", "origin": "this repository", "compile_flags": "-O3 -DNDEBUG"},
+    {"name": "SUNDIALS", "version": "6.4.1", "origin": "Debian source package, built in the tree",
+     "compile_flags": ["-O3", "-DNDEBUG"]},
+]
+
+
+def sweep_file(components):
+  context = {"kneedyn_mode": "full", "kneedyn_scene": "chapter_impact"}
+  if components is not None:
+    context["components"] = components
+  return {"context": context, "benchmarks": google_entries(RESULTS),
+          "header": {"scene": "chapter_impact", "mode": "full", "rtol_min": 1e-12},
+          "results": RESULTS}
+
+
+MERGED = {"header": {"scene": "chapter_impact", "mode": "short",
+                     "merged_from": {"file": "out/work_precision.json", "header": {"mode": "short"}}},
+          "results": [result("simbody", "rkm", {"accuracy": 1e-6, "constraint_tolerance": 1e-6}, 5.5, 0.040),
+                      result("simbody", "rkm", {"accuracy": 1e-8, "constraint_tolerance": 1e-8}, None, 0.090,
+                             status="failed", reason="Simbody: step size underflow", events=[],
+                             event_errors={"liftoff_lateral": None, "flexion_90": None}),
+                      result("dae", "", {"rtol": 1e-6, "atol": 1e-8}, 5.0, 0.020)]}
+
+
+def png_text(path):
+  from PIL import Image
+  with Image.open(path) as im:
+    return dict(im.text)
+
+
+def table_rows(path):
+  p = subprocess.run([sys.executable, TABLE, path], capture_output=True, text=True)
+  if p.returncode != 0:
+    return None, f"exit {p.returncode}: {p.stderr.strip()[-300:]}"
+  rows = {}
+  for line in p.stdout.splitlines():
+    cells = [c.strip() for c in line.strip().strip("|").split("|")]
+    if line.startswith("| ") and cells[0] not in ("method",):
+      rows[cells[0]] = cells[1:]
+  return rows, p.stdout
+
+
+def main():
+  errors = []
+  import figures  # noqa: E402
+  import make_report  # noqa: E402
+  with tempfile.TemporaryDirectory(prefix="kneedyn_wp_failures_") as tmp:
+    paths = {}
+    for name, doc in (("with_components", sweep_file(COMPONENTS)), ("without_components", sweep_file(None)),
+                      ("merged", MERGED)):
+      paths[name] = os.path.join(tmp, name + ".json")
+      with open(paths[name], "w") as f:
+        json.dump(doc, f)
+
+    # 1. The figures: one dae and one ede run drawn as failures, in every figure's titles.
+    out = os.path.join(tmp, "report")
+    files, failed, _ = figures.make_work_precision(out, paths["with_components"])
+    if not files or files[0] != "work_precision_pareto.png":
+      errors.append(f"first figure is not the Pareto overlay: {files}")
+    whys = sorted(f"{key} {why.split(':')[0]}" for key, _, why in failed)
+    if whys != ["dae / - failed", "ede / dopri5 wrong event time"]:
+      errors.append(f"runs drawn as failures: {whys}")
+    for fname in files:
+      text = png_text(os.path.join(out, "figures", fname))
+      panels = text.get("Description", "").splitlines()
+      if panels != ["dae  (1 failed / wrong event)", "ede  (1 failed / wrong event)"]:
+        errors.append(f"{fname}: panel titles {panels}")
+      if "2 failed or wrong event" not in text.get("Title", ""):
+        errors.append(f"{fname}: title {text.get('Title')!r} does not count 2 failures")
+    # Crosses below every result: coarse euler runs have scd −1.3 in the recorded sweep.
+    for ys in ([3.0, 7.0], [-1.34, 2.0], []):
+      row = figures.failure_row(ys) if hasattr(figures, "failure_row") else 0.0
+      if not row + 0.5 < min(ys + [0.0]):
+        errors.append(f"failure row at {row} for results {ys}: not below them and 0")
+    try:
+      import bench_data  # noqa: E402
+    except ImportError as e:
+      errors.append(f"reports/bench_data.py: {e}")
+      bench_data = None
+    if bench_data:
+      _, runs = bench_data.load_bench(paths["with_components"])
+      counts = bench_data.failure_counts(runs)
+      if counts != {"dae": 1, "ede": 1}:
+        errors.append(f"failure_counts: {counts}")
+      _, merged_runs = bench_data.load_bench(paths["merged"])
+      if bench_data.failure_counts(merged_runs) != {"simbody": 1, "dae": 0}:
+        errors.append(f"merged failure_counts: {bench_data.failure_counts(merged_runs)}")
+      # 2. Pareto front of ede: dopri5 scd 4.5 at 4 ms, 6.5 at 8 ms; rk4 (4.2 at 12 ms) is
+      # dominated and the wrong-event run (2.5 at 2 ms) is not a result.
+      ede = [r for r in runs if r["formulation"] == "ede"]
+      front = [(r["integrator"], r["scd"], r["cpu_s"]) for r in bench_data.pareto_front(ede)]
+      if front != [("dopri5", 4.5, 0.004), ("dopri5", 6.5, 0.008)]:
+        errors.append(f"ede Pareto front: {front}")
+      dae_front = [r["scd"] for r in bench_data.pareto_front([r for r in runs if r["formulation"] == "dae"])]
+      if dae_front != [3.0, 5.0, 7.0]:
+        errors.append(f"dae Pareto front: {dae_front}")
+
+    # 3. The table, from both layouts.
+    expected = {
+        "dae": ["4", "1", "7.00", "0.020 (rtol=1e-06)", "0.030 (rtol=1e-08)", "—", "—"],
+        "ede:dopri5": ["3", "1", "6.50", "0.004 (rtol=1e-05)", "0.008 (rtol=1e-07)", "—", "—"],
+        "ede:rk4": ["1", "0", "4.20", "0.012 (h=0.0005)", "—", "—", "—"]}
+    rows, text = table_rows(paths["with_components"])
+    if rows != expected:
+      errors.append(f"table of the full-layout file: {rows} != {expected}\n{text}")
+    rows, text = table_rows(paths["merged"])
+    expected_merged = {"simbody:rkm": ["2", "1", "5.50", "0.040 (accuracy=1e-06)", "—", "—", "—"],
+                       "dae": ["1", "0", "5.00", "0.020 (rtol=1e-06)", "—", "—", "—"]}
+    if rows != expected_merged:
+      errors.append(f"table of the merged file: {rows} != {expected_merged}\n{text}")
+
+    # 4. The report's fairness manifest beside the work-precision section.
+    html = make_report.bench_section(os.path.join(tmp, "r1"), paths["with_components"])
+    for cell in ("<td>SUNDIALS</td>", "<td>6.4.1</td>", "<td>Debian source package, built in the tree</td>",
+                 "<td>-O3 -DNDEBUG</td>", "<td>kneedyn</td>"):
+      if cell not in html:
+        errors.append(f"report with context.components: no {cell}")
+    if "not recorded" in html:
+      errors.append("report with context.components says 'not recorded'")
+    html = make_report.bench_section(os.path.join(tmp, "r2"), paths["without_components"])
+    if "Components: not recorded" not in html:
+      errors.append("report without context.components does not say 'Components: not recorded'")
+    if "2 runs drawn as failures" not in html:
+      errors.append("report: the list of runs drawn as failures does not count 2")
+  for e in errors:
+    print("work_precision_failures_test: FAIL:", e, file=sys.stderr)
+  print("work_precision_failures_test:", "ok" if not errors else f"{len(errors)} failures")
+  return 1 if errors else 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())
