@@ -1,4 +1,5 @@
-// compare_counters — CI performance tracking with deterministic counters (issue 5).
+// compare_counters — CI performance tracking with deterministic counters
+// (benchmarks/README.md, "CI counter tracking").
 //
 //   compare_counters [--baseline benchmarks/baseline_counters.json] [--write]
 //
@@ -18,12 +19,13 @@
 //
 //   compare_counters --instructions --kneedyn PATH [--valgrind PATH] [--write]
 //
-// Instead of the above (issue 12 item 5): the whole-process instruction count (valgrind
-// --tool=cachegrind --cache-sim=no, total `I refs`) of `kneedyn run` on each entry of the
-// baseline's `instruction_counts.runs` (one per registered formulation). Fails when a
-// count exceeds its baseline by more than `instruction_counts.threshold` (+5 %); a count
-// below baseline × (1 − threshold) is reported so the baseline can be tightened
-// (--write). Without valgrind it prints why and exits 77 (ctest SKIP_RETURN_CODE).
+// Instead of the above (benchmarks/README.md, "Instruction counts"): the whole-process
+// instruction count (valgrind --tool=cachegrind --cache-sim=no, total `I refs`) of `kneedyn
+// run` on each entry of the baseline's `instruction_counts.runs` (one per registered
+// formulation). Fails when a count exceeds its baseline by more than
+// `instruction_counts.threshold` (+5 %); a count below baseline × (1 − threshold) is reported
+// so the baseline can be tightened (--write). Without valgrind it prints why and exits 77
+// (ctest SKIP_RETURN_CODE).
 // Exit codes: 0 pass, 1 regression, 2 bad input, 77 skipped (no valgrind).
 #include <CLI/CLI.hpp>
 

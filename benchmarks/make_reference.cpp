@@ -1,4 +1,5 @@
-// make_reference — reference solution of a scene (issue 5).
+// make_reference — reference solution of a scene (benchmarks/README.md,
+// "Reference solutions").
 //   make_reference --scene FILE --out FILE.json [--formulation mde --integrator cvode-adams
 //                  --rtol 1e-14 --atol 1e-16 --check ede --check-integrator dopri5
 //                  --check-rtol 1e-13 --check-atol 1e-15 --interval 0.02 --conservative]
@@ -7,12 +8,11 @@
 // (ede, Dormand–Prince at rtol 1e-13); stores the primary's values at the comparison times
 // (metrics.hpp), both settings and commands, their agreement (scd, digits per class, event
 // errors), library versions and the date. The stated accuracy (accuracy_scd) is the
-// agreement, rounded down to 0.1 digit. Measured (2026-11-21): scd 11.2–11.9 on the four
-// stored scenes, every class ≥ 9.99 digits. Not used: dae/dae-reduced (IDA stops at rtol
-// 1e-10, index-2 round-off: 7.8 digits) and fehlberg78 (its 7(8) error estimate
-// 41/840 (k1 + k11 − k12 − k13) misses the error of the time-dependent terms: 8.9 digits
-// between rtol 1e-13 and 1e-14 without events, where verner65/dopri5/cvode-adams reach
-// 10.7–11.6). See benchmarks/README.md.
+// agreement, rounded down to 0.1 digit. Not used: dae/dae-reduced (IDA stops at rtol
+// 1e-10 on the index-2 round-off) and fehlberg78 (its 7(8) error estimate
+// 41/840 (k1 + k11 − k12 − k13) misses the error of the time-dependent terms). The stored
+// agreement and the digits of each rejected setup: benchmarks/README.md, "Reference
+// solutions".
 // --verify regenerates the primary and exits 1 if it differs from the stored solution by
 // more than the stated accuracy (scd below accuracy_scd, or a class's digits below the
 // stored agreement digits, or an event time further than the stored event agreement).

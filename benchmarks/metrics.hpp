@@ -1,4 +1,5 @@
-// Accuracy metrics of a run against a reference solution (issue 5), in one place.
+// Accuracy metrics of a run against a reference solution, in one place
+// (benchmarks/README.md, "Metrics").
 //
 // A Solution holds a run's values at fixed comparison times (multiples of a comparison
 // interval, e.g. 0.02 s, plus the state of the end event) in five variable classes, in

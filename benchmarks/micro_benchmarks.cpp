@@ -1,5 +1,6 @@
-// micro_benchmarks — the pieces of one run, timed separately (issue 12 item 4), with the
-// deterministic work behind each time printed beside it (style.md §3).
+// micro_benchmarks — the pieces of one run, timed separately, with the
+// deterministic work behind each time printed beside it (counters are comparable across
+// machines, times are not).
 //
 //   build/benchmarks/micro_benchmarks [--benchmark_filter=REGEX] [--benchmark_format=json]
 //   cmake --build build --target bench_micro

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
-"""Side-by-side evidence (issue 12 item 6): an independent SciPy implementation of the
-chapter model, written from docs/model.md (not from kneedyn's sources), and kneedyn,
-timed in the same process on the chapter scene (reference-data/scenes/chapter_impact.yaml):
-time to reach 6 and 8 correct digits of the lateral lift-off time.
+"""Side-by-side evidence (benchmarks/README.md, "SciPy side by side"): an independent SciPy
+implementation of the chapter model, written from docs/model.md (not from kneedyn's sources),
+and kneedyn, timed in the same process on the chapter scene
+(reference-data/scenes/chapter_impact.yaml): time to reach 6 and 8 correct digits of the
+lateral lift-off time.
 
   PYTHONPATH=build/python /usr/bin/python3 benchmarks/scipy_side_by_side.py [--quick]
       [--check-digits D]          exit 1 unless SciPy's tightest lift-off agrees with the

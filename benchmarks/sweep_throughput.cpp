@@ -1,4 +1,4 @@
-// Sweep throughput (issue 14, item 5): runs per second per core of `kneedyn sweep` on the
+// Sweep throughput (ensembles/README.md): runs per second per core of `kneedyn sweep` on the
 // chapter scene at a setting whose accuracy is measured first (scd against the stored
 // reference, benchmarks/metrics.hpp; must be ≥ --min-scd), single thread vs all threads
 // (in process, ensembles/sweep.hpp) vs 2 MPI ranks (`mpirun -n 2 kneedyn sweep`, wall time
@@ -7,8 +7,9 @@
 //   sweep_throughput --spec ensembles/specs/throughput.yaml --kneedyn build/formulations/kneedyn
 //                    [--mpiexec mpirun] [--json OUT.json]
 //
-// The fixture owns its inputs (style.md §10): the spec fixes design, seed and solver; the
-// work behind each figure (runs, failed runs, accepted steps) is printed beside it.
+// The fixture owns its inputs, so that a figure can be reproduced: the spec fixes design,
+// seed and solver; the work behind each figure (runs, failed runs, accepted steps) is printed
+// beside it.
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 

@@ -1,4 +1,5 @@
-// work_precision — work-precision sweep of every registered formulation (issue 5).
+// work_precision — work-precision sweep of every registered formulation
+// (benchmarks/README.md, "Work-precision sweep").
 //
 //   work_precision [--short] [--scene FILE] [--reference FILE] [--json OUT] [--csv OUT]
 //                  [--repetitions N] [--only SUBSTRING] [--rtol-min R] [--include-broken]
@@ -119,7 +120,7 @@ std::vector<BenchConfig> Grid(bool short_mode, double rtol_min, const std::strin
           grid.push_back(c);
         }
       } else {
-        // ede: also the two projections (issue 13): kneedyn's project-and-restart with an
+        // ede: also the two projections: kneedyn's project-and-restart with an
         // explicit RK method, CVODE's own (CVodeSetProjFn) with BDF.
         // Which formulations have them is their declared capability (FormulationInfo).
         const auto declares = [&info](const char* s) {
@@ -189,7 +190,7 @@ int main(int argc, char** argv) {
   std::string json_path = "work_precision.json", csv_path;
   std::string only;
   int repetitions = 0;  // default: 3 (--short), 5 (full)
-  double rtol_min = 1e-11;  // reference at rtol 1e-14: three decades tighter (issue 5)
+  double rtol_min = 1e-11;  // reference at rtol 1e-14: three decades tighter
   CLI::App app{"work_precision: accuracy (scd) against the stored reference and CPU time of every "
                 "formulation and setting on one scene (benchmarks/README.md). Options --benchmark_*=V "
                 "go to Google Benchmark."};

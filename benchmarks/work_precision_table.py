@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""Fastest run reaching scd 4/6/8/10, per method, from work-precision JSON files (issue 13).
+"""Fastest run reaching scd 4/6/8/10, per method, from work-precision JSON files
+(benchmarks/README.md, "Work-precision sweep").
 
     build/benchmarks/work_precision --rtol-min 1e-13 --json wp.json
     /usr/bin/python3 benchmarks/work_precision_table.py wp.json [MORE.json ...]

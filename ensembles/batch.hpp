@@ -1,7 +1,7 @@
-// In-process batches (issue 12 item 3): one scene loaded once, many variants of it run in
-// one process, parameters overridden per run with the sweep's named parameters
-// (sweep_spec.hpp: "pulse.amplitude", "ACL anterior.k_linear", ...), results formatted
-// only when asked for (std::to_chars).
+// In-process batches (ensembles/README.md, "In-process batches"): one scene loaded once, many
+// variants of it run in one process, parameters overridden per run with the sweep's named
+// parameters (sweep_spec.hpp: "pulse.amplitude", "ACL anterior.k_linear", ...), results
+// formatted only when asked for (std::to_chars).
 //
 //   kneedyn batch SCENE --variants FILE.csv [--out results.csv] [--formulation ...]
 //

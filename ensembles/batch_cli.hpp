@@ -1,4 +1,4 @@
-// `kneedyn batch` (issue 12 item 3): registered on the kneedyn CLI by one line.
+// `kneedyn batch`: registered on the kneedyn CLI by one line.
 //   kneedyn batch SCENE --variants FILE.csv [--out results.csv] [--formulation NAME]
 //                 [--rtol R] [--atol A] [--integrator I] [--step H] [--outcomes a,b,...]
 //                 [--threads N] [--output-interval S]

@@ -1,4 +1,4 @@
-// Sampling designs of a sweep (issue 14, item 2): full grid, Latin hypercube, Sobol'
+// Sampling designs of a sweep: full grid, Latin hypercube, Sobol'
 // sequence and the Saltelli pick-freeze design for variance-based indices. Every design
 // gives points in the unit cube [0, 1)^d; sweep_spec.hpp maps them to parameter values.
 //

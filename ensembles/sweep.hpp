@@ -1,4 +1,4 @@
-// Running a sweep (issue 14, item 2): every run of a spec's design through the library's
+// Running a sweep (ensembles/README.md): every run of a spec's design through the library's
 // run driver (formulations/run.hpp), in one process on a thread pool, one row per run.
 //
 // Bitwise reproducibility: run i depends only on i (design row i, sweep_spec.hpp); each

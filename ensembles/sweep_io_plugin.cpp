@@ -29,7 +29,8 @@ void SetError(const std::string& message, char* error, size_t error_size) {
   std::snprintf(error, error_size, "%s", message.c_str());
 }
 
-// HDF5 calls return < 0 on failure; one checked-call helper (style.md §4).
+// HDF5 calls return < 0 on failure; one checked-call helper, so that
+// every failure names the call and the file.
 template <typename T>
 T H5Check(T value, const char* call, const char* path) {
   if (value < 0) throw Failure(std::string(call) + " failed for '" + path + "'");

@@ -1,4 +1,4 @@
-// The interface between kneedyn and its sweep I/O plugin, kneedyn_sweep_io.so (issue 12):
+// The interface between kneedyn and its sweep I/O plugin, kneedyn_sweep_io.so:
 // the one shared object that links Open MPI and HDF5. It is loaded (dlopen, sweep_io.hpp)
 // only by what needs those libraries: `kneedyn sweep` launched by mpirun, and writing
 // sweep.h5 (a sweep without --shard, --merge, the Python module's run_sweep with out_dir).

@@ -1,4 +1,4 @@
-// MPI for `kneedyn sweep` (issue 14, item 3). MPI is initialised only when the process
+// MPI for `kneedyn sweep` (docs/cluster.md). MPI is initialised only when the process
 // was launched by an MPI launcher (OMPI_COMM_WORLD_SIZE, PMI_SIZE or PMIX_RANK set), so a
 // plain `kneedyn` never starts an MPI runtime. Rank r runs the indices i with
 // i % size == r (sweep.hpp ShardIndices); rank 0 gathers the rows, orders them by index

@@ -1,4 +1,4 @@
-// Sweep result files (issue 14, items 2–3): one row per run, failed runs kept.
+// Sweep result files (ensembles/README.md): one row per run, failed runs kept.
 //   sweep.csv  index, parameters, outcomes, status, end_reason, steps, failure
 //              (numbers as %.17g: they read back to the same doubles; NaN as "nan")
 //   sweep.h5   the same columns as HDF5 datasets: /index, /parameters/<col>,

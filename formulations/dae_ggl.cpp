@@ -31,9 +31,9 @@
 // h M⁻¹ Gᵀ δN, h K δμ per step, which the weights of u and q already police; N and μ
 // themselves carry round-off ε·M·|q|/h² ≈ 2e-3 N and cj·ε·|φ terms| ≈ 1e-17 m / h (at
 // h = 1e-7 s), so tighter tolerances make the Newton test fail on round-off at the tiny
-// first steps of tight runs (measured: with a · 1e4 alone, rtol ≤ 1e-11 fails at t = 0
-// with IDA_CONV_FAIL; with the floors, rtol 1e-13 completes with scd 10.7 on the chapter
-// scene). Scaling the unknowns instead (N/N_ref) would be equivalent for IDA's WRMS tests.
+// first steps of tight runs; the floors let the tightest settings complete
+// (tests/dae_ggl_test.cpp; benchmarks/README.md, "Work-precision sweep"). Scaling the
+// unknowns instead (N/N_ref) would be equivalent for IDA's WRMS tests.
 // IDASetId marks q, u differential and c, N, μ algebraic; IDASetSuppressAlg excludes the
 // algebraic unknowns from the local error test (their BDF error is not O(h^{p+1}) for
 // index 2), as in idaSlCrank_dns.c. The system (unknowns, residual, the exact Jacobian

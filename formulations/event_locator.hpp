@@ -9,8 +9,8 @@
 // Accuracy: the located time is the root of g on the dense output, so its error is the
 // dense output's error divided by |ġ|, on top of the stepper's global error at t*. For the
 // Newmark family the dense output is cubic Hermite in (q, q̇) (O(h⁴)) and linear in q̈ and
-// the multipliers (O(h²), consistent with the scheme's order); see newmark.cpp for the
-// measured split on the chapter scene (location ≤ 1e-7 s, global error 1e-5 s at h = 1e-4).
+// the multipliers (O(h²), consistent with the scheme's order); the split between location
+// and global error on the chapter scene: benchmarks/README.md, "Work-precision sweep".
 //
 // No allocation once the workspace has been sized (Reserve at the start of a phase).
 #pragma once

@@ -31,10 +31,9 @@
 // (event_locator.hpp: Illinois) until the bracket is 1e-12 s wide; the state returned is
 // the interpolated one just past the root (a retaken step of size h′ ≪ h would amplify the
 // Newton tolerance in q̈ and N by 4/h′²). The driver re-solves the hidden constraint at
-// restart. Measured on the chapter scene (generalized-alpha, h = 1e-4 s): the lateral
-// lift-off is 1.0e-5 s late, of which location accounts for ≤ 1e-7 s (the physical N of
-// the located state is 6e-4 N, |Ṅ| = 6.1e3 N/s); the rest is the scheme's global O(h²)
-// error of the state (4.1e-5, 1.0e-5, 2.5e-6, 6.3e-7 s at h = 2e-4 … 2.5e-5 s).
+// restart. The location error is small beside the scheme's global O(h²) error of the
+// state (tests/generalized_alpha_test.cpp, LiftoffLocatedOnTheStateAndErrorIsSecondOrder;
+// figures in benchmarks/README.md, "Work-precision sweep").
 // Generalized-α with a step other than the one a_n belongs to (output times, halvings,
 // the start) first moves a_n to the new step (RescalePseudoAcceleration). Generalized-α
 // starts each phase on the smooth solution of its error recursion (PerturbedStart: a_0 and
@@ -76,7 +75,7 @@ constexpr int kMaxEventIterations = 100;
 
 // Fixed-capacity Eigen types (kMaxJetSize = the largest system, checked at Start): no heap
 // allocation in a step, the event location or the Newton solve once a phase has started
-// (issue 11 item 7; the workspaces below are sized in Start).
+// (tests/zero_allocation_test.cpp; the workspaces below are sized in Start).
 using XVector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxJetSize, 1>;
 using XMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxJetSize, kMaxJetSize>;
 
@@ -235,8 +234,8 @@ class NewmarkFormulation final : public FormulationBase {
     return true;
   }
 
-  // ∂F/∂x of StepResidual, exact from the blocks of solver/newton_euler_jacobian.hpp (issue
-  // 12 item 1): q̇_{n+1} and q̈_{n+1} are affine in q_{n+1} (slopes γ/(βh) and
+  // ∂F/∂x of StepResidual, exact from the blocks of solver/newton_euler_jacobian.hpp:
+  // q̇_{n+1} and q̈_{n+1} are affine in q_{n+1} (slopes γ/(βh) and
   // (1 − αm)/((1 − αf) β h²)), so ∂r/∂q_{n+1} = ∂r/∂q + γ/(βh) ∂r/∂q̇ + … ∂r/∂q̈; each contact
   // as a Jet of 10 over (q, c_i). False when a surface is evaluated outside its domain.
   bool StepJacobian(const StepState& from, double h, const double* x, XMatrix* Jout) const {
@@ -294,9 +293,10 @@ class NewmarkFormulation final : public FormulationBase {
   // e_v = d/h = h² q⃛ (1/6 − Δα/2 − β), h e_a = O(h³); an exact start (e_v = 0) differs from it
   // by O(h²) in e_v, which A turns into an O(h²) transient in h e_a, i.e. O(h) in a, q̈ and
   // the multipliers, decaying like ρ∞ⁿ (the initial layer seen on the manufactured knee).
-  // Starting on the smooth solution removes it: measured there, max |N − N*| over the whole
-  // run 4.8e-3/2.3e-3/1.1e-3 N (first order) → 2.7e-5/7.0e-6/1.6e-6 N (second order) at
-  // h = 2e-3/1e-3/5e-4 s. The O(h²) velocity perturbation is within the scheme's error.
+  // Starting on the smooth solution removes it: the multipliers become second order over
+  // the whole run (tests/exact_solution_test.cpp, manufactured knee; figures in
+  // benchmarks/README.md, "Work-precision sweep"). The O(h²) velocity perturbation is within
+  // the scheme's error.
   // q⃛_0 from the hidden constraint (solver/constrained_dynamics.hpp) along the Taylor path
   // q(t_0 ± s) = q_0 ± s q̇_0 + ½ s² q̈_0, q̇(t_0 ± s) = q̇_0 ± s q̈_0, by the central difference
   // with s = 1e-5 s (truncation ~s² |q⁽⁵⁾|/6, round-off ~ε|q̈|/s ≈ 1e-11 |q̈|; a forward
@@ -366,7 +366,7 @@ class NewmarkFormulation final : public FormulationBase {
     XMatrix J(n_, n_);
     XVector F(n_);
     const int first_force = 6 + per_contact_ * k;
-    int worst = -1;  // the largest weighted Newton update of the last iteration (issue 18)
+    int worst = -1;  // largest weighted Newton update of the last iteration (failure message)
     double worst_update = 0.0;
     for (int iter = 0; iter < kMaxNewtonIterations; ++iter) {
       bool ok = false;

@@ -328,7 +328,7 @@ SolverStats OdeIntegrator::CurrentCounters() const {
   return s;
 }
 
-// Issue 18: which state component a failure is about — the largest weighted local error
+// Which state component a failure is about — the largest weighted local error
 // estimate |e_i| w_i of the last attempted step (CVodeGetEstLocalErrors/ARKStepGetEstLocalErrors
 // with the error weights); empty when the solver has none (fixed steps: all zero).
 std::string OdeIntegrator::LargestErrorComponent() const {

@@ -1,6 +1,6 @@
 // calibrate_reconstruction — fits the two continuous quantities of the chapter scene that
-// the printed chapter leaves uncertain to the chapter's quantitative statements (issue 15,
-// reconstruction study), with Ceres.
+// the printed chapter leaves uncertain to the chapter's quantitative statements (the
+// reconstruction study, reports/reconstruction.py), with Ceres.
 //
 //   calibrate_reconstruction --scene FILE --out JSON [--grid N] [--max-iterations K]
 //                            [--formulation NAME] [--rtol R]

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Global sensitivity (issue 14, item 4): first-order and total Sobol' indices with bootstrap
+"""Global sensitivity (ensembles/README.md): first-order and total Sobol' indices with bootstrap
 confidence intervals from a Saltelli sweep (`kneedyn sweep`, design type saltelli), computed
 with OpenTURNS (Debian python3-openturns), and a ranked bar chart per outcome.
 
@@ -8,9 +8,9 @@ with OpenTURNS (Debian python3-openturns), and a ranked bar chart per outcome.
                         [--estimator saltelli|jansen|martinez|mauntz-kucherenko] [--seed 1]
                         [--local SENSITIVITY.json]
 
---local takes the sensitivity.json of `kneedyn sensitivity` at the nominal point (issue 14,
-item 1) for the same parameters and outcomes; each outcome then also gets the local
-normalized sensitivity p/y dy/dp and the first-order index a linear model would have,
+--local takes the sensitivity.json of `kneedyn sensitivity` at the nominal point for the same
+parameters and outcomes; each outcome then also gets the local normalized sensitivity p/y
+dy/dp and the first-order index a linear model would have,
 S_lin,k = (dy/dp_k sigma_k)^2 / sum_j (dy/dp_j sigma_j)^2, with sigma_k the standard deviation
 of parameter k in the sweep's own samples. Where S_1 and S_lin agree the outcome is close to
 linear over the ranges; where they differ, the local derivative would mislead.

@@ -15,8 +15,8 @@ sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bench_data  # noqa: E402  (the sweep JSON and its fairness manifest)
 import figures  # noqa: E402
-import global_sensitivity  # noqa: E402  (issue 14: Sobol' indices section)
-import methods_comparison  # noqa: E402  (issue 13: dae / dae-ggl / newmark / generalized-alpha)
+import global_sensitivity  # noqa: E402  (Sobol' indices section)
+import methods_comparison  # noqa: E402  (dae / dae-ggl / newmark / generalized-alpha)
 from family_data import load_families  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))

@@ -1,4 +1,4 @@
-"""Report section (issue 13): drift, digits reached and cost of the formulations that bring
+"""Report section: drift, digits reached and cost of the formulations that bring
 their own integrator: the chapter's index-2 DAE (`dae`), its stabilized GGL form
 (`dae-ggl`), Newmark's rule on the index-3 reverse EDE (`newmark`), generalized-α on the
 same (`generalized-alpha`) and their closed-form-contact (`-reduced`) variants.

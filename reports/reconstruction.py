@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Reconstruction study (issue 15): how much of the claims table rests on the readings of
+"""Reconstruction study: how much of the claims table rests on the readings of
 the model that the printed chapter leaves uncertain.
 
   reconstruction.py --kneedyn PATH --out OUTDIR [--quick] [--calibrate BIN] [--jobs N]

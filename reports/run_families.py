@@ -98,7 +98,7 @@ _MODULE = {}
 
 
 def kneedyn_module(kneedyn):
-  """The kneedyn Python module (python/, issue 17) if importable — from PYTHONPATH or from the
+  """The kneedyn Python module (python/, docs/python.md) if importable — from PYTHONPATH or from the
   build tree beside the binary (<build>/python) — else None. KNEEDYN_REPORT_RUNNER=subprocess
   forces the subprocess path."""
   if os.environ.get("KNEEDYN_REPORT_RUNNER") == "subprocess":

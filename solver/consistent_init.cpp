@@ -12,7 +12,7 @@
 namespace {
 // Ceres logs through glog; uninitialised, glog prints "Logging before InitGoogleLogging"
 // warnings, and initialised with defaults it writes log files under /tmp. Once per
-// process: initialise it to stderr, errors only (issue 18: nothing stray is printed).
+// process: initialise it to stderr, errors only (nothing stray is printed).
 void QuietCeresLogging() {
   static const bool done = [] {
     if (!google::IsGoogleLoggingInitialized()) {
@@ -351,9 +351,9 @@ void CompleteHiddenConstraint(const Model& model, MechanicalState* state) {
   constexpr double kGapTolerance = 1.0e-14;  // m
   ProjectOntoContacts(model, state->active, kGapTolerance, 20, &state->q);
   SolveVelocityLevel(ActiveConstraintRows(model, *state, PoseFromCoordinates(state->q)), {}, options, state);
-  // Issue 12 item 2 (cheap restarts): the hidden level is linear in (ν̇, N); at a restart
-  // it is solved directly (the Schur-complement solve of constrained_dynamics.hpp) instead
-  // of by Ceres from guesses.
+  // Cheap restarts (benchmarks/README.md, "Restarts"): the hidden level is linear in (ν̇, N);
+  // at a restart it is solved directly (the Schur-complement solve of
+  // constrained_dynamics.hpp) instead of by Ceres from guesses.
   const ConstrainedAcceleration a =
       SolveConstrainedAcceleration(model, state->t, state->q, state->qd, state->active, {}, &state->ligament_branch);
   state->qdd = a.qdd;

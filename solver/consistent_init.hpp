@@ -1,4 +1,4 @@
-// Consistent initialization, shared by all formulations (issue 3). Takes a partial or
+// Consistent initialization, shared by all formulations. Takes a partial or
 // inconsistent state and returns one that satisfies, in order:
 //   1. position level: the contact conditions of the active contacts — chapter form
 //      (Eqs. 1.8, 1.13: five residuals per contact, contact coordinates free) or closed form

@@ -9,7 +9,7 @@
 //
 // with a = b = 0 the exact index-reduced constraint φ̈ = 0. M is diagonal in
 // ν-coordinates (dynamics.hpp), so the system is solved through its Schur complement
-// (issue 12: a k×k system instead of a (6 + k)² LU):
+// (a k×k system instead of a (6 + k)² LU):
 //   (G M⁻¹ Gᵀ) N = rhs − G M⁻¹ Q,   ν̇ = M⁻¹ (Q + Gᵀ N).
 #pragma once
 
@@ -35,8 +35,8 @@ struct BaumgarteGains {
 // Largest number of active contacts the allocation-free variant below handles.
 constexpr int kMaxConstrainedContacts = 8;
 
-// Workspace of the allocation-free SolveConstrainedAcceleration (style.md §1: data apart
-// from model): the applied-load workspace and the Schur-complement system in
+// Workspace of the allocation-free SolveConstrainedAcceleration (mutable data kept
+// apart from the constant Model): the applied-load workspace and the Schur-complement system in
 // fixed-capacity Eigen types (at most kMaxConstrainedContacts rows, in this object).
 struct ConstrainedDynamicsWorkspace {
   using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxConstrainedContacts, kMaxConstrainedContacts>;

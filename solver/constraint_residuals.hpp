@@ -1,4 +1,4 @@
-// Constraint residuals of a mechanical state (spec §4; chapter Eq. 1.8 normal component
+// Constraint residuals of a mechanical state (docs/model.md §4; chapter Eq. 1.8 normal component
 // and its rate): per contact pair of the model, the gap φ_i(q) and the normal approach rate
 // φ̇_i = G_i ν, both from the general contact kinematics (contact_kinematics.hpp), so they
 // hold for any surface pair and do not depend on the formulation's contact description.

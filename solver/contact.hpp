@@ -1,4 +1,4 @@
-// Tibio-femoral contact (chapter Eqs. 1.6–1.13; spec §4), two equivalent descriptions.
+// Tibio-femoral contact (chapter Eqs. 1.6–1.13; docs/model.md §4), two equivalent descriptions.
 //
 // Chapter form, any smooth height fields. Per contact the unknowns are the contact
 // coordinates c = (xc, yc) on the femur (F) and (x′c, y′c) on the tibia (T):
@@ -13,7 +13,7 @@
 //   G = [−n_Fᵀ, (n′_T × X′t)ᵀ]                 (1×6)
 // and at acceleration level φ̈ = G ν̇ + κ (any pair: ContactRateTerm, contact_kinematics.hpp).
 //
-// Contact force on the tibia: −N n_F applied at the tibial contact point (spec §4).
+// Contact force on the tibia: −N n_F applied at the tibial contact point (docs/model.md §4).
 #pragma once
 
 #include "solver/model.hpp"
@@ -21,7 +21,7 @@
 
 namespace kneedyn {
 
-// The sphere-on-plane closed form of a contact pair (spec §4), from the surfaces'
+// The sphere-on-plane closed form of a contact pair (docs/model.md §4), from the surfaces'
 // SphereForm/PlaneForm (contact_kinematics.hpp: SphereOnPlaneForm).
 struct SphereOnPlane {
   Vector3d centre_F;  // sphere centre C in F, m

@@ -1,6 +1,6 @@
 // Contact kinematics of one pair of smooth surfaces at a pose — the one interface every
 // formulation, the consistent initialization, the events, the impact law, the projection
-// and the restarts use (spec §4; chapter Eqs. 1.6–1.13).
+// and the restarts use (docs/model.md §4; chapter Eqs. 1.6–1.13).
 //
 // Femoral surface Pf(uf, vf) in F, tibial surface Pt(ut, vt) in T, both in their regular
 // charts (height_field.hpp: P_u × P_v points to +z). The contact points are where the

@@ -1,4 +1,4 @@
-// Newton–Euler equations of the tibia (chapter Eqs. 1.17–1.24; spec §8), shared by every
+// Newton–Euler equations of the tibia (chapter Eqs. 1.17–1.24; docs/model.md §8), shared by every
 // formulation. In ν = (v_F, w_T) coordinates the mass matrix is constant:
 //
 //   m a_F                   = W + Fe(t) R d_T + Σ_j F_j û_j − Σ_i N_i n_i     (Eqs. 1.48–1.57)
@@ -6,7 +6,7 @@
 //
 // i.e.  M ν̇ = Q(t, q, ν) + Σ_i N_i G_iᵀ  with M = diag(m 1, I) and
 //       Q = (F_applied_F, M_applied_T − w_T × I w_T);  G_i from contact.hpp.
-// (The printed Eq. 1.22 repeats the y′ equation; the x′ one is the cyclic one, spec §8.)
+// (The printed Eq. 1.22 repeats the y′ equation; the x′ one is the cyclic one, docs/model.md §8.)
 #pragma once
 
 #include <vector>
@@ -17,7 +17,8 @@
 
 namespace kneedyn {
 
-// Workspace of the applied-load computation (style.md §1: data apart from model).
+// Workspace of the applied-load computation (mutable data kept apart from the
+// constant Model).
 template <typename T>
 struct DataTpl {
   explicit DataTpl(const Model& model)

@@ -1,4 +1,5 @@
-// Lower cap of an ellipsoid: a femoral condyle closer to anatomy than a sphere (issue 11).
+// Lower cap of an ellipsoid: a femoral condyle closer to anatomy than a sphere
+// (general contact kernel; reference-data/scenes/anatomical_surfaces.yaml).
 //   P = C + A s,  A = Q diag(a, b, c),  |s| = 1,
 // semi-axes (a, b, c) along the columns of the orientation Q, centre C, in the femur's
 // frame. Height-field chart: the lower root z of (P − C)ᵀ M (P − C) = 1, M = A⁻ᵀ A⁻¹, on a

@@ -1,4 +1,4 @@
-// Errors at the C++ boundary, built in one place (style.md §4).
+// Errors at the C++ boundary, built in one place.
 // Every message names the function, the offending value and the rule broken.
 #pragma once
 
@@ -31,9 +31,9 @@ class SolverError : public Error {
   using Error::Error;
 };
 
-// The shortest decimal that reads back as exactly `v` (std::to_chars' round trip: 1e-6
-// prints as 1e-06, not 9.9999999999999995e-07 as 17 digits do; issue 18), written %g-style:
-// fixed for exponents -5 … 16 with every integer digit (100000, not 1e+05), else
+// The shortest decimal that reads back as exactly `v` (std::to_chars' round trip: 1e-6 prints
+// as 1e-06, not 9.9999999999999995e-07 as 17 digits do; tests/error_test.cpp), written
+// %g-style: fixed for exponents -5 … 16 with every integer digit (100000, not 1e+05), else
 // scientific. Non-finite values: inf, -inf, nan.
 inline std::string ShortestDouble(double v) {
   if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
@@ -74,7 +74,7 @@ std::string StrCat(const Args&... args) {
 
 // A user-given value as shown in a message: at most max_chars characters, non-printable
 // bytes (control characters, invalid or non-ASCII UTF-8) as '?', and the full length when
-// cut (issue 18: a 100 KB value is not echoed in full).
+// cut (a 100 KB value is not echoed in full; tests/error_test.cpp).
 inline std::string Echo(const std::string& value, size_t max_chars = 80) {
   std::string out;
   for (size_t i = 0; i < value.size() && i < max_chars; ++i) {

@@ -1,7 +1,7 @@
-// Event functions shared by every formulation (issue 3): contact lift-off (N_i crosses zero
+// Event functions shared by every formulation: contact lift-off (N_i crosses zero
 // decreasing), re-contact of a separated compartment (gap φ_i crosses zero decreasing) and
 // the end condition (α reaches the scene's flexion), plus the internal events where the
-// published ligament law jumps (ε_j = 2ε1, spec §5): a solver must not step across a
+// published ligament law jumps (ε_j = 2ε1, docs/model.md §5): a solver must not step across a
 // discontinuity, so the driver restarts the formulation there. Each formulation locates their roots
 // with its own machinery (IDA/CVODE/ARKODE root finding, Newmark step bisection); the
 // definitions live here so that every formulation stops at the same events.

@@ -134,7 +134,7 @@ class SphereCap final : public HeightField {
   double radius_;
 };
 
-// Plane z = slope_x x + slope_y y + offset (chapter Eq. 1.5 with the x′ slope, spec §3).
+// Plane z = slope_x x + slope_y y + offset (chapter Eq. 1.5 with the x′ slope, docs/model.md §3).
 class PlaneSurface final : public HeightField {
  public:
   PlaneSurface(double slope_x, double slope_y, double offset);

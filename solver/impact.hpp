@@ -1,4 +1,4 @@
-// Perfectly plastic impact at re-contact (spec §4; the chapter treats re-contact as an
+// Perfectly plastic impact at re-contact (docs/model.md §4; the chapter treats re-contact as an
 // impact without rebound). The contacts in `active` receive impulses P_i along their
 // normals that zero their normal approach velocity; the pose does not change:
 //

@@ -1,11 +1,11 @@
-// Ligament force law (chapter Eqs. 1.14–1.16, Tables 1.1–1.3; spec §5).
+// Ligament force law (chapter Eqs. 1.14–1.16, Tables 1.1–1.3; docs/model.md §5).
 //
 //   ε = (L − L0)/L0,  ε1 = 0.03
 //   F = 0                          ε ≤ 0
 //   F = k_par (L − L0)²            0 < ε ≤ 2 ε1
 //   F = k_lin (L − (1 + ε1) L0)    ε > 2 ε1
 //
-// Departure from the printed Table 1.2 header (spec §5): the first column is k_lin (N/mm),
+// Departure from the printed Table 1.2 header (docs/model.md §5): the first column is k_lin (N/mm),
 // the second k_par (N/mm²). The force acts on the tibia at its attachment, towards the
 // femoral attachment.
 #pragma once

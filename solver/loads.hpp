@@ -1,4 +1,4 @@
-// External loads (spec §7): the impact pulse and its shapes. Gravity and constant loads
+// External loads (docs/model.md §7): the impact pulse and its shapes. Gravity and constant loads
 // are applied in dynamics.hpp.
 #pragma once
 

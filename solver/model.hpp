@@ -1,4 +1,4 @@
-// The constant model of one scene (style.md §1: model apart from workspace).
+// The constant model of one scene (kept apart from the mutable workspaces).
 // Built once from reference-data/ and a scene file (the loader, scene/scene.hpp); never modified by a run.
 // All quantities SI. Only what the scene names is present.
 #pragma once
@@ -15,7 +15,7 @@
 
 namespace kneedyn {
 
-// Ligament force law variant (spec §5).
+// Ligament force law variant (docs/model.md §5).
 enum class LigamentLaw {
   kPublished,     // Table 1.2 values as printed: small jump at ε = 2ε1
   kC1Continuous,  // k_par recomputed as k_lin / (4 ε1 L0): C¹ at ε = 2ε1
@@ -49,7 +49,7 @@ struct ContactPair {
   // sphere on a plane, a local solve otherwise).
 };
 
-// External pulse at the centre of mass, along a tibial direction (spec §7).
+// External pulse at the centre of mass, along a tibial direction (docs/model.md §7).
 enum class PulseShape {
   kNone,
   kReconstructed,  // A (t/t0) sin(2π t/t0) exp(−4.73 t/t0), Eq. 1.62 as reconstructed
@@ -65,7 +65,8 @@ struct Pulse {
   Vector3d direction_T = Vector3d(0.0, -1.0, 0.0);  // unit, turns with the tibia
 };
 
-// Extra constant force and torque on the tibia, for verification scenes (issue 7).
+// Extra constant force and torque on the tibia, for verification scenes
+// (reference-data/hanging_element_knee.md, tests/exact_solution_test.cpp).
 struct ConstantLoad {
   Vector3d force_F = Vector3d::Zero();   // N, at the centre of mass
   Vector3d torque_T = Vector3d::Zero();  // N m
@@ -79,9 +80,9 @@ struct Model {
   std::vector<ContactPair> contacts;               // only those the scene names
   Pulse pulse;
   ConstantLoad constant_load;
-  // Verification only (issue 7, manufactured solutions): an extra time-dependent force at
-  // the COM (N, F components) and torque (N m, T components), added to the constant load.
-  // Never set by a scene; empty = none.
+  // Verification only (manufactured solutions, tests/exact_solution_test.cpp): an extra
+  // time-dependent force at the COM (N, F components) and torque (N m, T components), added
+  // to the constant load. Never set by a scene; empty = none.
   std::function<void(double t, Vector3d* force_F, Vector3d* torque_T)> manufactured_load;
   LigamentLaw ligament_law = LigamentLaw::kPublished;
 

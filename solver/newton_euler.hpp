@@ -1,5 +1,5 @@
 // The Newton–Euler residual of the tibia with contact wrenches (chapter Eqs. 1.48–1.57,
-// F7–F12; spec §8), for any scalar type (double, ceres::Jet). One function for every
+// F7–F12; docs/model.md §8), for any scalar type (double, ceres::Jet). One function for every
 // formulation that writes the equations of motion as residuals (dae, dae-ggl, newmark,
 // generalized-alpha):
 //

@@ -1,5 +1,6 @@
 // Polynomial height field of degree ≤ 4 in a local frame: a tibial plateau (concave
-// medial, convex lateral) or a fitted femoral surface (issue 11).
+// medial, convex lateral) or a fitted femoral surface (general contact kernel;
+// tests/anatomical_surfaces_test.cpp).
 //   z = o_z + Σ_{i+j≤4} c_ij ξ^i η^j,  (ξ, η) = Rz(θ)ᵀ ((x, y) − (o_x, o_y)),
 // in the bone's frame: local origin o, local axes turned by θ about the bone's z axis (so
 // the surface stays a height field over the bone's (x, y)). Coefficients in SI

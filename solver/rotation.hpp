@@ -1,6 +1,6 @@
-// Grood–Suntay joint coordinate system (spec §2; chapter Eq. 1.3 reconstructed).
+// Grood–Suntay joint coordinate system (docs/model.md §2; chapter Eq. 1.3 reconstructed).
 //
-// Frame notation (Drake monogram, style.md §7), used throughout kneedyn:
+// Frame notation (Drake's monogram notation), used throughout kneedyn:
 //   F  femoral frame (fixed): x lateral (right knee), y anterior, z proximal.
 //   T  tibial frame: origin at the leg's centre of mass, principal axes; T ∥ F at full
 //      extension.
@@ -16,7 +16,7 @@
 //   w_T  = E(β, γ) · (α̇, β̇, γ̇),   E = [−î, −ê2, −k̂′] (columns, T components),
 //     î = (sβ cγ, sβ sγ, cβ), ê2 = (−sγ, cγ, 0), k̂′ = (0, 0, 1);   det E = −sin β.
 // Departure from the chapter: Eqs. 1.20/1.21 are not the true angular velocity; this is the
-// exact map (spec §2). E is singular at sin β = 0 (JCS gimbal lock): reported as an error.
+// exact map (docs/model.md §2). E is singular at sin β = 0 (JCS gimbal lock): reported as an error.
 #pragma once
 
 #include <cmath>

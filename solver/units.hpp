@@ -1,5 +1,5 @@
 // Units. Internally SI (m, kg, s, N, rad); data tables are in mm and degrees and are
-// converted once, at load time (spec §1). Output files convert back and say so in headers.
+// converted once, at load time (docs/model.md §1). Output files convert back and say so in headers.
 #pragma once
 
 namespace kneedyn {

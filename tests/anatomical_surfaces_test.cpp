@@ -1,6 +1,6 @@
 // Every registered formulation on reference-data/scenes/anatomical_surfaces.yaml
-// (ellipsoidal condyles on a concave medial and a convex lateral polynomial plateau;
-// issue 11): the general contact kernel in every formulation.
+// (ellipsoidal condyles on a concave medial and a convex lateral polynomial plateau):
+// the general contact kernel in every formulation.
 //
 // Validates: each formulation completes the scene, finds the same events in the same order,
 // and agrees with `dae` at rtol 1e-10 (computed once) on every event time — adaptive

@@ -126,7 +126,6 @@ TEST_F(ShortSweep, CsvHasOneRowPerResult) {
   EXPECT_EQ(lines, json_["results"].size());
 }
 
-// Issue 10: the file is Google Benchmark's own JSON (what its tools/compare.py reads): a
 // The fairness manifest (context.components): every component compiled into the methods on
 // the time axis, with its version, origin and flags; with the bundled SUNDIALS
 // (cmake/sundials.cmake) SUNDIALS carries kneedyn's own optimization flags.
@@ -152,6 +151,7 @@ TEST_F(ShortSweep, FairnessManifestNamesEveryComponentAndSundialsIsBuiltLikeKnee
 #endif
 }
 
+// The file is Google Benchmark's own JSON (what its tools/compare.py reads): a
 // context, and in `benchmarks` one `iteration` entry per repetition of every setting plus
 // the aggregates, with time units; names carry no sweep mode, min_time or repeat count
 // (a short and a full run compare name by name). The mean aggregate equals the mean of

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Opens the generated report in headless Chromium and fails on a missing image, a broken
-link or content wider than the viewport (issue 15 item 6).
+link or content wider than the viewport.
 
   browser_test.py --kneedyn PATH [--catalog PATH] [--bench JSON] [--report DIR] [--screenshot PNG]
 

@@ -1,4 +1,5 @@
-// Conformance of every registered formulation (issue 4, "one interface"): one
+// Conformance of every registered formulation (one interface,
+// formulations/formulation.hpp): one
 // parameterized suite over RegisteredFormulations(), so a formulation added to
 // registry.cpp is tested here without editing this file.
 //

@@ -1,7 +1,7 @@
-// Tests of the consistent initialization (solver/consistent_init.hpp, issue 3).
+// Tests of the consistent initialization (solver/consistent_init.hpp).
 //
 // Validates: from the chapter's published guesses (scene chapter_impact.yaml) both forms
-// (chapter, closed form) reach the spec §10 reference pose, contact points and consistent
+// (chapter, closed form) reach the docs/model.md §10 reference pose, contact points and consistent
 // contact forces (values typed in from the model spec, docs/model.md); each level reports a
 // residual above its tolerance before and below it after; held quantities are unchanged;
 // the forces do not depend on their guesses (the hidden level is linear in them); an
@@ -48,14 +48,14 @@ Scene ChapterVariant(const std::string& initial_state) {
 
 const std::vector<int> kBoth = {0, 1};  // contacts: [medial, lateral]
 
-// Spec §10 (mm). Half a unit in the last printed digit plus round-off.
+// docs/model.md §10 (mm). Half a unit in the last printed digit plus round-off.
 constexpr double kR0_mm[3] = {0.164268378, -5.740280083, -214.743856};
 constexpr double kR0Tol_mm[3] = {5.1e-10, 5.1e-10, 5.1e-7};
 constexpr double kFemoral_mm[2][3] = {{-16.671908, -18.0, -7.771207}, {16.544980, -16.0, -7.429678}};
 constexpr double kTibial_mm[2][3] = {{-16.836176, -12.259720, 206.972649},
                                      {16.380711, -10.259720, 207.314177}};
 constexpr double kPointTol_mm = 5.1e-7;
-// Spec §10: N_medial ≈ 233.35 N, N_lateral ≈ 243.33 N (two decimals printed).
+// docs/model.md §10: N_medial ≈ 233.35 N, N_lateral ≈ 243.33 N (two decimals printed).
 constexpr double kNormal_N[2] = {233.35, 243.33};
 constexpr double kNormalTol_N = 0.0051;
 
@@ -105,7 +105,7 @@ TEST_P(ConsistentInitForms, ReportsResidualAboveToleranceBeforeAndBelowAfter) {
   options.form = GetParam();
   InitReport report;
   (void)ConsistentInitialize(ChapterScene().model, ChapterScene().initial, kBoth, options, &report);
-  // The chapter's guesses are not consistent (spec §10 pose differs from them).
+  // The chapter's guesses are not consistent (docs/model.md §10 pose differs from them).
   EXPECT_GT(report.position.residual_before, options.position_tolerance);
   EXPECT_LE(report.position.residual_after, options.position_tolerance);
   EXPECT_GT(report.position.iterations, 0);
@@ -153,7 +153,7 @@ TEST_P(ConsistentInitForms, ConsistentForcesDoNotDependOnTheirGuesses) {
 
 TEST_P(ConsistentInitForms, ImpossiblePositionRequestThrowsNamingLevelAndResidual) {
   // Everything held: only the contact coordinates (chapter form) or nothing (closed form)
-  // can move. The pose is the reference pose with z0 moved 0.5 mm (spec §10: −214.743856
+  // can move. The pose is the reference pose with z0 moved 0.5 mm (docs/model.md §10: −214.743856
   // mm), so neither compartment can be in contact.
   const Scene scene = ChapterVariant(
       "{pose: reference, guesses: chapter, coordinates: {z0_mm: -214.243856}, "
@@ -211,7 +211,7 @@ TEST_P(ConsistentInitForms, FreedInconsistentVelocityIsCorrectedToZeroApproachRa
   EXPECT_GT(s.qd.norm(), 1e-3);
 }
 
-// Issue 11 item 5: a partial initial pose (`pose: assemble`, only alpha_deg given) is
+// A partial initial pose (docs/model.md §6) (`pose: assemble`, only alpha_deg given) is
 // assembled: alpha stays exactly as given, the other five coordinates move from the
 // reference (default) pose until both gaps close (checked with the closed-form sphere-on-
 // plane gap, independent of the chapter-form residuals the chapter form solves), and the

@@ -1,4 +1,4 @@
-// The chapter form's contact-coordinate chart (solver/contact.hpp, issue 11 item 3).
+// The chapter form's contact-coordinate chart (solver/contact.hpp).
 //
 // Validates, on the hard case condyle_edge (A = 300 N to 135° of flexion: the femoral
 // contact point moves towards the condyle's equator, the rim of its height field):

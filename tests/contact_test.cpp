@@ -1,4 +1,4 @@
-// Tests of the tibio-femoral contact (solver/contact.hpp; chapter Eqs. 1.6–1.13, spec §4).
+// Tests of the tibio-femoral contact (solver/contact.hpp; chapter Eqs. 1.6–1.13, docs/model.md §4).
 //
 // Validates, on the chapter's knee (scene chapter_impact.yaml) at random poses near the
 // reference pose:
@@ -45,7 +45,7 @@ Vector6d PerturbedPose(std::mt19937& rng) {
   return q;
 }
 
-// Starting point for Newton, typed from spec §6 (the chapter's guesses, mm); the lateral
+// Starting point for Newton, typed from docs/model.md §6 (the chapter's guesses, mm); the lateral
 // tibial guess is not in the chapter: femoral (x, y) minus roughly (x0, y0).
 std::array<double, 4> StartGuess(Compartment c) {
   if (c == Compartment::kMedial) {
@@ -94,7 +94,7 @@ ChapterSolution SolveChapterForm(const ContactPair& pair, const Pose& pose,
   return out;
 }
 
-// Gap of a sphere on a plane typed from spec §4: φ = n·(C − R0) − d − r, n = R n̂′.
+// Gap of a sphere on a plane typed from docs/model.md §4: φ = n·(C − R0) − d − r, n = R n̂′.
 double GapFromSpec(const SphereOnPlane& sop, const Pose& pose) {
   return (pose.R_FT * sop.normal_T).dot(sop.centre_F - pose.p_FoTo_F) - sop.offset - sop.radius;
 }

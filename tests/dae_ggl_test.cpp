@@ -1,4 +1,4 @@
-// `dae-ggl` / `dae-ggl-reduced` (issue 13, formulations/dae_ggl.cpp): what the GGL
+// `dae-ggl` / `dae-ggl-reduced` (formulations/dae_ggl.cpp): what the GGL
 // stabilization adds over `dae`.
 //
 // Validates, on the chapter scene: (1) no drift: the position constraint residual at the
@@ -7,7 +7,7 @@
 // level (< 1e-14 m, |R0| ≈ 0.05 m) at rtol 1e-13; (2) accuracy against the stored
 // reference (reference-data/references/chapter_impact.json, mde cvode-adams at rtol
 // 1e-14, cross-checked to 11.2 digits by ede dopri5): scd ≥ 10 at rtol 1e-13 (the
-// issue's target); (3) rtol 1e-12 completes in both contact forms (it fails for `dae` on
+// accuracy target of GGL); (3) rtol 1e-12 completes in both contact forms (it fails for `dae` on
 // the index-2 round-off; the per-component tolerances in dae_ggl.cpp are the fix);
 // (4) options that do not apply are refused with the option named.
 // Does not validate: efficiency (benchmarks/work_precision), other scenes.

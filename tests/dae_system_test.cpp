@@ -1,5 +1,5 @@
 // Tests of the exact structured Jacobian of the chapter DAE (formulations/dae_system.hpp,
-// solver/newton_euler_jacobian.hpp; issue 12 item 1).
+// solver/newton_euler_jacobian.hpp).
 //
 // Validates: DaeSystem::Jacobian (blocks differentiated at their own size: applied loads
 // analytically, kinematic part with Jet<8>, contacts with Jet<10>) equals the Jet<24>

@@ -161,7 +161,7 @@ const RunResult& DaeReduced() {
   return r;
 }
 
-// Issue 3: a femoral height field evaluated outside its domain during a Newton iteration
+// A femoral height field evaluated outside its domain during a Newton iteration
 // (here the medial femoral contact coordinate moved beyond its chart's domain) is a
 // recoverable failure: the residual reports false (IDA's
 // "return 1"), never NaN, never a crash; the same point inside the footprint evaluates.

@@ -1,4 +1,4 @@
-// `ede --stabilization cvode-projection` (issue 13): CVODE's own projection
+// `ede --stabilization cvode-projection`: CVODE's own projection
 // (CVodeSetProjFn) with cvode-bdf, beside kneedyn's project-and-restart `projection`.
 //
 // Validates, on the chapter scene at rtol 1e-8: the position constraint stays at the

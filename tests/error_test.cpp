@@ -1,5 +1,5 @@
 // Tests of the message helpers (solver/error.hpp): numbers in messages print as the shortest
-// decimal that reads back exactly (issue 18: bounds printed as 9.9999999999999995e-07).
+// decimal that reads back exactly (bounds were printed as 9.9999999999999995e-07).
 // Validates: exact round trip (checked with strtod, independently of the formatter) over
 // random bit patterns and edge values, the expected spellings of bounds used in messages.
 // Does not validate: locale handling (messages are built in the "C" locale).

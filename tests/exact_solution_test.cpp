@@ -1,7 +1,7 @@
-// Exact-solution verification of every registered formulation (issue 7).
+// Exact-solution verification of every registered formulation.
 //
 // Validates, for each formulation in RegisteredFormulations() (so new ones are picked up
-// automatically), against closed-form solutions of the Newton–Euler equations (spec §8):
+// automatically), against closed-form solutions of the Newton–Euler equations (docs/model.md §8):
 //   FreeFall     free tibia (no contact, no element) under gravity + a constant force:
 //                R0(t) = R0 + v0 t + ½ (g + F/m) t², angles constant;
 //   SpinningTop  torque-free symmetric top (Ixx′ = Iyy′ ≠ Izz′, chapter inertia): w_z′
@@ -16,7 +16,7 @@
 //   Manufactured the full knee (12 elements, C¹ law, both contacts, gravity) following
 //                q*(t): α = 2 t², β = π/2 + 0.02 sin 5t, γ = 0.03 sin 4t, y0 = y0_ref +
 //                1 mm · sin 6t, x0 and z0 from the two contact conditions (linear in R0,
-//                spec §6). The extra load (model.hpp manufactured_load) is M (ν̇* − ν̇0),
+//                docs/model.md §6). The extra load (model.hpp manufactured_load) is M (ν̇* − ν̇0),
 //                ν̇0 the constrained acceleration without it at (q*, q̇*): it satisfies
 //                G Δν̇ = 0, so q*(t) is the exact solution with the normal forces N0(t)
 //                (checked > 0: both contacts stay closed). Checks the error against q* at
@@ -378,11 +378,11 @@ TEST_P(ExactSolution, ManufacturedKneeConvergesAtTheoreticalOrder) {
     EXPECT_NEAR(order, 2.0, 0.3) << name;
     EXPECT_LT(e2, 1e-4) << name;
     if (name.rfind("generalized-alpha", 0) == 0) {
-      // Issue 13: Arnold & Brüls (2007): second order in positions and multipliers. With the
+      // Arnold & Brüls (2007): second order in positions and multipliers. With the
       // exact start (q̇_0, a_0 = q̈(t_0 + Δα h)) the multipliers had an initial layer of O(h)
       // errors damped like ρ∞ⁿ (max |N − N*| over the run 4.7e-3/2.3e-3/1.1e-3 N, first
       // order); the perturbed start (newmark.cpp, PerturbedStart: q̇_0 + h²(1/6 − Δα/2 − β) q⃛_0)
-      // removes it. Checked over the whole run, the issue's band ±0.2: positions from
+      // removes it. Checked over the whole run, a band of ±0.2: positions from
       // h = 1e-3 to 5e-4, forces from 2e-3 to 1e-3 (at 5e-4 the chapter form gives 2.0e-6 N
       // against the closed form's 1.6e-6 N, order 1.8; attributed, not verified, to the Newton
       // acceptance for N: q updates accepted below 1e-3 of their tolerance, ~1e-13 m, leave N

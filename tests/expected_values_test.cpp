@@ -1,11 +1,11 @@
-// Spec §10 expected values, typed in from the model spec, docs/model.md (the independent
+// Expected values of docs/model.md §10, typed in from the model spec (the independent
 // source), compared with what the library computes for the chapter's knee
 // (scene chapter_impact.yaml).
 //
 // Validates: the reference pose R0, the contact points in F and T, each element's L_ref,
 // L0 and tension at the reference pose (ComputeAppliedWrench), and the consistent initial
 // contact forces at rest (SolveConstrainedAcceleration, the index-2 hidden constraint).
-// Tolerances: half a unit in the last digit the spec prints (plus round-off).
+// Tolerances: half a unit in the last digit printed (plus round-off).
 // Does not validate: anything away from the reference pose.
 #include <gtest/gtest.h>
 
@@ -31,7 +31,9 @@ struct ElementExpectation {
   const char* name;
   double L_ref_mm, L0_mm, F_N;
 };
-// Spec §10 table.
+// Reference-pose lengths, slack lengths and tensions: docs/model.md §10 prints the LCL's;
+// all twelve follow from Table 1.1 and docs/model.md §5–§6 and were typed from the table of
+// the model spec kneedyn was first written from (not part of the repository).
 const ElementExpectation kElements[12] = {
     {"ACL anterior", 32.116623, 32.116623, 0.0},
     {"ACL posterior", 28.036058, 26.675602, 48.6216},
@@ -56,7 +58,7 @@ TEST(ExpectedValues, ReferencePoseR0) {
   EXPECT_NEAR(q(kBeta), kPi / 2.0, 1e-15);
   EXPECT_EQ(q(kGamma), 0.0);
   // The chapter's test starts at rest with the angles and y0 of this pose held (x0, z0
-  // come from the chapter's inconsistent guesses, spec §6).
+  // come from the chapter's inconsistent guesses, docs/model.md §6).
   const Vector6d& q_init = ChapterScene().initial.q;
   for (int i : {kY0, kAlpha, kBeta, kGamma}) EXPECT_EQ(q_init(i), q(i)) << CoordinateName(i);
   EXPECT_EQ(ChapterScene().initial.qd.norm(), 0.0);

@@ -1,4 +1,4 @@
-// `generalized-alpha` / `generalized-alpha-reduced` (issue 13; formulations/newmark_scheme.hpp).
+// `generalized-alpha` / `generalized-alpha-reduced` (formulations/newmark_scheme.hpp).
 //
 // Validates: (1) with αm = αf = 0, β = 1/4, γ = 1/2 given explicitly the scheme reproduces
 // `newmark` to round-off on the chapter scene (same events, positions and forces); (2) the
@@ -183,7 +183,7 @@ TEST(EventLocator, FindsEarliestRootInItsDirection) {
   EXPECT_FALSE(EventCrosses(0, 0.0, 1.0));  // starting on the root does not fire
 }
 
-// Where the lateral lift-off error at h = 1e-4 s comes from (issue 13 item 1). The located
+// Where the lateral lift-off error at h = 1e-4 s comes from. The located
 // time is the zero of N_lateral on the step's dense output; the physical normal force of
 // the located state (hidden constraint, solver/constrained_dynamics.hpp, from q and q̇
 // alone: independent of the scheme's multiplier and of its linear interpolation) is
@@ -261,7 +261,7 @@ TEST(GeneralizedAlpha, LiftoffLocatedOnTheStateAndErrorIsSecondOrder) {
   EXPECT_LT(std::sqrt(norm_misfit / norm_h), 0.15);
 }
 
-// Issue 18 item 4: a Newton failure names the unknown with the largest weighted update, its
+// A Newton failure names the unknown with the largest weighted update, its
 // value and unit, t and h. Provoked by a Newton tolerance below round-off (rtol 1e-15,
 // atol 1e-18: |Δx| cannot fall below ε|x|), so every step fails until the halvings run out.
 TEST(GeneralizedAlpha, NewtonFailureNamesTheLargestUpdate) {
@@ -286,7 +286,7 @@ TEST(GeneralizedAlpha, NewtonFailureNamesTheLargestUpdate) {
   }
 }
 
-// ---- An independent check of the scheme on a linear oscillator (issue 13 item 3) --------
+// ---- An independent check of the scheme on a linear oscillator --------------------------
 //
 // The tibia hanging by one linear element through its centre of mass (the exact-solution
 // scene of tests/exact_solution_test.cpp): y0 − y_eq = u obeys ü = −ω² u, ω = √(k/m).
@@ -425,7 +425,7 @@ TEST(GeneralizedAlphaLinearOscillator, MatchesTheScalarMapAndDampsHighFrequencie
   }
 }
 
-// Issue 13 item 4 / issue 11 item 7: after a phase starts, newmark's and generalized-alpha's
+// No allocation in the hot path: after a phase starts, newmark's and generalized-alpha's
 // steps, Newton solves, residuals (workspace DataTpl members) and event checks allocate
 // nothing over whole Advance calls (tests/zero_allocation_test.cpp counts the hot path of
 // every formulation; this one counts complete steps).

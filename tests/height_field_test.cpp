@@ -1,5 +1,5 @@
 // Tests of the articular height fields (solver/height_field.hpp; chapter Eqs. 1.4, 1.5,
-// spec §3).
+// docs/model.md §3).
 //
 // Validates: SphereCap value lies on the sphere, its gradient and Hessian against central
 // finite differences inside the footprint, refusal outside the footprint and on the rim;
@@ -18,7 +18,7 @@
 namespace kneedyn {
 namespace {
 
-// The chapter's medial condyle (spec §3), in metres.
+// The chapter's medial condyle (docs/model.md §3), in metres.
 const Vector3d kMedialCentre(-0.02375, -0.018, 0.012);
 constexpr double kMedialRadius = 0.021;
 
@@ -116,7 +116,7 @@ TEST(SphereCap, RejectsNonPositiveRadius) {
 }
 
 TEST(PlaneSurface, UnitNormalAndOffsetAreConsistentWithPointsOnThePlane) {
-  // The chapter's medial plateau (spec §3), plus a y slope for generality.
+  // The chapter's medial plateau (docs/model.md §3), plus a y slope for generality.
   for (double slope_y : {0.0, 0.12}) {
     const double m = 0.358, c = 0.213;
     const PlaneSurface plane(m, slope_y, c);
@@ -125,7 +125,7 @@ TEST(PlaneSurface, UnitNormalAndOffsetAreConsistentWithPointsOnThePlane) {
     EXPECT_NEAR(n.norm(), 1.0, 1e-15);
     EXPECT_GT(n.z(), 0.0);  // towards +z (the femur for a tibial plateau)
     if (slope_y == 0.0) {
-      // Spec §3: n̂′ = (−m, 0, 1)/sqrt(1 + m²), d = c/sqrt(1 + m²).
+      // docs/model.md §3: n̂′ = (−m, 0, 1)/sqrt(1 + m²), d = c/sqrt(1 + m²).
       const double s = std::sqrt(1.0 + m * m);
       EXPECT_NEAR(n.x(), -m / s, 1e-15);
       EXPECT_NEAR(n.y(), 0.0, 1e-15);

@@ -1,4 +1,4 @@
-# ctest install_consumer (issue 10): installs the build into a fresh prefix, then configures,
+# ctest install_consumer: installs the build into a fresh prefix, then configures,
 # builds and runs tests/consumer (find_package(kneedyn CONFIG REQUIRED), kneedyn::formulations)
 # against it, runs the installed kneedyn from an unrelated directory (data found in
 # share/kneedyn), and checks the pkg-config file.
@@ -54,7 +54,7 @@ if(NOT rc EQUAL 0 OR NOT EXISTS ${WORK}/elsewhere/catalog/hard_cases.md)
   message(FATAL_ERROR "installed kneedyn_catalog failed (${rc}):\n${out}\n${err}")
 endif()
 
-# Issue 12: the installed kneedyn loads its installed sweep I/O plugin (Open MPI + HDF5,
+# The installed kneedyn loads its installed sweep I/O plugin (Open MPI + HDF5,
 # <prefix>/<libdir>/kneedyn/kneedyn_sweep_io.so) for sweep.h5; the binary itself links neither.
 file(GLOB_RECURSE plugin ${prefix}/*/kneedyn_sweep_io.so)
 if(NOT plugin)

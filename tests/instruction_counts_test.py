@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""compare_counters --instructions (issue 12 item 5) can fail, reports improvements and
+"""compare_counters --instructions (benchmarks/README.md, "Instruction
+counts") can fail, reports improvements and
 skips without valgrind. One cheap run (ede, cvode-adams) under valgrind per case, against
 baselines built here: a whole-process `kneedyn run` (dynamic loading of SUNDIALS, Ceres,
 yaml-cpp alone) executes far more than 1e6 instructions and far fewer than 1e12.

@@ -1,9 +1,10 @@
 // Tests of the ligament force law (solver/ligament.hpp; chapter Eqs. 1.14–1.16,
-// Tables 1.1–1.3, spec §5).
+// Tables 1.1–1.3, docs/model.md §5).
 //
 // Validates: zero force when slack; the parabolic and linear regions with the Table 1.2
 // coefficients typed here; the published law's jump at ε = 2ε1 equals the value computed
-// from the table and spec §10's L0, and is small (spec: "≤ 4 %"); the c1_continuous scene
+// from the table and the slack lengths L0 (those of tests/expected_values_test.cpp), and is
+// small (docs/model.md §5: "up to about 4 %"); the c1_continuous scene
 // option makes the law continuous with a continuous slope; LigamentPotential is the
 // integral of the tension; the force acts on the tibia at its attachment towards the
 // femoral attachment (ComputeAppliedWrench).
@@ -21,9 +22,10 @@
 namespace kneedyn {
 namespace {
 
-constexpr double kEps1 = 0.03;  // spec §5
+constexpr double kEps1 = 0.03;  // docs/model.md §5
 
-// Table 1.2 (k_lin N/mm, k_par N/mm²) and spec §10's L0 (mm), typed from the spec.
+// Table 1.2 (k_lin N/mm, k_par N/mm²) and the slack lengths L0 (mm) at the reference pose,
+// typed from tests/expected_values_test.cpp (docs/model.md §5, §6, §10).
 struct TableRow {
   const char* name;
   double k_lin_N_mm;
@@ -122,10 +124,10 @@ TEST(Ligament, LinearRegionIsKLinTimesElongationBeyondEps1) {
 }
 
 TEST(Ligament, PublishedLawJumpsAtTwiceEps1ByTheTableValue) {
-  // Jump = k_lin ε1 L0 − k_par (2 ε1 L0)², from Table 1.2 and spec §10's L0 (mm → N).
-  // Spec §5 calls the jump "≤ 4 %". Computed from the table it is at most 4.03 % of the
-  // force at 2ε1 (ACL anterior; 4.19 % of the linear-side value), i.e. 4 % to the one
-  // significant figure the spec gives: the bound below is 4.5 %.
+  // Jump = k_lin ε1 L0 − k_par (2 ε1 L0)², from Table 1.2 and the slack lengths L0 (mm → N).
+  // docs/model.md §5 calls the jump "up to about 4 %". Computed from the table it is at most
+  // 4.03 % of the force at 2ε1 (ACL anterior; 4.19 % of the linear-side value), i.e. 4 % to
+  // the one significant figure docs/model.md gives: the bound below is 4.5 %.
   for (const Ligament& lig : Published().model.ligaments) {
     const TableRow& row = RowFor(lig.name);
     const double x_toe_mm = 2.0 * kEps1 * row.L0_mm;

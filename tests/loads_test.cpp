@@ -1,4 +1,4 @@
-// Validates: the pulse shapes of solver/loads.* (spec §7; the readings of the garbled
+// Validates: the pulse shapes of solver/loads.* (docs/model.md §7; the readings of the garbled
 // Eq. 1.62 used by the reconstruction study) against their closed forms, typed in here:
 // value at a sample time, the peak found by dense sampling (reconstructed_peak peaks at A;
 // damped_sine at 0.398 A, the maximum of sin(2πs)e^{−4.73s}), zero before t = 0, the

@@ -1,4 +1,4 @@
-// mde and ede (issue 4) against a second formulation (dae), the full constrained equations,
+// mde and ede against a second formulation (dae), the full constrained equations,
 // and an exact solution (torque-free symmetric top in free fall) for the integrator orders.
 #include <gtest/gtest.h>
 
@@ -238,7 +238,7 @@ TEST(MdeEde, FixedStepHitsOutputTimesExactly) {
   }
 }
 
-// Euler (issue: every euler run failed). Old code: (1) ARK_ILL_INPUT ("tstop = 0.01 is
+// Euler (a regression: every euler run failed). Old code: (1) ARK_ILL_INPUT ("tstop = 0.01 is
 // behind current t = 0.01") when a phase restarted at a root ARKODE located at the end of
 // a step that ended on an output time, and the driver asked for that time again; (2) ARKODE
 // 6.4 capped the Hermite interpolant at degree q − 1 = 0, the step average, so roots came
@@ -381,7 +381,7 @@ TEST(MdeEde, RejectsBadIntegratorOptions) {
   EXPECT_THROW(CreateFormulation("ede", scene, o), InputError);
 }
 
-// Issue 18 item 4: a SUNDIALS failure of an ODE form names the state component with the
+// A SUNDIALS failure of an ODE form names the state component with the
 // largest weighted local error estimate, by its name in that form. The step budget of 30
 // makes CVODE stop (CV_TOO_MUCH_WORK) early in the first phase.
 TEST(OdeFailures, NameTheLargestWeightedLocalErrorComponent) {

@@ -1,4 +1,5 @@
-// Output sets published as one (issue 18, item 3), through `kneedyn run`.
+// Output sets published as one (formulations/run_output.hpp,
+// WriteRunOutputs), through `kneedyn run`.
 //
 // Validates: an --out that holds something other than an output set (a directory named
 // trajectory.csv, a foreign file) is refused with exit 2 and left as it was; a second run

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Fails if a tracked source, script, CMake or YAML file refers to a path outside the
-repository (issue 10 item 1): a clone must build, test and run with nothing beside it.
+repository: a clone must build, test and run with nothing beside it.
 
   outside_paths_test.py [--root DIR]
 

@@ -125,7 +125,7 @@ def main():
       for fname, _ in figures.WORK_PRECISION_FIGURES:
         if f"figures/{fname}" not in page:
           errors.append(f"index.html does not reference figures/{fname}")
-    # Issue 13: the methods section with a live run per formulation with its own integrator
+    # The methods section with a live run per formulation with its own integrator
     # (the four below among them; each row a completed run).
     if "id='methods'" not in page:
       errors.append("index.html has no methods section (reports/methods_comparison.py)")

@@ -1,5 +1,5 @@
 // Tests of the Grood–Suntay joint coordinate system (solver/rotation.hpp, solver/pose.hpp;
-// spec §2).
+// docs/model.md §2).
 //
 // Validates: R_FT is a proper rotation and equals Rx(−α) Ry(π/2 − β) Rz(−γ) built with
 // Eigen; full extension is the identity; the analytic partials ∂R/∂(α, β, γ), the

@@ -1,4 +1,4 @@
-// Issue 12: the numbers of trajectory.csv and trajectory.sto are formatted by std::to_chars
+// The numbers of trajectory.csv and trajectory.sto are formatted by std::to_chars
 // (FormatTrajectoryNumber) instead of snprintf("%.12g"). The files must stay byte-identical:
 //  - the formatter agrees with snprintf("%.12g") on special values, decade and rounding
 //    boundaries and 600,000 doubles of every magnitude (random bit patterns, and values of
@@ -42,7 +42,7 @@ std::string ToChars12g(double v) {
   return std::string(buf, FormatTrajectoryNumber(v, buf));
 }
 
-// The writer before issue 12 (run_output.cpp, 68610df), verbatim but for returning strings.
+// The snprintf writer (run_output.cpp at 68610df), verbatim but for returning strings.
 std::string OracleFormatDouble(double v) {
   if (!std::isfinite(v)) return "";
   char buf[40];

@@ -1,4 +1,4 @@
-// Issue 12: the scene loader parses with libyaml instead of yaml-cpp (scene/scene.cpp). What
+// The scene loader parses with libyaml instead of yaml-cpp (scene/scene.cpp). What
 // it accepts must not change: for numbers, booleans, nulls and strings in many spellings,
 // the loader's verdict (accepted with the same value, or refused with the same rule) is
 // the one yaml-cpp — the previous parser, used here as the oracle — gives for the same

@@ -1,6 +1,6 @@
 // A program linking kneedyn_solver alone (no loader, no formulations): the ctest `layering`
 // (tests/layering_test.py) checks with ldd that it pulls in no YAML library, and runs it to
-// show the physics library is usable without the loader (issue 11 item 5).
+// show the physics library is usable without the loader.
 //
 // What it runs: the consistent initialization of a free tibia (no contacts, no ligaments)
 // under gravity, built in code. Exact answer: the centre of mass accelerates at g (and the

@@ -1,4 +1,4 @@
-// No heap allocation in the hot path (issue 11 item 7): for every registered formulation,
+// No heap allocation in the hot path: for every registered formulation,
 // every integrator it accepts and (ede) every stabilization, on the chapter scene (sphere
 // on plane, closed forms) and on anatomical_surfaces.yaml (ellipsoids on polynomial
 // plateaus, the general local contact solve), a phase is started from the consistent

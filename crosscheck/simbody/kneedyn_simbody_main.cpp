@@ -1,4 +1,5 @@
-// kneedyn_simbody — the chapter knee in Simbody (issue 16), from a scene, in one command:
+// kneedyn_simbody — the chapter knee in Simbody (crosscheck/simbody/README.md), from a
+// scene, in one command:
 //
 //   kneedyn_simbody run SCENE [--integrator rkm] [--accuracy 1e-6] [--constraint-tolerance 0]
 //                   [--step 0] [--output-interval 0] [--max-steps N] [--out DIR] [--quiet]

@@ -1,5 +1,5 @@
 // Agreement of the Simbody port (an engine that shares none of kneedyn's physics) with
-// kneedyn's references (issue 16).
+// kneedyn's references (crosscheck/simbody/README.md).
 //
 // What this validates: on five scenes (and the c1_continuous law variant), event times, the trajectory (positions, velocities,
 // contact points and forces, ligament forces, benchmarks/metrics.hpp's classes and scd)
@@ -97,7 +97,7 @@ void ExpectSameEvents(const Agreement& a, const std::string& scene_name) {
 TEST(SimbodyAgreement, ChapterImpactEventsAndTrajectory) {
   const Agreement a = Compare("chapter_impact", 1e-11);
   ExpectSameEvents(a, "chapter_impact");
-  // Spec §6 / README: consistent initial normal forces 233.35 N medial, 243.33 N lateral.
+  // docs/model.md §6 / README: consistent initial normal forces 233.35 N medial, 243.33 N lateral.
   EXPECT_NEAR(a.result.run.init.normal_force.at(0), 233.35, 0.005);
   EXPECT_NEAR(a.result.run.init.normal_force.at(1), 243.33, 0.005);
   // Measured (rkm, 1e-11): lift-off 8.8 digits, 90° 10.4, scd 7.74.
@@ -161,9 +161,10 @@ TEST(SimbodyAgreement, C1ContinuousLawEvents) {
   EXPECT_GE(a.metrics.scd, 7.5);
 }
 
-// The reconstruction study's pulse readings (issue 15) in both engines: the shape scaled to
-// peak A (Simbody finds the peak itself) and the damped sine. The scene is renamed so that
-// kneedyn's reference is computed here (mde + CVODE-Adams, rtol 1e-14), not the stored one.
+// The reconstruction study's pulse readings (reports/reconstruction.py) in both engines: the
+// shape scaled to peak A (Simbody finds the peak itself) and the damped sine. The scene is
+// renamed so that kneedyn's reference is computed here (mde + CVODE-Adams, rtol 1e-14), not
+// the stored one.
 TEST(SimbodyAgreement, OtherPulseReadingsAgree) {
   for (const PulseShape shape : {PulseShape::kReconstructedPeak, PulseShape::kDampedSine}) {
     Scene scene = LoadScene(ScenePath("chapter_impact"));

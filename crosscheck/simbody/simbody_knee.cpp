@@ -90,7 +90,7 @@ double ReconstructedShapePeak() {
 }
 
 // Eq. 1.62 as reconstructed (also scaled to peak A), the damped-sine reading, and the
-// half-sine pulse (spec §7; the reconstruction study's readings).
+// half-sine pulse (docs/model.md §7; the reconstruction study's readings).
 double PulseValue(const Pulse& p, double t) {
   if (t < 0.0) return 0.0;
   const double s = t / p.duration;

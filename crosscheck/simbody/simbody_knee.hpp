@@ -1,5 +1,5 @@
-// The chapter knee rebuilt in Simbody (issue 16): a second engine that shares none of
-// kneedyn's physics, as an independent check and as the peer benchmark.
+// The chapter knee rebuilt in Simbody (crosscheck/simbody/README.md): a second engine that
+// shares none of kneedyn's physics, as an independent check and as the peer benchmark.
 //
 // What comes from kneedyn: the Scene (scene/scene.hpp: parameter set, selection of
 // elements and contacts, pulse, initial pose, end condition) — data only — and, for the
@@ -10,7 +10,7 @@
 //               frame = T, origin at the centre of mass, principal inertia.
 //   femur       Ground = F.
 //   contacts    Constraint::SphereOnPlaneContact (femoral sphere on Ground, tibial plane
-//               on the tibia), enforceRolling = false (frictionless sliding, spec §4).
+//               on the tibia), enforceRolling = false (frictionless sliding, docs/model.md §4).
 //   ligaments   Force::Custom, the chapter's law (Eqs. 1.14–1.16), published or
 //               c1_continuous; the published law's jump at ε = 2ε1 is made an event
 //               (each element's branch is a Stage::Dynamics discrete variable flipped

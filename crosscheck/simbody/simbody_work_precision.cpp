@@ -1,8 +1,8 @@
-// simbody_work_precision — the peer benchmark (issue 16): work-precision of Simbody's
-// integrators on a scene beside kneedyn's dae and ede, measured in the same run, against
-// the same stored reference and the same metric (benchmarks/metrics.hpp) as
-// benchmarks/work_precision.cpp, in the same JSON layout, so reports/figures.py draws
-// them in one diagram.
+// simbody_work_precision — the peer benchmark (crosscheck/simbody/README.md): work-precision
+// of Simbody's integrators on a scene beside kneedyn's dae and ede, measured in the same run,
+// against the same stored reference and the same metric (benchmarks/metrics.hpp) as
+// benchmarks/work_precision.cpp, in the same JSON layout, so reports/figures.py draws them in
+// one diagram.
 //
 //   simbody_work_precision [--short] [--scene FILE] [--reference FILE] [--json OUT]
 //                          [--merge WORK_PRECISION_JSON] [--repetitions N] [--only SUBSTRING]

@@ -1,4 +1,4 @@
-// The batch API and `kneedyn batch` (issue 12 item 3, ensembles/batch.hpp): a variant is
+// The batch API and `kneedyn batch` (ensembles/batch.hpp): a variant is
 // the run of the scene with that parameter changed by hand (a second path: LoadScene +
 // edit + RunScene); runs do not leak state into each other (order and thread count do not
 // change a row); the table reads back exactly; bad input names line, column and value,

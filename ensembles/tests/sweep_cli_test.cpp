@@ -1,4 +1,5 @@
-// `kneedyn sweep` end to end (ensembles/sweep_cli.hpp). Validates the issue's contract:
+// `kneedyn sweep` end to end (ensembles/sweep_cli.hpp). Validates the contract of
+// ensembles/README.md:
 // the same bytes (sweep.csv and sweep.h5) with 1 and 2 threads, with two shards merged,
 // and with 2 MPI ranks; bad input exits 2 and writes nothing; no progress output when
 // stderr is not a terminal.
@@ -127,7 +128,7 @@ TEST(SweepCli, BadInputExitsTwoNamingFieldAndValueAndWritesNothing) {
   EXPECT_FALSE(fs::exists(out));
 }
 
-// Issue 12: Open MPI and HDF5 are in the plugin kneedyn_sweep_io.so (ensembles/sweep_io.hpp),
+// Open MPI and HDF5 are in the plugin kneedyn_sweep_io.so (ensembles/sweep_io.hpp),
 // not in the kneedyn binary: neither its DT_NEEDED entries nor the whole ldd closure name
 // them, while the plugin's do (the same check sees them where they are).
 TEST(SweepCli, KneedynBinaryMapsNeitherMpiNorHdf5) {
@@ -174,7 +175,7 @@ TEST(SweepCli, MissingPluginIsAClearErrorAndWritesNothing) {
   EXPECT_FALSE(fs::exists(work / "merged"));
 }
 
-// Issue 12 (cmake/static_tool.cmake): with KNEEDYN_STATIC_TOOL the kneedyn binary takes
+// cmake/static_tool.cmake: with KNEEDYN_STATIC_TOOL the kneedyn binary takes
 // Ceres' dependencies, SUNDIALS, yaml-cpp and libyaml from their archives: none of them is
 // a DT_NEEDED entry; libgcc_s comes before libunwind, so that C++ exceptions keep GCC's
 // unwinder (libunwind.so.8 also defines _Unwind_RaiseException).
