@@ -11,6 +11,7 @@ or -O3 GCC keeps them in registers and omits the frame pointer (a few per cent a
   sundials_build_test.py BINARY...            check the binaries
   sundials_build_test.py --share LIB_OR_BIN   print the %rbp share of its SUNDIALS functions
 """
+import bisect
 import re
 import subprocess
 import sys
@@ -22,23 +23,42 @@ SUNDIALS_FUNCTION = re.compile(
 MAX_FRAME_SHARE = 0.10
 
 
+def symbols_of(path, extra=()):
+    """nm output of path; the dynamic symbols of a stripped shared object (the Python module)."""
+    out = subprocess.run(["nm", *extra, path], capture_output=True, text=True).stdout
+    if not out.strip():
+        out = subprocess.run(["nm", "-D", "--defined-only", *extra, path], check=True,
+                             capture_output=True, text=True).stdout
+    return out
+
+
 def frame_pointer_share(path):
-    """(instructions, of which address (%rbp)) over the SUNDIALS functions of path."""
+    """(functions, instructions, of which address (%rbp)) over the SUNDIALS functions of path.
+
+    Function extents come from the symbol table with sizes (nm -S), so that a stripped shared
+    object is measured through its dynamic symbols."""
+    ranges = []
+    for line in symbols_of(path, ("-S",)).splitlines():
+        parts = line.split()
+        if len(parts) == 4 and parts[2] in "Tt" and SUNDIALS_FUNCTION.match(parts[3]):
+            start, size = int(parts[0], 16), int(parts[1], 16)
+            if size:
+                ranges.append((start, start + size))
+    ranges = sorted(set(ranges))
+    starts = [r[0] for r in ranges]
     dis = subprocess.run(["objdump", "-d", "--no-show-raw-insn", path], check=True,
                          capture_output=True, text=True).stdout
-    total = through_rbp = functions = 0
-    current = None
+    total = through_rbp = 0
     for line in dis.splitlines():
-        m = re.match(r"^[0-9a-f]+ <([^>]+)>:$", line)
-        if m:
-            name = m.group(1)
-            current = name if SUNDIALS_FUNCTION.match(name) else None
-            functions += current is not None
+        m = re.match(r"^\s+([0-9a-f]+):\s+\S", line)
+        if not m:
             continue
-        if current and re.match(r"^\s+[0-9a-f]+:\s+\S", line):
+        addr = int(m.group(1), 16)
+        i = bisect.bisect_right(starts, addr) - 1
+        if i >= 0 and addr < ranges[i][1]:
             total += 1
             through_rbp += "(%rbp)" in line
-    return functions, total, through_rbp
+    return len(ranges), total, through_rbp
 
 
 def check(path):
@@ -47,7 +67,7 @@ def check(path):
                             text=True).stdout
     for lib in re.findall(r"\[(libsundials[^\]]*)\]", needed):
         errors.append(f"{path}: needs {lib} (Debian's unoptimized SUNDIALS)")
-    symbols = subprocess.run(["nm", path], check=True, capture_output=True, text=True).stdout
+    symbols = symbols_of(path)
     for name in ("IDASolve", "CVode"):
         if not re.search(rf" [Tt] {name}$", symbols, re.M):
             errors.append(f"{path}: {name} is not defined in the binary")
