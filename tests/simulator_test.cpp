@@ -91,7 +91,9 @@ TEST(Simulator, RestartProjection) {
     }
     EXPECT_GE(n_events, 1u);
     // Drift to remove (else the kProject check shows nothing).
-    if (restart == RestartProjection::kProject) EXPECT_GT(max_event_gap, 1e-12);
+    if (restart == RestartProjection::kProject) {
+      EXPECT_GT(max_event_gap, 1e-12);
+    }
   }
 }
 
