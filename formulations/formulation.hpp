@@ -1,8 +1,9 @@
 // One interface for every formulation (style.md §6). A formulation integrates the knee
 // from a consistent MechanicalState in one contact mode and stops at the first event of
-// that phase; the run driver (run.hpp) owns everything that must behave the same for all
-// formulations: consistent initialization, contact switching (lift-off, re-contact, both
-// separated), the end condition, output times and files.
+// that phase: it is the stepper of the hybrid simulator (simulator.hpp), which owns
+// everything that must behave the same for all formulations: consistent initialization,
+// contact switching (lift-off, re-contact, both separated), the end condition and output
+// times; the run driver (run.hpp) writes the files.
 //
 // Adding a formulation: one new file defining a Formulation subclass and its Create
 // function, and one line in registry.cpp (KNEEDYN_FACTORY declares the Create function there;
@@ -133,6 +134,10 @@ class Formulation {
 using FormulationFactory =
     std::function<std::unique_ptr<Formulation>(const Scene&, const FormulationOptions&)>;
 
+// The forward sensitivities a form has (sensitivity/, `kneedyn sensitivity --formulation`):
+// none; CVODES on its ODE y = (q, q̇); IDAS on its index-2 DAE (dae_system.hpp), plain or GGL.
+enum class SensitivityForm { kNone, kOde, kDae, kDaeGgl };
+
 // What a formulation can do, declared once in its registry line: drivers and tests ask
 // these (and GTEST_SKIP on them) instead of comparing names.
 struct FormulationInfo {
@@ -149,6 +154,7 @@ struct FormulationInfo {
   bool general_surfaces = true;  // any surface pair (contact_kinematics.hpp), not only sphere on plane
   bool event_location = true;    // locates event roots inside a step (root finder or event locator)
   std::vector<std::string> jacobians = {};  // values --jacobian accepts; empty: the option does not apply
+  SensitivityForm sensitivity = SensitivityForm::kNone;
 };
 
 // Adaptive step size under --rtol/--atol (error control): not IsFixedStep.

@@ -5,6 +5,7 @@
 //   kneedyn sweep SPEC          an ensemble of runs (ensembles/sweep_cli.hpp)
 //   kneedyn batch SCENE --variants FILE.csv   many variants in one process (ensembles/batch_cli.hpp)
 //   kneedyn sensitivity SCENE   forward sensitivities (sensitivity/sensitivity_cli.hpp)
+//   kneedyn score RESULT --scene S   score a trajectory CSV (benchmarks/score_cli.hpp)
 // Exit codes: 0 success; 1 solver failure (partial results written, marked partial);
 // 2 bad input (nothing written).
 #include <CLI/CLI.hpp>
@@ -16,6 +17,7 @@
 
 #include "ensembles/batch_cli.hpp"
 #include "ensembles/sweep_cli.hpp"
+#include "benchmarks/score_cli.hpp"
 #include "sensitivity/sensitivity_cli.hpp"
 #include "formulations/cli.hpp"
 #include "formulations/progress.hpp"
@@ -122,11 +124,13 @@ int Main(int argc, char** argv) {
   ensembles::SweepCommand sweep(app);  // kneedyn sweep (ensembles/sweep_cli.hpp)
   ensembles::BatchCommand batch(app);  // kneedyn batch (ensembles/batch_cli.hpp)
   sensitivity::SensitivityCommand sensitivity(app);  // kneedyn sensitivity (sensitivity/sensitivity_cli.hpp)
+  bench::ScoreCommand score(app);  // kneedyn score (benchmarks/score_cli.hpp)
 
   if (const int code = ParseCommandLine(app, argc, argv, "kneedyn"); code >= 0) return code;
   if (sweep.parsed()) return sweep.Run();
   if (batch.parsed()) return batch.Run();
   if (sensitivity.parsed()) return sensitivity.Run(argc, argv);
+  if (score.parsed()) return score.Run(argc, argv);
   for (const std::string* s : {&scene_path, &info_scene, &out_dir, &settings.formulation,
                                &settings.options.integrator, &settings.options.stabilization,
                                &settings.options.constraint_level, &settings.options.jacobian}) {

@@ -1,14 +1,10 @@
 #include "formulations/run.hpp"
 
-#include <algorithm>
 #include <chrono>
-#include <cmath>
 
-#include "solver/constrained_dynamics.hpp"
+#include "formulations/simulator.hpp"
 #include "solver/constraint_residuals.hpp"
 #include "solver/error.hpp"
-#include "solver/impact.hpp"
-#include "solver/sample_checks.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
@@ -46,123 +42,24 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
     Throw<InputError>("RunScene", settings.output_interval == 0.0 ? "scene output.interval_s: " : "--output-interval: ", why);
   }
 
-  ConsistentInitOptions init_options = settings.init;
-  init_options.form = formulation->contact_form();
-  init_options.chart = settings.options.contact_chart;
-  std::vector<int> active;
-  for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
-  MechanicalState state = ConsistentInitialize(scene.model, scene.initial, active, init_options, &result.init);
-  // Refusals the input causes are raised here, before integration (exit code 2): contact
-  // rows that are dependent at the start (e.g. two compartments given the same surfaces).
-  SolveConstrainedAcceleration(model, state.t, state.q, state.qd, state.active);
-
-  auto record = [&](const MechanicalState& s, bool is_event) {
-    CheckSampleIsPhysical(model, s);
-    result.samples.push_back(s);
-    result.sample_is_event.push_back(is_event);
-    double max_gap = 0.0, max_gap_rate = 0.0;
-    MaxActiveConstraintResiduals(model, s, &max_gap, &max_gap_rate);
-    result.max_position_residual = std::max(result.max_position_residual, max_gap);
-    result.max_velocity_residual = std::max(result.max_velocity_residual, max_gap_rate);
-    if (settings.progress) settings.progress(s.t, s.q(kAlpha));
-  };
-  record(state, false);
-
-  const double t_end = scene.end.time;
-  long next_index = 1;  // next uniform output time = next_index * dt
-  bool done = false;
+  SimulatorSettings sim;
+  sim.init = settings.init;
+  sim.init.form = formulation->contact_form();
+  sim.init.chart = settings.options.contact_chart;
+  sim.output_interval = dt;
+  sim.rtol = settings.options.rtol;
+  sim.atol = settings.options.atol;
+  if (settings.progress) {
+    sim.sample = [&](const MechanicalState& s, bool) { settings.progress(s.t, s.q(kAlpha)); };
+  }
+  Simulator simulator(scene, formulation.get(), sim, &result);
+  simulator.Initialize();
   try {
-    while (!done) {
-      // Re-contact hysteresis: ten times the drift level (observed gap residuals, and the
-      // adaptive methods' position tolerance).
-      const double gap_tolerance =
-          10.0 * std::max(result.max_position_residual,
-                          settings.options.rtol * state.q.head<3>().norm() + settings.options.atol);
-      const std::vector<EventSpec> specs = EventsForPhase(scene.model, scene.end, state, gap_tolerance);
-      if (model.ligament_law == LigamentLaw::kPublished) {
-        state.ligament_branch = LigamentBranchesAt(model, state.q, state.qd);
-        CompleteHiddenConstraint(scene.model, &state);  // forces on the locked branches
-      }
-      formulation->Start(state, specs);
-      bool phase_over = false;
-      while (!phase_over) {
-        const double t_next = std::min(next_index * dt, t_end);
-        const AdvanceResult adv = formulation->Advance(t_next, &state);
-        if (adv.status == AdvanceStatus::kReachedTime) {
-          record(state, false);
-          if (t_next >= t_end) {
-            result.end_reason = "end_time";
-            done = phase_over = true;
-          }
-          ++next_index;
-          continue;
-        }
-        // A ligament crossing the published law's jump only restarts the formulation.
-        const bool only_kinks = std::all_of(adv.events.begin(), adv.events.end(), [&](int k) {
-          return specs[k].kind == EventKind::kLigamentKink;
-        });
-        if (only_kinks) {
-          ++result.ligament_kink_crossings;
-          phase_over = true;
-          break;
-        }
-        // Events: record them, then switch mode. A uniform output time that coincides
-        // with the event is skipped so that times stay strictly increasing.
-        if (std::abs(state.t - next_index * dt) < 1e-12) ++next_index;
-        record(state, true);
-        std::vector<int> new_active = state.active;
-        bool impact = false;
-        for (int k : adv.events) {
-          const EventSpec& e = specs[k];
-          result.events.push_back({e.name, state.t, state.q(kAlpha)});
-          switch (e.kind) {
-            case EventKind::kFlexionEnd:
-              result.end_reason = e.name;
-              done = true;
-              break;
-            case EventKind::kLiftoff:
-              new_active.erase(std::remove(new_active.begin(), new_active.end(), e.contact), new_active.end());
-              state.contact[e.contact].normal_force = 0.0;
-              break;
-            case EventKind::kRecontact:
-              new_active.push_back(e.contact);
-              impact = true;
-              break;
-            case EventKind::kLigamentKink:
-              ++result.ligament_kink_crossings;
-              break;
-          }
-        }
-        phase_over = true;
-        if (done) break;
-        std::sort(new_active.begin(), new_active.end());
-        state.active = new_active;
-        if (impact) ApplyPlasticImpact(model, &state);
-        CompleteHiddenConstraint(scene.model, &state);
-        // A contact whose consistent force would pull (N < 0) separates at once: drop the
-        // most negative one and solve again (e.g. a re-contact that bounces off, or the
-        // second compartment unloading as the first lifts off).
-        for (;;) {
-          int worst = -1;
-          for (int i : state.active) {
-            if (state.contact[i].normal_force < 0.0 &&
-                (worst < 0 || state.contact[i].normal_force < state.contact[worst].normal_force)) {
-              worst = i;
-            }
-          }
-          if (worst < 0) break;
-          result.events.push_back({StrCat("liftoff_", CompartmentName(model.contacts[worst].compartment)),
-                                   state.t, state.q(kAlpha)});
-          state.active.erase(std::remove(state.active.begin(), state.active.end(), worst), state.active.end());
-          state.contact[worst].normal_force = 0.0;
-          CompleteHiddenConstraint(scene.model, &state);
-        }
-      }
-    }
+    simulator.Run();
     result.completed = true;
   } catch (const Error& e) {
     result.completed = false;
-    result.failure = e.what() + FailureSituation(model, state);
+    result.failure = e.what() + FailureSituation(model, simulator.state());
   } catch (const std::exception& e) {  // any other failure while integrating: still partial
     result.completed = false;
     result.failure = StrCat("RunScene(): ", e.what());

@@ -1,7 +1,7 @@
-// The run driver shared by every formulation (issue 3 `kneedyn run`, issue 4 "one
-// interface"): consistent initialization, phases between contact-mode switches, events
-// (lift-off, re-contact as a perfectly plastic impact, end condition), output at a uniform
-// interval plus every event, and the run's statistics.
+// The run driver shared by every formulation (`kneedyn run`, sweep, batch): the formulation
+// as the stepper of the hybrid simulator (simulator.hpp: consistent initialization, phases
+// between contact-mode switches, events, re-contact as a perfectly plastic impact, output at
+// a uniform interval plus every event), and the run's statistics.
 #pragma once
 
 #include <functional>

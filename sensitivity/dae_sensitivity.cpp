@@ -1,15 +1,16 @@
-// Forward sensitivities of the DAE forms `dae`, `dae-reduced`, `dae-ggl` and `dae-ggl-reduced`
-// with SUNDIALS IDAS (issue 14, item 1), on the system that formulations/dae_system.hpp
-// writes once (the residual, the unknown layout, the exact Jacobian and the consistent
-// starting values are DaeSystem's).
+// Forward sensitivities of the DAE forms (the registry's SensitivityForm::kDae and kDaeGgl:
+// `dae`, `dae-reduced`, `dae-ggl`, `dae-ggl-reduced`) with SUNDIALS IDAS, on the system that
+// formulations/dae_system.hpp writes once (the residual, the unknown layout, the exact
+// Jacobian and the consistent starting values are DaeSystem's).
 //
 // State: F(t, y, ẏ; p) = 0, y = (q, u, c_i, N_i) (chapter form; closed form y = (q, u, N_i);
 // GGL adds μ_i, ≡ 0 on the exact solution, so s_μ starts at 0), index 2 (normal approach
-// velocity G ν = 0). Each phase mirrors `kneedyn run --formulation <form>` (formulations/
-// dae.cpp, dae_ggl.cpp, run.cpp): the same consistent state at every phase start
-// (ConsistentInitialize; LigamentBranchesAt + CompleteHiddenConstraint), tolerances (N, μ:
-// 1e4 per unit atol, GGL with floors; GGL stops at each output time), first step (IdaPhase)
-// and root functions (lift-off g = N_i, the DAE unknown).
+// velocity G ν = 0). The phases are run by the hybrid simulator of `kneedyn run`
+// (formulations/simulator.hpp; RestartProjection::kProject, PullingContact::kRefuse): the
+// same consistent state at every phase start (ConsistentInitialize; LigamentBranchesAt +
+// CompleteHiddenConstraint), the same events and re-contact hysteresis; as dae.cpp and
+// dae_ggl.cpp: tolerances (N, μ: 1e4 per unit atol, GGL with floors; GGL stops at each
+// output time), first step (IdaPhase) and root functions (lift-off g = N_i, the DAE unknown).
 //
 // Sensitivities s_j = ∂y/∂p_j solve F_y s_j + F_ẏ ṡ_j + F_pj = 0 with our own IDASensResFn:
 //   F_y = Jacobian(cj = 0), F_ẏ = Jacobian(cj = 1) − Jacobian(cj = 0) (DaeSystem, exact);
@@ -69,6 +70,7 @@
 #include "formulations/dae_on_ida.hpp"
 #include "formulations/dae_system.hpp"
 #include "formulations/ida_phase.hpp"
+#include "formulations/simulator.hpp"
 #include "formulations/sundials_util.hpp"
 #include "sensitivity/sensitivity_problem.hpp"
 #include "solver/consistent_init.hpp"
@@ -90,25 +92,33 @@ struct DaeForm {
   bool ggl;
 };
 
-DaeForm DaeFormOf(const std::string& name) {
-  if (name == "dae") return {ContactForm::kChapter, false};
-  if (name == "dae-reduced") return {ContactForm::kClosedForm, false};
-  if (name == "dae-ggl") return {ContactForm::kChapter, true};
-  if (name == "dae-ggl-reduced") return {ContactForm::kClosedForm, true};
-  Throw<InputError>("RunDaeSensitivity", "--formulation = '", Echo(name), "' is not a DAE form");
+// The registry's DAE form of a formulation: its contact form (Formulation::contact_form) and
+// whether it is the GGL system (FormulationInfo::sensitivity).
+DaeForm DaeFormOf(const std::string& name, const Scene& scene) {
+  const FormulationInfo& info = FindFormulation(name);
+  if (info.sensitivity != SensitivityForm::kDae && info.sensitivity != SensitivityForm::kDaeGgl) {
+    Throw<InputError>("RunDaeSensitivity", "--formulation = '", Echo(name), "' is not a DAE form");
+  }
+  return {info.create(scene, FormulationOptions())->contact_form(), info.sensitivity == SensitivityForm::kDaeGgl};
 }
 
-class DaeSensitivity {
+// The DAE and its sensitivities on IDAS as a stepper of the hybrid simulator
+// (formulations/simulator.hpp): Start computes the consistent (initial or restart)
+// sensitivities at the phase start the simulator hands it; Advance integrates, locates the
+// peaks' roots inside the phase and, at an event, dτ/dp and the event's outcomes.
+class DaeSensitivity : public Formulation {
  public:
-  DaeSensitivity(Problem& problem, const std::vector<double>& p, const SensitivityOptions& options)
+  DaeSensitivity(Problem& problem, const std::vector<double>& p, const SensitivityOptions& options,
+                 SensitivityResult* result)
       : problem_(problem),
         options_(options),
-        form_(DaeFormOf(options.formulation)),
         p_(p),
         np_(static_cast<int>(p.size())),
         with_s_(options.derivatives && !p.empty()),
         nominal_(problem.SceneCopyAt(p)),
-        system_(nominal_.model, form_.contact, ConstraintLevel::kVelocity, form_.ggl) {
+        form_(DaeFormOf(options.formulation, nominal_)),
+        system_(nominal_.model, form_.contact, ConstraintLevel::kVelocity, form_.ggl),
+        result_(result) {
     // The perturbed models of F_p and of the consistent-value maps, built once.
     for (int j = 0; j < np_; ++j) {
       pbar_.push_back(p_[j] != 0.0 ? std::abs(p_[j]) : 1.0);
@@ -126,11 +136,17 @@ class DaeSensitivity {
     normal_.assign(nominal_.model.contacts.size(), 0.0);
     zero_p_.assign(np_, 0.0);
   }
-  ~DaeSensitivity() { FreePhase(); }
+  ~DaeSensitivity() override { FreePhase(); }
   DaeSensitivity(const DaeSensitivity&) = delete;
   DaeSensitivity& operator=(const DaeSensitivity&) = delete;
 
-  void Run(SensitivityResult* result);
+  // The simulator's run with this stepper; fills the result.
+  void Run();
+
+  ContactForm contact_form() const override { return form_.contact; }
+  void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override;
+  AdvanceResult Advance(double t_out, MechanicalState* state) override;
+  SolverStats stats() const override { return stats_; }
 
  private:
   const Model& model() const { return nominal_.model; }
@@ -265,14 +281,15 @@ class DaeSensitivity {
 
   Problem& problem_;
   SensitivityOptions options_;
-  DaeForm form_;
   std::vector<double> p_;
   int np_;
   bool with_s_;
   Scene nominal_;                    // the scene at p (DaeSystem points at its model)
+  DaeForm form_;
   std::vector<Scene> plus_, minus_;  // at p ± h_j e_j
   std::vector<double> pbar_, h_;     // |p_j| (1 when 0) and the central-difference steps
   DaeSystem system_;
+  SensitivityResult* result_;
   FormulationOptions ida_options_;   // rtol, atol, max_steps for IdaPhase
   Mode mode_;                        // the phase's contacts, branches and events
   int n_ = 0;
@@ -290,6 +307,16 @@ class DaeSensitivity {
   std::vector<double> normal_;  // N per model contact, for the event functions
   std::vector<double> zero_p_;  // dp = 0 of the directional differences along the trajectory
   std::vector<Peak> peak_;
+
+  // The phase: IDAS' time, the full DAE sensitivities s, ṡ; at the last event the (q, u)
+  // part s_x, the total derivative w = s_x + ẋ dτ, dτ/dp, ẋ of the old mode and x.
+  bool first_phase_ = true;
+  double t_ = 0.0;
+  std::vector<std::vector<double>> s_, sdot_, s_x_, w_;
+  std::vector<double> dtau_, zero_dtau_;
+  double f_minus_[kN] = {};
+  double event_x_[kN] = {};
+  std::vector<double> e_;
   // Cache of PartialDerivatives.
   bool have_partials_ = false;
   double partials_t_ = 0.0;
@@ -469,39 +496,60 @@ double DaeSensitivity::SensitivityResidual(double t, const double* y, const doub
   return worst;
 }
 
-void DaeSensitivity::Run(SensitivityResult* result) {
+void DaeSensitivity::Start(const MechanicalState& state, const std::vector<EventSpec>& specs) {
+  mode_.active = state.active;
+  mode_.branch = state.ligament_branch;
+  mode_.events = specs;
+  system_.SetPhase(state.active, state.contact, state.ligament_branch);
+  n_ = system_.size();
+  for (auto* v : {&partials_y_, &partials_yp_, &r_plus_, &r_minus_}) v->assign(n_, 0.0);
+  Fy_.assign(static_cast<size_t>(n_) * n_, 0.0);
+  Fyp_.assign(static_cast<size_t>(n_) * n_, 0.0);
+  Fp_.assign(static_cast<size_t>(n_) * np_, 0.0);
+  have_partials_ = false;
+
+  FreePhase();
+  ida_.y = NewSerialVector(n_, ctx_);
+  ida_.yp = NewSerialVector(n_, ctx_);
+  double* y = NvData(ida_.y);
+  double* yp = NvData(ida_.yp);
+  system_.InitialValues(state, y, yp);
+  for (int j = 0; j < np_; ++j) s_[j].assign(n_, 0.0), sdot_[j].assign(n_, 0.0);
+  if (with_s_) {
+    if (first_phase_) {
+      InitialSensitivities(state, &s_, &sdot_);
+    } else {
+      // s_x⁺ = s_x⁻ + (ẋ⁻ − ẋ⁺) dτ/dp (Hiskens & Pai 2000, Eq. 9), ẋ⁺ in the new mode at
+      // the event state; then the algebraic unknowns re-solved along (s_x⁺, e_j).
+      double f_plus[kN];
+      problem_.Rhs(mode_, state.t, event_x_, p_.data(), f_plus);
+      for (int j = 0; j < np_; ++j) {
+        for (int i = 0; i < kN; ++i) s_x_[j][i] += (f_minus_[i] - f_plus[i]) * dtau_[j];
+      }
+      RestartSensitivities(state, s_x_, &s_, &sdot_);
+    }
+    result_->initial_sensitivity_residual =
+        std::max(result_->initial_sensitivity_residual, SensitivityResidual(state.t, y, yp, s_, sdot_));
+  }
+  if (first_phase_) {
+    Candidates(state.t, y, zero_dtau_, s_);  // t = 0
+  } else {
+    Candidates(state.t, y, dtau_, w_);  // right limits at the event (e.g. the far side of a kink's force jump)
+  }
+  first_phase_ = false;
+  StartPhase(state.t, s_, sdot_);
+  t_ = state.t;
+}
+
+AdvanceResult DaeSensitivity::Advance(double t_out, MechanicalState* state) {
   const Model& m = model();
   const std::vector<Outcome>& outcomes = problem_.outcomes();
-  peak_.assign(outcomes.size(), Peak());
-
-  // The driver's consistent start (run.cpp), in the DAE's contact form.
-  ConsistentInitOptions init;
-  init.form = form_.contact;
-  init.chart = FormulationOptions().contact_chart;
-  std::vector<int> all;
-  for (int i = 0; i < static_cast<int>(m.contacts.size()); ++i) all.push_back(i);
-  InitReport report;
-  MechanicalState state = ConsistentInitialize(m, nominal_.initial, all, init, &report);
-  SolveConstrainedAcceleration(m, state.t, state.q, state.qd, state.active);  // dependent rows: refused here
-
   const double t_end = nominal_.end.time;
-  const double dt_out = options_.output_interval > 0.0 ? options_.output_interval : nominal_.output_interval;
-  std::string why;
-  if (!IsValidOutputInterval(dt_out, t_end, &why)) {
-    Throw<InputError>("RunSensitivity", options_.output_interval > 0.0 ? "--output-interval: " : "scene output.interval_s: ", why);
-  }
-  long next_out = 1;
-  double max_gap = 0.0;  // the driver's record of position drift (re-contact hysteresis)
-  auto note_drift = [&](const MechanicalState& st) {
-    double gap = 0.0, rate = 0.0;
-    MaxActiveConstraintResiduals(m, st, &gap, &rate);
-    max_gap = std::max(max_gap, gap);
-  };
-  note_drift(state);
-
+  double* y = NvData(ida_.y);
+  double* yp = NvData(ida_.yp);
   // The DAE state as a MechanicalState (FormulationBase::WriteBack).
-  auto write_back = [&](double t, const double* y, const double* yp, MechanicalState* st) {
-    st->t = t;
+  auto write_back = [&](MechanicalState* st) {
+    st->t = t_;
     for (int i = 0; i < 6; ++i) st->q(i) = y[i], st->qd(i) = y[6 + i], st->qdd(i) = yp[6 + i];
     for (size_t c = 0; c < mode_.active.size(); ++c) {
       ContactGuess& guess = st->contact[mode_.active[c]];
@@ -510,208 +558,157 @@ void DaeSensitivity::Run(SensitivityResult* result) {
     }
     if (system_.per_contact() == 0) FillContactCoordinates(m, st);
   };
-
-  std::vector<std::vector<double>> s(np_), sdot(np_);  // full DAE sensitivities of the phase
-  std::vector<std::vector<double>> s_x(np_, std::vector<double>(kN, 0.0));  // (q, u) part at an event
-  std::vector<std::vector<double>> w(np_, std::vector<double>(kN, 0.0));    // s_x + ẋ dτ at an event
-  std::vector<double> dtau(np_, 0.0), zero_dtau(np_, 0.0);
-  double f_minus[kN];  // ẋ of the mode before the event
-  double event_x[kN];  // x = (q, u) at the event (before the restart's projection)
-  bool first_phase = true, done = false;
-  std::vector<double> e(np_, 0.0);
   auto unit = [&](int j) {
-    std::fill(e.begin(), e.end(), 0.0);
-    e[j] = 1.0;
-    return e.data();
+    std::fill(e_.begin(), e_.end(), 0.0);
+    e_[j] = 1.0;
+    return e_.data();
   };
-
-  while (!done) {
-    // Phase start (run.cpp): events, branches and the hidden constraint on them.
-    const double gap_tolerance = 10.0 * std::max(max_gap, options_.rtol * state.q.head<3>().norm() + options_.atol);
-    const std::vector<EventSpec> specs = EventsForPhase(m, nominal_.end, state, gap_tolerance);
-    if (m.ligament_law == LigamentLaw::kPublished) {
-      state.ligament_branch = LigamentBranchesAt(m, state.q, state.qd);
-      CompleteHiddenConstraint(m, &state);
+  const int n_events = static_cast<int>(mode_.events.size());
+  const int n_roots = n_events + static_cast<int>(problem_.peaks().size());
+  std::vector<int> fired(n_roots, 0);
+  for (;;) {
+    if (form_.ggl) Check(IDASetStopTime(ida_.mem, t_out), "IDASetStopTime");  // dae_ggl.cpp: outputs are steps
+    failure_.clear();
+    double t_reached = t_;
+    const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
+    if (flag < 0) {
+      Throw<SolverError>("RunSensitivity", "IDAS ", ida_.SolveFailure(flag),
+                         failure_.empty() ? "" : " (" + failure_ + ")", messages_.Take());
     }
-    mode_.active = state.active;
-    mode_.branch = state.ligament_branch;
-    mode_.events = specs;
-    system_.SetPhase(state.active, state.contact, state.ligament_branch);
-    n_ = system_.size();
-    for (auto* v : {&partials_y_, &partials_yp_, &r_plus_, &r_minus_}) v->assign(n_, 0.0);
-    Fy_.assign(static_cast<size_t>(n_) * n_, 0.0);
-    Fyp_.assign(static_cast<size_t>(n_) * n_, 0.0);
-    Fp_.assign(static_cast<size_t>(n_) * np_, 0.0);
-    have_partials_ = false;
-
-    FreePhase();
-    ida_.y = NewSerialVector(n_, ctx_);
-    ida_.yp = NewSerialVector(n_, ctx_);
-    double* y = NvData(ida_.y);
-    double* yp = NvData(ida_.yp);
-    system_.InitialValues(state, y, yp);
-    for (int j = 0; j < np_; ++j) s[j].assign(n_, 0.0), sdot[j].assign(n_, 0.0);
+    t_ = t_reached;
     if (with_s_) {
-      if (first_phase) {
-        InitialSensitivities(state, &s, &sdot);
-      } else {
-        // s_x⁺ = s_x⁻ + (ẋ⁻ − ẋ⁺) dτ/dp (Hiskens & Pai 2000, Eq. 9), ẋ⁺ in the new mode at
-        // the event state; then the algebraic unknowns re-solved along (s_x⁺, e_j).
-        double f_plus[kN];
-        problem_.Rhs(mode_, state.t, event_x, p_.data(), f_plus);
-        for (int j = 0; j < np_; ++j) {
-          for (int i = 0; i < kN; ++i) s_x[j][i] += (f_minus[i] - f_plus[i]) * dtau[j];
-        }
-        RestartSensitivities(state, s_x, &s, &sdot);
-      }
-      result->initial_sensitivity_residual =
-          std::max(result->initial_sensitivity_residual, SensitivityResidual(state.t, y, yp, s, sdot));
+      double ts = 0.0;
+      Check(IDAGetSens(ida_.mem, &ts, yS_), "IDAGetSens");
+      for (int j = 0; j < np_; ++j) std::copy(NvData(yS_[j]), NvData(yS_[j]) + n_, s_[j].begin());
     }
-    if (first_phase) {
-      // t = 0: the first trajectory row and the peak candidates.
-      TrajectorySample row;
-      row.t = state.t;
-      row.q = state.q;
-      if (with_s_) {
-        for (int j = 0; j < np_; ++j) row.dq.push_back(Eigen::Map<const Vector6d>(s[j].data()));
+    if (flag != IDA_ROOT_RETURN) {  // an output time, or the end time
+      write_back(state);
+      if (!(t_ < t_end)) {
+        result_->end_reason = "end_time";
+        Candidates(t_, y, zero_dtau_, s_);
       }
-      result->trajectory.push_back(row);
-      Candidates(state.t, y, zero_dtau, s);
+      return {};
+    }
+    Check(IDAGetRootInfo(ida_.mem, fired.data()), "IDAGetRootInfo");
+    // Interior maxima (dv/dt = 0): envelope theorem, dV/dp = ∂v/∂y s + ∂v/∂p.
+    for (size_t k = 0; k < problem_.peaks().size(); ++k) {
+      if (fired[n_events + k]) Candidates(t_, y, zero_dtau_, s_, problem_.peaks()[k]);
+    }
+    int first = -1;
+    for (int k = 0; k < n_events && first < 0; ++k) {
+      if (fired[k]) first = k;
+    }
+    if (first < 0) continue;  // only peaks: IDAS continues the same phase
+
+    // An event at τ(p): g(τ, y(τ; p), p) = 0 (implicit-function relation).
+    const double t = t_;
+    problem_.Rhs(mode_, t, y, p_.data(), f_minus_);  // ẋ⁻ = (q̇, q̈) of the old mode
+    std::copy(y, y + kN, event_x_);
+    const EventSpec& g_event = mode_.events[first];
+    if (with_s_) {
+      // g of solver/events.hpp on x = (q, u) (lift-off: the hidden-constraint force, whose
+      // root is the DAE's N_i = 0 to the integration error).
+      auto g = [&](double tt, const double* yy, const double* pv) { return problem_.Event(mode_, first, tt, yy, pv); };
+      const double gdot = problem_.Directional(g, t, y, p_.data(), 1.0, f_minus_, zero_p_.data());
+      if (!(std::abs(gdot) > 0.0)) {
+        Throw<SolverError>("RunSensitivity", "event ", g_event.name, " at t = ", t,
+                           " s is tangential (dg/dt = ", gdot, "): its time is not differentiable in p");
+      }
+      for (int j = 0; j < np_; ++j) {
+        dtau_[j] = -problem_.Directional(g, t, y, p_.data(), 0.0, s_[j].data(), unit(j)) / gdot;
+        for (int i = 0; i < kN; ++i) {
+          s_x_[j][i] = s_[j][i];
+          w_[j][i] = s_[j][i] + f_minus_[i] * dtau_[j];
+        }
+      }
     } else {
-      // Right limits at the event (e.g. the far side of a kink's force jump).
-      Candidates(state.t, y, dtau, w);
+      std::fill(dtau_.begin(), dtau_.end(), kNaN);
     }
-    first_phase = false;
-    StartPhase(state.t, s, sdot);
-
-    const int n_events = static_cast<int>(mode_.events.size());
-    const int n_roots = n_events + static_cast<int>(problem_.peaks().size());
-    std::vector<int> fired(n_roots, 0);
-    double t = state.t;
-    for (;;) {
-      while (next_out * dt_out <= t * (1.0 + 1e-12)) ++next_out;  // an event on an output time
-      const double t_out = std::min(next_out * dt_out, t_end);
-      if (form_.ggl) Check(IDASetStopTime(ida_.mem, t_out), "IDASetStopTime");  // dae_ggl.cpp: outputs are steps
-      failure_.clear();
-      double t_reached = t;
-      const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
-      if (flag < 0) {
-        Throw<SolverError>("RunSensitivity", "IDAS ", ida_.SolveFailure(flag),
-                           failure_.empty() ? "" : " (" + failure_ + ")", messages_.Take());
+    std::vector<int> next_active = mode_.active;  // the simulator switches the contacts
+    std::vector<double> dalpha(np_, kNaN);
+    for (int j = 0; j < np_ && with_s_; ++j) dalpha[j] = w_[j][kAlpha];
+    const bool done = RecordEvent(mode_, fired, t, y[kAlpha], dtau_, dalpha, with_s_, outcomes, &next_active, result_);
+    // 90° values, in the mode before the end event (left limits).
+    for (size_t k = 0; k < outcomes.size() && done; ++k) {
+      const Outcome& o = outcomes[k];
+      if (o.kind == OutcomeKind::kLigamentAt90 || o.kind == OutcomeKind::kContactAt90) {
+        result_->values[k] = Value(o, t, y);
+        result_->derivatives[k] = Total(o, t, y, dtau_, w_);
       }
-      t = t_reached;
-      if (with_s_) {
-        double ts = 0.0;
-        Check(IDAGetSens(ida_.mem, &ts, yS_), "IDAGetSens");
-        for (int j = 0; j < np_; ++j) std::copy(NvData(yS_[j]), NvData(yS_[j]) + n_, s[j].begin());
-      }
-      if (flag != IDA_ROOT_RETURN && t < t_end) {  // an output time
-        MechanicalState st = state;
-        write_back(t, y, yp, &st);
-        note_drift(st);
-        TrajectorySample row;
-        row.t = t;
-        row.q = st.q;
-        if (with_s_) {
-          for (int j = 0; j < np_; ++j) row.dq.push_back(Eigen::Map<const Vector6d>(s[j].data()));
-        }
-        result->trajectory.push_back(row);
-        ++next_out;
-        continue;
-      }
-      if (flag != IDA_ROOT_RETURN) {  // the end time
-        result->end_reason = "end_time";
-        Candidates(t, y, zero_dtau, s);
-        done = true;
-        break;
-      }
-      Check(IDAGetRootInfo(ida_.mem, fired.data()), "IDAGetRootInfo");
-      // Interior maxima (dv/dt = 0): envelope theorem, dV/dp = ∂v/∂y s + ∂v/∂p.
-      for (size_t k = 0; k < problem_.peaks().size(); ++k) {
-        if (fired[n_events + k]) Candidates(t, y, zero_dtau, s, problem_.peaks()[k]);
-      }
-      int first = -1;
-      for (int k = 0; k < n_events && first < 0; ++k) {
-        if (fired[k]) first = k;
-      }
-      if (first < 0) continue;  // only peaks: IDAS continues the same phase
-
-      // An event at τ(p): g(τ, y(τ; p), p) = 0 (implicit-function relation).
-      problem_.Rhs(mode_, t, y, p_.data(), f_minus);  // ẋ⁻ = (q̇, q̈) of the old mode
-      std::copy(y, y + kN, event_x);
-      const EventSpec& g_event = mode_.events[first];
-      if (with_s_) {
-        // g of solver/events.hpp on x = (q, u) (lift-off: the hidden-constraint force, whose
-        // root is the DAE's N_i = 0 to the integration error).
-        auto g = [&](double tt, const double* yy, const double* pv) { return problem_.Event(mode_, first, tt, yy, pv); };
-        const double gdot = problem_.Directional(g, t, y, p_.data(), 1.0, f_minus, zero_p_.data());
-        if (!(std::abs(gdot) > 0.0)) {
-          Throw<SolverError>("RunSensitivity", "event ", g_event.name, " at t = ", t,
-                             " s is tangential (dg/dt = ", gdot, "): its time is not differentiable in p");
-        }
-        for (int j = 0; j < np_; ++j) {
-          dtau[j] = -problem_.Directional(g, t, y, p_.data(), 0.0, s[j].data(), unit(j)) / gdot;
-          for (int i = 0; i < kN; ++i) {
-            s_x[j][i] = s[j][i];
-            w[j][i] = s[j][i] + f_minus[i] * dtau[j];
-          }
-        }
-      } else {
-        std::fill(dtau.begin(), dtau.end(), kNaN);
-      }
-      std::vector<int> next_active = mode_.active;
-      std::vector<double> dalpha(np_, kNaN);
-      for (int j = 0; j < np_ && with_s_; ++j) dalpha[j] = w[j][kAlpha];
-      done = RecordEvent(mode_, fired, t, y[kAlpha], dtau, dalpha, with_s_, outcomes, &next_active, result);
-      // 90° values, in the mode before the end event (left limits).
-      for (size_t k = 0; k < outcomes.size() && done; ++k) {
-        const Outcome& o = outcomes[k];
-        if (o.kind == OutcomeKind::kLigamentAt90 || o.kind == OutcomeKind::kContactAt90) {
-          result->values[k] = Value(o, t, y);
-          result->derivatives[k] = Total(o, t, y, dtau, w);
-        }
-      }
-      Candidates(t, y, dtau, w);
-      if (done) break;
-
-      // The restart (run.cpp): the DAE state, contacts removed, the hidden constraint.
-      MechanicalState st = state;
-      write_back(t, y, yp, &st);
-      note_drift(st);
-      for (int c : st.active) {
-        if (std::find(next_active.begin(), next_active.end(), c) == next_active.end()) st.contact[c].normal_force = 0.0;
-      }
-      std::sort(next_active.begin(), next_active.end());
-      const bool switched = next_active != st.active;
-      st.active = next_active;
-      if (switched) CompleteHiddenConstraint(m, &st);
-      for (int c : st.active) {
-        if (st.contact[c].normal_force < 0.0) {
-          Throw<SolverError>("RunSensitivity", "at t = ", t, " s the ", CompartmentName(m.contacts[c].compartment),
-                             " contact would pull (N = ", st.contact[c].normal_force,
-                             " N) after the switch: simultaneous lift-off is not differentiable here");
-        }
-      }
-      state = st;
-      break;
     }
+    Candidates(t, y, dtau_, w_);
+    write_back(state);
+    AdvanceResult result;
+    result.status = AdvanceStatus::kEvent;
+    for (int k = 0; k < n_events; ++k) {
+      if (fired[k]) result.events.push_back(k);
+    }
+    return result;
   }
+}
+
+void DaeSensitivity::Run() {
+  peak_.assign(problem_.outcomes().size(), Peak());
+  s_.assign(np_, {});
+  sdot_.assign(np_, {});
+  s_x_.assign(np_, std::vector<double>(kN, 0.0));
+  w_.assign(np_, std::vector<double>(kN, 0.0));
+  dtau_.assign(np_, 0.0);
+  zero_dtau_.assign(np_, 0.0);
+  e_.assign(np_, 0.0);
+  first_phase_ = true;
+
+  const double t_end = nominal_.end.time;
+  const double dt_out = options_.output_interval > 0.0 ? options_.output_interval : nominal_.output_interval;
+  std::string why;
+  if (!IsValidOutputInterval(dt_out, t_end, &why)) {
+    Throw<InputError>("RunSensitivity", options_.output_interval > 0.0 ? "--output-interval: " : "scene output.interval_s: ", why);
+  }
+  // The trajectory rows: t0 once the first phase has started (its consistent initial
+  // sensitivities), then every output time before the end (no event rows).
+  auto row = [&](const MechanicalState& st) {
+    TrajectorySample sample;
+    sample.t = st.t;
+    sample.q = st.q;
+    if (with_s_) {
+      for (int j = 0; j < np_; ++j) sample.dq.push_back(Eigen::Map<const Vector6d>(s_[j].data()));
+    }
+    result_->trajectory.push_back(sample);
+  };
+  SimulatorSettings sim;
+  sim.init.form = form_.contact;
+  sim.init.chart = FormulationOptions().contact_chart;
+  sim.output_interval = dt_out;
+  sim.rtol = options_.rtol;
+  sim.atol = options_.atol;
+  sim.restart = RestartProjection::kProject;  // as kneedyn run; RestartSensitivities differentiates it
+  sim.pulling = PullingContact::kRefuse;
+  sim.first_phase_started = row;
+  bool initial_sample = true;
+  sim.sample = [&](const MechanicalState& st, bool is_event) {
+    if (!initial_sample && !is_event && st.t < t_end) row(st);
+    initial_sample = false;
+  };
+  RunResult record;
+  Simulator simulator(nominal_, this, sim, &record);
+  simulator.Initialize();
+  simulator.Run();
   FreePhase();
   for (int k : problem_.peaks()) {
-    result->values[k] = peak_[k].value;
-    result->derivatives[k] = peak_[k].derivative;
+    result_->values[k] = peak_[k].value;
+    result_->derivatives[k] = peak_[k].derivative;
   }
-  result->stats = stats_;
-  result->sensitivity_rhs_evaluations = sensitivity_residual_evaluations_;
-  result->sensitivity_error_test_failures = sensitivity_error_test_failures_;
+  result_->stats = stats_;
+  result_->sensitivity_rhs_evaluations = sensitivity_residual_evaluations_;
+  result_->sensitivity_error_test_failures = sensitivity_error_test_failures_;
 }
 
 }  // namespace
 
 void RunDaeSensitivity(Problem& problem, const std::vector<double>& values, const SensitivityOptions& options,
                        SensitivityResult* result) {
-  DaeSensitivity run(problem, values, options);
-  run.Run(result);
+  DaeSensitivity run(problem, values, options, result);
+  run.Run();
 }
 
 }  // namespace kneedyn::sensitivity::detail

@@ -11,6 +11,7 @@
 #include <set>
 
 #include "ensembles/sweep.hpp"
+#include "formulations/simulator.hpp"
 #include "formulations/sundials_util.hpp"
 #include "sensitivity/sensitivity_problem.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -110,6 +111,331 @@ SolverStats CountersOf(void* mem, bool roots) {
   return s;
 }
 
+// The ODE y = (q, q̇) and its sensitivities on CVODES as a stepper of the hybrid simulator
+// (formulations/simulator.hpp): Start computes s at the phase start (t0: central differences
+// of the initialization; a restart: the jump s⁺ = s⁻ + (f⁻ − f⁺) dτ/dp), Advance integrates,
+// locates the peaks' roots inside the phase and, at an event, dτ/dp and the event's outcomes.
+class OdeSensitivity : public Formulation {
+ public:
+  OdeSensitivity(Problem& problem, const std::vector<double>& values, const SensitivityOptions& options,
+                 const std::vector<Outcome>& outcomes, SensitivityResult* result)
+      : problem_(problem),
+        options_(options),
+        outcomes_(outcomes),
+        result_(result),
+        p_(values),
+        np_(static_cast<int>(values.size())),
+        with_s_(options.derivatives && !values.empty()),
+        scene_p_(problem.SceneCopyAt(values)),
+        contact_form_(FindFormulation(options.formulation).create(scene_p_, FormulationOptions())->contact_form()),
+        y_(kN),
+        s_(np_, VectorXd::Zero(kN)),
+        pbar_(np_),
+        unit_(np_, 0.0),
+        zero_dt_(np_, 0.0),
+        dtau_(np_, 0.0),
+        w_(np_),
+        peak_(outcomes.size()) {
+    cv_.problem = &problem_;
+    cv_.p = p_.data();
+    for (int j = 0; j < np_; ++j) pbar_[j] = p_[j] != 0.0 ? std::abs(p_[j]) : 1.0;
+  }
+
+  void Run();
+
+  ContactForm contact_form() const override { return contact_form_; }
+  void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override;
+  AdvanceResult Advance(double t_out, MechanicalState* state) override;
+  SolverStats stats() const override { return result_->stats; }
+
+ private:
+  const double* UnitVector(int j) {
+    std::fill(unit_.begin(), unit_.end(), 0.0);
+    unit_[j] = 1.0;
+    return unit_.data();
+  }
+  // Total derivative of a value v at (t, y) with dt/dp_j, dy/dp_j given.
+  std::vector<double> Total(const Mode& m, const Outcome& o, const std::vector<double>& dt, const std::vector<VectorXd>& dy) {
+    std::vector<double> d(np_);
+    for (int j = 0; j < np_; ++j) {
+      d[j] = problem_.Directional([&](double tt, const double* yy, const double* pv) { return problem_.Value(m, o, tt, yy, pv); },
+                                  t_, y_.data(), p_.data(), dt[j], dy[j].data(), UnitVector(j));
+    }
+    return d;
+  }
+  // A maximum candidate for every peak outcome at the current (t, y) in mode m.
+  void Candidate(const Mode& m, const std::vector<double>& dt, const std::vector<VectorXd>& dy, bool only = false,
+                 int which = -1) {
+    for (int k : problem_.peaks()) {
+      if (only && k != which) continue;
+      const double v = problem_.Value(m, outcomes_[k], t_, y_.data(), p_.data());
+      if (v > peak_[k].value) {
+        peak_[k].value = v;
+        peak_[k].derivative = with_s_ ? Total(m, outcomes_[k], dt, dy) : std::vector<double>(np_, kNaN);
+      }
+    }
+  }
+  // Adds the current CVODES instance's counters to the result.
+  void Bank();
+
+  Problem& problem_;
+  SensitivityOptions options_;
+  const std::vector<Outcome>& outcomes_;
+  SensitivityResult* result_;
+  std::vector<double> p_;  // CVODES' parameter array (perturbed in place by its difference quotients)
+  int np_;
+  bool with_s_;
+  Scene scene_p_;  // the scene at p, for the simulator (problem_.SceneAt follows CVODES' perturbations)
+  ContactForm contact_form_;
+  Mode mode_;
+  double t_ = 0.0;
+  VectorXd y_;
+  std::vector<VectorXd> s_;
+  std::vector<double> pbar_, unit_, zero_dt_;
+  // At the last event: dτ/dp, w = s⁻ + f⁻ dτ/dp, f⁻.
+  std::vector<double> dtau_;
+  std::vector<VectorXd> w_;
+  double f_minus_[kN] = {};
+  std::vector<Peak> peak_;
+  bool first_phase_ = true;
+  double last_h_ = 0.0;
+  SundialsContext ctx_;  // outlives cv_ (destroyed after it)
+  Cvodes cv_;
+};
+
+void OdeSensitivity::Bank() {
+  if (!cv_.mem) return;
+  result_->stats += CountersOf(cv_.mem, true);
+  long v = 0;
+  if (with_s_) {
+    CVodeGetSensNumRhsEvals(cv_.mem, &v), result_->sensitivity_rhs_evaluations += v;
+    CVodeGetSensNumErrTestFails(cv_.mem, &v), result_->sensitivity_error_test_failures += v;
+  }
+  CVodeGetLastStep(cv_.mem, &last_h_);
+}
+
+void OdeSensitivity::Start(const MechanicalState& state, const std::vector<EventSpec>& events) {
+  Mode mode;
+  mode.active = state.active;
+  if (scene_p_.model.ligament_law == LigamentLaw::kPublished) mode.branch = state.ligament_branch;
+  mode.events = events;
+  t_ = state.t;
+  y_ << state.q, state.qd;  // RestartProjection::kKeepState: y is continuous at an event
+  if (first_phase_) {
+    // s0 = ∂y0/∂p by central differences of the initialization (zero when, as for the
+    // chapter scene, p does not enter it).
+    if (with_s_) {
+      ConsistentInitOptions init;
+      init.form = contact_form_;
+      std::vector<int> all;
+      for (int i = 0; i < static_cast<int>(scene_p_.model.contacts.size()); ++i) all.push_back(i);
+      auto initial = [&](const std::vector<double>& pv) {
+        InitReport report;
+        const Scene sc = problem_.SceneCopyAt(pv);
+        return ConsistentInitialize(sc.model, sc.initial, all, init, &report);
+      };
+      for (int j = 0; j < np_; ++j) {
+        const double h = kInitialStateStep * pbar_[j];
+        std::vector<double> pp = p_, pm = p_;
+        pp[j] += h, pm[j] -= h;
+        const MechanicalState a = initial(pp), b = initial(pm);
+        s_[j].head<6>() = (a.q - b.q) / (2 * h);
+        s_[j].tail<6>() = (a.qd - b.qd) / (2 * h);
+      }
+    }
+    mode_ = mode;
+    Candidate(mode_, zero_dt_, s_);
+  } else {
+    // s⁺ = s⁻ + (f⁻ − f⁺) dτ/dp where the vector field changes.
+    double fp[kN];
+    problem_.Rhs(mode, t_, y_.data(), p_.data(), fp);
+    if (with_s_) {
+      for (int j = 0; j < np_; ++j) {
+        for (int i = 0; i < kN; ++i) s_[j](i) += (f_minus_[i] - fp[i]) * dtau_[j];
+      }
+    }
+    mode_ = mode;
+    Candidate(mode_, dtau_, w_);  // right limits (e.g. the far side of a kink's jump)
+  }
+  first_phase_ = false;
+
+  // A fresh CVODES instance in the phase's mode (the root set changes between phases).
+  Bank();
+  cv_.Free();
+  cv_.mode = &mode_;
+  cv_.y = NewSerialVector(kN, ctx_);
+  for (int i = 0; i < kN; ++i) NvData(cv_.y)[i] = y_(i);
+  cv_.mem = CVodeCreate(CV_BDF, ctx_);
+  if (!cv_.mem) Throw<SolverError>("RunSensitivity", "CVodeCreate failed");
+  cv_.Check(CVodeSetErrHandlerFn(cv_.mem, &SundialsMessages::Handler, &cv_.messages), "CVodeSetErrHandlerFn");
+  cv_.Check(CVodeInit(cv_.mem, &Cvodes::RhsFn, t_, cv_.y), "CVodeInit");
+  cv_.Check(CVodeSetUserData(cv_.mem, &cv_), "CVodeSetUserData");
+  cv_.Check(CVodeSStolerances(cv_.mem, options_.rtol, options_.atol), "CVodeSStolerances");
+  cv_.Check(CVodeSetMaxNumSteps(cv_.mem, options_.max_steps), "CVodeSetMaxNumSteps");
+  cv_.Check(CVodeSetStopTime(cv_.mem, scene_p_.end.time), "CVodeSetStopTime");
+  if (last_h_ > 0.0) cv_.Check(CVodeSetInitStep(cv_.mem, 0.25 * last_h_), "CVodeSetInitStep");
+  cv_.A = SUNDenseMatrix(kN, kN, ctx_);
+  cv_.LS = SUNLinSol_Dense(cv_.y, cv_.A, ctx_);
+  cv_.Check(CVodeSetLinearSolver(cv_.mem, cv_.LS, cv_.A), "CVodeSetLinearSolver");
+  const int n_events = static_cast<int>(mode_.events.size());
+  const int n_roots = n_events + static_cast<int>(problem_.peaks().size());
+  std::vector<int> dirs = RootDirections(mode_.events);
+  dirs.resize(n_roots, -1);  // dv/dt decreasing through 0: a maximum
+  cv_.Check(CVodeRootInit(cv_.mem, n_roots, &Cvodes::RootFn), "CVodeRootInit");
+  cv_.Check(CVodeSetRootDirection(cv_.mem, dirs.data()), "CVodeSetRootDirection");
+  cv_.Check(CVodeSetNoInactiveRootWarn(cv_.mem), "CVodeSetNoInactiveRootWarn");
+  if (with_s_) {
+    cv_.ns = np_;
+    cv_.yS = N_VCloneVectorArray(np_, cv_.y);
+    for (int j = 0; j < np_; ++j) {
+      for (int i = 0; i < kN; ++i) NvData(cv_.yS[j])[i] = s_[j](i);
+    }
+    cv_.Check(CVodeSensInit1(cv_.mem, np_, CV_STAGGERED1, &Cvodes::SensRhsFn, cv_.yS), "CVodeSensInit1");
+    cv_.Check(CVodeSetSensParams(cv_.mem, p_.data(), pbar_.data(), nullptr), "CVodeSetSensParams");
+    // Tolerances of p̄_j s_j (SI units of y per 100 % change of p_j): rtol and
+    // kSensitivityAtol. CVODES' default atol/p̄_j sits below the round-off of the
+    // difference-quotient fS (~1e-16 |f|/ε) at tight atol and stalls the step at ~1e-8 s.
+    std::vector<double> atol_s(np_);
+    for (int j = 0; j < np_; ++j) atol_s[j] = std::max(options_.atol, kSensitivityAtol) / pbar_[j];
+    cv_.Check(CVodeSensSStolerances(cv_.mem, options_.rtol, atol_s.data()), "CVodeSensSStolerances");
+    // Sensitivities in the error test: without it their error follows the step sequence
+    // (1 % on N90 measured), not the tolerance.
+    cv_.Check(CVodeSetSensErrCon(cv_.mem, SUNTRUE), "CVodeSetSensErrCon");
+  }
+}
+
+AdvanceResult OdeSensitivity::Advance(double t_out, MechanicalState* state) {
+  const int n_events = static_cast<int>(mode_.events.size());
+  const int n_roots = n_events + static_cast<int>(problem_.peaks().size());
+  auto write = [&]() {
+    state->t = t_;
+    state->q = y_.head<6>();
+    state->qd = y_.tail<6>();
+  };
+  for (;;) {
+    double t_reached = t_;
+    cv_.failure.clear();
+    const int flag = CVode(cv_.mem, t_out, cv_.y, &t_reached, CV_NORMAL);
+    if (flag < 0) {
+      double h = 0.0;
+      CVodeGetCurrentStep(cv_.mem, &h);
+      char* name = CVodeGetReturnFlagName(flag);
+      const std::string text = name ? name : "?";
+      free(name);
+      Throw<SolverError>("RunSensitivity", "CVODES ", text, " at t = ", t_reached, " s with step h = ", h, " s",
+                         cv_.failure.empty() ? "" : " (" + cv_.failure + ")", cv_.messages.Take());
+    }
+    t_ = t_reached;
+    for (int i = 0; i < kN; ++i) y_(i) = NvData(cv_.y)[i];
+    if (with_s_) {
+      double ts = 0.0;
+      cv_.Check(CVodeGetSens(cv_.mem, &ts, cv_.yS), "CVodeGetSens");
+      for (int j = 0; j < np_; ++j) {
+        for (int i = 0; i < kN; ++i) s_[j](i) = NvData(cv_.yS[j])[i];
+      }
+    }
+    if (flag != CV_ROOT_RETURN) {  // an output time, or the end time (CV_TSTOP_RETURN or CV_SUCCESS at t_end)
+      write();
+      if (!(t_ < scene_p_.end.time)) {
+        result_->end_reason = "end_time";
+        Candidate(mode_, zero_dt_, s_);
+      }
+      return {};
+    }
+    std::vector<int> fired(n_roots, 0);
+    cv_.Check(CVodeGetRootInfo(cv_.mem, fired.data()), "CVodeGetRootInfo");
+    // Interior maxima (dv/dt = 0): envelope theorem, dV/dp = ∂v/∂y s + ∂v/∂p.
+    for (size_t k = 0; k < problem_.peaks().size(); ++k) {
+      if (fired[n_events + k]) Candidate(mode_, zero_dt_, s_, true, problem_.peaks()[k]);
+    }
+    int first = -1;
+    for (int k = 0; k < n_events; ++k) {
+      if (fired[k] && first < 0) first = k;
+    }
+    if (first < 0) continue;  // only peaks: CVODES continues the same phase
+
+    // An event: τ(p) from g(τ, y(τ; p), p) = 0.
+    problem_.Rhs(mode_, t_, y_.data(), p_.data(), f_minus_);
+    if (with_s_) {
+      auto g = [&](double tt, const double* yy, const double* pv) { return problem_.Event(mode_, first, tt, yy, pv); };
+      const std::vector<double> zero_p(np_, 0.0);
+      const double gdot = problem_.Directional(g, t_, y_.data(), p_.data(), 1.0, f_minus_, zero_p.data());
+      if (!(std::abs(gdot) > 0.0)) {
+        Throw<SolverError>("RunSensitivity", "event ", mode_.events[first].name, " at t = ", t_,
+                           " s is tangential (dg/dt = ", gdot, "): its time is not differentiable in p");
+      }
+      for (int j = 0; j < np_; ++j) {
+        dtau_[j] = -problem_.Directional(g, t_, y_.data(), p_.data(), 0.0, s_[j].data(), UnitVector(j)) / gdot;
+        w_[j] = s_[j] + Eigen::Map<const VectorXd>(f_minus_, kN) * dtau_[j];
+      }
+    } else {
+      for (int j = 0; j < np_; ++j) w_[j] = VectorXd::Zero(kN), dtau_[j] = kNaN;
+    }
+    std::vector<int> next_active = mode_.active;  // the simulator switches the contacts
+    std::vector<double> dalpha(np_, kNaN);
+    for (int j = 0; j < np_ && with_s_; ++j) dalpha[j] = w_[j](kAlpha);
+    const bool done = RecordEvent(mode_, fired, t_, y_(kAlpha), dtau_, dalpha, with_s_, outcomes_, &next_active, result_);
+    // 90° values, on the mode before the end event (left limits).
+    for (size_t k = 0; k < outcomes_.size() && done; ++k) {
+      const Outcome& o = outcomes_[k];
+      if (o.kind == OutcomeKind::kLigamentAt90 || o.kind == OutcomeKind::kContactAt90) {
+        result_->values[k] = problem_.Value(mode_, o, t_, y_.data(), p_.data());
+        result_->derivatives[k] = with_s_ ? Total(mode_, o, dtau_, w_) : std::vector<double>(np_, kNaN);
+      }
+    }
+    Candidate(mode_, dtau_, w_);
+    write();
+    AdvanceResult result;
+    result.status = AdvanceStatus::kEvent;
+    for (int k = 0; k < n_events; ++k) {
+      if (fired[k]) result.events.push_back(k);
+    }
+    return result;
+  }
+}
+
+void OdeSensitivity::Run() {
+  const double t_end = scene_p_.end.time;
+  const double dt_out = options_.output_interval > 0.0 ? options_.output_interval : scene_p_.output_interval;
+  std::string why;
+  if (!IsValidOutputInterval(dt_out, t_end, &why)) {
+    Throw<InputError>("RunSensitivity", options_.output_interval > 0.0 ? "--output-interval: " : "scene output.interval_s: ", why);
+  }
+  // The trajectory rows: t0 (with s0) once the first phase has started, then every output
+  // time before the end (no event rows).
+  auto row = [&](const MechanicalState& st) {
+    TrajectorySample sample;
+    sample.t = st.t;
+    sample.q = st.q;
+    if (with_s_) {
+      for (int j = 0; j < np_; ++j) sample.dq.push_back(s_[j].head<6>());
+    }
+    result_->trajectory.push_back(sample);
+  };
+  SimulatorSettings sim;
+  sim.init.form = contact_form_;
+  sim.output_interval = dt_out;
+  sim.rtol = options_.rtol;
+  sim.atol = options_.atol;
+  sim.restart = RestartProjection::kKeepState;  // the jump condition needs y continuous
+  sim.pulling = PullingContact::kRefuse;
+  sim.first_phase_started = row;
+  bool initial_sample = true;
+  sim.sample = [&](const MechanicalState& st, bool is_event) {
+    if (!initial_sample && !is_event && st.t < t_end) row(st);
+    initial_sample = false;
+  };
+  RunResult record;
+  Simulator simulator(scene_p_, this, sim, &record);
+  simulator.Initialize();
+  simulator.Run();
+  Bank();
+  for (int k : problem_.peaks()) {
+    result_->values[k] = peak_[k].value;
+    result_->derivatives[k] = peak_[k].derivative;
+  }
+}
+
 }  // namespace
 
 int EditDistance(const std::string& a, const std::string& b) {
@@ -127,22 +453,41 @@ int EditDistance(const std::string& a, const std::string& b) {
   return row[b.size()];
 }
 
+std::vector<std::string> SensitivityFormulations() {
+  std::vector<std::string> names;
+  for (const FormulationInfo& info : RegisteredFormulations()) {
+    if (info.sensitivity != SensitivityForm::kNone) names.push_back(info.name);
+  }
+  return names;
+}
+
+bool IsOdeSensitivity(const std::string& formulation) {
+  for (const FormulationInfo& info : RegisteredFormulations()) {
+    if (info.name == formulation) return info.sensitivity == SensitivityForm::kOde;
+  }
+  return false;
+}
+
 const char* SensitivityIntegrator(const std::string& formulation) {
-  return formulation == "ede" ? "cvodes-bdf" : "idas-bdf";
+  return IsOdeSensitivity(formulation) ? "cvodes-bdf" : "idas-bdf";
 }
 
 const char* SensitivityMethod(const std::string& formulation) {
-  return formulation == "ede" ? "staggered, difference-quotient right-hand side (centred)"
+  return IsOdeSensitivity(formulation) ? "staggered, difference-quotient right-hand side (centred)"
                               : "staggered, own residual F_y s + F_ydot s' + F_p: F_y, F_ydot exact (DaeSystem::Jacobian), "
                                 "F_p by central differences over perturbed models (relative step 1e-5)";
 }
 
 bool SensitivityOptions::IsValid(std::string* error) const {
-  if (std::find(std::begin(kSensitivityFormulations), std::end(kSensitivityFormulations), formulation) ==
-      std::end(kSensitivityFormulations)) {
-    *error = StrCat("--formulation = '", Echo(formulation),
-                    "': sensitivities are implemented for ede (CVODES on y = (q, q')) and dae, dae-reduced, dae-ggl, "
-                    "dae-ggl-reduced (IDAS on the DAE of formulations/dae_system.hpp)");
+  const std::vector<std::string> forms = SensitivityFormulations();
+  if (std::find(forms.begin(), forms.end(), formulation) == forms.end()) {
+    std::string ode, dae;
+    for (const std::string& f : forms) {
+      std::string& list = IsOdeSensitivity(f) ? ode : dae;
+      list += (list.empty() ? "" : ", ") + f;
+    }
+    *error = StrCat("--formulation = '", Echo(formulation), "': sensitivities are implemented for ", ode,
+                    " (CVODES on y = (q, q')) and ", dae, " (IDAS on the DAE of formulations/dae_system.hpp)");
     return false;
   }
   if (!(rtol > 0.0 && rtol < 1.0)) {
@@ -242,7 +587,6 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
     Throw<InputError>("RunSensitivity", scene.model.contacts.size(), " contacts; at most 2 supported");
   }
   const int np = static_cast<int>(parameters.size());
-  const bool with_s = options.derivatives && np > 0;
   std::vector<Outcome> outcomes;
   for (const std::string& c : outcome_columns) outcomes.push_back(ParseOutcome(scene.model, c));
   Problem problem(scene, parameters, outcomes);
@@ -260,274 +604,12 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<Parameter
     result.wall_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
     return result;
   };
-  if (options.formulation != "ede") {  // the DAE forms, on IDAS (dae_sensitivity.cpp)
+  if (FindFormulation(options.formulation).sensitivity != SensitivityForm::kOde) {  // the DAE forms, on IDAS
     RunDaeSensitivity(problem, values, options, &result);
     return finish();
   }
-
-  // Consistent initial state at p, and s0 = ∂y0/∂p by central differences of the
-  // initialization (zero when, as for the chapter scene, p does not enter it).
-  std::vector<double> p = values;
-  ConsistentInitOptions init;
-  init.form = ContactForm::kClosedForm;
-  std::vector<int> all;
-  for (int i = 0; i < static_cast<int>(scene.model.contacts.size()); ++i) all.push_back(i);
-  auto initial = [&](const std::vector<double>& pv) {
-    InitReport report;
-    const Scene s = problem.SceneCopyAt(pv);
-    return ConsistentInitialize(s.model, s.initial, all, init, &report);
-  };
-  MechanicalState state = initial(p);
-  std::vector<VectorXd> s(np, VectorXd::Zero(kN));
-  if (with_s) {
-    for (int j = 0; j < np; ++j) {
-      const double h = kInitialStateStep * (p[j] != 0.0 ? std::abs(p[j]) : 1.0);
-      std::vector<double> pp = p, pm = p;
-      pp[j] += h, pm[j] -= h;
-      const MechanicalState a = initial(pp), b = initial(pm);
-      s[j].head<6>() = (a.q - b.q) / (2 * h);
-      s[j].tail<6>() = (a.qd - b.qd) / (2 * h);
-    }
-  }
-  const Scene& scene_p = problem.SceneAt(p.data());
-  const Model& model_p = scene_p.model;
-  Mode mode;
-  mode.active = state.active;
-  if (model_p.ligament_law == LigamentLaw::kPublished) mode.branch = LigamentBranchesAt(model_p, state.q, state.qd);
-  mode.events = EventsForPhase(scene_p.model, scene_p.end, state);
-  double t = state.t;
-  VectorXd y(kN);
-  y << state.q, state.qd;
-  const double t_end = scene.end.time;
-  const double dt_out = options.output_interval > 0.0 ? options.output_interval : scene.output_interval;
-  if (!IsValidOutputInterval(dt_out, t_end, &why)) {
-    Throw<InputError>("RunSensitivity", options.output_interval > 0.0 ? "--output-interval: " : "scene output.interval_s: ", why);
-  }
-  long next_out = 1;
-  auto sample = [&]() {
-    TrajectorySample row;
-    row.t = t;
-    row.q = y.head<6>();
-    if (with_s) {
-      for (int j = 0; j < np; ++j) row.dq.push_back(s[j].head<6>());
-    }
-    result.trajectory.push_back(row);
-  };
-  sample();
-
-  std::vector<double> unit(np, 0.0);
-  auto unit_vector = [&](int j) {
-    std::fill(unit.begin(), unit.end(), 0.0);
-    unit[j] = 1.0;
-    return unit.data();
-  };
-  // Total derivative of a value v at (t, y) with dt/dp_j, dy/dp_j given.
-  auto total = [&](const Mode& m, const Outcome& o, const std::vector<double>& dt, const std::vector<VectorXd>& dy) {
-    std::vector<double> d(np);
-    for (int j = 0; j < np; ++j) {
-      d[j] = problem.Directional([&](double tt, const double* yy, const double* pv) { return problem.Value(m, o, tt, yy, pv); },
-                                 t, y.data(), p.data(), dt[j], dy[j].data(), unit_vector(j));
-    }
-    return d;
-  };
-  std::vector<Peak> peak(outcomes.size());
-  // A maximum candidate for every peak outcome at the current (t, y) in mode m.
-  auto candidate = [&](const Mode& m, const std::vector<double>& dt, const std::vector<VectorXd>& dy, bool only = false,
-                       int which = -1) {
-    for (int k : problem.peaks()) {
-      if (only && k != which) continue;
-      const double v = problem.Value(m, outcomes[k], t, y.data(), p.data());
-      if (v > peak[k].value) {
-        peak[k].value = v;
-        peak[k].derivative = with_s ? total(m, outcomes[k], dt, dy) : std::vector<double>(np, kNaN);
-      }
-    }
-  };
-  const std::vector<double> zero_dt(np, 0.0);
-  candidate(mode, zero_dt, s);
-
-  SundialsContext ctx;  // outlives cv (destroyed after it)
-  Cvodes cv;
-  cv.problem = &problem;
-  cv.p = p.data();
-  std::vector<double> pbar(np);
-  for (int j = 0; j < np; ++j) pbar[j] = p[j] != 0.0 ? std::abs(p[j]) : 1.0;
-  double last_h = 0.0;
-  bool done = false;
-  auto bank = [&]() {
-    if (!cv.mem) return;
-    result.stats += CountersOf(cv.mem, true);
-    long v = 0;
-    if (with_s) {
-      CVodeGetSensNumRhsEvals(cv.mem, &v), result.sensitivity_rhs_evaluations += v;
-      CVodeGetSensNumErrTestFails(cv.mem, &v), result.sensitivity_error_test_failures += v;
-    }
-    CVodeGetLastStep(cv.mem, &last_h);
-  };
-  while (!done) {
-    // A phase: fresh CVODES instance in the current mode.
-    bank();
-    cv.Free();
-    cv.mode = &mode;
-    cv.y = NewSerialVector(kN, ctx);
-    for (int i = 0; i < kN; ++i) NvData(cv.y)[i] = y(i);
-    cv.mem = CVodeCreate(CV_BDF, ctx);
-    if (!cv.mem) Throw<SolverError>("RunSensitivity", "CVodeCreate failed");
-    cv.Check(CVodeSetErrHandlerFn(cv.mem, &SundialsMessages::Handler, &cv.messages), "CVodeSetErrHandlerFn");
-    cv.Check(CVodeInit(cv.mem, &Cvodes::RhsFn, t, cv.y), "CVodeInit");
-    cv.Check(CVodeSetUserData(cv.mem, &cv), "CVodeSetUserData");
-    cv.Check(CVodeSStolerances(cv.mem, options.rtol, options.atol), "CVodeSStolerances");
-    cv.Check(CVodeSetMaxNumSteps(cv.mem, options.max_steps), "CVodeSetMaxNumSteps");
-    cv.Check(CVodeSetStopTime(cv.mem, t_end), "CVodeSetStopTime");
-    if (last_h > 0.0) cv.Check(CVodeSetInitStep(cv.mem, 0.25 * last_h), "CVodeSetInitStep");
-    cv.A = SUNDenseMatrix(kN, kN, ctx);
-    cv.LS = SUNLinSol_Dense(cv.y, cv.A, ctx);
-    cv.Check(CVodeSetLinearSolver(cv.mem, cv.LS, cv.A), "CVodeSetLinearSolver");
-    const int n_events = static_cast<int>(mode.events.size());
-    const int n_roots = n_events + static_cast<int>(problem.peaks().size());
-    std::vector<int> dirs = RootDirections(mode.events);
-    dirs.resize(n_roots, -1);  // dv/dt decreasing through 0: a maximum
-    cv.Check(CVodeRootInit(cv.mem, n_roots, &Cvodes::RootFn), "CVodeRootInit");
-    cv.Check(CVodeSetRootDirection(cv.mem, dirs.data()), "CVodeSetRootDirection");
-    cv.Check(CVodeSetNoInactiveRootWarn(cv.mem), "CVodeSetNoInactiveRootWarn");
-    if (with_s) {
-      cv.ns = np;
-      cv.yS = N_VCloneVectorArray(np, cv.y);
-      for (int j = 0; j < np; ++j) {
-        for (int i = 0; i < kN; ++i) NvData(cv.yS[j])[i] = s[j](i);
-      }
-      cv.Check(CVodeSensInit1(cv.mem, np, CV_STAGGERED1, &Cvodes::SensRhsFn, cv.yS), "CVodeSensInit1");
-      cv.Check(CVodeSetSensParams(cv.mem, p.data(), pbar.data(), nullptr), "CVodeSetSensParams");
-      // Tolerances of p̄_j s_j (SI units of y per 100 % change of p_j): rtol and
-      // kSensitivityAtol. CVODES' default atol/p̄_j sits below the round-off of the
-      // difference-quotient fS (~1e-16 |f|/ε) at tight atol and stalls the step at ~1e-8 s.
-      std::vector<double> atol_s(np);
-      for (int j = 0; j < np; ++j) atol_s[j] = std::max(options.atol, kSensitivityAtol) / pbar[j];
-      cv.Check(CVodeSensSStolerances(cv.mem, options.rtol, atol_s.data()), "CVodeSensSStolerances");
-      // Sensitivities in the error test: without it their error follows the step sequence
-      // (1 % on N90 measured), not the tolerance.
-      cv.Check(CVodeSetSensErrCon(cv.mem, SUNTRUE), "CVodeSetSensErrCon");
-    }
-    for (;;) {
-      double t_reached = t;
-      cv.failure.clear();
-      while (next_out * dt_out <= t * (1.0 + 1e-12)) ++next_out;  // an event on an output time
-      const double t_out = std::min(next_out * dt_out, t_end);
-      const int flag = CVode(cv.mem, t_out, cv.y, &t_reached, CV_NORMAL);
-      if (flag < 0) {
-        double h = 0.0;
-        CVodeGetCurrentStep(cv.mem, &h);
-        char* name = CVodeGetReturnFlagName(flag);
-        const std::string text = name ? name : "?";
-        free(name);
-        Throw<SolverError>("RunSensitivity", "CVODES ", text, " at t = ", t_reached, " s with step h = ", h, " s",
-                           cv.failure.empty() ? "" : " (" + cv.failure + ")", cv.messages.Take());
-      }
-      t = t_reached;
-      for (int i = 0; i < kN; ++i) y(i) = NvData(cv.y)[i];
-      if (with_s) {
-        double ts = 0.0;
-        cv.Check(CVodeGetSens(cv.mem, &ts, cv.yS), "CVodeGetSens");
-        for (int j = 0; j < np; ++j) {
-          for (int i = 0; i < kN; ++i) s[j](i) = NvData(cv.yS[j])[i];
-        }
-      }
-      if (flag != CV_ROOT_RETURN && t < t_end) {  // an output time
-        sample();
-        ++next_out;
-        continue;
-      }
-      if (flag != CV_ROOT_RETURN) {  // the end time (CV_TSTOP_RETURN or CV_SUCCESS at t_end)
-        result.end_reason = "end_time";
-        candidate(mode, zero_dt, s);
-        done = true;
-        break;
-      }
-      std::vector<int> fired(n_roots, 0);
-      cv.Check(CVodeGetRootInfo(cv.mem, fired.data()), "CVodeGetRootInfo");
-      // Interior maxima (dv/dt = 0): envelope theorem, dV/dp = ∂v/∂y s + ∂v/∂p.
-      for (size_t k = 0; k < problem.peaks().size(); ++k) {
-        if (fired[n_events + k]) candidate(mode, zero_dt, s, true, problem.peaks()[k]);
-      }
-      int first = -1;
-      for (int k = 0; k < n_events; ++k) {
-        if (fired[k] && first < 0) first = k;
-      }
-      if (first < 0) continue;  // only peaks: CVODES continues the same phase
-
-      // An event: τ(p) from g(τ, y(τ; p), p) = 0.
-      double fm[kN];
-      problem.Rhs(mode, t, y.data(), p.data(), fm);
-      std::vector<double> dtau(np, 0.0);
-      std::vector<VectorXd> w(np);  // total derivative d y(τ(p); p)/dp = s⁻ + f⁻ dτ/dp
-      if (with_s) {
-        auto g = [&](double tt, const double* yy, const double* pv) { return problem.Event(mode, first, tt, yy, pv); };
-        const std::vector<double> zero_p(np, 0.0);
-        const double gdot = problem.Directional(g, t, y.data(), p.data(), 1.0, fm, zero_p.data());
-        if (!(std::abs(gdot) > 0.0)) {
-          Throw<SolverError>("RunSensitivity", "event ", mode.events[first].name, " at t = ", t,
-                             " s is tangential (dg/dt = ", gdot, "): its time is not differentiable in p");
-        }
-        for (int j = 0; j < np; ++j) {
-          dtau[j] = -problem.Directional(g, t, y.data(), p.data(), 0.0, s[j].data(), unit_vector(j)) / gdot;
-          w[j] = s[j] + Eigen::Map<const VectorXd>(fm, kN) * dtau[j];
-        }
-      } else {
-        for (int j = 0; j < np; ++j) w[j] = VectorXd::Zero(kN), dtau[j] = kNaN;
-      }
-      Mode next = mode;
-      std::vector<double> dalpha(np, kNaN);
-      for (int j = 0; j < np && with_s; ++j) dalpha[j] = w[j](kAlpha);
-      done = RecordEvent(mode, fired, t, y(kAlpha), dtau, dalpha, with_s, outcomes, &next.active, &result);
-      // 90° values, on the mode before the end event (left limits).
-      for (size_t k = 0; k < outcomes.size() && done; ++k) {
-        const Outcome& o = outcomes[k];
-        if (o.kind == OutcomeKind::kLigamentAt90 || o.kind == OutcomeKind::kContactAt90) {
-          result.values[k] = problem.Value(mode, o, t, y.data(), p.data());
-          result.derivatives[k] = with_s ? total(mode, o, dtau, w) : std::vector<double>(np, kNaN);
-        }
-      }
-      candidate(mode, dtau, w);
-      if (done) break;
-      // The new mode: contacts, branches (by the direction of motion at a kink), events.
-      const Scene& sc = problem.SceneAt(p.data());
-      MechanicalState at;
-      at.t = t;
-      at.q = y.head<6>();
-      at.qd = y.tail<6>();
-      at.active = next.active;
-      if (!next.branch.empty()) next.branch = LigamentBranchesAt(sc.model, at.q, at.qd);
-      if (!next.active.empty()) {
-        const ConstrainedAcceleration a = problem.Accel(next, t, y.data(), p.data());
-        for (size_t c = 0; c < next.active.size(); ++c) {
-          if (a.normal_force[c] < 0.0) {
-            Throw<SolverError>("RunSensitivity", "at t = ", t, " s the ",
-                               CompartmentName(sc.model.contacts[next.active[c]].compartment),
-                               " contact would pull (N = ", a.normal_force[c],
-                               " N) after the switch: simultaneous lift-off is not differentiable here");
-          }
-        }
-      }
-      const Scene& scene_at = problem.SceneAt(p.data());
-      next.events = EventsForPhase(scene_at.model, scene_at.end, at);
-      // s⁺ = s⁻ + (f⁻ − f⁺) dτ/dp where the vector field changes.
-      double fp[kN];
-      problem.Rhs(next, t, y.data(), p.data(), fp);
-      if (with_s) {
-        for (int j = 0; j < np; ++j) {
-          for (int i = 0; i < kN; ++i) s[j](i) += (fm[i] - fp[i]) * dtau[j];
-        }
-      }
-      mode = next;
-      candidate(mode, dtau, w);  // right limits (e.g. the far side of a kink's jump)
-      break;
-    }
-  }
-  bank();
-  for (int k : problem.peaks()) {
-    result.values[k] = peak[k].value;
-    result.derivatives[k] = peak[k].derivative;
-  }
+  OdeSensitivity stepper(problem, values, options, outcomes, &result);
+  stepper.Run();
   return finish();
 }
 

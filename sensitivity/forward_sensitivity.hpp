@@ -17,7 +17,12 @@
 // and where the vector field changes (lift-off, kink branch switch) the sensitivities jump:
 //   s⁺ = s⁻ + (f⁻ − f⁺) dτ/dp          (y continuous; Hiskens & Pai 2000, Eq. 9).
 // Re-contact is a plastic impact (a state reset with its own jump matrix): refused with a
-// SolverError naming the time; the chapter scene has none.
+// SolverError naming the time; the chapter scene has none. The phases are run by the hybrid
+// simulator of `kneedyn run` (formulations/simulator.hpp: consistent start, events, re-contact
+// hysteresis, output times) with two settings of its own: RestartProjection::kKeepState (y is
+// not projected onto the constraints at a restart: the jump above is for a y continuous at
+// the event) and PullingContact::kRefuse (a contact that would pull after a switch, i.e. a
+// simultaneous lift-off, has no sensitivity).
 //
 // Outcomes (column names of ensembles::OutcomeColumns, the sweep's):
 //   liftoff_time_s, liftoff_flexion_deg   first lift-off: dτ/dp; dα/dp = s_α + α̇ dτ/dp
@@ -45,12 +50,16 @@
 
 namespace kneedyn::sensitivity {
 
-// The forms with sensitivities: ede on CVODES (this header), the DAE forms on IDAS
+// The forms with sensitivities, as the registry declares them (FormulationInfo::sensitivity),
+// in registry order: ODE forms on CVODES (this header; ede), DAE forms on IDAS
 // (dae_sensitivity.cpp: the chapter-form and closed-form contact, plain and GGL).
-inline constexpr const char* kSensitivityFormulations[] = {"ede", "dae", "dae-reduced", "dae-ggl", "dae-ggl-reduced"};
+std::vector<std::string> SensitivityFormulations();
+// Whether `formulation` is an ODE form (CVODES) rather than a DAE form (IDAS); false for a
+// name without sensitivities.
+bool IsOdeSensitivity(const std::string& formulation);
 
 struct SensitivityOptions {
-  std::string formulation = "ede";  // one of kSensitivityFormulations
+  std::string formulation = "ede";  // one of SensitivityFormulations()
   double rtol = 1.0e-8;             // CVODES / IDAS relative tolerance (state and sensitivities)
   double atol = 1.0e-10;            // absolute tolerance (SI units of each state)
   long max_steps = 200000;          // per phase

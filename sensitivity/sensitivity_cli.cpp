@@ -168,7 +168,7 @@ void WriteSensitivityOutputs(const std::string& dir, const Scene& scene, const S
                        {"restarts", s.restarts}, {"sensitivity_rhs_evaluations", r.sensitivity_rhs_evaluations},
                        {"sensitivity_error_test_failures", r.sensitivity_error_test_failures},
                        {"initial_sensitivity_residual",
-                        options.formulation == "ede" || r.parameters.empty() ? nlohmann::json(nullptr)
+                        IsOdeSensitivity(options.formulation) || r.parameters.empty() ? nlohmann::json(nullptr)
                                                                              : nlohmann::json(r.initial_sensitivity_residual)}};
     j["wall_time_s"] = r.wall_time_s;
     j["rows"] = rows;
@@ -208,8 +208,12 @@ SensitivityCommand::SensitivityCommand(CLI::App& app) {
                    "a sweep spec (kneedyn sweep): its scene, parameter names and outcomes, at the nominal values");
   cmd_->add_option("--parameters", parameters_, "comma-separated parameter names (as in a sweep spec)")->delimiter(',');
   cmd_->add_option("--outcomes", outcomes_, "comma-separated outcome columns or groups (as in a sweep spec)")->delimiter(',');
-  cmd_->add_option("--formulation", options_.formulation,
-                   "form integrated: ede (CVODES) | dae | dae-reduced | dae-ggl | dae-ggl-reduced (IDAS)")
+  std::string ode, dae;  // the registry's forms with sensitivities
+  for (const std::string& f : SensitivityFormulations()) {
+    std::string& list = IsOdeSensitivity(f) ? ode : dae;
+    list += (list.empty() ? "" : " | ") + f;
+  }
+  cmd_->add_option("--formulation", options_.formulation, "form integrated: " + ode + " (CVODES) | " + dae + " (IDAS)")
       ->capture_default_str();
   cmd_->add_option("--rtol", options_.rtol, "relative tolerance")->capture_default_str();
   cmd_->add_option("--atol", options_.atol, "absolute tolerance (SI)")->capture_default_str();
@@ -267,7 +271,7 @@ int SensitivityCommand::Run(int argc, char** argv) {
     if (fd_step_ > 0.0) fd = CentralDifferences(scene, params, values, outcomes, options_, fd_step_);
     WriteSensitivityOutputs(out_dir_, scene, options_, r, fd_step_ > 0.0 ? &fd : nullptr, fd_step_,
                             std::vector<std::string>(argv, argv + argc));
-    const bool ode = options_.formulation == "ede";
+    const bool ode = IsOdeSensitivity(options_.formulation);
     std::printf("%s: %zu outcomes x %zu parameters (%s, %s BDF, rtol %g) in %.3f s wall, end %s\n",
                 scene.name.c_str(), outcomes.size(), params.size(), options_.formulation.c_str(), ode ? "CVODES" : "IDAS",
                 options_.rtol, r.wall_time_s, r.end_reason.c_str());

@@ -182,7 +182,7 @@ TEST(ForwardSensitivity, UnknownNamesNameTheNearestValidOne) {
   EXPECT_FALSE(bad.IsValid(&why));
   EXPECT_NE(why.find("--formulation = 'newmark'"), std::string::npos) << why;
   EXPECT_NE(why.find("dae-reduced"), std::string::npos) << why;
-  for (const char* ok : kSensitivityFormulations) {
+  for (const std::string& ok : SensitivityFormulations()) {
     SensitivityOptions good;
     good.formulation = ok;
     EXPECT_TRUE(good.IsValid(&why)) << ok << ": " << why;

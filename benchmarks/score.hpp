@@ -1,0 +1,76 @@
+// `kneedyn score RESULT --scene S`: scores a trajectory CSV written by any solver against the
+// stored reference of the scene with kneedyn's own metrics (metrics.hpp), the rules of
+// docs/problem.md:
+//
+//   - RESULT: CSV, a header row then one row per output time; `time_s` (or `time`, s) and
+//     any subset of trajectory.csv's columns (docs/outputs.md); an empty cell is a value
+//     that does not exist (a separated contact's point). Optional `is_event` (1: an event
+//     row): event rows are not compared at the sampling times; the last row is the state
+//     of the end event when it is an event row, or, without `is_event`, when the reference
+//     ended on an event and the row lies past the reference's last sampling time.
+//   - The reference (reference-data/references/<scene>.json, make_reference.cpp) stores the
+//     five classes at its sampling times only (every comparison_interval_s, 0.02 s, plus
+//     the end event), no dense output. Between its samples it cannot be interpolated to
+//     any use: cubic Hermite interpolation from its positions and velocities is 1.4 digits
+//     off at the midpoints on chapter_impact (measured against dae at rtol 1e-10, which
+//     agrees with the samples to 8.1 digits); the trajectory oscillates faster than 0.02 s.
+//     So the comparison times are the reference's sampling times, matched by the result's
+//     rows within 1e-9 s, as in the work-precision sweep: a result must write rows there.
+//     Reference times without a row are missing (scd null; scd_compared over the rest).
+//   - Metrics: scd (positions, floors 1 mm and 1 deg: the work-precision figure; null when
+//     a reference time is missing), mescd per class = −log10(mixed error), the mixed error
+//     being max |e| / (1 + |x_ref|) in the class's units — kneedyn's scd with its floors of
+//     1 unit is the same formula, so mescd is the scd of each class (over the times
+//     present); event-time errors and digits (from --events); constraint drift (max |gap|
+//     and |gap rate| over the rows with the contact in contact).
+#pragma once
+
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "benchmarks/metrics.hpp"
+
+namespace kneedyn {
+namespace bench {
+
+// A result CSV read into the classes of metrics.hpp (NaN where a column is not given).
+struct ScoredResult {
+  Solution solution;
+  std::map<std::string, int> given_columns;  // per class: how many of its columns the CSV has
+  std::vector<std::string> columns;          // the CSV's header
+  size_t rows = 0;
+  double max_gap_m = 0.0;       // NaN when no gap column
+  double max_gap_rate_m_s = 0.0;
+};
+
+// Reads `path` for `reference`'s component names. Throws InputError naming the file, the
+// line and the column (unknown column, no time column, a number that does not parse,
+// times not increasing).
+ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const Solution& reference);
+
+// Events a run reports, from kneedyn's summary.json ("events") or a CSV `name,time_s[,flexion_deg]`.
+std::vector<EventRecord> ReadEvents(const std::string& path);
+
+struct Score {
+  Metrics metrics;                          // metrics.hpp: scd, scd_compared, mixed, events
+  std::map<std::string, double> mescd;      // per class, −log10(mixed); NaN: not given
+  std::map<std::string, double> event_digits;  // −log10(|t − t_ref| / t_ref)
+};
+
+Score ScoreResult(const ScoredResult& result, const Solution& reference);
+
+// The work-precision `results` record of a score (docs/outputs.md, `work_precision --json`).
+struct ScoreInfo {
+  std::string solver_name;
+  std::string integrator;
+  nlohmann::json setting = nlohmann::json::object();  // rtol, atol, step as given
+  nlohmann::json counters = nlohmann::json::object();
+  double cpu_time_s = -1.0;                           // < 0: not given
+  std::string failure;                                // non-empty: a failed run
+};
+nlohmann::json ScoreRecord(const ScoredResult& result, const Score& score, const ScoreInfo& info);
+
+}  // namespace bench
+}  // namespace kneedyn

@@ -1,0 +1,165 @@
+#include "benchmarks/score_cli.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "benchmarks/score.hpp"
+#include "formulations/version.hpp"
+#include "scene/scene.hpp"
+#include "solver/error.hpp"
+
+namespace kneedyn::bench {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string Digits(double v) {
+  if (std::isnan(v)) return "-";
+  if (std::isinf(v)) return "exact";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.2f", v);
+  return buf;
+}
+
+// Counters from a JSON file: an object of numbers, or kneedyn's summary.json ("statistics").
+nlohmann::json ReadCounters(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) Throw<InputError>("kneedyn score", "--counters = '", Echo(path), "': cannot be read");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    Throw<InputError>("kneedyn score", "--counters = '", Echo(path), "': not JSON (", e.what(), ")");
+  }
+  if (j.is_object() && j.contains("statistics")) j = j["statistics"];
+  if (!j.is_object()) Throw<InputError>("kneedyn score", "--counters = '", Echo(path), "': not a JSON object");
+  for (const auto& [k, v] : j.items()) {
+    if (!v.is_number()) Throw<InputError>("kneedyn score", "--counters = '", Echo(path), "': counter '", k, "' is not a number");
+  }
+  return j;
+}
+
+}  // namespace
+
+ScoreCommand::ScoreCommand(CLI::App& app) {
+  cmd_ = app.add_subcommand("score", "score a trajectory CSV from any solver against the scene's stored reference "
+                                     "(docs/problem.md)");
+  cmd_->add_option("result", result_path_, "CSV: time_s (or time) and any trajectory.csv columns")->required();
+  cmd_->add_option("--scene", scene_path_, "scene file (YAML)")->required();
+  cmd_->add_option("--reference", reference_path_,
+                   "reference JSON (default: reference-data/references/<scene name>.json)");
+  cmd_->add_option("--events", events_path_, "the run's events: kneedyn's summary.json, or CSV name,time_s[,flexion_deg]");
+  cmd_->add_option("--solver-name", solver_name_, "name of the solver in the record")->capture_default_str();
+  cmd_->add_option("--integrator", integrator_, "integrator or method detail, as text");
+  cmd_->add_option("--rtol", rtol_, "relative tolerance the solver ran at (recorded)");
+  cmd_->add_option("--atol", atol_, "absolute tolerance the solver ran at (recorded)");
+  cmd_->add_option("--step", step_, "fixed step in s the solver ran at (recorded)");
+  cmd_->add_option("--counters", counters_path_, "JSON object of counters (or kneedyn's summary.json)");
+  cmd_->add_option("--counter", counters_, "a counter as name=value (repeatable)");
+  cmd_->add_option("--cpu-time", cpu_time_, "CPU time of the solver in s (recorded)");
+  cmd_->add_option("--failed", failure_, "the solver failed, for this reason: a failed result is recorded as such");
+  cmd_->add_option("--out", out_path_, "JSON to write (default: RESULT with .score.json)");
+}
+
+int ScoreCommand::Run(int argc, char** argv) {
+  try {
+    const Scene scene = LoadScene(scene_path_);
+    std::string reference_file = reference_path_;
+    if (reference_file.empty()) {
+      reference_file = ReferenceDataDir() + "/references/" + scene.name + ".json";
+      if (!fs::exists(reference_file)) {
+        Throw<InputError>("kneedyn score", "no stored reference for scene '", scene.name, "' (", reference_file,
+                          "); give --reference");
+      }
+    }
+    std::ifstream rin(reference_file);
+    if (!rin) Throw<InputError>("kneedyn score", "--reference = '", Echo(reference_file), "': cannot be read");
+    nlohmann::json ref_json;
+    Solution reference;
+    try {
+      ref_json = nlohmann::json::parse(rin);
+      reference = SolutionFromJson(ref_json.at("solution"));
+    } catch (const nlohmann::json::exception& e) {
+      Throw<InputError>("kneedyn score", "--reference = '", Echo(reference_file), "': not a kneedyn reference (", e.what(),
+                        ")");
+    }
+    if (ref_json.value("scene", std::string()) != scene.name) {
+      Throw<InputError>("kneedyn score", "--reference = '", Echo(reference_file), "' is for scene '",
+                        ref_json.value("scene", std::string()), "', not '", scene.name, "'");
+    }
+    ScoredResult result = ReadResultCsv(result_path_, scene, reference);
+    if (!events_path_.empty()) result.solution.events = ReadEvents(events_path_);
+    ScoreInfo info;
+    info.solver_name = solver_name_;
+    info.integrator = integrator_;
+    if (rtol_ > 0.0) info.setting["rtol"] = rtol_;
+    if (atol_ > 0.0) info.setting["atol"] = atol_;
+    if (step_ > 0.0) info.setting["step"] = step_;
+    if (!counters_path_.empty()) info.counters = ReadCounters(counters_path_);
+    for (const std::string& c : counters_) {
+      const size_t eq = c.find('=');
+      char* end = nullptr;
+      const double v = eq == std::string::npos ? 0.0 : std::strtod(c.c_str() + eq + 1, &end);
+      if (eq == std::string::npos || eq == 0 || end == c.c_str() + eq + 1 || *end != '\0') {
+        Throw<InputError>("kneedyn score", "--counter = '", Echo(c), "': give name=value");
+      }
+      info.counters[c.substr(0, eq)] = v;
+    }
+    info.cpu_time_s = cpu_time_;
+    info.failure = failure_;
+    const Score score = ScoreResult(result, reference);
+
+    nlohmann::json out;
+    out["kneedyn_version"] = KneedynVersion();
+    out["git_commit"] = KneedynGitCommit();
+    out["command_line"] = std::vector<std::string>(argv, argv + argc);
+    out["header"] = {{"scene", scene.name},
+                     {"scene_file", scene_path_},
+                     {"reference", reference_file},
+                     {"reference_primary", ref_json.value("primary", nlohmann::json::object()).value("command", "")},
+                     {"reference_accuracy_scd", ref_json.value("accuracy_scd", nlohmann::json(nullptr))},
+                     {"comparison", "the reference's sampling times (within 1e-9 s) and its end event"},
+                     {"metrics_definition", "benchmarks/metrics.hpp, benchmarks/score.hpp, docs/problem.md"},
+                     {"result_file", result_path_}};
+    out["results"] = nlohmann::json::array({ScoreRecord(result, score, info)});
+    const std::string out_path =
+        out_path_.empty() ? fs::path(result_path_).replace_extension(".score.json").string() : out_path_;
+    {
+      const std::string tmp = out_path + ".tmp";
+      std::ofstream f(tmp);
+      if (!f) Throw<InputError>("kneedyn score", "--out = '", Echo(out_path), "': cannot be written");
+      f << out.dump(2) << "\n";
+      f.close();
+      if (!f) Throw<InputError>("kneedyn score", "--out = '", Echo(out_path), "': cannot be written");
+      fs::rename(tmp, out_path);
+    }
+
+    const Metrics& m = score.metrics;
+    std::printf("%s (%s) against %s: %d of %d reference times compared", result_path_.c_str(), solver_name_.c_str(),
+                reference_file.c_str(), m.compared_times, m.compared_times + m.missing_times);
+    std::printf("%s\n", failure_.empty() ? "" : (" [failed: " + failure_ + "]").c_str());
+    std::printf("  scd %s (positions; over the compared times %s)\n", Digits(m.scd).c_str(), Digits(m.scd_compared).c_str());
+    std::printf("  %-16s %8s %8s\n", "class", "columns", "mescd");
+    for (const std::string& c : VariableClasses()) {
+      std::printf("  %-16s %8d %8s\n", c.c_str(), result.given_columns.at(c), Digits(score.mescd.at(c)).c_str());
+    }
+    for (const auto& [name, err] : m.event_time) {
+      std::printf("  event %-20s |dt| = %.3g s (%s digits)\n", name.c_str(), err, Digits(score.event_digits.at(name)).c_str());
+    }
+    std::printf("  drift: max |gap| %.3g mm, max |gap rate| %.3g mm/s\n", 1e3 * m.max_position_residual,
+                1e3 * m.max_velocity_residual);
+    std::printf("  wrote %s\n", out_path.c_str());
+    return 0;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "kneedyn score: error: %s\n", e.what());
+    return 2;
+  } catch (const Error& e) {
+    std::fprintf(stderr, "kneedyn score: error: %s\n", e.what());
+    return 1;
+  }
+}
+
+}  // namespace kneedyn::bench

@@ -1,0 +1,105 @@
+// The hybrid simulator: the one place that runs the knee from phase to phase (docs/model.md
+// §9). Drake's Simulator/Integrator split: a stepper (the Formulation interface: Start a
+// phase from a consistent state, Advance to an output time or the first event root)
+// integrates inside one contact mode; the simulator owns everything between phases and
+// around them, the same for every stepper:
+//
+//   - consistent initialization at t0 (ConsistentInitialize with every contact active);
+//   - the output samples: every output_interval, plus every event; an output time that
+//     coincides with an event (|t_event − t_out| < 1e-12 s) is skipped so that times stay
+//     strictly increasing; the end time is the last sample;
+//   - a phase start: the events of the phase (EventsForPhase, with the re-contact hysteresis
+//     below), the published ligament law's branches locked from the direction of motion
+//     (LigamentBranchesAt) and the hidden constraint solved on them;
+//   - the events the stepper reports: the end flexion ends the run; a ligament kink alone
+//     only restarts the stepper; a lift-off drops its contact; a re-contact adds its contact
+//     and applies the perfectly plastic impact (solver/impact.hpp); then the restart state
+//     (RestartProjection) and contacts whose consistent force would pull (PullingContact).
+//
+// Re-contact hysteresis, the one rule (docs/model.md §9): a separated compartment re-contacts
+// when its gap falls below min(gap at separation, 0) by
+//     gap_tolerance = 10 · max(observed position drift, rtol · |x0| + atol),   ≥ 1 nm,
+// the observed drift being the largest |φ_i| of the active contacts over the samples so far
+// (output rows and events) and rtol · |x0| + atol the position tolerance of an adaptive
+// method at the origin translation x0 = (x0, y0, z0) of the phase start (m): ten times what
+// integration error can put on a gap, so that it cannot re-close a contact that has just
+// opened. Every driver (kneedyn run, sweep, batch, both sensitivity drivers) passes its
+// own rtol and atol.
+//
+// Sensitivity drivers plug in as steppers: their Start computes the sensitivities' jump
+// conditions at the phase start they are given (the restart state the simulator made), their
+// Advance records what they measure at events; the hooks below hand them the samples.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "formulations/formulation.hpp"
+#include "formulations/run.hpp"
+
+namespace kneedyn {
+
+// The re-contact hysteresis of a phase starting at q (m; see the header).
+double RecontactGapTolerance(double max_position_residual, const Vector6d& q, double rtol, double atol);
+
+// The state a phase starts from after a contact switch and at a phase start of the
+// published ligament law (branches locked).
+enum class RestartProjection {
+  // CompleteHiddenConstraint: (q, q̇) projected onto the active contacts' position and
+  // velocity constraints (removes the drift of velocity-level methods and the hysteresis
+  // penetration of a re-contact), then the hidden level (q̈, N). kneedyn run and the DAE
+  // sensitivities (whose restart sensitivities differentiate this map).
+  kProject,
+  // (q, q̇) unchanged; the hidden level (q̈, N) solved at them. The ODE sensitivities
+  // (CVODES on y = (q, q̇)): their jump s⁺ = s⁻ + (f⁻ − f⁺) dτ/dp (Hiskens & Pai 2000,
+  // Eq. 9) holds for a state that is continuous at the event.
+  kKeepState,
+};
+
+// A contact whose consistent force would pull (N < 0) right after a switch.
+enum class PullingContact {
+  kSeparate,  // it lifts off at once (recorded as liftoff_<compartment>); solved again
+  kRefuse,    // SolverError: the sensitivities of a simultaneous lift-off are not defined
+};
+
+struct SimulatorSettings {
+  ConsistentInitOptions init;     // form and chart of the stepper
+  double output_interval = 0.0;   // s, > 0 (callers validate it with IsValidOutputInterval)
+  double rtol = 1.0e-6;           // the stepper's tolerances, for the re-contact hysteresis
+  double atol = 1.0e-8;
+  RestartProjection restart = RestartProjection::kProject;
+  PullingContact pulling = PullingContact::kSeparate;
+  // Called after the first phase has started (the stepper's Start has run at t0).
+  std::function<void(const MechanicalState&)> first_phase_started;
+  // Called after every output sample with the sample and whether it is an event row.
+  std::function<void(const MechanicalState&, bool is_event)> sample;
+};
+
+class Simulator {
+ public:
+  // `scene` and `stepper` outlive the simulator; `record` receives init, events, samples,
+  // sample_is_event, end_reason, the residual maxima and the kink crossings.
+  Simulator(const Scene& scene, Formulation* stepper, SimulatorSettings settings, RunResult* record);
+
+  // Consistent initialization and the t0 sample. Throws InputError for contact rows that
+  // are dependent at the start.
+  void Initialize();
+  // Phases until the end condition. Throws what the stepper throws (SolverError, ...);
+  // state() is then the last state the simulator holds.
+  void Run();
+  const MechanicalState& state() const { return state_; }
+
+ private:
+  void Record(bool is_event);
+  // RestartProjection at state_.
+  void CompleteState();
+
+  const Scene& scene_;
+  Formulation* stepper_;
+  SimulatorSettings settings_;
+  RunResult* record_;
+  MechanicalState state_;
+};
+
+}  // namespace kneedyn

@@ -1,0 +1,178 @@
+// Tests of `kneedyn score` (benchmarks/score.hpp): a built-in run's own trajectory.csv scores
+// the scd the work-precision machinery computes for that run (bench::Evaluate), to the CSV's
+// printed precision; a subset of columns scores its classes only; missing comparison times
+// and bad columns are reported.
+#include "benchmarks/score.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <unistd.h>
+
+#include "benchmarks/bench_run.hpp"
+#include "formulations/run_output.hpp"
+#include "solver/error.hpp"
+#include "test_support.hpp"
+
+namespace kneedyn {
+namespace {
+
+namespace fs = std::filesystem;
+using test_support::ChapterScene;
+
+// trajectory.csv prints 12 significant digits: each value is off by ≤ 5e-12 |x| (half a unit
+// of the 12th digit of a mantissa 1.000…). At an error level 10^-d of (|x| + 1) (scd, mixed
+// error) that moves the digits d by ≤ 5e-12 / 10^-d / ln 10 (2e-7 at d = 5).
+double PrintedPrecisionDigits(double d) { return 5e-12 / std::pow(10.0, -d) / std::log(10.0); }
+
+struct BuiltIn {
+  bench::Metrics metrics;
+  fs::path dir;
+};
+
+BuiltIn RunDae(const bench::Reference& ref, const std::string& name) {
+  bench::BenchConfig config;
+  config.formulation = "dae";
+  config.rtol = 1e-8;
+  config.atol = 1e-10;
+  const bench::Outcome outcome = bench::RunConfig(ChapterScene(), config, ref.comparison_interval);
+  EXPECT_EQ(outcome.status, "ok") << outcome.reason;
+  BuiltIn b;
+  b.metrics = bench::Evaluate(ChapterScene(), outcome, ref);
+  b.dir = fs::temp_directory_path() / ("kneedyn_score_test_" + name + std::to_string(::getpid()));
+  fs::remove_all(b.dir);
+  RunSettings settings;
+  settings.formulation = "dae";
+  settings.options.rtol = config.rtol;
+  settings.options.atol = config.atol;
+  WriteRunOutputs(b.dir.string(), ChapterScene(), settings, outcome.result);
+  return b;
+}
+
+const bench::Reference& Reference() {
+  static const bench::Reference ref =
+      bench::LoadReference(ReferenceDataDir() + "/references/chapter_impact.json");
+  return ref;
+}
+
+TEST(Score, OwnTrajectoryGivesTheRunsScd) {
+  const BuiltIn run = RunDae(Reference(), "own");
+  const fs::path csv = run.dir / "trajectory.csv";
+  bench::ScoredResult result = bench::ReadResultCsv(csv.string(), ChapterScene(), Reference().solution);
+  result.solution.events = bench::ReadEvents((run.dir / "summary.json").string());
+  const bench::Score score = bench::ScoreResult(result, Reference().solution);
+  const bench::Metrics& m = score.metrics;
+  std::printf("dae rtol 1e-8: scd built-in %.6f, from trajectory.csv %.6f\n", run.metrics.scd, m.scd);
+  ASSERT_TRUE(std::isfinite(run.metrics.scd));
+  EXPECT_NEAR(m.scd, run.metrics.scd, PrintedPrecisionDigits(run.metrics.scd));
+  EXPECT_EQ(m.compared_times, run.metrics.compared_times);
+  EXPECT_EQ(m.missing_times, 0);
+  for (const std::string& c : bench::VariableClasses()) {
+    const double built_in = -std::log10(run.metrics.mixed.at(c));
+    EXPECT_NEAR(score.mescd.at(c), built_in, PrintedPrecisionDigits(built_in)) << c;
+  }
+  // Events from summary.json: the run's own event times (printed with 17 digits).
+  for (const auto& [name, err] : run.metrics.event_time) EXPECT_NEAR(m.event_time.at(name), err, 1e-15) << name;
+  // Drift from the gap columns (mm, 12 digits) against the run's own maximum (m).
+  EXPECT_NEAR(m.max_position_residual, run.metrics.max_position_residual, 1e-12 * run.metrics.max_position_residual + 1e-18);
+  fs::remove_all(run.dir);
+}
+
+// Positions only, at the reference's sampling times only, without is_event: the same scd;
+// the classes not given have no digits.
+TEST(Score, SubsetOfColumnsAndTimes) {
+  const BuiltIn run = RunDae(Reference(), "subset");
+  const TrajectoryTable table = [&] {
+    std::ifstream in(run.dir / "trajectory.csv");
+    TrajectoryTable t;
+    std::string line, cell;
+    std::getline(in, line);
+    std::istringstream h(line);
+    while (std::getline(h, cell, ',')) t.columns.push_back(cell);
+    while (std::getline(in, line)) {
+      std::istringstream r(line);
+      std::vector<double> row;
+      while (std::getline(r, cell, ',')) row.push_back(cell.empty() ? NAN : std::stod(cell));
+      t.rows.push_back(row);
+    }
+    return t;
+  }();
+  auto col = [&](const std::string& n) {
+    return static_cast<size_t>(std::find(table.columns.begin(), table.columns.end(), n) - table.columns.begin());
+  };
+  const std::vector<std::string> keep = {"time_s", "x0_mm", "y0_mm", "z0_mm", "flexion_deg", "valgus_deg",
+                                         "external_rotation_deg"};
+  const fs::path subset = run.dir / "subset.csv";
+  {
+    std::ofstream out(subset);
+    out.precision(17);
+    for (size_t k = 0; k < keep.size(); ++k) out << (k ? "," : "") << keep[k];
+    out << "\n";
+    for (size_t r = 0; r < table.rows.size(); ++r) {
+      const std::vector<double>& row = table.rows[r];
+      const bool last = r + 1 == table.rows.size();
+      const double t = row[col("time_s")];
+      const bool sampling = std::abs(t / 0.02 - std::round(t / 0.02)) < 1e-6;
+      if (row[col("is_event")] == 1.0 && !last) continue;
+      if (!sampling && !last) continue;
+      for (size_t k = 0; k < keep.size(); ++k) out << (k ? "," : "") << row[col(keep[k])];
+      out << "\n";
+    }
+  }
+  const bench::ScoredResult result = bench::ReadResultCsv(subset.string(), ChapterScene(), Reference().solution);
+  const bench::Score score = bench::ScoreResult(result, Reference().solution);
+  EXPECT_NEAR(score.metrics.scd, run.metrics.scd, PrintedPrecisionDigits(run.metrics.scd));
+  EXPECT_EQ(score.metrics.missing_times, 0);
+  EXPECT_TRUE(std::isnan(score.mescd.at("contact_forces")));
+  EXPECT_TRUE(std::isnan(score.mescd.at("velocities")));
+  EXPECT_NEAR(score.mescd.at("positions"), run.metrics.scd, PrintedPrecisionDigits(run.metrics.scd));
+  fs::remove_all(run.dir);
+}
+
+TEST(Score, MissingTimesAndBadColumns) {
+  const fs::path dir = fs::temp_directory_path() / ("kneedyn_score_bad_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const bench::Solution& ref = Reference().solution;
+  // The reference's own positions at its first three times only: exact there, the rest missing.
+  {
+    std::ofstream out(dir / "short.csv");
+    out.precision(17);
+    out << "time_s,x0_mm,y0_mm,z0_mm,flexion_deg,valgus_deg,external_rotation_deg\n";
+    for (int i = 0; i < 3; ++i) {
+      out << ref.times[i];
+      for (double v : ref.values.at("positions")[i]) out << "," << v;
+      out << "\n";
+    }
+  }
+  const bench::Score s =
+      bench::ScoreResult(bench::ReadResultCsv((dir / "short.csv").string(), ChapterScene(), ref), ref);
+  EXPECT_TRUE(std::isnan(s.metrics.scd));
+  EXPECT_TRUE(std::isinf(s.metrics.scd_compared));  // exact at the times it has
+  EXPECT_EQ(s.metrics.compared_times, 3);
+  EXPECT_EQ(s.metrics.missing_times, static_cast<int>(ref.times.size()) - 3);
+
+  {
+    std::ofstream out(dir / "typo.csv");
+    out << "time_s,flexon_deg\n0,0\n";
+  }
+  try {
+    bench::ReadResultCsv((dir / "typo.csv").string(), ChapterScene(), ref);
+    FAIL() << "an unknown column was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("flexon_deg"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("flexion_deg"), std::string::npos) << e.what();
+  }
+  {
+    std::ofstream out(dir / "notime.csv");
+    out << "flexion_deg\n0\n";
+  }
+  EXPECT_THROW(bench::ReadResultCsv((dir / "notime.csv").string(), ChapterScene(), ref), InputError);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace kneedyn

@@ -1,0 +1,144 @@
+// Tests of the hybrid simulator (formulations/simulator.hpp): the states it hands a stepper at
+// a restart under each RestartProjection, its refusal of a pulling contact and the
+// re-contact hysteresis rule.
+#include "formulations/simulator.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "solver/constraint_residuals.hpp"
+#include "solver/error.hpp"
+#include "test_support.hpp"
+
+namespace kneedyn {
+namespace {
+
+using test_support::ChapterScene;
+using test_support::ScenesDir;
+
+// A formulation that remembers the states it was started from and the event states it
+// reported (delegates the integration to a registered formulation).
+class SpyStepper : public Formulation {
+ public:
+  SpyStepper(const std::string& name, const Scene& scene) : inner_(CreateFormulation(name, scene, {})) {}
+  ContactForm contact_form() const override { return inner_->contact_form(); }
+  void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
+    starts.push_back(state);
+    inner_->Start(state, events);
+  }
+  AdvanceResult Advance(double t_out, MechanicalState* state) override {
+    const AdvanceResult r = inner_->Advance(t_out, state);
+    if (r.status == AdvanceStatus::kEvent) event_states.push_back(*state);
+    return r;
+  }
+  SolverStats stats() const override { return inner_->stats(); }
+
+  std::vector<MechanicalState> starts, event_states;
+
+ private:
+  std::unique_ptr<Formulation> inner_;
+};
+
+SimulatorSettings Settings(const Scene& scene, const Formulation& stepper) {
+  SimulatorSettings s;
+  s.init.form = stepper.contact_form();
+  s.output_interval = scene.output_interval;
+  return s;
+}
+
+// The largest |φ_i| of the active contacts (m).
+double MaxGap(const Scene& scene, const MechanicalState& state) {
+  double gap = 0.0, rate = 0.0;
+  MaxActiveConstraintResiduals(scene.model, state, &gap, &rate);
+  return gap;
+}
+
+// kProject restarts from (q, q̇) on the constraints (CompleteHiddenConstraint: gaps to
+// 1e-14 m), although the event state drifted (ede without stabilization: ~1e-8 m at the
+// lift-off); kKeepState restarts from the event state exactly.
+TEST(Simulator, RestartProjection) {
+  const Scene& scene = ChapterScene();
+  for (RestartProjection restart : {RestartProjection::kProject, RestartProjection::kKeepState}) {
+    SpyStepper spy("ede", scene);
+    SimulatorSettings settings = Settings(scene, spy);
+    settings.restart = restart;
+    RunResult record;
+    Simulator simulator(scene, &spy, settings, &record);
+    simulator.Initialize();
+    simulator.Run();
+    ASSERT_EQ(record.end_reason, "flexion_90");
+    // The lift-off of the chapter scene, then the end: one restart after an event switch.
+    size_t n_events = 0;
+    double max_event_gap = 0.0;
+    for (size_t k = 0; k + 1 < spy.starts.size(); ++k) {
+      const MechanicalState& next = spy.starts[k + 1];
+      // The event state the phase ended in: the last one reported before this start.
+      const MechanicalState* event = nullptr;
+      for (const MechanicalState& e : spy.event_states) {
+        if (e.t <= next.t) event = &e;
+      }
+      if (event == nullptr || event->t != next.t) continue;
+      ++n_events;
+      if (restart == RestartProjection::kKeepState) {
+        EXPECT_EQ(next.q, event->q) << "t = " << next.t;
+        EXPECT_EQ(next.qd, event->qd) << "t = " << next.t;
+      } else {
+        EXPECT_LE(MaxGap(scene, next), 1e-13) << "t = " << next.t;
+        max_event_gap = std::max(max_event_gap, MaxGap(scene, *event));
+      }
+    }
+    EXPECT_GE(n_events, 1u);
+    // Drift to remove (else the kProject check shows nothing).
+    if (restart == RestartProjection::kProject) {
+      EXPECT_GT(max_event_gap, 1e-12);
+    }
+  }
+}
+
+// A re-contact that bounces off at once (distal pulse, dae: recontact_lateral and
+// liftoff_lateral at t = 0.024886 s): kSeparate records the second lift-off, kRefuse stops
+// there with a SolverError naming the compartment.
+TEST(Simulator, PullingContact) {
+  const Scene scene = LoadScene(ScenesDir() + "/hard/distal_pulse_both_separate.yaml");
+  double bounce = -1.0;
+  {
+    SpyStepper spy("dae", scene);
+    RunResult record;
+    Simulator simulator(scene, &spy, Settings(scene, spy), &record);
+    simulator.Initialize();
+    simulator.Run();
+    for (size_t k = 1; k < record.events.size() && bounce < 0.0; ++k) {
+      if (record.events[k].name == "liftoff_lateral" && record.events[k - 1].name == "recontact_lateral" &&
+          record.events[k].time == record.events[k - 1].time) {
+        bounce = record.events[k].time;
+      }
+    }
+    ASSERT_GT(bounce, 0.0) << "no re-contact that bounces off";
+  }
+  SpyStepper spy("dae", scene);
+  SimulatorSettings settings = Settings(scene, spy);
+  settings.pulling = PullingContact::kRefuse;
+  RunResult record;
+  Simulator simulator(scene, &spy, settings, &record);
+  simulator.Initialize();
+  try {
+    simulator.Run();
+    FAIL() << "kRefuse ran through the bounce at t = " << bounce;
+  } catch (const SolverError& e) {
+    EXPECT_NE(std::string(e.what()).find("lateral contact would pull"), std::string::npos) << e.what();
+    EXPECT_EQ(simulator.state().t, bounce);
+  }
+}
+
+// The one re-contact hysteresis rule: 10 · max(drift, rtol · |x0| + atol).
+TEST(Simulator, RecontactGapTolerance) {
+  Vector6d q = Vector6d::Zero();
+  q.head<3>() << 3e-3, 0.0, 4e-3;  // |x0| = 5 mm
+  EXPECT_DOUBLE_EQ(RecontactGapTolerance(0.0, q, 1e-6, 1e-8), 10.0 * (1e-6 * 5e-3 + 1e-8));
+  EXPECT_DOUBLE_EQ(RecontactGapTolerance(1e-6, q, 1e-6, 1e-8), 1e-5);
+}
+
+}  // namespace
+}  // namespace kneedyn
