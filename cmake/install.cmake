@@ -3,6 +3,9 @@
 # reference-data/ as P/share/kneedyn (found there by the installed tools at run time), the
 # CMake package kneedyn (find_package(kneedyn CONFIG REQUIRED); targets kneedyn::solver,
 # kneedyn::scene, kneedyn::formulations) and pkg-config's kneedyn.pc.
+# Two components: `runtime` (the programs, the data, and with them the sweep I/O plugin and
+# the Python module: what `pip install .` packages, setup.py) and `development` (libraries,
+# headers, CMake package, kneedyn.pc). `cpack -G DEB` packages both (cmake/packaging.cmake).
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
@@ -11,26 +14,30 @@ set(KNEEDYN_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/kneedyn)
 install(TARGETS kneedyn_solver kneedyn_scene kneedyn_formulations EXPORT kneedynTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
-  INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn)
-install(TARGETS kneedyn kneedyn_catalog RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+  INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn
+  COMPONENT development)
+install(TARGETS kneedyn kneedyn_catalog RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
 foreach(dir solver scene formulations)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn/${dir}
+          COMPONENT development
           FILES_MATCHING PATTERN "*.hpp")
 endforeach()
-install(DIRECTORY ${PROJECT_SOURCE_DIR}/reference-data/ DESTINATION ${CMAKE_INSTALL_DATADIR}/kneedyn)
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/reference-data/ DESTINATION ${CMAKE_INSTALL_DATADIR}/kneedyn
+        COMPONENT runtime)
 
-install(EXPORT kneedynTargets NAMESPACE kneedyn:: DESTINATION ${KNEEDYN_CMAKE_DIR})
+install(EXPORT kneedynTargets NAMESPACE kneedyn:: DESTINATION ${KNEEDYN_CMAKE_DIR} COMPONENT development)
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/kneedynConfig.cmake.in
   ${PROJECT_BINARY_DIR}/kneedynConfig.cmake INSTALL_DESTINATION ${KNEEDYN_CMAKE_DIR}
   PATH_VARS CMAKE_INSTALL_DATADIR)
 write_basic_package_version_file(${PROJECT_BINARY_DIR}/kneedynConfigVersion.cmake
   COMPATIBILITY SameMinorVersion)
 install(FILES ${PROJECT_BINARY_DIR}/kneedynConfig.cmake ${PROJECT_BINARY_DIR}/kneedynConfigVersion.cmake
-        DESTINATION ${KNEEDYN_CMAKE_DIR})
+        DESTINATION ${KNEEDYN_CMAKE_DIR} COMPONENT development)
 
 # Relocatable: the prefix is found from the .pc file's own directory.
 file(RELATIVE_PATH KNEEDYN_PC_TO_PREFIX "/${CMAKE_INSTALL_LIBDIR}/pkgconfig" "/")
 string(REGEX REPLACE "/$" "" KNEEDYN_PC_TO_PREFIX "${KNEEDYN_PC_TO_PREFIX}")
 configure_file(${PROJECT_SOURCE_DIR}/cmake/kneedyn.pc.in ${PROJECT_BINARY_DIR}/kneedyn.pc @ONLY)
-install(FILES ${PROJECT_BINARY_DIR}/kneedyn.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
+install(FILES ${PROJECT_BINARY_DIR}/kneedyn.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig
+        COMPONENT development)
