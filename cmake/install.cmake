@@ -12,10 +12,9 @@ include(CMakePackageConfigHelpers)
 set(KNEEDYN_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/kneedyn)
 
 install(TARGETS kneedyn_solver kneedyn_scene kneedyn_formulations EXPORT kneedynTargets
-  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
-  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
-  INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn
-  COMPONENT development)
+  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT development
+  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT development
+  INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn)
 install(TARGETS kneedyn kneedyn_catalog RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
 foreach(dir solver scene formulations)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/

@@ -103,16 +103,6 @@ def main():
     shutil.rmtree(work, ignore_errors=True)
     work.mkdir(parents=True)
 
-    # What the wheel must hold: the runtime component, installed by CMake itself.
-    prefix = work / "cmake-runtime"
-    run(["cmake", "--install", build, "--component", "runtime", "--prefix", prefix], stdout=subprocess.DEVNULL)
-    expected = {p.relative_to(prefix).as_posix(): p.read_bytes() for p in prefix.rglob("*") if p.is_file()}
-    modules = [r for r in expected if Path(r).name.startswith("_kneedyn")]
-    if len(modules) != 1:
-        sys.exit("FAIL: cmake --install --component runtime installed %d _kneedyn modules" % len(modules))
-    pyrel = Path(modules[0]).parent.parent  # e.g. lib/python3.11/site-packages
-    print("runtime component: %d files; Python package under %s" % (len(expected), pyrel))
-
     env = clean_env(KNEEDYN_CMAKE_BUILD_DIR=str(build))
     outside = Path(tempfile.mkdtemp(prefix="kneedyn-user-", dir=work))
     problems = []
@@ -122,6 +112,17 @@ def main():
     python = make_venv(work / "venv-install")
     run([python, "-m", "pip", "install", "--no-build-isolation", "--no-index", "-q", source], env=env, cwd=work)
     timings["pip install ."] = time.monotonic() - t0
+    # What the wheel must hold: the runtime component, installed by CMake itself (after pip
+    # brought the tree up to date).
+    prefix = work / "cmake-runtime"
+    run(["cmake", "--install", build, "--component", "runtime", "--prefix", prefix], stdout=subprocess.DEVNULL)
+    expected = {p.relative_to(prefix).as_posix(): p.read_bytes() for p in prefix.rglob("*") if p.is_file()}
+    modules = [r for r in expected if Path(r).name.startswith("_kneedyn")]
+    if len(modules) != 1:
+        return print("FAIL: cmake --install --component runtime installed %d _kneedyn modules" % len(modules)) or 1
+    pyrel = Path(modules[0]).parent.parent  # e.g. lib/python3.11/site-packages
+    print("runtime component: %d files; Python package under %s" % (len(expected), pyrel))
+
     problems += ["pip install .: " + p for p in check_venv(work / "venv-install", expected, pyrel, outside)]
 
     t0 = time.monotonic()
