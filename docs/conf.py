@@ -28,6 +28,8 @@ breathe_domain_by_extension = {"hpp": "cpp"}
 # The headers' comments are plain //; the Doxygen input filter (build_docs.py) turns them
 # into documentation, so a member's description is the comment above it in the header.
 
+# `name` in a docstring is code (what the docstrings mean by it), not emphasis.
+default_role = "literal"
 autodoc_member_order = "bysource"
 autodoc_default_options = {"members": True, "undoc-members": True}
 
