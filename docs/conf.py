@@ -33,6 +33,9 @@ default_role = "literal"
 autodoc_member_order = "bysource"
 autodoc_default_options = {"members": True, "undoc-members": True}
 
+# Option names in prose ("--help") keep their two hyphens.
+smartquotes = False
+
 html_theme = "alabaster"
 html_title = "kneedyn"
 html_show_sourcelink = False

@@ -22,7 +22,8 @@ TRAILING = re.compile(r"^(.*?[;,{])(\s*)//(?![/!])\s?(.*)$")
 
 
 def escape(text):
-    return SPECIAL.sub(r"\\\1", text)
+    # "--help" stays two hyphens (Doxygen would print an en dash): its escapes \-- and \---.
+    return re.sub(r"-{2,3}", lambda m: "\\" + m.group(0), SPECIAL.sub(r"\\\1", text))
 
 
 def outside_string(code):
