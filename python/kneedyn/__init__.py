@@ -1,4 +1,4 @@
-"""kneedyn from Python (issue 17): scenes, the formulation registry and runs.
+"""kneedyn from Python (issue 17): scenes, the formulation registry and runs::
 
     import kneedyn
     scene = kneedyn.load_scene(kneedyn.scene_path("chapter_impact"))
@@ -295,7 +295,8 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
     InputError before anything runs; a solver failure returns a Result with
     status 'partial' and the reason in `failure`, as the CLI does. With out=DIR the
     CLI's files (trajectory.csv, trajectory.sto, summary.json) are written there by the
-    CLI's writer."""
+    CLI's writer. The fields of `Result.summary` are those of summary.json, listed in
+    docs/outputs.md (:ref:`summary.json <outputs.md#summaryjson-schema_version-2>`)."""
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     out = _kneedyn.run(scene.compiled, formulation, float(rtol), float(atol), integrator,
