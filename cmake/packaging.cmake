@@ -34,7 +34,12 @@ if(KNEEDYN_WITH_PYTHON)
       "python3 (>= ${_kneedyn_py_version}), python3 (<< ${_kneedyn_py_major}.${_kneedyn_py_next}), python3-numpy")
 endif()
 # Building against the installed libraries needs the headers of their dependencies
-# (kneedynConfig.cmake's find_dependency, kneedyn.pc's Requires).
+# (kneedynConfig.cmake's find_dependency, kneedyn.pc's Requires). The bundled SUNDIALS is
+# in the package itself (lib/kneedyn/sundials, cmake/install.cmake).
+set(kneedyn_suggests_sundials "")
+if(KNEEDYN_SUNDIALS STREQUAL "system")
+  set(kneedyn_suggests_sundials "libsundials-dev, ")
+endif()
 set(CPACK_DEBIAN_PACKAGE_SUGGESTS
-    "cmake, pkg-config, libeigen3-dev, libsundials-dev, libceres-dev, nlohmann-json3-dev, libyaml-dev")
+    "cmake, pkg-config, libeigen3-dev, ${kneedyn_suggests_sundials}libceres-dev, nlohmann-json3-dev, libyaml-dev")
 include(CPack)
