@@ -1,4 +1,4 @@
-# `cmake --install BUILD --prefix P` (issue 10): the kneedyn and kneedyn_catalog tools in
+# `cmake --install BUILD --prefix P`: the kneedyn and kneedyn_catalog tools in
 # P/bin, the libraries in P/lib, the headers in P/include/kneedyn/{solver,scene,formulations},
 # reference-data/ as P/share/kneedyn (found there by the installed tools at run time), the
 # CMake package kneedyn (find_package(kneedyn CONFIG REQUIRED); targets kneedyn::solver,

@@ -1,4 +1,4 @@
-# Issue 12: the kneedyn tools (kneedyn, kneedyn_catalog) link the static archives Debian
+# The kneedyn tools (kneedyn, kneedyn_catalog) link the static archives Debian
 # ships of their libraries — Ceres' dependencies (glog, gflags, SuiteSparse, CXSparse,
 # LAPACK/BLAS/ATLAS), SUNDIALS, yaml-cpp and libyaml — instead of the shared objects, so
 # that the dynamic loader maps and relocates 8 objects at start-up instead of 31

@@ -1,4 +1,4 @@
-// libFuzzer target (issue 18, item 5): scene + parameter-set parsing and model building,
+// libFuzzer target: scene + parameter-set parsing and model building,
 // then the cheap first physics of a run (applied wrench, constrained accelerations at the
 // initial state).
 //

@@ -22,5 +22,5 @@ for ps_file in reference-data/*.yaml; do
 done
 # Inputs that once crashed the target (fixed since) run first in every campaign:
 #   field_keys_stack_use_after_scope.bin — Field::Keys held a reference into a temporary
-#   yaml-cpp iterator value (ASan stack-use-after-scope), issue 18.
+#   yaml-cpp iterator value (ASan stack-use-after-scope).
 cp fuzz/regressions/* "$out/"

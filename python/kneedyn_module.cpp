@@ -1,4 +1,4 @@
-// _kneedyn: the compiled half of the `kneedyn` Python package (issue 17). It binds the
+// _kneedyn: the compiled half of the `kneedyn` Python package. It binds the
 // public API only — the scene loader (scene/scene.hpp), the formulation registry
 // (formulations/formulation.hpp), the run driver (formulations/run.hpp) and the output
 // builders (formulations/run_output.hpp) — and adds no physics and no validation:
@@ -285,7 +285,7 @@ PYBIND11_MODULE(_kneedyn, m) {
      py::arg("constraint_level"), py::arg("jacobian"), py::arg("output_interval"), py::arg("out_dir") = "",
      "RunScene + MakeTrajectoryTable + SummaryJson (+ WriteRunOutputs into out_dir) without the GIL");
 
-  // The sweep API of ensembles/ (issue 14): the same spec, design, runs and result files as
+  // The sweep API of ensembles/: the same spec, design, runs and result files as
   // `kneedyn sweep SPEC --threads N --out DIR`, in process and without the GIL.
   m.def("sweep", [](const std::string& spec_path, int threads, const std::string& out_dir) {
     if (threads < 0 || threads > 4096) {
@@ -332,7 +332,7 @@ PYBIND11_MODULE(_kneedyn, m) {
   }, py::arg("spec_path"), py::arg("threads") = 0, py::arg("out_dir") = "",
      "LoadSweepSpec + RunSweep on `threads` workers (0: all cores) (+ WriteSweepResults) without the GIL");
 
-  // Forward sensitivities (sensitivity/, issue 14 item 1): the same names, results and files
+  // Forward sensitivities (sensitivity/): the same names, results and files
   // as `kneedyn sensitivity SCENE --parameters ... --outcomes ... [--fd-step H] --out DIR`.
   m.def("sensitivity", [](std::shared_ptr<Scene> scene, const std::vector<std::string>& parameters,
                           const std::vector<std::string>& outcomes, double rtol, double atol, double fd_step,

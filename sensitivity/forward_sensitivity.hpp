@@ -1,4 +1,4 @@
-// Forward sensitivities of a scene's outcomes (issue 14, item 1) with SUNDIALS CVODES.
+// Forward sensitivities of a scene's outcomes with SUNDIALS CVODES.
 //
 // The ODE form is ede's index-1 form with the full state y = (q, q̇) ∈ R¹²:
 //   ẏ = f(t, y, p) = (q̇, q̈),  q̈ from SolveConstrainedAcceleration (solver/, Eqs. 1.17–1.24

@@ -1,4 +1,4 @@
-// `kneedyn sensitivity` (issue 14, item 1): registered on the kneedyn CLI by one line.
+// `kneedyn sensitivity`: registered on the kneedyn CLI by one line.
 //   kneedyn sensitivity SCENE --parameters a,b,c --outcomes x,y [--formulation ede|dae|dae-reduced|dae-ggl|dae-ggl-reduced]
 //                       [--rtol R] [--atol A] [--max-steps N] [--output-interval S] [--fd-step H] [--out DIR]
 //   kneedyn sensitivity SCENE --list      the parameter and outcome names the scene accepts

@@ -1,4 +1,4 @@
-"""kneedyn from Python (issue 17): scenes, the formulation registry and runs::
+"""kneedyn from Python: scenes, the formulation registry and runs::
 
     import kneedyn
     scene = kneedyn.load_scene(kneedyn.scene_path("chapter_impact"))

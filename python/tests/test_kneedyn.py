@@ -1,4 +1,4 @@
-"""pytest suite of the kneedyn Python module (issue 17), run by ctest (label python).
+"""pytest suite of the kneedyn Python module, run by ctest (label python).
 
 What it validates:
   - the module's runs equal the CLI's for the same scene and settings: every cell of
@@ -300,7 +300,7 @@ def test_import_from_install_prefix():
     site = os.path.join(prefix, os.environ["KNEEDYN_PYTHON_INSTALL_DIR"])
     env = dict(os.environ, PYTHONPATH=site)
     # A sweep with out= writes sweep.h5 through the installed sweep I/O plugin (HDF5),
-    # found from the installed module (issue 12).
+    # found from the installed module.
     spec = os.path.join(OUT, "install_sweep_spec.yaml")
     with open(spec, "w") as f:
         f.write(SWEEP_SPEC.format(scene=os.path.abspath(CHAPTER)))
