@@ -239,7 +239,7 @@ FormulationOptions OptionsFor(const FormulationInfo& info) {
   }
   o.rtol = 1e-8;
   o.atol = 1e-10;
-  if (!info.integrators.empty()) o.integrator = "cvode-adams";
+  if (!info.integrators.empty()) o.integrator = IntegratorKind::kCvodeAdams;
   return o;
 }
 

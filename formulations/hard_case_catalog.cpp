@@ -95,7 +95,7 @@ RunSettings DefaultSettings(const std::string& formulation, const CaseSpec& c) {
   s.options.atol = 1.0e-10;
   if (IsFixedStep(formulation)) s.options.step = kDefaultFixedStep;
   s.options.contact_chart = g_contact_chart;
-  if (!c.constraint_level.empty()) s.options.constraint_level = c.constraint_level;
+  if (!c.constraint_level.empty()) s.options.constraint_level = ParsedOptionValue<ConstraintLevel>(c.constraint_level);
   return s;
 }
 

@@ -71,10 +71,6 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
       : FormulationBase(scene), options_(options), integrator_(options, "mde"),
         data_(model_) {
     normal_.assign(model_.contacts.size(), 0.0);
-    if (options.Parsed().stabilization != Stabilization::kNone) {
-      Throw<InputError>("MdeFormulation", "--stabilization = '", options.stabilization,
-                        "' applies to ede only (mde has no drift)");
-    }
   }
 
   ContactForm contact_form() const override { return ContactForm::kClosedForm; }

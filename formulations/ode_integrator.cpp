@@ -55,27 +55,12 @@ ARKodeButcherTable FixedStepTable(const std::string& name) {
 
 }  // namespace
 
-const std::vector<std::string>& OdeIntegrator::Names() {
-  static const std::vector<std::string> kNames = {"euler",      "rk4",       "dopri5",     "verner65",
-                                                  "fehlberg78", "cvode-bdf", "cvode-adams"};
-  return kNames;
-}
-
 OdeIntegrator::OdeIntegrator(const FormulationOptions& options, std::string owner)
-    : options_(options), owner_(std::move(owner)), name_(options.integrator.empty() ? "dopri5" : options.integrator) {
-  bool known = false;
-  for (const std::string& n : Names()) known = known || n == name_;
-  if (!known) {
-    Throw<InputError>("OdeIntegrator", "--integrator = '", name_, "' for ", owner_,
-                      "; must be euler, rk4, dopri5, verner65, fehlberg78, cvode-bdf or cvode-adams");
-  }
-  kind_ = options.Parsed().integrator;
-  if (fixed_step()) {
-    step_ = options.step > 0.0 ? options.step : kDefaultFixedStep;
-  } else if (options.step != 0.0) {
-    Throw<InputError>("OdeIntegrator", "--step = ", options.step, " s with --integrator ", name_,
-                      " (", owner_, "): only euler and rk4 take a fixed step; use --max-step");
-  }
+    : options_(options),
+      owner_(std::move(owner)),
+      kind_(options.integrator.value_or(IntegratorKind::kDopri5)),
+      name_(OptionName(kind_)) {
+  if (fixed_step()) step_ = options.step > 0.0 ? options.step : kDefaultFixedStep;
 }
 
 OdeIntegrator::~OdeIntegrator() { Free(); }

@@ -268,7 +268,7 @@ TEST_P(KernelsInWholeRuns, TrajectoriesAndCountersAreBitwiseEqual) {
   const Scene& scene = test_support::ChapterScene();
   RunSettings settings;
   settings.formulation = GetParam().formulation;
-  settings.options.integrator = GetParam().integrator;
+  settings.options.integrator = IntegratorOption(GetParam().integrator);
   settings.options.rtol = 1e-7;
   settings.options.atol = 1e-9;
   SetKneedynSundialsKernels(false);
