@@ -43,7 +43,7 @@
 #include <sstream>
 
 #include "benchmarks/bench_run.hpp"
-#include "formulations/cli.hpp"
+#include "app/cli.hpp"
 #include "formulations/progress.hpp"
 #include "formulations/version.hpp"
 #include "solver/error.hpp"

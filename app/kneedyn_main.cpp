@@ -21,7 +21,7 @@
 #include "ensembles/batch_cli.hpp"
 #include "ensembles/sweep_cli.hpp"
 #include "sensitivity/sensitivity_cli.hpp"
-#include "formulations/cli.hpp"
+#include "app/cli.hpp"
 #include "formulations/progress.hpp"
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
