@@ -7,7 +7,7 @@
 // Chapter scene (reference-data/scenes/chapter_impact.yaml), both compartments in contact,
 // the consistent start moved into the pulse (t = 0.03 s) for the residual and RHS.
 //
-//   dae/residual                 one F(t, y, ẏ) of `dae` (formulations/dae_system.hpp), the
+//   dae/residual                 one F(t, y, ẏ) of `dae` (formulations/internal/dae_system.hpp), the
 //       function IDA calls, at the chapter start moved into the pulse.
 //   dae/jacobian, dae/jacobian_jet   one dF/dy + cj dF/dẏ of `dae`: exact from blocks (the
 //       default) and the Jet<24> derivative of the whole residual (--jacobian jet), in the
@@ -20,7 +20,7 @@
 //   physics/applied_wrench       ligament, gravity and pulse loads (ComputeAppliedWrench),
 //       shared by every residual and RHS.
 //   lu/kneedyn, lu/sundials, lu/eigen   factorization + solve of dae's Jacobian (the
-//       actual matrix, size in the counter n): kneedyn's LU (formulations/sundials_kernels.hpp,
+//       actual matrix, size in the counter n): kneedyn's LU (formulations/internal/sundials_kernels.hpp,
 //       what IDA and CVODE now call), the library's dense getrf/getrs (Debian builds it at
 //       -O0) and Eigen's PartialPivLU.
 //   init/<form>                  ConsistentInitialize (three levels, Ceres), counters: the
@@ -49,9 +49,9 @@
 #include <string>
 #include <vector>
 
-#include "formulations/dae_system.hpp"
-#include "formulations/sundials_kernels.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/dae_system.hpp"
+#include "formulations/internal/sundials_kernels.hpp"
+#include "formulations/internal/sundials_util.hpp"
 #include "formulations/run.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"

@@ -20,7 +20,7 @@
 // `dae-reduced`: the same physics with the closed-form sphere-on-plane contact:
 // y = (q, u, N_i), n = 12 + k, constraint φ̇_i = 0 (or φ_i = 0 at position level).
 //
-// The system itself (unknowns, residual rows, exact Jacobian) is formulations/dae_system.hpp,
+// The system itself (unknowns, residual rows, exact Jacobian) is formulations/internal/dae_system.hpp,
 // shared with dae-ggl and the IDAS sensitivities. The IDA driver below (DaeOnIda) serves
 // dae, dae-reduced and, with the GGL variant of dae_ggl.cpp, dae-ggl and dae-ggl-reduced.
 //
@@ -39,13 +39,13 @@
 #include <cmath>
 #include <memory>
 
-#include "formulations/dae_on_ida.hpp"
-#include "formulations/dae_system.hpp"
-#include "formulations/dae_testing.hpp"
-#include "formulations/formulation_base.hpp"
-#include "formulations/ida_phase.hpp"
-#include "formulations/sundials_kernels.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/dae_on_ida.hpp"
+#include "formulations/internal/dae_system.hpp"
+#include "formulations/internal/dae_testing.hpp"
+#include "formulations/internal/formulation_base.hpp"
+#include "formulations/internal/ida_phase.hpp"
+#include "formulations/internal/sundials_kernels.hpp"
+#include "formulations/internal/sundials_util.hpp"
 #include "solver/dynamics.hpp"
 
 namespace kneedyn {

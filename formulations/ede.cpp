@@ -23,8 +23,8 @@
 #include <cstring>
 #include <memory>
 
-#include "formulations/formulation_base.hpp"
-#include "formulations/ode_integrator.hpp"
+#include "formulations/internal/formulation_base.hpp"
+#include "formulations/internal/ode_integrator.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
 

@@ -29,8 +29,8 @@
 #include <cmath>
 #include <memory>
 
-#include "formulations/formulation_base.hpp"
-#include "formulations/ode_integrator.hpp"
+#include "formulations/internal/formulation_base.hpp"
+#include "formulations/internal/ode_integrator.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/units.hpp"

@@ -55,10 +55,10 @@
 #include <string>
 #include <vector>
 
-#include "formulations/event_locator.hpp"
+#include "formulations/internal/event_locator.hpp"
 #include "formulations/formulation.hpp"
-#include "formulations/formulation_base.hpp"
-#include "formulations/newmark_scheme.hpp"
+#include "formulations/internal/formulation_base.hpp"
+#include "formulations/internal/newmark_scheme.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/dynamics.hpp"

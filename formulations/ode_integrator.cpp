@@ -1,6 +1,6 @@
-#include "formulations/ode_integrator.hpp"
+#include "formulations/internal/ode_integrator.hpp"
 
-#include "formulations/sundials_kernels.hpp"
+#include "formulations/internal/sundials_kernels.hpp"
 
 #include <arkode/arkode_arkstep.h>
 #include <arkode/arkode_butcher_erk.h>

@@ -1,4 +1,4 @@
-#include "formulations/sundials_kernels.hpp"
+#include "formulations/internal/sundials_kernels.hpp"
 
 #include <sunlinsol/sunlinsol_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>

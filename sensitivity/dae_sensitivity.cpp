@@ -1,5 +1,5 @@
 // Forward sensitivities of the DAE forms `dae`, `dae-reduced`, `dae-ggl` and `dae-ggl-reduced`
-// with SUNDIALS IDAS (issue 14, item 1), on the system that formulations/dae_system.hpp
+// with SUNDIALS IDAS (issue 14, item 1), on the system that formulations/internal/dae_system.hpp
 // writes once (the residual, the unknown layout, the exact Jacobian and the consistent
 // starting values are DaeSystem's).
 //
@@ -66,11 +66,11 @@
 #include <cmath>
 #include <limits>
 
-#include "formulations/dae_on_ida.hpp"
-#include "formulations/dae_system.hpp"
-#include "formulations/ida_phase.hpp"
-#include "formulations/sundials_kernels.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/dae_on_ida.hpp"
+#include "formulations/internal/dae_system.hpp"
+#include "formulations/internal/ida_phase.hpp"
+#include "formulations/internal/sundials_kernels.hpp"
+#include "formulations/internal/sundials_util.hpp"
 #include "sensitivity/sensitivity_problem.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constraint_residuals.hpp"

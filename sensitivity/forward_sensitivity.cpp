@@ -11,8 +11,8 @@
 #include <set>
 
 #include "ensembles/sweep.hpp"
-#include "formulations/sundials_kernels.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/sundials_kernels.hpp"
+#include "formulations/internal/sundials_util.hpp"
 #include "sensitivity/sensitivity_problem.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/error.hpp"
@@ -143,7 +143,7 @@ bool SensitivityOptions::IsValid(std::string* error) const {
       std::end(kSensitivityFormulations)) {
     *error = StrCat("--formulation = '", Echo(formulation),
                     "': sensitivities are implemented for ede (CVODES on y = (q, q')) and dae, dae-reduced, dae-ggl, "
-                    "dae-ggl-reduced (IDAS on the DAE of formulations/dae_system.hpp)");
+                    "dae-ggl-reduced (IDAS on the DAE of formulations/internal/dae_system.hpp)");
     return false;
   }
   if (!(rtol > 0.0 && rtol < 1.0)) {

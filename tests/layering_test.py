@@ -11,7 +11,8 @@ includes a layer above it:
      lists no libyaml (-cpp or -0), and the probe runs (exit 0: its own exact check);
   4. no library folder (solver, scene, formulations, ensembles, sensitivity) includes the
      programs' folder app/, and formulations/ includes neither ensembles/ nor sensitivity/
-     (which build on it): the arrows point down only;
+     (which build on it): the arrows point down only; the installed (public) headers of
+     formulations/ include nothing from formulations/internal/ (which is not installed);
   3. so that the test can fail, before scanning: planted bad lines must each be flagged,
      and `ldd` of --yaml-user (a program linking the loader with the shared libyaml, e.g.
      scene_test) must list a libyaml, i.e. the ldd check sees the library when it is there.
@@ -47,8 +48,14 @@ UPWARD = {
 }
 
 
+INTERNAL = re.compile(r'#\s*include\s*[<"]formulations/internal/')
+
+
 def scan_upward(folder, rel, text):
   hits = []
+  if folder == "formulations" and os.path.dirname(rel) == "formulations" and rel.endswith(".hpp"):
+    hits += [f"{rel}:{n}: a public header includes an internal one: {line.strip()}"
+             for n, line in enumerate(text.splitlines(), 1) if INTERNAL.search(line)]
   for n, line in enumerate(text.splitlines(), 1):
     m = re.search(r'#\s*include\s*[<"]([A-Za-z_]+)/', line)
     if m and m.group(1) in UPWARD[folder]:
@@ -103,6 +110,10 @@ def main():
                     ("formulations", '#include "sensitivity/sensitivity_cli.hpp"'),
                     ("ensembles", '#include "app/cli.hpp"'), ("solver", '#include <app/cli.hpp>')]
   missed += [p for folder, p in planted_upward if not scan_upward(folder, folder + "/planted.cpp", p)]
+  planted_internal = '#include "formulations/internal/ida_phase.hpp"'
+  if not scan_upward("formulations", "formulations/planted.hpp", planted_internal) or \
+     scan_upward("formulations", "formulations/planted.cpp", planted_internal):
+    missed.append(planted_internal + " (public header vs. source)")
   if scan_upward("formulations", "formulations/x.cpp", '#include "formulations/run.hpp"  // not ensembles/'):
     missed.append("(clean formulations/ include flagged)")
   if missed or scan_source("solver/x.hpp", clean) or \

@@ -1,4 +1,4 @@
-// Tests of kneedyn's SUNDIALS kernels (formulations/sundials_kernels.hpp).
+// Tests of kneedyn's SUNDIALS kernels (formulations/internal/sundials_kernels.hpp).
 //
 // Validates: every vector operation kneedyn installs gives bitwise the result of the
 // library's own serial operation (called through the same generic N_V* entry points on a
@@ -21,8 +21,8 @@
 #include <vector>
 
 #include "formulations/run.hpp"
-#include "formulations/sundials_kernels.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/sundials_kernels.hpp"
+#include "formulations/internal/sundials_util.hpp"
 #include "tests/test_support.hpp"
 
 namespace kneedyn {

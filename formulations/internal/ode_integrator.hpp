@@ -26,7 +26,7 @@
 #include <vector>
 
 #include "formulations/formulation.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/sundials_util.hpp"
 #include "solver/scalar.hpp"
 
 namespace kneedyn {
