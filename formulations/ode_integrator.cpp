@@ -32,8 +32,8 @@ SolverStats Minus(SolverStats a, const SolverStats& b) {
 }
 
 // Forward Euler (order 1) and the classical RK4 (order 4), no embedding (fixed step).
-ARKodeButcherTable FixedStepTable(const std::string& name) {
-  if (name == "euler") {
+ARKodeButcherTable FixedStepTable(IntegratorKind kind) {
+  if (kind == IntegratorKind::kEuler) {
     double c[1] = {0.0}, A[1] = {0.0}, b[1] = {1.0};
     // Table order field 2, not 1: ARKODE 6.4 caps the Hermite interpolant degree at the
     // table's q − 1, and degree 0 is the constant (y_old + y_new)/2 over the step, so roots
@@ -161,7 +161,7 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
     int q = 0, p = 0;
     if (fixed_step()) {
       Check(ARKStepSetFixedStep(mem_, step_), "ARKStepSetFixedStep");
-      table = FixedStepTable(name_);
+      table = FixedStepTable(kind_);
       q = kind_ == IntegratorKind::kEuler ? 1 : 4;
     } else {
       Check(ARKStepSStolerances(mem_, options_.rtol, options_.atol), "ARKStepSStolerances");
