@@ -23,7 +23,7 @@
 
 #include "benchmarks/bench_run.hpp"
 #include "ensembles/batch.hpp"
-#include "formulations/cli.hpp"
+#include "app/cli.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;

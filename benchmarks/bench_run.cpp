@@ -57,12 +57,12 @@ nlohmann::json BenchConfig::SettingJson() const {
 
 FormulationOptions BenchConfig::Options() const {
   FormulationOptions o;
-  o.integrator = integrator;
+  o.integrator = IntegratorOption(integrator);
   o.rtol = rtol;
   o.atol = atol;
   if (fixed_step) o.step = step;
   o.max_steps = max_steps;
-  o.stabilization = stabilization;
+  o.stabilization = ParsedOptionValue<Stabilization>(stabilization);
   return o;
 }
 

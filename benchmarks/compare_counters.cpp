@@ -29,7 +29,7 @@
 // Exit codes: 0 pass, 1 regression, 2 bad input, 77 skipped (no valgrind).
 #include <CLI/CLI.hpp>
 
-#include "formulations/cli.hpp"
+#include "app/cli.hpp"
 
 #include <algorithm>
 #include <chrono>

@@ -19,7 +19,7 @@
 // Exit codes: 0 ok, 1 drift or solver failure, 2 bad input (nothing written).
 #include <CLI/CLI.hpp>
 
-#include "formulations/cli.hpp"
+#include "app/cli.hpp"
 
 #include <chrono>
 #include <cmath>

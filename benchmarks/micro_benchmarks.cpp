@@ -8,7 +8,7 @@
 // Chapter scene (reference-data/scenes/chapter_impact.yaml), both compartments in contact,
 // the consistent start moved into the pulse (t = 0.03 s) for the residual and RHS.
 //
-//   dae/residual                 one F(t, y, ẏ) of `dae` (formulations/dae_system.hpp), the
+//   dae/residual                 one F(t, y, ẏ) of `dae` (formulations/internal/dae_system.hpp), the
 //       function IDA calls, at the chapter start moved into the pulse.
 //   dae/jacobian, dae/jacobian_jet   one dF/dy + cj dF/dẏ of `dae`: exact from blocks (the
 //       default) and the Jet<24> derivative of the whole residual (--jacobian jet), in the
@@ -47,8 +47,8 @@
 #include <string>
 #include <vector>
 
-#include "formulations/dae_system.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/dae_system.hpp"
+#include "formulations/internal/sundials_util.hpp"
 #include "formulations/run.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -209,7 +209,7 @@ FormulationOptions OptionsFor(const FormulationInfo& info) {
   }
   o.rtol = 1e-8;
   o.atol = 1e-10;
-  if (!info.integrators.empty()) o.integrator = "cvode-adams";
+  if (!info.integrators.empty()) o.integrator = IntegratorKind::kCvodeAdams;
   return o;
 }
 

@@ -88,7 +88,7 @@ int main(int argc, char** argv) {
     const bench::Reference reference = bench::LoadReference(reference_path);
     bench::BenchConfig config;
     config.formulation = spec.run.formulation;
-    config.integrator = spec.run.options.integrator;
+    config.integrator = IntegratorOptionName(spec.run.options.integrator);
     config.rtol = spec.run.options.rtol;
     config.atol = spec.run.options.atol;
     config.max_steps = spec.run.options.max_steps;

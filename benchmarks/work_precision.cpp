@@ -44,7 +44,7 @@
 #include <sstream>
 
 #include "benchmarks/bench_run.hpp"
-#include "formulations/cli.hpp"
+#include "app/cli.hpp"
 #include "formulations/progress.hpp"
 #include "formulations/version.hpp"
 #include "solver/error.hpp"
@@ -99,7 +99,7 @@ std::vector<BenchConfig> Grid(bool short_mode, double rtol_min, const std::strin
     for (int i = 0; i <= 5; ++i) steps.push_back(4e-3 / std::pow(2.0, i));
   }
   for (const FormulationInfo& info : RegisteredFormulations()) {
-    std::vector<std::string> integrators = info.integrators;
+    std::vector<std::string> integrators = OptionNames(info.integrators);
     if (integrators.empty()) integrators.push_back("");
     for (const std::string& integ : integrators) {
       BenchConfig c;
@@ -124,7 +124,8 @@ std::vector<BenchConfig> Grid(bool short_mode, double rtol_min, const std::strin
         // explicit RK method, CVODE's own (CVodeSetProjFn) with BDF.
         // Which formulations have them is their declared capability (FormulationInfo).
         const auto declares = [&info](const char* s) {
-          return std::find(info.stabilizations.begin(), info.stabilizations.end(), s) != info.stabilizations.end();
+          const Stabilization value = ParsedOptionValue<Stabilization>(s);
+          return std::find(info.stabilizations.begin(), info.stabilizations.end(), value) != info.stabilizations.end();
         };
         std::vector<std::string> stabilizations = {"none"};
         if (declares("projection") && integ == "dopri5") stabilizations.push_back("projection");

@@ -16,11 +16,14 @@ install(TARGETS kneedyn_solver kneedyn_scene kneedyn_formulations EXPORT kneedyn
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT development
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn)
 install(TARGETS kneedyn kneedyn_catalog RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
+# Public headers only: formulations/internal/ (SUNDIALS glue, the methods' shared machinery,
+# test hooks) is not installed.
 foreach(dir solver scene formulations)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn/${dir}
           COMPONENT development
-          FILES_MATCHING PATTERN "*.hpp")
+          FILES_MATCHING PATTERN "*.hpp"
+          PATTERN "internal" EXCLUDE)
 endforeach()
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/reference-data/ DESTINATION ${CMAKE_INSTALL_DATADIR}/kneedyn
         COMPONENT runtime)

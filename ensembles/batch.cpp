@@ -126,9 +126,7 @@ Batch::Batch(Scene base, RunSettings run, std::vector<std::string> outcome_group
                         "time_at_90, ligament_force_at_90, contact_force_at_90");
     }
   }
-  std::string why;
-  if (!run.options.IsValid(&why)) Throw<InputError>("kneedyn batch", why);
-  CreateFormulation(run.formulation, base, run.options);  // the factory checks its options
+  CreateFormulation(run.formulation, base, run.options);  // checks the options (ValidateOptions)
   spec_.path = "kneedyn batch";
   spec_.scene_path = base.path;
   spec_.base = std::move(base);

@@ -18,7 +18,15 @@ BatchCommand::BatchCommand(CLI::App& app) {
   cmd_->add_option("--formulation", settings_.formulation, "formulation name")->capture_default_str();
   cmd_->add_option("--rtol", settings_.options.rtol, "relative tolerance")->capture_default_str();
   cmd_->add_option("--atol", settings_.options.atol, "absolute tolerance (SI)")->capture_default_str();
-  cmd_->add_option("--integrator", settings_.options.integrator, "integrator (mde, ede)");
+  cmd_->add_option_function<std::string>(
+      "--integrator",
+      [this](const std::string& text) {
+        IntegratorKind kind{};
+        std::string why;
+        if (!ParseOptionValue(text, &kind, &why)) throw CLI::ValidationError(why);
+        settings_.options.integrator = kind;
+      },
+      "integrator (formulations with a choice: see `kneedyn formulations`)");
   cmd_->add_option("--step", settings_.options.step, "fixed step in s");
   cmd_->add_option("--output-interval", settings_.output_interval, "s between samples the outcomes see (0: scene's)");
   cmd_->add_option("--outcomes", outcomes_, "outcome groups (as in a sweep spec)")->delimiter(',')->capture_default_str();

@@ -399,7 +399,13 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
     }
     if (s.Has("rtol")) spec.run.options.rtol = s.Required("rtol").Double();
     if (s.Has("atol")) spec.run.options.atol = s.Required("atol").Double();
-    if (s.Has("integrator")) spec.run.options.integrator = s.Required("integrator").String();
+    if (s.Has("integrator")) {
+      const Node i = s.Required("integrator");
+      IntegratorKind kind{};
+      std::string why;
+      if (!ParseOptionValue(i.String(), &kind, &why)) i.Fail(why);
+      spec.run.options.integrator = kind;
+    }
     if (s.Has("max_steps")) spec.run.options.max_steps = s.Required("max_steps").Integer(1, 1L << 40);
     if (s.Has("output_interval_s")) {
       const Node oi = s.Required("output_interval_s");
@@ -407,7 +413,7 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
       if (!(spec.run.output_interval > 0.0)) oi.Fail("must be > 0");
     }
     std::string why;
-    if (!spec.run.options.IsValid(&why)) s.Fail(why);
+    if (!ValidateOptions(FindFormulation(spec.run.formulation), spec.run.options, &why)) s.Fail(why);
     if (spec.analytic == AnalyticModel::kNone) {
       // The formulation's own factory checks the options that apply to it.
       try {

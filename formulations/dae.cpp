@@ -20,7 +20,7 @@
 // `dae-reduced`: the same physics with the closed-form sphere-on-plane contact:
 // y = (q, u, N_i), n = 12 + k, constraint φ̇_i = 0 (or φ_i = 0 at position level).
 //
-// The system itself (unknowns, residual rows, exact Jacobian) is formulations/dae_system.hpp,
+// The system itself (unknowns, residual rows, exact Jacobian) is formulations/internal/dae_system.hpp,
 // shared with dae-ggl and the IDAS sensitivities. The IDA driver below (DaeOnIda) serves
 // dae, dae-reduced and, with the GGL variant of dae_ggl.cpp, dae-ggl and dae-ggl-reduced.
 //
@@ -39,12 +39,12 @@
 #include <cmath>
 #include <memory>
 
-#include "formulations/dae_on_ida.hpp"
-#include "formulations/dae_system.hpp"
-#include "formulations/dae_testing.hpp"
-#include "formulations/formulation_base.hpp"
-#include "formulations/ida_phase.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/dae_on_ida.hpp"
+#include "formulations/internal/dae_system.hpp"
+#include "formulations/internal/dae_testing.hpp"
+#include "formulations/internal/formulation_base.hpp"
+#include "formulations/internal/ida_phase.hpp"
+#include "formulations/internal/sundials_util.hpp"
 #include "solver/dynamics.hpp"
 
 namespace kneedyn {
@@ -55,23 +55,9 @@ class DaeOnIda final : public FormulationBase {
   DaeOnIda(const Scene& scene, const FormulationOptions& options, ContactForm form, const DaeOnIdaVariant& variant)
       : FormulationBase(scene),
         options_(options),
-        parsed_(options.Parsed()),
         form_(form),
         variant_(variant),
-        system_(model_, form, parsed_.constraint_level, variant.ggl) {
-    if (options.step != 0.0) {
-      Throw<InputError>(variant_.name, "--step = ", options.step, " s: ", variant_.name,
-                        " chooses its own steps (IDA); use --max-step");
-    }
-    if (parsed_.stabilization != Stabilization::kNone) {
-      Throw<InputError>(variant_.name, "--stabilization = '", options.stabilization, "' applies to ede only",
-                        variant_.ggl ? " (GGL enforces both constraint levels)" : "");
-    }
-    if (variant_.ggl && parsed_.constraint_level != ConstraintLevel::kVelocity) {
-      Throw<InputError>(variant_.name, "--constraint-level = '", options.constraint_level, "': ", variant_.name,
-                        " always enforces position and velocity level; leave the default");
-    }
-  }
+        system_(model_, form, options.constraint_level, variant.ggl) {}
   ~DaeOnIda() override { Free(); }
 
   ContactForm contact_form() const override { return form_; }
@@ -99,7 +85,7 @@ class DaeOnIda final : public FormulationBase {
       at[i] = DaeUnknownAtol(variant_.ggl, system_, i, options_.atol);  // dae_on_ida.hpp
     }
     ida_.Start(ctx_, n_, &DaeOnIda::Residual,
-               parsed_.jacobian == JacobianKind::kDifferenceQuotient ? nullptr : &DaeOnIda::Jacobian,
+               options_.jacobian == JacobianKind::kDifferenceQuotient ? nullptr : &DaeOnIda::Jacobian,
                &DaeOnIda::Roots, this, state.t, atol, id, options_, scene_.end.time, events_, variant_.name,
                &sundials_messages_);
     N_VDestroy(id);
@@ -189,7 +175,7 @@ class DaeOnIda final : public FormulationBase {
     auto* self = static_cast<DaeOnIda*>(user);
     try {
       double* J = SUNDenseMatrix_Data(JJ);
-      const bool ok = self->parsed_.jacobian == JacobianKind::kJet
+      const bool ok = self->options_.jacobian == JacobianKind::kJet
                           ? self->system_.JacobianByJets(t, cj, NvData(yy), NvData(yp), J)
                           : self->system_.Jacobian(t, cj, NvData(yy), NvData(yp), J);
       return ok ? 0 : 1;
@@ -227,7 +213,6 @@ class DaeOnIda final : public FormulationBase {
   }
 
   FormulationOptions options_;
-  ParsedFormulationOptions parsed_;
   ContactForm form_;
   DaeOnIdaVariant variant_;
   SundialsContext ctx_;
@@ -265,7 +250,7 @@ bool DaeResidualAndJacobianForTesting(const Scene& scene, const FormulationOptio
                                       ContactForm form, const MechanicalState& state, double t,
                                       const std::vector<double>& y, const std::vector<double>& yp,
                                       double cj, std::vector<double>* F, MatrixXd* J, int* size) {
-  DaeSystem system(scene.model, form, options.Parsed().constraint_level, /*ggl=*/false);
+  DaeSystem system(scene.model, form, options.constraint_level, /*ggl=*/false);
   system.SetPhase(state.active, state.contact, state.ligament_branch);
   const int n = system.size();
   if (size) *size = n;
@@ -276,7 +261,7 @@ bool DaeResidualAndJacobianForTesting(const Scene& scene, const FormulationOptio
   }
   if (J) {
     J->resize(n, n);
-    const bool ok = options.Parsed().jacobian == JacobianKind::kJet
+    const bool ok = options.jacobian == JacobianKind::kJet
                         ? system.JacobianByJets(t, cj, y.data(), yp.data(), J->data())
                         : system.Jacobian(t, cj, y.data(), yp.data(), J->data());
     if (!ok) return false;

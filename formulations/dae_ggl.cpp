@@ -37,12 +37,12 @@
 // IDASetId marks q, u differential and c, N, μ algebraic; IDASetSuppressAlg excludes the
 // algebraic unknowns from the local error test (their BDF error is not O(h^{p+1}) for
 // index 2), as in idaSlCrank_dns.c. The system (unknowns, residual, the exact Jacobian
-// dF/dy + cj dF/dẏ) is formulations/dae_system.hpp and the IDA driver that of dae
+// dF/dy + cj dF/dẏ) is formulations/internal/dae_system.hpp and the IDA driver that of dae
 // (dae_on_ida.hpp), both shared with dae; this file declares what GGL changes: the
 // stabilized system, the tolerances above and stopping at every output time.
 #include <memory>
 
-#include "formulations/dae_on_ida.hpp"
+#include "formulations/internal/dae_on_ida.hpp"
 
 namespace kneedyn {
 namespace {

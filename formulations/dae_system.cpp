@@ -1,4 +1,4 @@
-#include "formulations/dae_system.hpp"
+#include "formulations/internal/dae_system.hpp"
 
 #include <algorithm>
 

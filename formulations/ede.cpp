@@ -23,8 +23,8 @@
 #include <cstring>
 #include <memory>
 
-#include "formulations/formulation_base.hpp"
-#include "formulations/ode_integrator.hpp"
+#include "formulations/internal/formulation_base.hpp"
+#include "formulations/internal/ode_integrator.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
 
@@ -41,23 +41,13 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
         workspace_(model_) {
     acc_.normal_force.reserve(kMaxConstrainedContacts);
     normal_.assign(model_.contacts.size(), 0.0);
-    const Stabilization stabilization = options.Parsed().stabilization;
+    const Stabilization stabilization = options.stabilization;
     if (stabilization == Stabilization::kBaumgarte) {
       gains_.alpha = options.baumgarte_alpha;
       gains_.beta = options.baumgarte_beta;
     }
     project_ = stabilization == Stabilization::kProjection || stabilization == Stabilization::kCvodeProjection;
     solver_projection_ = stabilization == Stabilization::kCvodeProjection;
-    if (solver_projection_ && !integrator_.supports_solver_projection()) {
-      Throw<InputError>("EdeFormulation", "--stabilization cvode-projection with --integrator '",
-                        integrator_.name(), "': CVODE's projection (CVodeSetProjFn) exists only for "
-                        "cvode-bdf; use --integrator cvode-bdf or --stabilization projection");
-    }
-    if (project_ && !solver_projection_ && integrator_.kind() == IntegratorKind::kCvodeAdams) {
-      // The project-and-restart loop would restart the multistep method at order 1 every step.
-      Throw<InputError>("EdeFormulation", "--stabilization projection with --integrator cvode-adams: "
-                        "not supported (CVODE projects only with BDF); use cvode-bdf or an ERK method");
-    }
   }
 
   ContactForm contact_form() const override { return ContactForm::kClosedForm; }

@@ -13,8 +13,11 @@
 
 #include <functional>
 #include <limits>
+#include <map>
 #include <memory>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "scene/scene.hpp"
@@ -43,54 +46,66 @@ struct SolverStats {
   long rejected_steps() const { return error_test_failures + convergence_failures + step_halvings; }
 };
 
-// The string-valued options parsed once (FormulationOptions::Parse) into what the
-// formulations branch on.
+// The values of the options that choose a method. Spelled on the command line, in Python,
+// in sweep specs and in summary.json as OptionName gives (ParseOptionValue reads them back).
 enum class IntegratorKind { kEuler, kRk4, kDopri5, kVerner65, kFehlberg78, kCvodeBdf, kCvodeAdams };
 enum class Stabilization { kNone, kBaumgarte, kProjection, kCvodeProjection };
 enum class ConstraintLevel { kVelocity, kPosition };  // dae: index 2 | index-3 variant
-// How a Newton-based formulation gets its iteration matrix (issue 12 item 1): exact from
-// blocks differentiated at their own size (default), the Jet<24> derivative of the whole
-// residual (the reference), or the integrator's own difference quotients (IDA).
+// How a Newton-based formulation gets its iteration matrix: exact from blocks
+// differentiated at their own size (default), the Jet<24> derivative of the whole residual
+// (the reference), or the integrator's own difference quotients (IDA).
 enum class JacobianKind { kExact, kJet, kDifferenceQuotient };
-struct ParsedFormulationOptions {
-  IntegratorKind integrator = IntegratorKind::kDopri5;  // "" = dopri5 (mde, ede default)
-  Stabilization stabilization = Stabilization::kNone;
-  ConstraintLevel constraint_level = ConstraintLevel::kVelocity;
-  JacobianKind jacobian = JacobianKind::kExact;  // "" = exact
-};
 
-// Options every formulation understands; each uses the ones that apply to it and
-// rejects, in its factory, values that make no sense for it.
+const char* OptionName(IntegratorKind value);   // "euler", ..., "cvode-adams"
+const char* OptionName(Stabilization value);    // "none", "baumgarte", ...
+const char* OptionName(ConstraintLevel value);  // "velocity", "position"
+const char* OptionName(JacobianKind value);     // "exact", "jet", "difference-quotient"
+// `text` as the value it spells; false, with a message naming the option (--integrator, ...),
+// the text and the accepted spellings, when it spells none.
+bool ParseOptionValue(const std::string& text, IntegratorKind* value, std::string* error);
+bool ParseOptionValue(const std::string& text, Stabilization* value, std::string* error);
+bool ParseOptionValue(const std::string& text, ConstraintLevel* value, std::string* error);
+bool ParseOptionValue(const std::string& text, JacobianKind* value, std::string* error);
+// Throwing variant: InputError with that message.
+template <typename Enum>
+Enum ParsedOptionValue(const std::string& text);
+// For drivers that name integrators as text: "" (not given) <-> no value.
+std::optional<IntegratorKind> IntegratorOption(const std::string& text);  // throws InputError
+std::string IntegratorOptionName(std::optional<IntegratorKind> integrator);
+// The spellings of a list of values (a capability list of FormulationInfo).
+template <typename Enum>
+std::vector<std::string> OptionNames(const std::vector<Enum>& values) {
+  std::vector<std::string> names;
+  for (Enum v : values) names.push_back(OptionName(v));
+  return names;
+}
+
+// The typed options of every formulation: each uses the ones that apply to it. They are
+// checked once, by ValidateOptions, against the rules all share and the formulation's
+// FormulationInfo; a constructor receives them valid and compares no strings.
 struct FormulationOptions {
   double rtol = 1.0e-6;           // relative tolerance (adaptive methods)
   double atol = 1.0e-8;           // absolute tolerance (SI units of each state)
-  std::string integrator;         // mde/ede: euler|rk4|dopri5|verner65|fehlberg78|cvode-bdf|cvode-adams
+  std::optional<IntegratorKind> integrator;  // mde, ede; not given: dopri5
   double step = 0.0;              // s: fixed step (euler, rk4, newmark); 0 = method default
   double max_step = 0.0;          // s: cap on adaptive steps; 0 = none
   long max_steps = 200000;        // per phase
-  std::string stabilization = "none";  // ede: none|baumgarte|projection|cvode-projection
+  Stabilization stabilization = Stabilization::kNone;  // ede
   double baumgarte_alpha = 20.0;  // 1/s
   double baumgarte_beta = 20.0;   // 1/s
   // dae, newmark: chart of the contact coordinates (contact.hpp): regular | height-field
   ContactChart contact_chart = ContactChart::kRegular;
-  std::string constraint_level = "velocity";  // dae: velocity (index 2) | position (index 3)
-  // dae*, dae-ggl*, newmark*, generalized-alpha*: exact | jet | difference-quotient (IDA
-  // only); "" = exact (FormulationInfo::jacobians lists what a formulation accepts).
-  std::string jacobian;
+  ConstraintLevel constraint_level = ConstraintLevel::kVelocity;  // dae: index 2 | index 3
+  // dae*, dae-ggl*, newmark*, generalized-alpha*; not given: exact (FormulationInfo::jacobians
+  // lists what a formulation accepts; one that forms no Newton matrix accepts none).
+  std::optional<JacobianKind> jacobian;
   // generalized-alpha (newmark_scheme.hpp): spectral radius at infinity ρ∞ ∈ [0, 1], or
-  // the four parameters explicitly (all four finite; NaN = from ρ∞).
+  // the four parameters explicitly (all four or none; none: from ρ∞).
   double rho_inf = 0.9;
-  double alpha_m = std::numeric_limits<double>::quiet_NaN();
-  double alpha_f = std::numeric_limits<double>::quiet_NaN();
-  double newmark_beta = std::numeric_limits<double>::quiet_NaN();
-  double newmark_gamma = std::numeric_limits<double>::quiet_NaN();
-
-  // Ceres Solver::Options::IsValid style: names the option, its value and the rule.
-  bool IsValid(std::string* error) const;
-  // The string options as enums; false (with the IsValid message) when one is unknown.
-  // Throwing variant: InputError with that message.
-  bool Parse(ParsedFormulationOptions* out, std::string* error) const;
-  ParsedFormulationOptions Parsed() const;
+  std::optional<double> alpha_m;
+  std::optional<double> alpha_f;
+  std::optional<double> newmark_beta;
+  std::optional<double> newmark_gamma;
 };
 
 enum class AdvanceStatus { kReachedTime, kEvent };
@@ -139,26 +154,59 @@ using FormulationFactory =
 enum class SensitivityForm { kNone, kOde, kDae, kDaeGgl };
 
 // What a formulation can do, declared once in its registry line: drivers and tests ask
-// these (and GTEST_SKIP on them) instead of comparing names.
+// these (and GTEST_SKIP on them) instead of comparing names. Each capability is a named
+// field; a registry line sets the ones that differ from the defaults through the setters:
+//   FormulationInfo("name", "summary", KNEEDYN_FACTORY(CreateName)).FixedStep().Jacobians({...})
 struct FormulationInfo {
   std::string name;
   std::string summary;
-  std::vector<std::string> integrators;  // values --integrator accepts; empty: none
   FormulationFactory create;
+  std::vector<IntegratorKind> integrators;  // values --integrator accepts; empty: none
   bool fixed_step = false;  // steps only with --step (its tolerances drive a Newton test)
   // The contact forces are unknowns of the solver (DAE, Newton on the step equations) rather
   // than computed from the state (ODE formulations through the hidden constraint).
   bool algebraic_forces = false;
-  std::vector<std::string> stabilizations = {"none"};      // values --stabilization accepts
-  std::vector<std::string> constraint_levels = {"velocity"};  // values --constraint-level accepts
+  std::vector<Stabilization> stabilizations = {Stabilization::kNone};          // --stabilization
+  std::vector<ConstraintLevel> constraint_levels = {ConstraintLevel::kVelocity};  // --constraint-level
   bool general_surfaces = true;  // any surface pair (contact_kinematics.hpp), not only sphere on plane
   bool event_location = true;    // locates event roots inside a step (root finder or event locator)
-  std::vector<std::string> jacobians = {};  // values --jacobian accepts; empty: the option does not apply
+  std::vector<JacobianKind> jacobians;  // values --jacobian accepts; empty: the option does not apply
+  // Takes the generalized-alpha parameters (--rho-inf, --alpha-m, --alpha-f, --beta, --gamma).
+  bool scheme_parameters = false;
+  // Which forward sensitivities `kneedyn sensitivity` runs for it (none: not available).
   SensitivityForm sensitivity = SensitivityForm::kNone;
+
+  FormulationInfo(std::string name_, std::string summary_, FormulationFactory create_)
+      : name(std::move(name_)), summary(std::move(summary_)), create(std::move(create_)) {}
+  FormulationInfo& Integrators(std::vector<IntegratorKind> v) { integrators = std::move(v); return *this; }
+  FormulationInfo& FixedStep() { fixed_step = true; return *this; }
+  FormulationInfo& AlgebraicForces() { algebraic_forces = true; return *this; }
+  FormulationInfo& Stabilizations(std::vector<Stabilization> v) { stabilizations = std::move(v); return *this; }
+  FormulationInfo& ConstraintLevels(std::vector<ConstraintLevel> v) { constraint_levels = std::move(v); return *this; }
+  FormulationInfo& SphereOnPlaneOnly() { general_surfaces = false; return *this; }
+  FormulationInfo& NoEventLocation() { event_location = false; return *this; }
+  FormulationInfo& Jacobians(std::vector<JacobianKind> v) { jacobians = std::move(v); return *this; }
+  FormulationInfo& SchemeParameters() { scheme_parameters = true; return *this; }
+  FormulationInfo& Sensitivity(SensitivityForm form) { sensitivity = form; return *this; }
 };
+
+// How the user spelled options on the command line ("--rtol" -> "1e-6"), so that messages
+// echo the text; options absent from it are printed from their values.
+using OptionText = std::map<std::string, std::string>;
+
+// The one check of FormulationOptions: the rules every formulation shares (ranges of the
+// numbers) and what `info` accepts (integrators, stabilizations, constraint levels,
+// Jacobians, step control, scheme parameters). False with a message naming the option, its
+// value as typed and the rule. The CLI, Python, sweep specs and batches call it where the
+// options come in; CreateFormulation calls it before the factory, as its precondition.
+bool ValidateOptions(const FormulationInfo& info, const FormulationOptions& options, std::string* error,
+                     const OptionText& typed = {});
+// Throwing variant: InputError with that message.
+void CheckOptions(const FormulationInfo& info, const FormulationOptions& options, const OptionText& typed = {});
 
 // Adaptive step size under --rtol/--atol (error control): not IsFixedStep.
 bool HasErrorControl(const FormulationInfo& info, const std::string& integrator);
+bool HasErrorControl(const FormulationInfo& info, std::optional<IntegratorKind> integrator);
 
 // A registry line's factory (registry.cpp): a Create function defined in the formulation's
 // own file, declared inside the lambda, so that the registry line is all a new formulation
@@ -182,7 +230,9 @@ constexpr double kForceAtolScale = 1.0e4;
 // Whether (formulation, integrator) advances with a fixed --step rather than error control:
 // a fixed-step formulation, or the fixed-step integrators euler and rk4. Drivers (tests,
 // catalog, benchmarks) use it to choose a step grid or a tolerance grid.
+// `integrator` as spelled ("" = not given) or as typed.
 bool IsFixedStep(const FormulationInfo& info, const std::string& integrator);
+bool IsFixedStep(const FormulationInfo& info, std::optional<IntegratorKind> integrator);
 
 // The registry (registry.cpp), in a stable order.
 const std::vector<FormulationInfo>& RegisteredFormulations();

@@ -11,7 +11,7 @@
 // --alpha-f, --beta, --gamma (all four) set them explicitly (αm = αf = 0, β = 1/4, γ = 1/2
 // reproduces `newmark`). Fixed step --step (default 1e-4 s); --rtol/--atol drive the Newton
 // test as for newmark.
-#include "formulations/newmark_scheme.hpp"
+#include "formulations/internal/newmark_scheme.hpp"
 
 namespace kneedyn {
 

@@ -29,8 +29,8 @@
 #include <cmath>
 #include <memory>
 
-#include "formulations/formulation_base.hpp"
-#include "formulations/ode_integrator.hpp"
+#include "formulations/internal/formulation_base.hpp"
+#include "formulations/internal/ode_integrator.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/units.hpp"
@@ -71,10 +71,6 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
       : FormulationBase(scene), options_(options), integrator_(options, "mde"),
         data_(model_) {
     normal_.assign(model_.contacts.size(), 0.0);
-    if (options.Parsed().stabilization != Stabilization::kNone) {
-      Throw<InputError>("MdeFormulation", "--stabilization = '", options.stabilization,
-                        "' applies to ede only (mde has no drift)");
-    }
   }
 
   ContactForm contact_form() const override { return ContactForm::kClosedForm; }

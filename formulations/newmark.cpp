@@ -54,10 +54,10 @@
 #include <string>
 #include <vector>
 
-#include "formulations/event_locator.hpp"
+#include "formulations/internal/event_locator.hpp"
 #include "formulations/formulation.hpp"
-#include "formulations/formulation_base.hpp"
-#include "formulations/newmark_scheme.hpp"
+#include "formulations/internal/formulation_base.hpp"
+#include "formulations/internal/newmark_scheme.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/dynamics.hpp"
@@ -97,15 +97,7 @@ class NewmarkFormulation final : public FormulationBase {
       : FormulationBase(scene), options_(options), form_(form), scheme_(scheme), data_(model_),
         data_jet_(model_) {
     if (name == nullptr) name = form == ContactForm::kChapter ? "newmark" : "newmark-reduced";
-    if (options.stabilization != "none") {
-      Throw<InputError>("NewmarkFormulation", "--stabilization = '", options.stabilization,
-                        "' applies to ede only; ", name, " enforces the contacts at position level");
-    }
-    if (options.max_step != 0.0) {
-      Throw<InputError>("NewmarkFormulation", "--max-step = ", options.max_step, " s: ", name,
-                        " takes fixed steps; use --step");
-    }
-    jet_jacobian_ = options.Parsed().jacobian == JacobianKind::kJet;
+    jet_jacobian_ = options.jacobian == JacobianKind::kJet;
     step_ = options.step > 0.0 ? options.step : kDefaultFixedStep;
     if (step_ > scene.end.time) {
       Throw<InputError>("NewmarkFormulation", "--step = ", step_, " s exceeds the scene's end time ",
@@ -595,11 +587,9 @@ std::unique_ptr<Formulation> CreateNewmarkScheme(const Scene& scene, const Formu
 }
 
 std::unique_ptr<Formulation> CreateNewmark(const Scene& scene, const FormulationOptions& options) {
-  RejectGeneralizedAlphaOptions(options, "newmark");
   return std::make_unique<NewmarkFormulation>(scene, options, ContactForm::kChapter);
 }
 std::unique_ptr<Formulation> CreateNewmarkReduced(const Scene& scene, const FormulationOptions& options) {
-  RejectGeneralizedAlphaOptions(options, "newmark-reduced");
   return std::make_unique<NewmarkFormulation>(scene, options, ContactForm::kClosedForm);
 }
 

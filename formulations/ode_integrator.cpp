@@ -1,6 +1,6 @@
-#include "formulations/ode_integrator.hpp"
+#include "formulations/internal/ode_integrator.hpp"
 
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/sundials_util.hpp"
 
 #include <arkode/arkode_arkstep.h>
 #include <arkode/arkode_butcher_erk.h>
@@ -32,8 +32,8 @@ SolverStats Minus(SolverStats a, const SolverStats& b) {
 }
 
 // Forward Euler (order 1) and the classical RK4 (order 4), no embedding (fixed step).
-ARKodeButcherTable FixedStepTable(const std::string& name) {
-  if (name == "euler") {
+ARKodeButcherTable FixedStepTable(IntegratorKind kind) {
+  if (kind == IntegratorKind::kEuler) {
     double c[1] = {0.0}, A[1] = {0.0}, b[1] = {1.0};
     // Table order field 2, not 1: ARKODE 6.4 caps the Hermite interpolant degree at the
     // table's q − 1, and degree 0 is the constant (y_old + y_new)/2 over the step, so roots
@@ -55,27 +55,12 @@ ARKodeButcherTable FixedStepTable(const std::string& name) {
 
 }  // namespace
 
-const std::vector<std::string>& OdeIntegrator::Names() {
-  static const std::vector<std::string> kNames = {"euler",      "rk4",       "dopri5",     "verner65",
-                                                  "fehlberg78", "cvode-bdf", "cvode-adams"};
-  return kNames;
-}
-
 OdeIntegrator::OdeIntegrator(const FormulationOptions& options, std::string owner)
-    : options_(options), owner_(std::move(owner)), name_(options.integrator.empty() ? "dopri5" : options.integrator) {
-  bool known = false;
-  for (const std::string& n : Names()) known = known || n == name_;
-  if (!known) {
-    Throw<InputError>("OdeIntegrator", "--integrator = '", name_, "' for ", owner_,
-                      "; must be euler, rk4, dopri5, verner65, fehlberg78, cvode-bdf or cvode-adams");
-  }
-  kind_ = options.Parsed().integrator;
-  if (fixed_step()) {
-    step_ = options.step > 0.0 ? options.step : kDefaultFixedStep;
-  } else if (options.step != 0.0) {
-    Throw<InputError>("OdeIntegrator", "--step = ", options.step, " s with --integrator ", name_,
-                      " (", owner_, "): only euler and rk4 take a fixed step; use --max-step");
-  }
+    : options_(options),
+      owner_(std::move(owner)),
+      kind_(options.integrator.value_or(IntegratorKind::kDopri5)),
+      name_(OptionName(kind_)) {
+  if (fixed_step()) step_ = options.step > 0.0 ? options.step : kDefaultFixedStep;
 }
 
 OdeIntegrator::~OdeIntegrator() { Free(); }
@@ -176,7 +161,7 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
     int q = 0, p = 0;
     if (fixed_step()) {
       Check(ARKStepSetFixedStep(mem_, step_), "ARKStepSetFixedStep");
-      table = FixedStepTable(name_);
+      table = FixedStepTable(kind_);
       q = kind_ == IntegratorKind::kEuler ? 1 : 4;
     } else {
       Check(ARKStepSStolerances(mem_, options_.rtol, options_.atol), "ARKStepSStolerances");

@@ -1,25 +1,34 @@
-// The formulation registry: one line per formulation (formulation.hpp), with its
-// capabilities; KNEEDYN_FACTORY declares the Create function defined in the formulation's file.
-// Fields: name, summary, integrators, factory, fixed_step, algebraic_forces, stabilizations,
-// constraint_levels (then general_surfaces, event_location: true unless given; jacobians: the
-// --jacobian values, none unless given; sensitivity: the form's forward sensitivities, none
-// unless given).
+// The formulation registry: one line per formulation (formulation.hpp). A line names the
+// formulation, says what it is, gives its factory (KNEEDYN_FACTORY declares the Create
+// function defined in the formulation's own file) and sets, by name, the capabilities that
+// differ from FormulationInfo's defaults.
 #include "formulations/formulation.hpp"
 
 namespace kneedyn {
+namespace {
+
+const std::vector<IntegratorKind> kOdeIntegrators = {
+    IntegratorKind::kEuler,      IntegratorKind::kRk4,      IntegratorKind::kDopri5,    IntegratorKind::kVerner65,
+    IntegratorKind::kFehlberg78, IntegratorKind::kCvodeBdf, IntegratorKind::kCvodeAdams};
+const std::vector<ConstraintLevel> kBothLevels = {ConstraintLevel::kVelocity, ConstraintLevel::kPosition};
+const std::vector<JacobianKind> kIdaJacobians = {JacobianKind::kExact, JacobianKind::kJet,
+                                                 JacobianKind::kDifferenceQuotient};
+const std::vector<JacobianKind> kNewtonJacobians = {JacobianKind::kExact, JacobianKind::kJet};
+
+}  // namespace
 
 const std::vector<FormulationInfo>& RegisteredFormulations() {
   static const std::vector<FormulationInfo> kRegistry = {
-      {"dae", "chapter's index-2 DAE (modified reverse EDE), contact coordinates, IDA", {}, KNEEDYN_FACTORY(CreateDae), false, true, {"none"}, {"velocity", "position"}, true, true, {"exact", "jet", "difference-quotient"}, SensitivityForm::kDae},
-      {"dae-reduced", "index-2 DAE with closed-form sphere-on-plane contact, IDA", {}, KNEEDYN_FACTORY(CreateDaeReduced), false, true, {"none"}, {"velocity", "position"}, true, true, {"exact", "jet", "difference-quotient"}, SensitivityForm::kDae},
-      {"dae-ggl", "Gear-Gupta-Leimkuhler stabilized index-2 DAE (position and velocity constraints), contact coordinates, IDA", {}, KNEEDYN_FACTORY(CreateDaeGgl), false, true, {"none"}, {"velocity"}, true, true, {"exact", "jet", "difference-quotient"}, SensitivityForm::kDaeGgl},
-      {"dae-ggl-reduced", "GGL stabilized index-2 DAE with closed-form sphere-on-plane contact, IDA", {}, KNEEDYN_FACTORY(CreateDaeGglReduced), false, true, {"none"}, {"velocity"}, true, true, {"exact", "jet", "difference-quotient"}, SensitivityForm::kDaeGgl},
-      {"newmark", "chapter's reverse EDE: Newmark average acceleration, position-level contact coordinates, Newton", {}, KNEEDYN_FACTORY(CreateNewmark), true, true, {"none"}, {"velocity"}, true, true, {"exact", "jet"}},
-      {"newmark-reduced", "reverse EDE with closed-form sphere-on-plane gap, Newmark average acceleration", {}, KNEEDYN_FACTORY(CreateNewmarkReduced), true, true, {"none"}, {"velocity"}, true, true, {"exact", "jet"}},
-      {"generalized-alpha", "reverse EDE with the generalized-alpha scheme (Arnold-Bruels index 3, Chung-Hulbert --rho-inf), contact coordinates, Newton", {}, KNEEDYN_FACTORY(CreateGeneralizedAlpha), true, true, {"none"}, {"velocity"}, true, true, {"exact", "jet"}},
-      {"generalized-alpha-reduced", "generalized-alpha with closed-form sphere-on-plane gap", {}, KNEEDYN_FACTORY(CreateGeneralizedAlphaReduced), true, true, {"none"}, {"velocity"}, true, true, {"exact", "jet"}},
-      {"mde", "minimal ODE: closed-form elimination of the contact translations, projected Newton-Euler", {"euler", "rk4", "dopri5", "verner65", "fehlberg78", "cvode-bdf", "cvode-adams"}, KNEEDYN_FACTORY(CreateMde)},
-      {"ede", "excess ODE in (q, qdot) with the hidden constraint; --stabilization none|baumgarte|projection|cvode-projection", {"euler", "rk4", "dopri5", "verner65", "fehlberg78", "cvode-bdf", "cvode-adams"}, KNEEDYN_FACTORY(CreateEde), false, false, {"none", "baumgarte", "projection", "cvode-projection"}, {"velocity"}, true, true, {}, SensitivityForm::kOde},
+      FormulationInfo("dae", "chapter's index-2 DAE (modified reverse EDE), contact coordinates, IDA", KNEEDYN_FACTORY(CreateDae)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDae),
+      FormulationInfo("dae-reduced", "index-2 DAE with closed-form sphere-on-plane contact, IDA", KNEEDYN_FACTORY(CreateDaeReduced)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDae),
+      FormulationInfo("dae-ggl", "Gear-Gupta-Leimkuhler stabilized index-2 DAE (position and velocity constraints), contact coordinates, IDA", KNEEDYN_FACTORY(CreateDaeGgl)).AlgebraicForces().Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDaeGgl),
+      FormulationInfo("dae-ggl-reduced", "GGL stabilized index-2 DAE with closed-form sphere-on-plane contact, IDA", KNEEDYN_FACTORY(CreateDaeGglReduced)).AlgebraicForces().Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDaeGgl),
+      FormulationInfo("newmark", "chapter's reverse EDE: Newmark average acceleration, position-level contact coordinates, Newton", KNEEDYN_FACTORY(CreateNewmark)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians),
+      FormulationInfo("newmark-reduced", "reverse EDE with closed-form sphere-on-plane gap, Newmark average acceleration", KNEEDYN_FACTORY(CreateNewmarkReduced)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians),
+      FormulationInfo("generalized-alpha", "reverse EDE with the generalized-alpha scheme (Arnold-Bruels index 3, Chung-Hulbert --rho-inf), contact coordinates, Newton", KNEEDYN_FACTORY(CreateGeneralizedAlpha)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians).SchemeParameters(),
+      FormulationInfo("generalized-alpha-reduced", "generalized-alpha with closed-form sphere-on-plane gap", KNEEDYN_FACTORY(CreateGeneralizedAlphaReduced)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians).SchemeParameters(),
+      FormulationInfo("mde", "minimal ODE: closed-form elimination of the contact translations, projected Newton-Euler", KNEEDYN_FACTORY(CreateMde)).Integrators(kOdeIntegrators),
+      FormulationInfo("ede", "excess ODE in (q, qdot) with the hidden constraint; --stabilization none|baumgarte|projection|cvode-projection", KNEEDYN_FACTORY(CreateEde)).Integrators(kOdeIntegrators).Stabilizations({Stabilization::kNone, Stabilization::kBaumgarte, Stabilization::kProjection, Stabilization::kCvodeProjection}).Sensitivity(SensitivityForm::kOde),
   };
   return kRegistry;
 }

@@ -66,7 +66,9 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
   }
   result.stats = formulation->stats();
   result.integrator = formulation->integrator();
-  if (result.integrator.empty()) result.integrator = settings.options.integrator;
+  if (result.integrator.empty() && settings.options.integrator) {
+    result.integrator = OptionName(*settings.options.integrator);
+  }
   result.fixed_step = formulation->fixed_step();
   result.wall_time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -119,7 +120,7 @@ namespace {
 nlohmann::json JacobianSetting(const RunSettings& settings) {
   const FormulationInfo& info = FindFormulation(settings.formulation);
   if (info.jacobians.empty()) return nullptr;
-  return settings.options.jacobian.empty() ? std::string("exact") : settings.options.jacobian;
+  return OptionName(settings.options.jacobian.value_or(JacobianKind::kExact));
 }
 
 
@@ -149,12 +150,18 @@ nlohmann::json StateJson(const Scene& scene, const MechanicalState& st) {
 
 const char* const kOutputFiles[] = {"trajectory.csv", "trajectory.sto", "summary.json"};
 
-void WriteFile(const fs::path& path, const std::string& text) {
+void WriteFile(const std::string& dir_name, const fs::path& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
-  if (!out) Throw<InputError>("WriteRunOutputs", "cannot write '", Echo(path.string(), 256), "'");
+  if (!out) {
+    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': cannot write '",
+                      Echo(path.string(), 256), "'");
+  }
   out << text;
   out.close();
-  if (!out) Throw<InputError>("WriteRunOutputs", "failed writing '", Echo(path.string(), 256), "'");
+  if (!out) {
+    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': failed writing '",
+                      Echo(path.string(), 256), "'");
+  }
 }
 
 // --out without a trailing '/', so that parent_path() and filename() name the directory.
@@ -189,6 +196,40 @@ void RemoveStaleTemporaries(const fs::path& out) {
 
 }  // namespace
 
+// A run creates its temporary beside `out` (creating the missing parents first) and, when
+// `out` exists, moves the previous set out of the way and deletes it. Both are checked here,
+// before the run, so that a refused --out costs no integration and leaves nothing behind:
+// deleting the previous set needs write permission on `out` itself (a set published into a
+// read-only directory could otherwise be swapped aside and then never removed), and the
+// nearest existing ancestor must take a new directory, which a probe directory (created and
+// removed at once) shows where permissions alone cannot (e.g. /proc, read-only mounts).
+namespace {
+
+void CheckOutputWritable(const std::string& dir_name, const fs::path& out, bool exists) {
+  if (exists && ::access(out.c_str(), W_OK | X_OK) != 0) {
+    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': ", std::strerror(errno),
+                      "; a run replaces the directory and its files, so it must be writable");
+  }
+  std::error_code ec;
+  fs::path ancestor = out.parent_path().empty() ? fs::path(".") : out.parent_path();
+  while (!fs::exists(fs::symlink_status(ancestor, ec)) && ancestor.has_parent_path() &&
+         ancestor.parent_path() != ancestor) {
+    ancestor = ancestor.parent_path();
+  }
+  if (!fs::is_directory(ancestor, ec)) {
+    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': '", Echo(ancestor.string(), 256),
+                      "' is not a directory");
+  }
+  const fs::path probe = ancestor / StrCat(TempPrefix(out), ::getpid(), "-probe");
+  if (::mkdir(probe.c_str(), 0700) != 0 && errno != EEXIST) {
+    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': cannot create a directory in '",
+                      Echo(ancestor.string(), 256), "' (", std::strerror(errno), ")");
+  }
+  ::rmdir(probe.c_str());
+}
+
+}  // namespace
+
 void CheckOutputDirectory(const std::string& dir_name) {
   const fs::path out = OutputPath(dir_name);
   std::error_code ec;
@@ -196,7 +237,7 @@ void CheckOutputDirectory(const std::string& dir_name) {
   if (ec && ec != std::errc::no_such_file_or_directory) {
     Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': ", ec.message());
   }
-  if (!fs::exists(st)) return;
+  if (!fs::exists(st)) return CheckOutputWritable(dir_name, out, /*exists=*/false);
   if (!fs::is_directory(st)) {
     Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "' exists and is not a directory");
   }
@@ -210,6 +251,7 @@ void CheckOutputDirectory(const std::string& dir_name) {
     }
   }
   if (ec) Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': ", ec.message());
+  CheckOutputWritable(dir_name, out, /*exists=*/true);
 }
 
 namespace {
@@ -222,8 +264,8 @@ void Publish(const fs::path& tmp, const fs::path& out) {
     if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, out.c_str(), RENAME_EXCHANGE) == 0) return;
     if (errno != ENOENT) break;  // ENOENT: `out` vanished in between (another run); again
   }
-  Throw<InputError>("WriteRunOutputs", "cannot publish '", Echo(tmp.string(), 256), "' as '",
-                    Echo(out.string(), 256), "': ", std::strerror(errno));
+  Throw<InputError>("WriteRunOutputs", "--out = '", Echo(out.string(), 256), "': cannot publish '",
+                    Echo(tmp.string(), 256), "' as it: ", std::strerror(errno));
 }
 }  // namespace
 
@@ -254,9 +296,9 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
                    {"mean_step_s", result.stats.steps > 0 && span > 0.0
                                        ? nlohmann::json(span / static_cast<double>(result.stats.steps))
                                        : nlohmann::json(nullptr)},
-                   {"requested", {{"integrator", o.integrator}, {"step_s", o.step}}},
+                   {"requested", {{"integrator", o.integrator ? OptionName(*o.integrator) : ""}, {"step_s", o.step}}},
                    {"max_step_s", o.max_step},
-                   {"stabilization", o.stabilization}, {"constraint_level", o.constraint_level},
+                   {"stabilization", OptionName(o.stabilization)}, {"constraint_level", OptionName(o.constraint_level)},
                    {"jacobian", JacobianSetting(settings)},
                    {"output_interval_s", settings.output_interval > 0 ? settings.output_interval : scene.output_interval}};
   const InitReport& ir = result.init;
@@ -337,10 +379,10 @@ void WriteRunOutputs(const std::string& dir_name, const Scene& scene, const RunS
       csv += '\n';
       sto += '\n';
     }
-    WriteFile(tmp / "trajectory.csv", csv);
-    WriteFile(tmp / "trajectory.sto", sto);
+    WriteFile(dir_name, tmp / "trajectory.csv", csv);
+    WriteFile(dir_name, tmp / "trajectory.sto", sto);
     // Invalid UTF-8 (e.g. in a file path) is replaced, never thrown on.
-    WriteFile(tmp / "summary.json",
+    WriteFile(dir_name, tmp / "summary.json",
               SummaryJson(scene, settings, result).dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
     Publish(tmp, out);
   } catch (...) {

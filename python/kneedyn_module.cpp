@@ -215,11 +215,11 @@ PYBIND11_MODULE(_kneedyn, m) {
       py::dict d;
       d["name"] = f.name;
       d["summary"] = f.summary;
-      d["integrators"] = f.integrators;
+      d["integrators"] = OptionNames(f.integrators);
       d["fixed_step"] = f.fixed_step;
       std::vector<std::string> fixed;
-      for (const std::string& i : f.integrators) {
-        if (IsFixedStep(f, i)) fixed.push_back(i);
+      for (IntegratorKind i : f.integrators) {
+        if (IsFixedStep(f, i)) fixed.push_back(OptionName(i));
       }
       d["fixed_step_integrators"] = fixed;
       out.append(d);
@@ -232,13 +232,13 @@ PYBIND11_MODULE(_kneedyn, m) {
     py::dict d;
     d["rtol"] = o.rtol;
     d["atol"] = o.atol;
-    d["integrator"] = o.integrator;
+    d["integrator"] = IntegratorOptionName(o.integrator);
     d["step"] = o.step;
     d["max_step"] = o.max_step;
     d["max_steps"] = o.max_steps;
-    d["stabilization"] = o.stabilization;
-    d["constraint_level"] = o.constraint_level;
-    d["jacobian"] = o.jacobian;
+    d["stabilization"] = OptionName(o.stabilization);
+    d["constraint_level"] = OptionName(o.constraint_level);
+    d["jacobian"] = o.jacobian ? OptionName(*o.jacobian) : "";
     d["default_fixed_step"] = kDefaultFixedStep;
     return d;
   });
@@ -251,13 +251,15 @@ PYBIND11_MODULE(_kneedyn, m) {
     settings.formulation = formulation;
     settings.options.rtol = rtol;
     settings.options.atol = atol;
-    settings.options.integrator = integrator;
+    // The boundary: names parsed into the typed options and all of them checked once.
+    settings.options.integrator = IntegratorOption(integrator);
     settings.options.step = step;
     settings.options.max_step = max_step;
     settings.options.max_steps = max_steps;
-    settings.options.stabilization = stabilization;
-    settings.options.constraint_level = constraint_level;
-    settings.options.jacobian = jacobian;
+    settings.options.stabilization = ParsedOptionValue<Stabilization>(stabilization);
+    settings.options.constraint_level = ParsedOptionValue<ConstraintLevel>(constraint_level);
+    if (!jacobian.empty()) settings.options.jacobian = ParsedOptionValue<JacobianKind>(jacobian);
+    CheckOptions(FindFormulation(formulation), settings.options);
     settings.output_interval = output_interval;
     auto out = std::make_shared<RunOutput>();
     {

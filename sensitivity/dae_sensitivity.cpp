@@ -1,6 +1,6 @@
 // Forward sensitivities of the DAE forms (the registry's SensitivityForm::kDae and kDaeGgl:
 // `dae`, `dae-reduced`, `dae-ggl`, `dae-ggl-reduced`) with SUNDIALS IDAS, on the system that
-// formulations/dae_system.hpp writes once (the residual, the unknown layout, the exact
+// formulations/internal/dae_system.hpp writes once (the residual, the unknown layout, the exact
 // Jacobian and the consistent starting values are DaeSystem's).
 //
 // State: F(t, y, ẏ; p) = 0, y = (q, u, c_i, N_i) (chapter form; closed form y = (q, u, N_i);
@@ -67,11 +67,11 @@
 #include <cmath>
 #include <limits>
 
-#include "formulations/dae_on_ida.hpp"
-#include "formulations/dae_system.hpp"
-#include "formulations/ida_phase.hpp"
+#include "formulations/internal/dae_on_ida.hpp"
+#include "formulations/internal/dae_system.hpp"
+#include "formulations/internal/ida_phase.hpp"
 #include "formulations/simulator.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/sundials_util.hpp"
 #include "sensitivity/sensitivity_problem.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constraint_residuals.hpp"

@@ -12,7 +12,7 @@
 
 #include "ensembles/sweep.hpp"
 #include "formulations/simulator.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/sundials_util.hpp"
 #include "sensitivity/sensitivity_problem.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/error.hpp"
@@ -487,7 +487,7 @@ bool SensitivityOptions::IsValid(std::string* error) const {
       list += (list.empty() ? "" : ", ") + f;
     }
     *error = StrCat("--formulation = '", Echo(formulation), "': sensitivities are implemented for ", ode,
-                    " (CVODES on y = (q, q')) and ", dae, " (IDAS on the DAE of formulations/dae_system.hpp)");
+                    " (CVODES on y = (q, q')) and ", dae, " (IDAS on the DAE of formulations/internal/dae_system.hpp)");
     return false;
   }
   if (!(rtol > 0.0 && rtol < 1.0)) {

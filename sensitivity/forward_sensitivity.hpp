@@ -37,7 +37,7 @@
 // differences of the solver/ functions (no physics re-derived here).
 //
 // --formulation dae | dae-reduced | dae-ggl | dae-ggl-reduced: the same outcomes, names and
-// result from the index-2 DAE of formulations/dae_system.hpp on SUNDIALS IDAS
+// result from the index-2 DAE of formulations/internal/dae_system.hpp on SUNDIALS IDAS
 // (dae_sensitivity.cpp: consistent initial sensitivities, the sensitivity residual, the
 // algebraic unknowns re-solved at each restart).
 #pragma once

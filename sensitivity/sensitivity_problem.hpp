@@ -330,7 +330,7 @@ inline bool RecordEvent(const Mode& mode, const std::vector<int>& fired, double 
 }
 
 // The DAE forms (dae_sensitivity.cpp): integrates `problem`'s scene at `values` with IDAS on
-// formulations/dae_system.hpp and fills `result` (sized by the caller: outcomes, NaN values
+// formulations/internal/dae_system.hpp and fills `result` (sized by the caller: outcomes, NaN values
 // and derivatives) with the values, derivatives, events, trajectory and counters.
 void RunDaeSensitivity(Problem& problem, const std::vector<double>& values, const SensitivityOptions& options,
                        SensitivityResult* result);

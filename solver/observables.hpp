@@ -1,6 +1,6 @@
 // Quantities derived from one mechanical state — the one place they are computed for the
 // trajectory writer (formulations/run_output.cpp), the benchmark metrics
-// (benchmarks/metrics.cpp) and the hard-case catalog (formulations/hard_case_catalog.cpp).
+// (benchmarks/metrics.cpp) and the hard-case catalog (app/hard_case_catalog.cpp).
 // Sizes come from the model: one ContactObservables per model.contacts entry, one
 // LigamentObservables per model.ligaments entry. SI units except where a name says
 // otherwise (the joint angles as the outputs report them).

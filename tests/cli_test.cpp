@@ -1,4 +1,4 @@
-// Tests of the command line `kneedyn run` (formulations/kneedyn_main.cpp, issue 3).
+// Tests of the command line `kneedyn run` (app/kneedyn_main.cpp, issue 3).
 //
 // Validates: a chapter run exits 0 and writes trajectory.csv (named columns with units),
 // trajectory.sto (OpenSim storage: endheader, inDegrees=yes, tab-separated) and

@@ -80,7 +80,7 @@ TEST(DaeGgl, CompletesAtRtol1e12InBothContactForms) {
 
 TEST(DaeGgl, RefusesOptionsThatDoNotApply) {
   FormulationOptions options;
-  options.constraint_level = "position";
+  options.constraint_level = ConstraintLevel::kPosition;
   try {
     CreateFormulation("dae-ggl", ChapterScene(), options);
     FAIL() << "no InputError";

@@ -1,4 +1,4 @@
-// Tests of the exact structured Jacobian of the chapter DAE (formulations/dae_system.hpp,
+// Tests of the exact structured Jacobian of the chapter DAE (formulations/internal/dae_system.hpp,
 // solver/newton_euler_jacobian.hpp).
 //
 // Validates: DaeSystem::Jacobian (blocks differentiated at their own size: applied loads
@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "formulations/dae_system.hpp"
+#include "formulations/internal/dae_system.hpp"
 #include "scene/scene.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/newton_euler_jacobian.hpp"

@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "formulations/dae_testing.hpp"
+#include "formulations/internal/dae_testing.hpp"
 #include "formulations/run.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/dynamics.hpp"

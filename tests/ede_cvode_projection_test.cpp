@@ -26,8 +26,8 @@ using test_support::ChapterScene;
 RunResult RunEde(const std::string& stabilization, double rtol) {
   RunSettings s;
   s.formulation = "ede";
-  s.options.integrator = "cvode-bdf";
-  s.options.stabilization = stabilization;
+  s.options.integrator = IntegratorKind::kCvodeBdf;
+  s.options.stabilization = ParsedOptionValue<Stabilization>(stabilization);
   s.options.rtol = rtol;
   s.options.atol = 1e-2 * rtol;
   return RunScene(ChapterScene(), s);
@@ -58,8 +58,8 @@ TEST(EdeCvodeProjection, HoldsConstraintsKeepsStepHistoryAndFindsEvents) {
 TEST(EdeCvodeProjection, RefusedWithoutCvodeBdf) {
   for (const char* integrator : {"dopri5", "cvode-adams", "rk4"}) {
     FormulationOptions o;
-    o.integrator = integrator;
-    o.stabilization = "cvode-projection";
+    o.integrator = ParsedOptionValue<IntegratorKind>(integrator);
+    o.stabilization = Stabilization::kCvodeProjection;
     if (std::string(integrator) == "rk4") o.step = 1e-3;
     try {
       CreateFormulation("ede", ChapterScene(), o);
@@ -69,7 +69,7 @@ TEST(EdeCvodeProjection, RefusedWithoutCvodeBdf) {
     }
   }
   FormulationOptions mde;
-  mde.stabilization = "cvode-projection";
+  mde.stabilization = Stabilization::kCvodeProjection;
   EXPECT_THROW(CreateFormulation("mde", ChapterScene(), mde), InputError);
 }
 

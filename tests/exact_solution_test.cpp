@@ -347,7 +347,7 @@ double ManufacturedForceError(const RunResult& r, double t_from) {
 
 RunResult RunManufactured(const Scene& scene, const RunSettings& settings) {
   const RunResult r = RunScene(scene, settings);
-  EXPECT_TRUE(r.completed) << settings.formulation << " " << settings.options.integrator << ": " << r.failure;
+  EXPECT_TRUE(r.completed) << settings.formulation << " " << IntegratorOptionName(settings.options.integrator) << ": " << r.failure;
   EXPECT_EQ(r.end_reason, "end_time") << settings.formulation;
   for (const EventRecord& e : r.events) ADD_FAILURE() << "unexpected event " << e.name << " at " << e.time;
   return r;
@@ -421,9 +421,10 @@ TEST_P(ExactSolution, ManufacturedKneeConvergesAtTheoreticalOrder) {
   const FormulationInfo& info = FindFormulation(name);
   for (const auto& [integrator, order, h] :
        std::vector<std::tuple<std::string, double, double>>{{"euler", 1.0, 2e-4}, {"rk4", 4.0, 4e-3}}) {
-    if (std::find(info.integrators.begin(), info.integrators.end(), integrator) == info.integrators.end()) continue;
+    const IntegratorKind kind = ParsedOptionValue<IntegratorKind>(integrator);
+    if (std::find(info.integrators.begin(), info.integrators.end(), kind) == info.integrators.end()) continue;
     RunSettings s = SettingsFor(name);
-    s.options.integrator = integrator;
+    s.options.integrator = kind;
     s.options.step = h;
     const double e1 = error_at(s);
     s.options.step = h / 2.0;

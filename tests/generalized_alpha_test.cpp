@@ -1,4 +1,4 @@
-// `generalized-alpha` / `generalized-alpha-reduced` (formulations/newmark_scheme.hpp).
+// `generalized-alpha` / `generalized-alpha-reduced` (formulations/internal/newmark_scheme.hpp).
 //
 // Validates: (1) with αm = αf = 0, β = 1/4, γ = 1/2 given explicitly the scheme reproduces
 // `newmark` to round-off on the chapter scene (same events, positions and forces); (2) the
@@ -30,8 +30,8 @@
 
 #include "benchmarks/bench_run.hpp"
 #include "benchmarks/metrics.hpp"
-#include "formulations/event_locator.hpp"
-#include "formulations/newmark_scheme.hpp"
+#include "formulations/internal/event_locator.hpp"
+#include "formulations/internal/newmark_scheme.hpp"
 #include "formulations/run.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -152,7 +152,7 @@ TEST(GeneralizedAlpha, NoSpuriousLiftoffAndLiftoffTimeConverges) {
   }
 }
 
-// The shared fixed-step event locator (formulations/event_locator.hpp) on functions with
+// The shared fixed-step event locator (formulations/internal/event_locator.hpp) on functions with
 // known roots: the earliest of two crossings is found to the resolution, a crossing in the
 // wrong direction is ignored, and Illinois needs few evaluations (plain regula falsi on
 // this convex g would creep one-sidedly).

@@ -1,7 +1,7 @@
 # ctest install_consumer: installs the build into a fresh prefix, then configures,
 # builds and runs tests/consumer (find_package(kneedyn CONFIG REQUIRED), kneedyn::formulations)
 # against it, runs the installed kneedyn from an unrelated directory (data found in
-# share/kneedyn), and checks the pkg-config file.
+# share/kneedyn), checks the pkg-config file and that no internal header is installed.
 #   cmake -DBUILD=<build dir> -DSOURCE=<source dir> -DWORK=<scratch dir> -P install_consumer.cmake
 foreach(v BUILD SOURCE WORK)
   if(NOT DEFINED ${v})
@@ -27,6 +27,13 @@ foreach(f bin/kneedyn bin/kneedyn_catalog share/kneedyn/scenes/chapter_impact.ya
     message(FATAL_ERROR "not installed: ${prefix}/${f}")
   endif()
 endforeach()
+# Only the public API: formulations/internal/ (test hooks, SUNDIALS glue) is not installed.
+file(GLOB_RECURSE internal_headers ${prefix}/include/kneedyn/formulations/internal/*
+     ${prefix}/include/kneedyn/*/dae_testing.hpp ${prefix}/include/kneedyn/*/ida_phase.hpp
+     ${prefix}/include/kneedyn/*/sundials_kernels.hpp)
+if(internal_headers)
+  message(FATAL_ERROR "internal headers installed: ${internal_headers}")
+endif()
 file(GLOB_RECURSE config ${prefix}/*/kneedynConfig.cmake)
 file(GLOB_RECURSE pc ${prefix}/*/kneedyn.pc)
 if(NOT config OR NOT pc)

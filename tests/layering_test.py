@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""Fails if the physics library depends on the loader or the formulations (issue 11 item 5):
+"""Fails if the physics library depends on the loader or the formulations, or if a library
+includes a layer above it:
 
   layering_test.py --probe BIN --yaml-user BIN [--root DIR]
 
@@ -8,6 +9,10 @@
      kneedyn_scene / kneedyn_formulations;
   2. `ldd BIN` of --probe (tests/solver_only_probe.cpp, linked with kneedyn_solver alone)
      lists no libyaml (-cpp or -0), and the probe runs (exit 0: its own exact check);
+  4. no library folder (solver, scene, formulations, ensembles, sensitivity) includes the
+     programs' folder app/, and formulations/ includes neither ensembles/ nor sensitivity/
+     (which build on it): the arrows point down only; the installed (public) headers of
+     formulations/ include nothing from formulations/internal/ (which is not installed);
   3. so that the test can fail, before scanning: planted bad lines must each be flagged,
      and `ldd` of --yaml-user (a program linking the loader with the shared libyaml, e.g.
      scene_test) must list a libyaml, i.e. the ldd check sees the library when it is there.
@@ -33,6 +38,31 @@ CMAKE_RULES = [
     ("links the loader or the formulations",
      re.compile(r"target_link_libraries\([^)]*kneedyn_(scene|formulations)", re.S)),
 ]
+# Rule 4: what each library folder must not include (the layers above it).
+UPWARD = {
+    "solver": ["app"],
+    "scene": ["app"],
+    "formulations": ["app", "ensembles", "sensitivity"],
+    "ensembles": ["app"],
+    "sensitivity": ["app"],
+}
+
+
+INTERNAL = re.compile(r'#\s*include\s*[<"]formulations/internal/')
+
+
+def scan_upward(folder, rel, text):
+  hits = []
+  if folder == "formulations" and os.path.dirname(rel) == "formulations" and rel.endswith(".hpp"):
+    hits += [f"{rel}:{n}: a public header includes an internal one: {line.strip()}"
+             for n, line in enumerate(text.splitlines(), 1) if INTERNAL.search(line)]
+  for n, line in enumerate(text.splitlines(), 1):
+    m = re.search(r'#\s*include\s*[<"]([A-Za-z_]+)/', line)
+    if m and m.group(1) in UPWARD[folder]:
+      hits.append(f"{rel}:{n}: includes {m.group(1)}/, a layer above {folder}/: {line.strip()}")
+  return hits
+
+
 # Both YAML libraries: yaml-cpp (sweep specs, ensembles/) and libyaml (the scene loader).
 YAML_LIB = re.compile(r"libyaml")
 
@@ -76,6 +106,16 @@ def main():
                    "target_link_libraries(kneedyn_solver PUBLIC kneedyn_scene)"]
   missed += [p for p in planted_cmake if not scan_cmake("solver/CMakeLists.txt", p)]
   clean = '#include "solver/state.hpp"  // filled by the loader (scene/scene.hpp)'
+  planted_upward = [("formulations", '#include "ensembles/sweep_cli.hpp"'),
+                    ("formulations", '#include "sensitivity/sensitivity_cli.hpp"'),
+                    ("ensembles", '#include "app/cli.hpp"'), ("solver", '#include <app/cli.hpp>')]
+  missed += [p for folder, p in planted_upward if not scan_upward(folder, folder + "/planted.cpp", p)]
+  planted_internal = '#include "formulations/internal/ida_phase.hpp"'
+  if not scan_upward("formulations", "formulations/planted.hpp", planted_internal) or \
+     scan_upward("formulations", "formulations/planted.cpp", planted_internal):
+    missed.append(planted_internal + " (public header vs. source)")
+  if scan_upward("formulations", "formulations/x.cpp", '#include "formulations/run.hpp"  // not ensembles/'):
+    missed.append("(clean formulations/ include flagged)")
   if missed or scan_source("solver/x.hpp", clean) or \
      scan_cmake("solver/CMakeLists.txt", "# links no yaml-cpp\ntarget_link_libraries(kneedyn_solver PUBLIC Eigen3::Eigen)"):
     sys.exit(f"layering: self-check failed (missed planted lines {missed} or flagged a clean one)")
@@ -94,6 +134,15 @@ def main():
       hits += scan_cmake(rel, text)
     elif name.endswith((".hpp", ".cpp", ".h")):
       hits += scan_source(rel, text)
+  # 4. No include points up.
+  root = os.path.abspath(args.root)
+  for folder in UPWARD:
+    for dirpath, _, files in os.walk(os.path.join(root, folder)):
+      for name in sorted(files):
+        if name.endswith((".hpp", ".cpp", ".h")):
+          path = os.path.join(dirpath, name)
+          with open(path, encoding="utf-8") as f:
+            hits += scan_upward(folder, os.path.relpath(path, root), f.read())
   # 2. The binary linked with kneedyn_solver alone.
   libs = [l.strip() for l in ldd(args.probe).splitlines() if YAML_LIB.search(l)]
   if libs:
@@ -103,7 +152,8 @@ def main():
     hits.append(f"{args.probe} exit {run.returncode}: {run.stdout.strip()} {run.stderr.strip()}")
   for h in hits:
     print("layering:", h)
-  print(f"layering: {len(hits)} violation(s); self-check caught {len(planted) + len(planted_cmake)} planted lines")
+  print(f"layering: {len(hits)} violation(s); self-check caught "
+        f"{len(planted) + len(planted_cmake) + len(planted_upward)} planted lines")
   return 1 if hits else 0
 
 

@@ -146,9 +146,9 @@ TEST(Newmark, ExactTangentEqualsTheJetTangent) {
     settings.options.step = 1e-3;
     settings.options.rtol = 1e-10;
     settings.options.atol = 1e-12;
-    settings.options.jacobian = "jet";
+    settings.options.jacobian = JacobianKind::kJet;
     const RunResult jet = RunScene(scene, settings);
-    settings.options.jacobian = "exact";
+    settings.options.jacobian = JacobianKind::kExact;
     const RunResult exact = RunScene(scene, settings);
     ASSERT_TRUE(jet.completed && exact.completed) << name << ": " << jet.failure << exact.failure;
     EXPECT_EQ(exact.stats.steps, jet.stats.steps) << name;
@@ -198,7 +198,7 @@ TEST(Newmark, JcsSingularityFailureNamesTheReason) {
 TEST(Newmark, RejectsOptionsItDoesNotUse) {
   const Scene scene = LoadScene(ReferenceDataDir() + "/scenes/chapter_impact.yaml");
   FormulationOptions options;
-  options.stabilization = "baumgarte";
+  options.stabilization = Stabilization::kBaumgarte;
   EXPECT_THROW(CreateFormulation("newmark", scene, options), InputError);
   options = FormulationOptions();
   options.max_step = 1e-3;

@@ -140,10 +140,12 @@ std::vector<HotPathCase> AllCases() {
   std::vector<HotPathCase> cases;
   for (const std::string scene : {"chapter_impact", "anatomical_surfaces"}) {
     for (const FormulationInfo& info : RegisteredFormulations()) {
-      std::vector<std::string> integrators = info.integrators;
+      std::vector<std::string> integrators = OptionNames(info.integrators);
       if (integrators.empty()) integrators = {""};
       for (const std::string& integrator : integrators) {
-        for (const std::string& stab : info.stabilizations) cases.push_back({info.name, integrator, stab, scene});
+        for (const std::string& stab : OptionNames(info.stabilizations)) {
+          cases.push_back({info.name, integrator, stab, scene});
+        }
       }
     }
   }
@@ -157,8 +159,8 @@ TEST_P(ZeroAllocation, HotPathAllocatesNothingAfterStart) {
   const Scene scene = LoadScene(test_support::ScenesDir() + "/" + c.scene + ".yaml");
   const FormulationInfo& info = FindFormulation(c.formulation);
   FormulationOptions options;
-  options.integrator = c.integrator;
-  options.stabilization = c.stabilization;
+  options.integrator = IntegratorOption(c.integrator);
+  options.stabilization = ParsedOptionValue<Stabilization>(c.stabilization);
   if (IsFixedStep(info, c.integrator)) options.step = kDefaultFixedStep;
   std::unique_ptr<Formulation> f;
   try {

@@ -31,7 +31,7 @@ const Scene& Chapter() {
 RunSettings Settings() {
   RunSettings r;
   r.formulation = "ede";
-  r.options.integrator = "cvode-adams";
+  r.options.integrator = IntegratorKind::kCvodeAdams;
   r.options.rtol = 1e-7;
   r.options.atol = 1e-9;
   return r;

@@ -74,7 +74,7 @@ TEST(ForwardSensitivity, OutcomesMatchTheRunDriver) {
   const SensitivityResult r = RunSensitivity(scene, params, Nominal(params), outcomes, options);
   RunSettings settings;
   settings.formulation = "ede";
-  settings.options.integrator = "cvode-bdf";
+  settings.options.integrator = IntegratorKind::kCvodeBdf;
   settings.options.rtol = 1e-10;
   settings.options.atol = 1e-12;
   const RunResult run = RunScene(scene, settings);

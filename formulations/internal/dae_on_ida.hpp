@@ -1,12 +1,12 @@
 // The IDA driver of the chapter DAE (dae.cpp), shared by `dae`/`dae-reduced` and
-// `dae-ggl`/`dae-ggl-reduced` (dae_ggl.cpp): the system is formulations/dae_system.hpp; what
+// `dae-ggl`/`dae-ggl-reduced` (dae_ggl.cpp): the system is formulations/internal/dae_system.hpp; what
 // differs between the variants is declared here.
 #pragma once
 
 #include <algorithm>
 #include <memory>
 
-#include "formulations/dae_system.hpp"
+#include "formulations/internal/dae_system.hpp"
 #include "formulations/formulation.hpp"
 
 namespace kneedyn {

@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "formulations/formulation.hpp"
-#include "formulations/ida_statistics.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/ida_statistics.hpp"
+#include "formulations/internal/sundials_util.hpp"
 
 namespace kneedyn {
 

@@ -40,20 +40,12 @@ inline NewmarkScheme ChungHulbertScheme(double rho_inf) {
 }
 
 // The scheme the options ask for: αm, αf, β, γ when given explicitly (all four), else
-// Chung–Hulbert from --rho-inf. FormulationOptions::IsValid has checked the values.
+// Chung–Hulbert from --rho-inf. ValidateOptions has checked the values (all four or none).
 inline NewmarkScheme SchemeFromOptions(const FormulationOptions& options) {
-  if (std::isfinite(options.alpha_m)) {
-    return {options.alpha_m, options.alpha_f, options.newmark_beta, options.newmark_gamma};
+  if (options.alpha_m) {
+    return {*options.alpha_m, *options.alpha_f, *options.newmark_beta, *options.newmark_gamma};
   }
   return ChungHulbertScheme(options.rho_inf);
-}
-
-// InputError when generalized-α options are set for a formulation that has no use for them.
-inline void RejectGeneralizedAlphaOptions(const FormulationOptions& options, const char* name) {
-  if (std::isfinite(options.alpha_m) || options.rho_inf != FormulationOptions().rho_inf) {
-    Throw<InputError>("CreateFormulation", "--rho-inf / --alpha-m / --alpha-f / --beta / --gamma apply to "
-                      "generalized-alpha only, not to ", name, " (its rule is fixed: beta = 1/4, gamma = 1/2)");
-  }
 }
 
 // newmark.cpp: the Newmark machinery (Newton, step halving, events) with `scheme`; `name`

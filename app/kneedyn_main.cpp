@@ -13,13 +13,17 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <iterator>
 #include <map>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "ensembles/batch_cli.hpp"
 #include "ensembles/sweep_cli.hpp"
 #include "benchmarks/score_cli.hpp"
 #include "sensitivity/sensitivity_cli.hpp"
-#include "formulations/cli.hpp"
+#include "app/cli.hpp"
 #include "formulations/progress.hpp"
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
@@ -68,6 +72,98 @@ int Info(const std::string& path) {
   return 0;
 }
 
+// "name (a, b), name (c)": the formulations whose registry line accepts more than the
+// default for `field`, each with the values it accepts (for --help).
+template <typename Enum>
+std::string AcceptedBy(std::vector<Enum> FormulationInfo::*field) {
+  std::string out;
+  for (const FormulationInfo& f : RegisteredFormulations()) {
+    const std::vector<Enum>& values = f.*field;
+    if (values.empty() || (values.size() == 1 && values[0] == Enum{})) continue;
+    std::string list;
+    for (Enum v : values) list += (list.empty() ? "" : "|") + std::string(OptionName(v));
+    out += (out.empty() ? "" : ", ") + f.name + ": " + list;
+  }
+  return out;
+}
+
+// "a, b": the formulations whose registry line sets `field`.
+std::string FormulationsWith(bool FormulationInfo::*field) {
+  std::string out;
+  for (const FormulationInfo& f : RegisteredFormulations()) {
+    if (f.*field) out += (out.empty() ? "" : ", ") + f.name;
+  }
+  return out;
+}
+
+// The methods that take --step: fixed-step formulations and fixed-step integrators.
+std::string FixedStepMethods() {
+  std::string out;
+  for (const FormulationInfo& f : RegisteredFormulations()) {
+    if (f.fixed_step) out += (out.empty() ? "" : ", ") + f.name;
+    for (IntegratorKind i : f.integrators) {
+      if (!f.fixed_step && IsFixedStep(f, i)) out += StrCat(", ", f.name, " --integrator ", OptionName(i));
+    }
+  }
+  return out;
+}
+
+// An enum option's spelling into `value`; `why` gets the refusal.
+template <typename Enum>
+void ReadOptionName(const std::string& text, Enum* value, std::string* why) {
+  ParseOptionValue(text, value, why);
+}
+template <typename Enum>
+void ReadOptionName(const std::string& text, std::optional<Enum>* value, std::string* why) {
+  Enum v{};
+  if (ParseOptionValue(text, &v, why)) *value = v;
+}
+
+// The options of `kneedyn run` as typed (flag -> text) into `settings`: numbers must be the
+// whole text, finite and representable; names must be among the accepted spellings. Returns
+// the first refusal, naming the flag and the text, or "".
+std::string ReadRunOptions(const OptionText& typed, RunSettings* settings) {
+  FormulationOptions& o = settings->options;
+  std::string why;
+  for (const auto& entry : typed) {
+    const std::string& flag = entry.first;
+    const std::string& text = entry.second;
+    const auto number = [&](double* value) {
+      if (!ParseReal(text, value)) why = StrCat(flag, " = '", Echo(text), "': must be a finite number (in double's range)");
+    };
+    const auto optional_number = [&](std::optional<double>* value) {
+      double v = 0.0;
+      number(&v);
+      *value = v;
+    };
+    const auto name = [&](auto* value) { ReadOptionName(text, value, &why); };
+    if (flag == "--rtol") number(&o.rtol);
+    else if (flag == "--atol") number(&o.atol);
+    else if (flag == "--step") number(&o.step);
+    else if (flag == "--max-step") number(&o.max_step);
+    else if (flag == "--rho-inf") number(&o.rho_inf);
+    else if (flag == "--alpha-m") optional_number(&o.alpha_m);
+    else if (flag == "--alpha-f") optional_number(&o.alpha_f);
+    else if (flag == "--beta") optional_number(&o.newmark_beta);
+    else if (flag == "--gamma") optional_number(&o.newmark_gamma);
+    else if (flag == "--output-interval") {
+      number(&settings->output_interval);
+      if (why.empty() && !(settings->output_interval > 0.0)) {
+        why = StrCat("--output-interval = '", Echo(text), "'; must be > 0 (omit it for the scene's)");
+      }
+    } else if (flag == "--max-steps") {
+      if (!ParseInteger(text, &o.max_steps)) {
+        why = StrCat("--max-steps = '", Echo(text), "': not an integer in [1, 1e8]");
+      }
+    } else if (flag == "--integrator") name(&o.integrator);
+    else if (flag == "--stabilization") name(&o.stabilization);
+    else if (flag == "--constraint-level") name(&o.constraint_level);
+    else if (flag == "--jacobian") name(&o.jacobian);
+    if (!why.empty()) return why;
+  }
+  return "";
+}
+
 // A message as printed: values in it are already cut (Echo); this only bounds the whole.
 std::string Clip(const std::string& m) { return m.size() > 4000 ? m.substr(0, 4000) + "..." : m; }
 
@@ -82,36 +178,45 @@ int Main(int argc, char** argv) {
 
   std::string scene_path, out_dir = "out/run";
   RunSettings settings;
+  FormulationOptions& options = settings.options;
   bool quiet = false;
   CLI::App* run = app.add_subcommand("run", "integrate a scene with one formulation");
   run->add_option("scene", scene_path, "scene file (YAML)")->required();
   run->add_option("--formulation", settings.formulation, "formulation name (see `kneedyn formulations`)")
       ->capture_default_str();
-  run->add_option("--rtol", settings.options.rtol, "relative tolerance")->capture_default_str();
-  run->add_option("--atol", settings.options.atol, "absolute tolerance (SI)")->capture_default_str();
-  run->add_option("--integrator", settings.options.integrator, "integrator (mde, ede)");
-  run->add_option("--step", settings.options.step, "fixed step in s (euler, rk4, newmark)");
-  run->add_option("--max-step", settings.options.max_step, "largest adaptive step in s (0: none)");
-  run->add_option("--max-steps", settings.options.max_steps, "step budget per phase")->capture_default_str();
-  run->add_option("--stabilization", settings.options.stabilization, "ede: none|baumgarte|projection|cvode-projection")
-      ->capture_default_str();
-  run->add_option("--constraint-level", settings.options.constraint_level,
-                  "dae: velocity (index 2) | position (index-3 variant)")->capture_default_str();
-  run->add_option("--rho-inf", settings.options.rho_inf, "generalized-alpha: spectral radius at infinity in [0, 1]")
-      ->capture_default_str();
-  run->add_option("--alpha-m", settings.options.alpha_m, "generalized-alpha: alpha_m (with --alpha-f, --beta, --gamma)");
-  run->add_option("--alpha-f", settings.options.alpha_f, "generalized-alpha: alpha_f");
-  run->add_option("--beta", settings.options.newmark_beta, "generalized-alpha: beta");
-  run->add_option("--gamma", settings.options.newmark_gamma, "generalized-alpha: gamma");
-  run->add_option("--jacobian", settings.options.jacobian,
-                  "dae*, newmark*, generalized-alpha*: Newton matrix exact (default) | jet (the Jet<24> "
-                  "reference) | difference-quotient (IDA's own)");
-  run->add_option("--contact-chart", settings.options.contact_chart,
-                  "dae, newmark: chart of the contact coordinates: regular | height-field "
+  // Numbers and names are kept as typed and converted once, after parsing (ReadRunOptions),
+  // so that every message echoes the text given.
+  OptionText typed;
+  auto text_option = [&](const char* flag, const std::string& help, const std::string& default_text = "") {
+    CLI::Option* o = run->add_option(flag, typed[flag], help);
+    if (!default_text.empty()) o->default_str(default_text);
+  };
+  const FormulationOptions defaults;
+  text_option("--rtol", "relative tolerance", StrCat(defaults.rtol));
+  text_option("--atol", "absolute tolerance (SI)", StrCat(defaults.atol));
+  text_option("--integrator", "integrator (" + AcceptedBy(&FormulationInfo::integrators) + ")");
+  text_option("--step", "fixed step in s (" + FixedStepMethods() + ")");
+  text_option("--max-step", "largest adaptive step in s (0: none)");
+  text_option("--max-steps", "step budget per phase", StrCat(defaults.max_steps));
+  text_option("--stabilization", "stabilization (" + AcceptedBy(&FormulationInfo::stabilizations) + ")",
+              OptionName(defaults.stabilization));
+  text_option("--constraint-level", "constraint level: velocity (index 2) | position (index-3 variant) (" +
+                                        AcceptedBy(&FormulationInfo::constraint_levels) + ")",
+              OptionName(defaults.constraint_level));
+  const std::string scheme = FormulationsWith(&FormulationInfo::scheme_parameters);
+  text_option("--rho-inf", scheme + ": spectral radius at infinity in [0, 1]", StrCat(defaults.rho_inf));
+  text_option("--alpha-m", scheme + ": alpha_m (with --alpha-f, --beta, --gamma)");
+  text_option("--alpha-f", scheme + ": alpha_f");
+  text_option("--beta", scheme + ": beta");
+  text_option("--gamma", scheme + ": gamma");
+  text_option("--jacobian", "Newton matrix: exact (default) | jet (the Jet<24> reference) | difference-quotient "
+                            "(IDA's own) (" + AcceptedBy(&FormulationInfo::jacobians) + ")");
+  run->add_option("--contact-chart", options.contact_chart,
+                  "chart of the contact coordinates of the chapter-form formulations: regular | height-field "
                   "(the chapter's, singular at the condyle rim)")
       ->transform(CLI::CheckedTransformer(std::map<std::string, ContactChart>{
           {"regular", ContactChart::kRegular}, {"height-field", ContactChart::kHeightField}}));
-  run->add_option("--output-interval", settings.output_interval, "s between output rows (0: scene's)");
+  text_option("--output-interval", "s between output rows (0: scene's)");
   run->add_option("--out", out_dir, "output directory")->capture_default_str();
   run->add_flag("--quiet", quiet, "no progress on stderr");
 
@@ -131,17 +236,16 @@ int Main(int argc, char** argv) {
   if (batch.parsed()) return batch.Run();
   if (sensitivity.parsed()) return sensitivity.Run(argc, argv);
   if (score.parsed()) return score.Run(argc, argv);
-  for (const std::string* s : {&scene_path, &info_scene, &out_dir, &settings.formulation,
-                               &settings.options.integrator, &settings.options.stabilization,
-                               &settings.options.constraint_level, &settings.options.jacobian}) {
+  for (auto it = typed.begin(); it != typed.end();) {  // keep only the options given
+    it = run->count(it->first) ? std::next(it) : typed.erase(it);
+  }
+  std::vector<const std::string*> texts = {&scene_path, &info_scene, &out_dir, &settings.formulation};
+  for (const auto& [flag, text] : typed) texts.push_back(&text);
+  for (const std::string* s : texts) {
     if (s->size() > 1024) {
       std::fprintf(stderr, "kneedyn: error: argument '%s' is longer than 1024 characters\n", Echo(*s).c_str());
       return 2;
     }
-  }
-  if (run->count("--output-interval") && settings.output_interval == 0.0) {
-    std::fprintf(stderr, "kneedyn: error: --output-interval = 0; must be > 0 (omit it for the scene's)\n");
-    return 2;
   }
   try {
     if (*info) return Info(info_scene);
@@ -150,16 +254,22 @@ int Main(int argc, char** argv) {
         std::printf("%-16s %s", f.name.c_str(), f.summary.c_str());
         if (!f.integrators.empty()) {
           std::printf(" [--integrator");
-          for (const std::string& i : f.integrators) std::printf(" %s", i.c_str());
+          for (IntegratorKind i : f.integrators) std::printf(" %s", OptionName(i));
           std::printf("]");
         }
         std::printf("\n");
       }
       return 0;
     }
+    // The options, converted and checked once, before anything is read or written.
+    if (const std::string why = ReadRunOptions(typed, &settings); !why.empty()) {
+      std::fprintf(stderr, "kneedyn: error: %s\n", Clip(why).c_str());
+      return 2;
+    }
+    CheckOptions(FindFormulation(settings.formulation), options, typed);
+    CheckOutputDirectory(out_dir);  // refuse an unusable --out before running
     const Scene scene = LoadScene(scene_path);
     settings.command_line.assign(argv, argv + argc);
-    CheckOutputDirectory(out_dir);  // refuse an unusable --out before running
     // `\r` progress only on a terminal (logs and pipes get the summary lines alone).
     const bool show_progress = !quiet && StderrIsTerminal();
     if (show_progress) {
@@ -174,8 +284,8 @@ int Main(int argc, char** argv) {
     if (show_progress) std::fprintf(stderr, "\n");
     try {
       WriteRunOutputs(out_dir, scene, settings, result);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "kneedyn: error: --out = '%s': %s\n", Echo(out_dir).c_str(), Clip(e.what()).c_str());
+    } catch (const std::exception& e) {  // its messages name --out
+      std::fprintf(stderr, "kneedyn: error: %s\n", Clip(e.what()).c_str());
       return 2;
     }
     const SolverStats& s = result.stats;

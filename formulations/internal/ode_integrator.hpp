@@ -26,7 +26,7 @@
 #include <vector>
 
 #include "formulations/formulation.hpp"
-#include "formulations/sundials_util.hpp"
+#include "formulations/internal/sundials_util.hpp"
 #include "solver/scalar.hpp"
 
 namespace kneedyn {
@@ -51,10 +51,8 @@ class OdeProblem {
 
 class OdeIntegrator {
  public:
-  static const std::vector<std::string>& Names();
-
-  // Validates options.integrator (empty: dopri5) and options.step; `owner` names the
-  // formulation in messages.
+  // options.integrator (not given: dopri5) with options.step, as ValidateOptions checked
+  // them; `owner` names the formulation in messages.
   OdeIntegrator(const FormulationOptions& options, std::string owner);
   ~OdeIntegrator();
   OdeIntegrator(const OdeIntegrator&) = delete;
@@ -98,8 +96,8 @@ class OdeIntegrator {
 
   FormulationOptions options_;
   std::string owner_;
-  std::string name_;
-  IntegratorKind kind_ = IntegratorKind::kDopri5;  // name_ parsed once (FormulationOptions::Parse)
+  IntegratorKind kind_ = IntegratorKind::kDopri5;
+  std::string name_;  // OptionName(kind_)
   double step_ = 0.0;  // s, fixed-step methods
   SundialsContext ctx_;
   OdeProblem* problem_ = nullptr;
