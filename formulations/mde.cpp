@@ -280,13 +280,14 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
       const VecK dx = ND.partialPivLu().solve(phi);
       for (int c = 0; c < k; ++c) kin.q(elim_[c]) -= dx(c);
     }
+    const EulerAngleTrig<double> trig = EulerAngleTrigOf(kin.q);  // of the final pose (rotation.hpp)
     if (k > 0) {
       // The chart in use must still be usable here (see kMaxChartDegradation). geo[r] is the
       // contact at kin.q already (the elimination stops before updating q), so the normals
       // come from it instead of another k local contact solves (perf: a third of the
       // right-hand side's time on general surfaces).
       MatK3 normals(k, 3);
-      const Matrix3d R_FT = RotationFT(kin.q(kAlpha), kin.q(kBeta), kin.q(kGamma));
+      const Matrix3d R_FT = RotationFT(trig);
       for (int r = 0; r < k; ++r) normals.row(r) = (R_FT * geo[r].normal_T).transpose();
       double best = 0.0;
       for (const std::vector<int>& cand : Candidates(k)) best = std::max(best, BlockDeterminant(normals, cand));
@@ -298,8 +299,8 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
                            kMaxChartDegradation, "; reduce --rtol or --max-step)");
       }
     }
-    const Pose pose = PoseFromCoordinates(kin.q);
-    const Matrix3d E = AngularVelocityMap(kin.q(kBeta), kin.q(kGamma));
+    const Pose pose = PoseFromCoordinates(kin.q, trig);
+    const Matrix3d E = AngularVelocityMap(kin.q(kBeta), trig);
     // J = ∂φ/∂q = G B, and P = ∂q/∂s.
     MatK6 J(k, 6), G(k, 6);
     for (int r = 0; r < k; ++r) {
@@ -321,9 +322,9 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
     }
     const VecM sd = Eigen::Map<const VectorXd>(y + m, m);
     kin.qd = P * sd;
-    const Vector6d nu = GeneralizedVelocity(kin.q, kin.qd);
+    const Vector6d nu = GeneralizedVelocity(kin.q, trig, kin.qd);
     const Vector3d qd_ang = kin.qd.tail<3>();
-    const Vector3d Edot_thetadot = AngularVelocityMapRateTimesRate(kin.q(kBeta), kin.q(kGamma), qd_ang);
+    const Vector3d Edot_thetadot = AngularVelocityMapRateTimesRate(trig, qd_ang);
     // q̈ = P s̈ + p;  c_i = G_w,i Ė θ̇ + κ_i.
     Vector6d p = Vector6d::Zero();
     if (k > 0) {
