@@ -24,6 +24,7 @@
 // The constraints hold by construction (no drift); lift-off root g = N_i.
 #include <Eigen/LU>
 #include <array>
+#include <cstring>
 #include <algorithm>
 #include <Eigen/QR>
 #include <cmath>
@@ -97,6 +98,7 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
       y_(m + j) = state.qd(free_[j]);
     }
     t_ = state.t;
+    cache_valid_ = false;  // new chart, start point or phase
     const std::vector<int> dirs = RootDirections(events_);
     integrator_.Start(this, t_, y_, dirs);
   }
@@ -230,7 +232,26 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
   }
 
   // q from s (closed-form elimination); qd = P ṡ; s̈ (if sdd) and q̈, N.
+  // Returns the last result when (t, y) are bitwise those of the previous call in this
+  // chart: the root functions at a step's end, the chart check after the step and the
+  // first stage of the next (FSAL of the Dormand–Prince pair) ask for the same point.
   MdeKinematics Evaluate(double t, const double* y, VecM* sdd_out) const {
+    const int m = static_cast<int>(free_.size());
+    if (cache_valid_ && t == cache_t_ && std::memcmp(y, cache_y_.data(), sizeof(double) * 2 * m) == 0) {
+      if (sdd_out) *sdd_out = cache_sdd_;
+      return cache_kin_;
+    }
+    cache_valid_ = false;  // a throwing evaluation leaves no stale entry
+    const MdeKinematics kin = EvaluateUncached(t, y, &cache_sdd_);
+    if (sdd_out) *sdd_out = cache_sdd_;
+    cache_t_ = t;
+    std::memcpy(cache_y_.data(), y, sizeof(double) * 2 * m);
+    cache_kin_ = kin;
+    cache_valid_ = true;
+    return kin;
+  }
+
+  MdeKinematics EvaluateUncached(double t, const double* y, VecM* sdd_out) const {
     const int m = static_cast<int>(free_.size());
     const int k = static_cast<int>(elim_.size());
     MdeKinematics kin;
@@ -373,6 +394,12 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
   // right-hand side is a function of (t, y) alone (no dependence on the call history).
   Vector6d last_q_ = Vector6d::Zero();   // steps since Start (the --max-steps budget is per phase)
   mutable Data data_;           // applied-load workspace of Evaluate
+  // Evaluate's last result and its (t, y) (2 m ≤ 12 values; reset by StartIntegrator).
+  mutable bool cache_valid_ = false;
+  mutable double cache_t_ = 0.0;
+  mutable std::array<double, 12> cache_y_{};
+  mutable MdeKinematics cache_kin_;
+  mutable VecM cache_sdd_;
   std::vector<double> normal_;  // N per model contact, for the root functions
 };
 

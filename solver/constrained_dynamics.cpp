@@ -56,7 +56,8 @@ void SolveConstrainedAcceleration(const Model& model, double t, const Vector6d& 
                        kMaxConstrainedContacts, " (kMaxConstrainedContacts)");
   }
   const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);  // once per pose
-  const Pose pose = PoseFromCoordinates(q, trig);
+  ws->pose = PoseFromCoordinates(q, trig);
+  const Pose& pose = ws->pose;
   const Vector6d nu = GeneralizedVelocity(q, trig, qd);
   Data& data = ws->data;
   data.ligament_branch = ligament_branch;
