@@ -119,11 +119,13 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
   void Roots(double t, const double* y, double* g) override {
     const Vector6d q = Eigen::Map<const Vector6d>(y);
     std::fill(normal_.begin(), normal_.end(), 0.0);
-    if (!active_.empty()) {
-      AccelerationAt(t, y);
-      for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = acc_.normal_force[c];
+    if (active_.empty()) {  // gaps, flexion and ligament lengths only: no constrained solve
+      EvaluateEvents(scene_.model, events_, q, normal_, g);
+      return;
     }
-    EvaluateEvents(scene_.model, events_, q, normal_, g);
+    AccelerationAt(t, y);
+    for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = acc_.normal_force[c];
+    EvaluateEvents(scene_.model, events_, q, workspace_.pose, normal_, g);  // the solve's pose at q
   }
 
  private:

@@ -24,6 +24,7 @@
 // The constraints hold by construction (no drift); lift-off root g = N_i.
 #include <Eigen/LU>
 #include <array>
+#include <cstring>
 #include <algorithm>
 #include <Eigen/QR>
 #include <cmath>
@@ -93,6 +94,7 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
       y_(m + j) = state.qd(free_[j]);
     }
     t_ = state.t;
+    cache_valid_ = false;  // new chart, start point or phase
     const std::vector<int> dirs = RootDirections(events_);
     integrator_.Start(this, t_, y_, dirs);
   }
@@ -226,7 +228,26 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
   }
 
   // q from s (closed-form elimination); qd = P ṡ; s̈ (if sdd) and q̈, N.
+  // Returns the last result when (t, y) are bitwise those of the previous call in this
+  // chart: the root functions at a step's end, the chart check after the step and the
+  // first stage of the next (FSAL of the Dormand–Prince pair) ask for the same point.
   MdeKinematics Evaluate(double t, const double* y, VecM* sdd_out) const {
+    const int m = static_cast<int>(free_.size());
+    if (cache_valid_ && t == cache_t_ && std::memcmp(y, cache_y_.data(), sizeof(double) * 2 * m) == 0) {
+      if (sdd_out) *sdd_out = cache_sdd_;
+      return cache_kin_;
+    }
+    cache_valid_ = false;  // a throwing evaluation leaves no stale entry
+    const MdeKinematics kin = EvaluateUncached(t, y, &cache_sdd_);
+    if (sdd_out) *sdd_out = cache_sdd_;
+    cache_t_ = t;
+    std::memcpy(cache_y_.data(), y, sizeof(double) * 2 * m);
+    cache_kin_ = kin;
+    cache_valid_ = true;
+    return kin;
+  }
+
+  MdeKinematics EvaluateUncached(double t, const double* y, VecM* sdd_out) const {
     const int m = static_cast<int>(free_.size());
     const int k = static_cast<int>(elim_.size());
     MdeKinematics kin;
@@ -276,13 +297,14 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
       const VecK dx = ND.partialPivLu().solve(phi);
       for (int c = 0; c < k; ++c) kin.q(elim_[c]) -= dx(c);
     }
+    const EulerAngleTrig<double> trig = EulerAngleTrigOf(kin.q);  // of the final pose (rotation.hpp)
     if (k > 0) {
       // The chart in use must still be usable here (see kMaxChartDegradation). geo[r] is the
       // contact at kin.q already (the elimination stops before updating q), so the normals
       // come from it instead of another k local contact solves (perf: a third of the
       // right-hand side's time on general surfaces).
       MatK3 normals(k, 3);
-      const Matrix3d R_FT = RotationFT(kin.q(kAlpha), kin.q(kBeta), kin.q(kGamma));
+      const Matrix3d R_FT = RotationFT(trig);
       for (int r = 0; r < k; ++r) normals.row(r) = (R_FT * geo[r].normal_T).transpose();
       double best = 0.0;
       for (const std::vector<int>& cand : Candidates(k)) best = std::max(best, BlockDeterminant(normals, cand));
@@ -294,8 +316,8 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
                            kMaxChartDegradation, "; reduce --rtol or --max-step)");
       }
     }
-    const Pose pose = PoseFromCoordinates(kin.q);
-    const Matrix3d E = AngularVelocityMap(kin.q(kBeta), kin.q(kGamma));
+    const Pose pose = PoseFromCoordinates(kin.q, trig);
+    const Matrix3d E = AngularVelocityMap(kin.q(kBeta), trig);
     // J = ∂φ/∂q = G B, and P = ∂q/∂s.
     MatK6 J(k, 6), G(k, 6);
     for (int r = 0; r < k; ++r) {
@@ -317,9 +339,9 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
     }
     const VecM sd = Eigen::Map<const VectorXd>(y + m, m);
     kin.qd = P * sd;
-    const Vector6d nu = GeneralizedVelocity(kin.q, kin.qd);
+    const Vector6d nu = GeneralizedVelocity(kin.q, trig, kin.qd);
     const Vector3d qd_ang = kin.qd.tail<3>();
-    const Vector3d Edot_thetadot = AngularVelocityMapRateTimesRate(kin.q(kBeta), kin.q(kGamma), qd_ang);
+    const Vector3d Edot_thetadot = AngularVelocityMapRateTimesRate(trig, qd_ang);
     // q̈ = P s̈ + p;  c_i = G_w,i Ė θ̇ + κ_i.
     Vector6d p = Vector6d::Zero();
     if (k > 0) {
@@ -368,6 +390,12 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
   // right-hand side is a function of (t, y) alone (no dependence on the call history).
   Vector6d last_q_ = Vector6d::Zero();   // steps since Start (the --max-steps budget is per phase)
   mutable Data data_;           // applied-load workspace of Evaluate
+  // Evaluate's last result and its (t, y) (2 m ≤ 12 values; reset by StartIntegrator).
+  mutable bool cache_valid_ = false;
+  mutable double cache_t_ = 0.0;
+  mutable std::array<double, 12> cache_y_{};
+  mutable MdeKinematics cache_kin_;
+  mutable VecM cache_sdd_;
   std::vector<double> normal_;  // N per model contact, for the root functions
 };
 

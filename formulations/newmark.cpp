@@ -202,7 +202,8 @@ class NewmarkFormulation final : public FormulationBase {
     const int k = static_cast<int>(active_.size());
     Vector6<T> q, qd, qdd, a;
     StepKinematics(from, h, x, &q, &qd, &qdd, &a);
-    const PoseTpl<T> pose = PoseFromCoordinates(q);
+    const EulerAngleTrig<T> trig = EulerAngleTrigOf(q);  // once per pose (rotation.hpp)
+    const PoseTpl<T> pose = PoseFromCoordinates(q, trig);
     const T* N = x + 6 + per_contact_ * k;
     ContactGeometryTpl<T> geo[kMaxActiveContacts];
     for (int c = 0; c < k; ++c) {
@@ -221,7 +222,7 @@ class NewmarkFormulation final : public FormulationBase {
     DataTpl<T>& data = Workspace(static_cast<T*>(nullptr));  // no allocation per call
     data.ligament_branch = &ligament_branch_;
     const Vector6<T> residual =
-        NewtonEulerResidual(model_, from.t + h, q, qd, qdd, pose, k, geo, N, &data);
+        NewtonEulerResidual(model_, from.t + h, q, trig, qd, qdd, pose, k, geo, N, &data);
     for (int i = 0; i < 6; ++i) F[i] = RowScale(h) * -residual(i);
     return true;
   }

@@ -19,12 +19,13 @@ std::vector<ContactGeometry> ClosedFormContacts(const Model& model, const Pose& 
 
 void ContactGapsAndJacobian(const Model& model, const Vector6d& q, const std::vector<int>& contacts,
                             VectorXd* phi, MatrixXd* J) {
-  const Pose pose = PoseFromCoordinates(q);
+  const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
+  const Pose pose = PoseFromCoordinates(q, trig);
   const int k = static_cast<int>(contacts.size());
   phi->resize(k);
   J->resize(k, 6);
   Matrix6d B = Matrix6d::Identity();
-  B.bottomRightCorner<3, 3>() = AngularVelocityMap(q(kBeta), q(kGamma));
+  B.bottomRightCorner<3, 3>() = AngularVelocityMap(q(kBeta), trig);
   for (int c = 0; c < k; ++c) {
     const ContactGeometry g =
         RequireContactKinematics(model.contacts[contacts[c]], pose, "ContactGapsAndJacobian");
@@ -54,8 +55,10 @@ void SolveConstrainedAcceleration(const Model& model, double t, const Vector6d& 
     Throw<SolverError>("SolveConstrainedAcceleration", k, " active contacts exceed ",
                        kMaxConstrainedContacts, " (kMaxConstrainedContacts)");
   }
-  const Pose pose = PoseFromCoordinates(q);
-  const Vector6d nu = GeneralizedVelocity(q, qd);
+  const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);  // once per pose
+  ws->pose = PoseFromCoordinates(q, trig);
+  const Pose& pose = ws->pose;
+  const Vector6d nu = GeneralizedVelocity(q, trig, qd);
   Data& data = ws->data;
   data.ligament_branch = ligament_branch;
   ComputeAppliedWrench(model, t, pose, &data);
@@ -89,7 +92,7 @@ void SolveConstrainedAcceleration(const Model& model, double t, const Vector6d& 
     for (int r = 0; r < k; ++r) out->normal_force[r] = ws->N(r);
   }
   out->nu_dot = nu_dot;
-  out->qdd = CoordinateAcceleration(q, qd, out->nu_dot);
+  out->qdd = CoordinateAcceleration(q, trig, qd, out->nu_dot);
 }
 
 ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double t,

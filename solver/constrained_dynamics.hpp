@@ -44,6 +44,7 @@ struct ConstrainedDynamicsWorkspace {
   using Rows = Eigen::Matrix<double, Eigen::Dynamic, 6, 0, kMaxConstrainedContacts, 6>;
   explicit ConstrainedDynamicsWorkspace(const Model& model) : data(model) {}
   Data data;
+  Pose pose;  // of the last solve's q (for callers evaluating more at the same point)
   Rows G;    // constraint rows G_i (k×6)
   Matrix S;  // G M⁻¹ Gᵀ (k×k, symmetric positive definite for independent rows)
   Vector b;  // −κ − 2a φ̇ − b² φ − G M⁻¹ Q

@@ -52,7 +52,11 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
 
 void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const std::vector<double>& normal_force, double* g) {
-  const Pose pose = PoseFromCoordinates(q);
+  EvaluateEvents(model, specs, q, PoseFromCoordinates(q), normal_force, g);
+}
+
+void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
+                    const Pose& pose, const std::vector<double>& normal_force, double* g) {
   for (size_t k = 0; k < specs.size(); ++k) {
     const EventSpec& s = specs[k];
     switch (s.kind) {

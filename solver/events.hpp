@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "solver/pose.hpp"
 #include "solver/state.hpp"
 
 namespace kneedyn {
@@ -40,6 +41,10 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
 // Throws SolverError when a gap has no contact point (contact_kinematics.hpp).
 void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const std::vector<double>& normal_force, double* g);
+// The same with the pose at q already computed by the caller (e.g. by the constrained solve
+// of the same point).
+void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
+                    const Pose& pose, const std::vector<double>& normal_force, double* g);
 
 // "flexion_90" for 90°; integer degrees when whole, else one decimal.
 std::string FlexionEventName(double flexion_rad);

@@ -21,19 +21,28 @@ namespace kneedyn {
 // `geometry[i]` and `normal_force[i]` (N) for the k active contacts, in the formulation's
 // order. `data` is the caller's workspace (its ligament_branch is read; the applied loads
 // plus contact wrenches are left in applied_force_F / applied_moment_T). No allocation.
+// `trig`: the sines and cosines of q's Euler angles (pose.hpp), those `pose` was made from.
 template <typename T>
 Vector6<T> NewtonEulerResidual(const Model& model, double t, const Vector6<T>& q,
-                               const Vector6<T>& qd, const Vector6<T>& qdd, const PoseTpl<T>& pose,
-                               int k, const ContactGeometryTpl<T>* geometry, const T* normal_force,
-                               DataTpl<T>* data) {
+                               const EulerAngleTrig<T>& trig, const Vector6<T>& qd, const Vector6<T>& qdd,
+                               const PoseTpl<T>& pose, int k, const ContactGeometryTpl<T>* geometry,
+                               const T* normal_force, DataTpl<T>* data) {
   ComputeAppliedWrench(model, t, pose, data);
   for (int c = 0; c < k; ++c) {
     AddContactWrench(pose, geometry[c], normal_force[c], &data->applied_force_F,
                      &data->applied_moment_T);
   }
-  const Vector6<T> nu = GeneralizedVelocity(q, qd);
+  const Vector6<T> nu = GeneralizedVelocity(q, trig, qd);
   const Vector6<T> Q = GeneralizedForce(model, *data, Vector3<T>(nu.template tail<3>()));
-  return MassTimes(model, GeneralizedAcceleration(q, qd, qdd)) - Q;
+  return MassTimes(model, GeneralizedAcceleration(q, trig, qd, qdd)) - Q;
+}
+
+template <typename T>
+Vector6<T> NewtonEulerResidual(const Model& model, double t, const Vector6<T>& q,
+                               const Vector6<T>& qd, const Vector6<T>& qdd, const PoseTpl<T>& pose,
+                               int k, const ContactGeometryTpl<T>* geometry, const T* normal_force,
+                               DataTpl<T>* data) {
+  return NewtonEulerResidual(model, t, q, EulerAngleTrigOf(q), qd, qdd, pose, k, geometry, normal_force, data);
 }
 
 // Largest number of simultaneously active contacts the residual formulations size their

@@ -18,9 +18,10 @@ void AppliedWrenchPartials(const Model& model, double t, const Vector6d& q, cons
                            Matrix6d* d_q) {
   Matrix6d& D = *d_q;
   D.setZero();
-  const Matrix3d R = RotationFT(q(kAlpha), q(kBeta), q(kGamma));
+  const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
+  const Matrix3d R = RotationFT(trig);
   Matrix3d dR[3];
-  RotationPartials(q(kAlpha), q(kBeta), q(kGamma), dR);
+  RotationPartials(trig, dR);
   // Pulse R_FT (Fe(t) d_T) at the centre of mass: no moment.
   const Vector3d pulse_T = PulseMagnitude(model.pulse, t) * model.pulse.direction_T;
   for (int a = 0; a < 3; ++a) D.block<3, 1>(0, 3 + a) += dR[a] * pulse_T;
@@ -69,9 +70,12 @@ void FreeNewtonEulerPartials(const Model& model, double t, const Vector6d& q, co
     rate(i) = J8(qd(3 + i), 2 + i);
     accel(i) = J8(qdd(3 + i), 5 + i);
   }
-  const Matrix3<J8> E = AngularVelocityMap(beta, gamma);
+  using std::cos;
+  using std::sin;
+  const EulerAngleTrig<J8> trig{J8(0.0), J8(1.0), sin(beta), cos(beta), sin(gamma), cos(gamma)};  // α unused
+  const Matrix3<J8> E = AngularVelocityMap(beta, trig);
   const Vector3<J8> w = E * rate;
-  const Vector3<J8> w_dot = E * accel + AngularVelocityMapRateTimesRate(beta, gamma, rate);
+  const Vector3<J8> w_dot = E * accel + AngularVelocityMapRateTimesRate(trig, rate);
   const Vector3<J8> I = model.inertia_T.cast<J8>();
   const Vector3<J8> rotational = I.cwiseProduct(w_dot) + w.cross(I.cwiseProduct(w));
   for (int i = 0; i < 3; ++i) {

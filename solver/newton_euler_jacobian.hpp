@@ -33,9 +33,10 @@ PoseTpl<ceres::Jet<double, N>> PoseWithCoordinateDerivatives(const Vector6d& q) 
   static_assert(N >= 6, "the first six slots hold dq");
   using J = ceres::Jet<double, N>;
   PoseTpl<J> out;
-  const Matrix3d R = RotationFT(q(kAlpha), q(kBeta), q(kGamma));
+  const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
+  const Matrix3d R = RotationFT(trig);
   Matrix3d dR[3];
-  RotationPartials(q(kAlpha), q(kBeta), q(kGamma), dR);
+  RotationPartials(trig, dR);
   for (int i = 0; i < 3; ++i) {
     out.p_FoTo_F(i) = J(q(i), i);
     for (int j = 0; j < 3; ++j) {

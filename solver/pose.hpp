@@ -26,21 +26,46 @@ struct PoseTpl {
 };
 using Pose = PoseTpl<double>;
 
+// The sines and cosines of q's Euler angles: computed once per pose and passed to the
+// overloads below that take them (rotation.hpp).
 template <typename T>
-PoseTpl<T> PoseFromCoordinates(const Vector6<T>& q) {
+EulerAngleTrig<T> EulerAngleTrigOf(const Vector6<T>& q) {
+  return EulerAngleTrigOf(q(kAlpha), q(kBeta), q(kGamma));
+}
+
+template <typename T>
+PoseTpl<T> PoseFromCoordinates(const Vector6<T>& q, const EulerAngleTrig<T>& trig) {
   PoseTpl<T> pose;
   pose.p_FoTo_F = q.template head<3>();
-  pose.R_FT = RotationFT(q(kAlpha), q(kBeta), q(kGamma));
+  pose.R_FT = RotationFT(trig);
   return pose;
 }
 
+template <typename T>
+PoseTpl<T> PoseFromCoordinates(const Vector6<T>& q) {
+  return PoseFromCoordinates(q, EulerAngleTrigOf(q));
+}
+
 // w_T = E(β, γ) (α̇, β̇, γ̇).
+template <typename T>
+Vector3<T> AngularVelocityT(const Vector6<T>& q, const EulerAngleTrig<T>& trig, const Vector6<T>& qd) {
+  return AngularVelocityMap(q(kBeta), trig) * qd.template tail<3>();
+}
+
 template <typename T>
 Vector3<T> AngularVelocityT(const Vector6<T>& q, const Vector6<T>& qd) {
   return AngularVelocityMap(q(kBeta), q(kGamma)) * qd.template tail<3>();
 }
 
 // ν = (v_F, w_T) from (q, q̇).
+template <typename T>
+Vector6<T> GeneralizedVelocity(const Vector6<T>& q, const EulerAngleTrig<T>& trig, const Vector6<T>& qd) {
+  Vector6<T> nu;
+  nu.template head<3>() = qd.template head<3>();
+  nu.template tail<3>() = AngularVelocityT(q, trig, qd);
+  return nu;
+}
+
 template <typename T>
 Vector6<T> GeneralizedVelocity(const Vector6<T>& q, const Vector6<T>& qd) {
   Vector6<T> nu;
@@ -51,19 +76,25 @@ Vector6<T> GeneralizedVelocity(const Vector6<T>& q, const Vector6<T>& qd) {
 
 // ν̇ = (a_F, ẇ_T) from (q, q̇, q̈):  ẇ_T = E q̈_ang + Ė q̇_ang.
 template <typename T>
-Vector6<T> GeneralizedAcceleration(const Vector6<T>& q, const Vector6<T>& qd,
+Vector6<T> GeneralizedAcceleration(const Vector6<T>& q, const EulerAngleTrig<T>& trig, const Vector6<T>& qd,
                                    const Vector6<T>& qdd) {
   Vector6<T> nud;
   nud.template head<3>() = qdd.template head<3>();
   const Vector3<T> qd_ang = qd.template tail<3>();
-  nud.template tail<3>() =
-      AngularVelocityMap(q(kBeta), q(kGamma)) * qdd.template tail<3>() +
-      AngularVelocityMapRateTimesRate(q(kBeta), q(kGamma), qd_ang);
+  nud.template tail<3>() = AngularVelocityMap(q(kBeta), trig) * qdd.template tail<3>() +
+                           AngularVelocityMapRateTimesRate(trig, qd_ang);
   return nud;
+}
+
+template <typename T>
+Vector6<T> GeneralizedAcceleration(const Vector6<T>& q, const Vector6<T>& qd, const Vector6<T>& qdd) {
+  return GeneralizedAcceleration(q, EulerAngleTrigOf(q), qd, qdd);
 }
 
 // Inverse of the above: q̈ from ν̇ (q̈_ang = E⁻¹ (ẇ_T − Ė q̇_ang)). Throws at the singularity.
 Vector6d CoordinateAcceleration(const Vector6d& q, const Vector6d& qd, const Vector6d& nu_dot);
+Vector6d CoordinateAcceleration(const Vector6d& q, const EulerAngleTrig<double>& trig, const Vector6d& qd,
+                                const Vector6d& nu_dot);
 // q̇ from ν (q̇_ang = E⁻¹ w_T).
 Vector6d CoordinateVelocity(const Vector6d& q, const Vector6d& nu);
 

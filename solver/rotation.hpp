@@ -29,13 +29,29 @@ namespace kneedyn {
 // |sin β| below this is treated as the JCS singularity (β within ~0.06° of 0 or π).
 constexpr double kJcsSingularityTolerance = 1.0e-3;
 
+// Sines and cosines of the Euler angles (α, β, γ) of one pose, computed once and passed to
+// everything that needs R_FT, E, Ė q̇_ang or ∂R_FT/∂q at that pose (each sin/cos costs
+// ~100 instructions; a residual used to take 22 of them for 6 distinct values).
 template <typename T>
-Matrix3<T> RotationFT(const T& alpha, const T& beta, const T& gamma) {
+struct EulerAngleTrig {
+  T sa, ca, sb, cb, sg, cg;
+};
+
+template <typename T>
+EulerAngleTrig<T> EulerAngleTrigOf(const T& alpha, const T& beta, const T& gamma) {
   using std::cos;
   using std::sin;
-  const T sa = sin(alpha), ca = cos(alpha);
-  const T sb = sin(beta), cb = cos(beta);
-  const T sg = sin(gamma), cg = cos(gamma);
+  return {sin(alpha), cos(alpha), sin(beta), cos(beta), sin(gamma), cos(gamma)};
+}
+
+template <typename T>
+Matrix3<T> RotationFT(const EulerAngleTrig<T>& trig) {
+  const T& sa = trig.sa;
+  const T& ca = trig.ca;
+  const T& sb = trig.sb;
+  const T& cb = trig.cb;
+  const T& sg = trig.sg;
+  const T& cg = trig.cg;
   Matrix3<T> R;
   R << sb * cg, sb * sg, cb,                                 //
       -ca * sg - sa * cb * cg, ca * cg - sa * cb * sg, sa * sb,  //
@@ -43,24 +59,34 @@ Matrix3<T> RotationFT(const T& alpha, const T& beta, const T& gamma) {
   return R;
 }
 
-// Throws SolverError when the pose is at the JCS singularity (sin β ≈ 0).
-inline void CheckJcsRegular(double beta, const char* caller) {
-  if (std::abs(std::sin(beta)) < kJcsSingularityTolerance) {
+template <typename T>
+Matrix3<T> RotationFT(const T& alpha, const T& beta, const T& gamma) {
+  return RotationFT(EulerAngleTrigOf(alpha, beta, gamma));
+}
+
+// |sin β| of a pose below kJcsSingularityTolerance: SolverError naming the caller.
+inline void CheckJcsRegular(double beta, double sin_beta, const char* caller) {
+  if (std::abs(sin_beta) < kJcsSingularityTolerance) {
     Throw<SolverError>(caller, "pose at the JCS singularity: beta = ", beta,
-                       " rad (|sin beta| = ", std::abs(std::sin(beta)), " < ",
+                       " rad (|sin beta| = ", std::abs(sin_beta), " < ",
                        kJcsSingularityTolerance,
                        "); the angular-velocity map E is singular there (spec §2)");
   }
 }
 
-// E(β, γ): w_T = E · (α̇, β̇, γ̇). Throws at the JCS singularity.
+// Throws SolverError when the pose is at the JCS singularity (sin β ≈ 0).
+inline void CheckJcsRegular(double beta, const char* caller) {
+  CheckJcsRegular(beta, std::sin(beta), caller);
+}
+
+// E(β, γ): w_T = E · (α̇, β̇, γ̇). Throws at the JCS singularity (`beta` only names it there).
 template <typename T>
-Matrix3<T> AngularVelocityMap(const T& beta, const T& gamma) {
-  using std::cos;
-  using std::sin;
-  CheckJcsRegular(ScalarPart(beta), "AngularVelocityMap");
-  const T sb = sin(beta), cb = cos(beta);
-  const T sg = sin(gamma), cg = cos(gamma);
+Matrix3<T> AngularVelocityMap(const T& beta, const EulerAngleTrig<T>& trig) {
+  CheckJcsRegular(ScalarPart(beta), ScalarPart(trig.sb), "AngularVelocityMap");
+  const T& sb = trig.sb;
+  const T& cb = trig.cb;
+  const T& sg = trig.sg;
+  const T& cg = trig.cg;
   Matrix3<T> E;
   E << -sb * cg, sg, T(0.0),  //
       -sb * sg, -cg, T(0.0),  //
@@ -68,14 +94,20 @@ Matrix3<T> AngularVelocityMap(const T& beta, const T& gamma) {
   return E;
 }
 
-// Ė · (α̇, β̇, γ̇): the velocity-product term of ẇ_T = E q̈_ang + Ė q̇_ang.
 template <typename T>
-Vector3<T> AngularVelocityMapRateTimesRate(const T& beta, const T& gamma,
-                                           const Vector3<T>& qd_ang) {
+Matrix3<T> AngularVelocityMap(const T& beta, const T& gamma) {
   using std::cos;
   using std::sin;
-  const T sb = sin(beta), cb = cos(beta);
-  const T sg = sin(gamma), cg = cos(gamma);
+  return AngularVelocityMap(beta, EulerAngleTrig<T>{T(0.0), T(1.0), sin(beta), cos(beta), sin(gamma), cos(gamma)});
+}
+
+// Ė · (α̇, β̇, γ̇): the velocity-product term of ẇ_T = E q̈_ang + Ė q̇_ang.
+template <typename T>
+Vector3<T> AngularVelocityMapRateTimesRate(const EulerAngleTrig<T>& trig, const Vector3<T>& qd_ang) {
+  const T& sb = trig.sb;
+  const T& cb = trig.cb;
+  const T& sg = trig.sg;
+  const T& cg = trig.cg;
   const T& ad = qd_ang(0);
   const T& bd = qd_ang(1);
   const T& gd = qd_ang(2);
@@ -85,11 +117,20 @@ Vector3<T> AngularVelocityMapRateTimesRate(const T& beta, const T& gamma,
   return -di * ad - de2 * bd;
 }
 
+template <typename T>
+Vector3<T> AngularVelocityMapRateTimesRate(const T& beta, const T& gamma,
+                                           const Vector3<T>& qd_ang) {
+  using std::cos;
+  using std::sin;
+  return AngularVelocityMapRateTimesRate(
+      EulerAngleTrig<T>{T(0.0), T(1.0), sin(beta), cos(beta), sin(gamma), cos(gamma)}, qd_ang);
+}
+
 // ∂R_FT/∂α, ∂R_FT/∂β, ∂R_FT/∂γ (analytic; checked against finite differences in tests).
-inline void RotationPartials(double alpha, double beta, double gamma, Matrix3d dR[3]) {
-  const double sa = std::sin(alpha), ca = std::cos(alpha);
-  const double sb = std::sin(beta), cb = std::cos(beta);
-  const double sg = std::sin(gamma), cg = std::cos(gamma);
+inline void RotationPartials(const EulerAngleTrig<double>& trig, Matrix3d dR[3]) {
+  const double sa = trig.sa, ca = trig.ca;
+  const double sb = trig.sb, cb = trig.cb;
+  const double sg = trig.sg, cg = trig.cg;
   dR[0] << 0, 0, 0,                                      //
       sa * sg - ca * cb * cg, -sa * cg - ca * cb * sg, ca * sb,  //
       ca * sg + sa * cb * cg, -ca * cg + sa * cb * sg, -sa * sb;
@@ -99,6 +140,10 @@ inline void RotationPartials(double alpha, double beta, double gamma, Matrix3d d
   dR[2] << -sb * sg, sb * cg, 0,                         //
       -ca * cg + sa * cb * sg, -ca * sg - sa * cb * cg, 0,  //
       sa * cg + ca * cb * sg, sa * sg - ca * cb * cg, 0;
+}
+
+inline void RotationPartials(double alpha, double beta, double gamma, Matrix3d dR[3]) {
+  RotationPartials(EulerAngleTrigOf(alpha, beta, gamma), dR);
 }
 
 }  // namespace kneedyn

@@ -238,5 +238,36 @@ TEST(GeneralizedAcceleration, EqualsTimeDerivativeOfGeneralizedVelocity) {
   }
 }
 
+// The overloads that take a pose's sines and cosines (computed once per pose) must give
+// exactly what the angle overloads give: the formulations' outputs are compared byte for byte.
+TEST(EulerAngleTrig, OverloadsEqualTheAngleOverloadsBitwise) {
+  std::mt19937 rng(10);
+  for (int s = 0; s < kSamples; ++s) {
+    const Vector6d q = RandomCoordinates(rng);
+    const Vector6d qd = RandomVector6(rng, 2.0);
+    const Vector6d qdd = RandomVector6(rng, 20.0);
+    const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
+    EXPECT_EQ(trig.sa, std::sin(q(kAlpha)));
+    EXPECT_EQ(trig.cg, std::cos(q(kGamma)));
+    EXPECT_TRUE(RotationFT(trig) == RotationFT(q(kAlpha), q(kBeta), q(kGamma)));
+    EXPECT_TRUE(AngularVelocityMap(q(kBeta), trig) == AngularVelocityMap(q(kBeta), q(kGamma)));
+    EXPECT_TRUE(AngularVelocityMapRateTimesRate(trig, Vector3d(qd.tail<3>())) ==
+                AngularVelocityMapRateTimesRate(q(kBeta), q(kGamma), Vector3d(qd.tail<3>())));
+    EXPECT_TRUE(GeneralizedVelocity(q, trig, qd) == GeneralizedVelocity(q, qd));
+    EXPECT_TRUE(PoseFromCoordinates(q, trig).R_FT == PoseFromCoordinates(q).R_FT);
+    const Vector6d nud = GeneralizedAcceleration(q, trig, qd, qdd);
+    EXPECT_LT((CoordinateAcceleration(q, trig, qd, nud) - qdd).norm(), 1e-11);
+    Matrix3d dR[3], dR_angles[3];
+    RotationPartials(trig, dR);
+    RotationPartials(q(kAlpha), q(kBeta), q(kGamma), dR_angles);
+    for (int a = 0; a < 3; ++a) EXPECT_TRUE(dR[a] == dR_angles[a]);
+  }
+  // The singularity check reads the pose's sin β.
+  for (double beta : {0.0, kPi, 1e-5}) {
+    const EulerAngleTrig<double> trig = EulerAngleTrigOf(0.2, beta, 0.3);
+    ExpectJcsSingularity([&] { (void)AngularVelocityMap(beta, trig); }, beta);
+  }
+}
+
 }  // namespace
 }  // namespace kneedyn
