@@ -12,6 +12,7 @@
 
 #include "solver/error.hpp"
 #include "solver/ligament.hpp"
+#include "solver/model_builder.hpp"
 #include "solver/pose.hpp"
 #include "solver/units.hpp"
 
@@ -482,26 +483,16 @@ Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values) {
       case ParameterKind::kAnalytic: break;
     }
   }
-  // L_ref, L0 = L_ref / e and the law's k_par (Eq. 1.14, spec §5) of every element touched.
+  // L_ref, L0 = L_ref / e and the law's k_par (Eq. 1.14) of every element: the model
+  // builder's rules (solver/model_builder.hpp).
   for (size_t j = 0; j < m.ligaments.size(); ++j) {
-    Ligament& l = m.ligaments[j];
-    if (geometry_changed[j]) {
-      l.reference_length = LigamentSpan_F(l, reference).norm();
-      l.slack_length = l.reference_length / l.extension_ratio;
-    }
+    if (geometry_changed[j]) SetLigamentLengths(reference, &m.ligaments[j]);
   }
   for (size_t k = 0; k < spec.parameters.size(); ++k) {
     const ParameterSpec& p = spec.parameters[k];
-    if (p.kind != ParameterKind::kLigamentSlackLength) continue;
-    Ligament& l = m.ligaments[p.ligament];
-    l.slack_length = MmToM(values[k]);
-    l.extension_ratio = l.reference_length / l.slack_length;
+    if (p.kind == ParameterKind::kLigamentSlackLength) SetSlackLength(MmToM(values[k]), &m.ligaments[p.ligament]);
   }
-  for (Ligament& l : m.ligaments) {
-    l.k_parabolic = m.ligament_law == LigamentLaw::kC1Continuous
-                        ? l.k_linear / (4.0 * kLigamentToeStrain * l.slack_length)
-                        : l.k_parabolic_published;
-  }
+  for (Ligament& l : m.ligaments) SetLigamentLaw(m.ligament_law, &l);
   return scene;
 }
 
