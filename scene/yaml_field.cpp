@@ -9,6 +9,7 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <unordered_map>
 
 #include "solver/error.hpp"
 
@@ -98,30 +99,25 @@ std::string TagAsWritten(const unsigned char* tag) {
   return t.compare(0, yaml_prefix.size(), yaml_prefix) == 0 ? "!!" + t.substr(yaml_prefix.size()) : t;
 }
 
-// The field path of each node while libyaml's events stream by (for the messages of the
-// event scan).
+// Where the event stream is, as a field path for messages; the path is built only when a
+// message needs it.
 class EventPath {
  public:
-  // The path of the node an event starts; `*is_key` when it is a mapping key.
+  // The path of the node the next event starts; `*is_key` when it is a mapping key.
   std::string Next(bool* is_key) const {
-    *is_key = false;
-    if (frames_.empty()) return "";
-    const Frame& f = frames_.back();
-    if (f.map && f.key_next) {
-      *is_key = true;
-      return f.path;
-    }
-    if (f.map) return f.path.empty() ? f.key : f.path + "." + f.key;
-    return StrCat(f.path, "[", f.index, "]");
+    *is_key = !frames_.empty() && frames_.back().map && frames_.back().key_next;
+    return PathOf(*is_key ? frames_.size() - 1 : frames_.size());
   }
   // A node (scalar, alias or a finished collection) was read at the current level.
   void Done(const yaml_event_t& event) {
     if (frames_.empty()) return;
     Frame& f = frames_.back();
     if (f.map && f.key_next) {
-      f.key = event.type == YAML_SCALAR_EVENT
-                  ? std::string(reinterpret_cast<const char*>(event.data.scalar.value), event.data.scalar.length)
-                  : "(non-scalar key)";
+      if (event.type == YAML_SCALAR_EVENT) {
+        f.key.assign(reinterpret_cast<const char*>(event.data.scalar.value), event.data.scalar.length);
+      } else {
+        f.key = "(non-scalar key)";
+      }
       f.key_next = false;
     } else if (f.map) {
       f.key_next = true;
@@ -129,83 +125,116 @@ class EventPath {
       ++f.index;
     }
   }
-  void Push(bool map, std::string path) { frames_.push_back(Frame{std::move(path), map, true, {}, 0}); }
+  void Push(bool map) { frames_.push_back(Frame{map, true, {}, 0}); }
   void Pop() { frames_.pop_back(); }
   int depth() const { return static_cast<int>(frames_.size()); }
 
  private:
   struct Frame {
-    std::string path;
     bool map;
     bool key_next;
     std::string key;
     size_t index;
   };
+  // The path of the node under the first `levels` frames.
+  std::string PathOf(size_t levels) const {
+    std::string path;
+    for (size_t i = 0; i < levels; ++i) {
+      const Frame& f = frames_[i];
+      path += f.map ? (path.empty() ? "" : ".") + f.key : StrCat("[", f.index, "]");
+    }
+    return path;
+  }
   std::vector<Frame> frames_;
 };
 
-// One pass over the event stream before the document is built: refuses nesting deeper
-// than kMaxYamlDepth as soon as it is reached (libyaml's cost grows with the square of the
-// depth), any tag, and more than kMaxYamlAnchors anchors. Syntax errors are left to the
-// load that follows, which reports them the same way.
-void ScanEvents(const std::string& text, const std::string& label) {
-  yaml_parser_t parser;
-  if (!yaml_parser_initialize(&parser)) Throw<InputError>("LoadScene", Echo(label), ": out of memory");
-  yaml_parser_set_input_string(&parser, reinterpret_cast<const unsigned char*>(text.data()), text.size());
+// Builds `doc` from libyaml's events in one pass (the work of yaml_parser_load, which it
+// replaces), refusing on the way, as soon as they are met: nesting deeper than
+// kMaxYamlDepth (libyaml's scanner slows with the square of the depth, so the rest of such
+// a file is never read) and any tag. Anchors are found through a hash map (libyaml's
+// loader searches its list for each alias), and an alias may name only a finished node,
+// so the document has no cycles. The first document of the stream is read, as
+// yaml_parser_load does. Returns "" or the problem, prefixed ":LINE: " or " not valid
+// YAML: ...".
+std::string Compose(yaml_parser_t* parser, const std::string& text, yaml_document_t* doc) {
   EventPath path;
-  int anchors = 0;
-  std::string problem;
-  for (bool done = false; !done && problem.empty();) {
-    yaml_event_t event;
-    if (!yaml_parser_parse(&parser, &event)) break;
-    const size_t line = event.start_mark.line + 1;
-    const unsigned char* tag = nullptr;
-    const unsigned char* anchor = nullptr;
-    bool is_key = false;
-    const std::string where = path.Next(&is_key);
-    switch (event.type) {
-      case YAML_SCALAR_EVENT:
-        tag = event.data.scalar.tag, anchor = event.data.scalar.anchor;
-        path.Done(event);
-        break;
-      case YAML_ALIAS_EVENT:
-        path.Done(event);
-        break;
-      case YAML_SEQUENCE_START_EVENT:
-      case YAML_MAPPING_START_EVENT: {
-        const bool map = event.type == YAML_MAPPING_START_EVENT;
-        tag = map ? event.data.mapping_start.tag : event.data.sequence_start.tag;
-        anchor = map ? event.data.mapping_start.anchor : event.data.sequence_start.anchor;
-        path.Push(map, where);
-        if (path.depth() > kMaxYamlDepth) {
-          problem = StrCat(":", line, ": field '", Echo(where, 128), "': nesting depth ", path.depth(),
-                           " exceeds the limit of ", kMaxYamlDepth, " mappings and lists");
-        }
-        break;
-      }
-      case YAML_SEQUENCE_END_EVENT:
-      case YAML_MAPPING_END_EVENT:
-        path.Pop();
-        path.Done(event);
-        break;
-      case YAML_STREAM_END_EVENT:
-        done = true;
-        break;
-      default:
-        break;
+  std::vector<int> open;  // collection nodes being filled
+  std::vector<int> pending_key;  // per open collection: a mapping's key awaiting its value
+  std::unordered_map<std::string, int> anchors;
+  std::vector<std::string> open_anchor;  // per open collection: its anchor, registered at its end
+  const auto attach = [&](int node) {
+    if (open.empty()) return;
+    const int parent = open.back();
+    if (doc->nodes.start[parent - 1].type == YAML_SEQUENCE_NODE) {
+      yaml_document_append_sequence_item(doc, parent, node);
+    } else if (pending_key.back() == 0) {
+      pending_key.back() = node;
+    } else {
+      yaml_document_append_mapping_pair(doc, parent, pending_key.back(), node);
+      pending_key.back() = 0;
     }
-    if (tag && problem.empty()) {
+  };
+  const auto name = [](const unsigned char* s) { return std::string(reinterpret_cast<const char*>(s)); };
+  for (;;) {
+    yaml_event_t event;
+    if (!yaml_parser_parse(parser, &event)) return StrCat(" not valid YAML: ", Echo(ParserProblem(*parser, text)));
+    const yaml_event_type_t type = event.type;
+    const size_t line = event.start_mark.line + 1;
+    const unsigned char* tag = type == YAML_SCALAR_EVENT            ? event.data.scalar.tag
+                               : type == YAML_SEQUENCE_START_EVENT ? event.data.sequence_start.tag
+                               : type == YAML_MAPPING_START_EVENT  ? event.data.mapping_start.tag
+                                                                   : nullptr;
+    std::string problem;
+    if (tag) {
+      bool is_key = false;
+      const std::string where = path.Next(&is_key);
       problem = StrCat(":", line, ": field '", Echo(where.empty() ? "(top level)" : where, 128), "'",
                        is_key ? " (a key)" : "", " has the YAML tag '", Echo(TagAsWritten(tag), 64),
                        "'; tags are not accepted: write the plain value");
-    }
-    if (anchor && ++anchors > kMaxYamlAnchors && problem.empty()) {
-      problem = StrCat(":", line, ": more than ", kMaxYamlAnchors, " anchors (&name)");
+    } else if (type == YAML_SCALAR_EVENT) {
+      const auto& sc = event.data.scalar;
+      const int node = yaml_document_add_scalar(doc, nullptr, sc.value, static_cast<int>(sc.length), sc.style);
+      doc->nodes.start[node - 1].start_mark = event.start_mark;
+      if (sc.anchor) anchors[name(sc.anchor)] = node;
+      attach(node);
+      path.Done(event);
+    } else if (type == YAML_ALIAS_EVENT) {
+      const auto it = anchors.find(name(event.data.alias.anchor));
+      if (it == anchors.end()) {
+        problem = StrCat(" not valid YAML: line ", line, ", column ", event.start_mark.column + 1,
+                         ": found undefined alias '", Echo(name(event.data.alias.anchor), 64), "'");
+      } else {
+        attach(it->second);
+        path.Done(event);
+      }
+    } else if (type == YAML_SEQUENCE_START_EVENT || type == YAML_MAPPING_START_EVENT) {
+      const bool map = type == YAML_MAPPING_START_EVENT;
+      const int node = map ? yaml_document_add_mapping(doc, nullptr, event.data.mapping_start.style)
+                           : yaml_document_add_sequence(doc, nullptr, event.data.sequence_start.style);
+      doc->nodes.start[node - 1].start_mark = event.start_mark;
+      attach(node);
+      const unsigned char* anchor = map ? event.data.mapping_start.anchor : event.data.sequence_start.anchor;
+      open.push_back(node);
+      pending_key.push_back(0);
+      open_anchor.push_back(anchor ? name(anchor) : std::string());
+      bool is_key = false;
+      if (path.depth() + 1 > kMaxYamlDepth) {
+        problem = StrCat(":", line, ": field '", Echo(path.Next(&is_key), 128), "': nesting depth ", path.depth() + 1,
+                         " exceeds the limit of ", kMaxYamlDepth, " mappings and lists");
+      }
+      path.Push(map);
+    } else if (type == YAML_SEQUENCE_END_EVENT || type == YAML_MAPPING_END_EVENT) {
+      if (!open_anchor.back().empty()) anchors[open_anchor.back()] = open.back();
+      open.pop_back();
+      pending_key.pop_back();
+      open_anchor.pop_back();
+      path.Pop();
+      path.Done(event);
     }
     yaml_event_delete(&event);
+    if (!problem.empty()) return problem;
+    if (type == YAML_DOCUMENT_END_EVENT || type == YAML_STREAM_END_EVENT) return "";
   }
-  yaml_parser_delete(&parser);
-  if (!problem.empty()) Throw<InputError>("LoadScene", Echo(label, 256), problem);
 }
 
 }  // namespace
@@ -213,18 +242,23 @@ void ScanEvents(const std::string& text, const std::string& label) {
 // A YAML document parsed by libyaml's document API (aliases are the node they name).
 class YamlDocument {
  public:
-  YamlDocument(const std::string& raw, std::string label) : label_(std::move(label)) {
+  YamlDocument(const std::string& raw, std::string label, const char* reader)
+      : label_(std::move(label)), reader_(reader) {
     const std::string text = AllowedUtf8(raw);
-    ScanEvents(text, label_);
     yaml_parser_t parser;
-    if (!yaml_parser_initialize(&parser)) Throw<InputError>("LoadScene", Echo(label_), ": out of memory");
+    if (!yaml_parser_initialize(&parser)) Throw<InputError>(reader_, Echo(label_), ": out of memory");
+    if (!yaml_document_initialize(&doc_, nullptr, nullptr, nullptr, 1, 1)) {
+      yaml_parser_delete(&parser);
+      Throw<InputError>(reader_, Echo(label_), ": out of memory");
+    }
     yaml_parser_set_input_string(&parser, reinterpret_cast<const unsigned char*>(text.data()), text.size());
-    const bool loaded = yaml_parser_load(&parser, &doc_) != 0;
-    const std::string problem = loaded ? std::string() : ParserProblem(parser, text);
+    const std::string problem = Compose(&parser, text, &doc_);
     yaml_parser_delete(&parser);
-    // On failure yaml_parser_load has deleted the partial document itself, and a throwing
-    // constructor runs no destructor: a constructed YamlDocument always holds a document.
-    if (!loaded) Throw<InputError>("LoadScene", Echo(label_), ": not valid YAML: ", Echo(problem));
+    if (!problem.empty()) {
+      // A throwing constructor runs no destructor.
+      yaml_document_delete(&doc_);
+      Throw<InputError>(reader_, Echo(label_, 256), problem[0] == ' ' ? ":" : "", problem);
+    }
   }
   ~YamlDocument() { yaml_document_delete(&doc_); }
   YamlDocument(const YamlDocument&) = delete;
@@ -233,12 +267,14 @@ class YamlDocument {
   const yaml_node_t* Root() const { return yaml_document_get_root_node(Doc()); }
   const yaml_node_t* Node(int index) const { return yaml_document_get_node(Doc(), index); }
   const std::string& label() const { return label_; }
+  const char* reader() const { return reader_; }
   // One stream for every number of the document: its locale is built once.
   std::istringstream& NumberStream() const { return numbers_; }
 
  private:
   yaml_document_t* Doc() const { return const_cast<yaml_document_t*>(&doc_); }
   std::string label_;
+  const char* reader_;  // the function named in messages
   yaml_document_t doc_{};
   mutable std::istringstream numbers_;
 };
@@ -325,7 +361,7 @@ Field::Field(std::shared_ptr<const YamlDocument> doc, const yaml_node_t* node, s
     : doc_(std::move(doc)), node_(node), kind_(KindOf(node)), path_(std::move(path)) {}
 
 void Field::Fail(const std::string& rule) const {
-  Throw<InputError>("LoadScene", Echo(doc_->label(), 256), Line(node_), ": field '", path_.empty() ? "(top level)" : path_,
+  Throw<InputError>(doc_->reader(), Echo(doc_->label(), 256), Line(node_), ": field '", path_.empty() ? "(top level)" : path_,
                     "'", kind_ == YamlKind::kScalar ? " = '" + Echo(std::string(ScalarText(node_))) + "'" : std::string(),
                     ": ", rule);
 }
@@ -340,7 +376,7 @@ const Field& Field::Keys(const std::vector<const char*>& keys) const {
     for (const yaml_node_pair_t* earlier = begin; earlier != pair; ++earlier) {
       const yaml_node_t* e = doc_->Node(earlier->key);
       if (KeyText(e, "(non-scalar key)") == k) {
-        Throw<InputError>("LoadScene", Echo(doc_->label(), 256), Line(key), ": key '", Echo(Where(k)),
+        Throw<InputError>(doc_->reader(), Echo(doc_->label(), 256), Line(key), ": key '", Echo(Where(k)),
                           "' given twice (a key may appear once per mapping)");
       }
     }
@@ -357,7 +393,7 @@ const Field& Field::Keys(const std::vector<const char*>& keys) const {
       }
       list += (list.empty() ? "" : ", ") + std::string(valid);
     }
-    Throw<InputError>("LoadScene", Echo(doc_->label(), 256), Line(key), ": unknown key '", Echo(Where(k)), "'",
+    Throw<InputError>(doc_->reader(), Echo(doc_->label(), 256), Line(key), ": unknown key '", Echo(Where(k)), "'",
                       nearest ? StrCat("; nearest valid key '", nearest, "'") : std::string(), " (valid here: ", list,
                       ")");
   }
@@ -485,8 +521,18 @@ const yaml_node_t* Field::Find(std::string_view key) const {
   return nullptr;
 }
 
+Field ParseYamlDocument(const std::string& text, const std::string& label, const char* reader) {
+  auto doc = std::make_shared<const YamlDocument>(text, label, reader);
+  const yaml_node_t* root = doc->Root();
+  return Field(doc, root, "");
+}
+
+bool Field::IsPlainScalar() const {
+  return kind_ == YamlKind::kScalar && node_->data.scalar.style == YAML_PLAIN_SCALAR_STYLE;
+}
+
 Field ParseYaml(const std::string& text, const std::string& label) {
-  auto doc = std::make_shared<const YamlDocument>(text, label);
+  auto doc = std::make_shared<const YamlDocument>(text, label, "LoadScene");
   const yaml_node_t* root = doc->Root();
   const YamlKind kind = KindOf(root);
   if (kind != YamlKind::kMap) {

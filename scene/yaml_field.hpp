@@ -1,13 +1,16 @@
 // Reading a YAML document (libyaml) field by field, so that every message names the file,
-// the line, the field path and the value as the user typed it. Used by the scene loader
-// (scene.cpp and its sections) for scene files and parameter sets.
+// the line, the field path and the value as the user typed it. The project's one YAML
+// reader: scene files and parameter sets (scene.cpp and its sections), sweep specs
+// (ensembles/sweep_spec.cpp) and the documents the Python package reads
+// (python/kneedyn_module.cpp).
 //
-// What a document may be (checked before it is built, in one pass over libyaml's events):
-//  - nesting at most kMaxYamlDepth mappings and lists deep: libyaml's time grows with the
+// What a document may be (checked while it is built from libyaml's events, in one pass, so
+// that reading time grows linearly with the file's size):
+//  - nesting at most kMaxYamlDepth mappings and lists deep: libyaml's scanner slows with the
 //    square of the depth, so a deeper file is refused as soon as the limit is passed;
 //  - no tags (`!!int 3.5`, `!custom 5`): a tag would be ignored, so it is refused, naming
 //    the field and the tag;
-//  - at most kMaxYamlAnchors anchors (libyaml resolves each alias by a linear search).
+//  - an alias names a finished node (no cycles); anchors are found through a hash map.
 // Values keep yaml-cpp's meaning (the library scenes were first read with):
 //  - a plain scalar ~, null, Null, NULL or empty is null: not a string, number or boolean;
 //  - a number is the whole scalar read as by an istream in the "C" locale (yaml-cpp's
@@ -32,7 +35,6 @@ struct yaml_node_s;
 namespace kneedyn::scene_detail {
 
 constexpr int kMaxYamlDepth = 64;         // nested mappings and lists
-constexpr int kMaxYamlAnchors = 256;      // anchors (&name) in one document
 constexpr std::uintmax_t kMaxInputFileBytes = 1 << 20;  // scene or parameter-set file
 constexpr size_t kMaxNameLength = 64;                    // scene, set and element names
 constexpr double kMaxLengthMm = 1000.0;                  // any position or length, mm
@@ -57,8 +59,12 @@ class Field {
   Field Required(std::string_view key) const;
   Field Item(size_t i) const;
   size_t Size() const;  // of a list
+  YamlKind kind() const { return kind_; }
+  bool IsMap() const { return kind_ == YamlKind::kMap; }
   bool IsSequence() const { return kind_ == YamlKind::kSequence; }
-  bool IsScalar() const { return kind_ == YamlKind::kScalar; }
+  bool IsScalar() const { return kind_ == YamlKind::kScalar; }  // not null
+  bool IsPlainScalar() const;  // written without quotes
+  bool IsNull() const { return kind_ == YamlKind::kNull; }
   std::vector<std::string> Keys() const;  // of a mapping, in file order
   const std::string& path() const { return path_; }
 
@@ -85,8 +91,12 @@ class Field {
   std::string path_;
 };
 
-// The document's top level, which must be a mapping. `label` names the file in messages.
+// A scene or parameter set's top level, which must be a mapping. `label` names the file in
+// messages.
 Field ParseYaml(const std::string& text, const std::string& label);
+// Any YAML document (the same checks and meanings); messages name `reader` as the function
+// ("LoadSweepSpec"). An empty document is an undefined Field.
+Field ParseYamlDocument(const std::string& text, const std::string& label, const char* reader);
 
 // A scene or parameter-set file: an existing regular file (not a device, FIFO or
 // directory) of at most kMaxInputFileBytes.

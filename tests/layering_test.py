@@ -33,7 +33,7 @@ CMAKE_RULES = [
     ("links the loader or the formulations",
      re.compile(r"target_link_libraries\([^)]*kneedyn_(scene|formulations)", re.S)),
 ]
-# Both YAML libraries: yaml-cpp (sweep specs, ensembles/) and libyaml (the scene loader).
+# Both YAML libraries: libyaml (the project's reader) and yaml-cpp (test oracle, benchmark).
 YAML_LIB = re.compile(r"libyaml")
 
 
