@@ -1,6 +1,6 @@
 # The kneedyn tools (kneedyn, kneedyn_catalog) link the static archives Debian
 # ships of their libraries — Ceres' dependencies (glog, gflags, SuiteSparse, CXSparse,
-# LAPACK/BLAS/ATLAS), SUNDIALS, yaml-cpp and libyaml — instead of the shared objects, so
+# LAPACK/BLAS/ATLAS), SUNDIALS and libyaml — instead of the shared objects, so
 # that the dynamic loader maps and relocates 8 objects at start-up instead of 31
 # (benchmarks/README.md, "Start-up"). Everything else keeps the shared libraries: the
 # libraries' consumers (the installed CMake package, kneedyn.pc), the tests, the Python
@@ -22,7 +22,7 @@ function(kneedyn_static_tool)
   set(missing)
   set(archives)
   foreach(name glog gflags spqr cholmod amd camd ccolamd colamd suitesparseconfig cxsparse
-               lapack f77blas atlas blas cblas yaml-cpp yaml)
+               lapack f77blas atlas blas cblas yaml)
     string(MAKE_C_IDENTIFIER "KNEEDYN_ARCHIVE_${name}" var)
     find_library(${var} NAMES lib${name}.a)
     if(${var})
@@ -65,5 +65,5 @@ function(kneedyn_static_tool)
   foreach(tool ${ARGN})
     set_property(TARGET ${tool} PROPERTY KNEEDYN_STATIC_TOOL ON)
   endforeach()
-  message(STATUS "KNEEDYN_STATIC_TOOL: ${ARGN} link static archives of Ceres' dependencies, SUNDIALS, yaml-cpp, libyaml")
+  message(STATUS "KNEEDYN_STATIC_TOOL: ${ARGN} link static archives of Ceres' dependencies, SUNDIALS, libyaml")
 endfunction()

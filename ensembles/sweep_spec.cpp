@@ -1,7 +1,5 @@
 #include "ensembles/sweep_spec.hpp"
 
-#include <yaml-cpp/yaml.h>
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -10,8 +8,10 @@
 #include <set>
 #include <sstream>
 
+#include "scene/yaml_field.hpp"
 #include "solver/error.hpp"
 #include "solver/ligament.hpp"
+#include "solver/model_builder.hpp"
 #include "solver/pose.hpp"
 #include "solver/units.hpp"
 
@@ -21,51 +21,24 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// A YAML node with its path for messages "SPEC: field 'a.b[2]' = 'v': rule".
+// A YAML node of the spec with its path for messages "SPEC:LINE: field 'a.b[2]' = 'v': rule"
+// (scene/yaml_field.hpp, the project's YAML reader, with this file's names).
 class Node {
  public:
-  Node(YAML::Node n, const std::string* file, std::string path)
-      : n_(std::move(n)), file_(file), path_(std::move(path)) {}
-  [[noreturn]] void Fail(const std::string& rule) const {
-    Throw<InputError>("LoadSweepSpec", *file_, ": field '", path_, "'",
-                      n_ && n_.IsScalar() ? " = '" + n_.Scalar() + "'" : std::string(), ": ", rule);
-  }
-  bool Has(const std::string& key) const { return n_.IsMap() && n_[key]; }
-  Node Child(const std::string& key) const {
-    if (!n_.IsMap()) Fail("must be a mapping");
-    return Node(n_[key], file_, path_.empty() ? key : path_ + "." + key);
-  }
-  Node Required(const std::string& key) const {
-    Node c = Child(key);
-    if (!c.n_) Fail("missing required field '" + key + "'");
-    return c;
-  }
+  explicit Node(scene_detail::Field f) : f_(std::move(f)) {}
+  [[noreturn]] void Fail(const std::string& rule) const { f_.Fail(rule); }
+  bool Has(const std::string& key) const { return f_.IsMap() && f_.Has(key); }
+  Node Required(const std::string& key) const { return Node(f_.Required(key)); }
   // Rejects keys outside `allowed` (a misspelt key must not be ignored silently).
-  void OnlyKeys(std::initializer_list<const char*> allowed) const {
-    if (!n_.IsMap()) Fail("must be a mapping");
-    for (const auto& kv : n_) {
-      const std::string key = kv.first.as<std::string>();
-      if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; })) {
-        std::string list;
-        for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-        Node(kv.first, file_, path_.empty() ? key : path_ + "." + key)
-            .Fail("unknown key '" + key + "'; expected one of: " + list);
-      }
-    }
-  }
-  size_t Size() const {
-    if (!n_.IsSequence()) Fail("must be a list");
-    return n_.size();
-  }
-  Node Item(size_t i) const { return Node(n_[i], file_, StrCat(path_, "[", i, "]")); }
-  bool IsScalar() const { return n_.IsScalar(); }
-  std::string String() const {
-    if (!n_.IsScalar()) Fail("must be a string");
-    return n_.Scalar();
-  }
+  void OnlyKeys(const std::vector<const char*>& allowed) const { f_.Keys(allowed); }
+  size_t Size() const { return f_.Size(); }
+  Node Item(size_t i) const { return Node(f_.Item(i)); }
+  bool IsScalar() const { return f_.IsScalar(); }
+  std::string String() const { return f_.String(); }
+  // The whole scalar read by strtod.
   double Double() const {
-    if (!n_.IsScalar()) Fail("must be a number");
-    const std::string s = n_.Scalar();
+    if (!f_.IsScalar()) Fail("must be a number");
+    const std::string s = f_.String();
     char* end = nullptr;
     const double v = std::strtod(s.c_str(), &end);
     if (s.empty() || *end != '\0') Fail("must be a number");
@@ -79,12 +52,10 @@ class Node {
     }
     return static_cast<long>(v);
   }
-  const std::string& path() const { return path_; }
+  const std::string& path() const { return f_.path(); }
 
  private:
-  YAML::Node n_;
-  const std::string* file_;
-  std::string path_;
+  scene_detail::Field f_;
 };
 
 std::string Sanitize(const std::string& s) {
@@ -257,13 +228,8 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
   SweepSpec spec;
   spec.path = label;
   spec.fingerprint = Fnv1a(yaml_text);
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    Throw<InputError>("LoadSweepSpec", label, ": not valid YAML: ", e.what());
-  }
-  const Node top(root, &spec.path, "");
+  const scene_detail::Field root = scene_detail::ParseYamlDocument(yaml_text, label, "LoadSweepSpec");
+  const Node top(root);
   if (!root.IsMap()) top.Fail("the spec must be a YAML mapping");
   top.OnlyKeys({"scene", "analytic", "parameters", "design", "outcomes", "solver"});
 
@@ -488,26 +454,16 @@ Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values) {
       case ParameterKind::kAnalytic: break;
     }
   }
-  // L_ref, L0 = L_ref / e and the law's k_par (Eq. 1.14, spec §5) of every element touched.
+  // L_ref, L0 = L_ref / e and the law's k_par (Eq. 1.14) of every element: the model
+  // builder's rules (solver/model_builder.hpp).
   for (size_t j = 0; j < m.ligaments.size(); ++j) {
-    Ligament& l = m.ligaments[j];
-    if (geometry_changed[j]) {
-      l.reference_length = LigamentSpan_F(l, reference).norm();
-      l.slack_length = l.reference_length / l.extension_ratio;
-    }
+    if (geometry_changed[j]) SetLigamentLengths(reference, &m.ligaments[j]);
   }
   for (size_t k = 0; k < spec.parameters.size(); ++k) {
     const ParameterSpec& p = spec.parameters[k];
-    if (p.kind != ParameterKind::kLigamentSlackLength) continue;
-    Ligament& l = m.ligaments[p.ligament];
-    l.slack_length = MmToM(values[k]);
-    l.extension_ratio = l.reference_length / l.slack_length;
+    if (p.kind == ParameterKind::kLigamentSlackLength) SetSlackLength(MmToM(values[k]), &m.ligaments[p.ligament]);
   }
-  for (Ligament& l : m.ligaments) {
-    l.k_parabolic = m.ligament_law == LigamentLaw::kC1Continuous
-                        ? l.k_linear / (4.0 * kLigamentToeStrain * l.slack_length)
-                        : l.k_parabolic_published;
-  }
+  for (Ligament& l : m.ligaments) SetLigamentLaw(m.ligament_law, &l);
   return scene;
 }
 

@@ -11,7 +11,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
-#include <yaml-cpp/yaml.h>
+#include <yaml.h>
 
 #include <algorithm>
 #include <cmath>
@@ -31,6 +31,7 @@
 #include "solver/error.hpp"
 #include "solver/loads.hpp"
 #include "scene/scene.hpp"
+#include "scene/yaml_field.hpp"
 #include "solver/units.hpp"
 
 namespace py = pybind11;
@@ -38,84 +39,132 @@ using namespace kneedyn;
 
 namespace {
 
-// Python value -> YAML node. Numbers are written with 17 significant digits, so the
-// loader reads back exactly the double Python holds.
-YAML::Node ToYaml(const py::handle& obj, const std::string& where) {
-  if (obj.is_none()) return YAML::Node(YAML::NodeType::Null);
-  if (py::isinstance<py::bool_>(obj)) return YAML::Node(obj.cast<bool>() ? "true" : "false");
-  if (py::isinstance<py::str>(obj)) return YAML::Node(obj.cast<std::string>());
-  if (py::isinstance<py::dict>(obj)) {
-    YAML::Node map(YAML::NodeType::Map);
-    for (auto item : obj.cast<py::dict>()) {
-      if (!py::isinstance<py::str>(item.first)) {
-        Throw<InputError>("Scene.from_dict", "key ", std::string(py::repr(item.first)), " under '",
-                          where.empty() ? "<top>" : where, "' must be a string");
-      }
-      const std::string key = item.first.cast<std::string>();
-      map[key] = ToYaml(item.second, where.empty() ? key : where + "." + key);
-    }
-    return map;
+// Python value -> YAML text through libyaml's emitter (block style, as the scene files
+// are written). Numbers are written with 17 significant digits, so the loader reads back
+// exactly the double Python holds.
+class YamlWriter {
+ public:
+  YamlWriter() {
+    if (!yaml_emitter_initialize(&emitter_)) Throw<Error>("Scene.to_yaml", "out of memory");
+    yaml_emitter_set_output(&emitter_, &YamlWriter::Append, &text_);
+    yaml_emitter_set_unicode(&emitter_, 1);
+    yaml_emitter_set_width(&emitter_, -1);  // no folding of long values
   }
-  if (py::isinstance<py::list>(obj) || py::isinstance<py::tuple>(obj)) {
-    YAML::Node seq(YAML::NodeType::Sequence);
-    size_t i = 0;
-    for (auto item : obj) seq.push_back(ToYaml(item, StrCat(where, "[", i++, "]")));
-    return seq;
-  }
-  if (py::isinstance<py::int_>(obj) || py::hasattr(obj, "__index__")) {
-    return YAML::Node(std::string(py::str(py::int_(py::reinterpret_borrow<py::object>(obj)))));
-  }
-  if (py::isinstance<py::float_>(obj) || py::hasattr(obj, "__float__")) {
-    const double v = py::float_(py::reinterpret_borrow<py::object>(obj)).cast<double>();
-    if (std::isnan(v)) return YAML::Node(".nan");  // the loader's "must be finite"
-    if (std::isinf(v)) return YAML::Node(v > 0 ? ".inf" : "-.inf");
-    char buf[40];
-    std::snprintf(buf, sizeof(buf), "%.17g", v);
-    return YAML::Node(std::string(buf));
-  }
-  Throw<InputError>("Scene.from_dict", "field '", where, "' = ", std::string(py::repr(obj)),
-                    ": unsupported type ", std::string(py::str(obj.get_type().attr("__name__"))),
-                    "; use dict, list, str, number, bool or None");
-}
+  ~YamlWriter() { yaml_emitter_delete(&emitter_); }
+  YamlWriter(const YamlWriter&) = delete;
+  YamlWriter& operator=(const YamlWriter&) = delete;
 
-std::string EmitYaml(const YAML::Node& node) {
-  YAML::Emitter out;
-  out << node;
-  return out.c_str();
-}
+  std::string Document(const py::handle& obj) {
+    yaml_event_t e;
+    yaml_stream_start_event_initialize(&e, YAML_UTF8_ENCODING);
+    Emit(&e);
+    yaml_document_start_event_initialize(&e, nullptr, nullptr, nullptr, 1);
+    Emit(&e);
+    Value(obj, "");
+    yaml_document_end_event_initialize(&e, 1);
+    Emit(&e);
+    yaml_stream_end_event_initialize(&e);
+    Emit(&e);
+    yaml_emitter_flush(&emitter_);
+    return text_;
+  }
+
+ private:
+  static int Append(void* data, unsigned char* buffer, size_t size) {
+    static_cast<std::string*>(data)->append(reinterpret_cast<const char*>(buffer), size);
+    return 1;
+  }
+  void Emit(yaml_event_t* e) {
+    if (!yaml_emitter_emit(&emitter_, e)) {
+      Throw<Error>("Scene.to_yaml", "libyaml: ", emitter_.problem ? emitter_.problem : "emitter error");
+    }
+  }
+  // A plain scalar (numbers, booleans, null), or a string: plain where YAML reads it back
+  // as the same text, double-quoted where plain would read as null (empty, ~, null).
+  void Scalar(const std::string& text, bool string) {
+    const bool null_like = text.empty() || text == "~" || text == "null" || text == "Null" || text == "NULL";
+    const yaml_scalar_style_t style =
+        !string ? YAML_PLAIN_SCALAR_STYLE : null_like ? YAML_DOUBLE_QUOTED_SCALAR_STYLE : YAML_ANY_SCALAR_STYLE;
+    yaml_event_t e;
+    yaml_scalar_event_initialize(&e, nullptr, nullptr, reinterpret_cast<yaml_char_t*>(const_cast<char*>(text.data())),
+                                 static_cast<int>(text.size()), 1, 1, style);
+    Emit(&e);
+  }
+  void Value(const py::handle& obj, const std::string& where) {
+    yaml_event_t e;
+    if (obj.is_none()) return Scalar("~", false);
+    if (py::isinstance<py::bool_>(obj)) return Scalar(obj.cast<bool>() ? "true" : "false", false);
+    if (py::isinstance<py::str>(obj)) return Scalar(obj.cast<std::string>(), true);
+    if (py::isinstance<py::dict>(obj)) {
+      yaml_mapping_start_event_initialize(&e, nullptr, nullptr, 1, YAML_BLOCK_MAPPING_STYLE);
+      Emit(&e);
+      for (auto item : obj.cast<py::dict>()) {
+        if (!py::isinstance<py::str>(item.first)) {
+          Throw<InputError>("Scene.from_dict", "key ", std::string(py::repr(item.first)), " under '",
+                            where.empty() ? "<top>" : where, "' must be a string");
+        }
+        const std::string key = item.first.cast<std::string>();
+        Scalar(key, true);
+        Value(item.second, where.empty() ? key : where + "." + key);
+      }
+      yaml_mapping_end_event_initialize(&e);
+      return Emit(&e);
+    }
+    if (py::isinstance<py::list>(obj) || py::isinstance<py::tuple>(obj)) {
+      yaml_sequence_start_event_initialize(&e, nullptr, nullptr, 1, YAML_BLOCK_SEQUENCE_STYLE);
+      Emit(&e);
+      size_t i = 0;
+      for (auto item : obj) Value(item, StrCat(where, "[", i++, "]"));
+      yaml_sequence_end_event_initialize(&e);
+      return Emit(&e);
+    }
+    if (py::isinstance<py::int_>(obj) || py::hasattr(obj, "__index__")) {
+      return Scalar(std::string(py::str(py::int_(py::reinterpret_borrow<py::object>(obj)))), false);
+    }
+    if (py::isinstance<py::float_>(obj) || py::hasattr(obj, "__float__")) {
+      const double v = py::float_(py::reinterpret_borrow<py::object>(obj)).cast<double>();
+      if (std::isnan(v)) return Scalar(".nan", false);  // the loader's "must be finite"
+      if (std::isinf(v)) return Scalar(v > 0 ? ".inf" : "-.inf", false);
+      char buf[40];
+      std::snprintf(buf, sizeof(buf), "%.17g", v);
+      return Scalar(buf, false);
+    }
+    Throw<InputError>("Scene.from_dict", "field '", where, "' = ", std::string(py::repr(obj)),
+                      ": unsupported type ", std::string(py::str(obj.get_type().attr("__name__"))),
+                      "; use dict, list, str, number, bool or None");
+  }
+
+  yaml_emitter_t emitter_;
+  std::string text_;
+};
+
+std::string EmitYaml(const py::handle& document) { return YamlWriter().Document(document); }
 
 // YAML node -> Python value: integers and decimals become int / float, true/false bool,
 // anything else a string (as the loader would read it).
-py::object FromYaml(const YAML::Node& node) {
-  switch (node.Type()) {
-    case YAML::NodeType::Map: {
-      py::dict d;
-      for (const auto& kv : node) d[py::str(kv.first.Scalar())] = FromYaml(kv.second);
-      return std::move(d);
-    }
-    case YAML::NodeType::Sequence: {
-      py::list l;
-      for (const auto& item : node) l.append(FromYaml(item));
-      return std::move(l);
-    }
-    case YAML::NodeType::Scalar: {
-      const std::string& s = node.Scalar();
-      if (node.Tag() != "!") {  // quoted scalars stay strings
-        if (s == "true" || s == "True") return py::bool_(true);
-        if (s == "false" || s == "False") return py::bool_(false);
-        char* end = nullptr;
-        if (!s.empty()) {
-          const long long i = std::strtoll(s.c_str(), &end, 10);
-          if (*end == '\0') return py::int_(i);
-          const double v = std::strtod(s.c_str(), &end);
-          if (*end == '\0') return py::float_(v);
-        }
-      }
-      return py::str(s);
-    }
-    default:
-      return py::none();
+py::object FromYaml(const scene_detail::Field& node) {
+  if (node.IsMap()) {
+    py::dict d;
+    for (const std::string& key : node.Keys()) d[py::str(key)] = FromYaml(node.Required(key));
+    return std::move(d);
   }
+  if (node.IsSequence()) {
+    py::list l;
+    for (size_t i = 0; i < node.Size(); ++i) l.append(FromYaml(node.Item(i)));
+    return std::move(l);
+  }
+  if (!node.IsScalar()) return py::none();
+  const std::string s = node.String();
+  if (node.IsPlainScalar() && !s.empty()) {  // quoted scalars stay strings
+    if (s == "true" || s == "True") return py::bool_(true);
+    if (s == "false" || s == "False") return py::bool_(false);
+    char* end = nullptr;
+    const long long i = std::strtoll(s.c_str(), &end, 10);
+    if (*end == '\0') return py::int_(i);
+    const double v = std::strtod(s.c_str(), &end);
+    if (*end == '\0') return py::float_(v);
+  }
+  return py::str(s);
 }
 
 py::dict LigamentDict(const Ligament& l) {
@@ -195,17 +244,19 @@ PYBIND11_MODULE(_kneedyn, m) {
       scene = std::make_shared<Scene>(LoadScene(path));
     }
     // The file is valid YAML: LoadScene has parsed it.
-    return py::make_tuple(scene, FromYaml(YAML::LoadFile(path)));
+    const scene_detail::Field document = scene_detail::ParseYamlDocument(
+        scene_detail::ReadInputFile(path, "scene file"), path, "LoadScene");
+    return py::make_tuple(scene, FromYaml(document));
   }, py::arg("path"), "LoadScene(path) and the file's document as a dict");
 
   m.def("parse_document", [](const py::dict& doc, const std::string& label, const std::string& base_dir) {
-    const std::string text = EmitYaml(ToYaml(doc, ""));
+    const std::string text = EmitYaml(doc);
     py::gil_scoped_release release;
     return std::make_shared<Scene>(ParseScene(text, label, base_dir));
   }, py::arg("document"), py::arg("label"), py::arg("base_dir"),
      "ParseScene on the YAML form of a dict (the CLI loader's rules and messages)");
 
-  m.def("to_yaml", [](const py::dict& doc) { return EmitYaml(ToYaml(doc, "")); }, py::arg("document"));
+  m.def("to_yaml", [](const py::dict& doc) { return EmitYaml(doc); }, py::arg("document"));
 
   m.def("data_dir", &ReferenceDataDir, "directory of the reference data (KNEEDYN_DATA_DIR overrides)");
 

@@ -1,12 +1,13 @@
-// Scenes: what one run models (issue 2, item 4). A scene file (YAML, human-written) names
-// a parameter set under reference-data/ and selects ligaments, contacts, loads, gravity,
-// the ligament-law variant, the initial state and the end condition. Only what a scene
-// names is built. See reference-data/scenes/README.md for the format.
+// Scenes: what one run models. A scene file (YAML, human-written) names a parameter set
+// under reference-data/ and selects ligaments, contacts, loads, gravity, the ligament-law
+// variant, the initial state and the end condition. Only what a scene names is built. See
+// reference-data/scenes/README.md for the format and scene/scene_keys.hpp for the table of
+// accepted keys and values.
 //
-// The loader (library kneedyn_scene, parsing with libyaml) is apart from the
-// physics (kneedyn_solver, issue 11 item 5): it fills the plain structs Model
-// (solver/model.hpp), InitialState and EndCondition (solver/initial_state.hpp) that the
-// physics functions take; solver/ includes nothing from here.
+// The loader (library kneedyn_scene, parsing with libyaml) only reads: each section of the
+// file (scene/sections.hpp) fills a plain description, and the model builder of the physics
+// library (solver/model_builder.hpp) turns the descriptions into the Model, InitialState
+// and EndCondition the physics functions take; solver/ includes nothing from here.
 //
 // Every rule a scene can break is reported as InputError naming the file, the field, the
 // value and the rule.
@@ -29,13 +30,13 @@ struct Scene {
   std::string description;
   std::string parameter_set;  // name of the parameter set
   Model model;
-  Vector6d reference_q = Vector6d::Zero();  // full extension, SI (spec §6)
+  Vector6d reference_q = Vector6d::Zero();  // full extension, SI (docs/model.md §6)
   InitialState initial;
   EndCondition end;
   double output_interval = 0.005;  // s
 };
 
-// Practical limits of a run (issue 18): the end time, and the output grid (a row is a few
+// Practical limits of a run: the end time, and the output grid (a row is a few
 // hundred bytes of state; 1e6 rows would be hundreds of MB).
 constexpr double kMaxEndTime = 100.0;          // s
 constexpr double kMinOutputInterval = 1.0e-6;  // s

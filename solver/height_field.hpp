@@ -12,7 +12,7 @@
 // the chain rule, so every Jacobian through a surface is exact without the surface knowing
 // about AD. Contact kinematics for any pair of surfaces: contact_kinematics.hpp.
 // Adding a surface type: one new file deriving from HeightField plus one line in
-// scene/scene.cpp's surface factory (ParseSurface).
+// the scene loader's surface factory (scene/surfaces.cpp, ParseSurface).
 #pragma once
 
 #include <memory>

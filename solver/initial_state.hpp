@@ -1,5 +1,6 @@
 // The initial state a run starts from and the condition that ends it: plain data, filled
-// by the scene loader (scene/scene.hpp) or by any program building a Model itself, and
+// by the model builder (model_builder.hpp: BuildInitialState) and the scene loader
+// (scene/scene.hpp: the end condition), and
 // read by the consistent initialization (consistent_init.hpp) and the events (events.hpp).
 // No parsing here: the physics library knows no file format.
 #pragma once

@@ -1,5 +1,6 @@
 // The constant model of one scene (kept apart from the mutable workspaces).
-// Built once from reference-data/ and a scene file (the loader, scene/scene.hpp); never modified by a run.
+// Built once by the model builder (model_builder.hpp), from a scene file (the loader,
+// scene/scene.hpp) or from code; never modified by a run.
 // All quantities SI. Only what the scene names is present.
 #pragma once
 

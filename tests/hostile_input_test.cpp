@@ -265,6 +265,101 @@ TEST_F(HostileInput, DependentContactRowsExitTwo) {
       << r.output;
 }
 
+// A file of about 1 MB (just under the loader's limit): `head`, then `unit` repeated.
+std::string NearLimitText(const std::string& head, const std::string& unit) {
+  std::string text = head;
+  while (text.size() + unit.size() < (1u << 20) - 16) text += unit;
+  return text;
+}
+
+// `kneedyn ...` under `timeout` (exit 124 when it runs longer: outside the exit-code
+// contract, so the test fails). Before the depth bound, a 998 KB nested file took 772 s.
+std::string Bounded(const std::string& args) { return "--version >/dev/null && timeout 60 '" KNEEDYN_EXE "' " + args; }
+
+TEST_F(HostileInput, DeepNestingIsRefusedAtTheDepthLimitWhateverTheShape) {
+  const std::string base = "name: deep\nparameter_set: " + ChapterParameterSetPath() + "\n";
+  struct Shape {
+    const char* what;
+    std::string text;
+  };
+  std::string indented = base + "description:\n";  // block mappings, one more space a level
+  for (int level = 0; indented.size() < (1u << 20) - 4096; ++level) {
+    indented += std::string(level + 1, ' ') + "k:\n";
+  }
+  const Shape shapes[] = {
+      {"flow lists", NearLimitText(base + "pulse: ", "[")},
+      {"flow mappings", NearLimitText(base + "pulse: ", "{a: ")},
+      {"block lists", NearLimitText(base + "contacts:\n", "- ")},
+      {"block mappings", indented},
+  };
+  for (const Shape& shape : shapes) {
+    SCOPED_TRACE(shape.what);
+    ASSERT_GT(shape.text.size(), 1000000u);
+    const std::string scene = Input("scene.yaml", shape.text);
+    ExpectRefused(Bounded(RunArgs(scene)), {"scene.yaml", "nesting depth 65", "limit of 64"});
+  }
+}
+
+TEST_F(HostileInput, NestingUpToTheLimitIsRead) {
+  // 64 levels (the limit) are parsed: the refusal is the field's own rule, not the depth.
+  std::string nested = "pulse: ";
+  for (int i = 1; i < 64; ++i) nested += "[";
+  nested += "1";
+  for (int i = 1; i < 64; ++i) nested += "]";
+  const std::string scene = Input("scene.yaml", Replaced(ChapterSceneText(), "pulse: {shape: reconstructed", nested + "\nx: {shape: reconstructed"));
+  const CommandResult r = ExpectRefused(RunArgs(scene), {"scene.yaml"});
+  EXPECT_EQ(r.output.find("nesting depth"), std::string::npos) << r.output;
+}
+
+TEST_F(HostileInput, ManyAnchorsAndAliasesAreAnswered) {
+  // 1 MB of anchors, then as many aliases (libyaml's own loader searches its anchor list
+  // for each alias). Refused for what the field is, a list, not a string.
+  std::string anchors = "name: anchors\ndescription: [";
+  for (int i = 0; anchors.size() < (1u << 19); ++i) anchors += StrCat("&a", i, " 1, ");
+  std::string text = NearLimitText(anchors, "*a7, ");
+  text.resize(text.size() - 2);
+  const std::string scene = Input("scene.yaml", text + "]\n");
+  ExpectRefused(Bounded(RunArgs(scene)), {"scene.yaml", "field 'description'", "must be a string"});
+}
+
+TEST_F(HostileInput, UndefinedAndRecursiveAliasesAreRefused) {
+  ExpectRefused(RunArgs(Input("scene.yaml", "name: a\ndescription: *nowhere\n")),
+                {"scene.yaml", "not valid YAML", "undefined alias 'nowhere'"});
+  // An alias inside the node it names would make a cycle.
+  ExpectRefused(RunArgs(Input("scene.yaml", "name: a\ndescription: &loop [*loop]\n")),
+                {"scene.yaml", "not valid YAML", "undefined alias 'loop'"});
+}
+
+TEST_F(HostileInput, TaggedValuesAreRefusedNamingKeyAndTag) {
+  const struct {
+    const char* from;
+    const char* to;
+    const char* field;
+    const char* tag;
+  } cases[] = {
+      {"time_s: 2.0", "time_s: !!int 3.5", "end.time_s", "!!int"},
+      {"time_s: 2.0", "time_s: !custom 5", "end.time_s", "!custom"},
+      {"amplitude_N: 100.0", "amplitude_N: !!bool 0.05", "pulse.amplitude_N", "!!bool"},
+      {"ligaments: all", "ligaments: !!str all", "ligaments", "!!str"},
+      {"contacts: [medial, lateral]", "contacts: !!seq [medial, lateral]", "contacts", "!!seq"},
+      {"contacts: [medial, lateral]", "contacts: [medial, !<tag:yaml.org,2002:str> lateral]", "contacts[1]", "!!str"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.to);
+    const std::string text = ChapterSceneText();
+    if (text.find(c.from) == std::string::npos) {
+      ADD_FAILURE() << "'" << c.from << "' not in the chapter scene";
+      continue;
+    }
+    const std::string scene = Input("scene.yaml", Replaced(text, c.from, c.to));
+    ExpectRefused(RunArgs(scene), {"scene.yaml", std::string("field '") + c.field + "'",
+                                   std::string("tag '") + c.tag + "'", "not accepted"});
+  }
+  // In a parameter set too.
+  const std::string ps = Replaced(ReadText(ChapterParameterSetPath()), "mass_kg: 4.0", "mass_kg: !!float 4.0");
+  ExpectRefused(RunArgs(SceneWithParameterSet(*this, ps)), {"params.yaml", "field 'body.mass_kg'", "tag '!!float'"});
+}
+
 TEST_F(HostileInput, ShippedScenesStillLoad) {
   // The strict loader accepts every YAML file under scenes/ as a scene (no shipped key is
   // unknown; no parameter set hides among the scenes) except the hard case that exists to

@@ -3,7 +3,7 @@
 counts") can fail, reports improvements and
 skips without valgrind. One cheap run (ede, cvode-adams) under valgrind per case, against
 baselines built here: a whole-process `kneedyn run` (dynamic loading of SUNDIALS, Ceres,
-yaml-cpp alone) executes far more than 1e6 instructions and far fewer than 1e12.
+libyaml alone) executes far more than 1e6 instructions and far fewer than 1e12.
 
   instruction_counts_test.py --compare-counters PATH --kneedyn PATH --baseline PATH
 """

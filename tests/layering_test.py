@@ -63,7 +63,7 @@ def scan_upward(folder, rel, text):
   return hits
 
 
-# Both YAML libraries: yaml-cpp (sweep specs, ensembles/) and libyaml (the scene loader).
+# Both YAML libraries: libyaml (the project's reader) and yaml-cpp (test oracle, benchmark).
 YAML_LIB = re.compile(r"libyaml")
 
 

@@ -1,11 +1,14 @@
 // Tests of scene reading and validation (scene/scene.hpp).
 //
-// Validates: every kind of bad input is refused with InputError whose message names the
+// Validates: the table of accepted keys and values (scene/scene_keys.hpp) is what the format
+// document (reference-data/scenes/README.md) and the fuzzer's dictionary (fuzz/yaml.dict)
+// list, and its pulse shapes are the solver's; every kind of bad input is refused with InputError whose message names the
 // file label, the field path and the offending value (style.md §2); a scene builds exactly
 // the ligaments and contacts it names, in its order; every shipped scene loads.
 // Does not validate: the numbers a scene produces (expected_values_test.cpp).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -13,8 +16,15 @@
 #include <string>
 #include <vector>
 
-#include "solver/error.hpp"
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+
 #include "scene/scene.hpp"
+#include "scene/scene_keys.hpp"
+#include "solver/error.hpp"
+#include "solver/loads.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
@@ -68,6 +78,111 @@ void ExpectRefused(const std::string& text, const std::string& label,
 void ExpectRefused(const SceneFields& fields, const std::string& label,
                    const std::vector<std::string>& needles) {
   ExpectRefused(Text(fields), label, needles);
+}
+
+
+// The key table against the format document and the fuzz dictionary (read from the source
+// tree: the tests run there).
+std::string SourceText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  EXPECT_TRUE(in) << "cannot read " << path;
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Every identifier inside a `code span` of the format document.
+std::set<std::string> DocumentedWords() {
+  const std::string text = SourceText("reference-data/scenes/README.md");
+  std::set<std::string> words;
+  const std::regex span("`([^`]*)`"), word("[A-Za-z_][A-Za-z0-9_]*");
+  for (std::sregex_iterator s(text.begin(), text.end(), span), end; s != end; ++s) {
+    const std::string code = (*s)[1];
+    for (std::sregex_iterator w(code.begin(), code.end(), word); w != end; ++w) words.insert(w->str());
+  }
+  return words;
+}
+
+// Every "entry" of the fuzz dictionary.
+std::set<std::string> DictionaryEntries() {
+  std::istringstream in(SourceText("fuzz/yaml.dict"));
+  std::set<std::string> entries;
+  for (std::string line; std::getline(in, line);) {
+    if (line.size() >= 2 && line.front() == '"' && line.back() == '"') entries.insert(line.substr(1, line.size() - 2));
+  }
+  return entries;
+}
+
+std::set<std::string> TableWords() {
+  std::set<std::string> words;
+  for (const auto* table : {&SceneMappingKeys(), &SceneFieldValues()}) {
+    for (const SceneKeyTable& t : *table) words.insert(t.entries.begin(), t.entries.end());
+  }
+  return words;
+}
+
+TEST(SceneKeyTable, EveryKeyAndValueIsDocumentedAndInTheFuzzDictionary) {
+  const std::set<std::string> documented = DocumentedWords(), dictionary = DictionaryEntries();
+  for (const auto* table : {&SceneMappingKeys(), &SceneFieldValues()}) {
+    for (const SceneKeyTable& t : *table) {
+      for (const char* entry : t.entries) {
+        EXPECT_TRUE(documented.count(entry)) << t.mapping << ": '" << entry << "' not in reference-data/scenes/README.md";
+        EXPECT_TRUE(dictionary.count(entry)) << t.mapping << ": '" << entry << "' not in fuzz/yaml.dict";
+      }
+    }
+  }
+}
+
+TEST(SceneKeyTable, EveryKeyTheDocumentListsIsInTheTable) {
+  // First cells of the document's tables: `key` or `section.key`.
+  const std::string text = SourceText("reference-data/scenes/README.md");
+  const std::set<std::string> table = TableWords();
+  const std::regex row("\n\\| `([a-z0-9_.]+)` \\|");
+  int rows = 0;
+  for (std::sregex_iterator r(text.begin(), text.end(), row), end; r != end; ++r, ++rows) {
+    std::istringstream path((*r)[1]);
+    for (std::string key; std::getline(path, key, '.');) {
+      EXPECT_TRUE(table.count(key)) << "'" << key << "' (README row `" << (*r)[1] << "`) not in scene/scene_keys.cpp";
+    }
+  }
+  EXPECT_GT(rows, 25);
+}
+
+TEST(SceneKeyTable, EveryWordOfTheFuzzDictionaryIsAKeyOrValue) {
+  const std::set<std::string> table = TableWords();
+  const std::set<std::string> yaml_words = {"null", "true", "false"};
+  const std::regex identifier("[a-z][a-z0-9_]*");
+  const std::regex coefficient("c[0-4][0-4]");  // polynomial coefficients_mm keys c<i><j>
+  for (const std::string& entry : DictionaryEntries()) {
+    if (!std::regex_match(entry, identifier) || yaml_words.count(entry) || std::regex_match(entry, coefficient)) continue;
+    EXPECT_TRUE(table.count(entry)) << "fuzz/yaml.dict: '" << entry << "' is neither a key nor a value of the table";
+  }
+}
+
+TEST(SceneKeyTable, PulseShapesAreTheSolversAndEachLoads) {
+  const std::vector<const char*>& shapes = ValuesOf("scene.pulse.shape");
+  // Every shape solver/loads.cpp names (PulseShapeName of each enumerator) is accepted.
+  int enumerators = 0;
+  for (int i = 0; std::string(PulseShapeName(static_cast<PulseShape>(i))) != "?"; ++i, ++enumerators) {
+    const std::string name = PulseShapeName(static_cast<PulseShape>(i));
+    EXPECT_TRUE(std::find(shapes.begin(), shapes.end(), name) != shapes.end()) << name << " missing from the table";
+  }
+  EXPECT_EQ(static_cast<size_t>(enumerators), shapes.size());
+  for (const char* shape : shapes) {
+    SceneFields f = ValidFields();
+    f["pulse"] = std::string("{shape: ") + shape + ", amplitude_N: 100.0, duration_s: 0.1}";
+    const Scene scene = ParseScene(Text(f), "shape.yaml", ScenesDir());
+    EXPECT_EQ(std::string(PulseShapeName(scene.model.pulse.shape)), shape);
+  }
+  // An unknown shape's message lists them all, from the table.
+  SceneFields f = ValidFields();
+  f["pulse"] = "{shape: sawtooth, amplitude_N: 100.0, duration_s: 0.1}";
+  try {
+    ParseScene(Text(f), "shape.yaml", ScenesDir());
+    ADD_FAILURE() << "sawtooth accepted";
+  } catch (const InputError& e) {
+    for (const char* shape : shapes) EXPECT_NE(std::string(e.what()).find(shape), std::string::npos) << e.what();
+  }
 }
 
 TEST(Scene, ValidInlineSceneLoads) {

@@ -19,6 +19,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <map>
 
 #include "benchmarks/bench_run.hpp"
@@ -218,6 +220,39 @@ TEST(SimbodyCli, RunWritesTheThreeFiles) {
   for (const char* f : {"trajectory.csv", "trajectory.sto", "summary.json"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(out) / f)) << f;
   }
+}
+
+// summary.json names the pulse shape the scene gave (it wrote "half_sine" for the
+// reconstruction study's two readings).
+TEST(SimbodyCli, SummaryNamesEachPulseShape) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / "kneedyn_simbody_pulse_shapes";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ifstream in(ScenePath("chapter_impact"));
+  std::stringstream text;
+  text << in.rdbuf();
+  for (const char* shape : {"reconstructed_peak", "damped_sine", "half_sine", "reconstructed"}) {
+    std::string scene = text.str();
+    const auto replace = [&](const std::string& from, const std::string& to) {
+      const size_t at = scene.find(from);
+      ASSERT_NE(at, std::string::npos) << from;
+      scene.replace(at, from.size(), to);
+    };
+    replace("parameter_set: ../chapter_knee.yaml", "parameter_set: " + ReferenceDataDir() + "/chapter_knee.yaml");
+    replace("shape: reconstructed,", std::string("shape: ") + shape + ",");
+    replace("end: {flexion_deg: 90.0, time_s: 2.0}", "end: {time_s: 0.01}");
+    const fs::path scene_path = dir / (std::string(shape) + ".yaml"), out = dir / shape;
+    std::ofstream(scene_path) << scene;
+    const std::string cmd = std::string(KNEEDYN_SIMBODY_EXE) + " run " + scene_path.string() +
+                            " --accuracy 1e-6 --quiet --out " + out.string();
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    std::ifstream summary(out / "summary.json");
+    std::stringstream json;
+    json << summary.rdbuf();
+    EXPECT_NE(json.str().find(std::string("\"shape\": \"") + shape + "\""), std::string::npos) << shape << "\n" << json.str();
+  }
+  fs::remove_all(dir);
 }
 
 }  // namespace

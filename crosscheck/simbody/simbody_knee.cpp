@@ -17,6 +17,7 @@
 
 #include "solver/contact_kinematics.hpp"  // SphereOnPlaneForm: the scene's surfaces as sphere + plane data
 #include "solver/error.hpp"
+#include "solver/loads.hpp"  // PulseShapeName: the shape as the scene names it
 #include "solver/pose.hpp"  // JCS output conversion only (CoordinateVelocity/Acceleration)
 #include "solver/units.hpp"
 
@@ -861,8 +862,7 @@ void WriteOutputs(const std::string& dir_name, const Scene& scene, const Options
   j["end_reason"] = run.end_reason;
   j["scene"] = {{"name", scene.name}, {"path", scene.path}, {"parameter_set", scene.parameter_set},
                 {"ligaments", model.ligaments.size()}, {"contacts", model.contacts.size()},
-                {"pulse", {{"shape", model.pulse.shape == PulseShape::kNone ? "none"
-                                     : model.pulse.shape == PulseShape::kReconstructed ? "reconstructed" : "half_sine"},
+                {"pulse", {{"shape", PulseShapeName(model.pulse.shape)},
                            {"amplitude_N", model.pulse.amplitude}, {"duration_s", model.pulse.duration}}},
                 {"ligament_law", model.ligament_law == LigamentLaw::kPublished ? "published" : "c1_continuous"}};
   const double cons_tol = options.constraint_tolerance > 0 ? options.constraint_tolerance : options.accuracy;

@@ -71,7 +71,7 @@ TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
       {Spec("  - {name: mass, uniform: [-1, 4]}"), "must stay > 0"},
       {Spec("  - {name: mass, relative: 1.5}"), "parameters[0].relative' = '1.5'"},
       {Spec("  - {name: mass, relative: 0.1, uniform: [1, 2]}"), "exactly one of"},
-      {Spec("  - {name: mass, relativ: 0.1}"), "unknown key 'relativ'"},
+      {Spec("  - {name: mass, relativ: 0.1}"), "unknown key 'parameters[0].relativ'"},
       {Spec("  - {name: MCL deep.tibial_y, relative: 0.1}"), "nominal value"},
       {Spec("  - {name: mass, relative: 0.1}\n  - {name: mass, relative: 0.2}"), "listed twice"},
       {Spec("  - {name: mass, relative: 0.1}", "{type: halton, samples: 4}"), "'halton'"},

@@ -1,0 +1,65 @@
+// Scene sections: body, gravity, pulse, constant_load.
+#include "scene/scene_keys.hpp"
+#include "scene/sections.hpp"
+#include "solver/error.hpp"
+#include "solver/loads.hpp"
+
+namespace kneedyn::scene_detail {
+
+// body: overrides of the parameter set's mass and inertia.
+void ParseBody(const Field& top, const ParameterSet& ps, ModelDescription* model) {
+  model->mass = ps.mass;
+  model->inertia_T = ps.inertia_T;
+  if (!top.Has("body")) return;
+  const Field body = top.Required("body");
+  body.Keys(KeysOf("scene.body"));
+  if (body.Has("mass_kg")) model->mass = body.Required("mass_kg").Range(1e-3, 1e3);
+  if (body.Has("principal_inertia_kg_m2")) {
+    const Field f = body.Required("principal_inertia_kg_m2");
+    model->inertia_T = f.Vec3(1e3);
+    for (int i = 0; i < 3; ++i) {
+      if (!(model->inertia_T(i) > 0.0)) f.Item(i).Fail("must be > 0");
+    }
+  }
+}
+
+// gravity: on or off; direction and magnitude default to the parameter set's.
+void ParseGravity(const Field& top, const ParameterSet& ps, ModelDescription* model) {
+  const Field f = top.Required("gravity");
+  f.Keys(KeysOf("scene.gravity"));
+  const bool enabled = f.Required("enabled").Bool();
+  Vector3d dir = ps.gravity_direction_F;
+  double g = ps.g;
+  if (f.Has("direction_F")) dir = f.Required("direction_F").Vec3(1e3);
+  if (f.Has("magnitude_m_s2")) g = f.Required("magnitude_m_s2").NonNegative(100.0);
+  if (enabled) {
+    if (!(dir.norm() > 0.0)) f.Required("direction_F").Fail("must be a non-zero vector");
+    model->gravity_F = g * dir.normalized();
+  }
+}
+
+// pulse: shape (solver/loads.hpp), amplitude and duration unless none, direction.
+void ParsePulse(const Field& top, ModelDescription* model) {
+  const Field f = top.Required("pulse");
+  f.Keys(KeysOf("scene.pulse"));
+  model->pulse.shape = ParsePulseShape(f.Required("shape").OneOf(ValuesOf("scene.pulse.shape"), "pulse shape"));
+  if (model->pulse.shape != PulseShape::kNone) {
+    model->pulse.amplitude = f.Required("amplitude_N").NonNegative(kMaxForceN);
+    model->pulse.duration = f.Required("duration_s").Range(1e-6, 100.0);
+  }
+  if (f.Has("direction_T")) {
+    const Vector3d d = f.Required("direction_T").Vec3(1e3);
+    if (!(d.norm() > 0.0)) f.Required("direction_T").Fail("must be a non-zero vector");
+    model->pulse.direction_T = d.normalized();
+  }
+}
+
+void ParseConstantLoad(const Field& top, ModelDescription* model) {
+  if (!top.Has("constant_load")) return;
+  const Field f = top.Required("constant_load");
+  f.Keys(KeysOf("scene.constant_load"));
+  if (f.Has("force_F_N")) model->constant_load.force_F = f.Required("force_F_N").Vec3(kMaxForceN);
+  if (f.Has("torque_T_N_m")) model->constant_load.torque_T = f.Required("torque_T_N_m").Vec3(1e4);
+}
+
+}  // namespace kneedyn::scene_detail

@@ -1,0 +1,78 @@
+#include "scene/scene_keys.hpp"
+
+#include <stdexcept>
+
+namespace kneedyn {
+namespace {
+
+const std::vector<const char*>& Find(const std::vector<SceneKeyTable>& table, const std::string& name) {
+  for (const SceneKeyTable& t : table) {
+    if (name == t.mapping) return t.entries;
+  }
+  throw std::logic_error("scene key table: no entry '" + name + "'");
+}
+
+}  // namespace
+
+const std::vector<SceneKeyTable>& SceneMappingKeys() {
+  static const std::vector<SceneKeyTable> table = {
+      // A scene file.
+      {"scene", {"name", "description", "parameter_set", "body", "ligament_law", "ligaments",
+                 "ligament_stiffness_scale", "ligament_parameters", "contacts", "surfaces", "gravity", "pulse",
+                 "constant_load", "initial_state", "end", "output"}},
+      {"scene.body", {"mass_kg", "principal_inertia_kg_m2"}},
+      {"scene.ligament_parameters.NAME", {"k_linear_N_mm", "k_parabolic_N_mm2", "extension_ratio"}},
+      {"scene.surfaces", {"medial", "lateral"}},
+      {"scene.gravity", {"enabled", "direction_F", "magnitude_m_s2"}},
+      {"scene.pulse", {"shape", "amplitude_N", "duration_s", "direction_T"}},
+      {"scene.constant_load", {"force_F_N", "torque_T_N_m"}},
+      {"scene.initial_state", {"pose", "coordinates", "velocities", "hold", "guesses", "normal_force_guesses_N",
+                               "contact_guess_offset_mm"}},
+      {"scene.initial_state.coordinates", {"x0_mm", "y0_mm", "z0_mm", "alpha_deg", "beta_deg", "gamma_deg"}},
+      {"scene.initial_state.velocities",
+       {"x0_mm_s", "y0_mm_s", "z0_mm_s", "alpha_deg_s", "beta_deg_s", "gamma_deg_s"}},
+      {"scene.initial_state.normal_force_guesses_N", {"medial", "lateral"}},
+      {"scene.end", {"flexion_deg", "time_s"}},
+      {"scene.output", {"interval_s"}},
+      // A compartment's surfaces (parameter set, or scene.surfaces.medial/lateral), and each
+      // surface type's keys. polynomial's coefficients_mm holds keys c<i><j>, i + j <= 4.
+      {"compartment", {"femoral_surface", "tibial_surface"}},
+      {"surface.sphere_cap", {"type", "centre_mm", "radius_mm"}},
+      {"surface.plane", {"type", "slope_x", "slope_y", "offset_mm"}},
+      {"surface.ellipsoid_cap", {"type", "centre_mm", "semi_axes_mm", "orientation_deg"}},
+      {"surface.polynomial", {"type", "origin_mm", "rotation_z_deg", "coefficients_mm"}},
+      // A parameter set.
+      {"parameter_set", {"name", "description", "body", "gravity", "compartments", "ligaments", "reference_pose",
+                         "chapter_initial_guesses"}},
+      {"parameter_set.body", {"mass_kg", "principal_inertia_kg_m2"}},
+      {"parameter_set.gravity", {"magnitude_m_s2", "direction_F"}},
+      {"parameter_set.compartments", {"medial", "lateral"}},
+      {"parameter_set.ligaments[]",
+       {"name", "femoral_mm", "tibial_mm", "k_linear_N_mm", "k_parabolic_N_mm2", "extension_ratio"}},
+      {"parameter_set.reference_pose", {"alpha_deg", "beta_deg", "gamma_deg", "y0_mm"}},
+      {"parameter_set.chapter_initial_guesses", {"medial", "lateral"}},
+      {"parameter_set.chapter_initial_guesses.COMPARTMENT", {"femoral_xy_mm", "tibial_xy_mm", "normal_force_N"}},
+  };
+  return table;
+}
+
+const std::vector<SceneKeyTable>& SceneFieldValues() {
+  static const std::vector<SceneKeyTable> table = {
+      {"scene.ligament_law", {"published", "c1_continuous"}},
+      {"scene.ligaments", {"all", "none"}},  // or a list of element names
+      {"scene.contacts[]", {"medial", "lateral"}},
+      // As solver/loads.cpp's ParsePulseShape reads them (checked by tests/scene_test.cpp).
+      {"scene.pulse.shape", {"reconstructed", "half_sine", "reconstructed_peak", "damped_sine", "none"}},
+      {"surface.type", {"sphere_cap", "plane", "ellipsoid_cap", "polynomial"}},
+      {"scene.initial_state.pose", {"reference", "explicit", "assemble"}},
+      {"scene.initial_state.guesses", {"pose", "chapter"}},
+      {"scene.initial_state.hold[]", {"x0", "y0", "z0", "alpha", "beta", "gamma", "x0_dot", "y0_dot", "z0_dot",
+                                      "alpha_dot", "beta_dot", "gamma_dot", "velocities"}},
+  };
+  return table;
+}
+
+const std::vector<const char*>& KeysOf(const std::string& mapping) { return Find(SceneMappingKeys(), mapping); }
+const std::vector<const char*>& ValuesOf(const std::string& field) { return Find(SceneFieldValues(), field); }
+
+}  // namespace kneedyn

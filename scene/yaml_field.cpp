@@ -1,0 +1,587 @@
+#include "scene/yaml_field.hpp"
+
+#include <yaml.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <unordered_map>
+
+#include "solver/error.hpp"
+
+namespace kneedyn::scene_detail {
+namespace fs = std::filesystem;
+namespace {
+
+size_t EditDistance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diag = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
+// `text` with each byte that does not start a valid UTF-8 sequence, and each character
+// outside YAML's printable set (libyaml's reader: tab, LF, CR, 0x20-0x7E, 0x85,
+// 0xA0-0xD7FF, 0xE000-0xFFFD, 0x10000-0x10FFFF), replaced by U+FFFD. A UTF-16 stream (byte
+// order mark) is left to libyaml.
+std::string AllowedUtf8(const std::string& text) {
+  if (text.size() >= 2 && ((text[0] == '\xFF' && text[1] == '\xFE') || (text[0] == '\xFE' && text[1] == '\xFF'))) {
+    return text;
+  }
+  std::string out;
+  bool changed = false;
+  const auto* p = reinterpret_cast<const unsigned char*>(text.data());
+  const size_t n = text.size();
+  for (size_t i = 0; i < n;) {
+    const unsigned char c = p[i];
+    size_t len = 0;
+    uint32_t cp = 0;
+    if (c < 0x80) {
+      len = 1, cp = c;
+    } else if ((c & 0xE0) == 0xC0) {
+      len = 2, cp = c & 0x1Fu;
+    } else if ((c & 0xF0) == 0xE0) {
+      len = 3, cp = c & 0x0Fu;
+    } else if ((c & 0xF8) == 0xF0) {
+      len = 4, cp = c & 0x07u;
+    }
+    bool ok = len > 0 && i + len <= n;
+    for (size_t k = 1; ok && k < len; ++k) {
+      ok = (p[i + k] & 0xC0) == 0x80;
+      cp = (cp << 6) | (p[i + k] & 0x3Fu);
+    }
+    // Shortest form only, and the printable set.
+    ok = ok && !(len == 2 && cp < 0x80) && !(len == 3 && cp < 0x800) && !(len == 4 && cp < 0x10000) &&
+         (cp == 0x09 || cp == 0x0A || cp == 0x0D || (cp >= 0x20 && cp <= 0x7E) || cp == 0x85 ||
+          (cp >= 0xA0 && cp <= 0xD7FF) || (cp >= 0xE000 && cp <= 0xFFFD) || (cp >= 0x10000 && cp <= 0x10FFFF));
+    if (!ok) {
+      if (!changed) out.assign(text, 0, i);
+      changed = true;
+      out += "\xEF\xBF\xBD";
+      ++i;
+      continue;
+    }
+    if (changed) out.append(text, i, len);
+    i += len;
+  }
+  return changed ? out : text;
+}
+
+// libyaml's message for a failed parse, with its line and column.
+std::string ParserProblem(const yaml_parser_t& parser, const std::string& text) {
+  const char* what = parser.problem ? parser.problem : "unknown error";
+  if (parser.error == YAML_READER_ERROR) {  // no mark: the byte offset
+    const size_t at = std::min(parser.problem_offset, text.size());
+    return StrCat("line ", 1 + std::count(text.begin(), text.begin() + at, '\n'), ", byte ", at, ": ", what);
+  }
+  std::string problem =
+      StrCat("line ", parser.problem_mark.line + 1, ", column ", parser.problem_mark.column + 1, ": ", what);
+  if (parser.context) problem += StrCat(" (", parser.context, " at line ", parser.context_mark.line + 1, ")");
+  return problem;
+}
+
+// A tag as the user wrote it: the secondary handle !! for YAML's own tags.
+std::string TagAsWritten(const unsigned char* tag) {
+  const std::string t(reinterpret_cast<const char*>(tag));
+  const std::string yaml_prefix = "tag:yaml.org,2002:";
+  return t.compare(0, yaml_prefix.size(), yaml_prefix) == 0 ? "!!" + t.substr(yaml_prefix.size()) : t;
+}
+
+// Where the event stream is, as a field path for messages; the path is built only when a
+// message needs it.
+class EventPath {
+ public:
+  // The path of the node the next event starts; `*is_key` when it is a mapping key.
+  std::string Next(bool* is_key) const {
+    *is_key = !frames_.empty() && frames_.back().map && frames_.back().key_next;
+    return PathOf(*is_key ? frames_.size() - 1 : frames_.size());
+  }
+  // A node (scalar, alias or a finished collection) was read at the current level.
+  void Done(const yaml_event_t& event) {
+    if (frames_.empty()) return;
+    Frame& f = frames_.back();
+    if (f.map && f.key_next) {
+      if (event.type == YAML_SCALAR_EVENT) {
+        f.key.assign(reinterpret_cast<const char*>(event.data.scalar.value), event.data.scalar.length);
+      } else {
+        f.key = "(non-scalar key)";
+      }
+      f.key_next = false;
+    } else if (f.map) {
+      f.key_next = true;
+    } else {
+      ++f.index;
+    }
+  }
+  void Push(bool map) { frames_.push_back(Frame{map, true, {}, 0}); }
+  void Pop() { frames_.pop_back(); }
+  int depth() const { return static_cast<int>(frames_.size()); }
+
+ private:
+  struct Frame {
+    bool map;
+    bool key_next;
+    std::string key;
+    size_t index;
+  };
+  // The path of the node under the first `levels` frames.
+  std::string PathOf(size_t levels) const {
+    std::string path;
+    for (size_t i = 0; i < levels; ++i) {
+      const Frame& f = frames_[i];
+      path += f.map ? (path.empty() ? "" : ".") + f.key : StrCat("[", f.index, "]");
+    }
+    return path;
+  }
+  std::vector<Frame> frames_;
+};
+
+// Builds `doc` from libyaml's events in one pass (the work of yaml_parser_load, which it
+// replaces), refusing on the way, as soon as they are met: nesting deeper than
+// kMaxYamlDepth (libyaml's scanner slows with the square of the depth, so the rest of such
+// a file is never read) and any tag. Anchors are found through a hash map (libyaml's
+// loader searches its list for each alias), and an alias may name only a finished node,
+// so the document has no cycles. The first document of the stream is read, as
+// yaml_parser_load does. Returns "" or the problem, prefixed ":LINE: " or " not valid
+// YAML: ...".
+std::string Compose(yaml_parser_t* parser, const std::string& text, yaml_document_t* doc) {
+  EventPath path;
+  std::vector<int> open;  // collection nodes being filled
+  std::vector<int> pending_key;  // per open collection: a mapping's key awaiting its value
+  std::unordered_map<std::string, int> anchors;
+  std::vector<std::string> open_anchor;  // per open collection: its anchor, registered at its end
+  const auto attach = [&](int node) {
+    if (open.empty()) return;
+    const int parent = open.back();
+    if (doc->nodes.start[parent - 1].type == YAML_SEQUENCE_NODE) {
+      yaml_document_append_sequence_item(doc, parent, node);
+    } else if (pending_key.back() == 0) {
+      pending_key.back() = node;
+    } else {
+      yaml_document_append_mapping_pair(doc, parent, pending_key.back(), node);
+      pending_key.back() = 0;
+    }
+  };
+  const auto name = [](const unsigned char* s) { return std::string(reinterpret_cast<const char*>(s)); };
+  for (;;) {
+    yaml_event_t event;
+    if (!yaml_parser_parse(parser, &event)) return StrCat(" not valid YAML: ", Echo(ParserProblem(*parser, text)));
+    const yaml_event_type_t type = event.type;
+    const size_t line = event.start_mark.line + 1;
+    const unsigned char* tag = type == YAML_SCALAR_EVENT            ? event.data.scalar.tag
+                               : type == YAML_SEQUENCE_START_EVENT ? event.data.sequence_start.tag
+                               : type == YAML_MAPPING_START_EVENT  ? event.data.mapping_start.tag
+                                                                   : nullptr;
+    std::string problem;
+    if (tag) {
+      bool is_key = false;
+      const std::string where = path.Next(&is_key);
+      problem = StrCat(":", line, ": field '", Echo(where.empty() ? "(top level)" : where, 128), "'",
+                       is_key ? " (a key)" : "", " has the YAML tag '", Echo(TagAsWritten(tag), 64),
+                       "'; tags are not accepted: write the plain value");
+    } else if (type == YAML_SCALAR_EVENT) {
+      const auto& sc = event.data.scalar;
+      const int node = yaml_document_add_scalar(doc, nullptr, sc.value, static_cast<int>(sc.length), sc.style);
+      doc->nodes.start[node - 1].start_mark = event.start_mark;
+      if (sc.anchor) anchors[name(sc.anchor)] = node;
+      attach(node);
+      path.Done(event);
+    } else if (type == YAML_ALIAS_EVENT) {
+      const auto it = anchors.find(name(event.data.alias.anchor));
+      if (it == anchors.end()) {
+        problem = StrCat(" not valid YAML: line ", line, ", column ", event.start_mark.column + 1,
+                         ": found undefined alias '", Echo(name(event.data.alias.anchor), 64), "'");
+      } else {
+        attach(it->second);
+        path.Done(event);
+      }
+    } else if (type == YAML_SEQUENCE_START_EVENT || type == YAML_MAPPING_START_EVENT) {
+      const bool map = type == YAML_MAPPING_START_EVENT;
+      const int node = map ? yaml_document_add_mapping(doc, nullptr, event.data.mapping_start.style)
+                           : yaml_document_add_sequence(doc, nullptr, event.data.sequence_start.style);
+      doc->nodes.start[node - 1].start_mark = event.start_mark;
+      attach(node);
+      const unsigned char* anchor = map ? event.data.mapping_start.anchor : event.data.sequence_start.anchor;
+      open.push_back(node);
+      pending_key.push_back(0);
+      open_anchor.push_back(anchor ? name(anchor) : std::string());
+      bool is_key = false;
+      if (path.depth() + 1 > kMaxYamlDepth) {
+        problem = StrCat(":", line, ": field '", Echo(path.Next(&is_key), 128), "': nesting depth ", path.depth() + 1,
+                         " exceeds the limit of ", kMaxYamlDepth, " mappings and lists");
+      }
+      path.Push(map);
+    } else if (type == YAML_SEQUENCE_END_EVENT || type == YAML_MAPPING_END_EVENT) {
+      if (!open_anchor.back().empty()) anchors[open_anchor.back()] = open.back();
+      open.pop_back();
+      pending_key.pop_back();
+      open_anchor.pop_back();
+      path.Pop();
+      path.Done(event);
+    }
+    yaml_event_delete(&event);
+    if (!problem.empty()) return problem;
+    if (type == YAML_DOCUMENT_END_EVENT || type == YAML_STREAM_END_EVENT) return "";
+  }
+}
+
+}  // namespace
+
+// A YAML document parsed by libyaml's document API (aliases are the node they name).
+class YamlDocument {
+ public:
+  YamlDocument(const std::string& raw, std::string label, const char* reader)
+      : label_(std::move(label)), reader_(reader) {
+    const std::string text = AllowedUtf8(raw);
+    yaml_parser_t parser;
+    if (!yaml_parser_initialize(&parser)) Throw<InputError>(reader_, Echo(label_), ": out of memory");
+    if (!yaml_document_initialize(&doc_, nullptr, nullptr, nullptr, 1, 1)) {
+      yaml_parser_delete(&parser);
+      Throw<InputError>(reader_, Echo(label_), ": out of memory");
+    }
+    yaml_parser_set_input_string(&parser, reinterpret_cast<const unsigned char*>(text.data()), text.size());
+    const std::string problem = Compose(&parser, text, &doc_);
+    yaml_parser_delete(&parser);
+    if (!problem.empty()) {
+      // A throwing constructor runs no destructor.
+      yaml_document_delete(&doc_);
+      Throw<InputError>(reader_, Echo(label_, 256), problem[0] == ' ' ? ":" : "", problem);
+    }
+  }
+  ~YamlDocument() { yaml_document_delete(&doc_); }
+  YamlDocument(const YamlDocument&) = delete;
+  YamlDocument& operator=(const YamlDocument&) = delete;
+
+  const yaml_node_t* Root() const { return yaml_document_get_root_node(Doc()); }
+  const yaml_node_t* Node(int index) const { return yaml_document_get_node(Doc(), index); }
+  const std::string& label() const { return label_; }
+  const char* reader() const { return reader_; }
+  // One stream for every number of the document: its locale is built once.
+  std::istringstream& NumberStream() const { return numbers_; }
+
+ private:
+  yaml_document_t* Doc() const { return const_cast<yaml_document_t*>(&doc_); }
+  std::string label_;
+  const char* reader_;  // the function named in messages
+  yaml_document_t doc_{};
+  mutable std::istringstream numbers_;
+};
+
+namespace {
+
+std::string_view ScalarText(const yaml_node_t* n) {
+  return {reinterpret_cast<const char*>(n->data.scalar.value), n->data.scalar.length};
+}
+
+YamlKind KindOf(const yaml_node_t* n) {
+  if (!n) return YamlKind::kUndefined;
+  switch (n->type) {
+    case YAML_SCALAR_NODE: {
+      if (n->data.scalar.style != YAML_PLAIN_SCALAR_STYLE) return YamlKind::kScalar;
+      const std::string_view v = ScalarText(n);
+      return v.empty() || v == "~" || v == "null" || v == "Null" || v == "NULL" ? YamlKind::kNull : YamlKind::kScalar;
+    }
+    case YAML_SEQUENCE_NODE:
+      return YamlKind::kSequence;
+    case YAML_MAPPING_NODE:
+      return YamlKind::kMap;
+    default:
+      return YamlKind::kUndefined;
+  }
+}
+
+// The text of a mapping key when it is a scalar, else `fallback` (YAML allows any node,
+// null included, as a key).
+std::string_view KeyText(const yaml_node_t* key, std::string_view fallback) {
+  return KindOf(key) == YamlKind::kScalar ? ScalarText(key) : fallback;
+}
+
+// yaml-cpp's convert<double>::decode: `stream >> std::noskipws >> v` must succeed and only
+// white space may follow; else its spellings of infinity and NaN.
+bool YamlCppDouble(std::istringstream& stream, std::string_view text, double* v) {
+  stream.clear();
+  stream.str(std::string(text));
+  if ((stream >> std::noskipws >> *v) && (stream >> std::ws).eof()) return true;
+  if (text == ".inf" || text == ".Inf" || text == ".INF" || text == "+.inf" || text == "+.Inf" || text == "+.INF") {
+    *v = std::numeric_limits<double>::infinity();
+    return true;
+  }
+  if (text == "-.inf" || text == "-.Inf" || text == "-.INF") {
+    *v = -std::numeric_limits<double>::infinity();
+    return true;
+  }
+  if (text == ".nan" || text == ".NaN" || text == ".NAN") {
+    *v = std::numeric_limits<double>::quiet_NaN();
+    return true;
+  }
+  return false;
+}
+
+// yaml-cpp's convert<bool>::decode.
+bool YamlCppBool(std::string_view text, bool* v) {
+  const auto lower = [](char c) { return c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c; };
+  const auto all = [&](size_t from, bool upper) {
+    for (size_t i = from; i < text.size(); ++i) {
+      if (upper ? (text[i] >= 'a' && text[i] <= 'z') : (text[i] >= 'A' && text[i] <= 'Z')) return false;
+    }
+    return true;
+  };
+  // Flexible case: all lower, all upper, or one upper letter then lower.
+  const bool flexible = text.empty() || all(0, false) || all(0, true) ||
+                        (text[0] >= 'A' && text[0] <= 'Z' && all(1, false));
+  if (!flexible) return false;
+  std::string l(text);
+  for (char& c : l) c = lower(c);
+  for (const auto& [yes, no] : {std::pair{"y", "n"}, {"yes", "no"}, {"true", "false"}, {"on", "off"}}) {
+    if (l == yes || l == no) {
+      *v = l == yes;
+      return true;
+    }
+  }
+  return false;
+}
+
+std::string Line(const yaml_node_t* n) { return n ? StrCat(":", n->start_mark.line + 1) : std::string(); }
+
+}  // namespace
+
+Field::Field(std::shared_ptr<const YamlDocument> doc, const yaml_node_t* node, std::string path)
+    : doc_(std::move(doc)), node_(node), kind_(KindOf(node)), path_(std::move(path)) {}
+
+void Field::Fail(const std::string& rule) const {
+  Throw<InputError>(doc_->reader(), Echo(doc_->label(), 256), Line(node_), ": field '", path_.empty() ? "(top level)" : path_,
+                    "'", kind_ == YamlKind::kScalar ? " = '" + Echo(std::string(ScalarText(node_))) + "'" : std::string(),
+                    ": ", rule);
+}
+
+const Field& Field::Keys(const std::vector<const char*>& keys) const {
+  if (kind_ != YamlKind::kMap) Fail("must be a mapping");
+  const yaml_node_pair_t* const begin = node_->data.mapping.pairs.start;
+  const yaml_node_pair_t* const end = node_->data.mapping.pairs.top;
+  for (const yaml_node_pair_t* pair = begin; pair != end; ++pair) {
+    const yaml_node_t* key = doc_->Node(pair->key);
+    const std::string_view k = KeyText(key, "(non-scalar key)");
+    for (const yaml_node_pair_t* earlier = begin; earlier != pair; ++earlier) {
+      const yaml_node_t* e = doc_->Node(earlier->key);
+      if (KeyText(e, "(non-scalar key)") == k) {
+        Throw<InputError>(doc_->reader(), Echo(doc_->label(), 256), Line(key), ": key '", Echo(Where(k)),
+                          "' given twice (a key may appear once per mapping)");
+      }
+    }
+    if (std::any_of(keys.begin(), keys.end(), [&](const char* valid) { return k == valid; })) continue;
+    // Unknown: the nearest valid key (edit distance) for the message.
+    const char* nearest = nullptr;
+    size_t best = std::string::npos;
+    std::string list;
+    for (const char* valid : keys) {
+      const size_t d = EditDistance(std::string(k), valid);
+      if (d < best) {
+        best = d;
+        nearest = valid;
+      }
+      list += (list.empty() ? "" : ", ") + std::string(valid);
+    }
+    Throw<InputError>(doc_->reader(), Echo(doc_->label(), 256), Line(key), ": unknown key '", Echo(Where(k)), "'",
+                      nearest ? StrCat("; nearest valid key '", nearest, "'") : std::string(), " (valid here: ", list,
+                      ")");
+  }
+  return *this;
+}
+
+bool Field::Has(std::string_view key) const {
+  if (kind_ != YamlKind::kUndefined && kind_ != YamlKind::kMap) Fail("must be a mapping");
+  return kind_ == YamlKind::kMap && Find(key);
+}
+
+Field Field::Child(std::string_view key) const {
+  if (kind_ != YamlKind::kMap) Fail("must be a mapping");
+  return Field(doc_, Find(key), Where(key));
+}
+
+Field Field::Required(std::string_view key) const {
+  Field f = Child(key);
+  if (f.kind_ == YamlKind::kUndefined) Fail(StrCat("missing required field '", key, "'"));
+  return f;
+}
+
+Field Field::Item(size_t i) const {
+  const yaml_node_t* item = nullptr;
+  if (kind_ == YamlKind::kSequence && i < Count()) item = doc_->Node(node_->data.sequence.items.start[i]);
+  return Field(doc_, item, StrCat(path_, "[", i, "]"));
+}
+
+size_t Field::Size() const {
+  if (kind_ != YamlKind::kSequence) Fail("must be a list");
+  return Count();
+}
+
+std::vector<std::string> Field::Keys() const {
+  if (kind_ != YamlKind::kMap) Fail("must be a mapping");
+  std::vector<std::string> keys;
+  for (const yaml_node_pair_t* p = node_->data.mapping.pairs.start; p != node_->data.mapping.pairs.top; ++p) {
+    const yaml_node_t* key = doc_->Node(p->key);
+    keys.emplace_back(KeyText(key, std::string_view()));
+  }
+  return keys;
+}
+
+double Field::Double() const {
+  double v;
+  if (kind_ != YamlKind::kScalar || !YamlCppDouble(doc_->NumberStream(), ScalarText(node_), &v)) {
+    Fail("must be a number");
+  }
+  if (!std::isfinite(v)) Fail("must be finite");
+  return v;
+}
+
+double Field::Range(double lo, double hi) const {
+  const double v = Double();
+  if (!(v >= lo && v <= hi)) Fail(StrCat("must lie in [", lo, ", ", hi, "]"));
+  return v;
+}
+
+double Field::Positive(double hi) const {
+  const double v = Double();
+  if (!(v > 0.0)) Fail("must be > 0");
+  if (!(v <= hi)) Fail(StrCat("must be <= ", hi));
+  return v;
+}
+
+double Field::NonNegative(double hi) const {
+  const double v = Double();
+  if (!(v >= 0.0)) Fail("must be >= 0");
+  if (!(v <= hi)) Fail(StrCat("must be <= ", hi));
+  return v;
+}
+
+std::string Field::String() const {
+  if (kind_ != YamlKind::kScalar) Fail("must be a string");
+  return std::string(ScalarText(node_));
+}
+
+std::string Field::OneOf(const std::vector<const char*>& values, const char* what) const {
+  const std::string s = String();
+  if (std::none_of(values.begin(), values.end(), [&](const char* v) { return s == v; })) {
+    Fail(StrCat("unknown ", what, "; expected ", ListOf(values)));
+  }
+  return s;
+}
+
+std::string Field::Name(bool element) const {
+  const std::string s = String();
+  if (!IsName(s, element)) {
+    Fail(StrCat("must be a name of at most ", kMaxNameLength,
+                " characters: a letter, then letters, digits, '_', '-', '.'", element ? ", spaces or '/'" : ""));
+  }
+  return s;
+}
+
+bool Field::Bool() const {
+  bool v;
+  if (kind_ != YamlKind::kScalar || !YamlCppBool(ScalarText(node_), &v)) Fail("must be true or false");
+  return v;
+}
+
+Vector3d Field::Vec3(double limit) const {
+  if (kind_ != YamlKind::kSequence || Count() != 3) Fail("must be a list of 3 numbers");
+  return Vector3d(Item(0).Range(-limit, limit), Item(1).Range(-limit, limit), Item(2).Range(-limit, limit));
+}
+
+std::array<double, 2> Field::Vec2(double limit) const {
+  if (kind_ != YamlKind::kSequence || Count() != 2) Fail("must be a list of 2 numbers");
+  return {Item(0).Range(-limit, limit), Item(1).Range(-limit, limit)};
+}
+
+std::string Field::Where(std::string_view key) const {
+  return path_.empty() ? std::string(key) : StrCat(path_, ".", key);
+}
+
+size_t Field::Count() const {
+  return static_cast<size_t>(node_->data.sequence.items.top - node_->data.sequence.items.start);
+}
+
+// The value of the first scalar key equal to `key` (yaml-cpp's lookup), else null.
+const yaml_node_t* Field::Find(std::string_view key) const {
+  for (const yaml_node_pair_t* p = node_->data.mapping.pairs.start; p != node_->data.mapping.pairs.top; ++p) {
+    const yaml_node_t* k = doc_->Node(p->key);
+    if (KindOf(k) == YamlKind::kScalar && ScalarText(k) == key) return doc_->Node(p->value);
+  }
+  return nullptr;
+}
+
+Field ParseYamlDocument(const std::string& text, const std::string& label, const char* reader) {
+  auto doc = std::make_shared<const YamlDocument>(text, label, reader);
+  const yaml_node_t* root = doc->Root();
+  return Field(doc, root, "");
+}
+
+bool Field::IsPlainScalar() const {
+  return kind_ == YamlKind::kScalar && node_->data.scalar.style == YAML_PLAIN_SCALAR_STYLE;
+}
+
+Field ParseYaml(const std::string& text, const std::string& label) {
+  auto doc = std::make_shared<const YamlDocument>(text, label, "LoadScene");
+  const yaml_node_t* root = doc->Root();
+  const YamlKind kind = KindOf(root);
+  if (kind != YamlKind::kMap) {
+    Throw<InputError>("LoadScene", Echo(label), ": the top level must be a mapping of keys "
+                      "(name, parameter_set, ...); got ", kind == YamlKind::kSequence ? "a list" : kind == YamlKind::kScalar ? "a scalar" : "nothing");
+  }
+  return Field(doc, root, "");
+}
+
+std::string ReadInputFile(const std::string& path, const char* what) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (ec || !fs::exists(st)) {
+    Throw<InputError>("LoadScene", "cannot open ", what, " '", Echo(path, 256), "'",
+                      ec ? " (" + ec.message() + ")" : std::string());
+  }
+  if (!fs::is_regular_file(st)) {
+    Throw<InputError>("LoadScene", what, " '", Echo(path, 256), "' is not a regular file");
+  }
+  const std::uintmax_t size = fs::file_size(path, ec);
+  if (ec || size > kMaxInputFileBytes) {
+    Throw<InputError>("LoadScene", what, " '", Echo(path, 256), "' has ", ec ? 0 : size,
+                      " bytes; the limit is ", kMaxInputFileBytes);
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in) Throw<InputError>("LoadScene", "cannot open ", what, " '", Echo(path, 256), "'");
+  std::string text(static_cast<size_t>(size), '\0');
+  in.read(text.data(), static_cast<std::streamsize>(size));
+  text.resize(static_cast<size_t>(in.gcount()));
+  return text;
+}
+
+bool IsName(const std::string& s, bool element) {
+  if (s.empty() || s.size() > kMaxNameLength || !std::isalpha(static_cast<unsigned char>(s[0]))) return false;
+  for (char c : s) {
+    const bool ok = std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.' ||
+                    (element && (c == ' ' || c == '/'));
+    if (!ok) return false;
+  }
+  return true;
+}
+
+std::string ListOf(const std::vector<const char*>& values, const char* conjunction) {
+  std::string list;
+  for (size_t i = 0; i < values.size(); ++i) {
+    if (i > 0) list += i + 1 == values.size() ? StrCat(" ", conjunction, " ") : std::string(", ");
+    list += values[i];
+  }
+  return list;
+}
+
+}  // namespace kneedyn::scene_detail

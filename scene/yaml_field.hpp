@@ -1,0 +1,112 @@
+// Reading a YAML document (libyaml) field by field, so that every message names the file,
+// the line, the field path and the value as the user typed it. The project's one YAML
+// reader: scene files and parameter sets (scene.cpp and its sections), sweep specs
+// (ensembles/sweep_spec.cpp) and the documents the Python package reads
+// (python/kneedyn_module.cpp).
+//
+// What a document may be (checked while it is built from libyaml's events, in one pass, so
+// that reading time grows linearly with the file's size):
+//  - nesting at most kMaxYamlDepth mappings and lists deep: libyaml's scanner slows with the
+//    square of the depth, so a deeper file is refused as soon as the limit is passed;
+//  - no tags (`!!int 3.5`, `!custom 5`): a tag would be ignored, so it is refused, naming
+//    the field and the tag;
+//  - an alias names a finished node (no cycles); anchors are found through a hash map.
+// Values keep yaml-cpp's meaning (the library scenes were first read with):
+//  - a plain scalar ~, null, Null, NULL or empty is null: not a string, number or boolean;
+//  - a number is the whole scalar read as by an istream in the "C" locale (yaml-cpp's
+//    convert<double>), or .inf/.nan in yaml-cpp's spellings (then refused as not finite);
+//  - a boolean is y, yes, true, on / n, no, false, off, all lower, all upper or capitalised;
+//  - bytes that are not UTF-8, and characters YAML does not allow in a stream (control
+//    characters but tab and line ends), become U+FFFD before parsing, so that a name
+//    holding one is refused as not a name (naming the field) and free text is accepted.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "solver/scalar.hpp"
+
+struct yaml_node_s;
+
+namespace kneedyn::scene_detail {
+
+constexpr int kMaxYamlDepth = 64;         // nested mappings and lists
+constexpr std::uintmax_t kMaxInputFileBytes = 1 << 20;  // scene or parameter-set file
+constexpr size_t kMaxNameLength = 64;                    // scene, set and element names
+constexpr double kMaxLengthMm = 1000.0;                  // any position or length, mm
+constexpr double kMaxAngleDeg = 360.0;
+constexpr double kMaxForceN = 1.0e5;
+
+class YamlDocument;
+enum class YamlKind { kUndefined, kNull, kScalar, kSequence, kMap };
+
+// A YAML node with the path that leads to it.
+class Field {
+ public:
+  Field(std::shared_ptr<const YamlDocument> doc, const yaml_node_s* node, std::string path);
+
+  // Throws InputError "LoadScene(): FILE:LINE: field 'PATH' = 'VALUE': RULE".
+  [[noreturn]] void Fail(const std::string& rule) const;
+  // This node must be a mapping whose keys are all in `keys`, each once. An unknown key is
+  // refused with its line and the nearest valid key.
+  const Field& Keys(const std::vector<const char*>& keys) const;
+  bool Has(std::string_view key) const;
+  Field Child(std::string_view key) const;
+  Field Required(std::string_view key) const;
+  Field Item(size_t i) const;
+  size_t Size() const;  // of a list
+  YamlKind kind() const { return kind_; }
+  bool IsMap() const { return kind_ == YamlKind::kMap; }
+  bool IsSequence() const { return kind_ == YamlKind::kSequence; }
+  bool IsScalar() const { return kind_ == YamlKind::kScalar; }  // not null
+  bool IsPlainScalar() const;  // written without quotes
+  bool IsNull() const { return kind_ == YamlKind::kNull; }
+  std::vector<std::string> Keys() const;  // of a mapping, in file order
+  const std::string& path() const { return path_; }
+
+  double Double() const;
+  double Range(double lo, double hi) const;  // a number in [lo, hi]
+  double Positive(double hi = 1.0e6) const;
+  double NonNegative(double hi = 1.0e6) const;
+  std::string String() const;
+  // One of `values` (a table of scene_keys.hpp); else refused listing them.
+  std::string OneOf(const std::vector<const char*>& values, const char* what) const;
+  // A name that goes into output headers (see IsName).
+  std::string Name(bool element = false) const;
+  bool Bool() const;
+  Vector3d Vec3(double limit = kMaxLengthMm) const;  // three numbers, each |v| <= limit
+  std::array<double, 2> Vec2(double limit = kMaxLengthMm) const;
+
+ private:
+  std::string Where(std::string_view key) const;
+  size_t Count() const;
+  const yaml_node_s* Find(std::string_view key) const;
+  std::shared_ptr<const YamlDocument> doc_;
+  const yaml_node_s* node_;
+  YamlKind kind_;
+  std::string path_;
+};
+
+// A scene or parameter set's top level, which must be a mapping. `label` names the file in
+// messages.
+Field ParseYaml(const std::string& text, const std::string& label);
+// Any YAML document (the same checks and meanings); messages name `reader` as the function
+// ("LoadSweepSpec"). An empty document is an undefined Field.
+Field ParseYamlDocument(const std::string& text, const std::string& label, const char* reader);
+
+// A scene or parameter-set file: an existing regular file (not a device, FIFO or
+// directory) of at most kMaxInputFileBytes.
+std::string ReadInputFile(const std::string& path, const char* what);
+
+// Names written into output headers: a letter, then letters, digits, '_', '-', '.', and
+// (elements only) spaces and '/'; at most kMaxNameLength characters.
+bool IsName(const std::string& s, bool element);
+
+// "a, b or c".
+std::string ListOf(const std::vector<const char*>& values, const char* conjunction = "or");
+
+}  // namespace kneedyn::scene_detail
