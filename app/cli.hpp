@@ -1,4 +1,4 @@
-// Command-line parsing shared by kneedyn's tools (issue 10 "CLI contracts"): one place that
+// Command-line parsing shared by kneedyn's tools: one place that
 // maps CLI11's parse errors to the suite's exit codes. --help and --version exit 0; every
 // argument error exits 2 with a message on stderr that names the offending argument.
 #pragma once

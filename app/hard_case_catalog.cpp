@@ -1,4 +1,4 @@
-// kneedyn_catalog — the hard-case catalog (issue 7): every case under
+// kneedyn_catalog — the hard-case catalog: every case under
 // reference-data/scenes/hard/ (README.md there says what makes each hard) × every
 // registered formulation, failures caught as results.
 //
@@ -254,7 +254,7 @@ Row RunOne(const CaseSpec& c, const Scene* scene, const std::string& load_error,
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"kneedyn_catalog: hard cases x registered formulations (issue 7)"};
+  CLI::App app{"kneedyn_catalog: hard cases x registered formulations"};
   std::string out_dir, cases_dir = ReferenceDataDir() + "/scenes/hard";
   std::vector<std::string> only_cases, only_formulations;
   bool check = false, no_reference = false;

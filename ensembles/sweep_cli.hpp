@@ -1,4 +1,4 @@
-// `kneedyn sweep` (issue 14, items 2–3): registered on the kneedyn CLI by one line.
+// `kneedyn sweep`: registered on the kneedyn CLI by one line.
 //   kneedyn sweep SPEC.yaml [--threads N] [--out DIR] [--shard i/n] [--quiet]
 //   kneedyn sweep --merge PART.json... [--out DIR]
 //   mpirun -n N kneedyn sweep SPEC.yaml   (runs distributed by index, one result file)

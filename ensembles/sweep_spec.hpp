@@ -1,4 +1,4 @@
-// The sweep specification (issue 14, item 2): `kneedyn sweep SPEC.yaml`. A spec names a
+// The sweep specification: `kneedyn sweep SPEC.yaml`. A spec names a
 // base scene, the parameters with their ranges or distributions, the design, the outcomes
 // to record and the formulation with its tolerances. Format: ensembles/README.md.
 //
@@ -80,7 +80,7 @@ const std::set<std::string>& OutcomeGroups();
 
 // The base scene with the parameter values of one run (spec units) applied. Attachments
 // and slack lengths keep the chapter's definition L0 = L_ref / e at the reference pose
-// (spec §5), so moving an attachment with e fixed moves L0 with it.
+// (docs/model.md §5), so moving an attachment with e fixed moves L0 with it.
 Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values);
 
 // One parameter name resolved against a scene exactly as a spec's parameters[i].name is

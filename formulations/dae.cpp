@@ -7,14 +7,14 @@
 // Residuals F(t, y, ẏ) (Eqs. 1.40–1.61):
 //   F1–F6    u − q̇                                          (kinematic, Eqs. 1.40–1.47)
 //   F7–F9    ΣF − m v̇                                        (Newton, in F)
-//   F10–F12  ΣM′ − I ẇ − w × I w, ẇ = E u̇_ang + Ė u_ang     (Euler, in T; spec §2 exact E)
+//   F10–F12  ΣM′ − I ẇ − w × I w, ẇ = E u̇_ang + Ė u_ang     (Euler, in T; docs/model.md §2 exact E)
 //   per contact: x, y of Eq. 1.8; the normal condition; x, y of Eq. 1.13.
 // The normal condition: the printed F15/F18 (z of Eq. 1.8, a position-level constraint)
 // makes the system index 3, not the index 2 the chapter states. kneedyn's `dae` uses its
 // time derivative, the normal approach velocity φ̇ = G ν = 0 (contact.hpp), so that the
 // contact coordinates are index 1 and the forces index 2 — the semi-explicit index-2 form
 // the chapter describes. `--constraint-level position` keeps the printed position-level
-// condition (the index-3 variant of issue 7). Position drift of the velocity-level form is
+// condition (the index-3 variant, --constraint-level position). Position drift of the velocity-level form is
 // reported in every trajectory row (gap_*_mm).
 //
 // `dae-reduced`: the same physics with the closed-form sphere-on-plane contact:
@@ -93,7 +93,7 @@ class DaeOnIda final : public FormulationBase {
     ++finished_phases_.restarts;
   }
 
-  // Issue 18: which unknown IDA's failure is about — the component with the largest
+  // Which unknown IDA's failure is about — the component with the largest
   // weighted local error estimate |e_i| w_i (IDAGetEstLocalErrors, IDAGetErrWeights).
   std::string LargestErrorComponent() const {
     N_Vector e = N_VClone(ida_.y), w = N_VClone(ida_.y);

@@ -1,4 +1,4 @@
-// One interface for every formulation (style.md §6). A formulation integrates the knee
+// One interface for every formulation. A formulation integrates the knee
 // from a consistent MechanicalState in one contact mode and stops at the first event of
 // that phase: it is the stepper of the hybrid simulator (simulator.hpp), which owns
 // everything that must behave the same for all formulations: consistent initialization,
@@ -27,7 +27,7 @@
 
 namespace kneedyn {
 
-// Solver statistics with the solvers' own counter names (style.md §3). Cumulative over
+// Solver statistics with the solvers' own counter names. Cumulative over
 // all phases of a run. Counters a method does not have stay 0.
 struct SolverStats {
   long steps = 0;                   // accepted steps
@@ -139,7 +139,7 @@ class Formulation {
   // its fixed step in s (0: adaptive), for summary.json. Defaults: not stated.
   virtual std::string integrator() const { return ""; }
   virtual double fixed_step() const { return 0.0; }
-  // Testing hook (tests/zero_allocation_test.cpp, issue 11 item 7): after Start, calls the
+  // Testing hook (tests/zero_allocation_test.cpp): after Start, calls the
   // callbacks the solver calls inside a phase (residual or right-hand side, Jacobian, root
   // functions; Newton step for the steppers) n times at the current state, through the same
   // code the solver runs. Returns false when the formulation has no such hook.

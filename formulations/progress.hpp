@@ -1,4 +1,4 @@
-// Console progress for long loops (issue 10): the catalog and the sweeps print "i/N" with
+// Console progress for long loops: the catalog and the sweeps print "i/N" with
 // the elapsed time and an estimate of the time left, one line per item (log-friendly);
 // `\r` updates only where stderr is a terminal.
 #pragma once

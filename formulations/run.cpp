@@ -11,7 +11,7 @@ namespace kneedyn {
 
 namespace {
 
-// Issue 18: the physical situation beside a solver's failure message: the last state the
+// The physical situation beside a solver's failure message: the last state the
 // driver holds (time, flexion), the active contacts and their constraint residuals.
 std::string FailureSituation(const Model& model, const MechanicalState& s) {
   std::string out = StrCat("; last state t = ", s.t, " s, flexion = ", RadToDeg(s.q(kAlpha)),
@@ -35,7 +35,7 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
   RunResult result;
   std::unique_ptr<Formulation> formulation =
       CreateFormulation(settings.formulation, scene, settings.options);
-  // 0 means the scene's interval; anything else must be usable (issue 18: no silent fallback).
+  // 0 means the scene's interval; anything else must be usable (no silent fallback).
   const double dt = settings.output_interval == 0.0 ? scene.output_interval : settings.output_interval;
   std::string why;
   if (!IsValidOutputInterval(dt, scene.end.time, &why)) {

@@ -1,4 +1,4 @@
-// Files of `kneedyn run` (issue 3), published as one complete set (see WriteRunOutputs):
+// Files of `kneedyn run`, published as one complete set (see WriteRunOutputs):
 //   trajectory.csv  one row per output time plus every event; named columns with units
 //   trajectory.sto  the same as an OpenSim storage file (inDegrees=yes, tab-separated)
 //   summary.json    scene, formulation, settings, initialization, events, final state,
@@ -15,8 +15,8 @@
 
 namespace kneedyn {
 
-// summary.json "schema_version" (docs/outputs.md). 1: files without the field (before
-// issue 10); 2: adds schema_version, git_commit, command_line, settings.step_mode,
+// summary.json "schema_version" (docs/outputs.md). 1: files without the field (the
+// earliest ones); 2: adds schema_version, git_commit, command_line, settings.step_mode,
 // settings.mean_step_s, settings.requested; settings.integrator and settings.step_s
 // become the integrator and fixed step actually used (step_s null when adaptive).
 constexpr int kSummarySchemaVersion = 2;
@@ -37,7 +37,7 @@ nlohmann::json StatsJson(const SolverStats& stats);
 // Throws InputError naming --out and the rule otherwise.
 void CheckOutputDirectory(const std::string& dir);
 
-// Publishes the three files as one set (issue 18): they are written into a private
+// Publishes the three files as one set: they are written into a private
 // temporary directory beside `dir` (".<name>.kneedyn-tmp-<pid>-<random>"), which then
 // replaces `dir` in one atomic rename (Linux renameat2 RENAME_EXCHANGE when `dir` exists).
 // After a kill at any moment `dir` holds the previous complete set or the new one; a

@@ -70,7 +70,7 @@ inline void CheckJcsRegular(double beta, double sin_beta, const char* caller) {
     Throw<SolverError>(caller, "pose at the JCS singularity: beta = ", beta,
                        " rad (|sin beta| = ", std::abs(sin_beta), " < ",
                        kJcsSingularityTolerance,
-                       "); the angular-velocity map E is singular there (spec §2)");
+                       "); the angular-velocity map E is singular there (docs/model.md §2)");
   }
 }
 

@@ -1,4 +1,4 @@
-// Tests of the command line `kneedyn run` (app/kneedyn_main.cpp, issue 3).
+// Tests of the command line `kneedyn run` (app/kneedyn_main.cpp).
 //
 // Validates: a chapter run exits 0 and writes trajectory.csv (named columns with units),
 // trajectory.sto (OpenSim storage: endheader, inDegrees=yes, tab-separated) and
@@ -131,7 +131,7 @@ TEST_F(CliTest, ChapterRunWritesTrajectoryStorageAndSummary) {
   }
   EXPECT_GT(rows, 50);
 
-  // First row (reference pose): element lengths and strains as spec §10 gives them, e.g.
+  // First row (reference pose): element lengths and strains as docs/model.md §10 gives them, e.g.
   // LCL L_ref = 62.572977 mm, L0 = 59.593311 mm, strain = e − 1 = 0.05 (Table 1.3).
   {
     std::stringstream again(csv);
@@ -190,7 +190,7 @@ TEST_F(CliTest, ChapterRunWritesTrajectoryStorageAndSummary) {
   }
   EXPECT_GT(init.at("position").at("residual_before").get<double>(),
             init.at("position").at("residual_after").get<double>());
-  // Spec §10 consistent forces, N_medial ≈ 233.35 N, N_lateral ≈ 243.33 N.
+  // docs/model.md §10: consistent forces, N_medial ≈ 233.35 N, N_lateral ≈ 243.33 N.
   const auto& forces = init.at("normal_force_N");
   EXPECT_NEAR(forces.at("medial").get<double>(), 233.35, 0.0051);
   EXPECT_NEAR(forces.at("lateral").get<double>(), 243.33, 0.0051);
@@ -212,7 +212,7 @@ TEST_F(CliTest, NanRtolIsRefusedWithoutOutput) {
   ExpectRefused("run '" + ChapterScenePath() + "' --rtol nan --quiet --out '" + Out() + "'", {"rtol", "nan"});
 }
 
-// --jacobian (issue 12 item 1): an unknown value and a formulation without a Newton matrix
+// --jacobian: an unknown value and a formulation without a Newton matrix
 // of its own are refused (exit 2, nothing written); the choice is recorded in summary.json.
 TEST_F(CliTest, JacobianOptionIsCheckedAndRecorded) {
   ExpectRefused("run '" + ChapterScenePath() + "' --jacobian symbolic --quiet --out '" + Out() + "'",
@@ -273,7 +273,7 @@ TEST_F(CliTest, SolverFailureExitsOneWithPartialSummary) {
 }
 
 
-// Issue 10: reference-data/ is found at run time beside the executable (no source path in
+// reference-data/ is found at run time beside the executable (no source path in
 // the binary); KNEEDYN_DATA_DIR overrides it. A scene naming its parameter set by a bare
 // file name that is not beside the scene resolves it in the data directory.
 TEST_F(CliTest, DataDirectoryIsFoundBesideTheExecutableAndOverriddenByEnvironment) {
@@ -298,7 +298,7 @@ TEST_F(CliTest, DataDirectoryIsFoundBesideTheExecutableAndOverriddenByEnvironmen
 }
 
 
-// Issue 10: --version names kneedyn's version (CMake's project version), the git commit the
+// --version names kneedyn's version (CMake's project version), the git commit the
 // build came from (when the source tree is a git repository: git's own answer) and the
 // library versions of the headers this test was compiled against.
 TEST_F(CliTest, VersionNamesVersionCommitAndLibraries) {
@@ -318,7 +318,7 @@ TEST_F(CliTest, VersionNamesVersionCommitAndLibraries) {
   }
 }
 
-// Issue 10: every argument error exits 2, names the offending argument and writes nothing.
+// Every argument error exits 2, names the offending argument and writes nothing.
 TEST_F(CliTest, ArgumentErrorsExitTwoAndNameTheArgument) {
   const std::string scene = "'" + ChapterScenePath() + "'";
   const std::string out = " --out '" + Out() + "'";
@@ -342,7 +342,7 @@ TEST_F(CliTest, ArgumentErrorsExitTwoAndNameTheArgument) {
   }
 }
 
-// Issue 10: the other tools keep the same contract; work_precision --help works.
+// The other tools keep the same contract; work_precision --help works.
 TEST_F(CliTest, CatalogAndWorkPrecisionKeepTheContract) {
   CommandResult r = RunShell(std::string("'") + KNEEDYN_WORK_PRECISION_EXE + "' --help");
   EXPECT_EQ(r.exit_code, 0) << r.output;
@@ -363,7 +363,7 @@ TEST_F(CliTest, CatalogAndWorkPrecisionKeepTheContract) {
 }
 
 
-// Issue 10: SUNDIALS prints nothing itself; its own message (here IDA's, CVODE's and
+// SUNDIALS prints nothing itself; its own message (here IDA's, CVODE's and
 // ARKODE's "mxstep steps taken before reaching tout") is in the failure reason and in
 // summary.json. Without a terminal there are no `\r` progress updates.
 TEST_F(CliTest, SundialsMessagesGoIntoTheFailureReasonNotToStderr) {
@@ -387,7 +387,7 @@ TEST_F(CliTest, SundialsMessagesGoIntoTheFailureReasonNotToStderr) {
   }
 }
 
-// Issue 10: the catalog prints i/N progress with elapsed time and time left.
+// The catalog prints i/N progress with elapsed time and time left.
 TEST_F(CliTest, CatalogPrintsCountedProgress) {
   const CommandResult r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --case c1_law --formulation dae" +
                                    " --formulation mde --no-reference --out '" + Out() + "'");
@@ -398,7 +398,7 @@ TEST_F(CliTest, CatalogPrintsCountedProgress) {
 }
 
 
-// Issue 10: summary.json describes the run: schema version, command line, version and
+// summary.json describes the run: schema version, command line, version and
 // commit, and the integrator and step actually used (rk4 with the default step: the
 // registry's documented kDefaultFixedStep; dae: IDA, adaptive, with a mean step that
 // spans the simulated time in the counted steps).

@@ -1,4 +1,4 @@
-// Regression tests of issue 18 (hostile input): every reproducer of the mutation campaign
+// Regression tests of hostile input: every reproducer of the mutation campaign
 // as a small scene, parameter set or option, run through `kneedyn`.
 //
 // Validates: each refusal exits 2 (never a signal or another code), names the file or

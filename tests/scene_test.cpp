@@ -3,7 +3,7 @@
 // Validates: the table of accepted keys and values (scene/scene_keys.hpp) is what the format
 // document (reference-data/scenes/README.md) and the fuzzer's dictionary (fuzz/yaml.dict)
 // list, and its pulse shapes are the solver's; every kind of bad input is refused with InputError whose message names the
-// file label, the field path and the offending value (style.md §2); a scene builds exactly
+// file label, the field path and the offending value; a scene builds exactly
 // the ligaments and contacts it names, in its order; every shipped scene loads.
 // Does not validate: the numbers a scene produces (expected_values_test.cpp).
 #include <gtest/gtest.h>
@@ -288,7 +288,7 @@ TEST(Scene, RefusesSurfacePairWithOneSurface) {
 
 TEST(Scene, RefusesContactWhoseSurfacesAreFarApartAtTheInitialPose) {
   // Medial sphere centred 100 mm higher than the parameter set's: gap = 100 mm · n_z with
-  // n = (−m, 0, 1)/sqrt(1 + m²), m = 0.358 (spec §3), at the reference pose (R = I).
+  // n = (−m, 0, 1)/sqrt(1 + m²), m = 0.358 (docs/model.md §3), at the reference pose (R = I).
   SceneFields f = ValidFields();
   f["surfaces"] =
       "{medial: {femoral_surface: {type: sphere_cap, radius_mm: 21.0, centre_mm: [-23.75, "
@@ -340,7 +340,7 @@ TEST(Scene, BuildsExactlyTheNamedLigamentsInOrder) {
   ASSERT_EQ(scene.model.ligaments.size(), 2u);
   EXPECT_EQ(scene.model.ligaments[0].name, "LCL");
   EXPECT_EQ(scene.model.ligaments[1].name, "ACL anterior");
-  // Table 1.2 / 1.3 values for the two (typed from spec §5), in SI.
+  // Table 1.2 / 1.3 values for the two (typed from docs/model.md §5), in SI.
   EXPECT_NEAR(scene.model.ligaments[0].k_linear, 72.22e3, 1e-9);
   EXPECT_NEAR(scene.model.ligaments[0].extension_ratio, 1.050, 1e-15);
   EXPECT_NEAR(scene.model.ligaments[1].k_linear, 83.15e3, 1e-9);

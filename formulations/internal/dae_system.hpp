@@ -17,7 +17,7 @@
 //   per contact, GGL: x, y of Eq. 1.8, x, y of Eq. 1.13 (chapter form), then φ = 0 and
 //     G ν = 0.
 //
-// Jacobian dF/dy + cj dF/dẏ (issue 12 item 1): exact, assembled from blocks differentiated
+// Jacobian dF/dy + cj dF/dẏ: exact, assembled from blocks differentiated
 // at their own size (solver/newton_euler_jacobian.hpp: the applied loads analytically, the
 // kinematic part with a Jet of 8, each contact with a Jet of 10 over (q, c_i)); the Jet<24>
 // derivative of the whole residual (JacobianByJets) is the reference it is tested against

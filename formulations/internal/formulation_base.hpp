@@ -1,4 +1,4 @@
-// The plumbing every formulation shares, written once (issue 11 item 6; Drake's
+// The plumbing every formulation shares, written once (Drake's
 // IntegratorBase plays this role there): the scene and model, the phase's bookkeeping (active
 // contacts, events, contact-chart guesses, locked ligament branches, recorded by BeginPhase
 // in Start), the run's statistics and the write-back of the state reached at the end of

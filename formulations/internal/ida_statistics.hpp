@@ -1,4 +1,4 @@
-// IDA's own counters as a SolverStats (style.md §3), shared by the IDA formulations
+// IDA's own counters as a SolverStats (the solvers' own counter names), shared by the IDA formulations
 // (dae.cpp, dae_ggl.cpp) instead of each reading the same nine getters.
 #pragma once
 

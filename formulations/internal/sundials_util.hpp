@@ -1,5 +1,5 @@
 // SUNDIALS 6.4 glue shared by the IDA, CVODE and ARKODE formulations: one checked-call
-// helper (style.md §4: return codes converted in one place), one error handler (SUNDIALS
+// helper (return codes converted in one place), one error handler (SUNDIALS
 // prints nothing; its message goes into the failure reason), a RAII context, and N_Vector
 // views.
 #pragma once
