@@ -105,10 +105,17 @@ void ResolveParameter(const Where& where, AnalyticModel analytic, const Model& m
     p->column = "mass_kg";
     return;
   }
+  if (p->name.size() == 9 && p->name.rfind("inertia_", 0) == 0 && p->name[8] >= 'x' && p->name[8] <= 'z') {
+    p->kind = ParameterKind::kPrincipalInertia;
+    p->axis = p->name[8] - 'x';
+    p->nominal = m.inertia_T(p->axis);
+    p->column = p->name + "_kg_m2";
+    return;
+  }
   const size_t dot = p->name.rfind('.');
   if (dot == std::string::npos) {
-    where.Fail("unknown parameter; expected pulse.amplitude, pulse.duration, mass or "
-               "'<element>.<property>'");
+    where.Fail("unknown parameter; expected pulse.amplitude, pulse.duration, mass, "
+               "inertia_x|y|z or '<element>.<property>'");
   }
   const std::string element = p->name.substr(0, dot), prop = p->name.substr(dot + 1);
   int idx = -1;
@@ -169,7 +176,8 @@ bool MustBePositive(ParameterKind k) {
     case ParameterKind::kLigamentSlackLength:
     case ParameterKind::kLigamentExtensionRatio:
     case ParameterKind::kPulseDuration:
-    case ParameterKind::kMass: return true;
+    case ParameterKind::kMass:
+    case ParameterKind::kPrincipalInertia: return true;
     default: return false;
   }
 }
@@ -450,6 +458,7 @@ Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values) {
       case ParameterKind::kPulseAmplitude: m.pulse.amplitude = v; break;
       case ParameterKind::kPulseDuration: m.pulse.duration = v; break;
       case ParameterKind::kMass: m.mass = v; break;
+      case ParameterKind::kPrincipalInertia: m.inertia_T(p.axis) = v; break;
       case ParameterKind::kLigamentSlackLength:
       case ParameterKind::kAnalytic: break;
     }

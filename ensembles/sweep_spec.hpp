@@ -29,6 +29,7 @@ enum class ParameterKind {
   kPulseAmplitude,              // pulse.amplitude, N
   kPulseDuration,               // pulse.duration, s
   kMass,                        // mass, kg
+  kPrincipalInertia,            // inertia_x|y|z, kg m² (principal moments about the COM, in T)
   kAnalytic,                    // x1, x2, x3 of an analytic test function
 };
 

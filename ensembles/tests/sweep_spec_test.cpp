@@ -136,6 +136,24 @@ TEST(SweepSpec, SceneForRunMovesSlackLengthWithTheAttachment) {
   EXPECT_EQ(m.ligaments[0].slack_length, s.base.model.ligaments[0].slack_length);
 }
 
+// A principal moment of inertia is a sweep parameter: its nominal value is the parameter
+// set's (principal_inertia_kg_m2: 0.0672, 0.0672, 0.005334) and a run's value replaces only
+// that moment.
+TEST(SweepSpec, PrincipalInertiaIsAParameter) {
+  const SweepSpec s = Parse(Spec(
+      "  - {name: inertia_z, relative: 0.1}\n"
+      "  - {name: inertia_x, uniform: [0.06, 0.07]}"));
+  EXPECT_EQ(s.parameters[0].kind, ParameterKind::kPrincipalInertia);
+  EXPECT_DOUBLE_EQ(s.parameters[0].nominal, 0.005334);
+  EXPECT_EQ(s.parameters[0].column, "inertia_z_kg_m2");
+  EXPECT_DOUBLE_EQ(s.parameters[1].nominal, 0.0672);
+  const Scene scene = SceneForRun(s, {0.006, 0.065});
+  EXPECT_DOUBLE_EQ(scene.model.inertia_T.z(), 0.006);
+  EXPECT_DOUBLE_EQ(scene.model.inertia_T.x(), 0.065);
+  EXPECT_DOUBLE_EQ(scene.model.inertia_T.y(), 0.0672);
+  EXPECT_THROW(Parse(Spec("  - {name: inertia_w, relative: 0.1}")), InputError);
+}
+
 TEST(SweepSpec, InverseNormalCdfMatchesScipy) {
   EXPECT_NEAR(InverseNormalCdf(0.975), 1.959963984540054, 1e-15);
   EXPECT_NEAR(InverseNormalCdf(0.3), -0.5244005127080409, 1e-15);
