@@ -51,7 +51,8 @@ static int crossed(int direction, double a, double b) {
 static void write_row(FILE* f, double t, const double* y, int is_event) {
   int i;
   fprintf(f, "%.17g", t);
-  for (i = 0; i < 12; ++i) fprintf(f, ",%.17g", y[i] * (i % 6 < 3 ? 1e3 : 180.0 / kPi));
+  /* mm, deg; valgus_deg = β − 90° (docs/outputs.md) */
+  for (i = 0; i < 12; ++i) fprintf(f, ",%.17g", y[i] * (i % 6 < 3 ? 1e3 : 180.0 / kPi) - (i == 4 ? 90.0 : 0.0));
   fprintf(f, ",%d\n", is_event);
 }
 

@@ -26,7 +26,8 @@ COLUMNS = ["x0_mm", "y0_mm", "z0_mm", "flexion_deg", "valgus_deg", "external_rot
 
 def row(t, y, is_event):
     scale = [M_TO_MM] * 3 + [RAD_TO_DEG] * 3
-    return [t] + [y[i] * scale[i] for i in range(6)] + [y[6 + i] * scale[i] for i in range(6)] + [int(is_event)]
+    pos = [y[i] * scale[i] - (90.0 if i == 4 else 0.0) for i in range(6)]  # valgus_deg = beta - 90 deg
+    return [t] + pos + [y[6 + i] * scale[i] for i in range(6)] + [int(is_event)]
 
 
 def event_functions(p):
@@ -52,7 +53,7 @@ def run(p, method, rtol, atol, dt):
     while True:
         grid = dt * np.arange(np.floor(t / dt + 1e-9) + 1, np.floor(p.t_end / dt + 1e-9) + 1)
         sol = solve_ivp(p.rhs, (t, p.t_end), y, method=method, t_eval=grid, events=event_functions(p), rtol=rtol,
-                        atol=atol, jac=None if method == "DOP853" else p.jacobian)
+                        atol=atol, **({} if method == "DOP853" else {"jac": p.jacobian}))
         if sol.status < 0:
             raise RuntimeError(f"solve_ivp ({method}) at t = {sol.t[-1] if sol.t.size else t} s: {sol.message}")
         nfev, njev = nfev + sol.nfev, njev + sol.njev
@@ -69,7 +70,10 @@ def run(p, method, rtol, atol, dt):
         events += [(name, t_e, fl * RAD_TO_DEG) for name, t_e, fl in p.events_recorded[len(events):]]
         if ended:
             return rows, events, nfev, njev, names[fired[0]]
-        t, y = t_event, y_next
+        # The root just handled is ~0 at the restart (a ligament kink stays watched): step
+        # 1e-9 s without events so that solve_ivp does not find it again at the start.
+        step = solve_ivp(p.rhs, (t_event, t_event + 1e-9), y_next, method=method, rtol=rtol, atol=atol)
+        t, y, nfev = step.t[-1], step.y[:, -1], nfev + step.nfev
 
 
 def main():
