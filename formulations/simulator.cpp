@@ -31,17 +31,85 @@ void Simulator::Record(bool is_event) {
   if (settings_.sample) settings_.sample(state_, is_event);
 }
 
-void Simulator::CompleteState() {
-  const Model& model = scene_.model;
-  if (settings_.restart == RestartProjection::kProject) {
-    CompleteHiddenConstraint(model, &state_);
+void CompleteRestartState(const Model& model, RestartProjection restart, MechanicalState* state) {
+  if (restart == RestartProjection::kProject) {
+    CompleteHiddenConstraint(model, state);
     return;
   }
-  const ConstrainedAcceleration a = SolveConstrainedAcceleration(model, state_.t, state_.q, state_.qd, state_.active,
-                                                                 {}, &state_.ligament_branch);
-  state_.qdd = a.qdd;
-  for (size_t c = 0; c < state_.active.size(); ++c) state_.contact[state_.active[c]].normal_force = a.normal_force[c];
-  FillContactCoordinates(model, &state_);
+  const ConstrainedAcceleration a =
+      SolveConstrainedAcceleration(model, state->t, state->q, state->qd, state->active, {}, &state->ligament_branch);
+  state->qdd = a.qdd;
+  for (size_t c = 0; c < state->active.size(); ++c) state->contact[state->active[c]].normal_force = a.normal_force[c];
+  FillContactCoordinates(model, state);
+}
+
+std::vector<EventSpec> StartPhase(const Model& model, const EndCondition& end, double gap_tolerance,
+                                  RestartProjection restart, MechanicalState* state) {
+  std::vector<EventSpec> specs = EventsForPhase(model, end, *state, gap_tolerance);
+  if (model.ligament_law == LigamentLaw::kPublished) {
+    state->ligament_branch = LigamentBranchesAt(model, state->q, state->qd);
+    CompleteRestartState(model, restart, state);  // forces on the locked branches
+  }
+  return specs;
+}
+
+TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpec>& specs,
+                                  const std::vector<int>& fired, RestartProjection restart,
+                                  PullingContact pulling, MechanicalState* state,
+                                  std::vector<EventRecord>* events) {
+  TransitionOutcome out;
+  std::vector<int> new_active = state->active;
+  bool impact = false;
+  for (int k : fired) {
+    const EventSpec& e = specs[k];
+    events->push_back({e.name, state->t, state->q(kAlpha)});
+    switch (e.kind) {
+      case EventKind::kFlexionEnd:
+        out.end_reason = e.name;
+        out.ended = true;
+        break;
+      case EventKind::kLiftoff:
+        new_active.erase(std::remove(new_active.begin(), new_active.end(), e.contact), new_active.end());
+        state->contact[e.contact].normal_force = 0.0;
+        break;
+      case EventKind::kRecontact:
+        new_active.push_back(e.contact);
+        impact = true;
+        break;
+      case EventKind::kLigamentKink:
+        ++out.ligament_kink_crossings;
+        break;
+    }
+  }
+  if (out.ended) return out;
+  std::sort(new_active.begin(), new_active.end());
+  state->active = new_active;
+  if (impact) ApplyPlasticImpact(model, state);
+  CompleteRestartState(model, restart, state);
+  // A contact whose consistent force would pull (N < 0): the most negative one first,
+  // then solve again (e.g. a re-contact that bounces off, or the second compartment
+  // unloading as the first lifts off).
+  for (;;) {
+    int worst = -1;
+    for (int i : state->active) {
+      if (state->contact[i].normal_force < 0.0 &&
+          (worst < 0 || state->contact[i].normal_force < state->contact[worst].normal_force)) {
+        worst = i;
+      }
+    }
+    if (worst < 0) break;
+    const std::string compartment = CompartmentName(model.contacts[worst].compartment);
+    if (pulling == PullingContact::kRefuse) {
+      Throw<SolverError>("Simulator::Run", "at t = ", state->t, " s the ", compartment, " contact would pull (N = ",
+                         state->contact[worst].normal_force,
+                         " N) after the switch: a simultaneous lift-off, whose sensitivities are not defined");
+    }
+    events->push_back({"liftoff_" + compartment, state->t, state->q(kAlpha)});
+    state->active.erase(std::remove(state->active.begin(), state->active.end(), worst), state->active.end());
+    state->contact[worst].normal_force = 0.0;
+    CompleteRestartState(model, restart, state);
+  }
+  return out;
 }
 
 void Simulator::Initialize() {
@@ -65,11 +133,7 @@ void Simulator::Run() {
   while (!done) {
     const double gap_tolerance =
         RecontactGapTolerance(record_->max_position_residual, state_.q, settings_.rtol, settings_.atol);
-    const std::vector<EventSpec> specs = EventsForPhase(model, scene_.end, state_, gap_tolerance);
-    if (model.ligament_law == LigamentLaw::kPublished) {
-      state_.ligament_branch = LigamentBranchesAt(model, state_.q, state_.qd);
-      CompleteState();  // forces on the locked branches
-    }
+    const std::vector<EventSpec> specs = StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_);
     stepper_->Start(state_, specs);
     if (first_phase && settings_.first_phase_started) settings_.first_phase_started(state_);
     first_phase = false;
@@ -97,56 +161,12 @@ void Simulator::Run() {
       // Events: record them, then switch mode.
       if (std::abs(state_.t - next_index * dt) < 1e-12) ++next_index;
       Record(true);
-      std::vector<int> new_active = state_.active;
-      bool impact = false;
-      for (int k : adv.events) {
-        const EventSpec& e = specs[k];
-        record_->events.push_back({e.name, state_.t, state_.q(kAlpha)});
-        switch (e.kind) {
-          case EventKind::kFlexionEnd:
-            record_->end_reason = e.name;
-            done = true;
-            break;
-          case EventKind::kLiftoff:
-            new_active.erase(std::remove(new_active.begin(), new_active.end(), e.contact), new_active.end());
-            state_.contact[e.contact].normal_force = 0.0;
-            break;
-          case EventKind::kRecontact:
-            new_active.push_back(e.contact);
-            impact = true;
-            break;
-          case EventKind::kLigamentKink:
-            ++record_->ligament_kink_crossings;
-            break;
-        }
-      }
-      if (done) break;
-      std::sort(new_active.begin(), new_active.end());
-      state_.active = new_active;
-      if (impact) ApplyPlasticImpact(model, &state_);
-      CompleteState();
-      // A contact whose consistent force would pull (N < 0): the most negative one first,
-      // then solve again (e.g. a re-contact that bounces off, or the second compartment
-      // unloading as the first lifts off).
-      for (;;) {
-        int worst = -1;
-        for (int i : state_.active) {
-          if (state_.contact[i].normal_force < 0.0 &&
-              (worst < 0 || state_.contact[i].normal_force < state_.contact[worst].normal_force)) {
-            worst = i;
-          }
-        }
-        if (worst < 0) break;
-        const std::string compartment = CompartmentName(model.contacts[worst].compartment);
-        if (settings_.pulling == PullingContact::kRefuse) {
-          Throw<SolverError>("Simulator::Run", "at t = ", state_.t, " s the ", compartment, " contact would pull (N = ",
-                             state_.contact[worst].normal_force,
-                             " N) after the switch: a simultaneous lift-off, whose sensitivities are not defined");
-        }
-        record_->events.push_back({"liftoff_" + compartment, state_.t, state_.q(kAlpha)});
-        state_.active.erase(std::remove(state_.active.begin(), state_.active.end(), worst), state_.active.end());
-        state_.contact[worst].normal_force = 0.0;
-        CompleteState();
+      const TransitionOutcome outcome =
+          PhaseTransition(model, specs, adv.events, settings_.restart, settings_.pulling, &state_, &record_->events);
+      record_->ligament_kink_crossings += outcome.ligament_kink_crossings;
+      if (outcome.ended) {
+        record_->end_reason = outcome.end_reason;
+        done = true;
       }
       break;
     }

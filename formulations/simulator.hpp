@@ -76,6 +76,41 @@ struct SimulatorSettings {
   std::function<void(const MechanicalState&, bool is_event)> sample;
 };
 
+// What a transition did (PhaseTransition).
+struct TransitionOutcome {
+  bool ended = false;              // an end event fired: no next phase
+  std::string end_reason;          // its name when ended
+  long ligament_kink_crossings = 0;
+};
+
+// The transition from one phase to the next, the one the Simulator runs at every event
+// that is not a ligament kink alone (docs/model.md §9): at *state (the event's state from
+// the stepper), with `fired` indices into `specs` (the phase's events):
+//   the end flexion ends the run (state untouched apart from dropped forces);
+//   a lift-off drops its contact; a re-contact adds its contact and applies the perfectly
+//   plastic impact (solver/impact.hpp); then the restart state (RestartProjection) and
+//   contacts whose consistent force would pull (PullingContact: recorded as
+//   liftoff_<compartment>, or SolverError for kRefuse).
+// The events of the switch are appended to *events in the order recorded (also those
+// recorded before a SolverError). On return (not ended) *state is the next phase's consistent state: active contacts,
+// q, q̇, q̈, N. The next phase's events and ligament branches come from the phase start
+// (EventsForPhase, LigamentBranchesAt), as Simulator::Run does.
+TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpec>& specs,
+                                  const std::vector<int>& fired, RestartProjection restart,
+                                  PullingContact pulling, MechanicalState* state,
+                                  std::vector<EventRecord>* events);
+
+// RestartProjection at *state: the hidden level (q̈, N, contact coordinates) on the
+// active contacts, after projecting (q, q̇) for kProject.
+void CompleteRestartState(const Model& model, RestartProjection restart, MechanicalState* state);
+
+// The start of a phase at *state, as Simulator::Run does it: the phase's events
+// (EventsForPhase with the re-contact hysteresis gap_tolerance) and, for the published
+// ligament law, the branches locked from the direction of motion with the restart state
+// solved on them.
+std::vector<EventSpec> StartPhase(const Model& model, const EndCondition& end, double gap_tolerance,
+                                  RestartProjection restart, MechanicalState* state);
+
 class Simulator {
  public:
   // `scene` and `stepper` outlive the simulator; `record` receives init, events, samples,
@@ -92,8 +127,6 @@ class Simulator {
 
  private:
   void Record(bool is_event);
-  // RestartProjection at state_.
-  void CompleteState();
 
   const Scene& scene_;
   Formulation* stepper_;

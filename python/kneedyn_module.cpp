@@ -187,6 +187,8 @@ struct RunOutput {
 
 }  // namespace
 
+namespace kneedyn { void BindProblem(py::module_& m); }  // python/problem_bindings.cpp
+
 PYBIND11_MODULE(_kneedyn, m) {
   m.doc() = "kneedyn compiled bindings; use the `kneedyn` package";
 
@@ -424,4 +426,5 @@ PYBIND11_MODULE(_kneedyn, m) {
   }, py::arg("scene"), py::arg("parameters"), py::arg("outcomes"), py::arg("rtol"), py::arg("atol"),
      py::arg("fd_step") = 0.0, py::arg("out_dir") = "", py::arg("formulation") = "ede",
      "RunSensitivity (+ CentralDifferences, + WriteSensitivityOutputs into out_dir) without the GIL");
+  BindProblem(m);
 }

@@ -23,9 +23,9 @@ import os as _os
 import numpy as _np
 
 from . import _kneedyn
-from ._kneedyn import Error, InputError, SolverError, CompiledScene
+from ._kneedyn import Error, InputError, SolverError, CompiledScene, Problem
 
-__all__ = ["sensitivity", "sweep", "SweepResult", "Scene", "Result", "Trajectory", "Event", "load_scene", "run", "formulations",
+__all__ = ["Problem", "sensitivity", "sweep", "SweepResult", "Scene", "Result", "Trajectory", "Event", "load_scene", "run", "formulations",
            "data_dir", "scene_path", "Error", "InputError", "SolverError"]
 
 

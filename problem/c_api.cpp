@@ -1,0 +1,228 @@
+// The C interface kneedyn/problem.h over kneedyn::Problem (problem.hpp): exceptions become
+// status codes with the message kept per thread; handles are checked against the live set
+// before use.
+#include <cmath>
+#include <exception>
+#include <mutex>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "kneedyn/problem.h"
+#include "problem/problem.hpp"
+#include "scene/scene.hpp"
+#include "solver/error.hpp"
+
+struct kneedyn_problem {
+  kneedyn::Scene scene;
+  std::unique_ptr<kneedyn::Problem> problem;
+  std::vector<std::string> event_names;  // of the current phase (kneedyn_problem_event_name)
+};
+
+namespace {
+
+thread_local std::string g_last_error;
+std::mutex g_handles_mutex;
+std::set<const kneedyn_problem*> g_handles;
+
+int Set(int status, const std::string& message) {
+  g_last_error = message;
+  return status;
+}
+
+bool Live(const kneedyn_problem* p) {
+  std::lock_guard<std::mutex> lock(g_handles_mutex);
+  return p != nullptr && g_handles.count(p) > 0;
+}
+
+// Runs body on a live handle, translating exceptions.
+template <typename Body>
+int Call(const char* function, const kneedyn_problem* p, Body body) {
+  if (!Live(p)) return Set(KNEEDYN_BAD_HANDLE, std::string(function) + ": not a live kneedyn_problem handle");
+  try {
+    body();
+    g_last_error.clear();
+    return KNEEDYN_OK;
+  } catch (const kneedyn::ProblemError& e) {
+    return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": " + e.what());
+  } catch (const kneedyn::InputError& e) {
+    return Set(KNEEDYN_INPUT_ERROR, std::string(function) + ": " + e.what());
+  } catch (const kneedyn::SolverError& e) {
+    return Set(KNEEDYN_SOLVER_ERROR, std::string(function) + ": " + e.what());
+  } catch (const std::exception& e) {
+    return Set(KNEEDYN_INTERNAL_ERROR, std::string(function) + ": " + e.what());
+  } catch (...) {
+    return Set(KNEEDYN_INTERNAL_ERROR, std::string(function) + ": unknown exception");
+  }
+}
+
+void NotNull(const void* ptr, const char* name) {
+  if (ptr == nullptr) throw kneedyn::ProblemError(std::string(name) + " is null");
+}
+
+void SizeIs(int n, int expected, const char* name) {
+  if (n != expected) {
+    throw kneedyn::ProblemError(std::string(name) + " = " + std::to_string(n) + ": the current phase has " +
+                                std::to_string(expected));
+  }
+}
+
+void RefreshNames(kneedyn_problem* p) { p->event_names = p->problem->event_names(); }
+
+}  // namespace
+
+extern "C" {
+
+const char* kneedyn_last_error(void) { return g_last_error.c_str(); }
+
+int kneedyn_problem_create(const char* scene_path, const char* form, double rtol, double atol, kneedyn_problem** out) {
+  const char* function = "kneedyn_problem_create";
+  if (out == nullptr) return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": out is null");
+  *out = nullptr;
+  if (scene_path == nullptr || form == nullptr) {
+    return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": scene_path and form must not be null");
+  }
+  if (std::isnan(rtol) || std::isnan(atol)) {
+    return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": rtol and atol must not be NaN");
+  }
+  try {
+    auto handle = std::make_unique<kneedyn_problem>();
+    handle->scene = kneedyn::LoadScene(scene_path);
+    handle->problem = std::make_unique<kneedyn::Problem>(handle->scene, form, rtol > 0.0 ? rtol : 1.0e-6,
+                                                         atol > 0.0 ? atol : 1.0e-8);
+    RefreshNames(handle.get());
+    {
+      std::lock_guard<std::mutex> lock(g_handles_mutex);
+      g_handles.insert(handle.get());
+    }
+    *out = handle.release();
+    g_last_error.clear();
+    return KNEEDYN_OK;
+  } catch (const kneedyn::ProblemError& e) {
+    return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": " + e.what());
+  } catch (const kneedyn::InputError& e) {
+    return Set(KNEEDYN_INPUT_ERROR, std::string(function) + ": " + e.what());
+  } catch (const kneedyn::SolverError& e) {
+    return Set(KNEEDYN_SOLVER_ERROR, std::string(function) + ": " + e.what());
+  } catch (const std::exception& e) {
+    return Set(KNEEDYN_INTERNAL_ERROR, std::string(function) + ": " + e.what());
+  }
+}
+
+int kneedyn_problem_destroy(kneedyn_problem* p) {
+  if (p == nullptr) return KNEEDYN_OK;
+  {
+    std::lock_guard<std::mutex> lock(g_handles_mutex);
+    if (g_handles.erase(p) == 0) {
+      return Set(KNEEDYN_BAD_HANDLE, "kneedyn_problem_destroy: not a live kneedyn_problem handle");
+    }
+  }
+  delete p;
+  return KNEEDYN_OK;
+}
+
+int kneedyn_problem_size(const kneedyn_problem* p, int* n) {
+  return Call("kneedyn_problem_size", p, [&] { NotNull(n, "n"); *n = p->problem->size(); });
+}
+int kneedyn_problem_index(const kneedyn_problem* p, int* index) {
+  return Call("kneedyn_problem_index", p, [&] { NotNull(index, "index"); *index = p->problem->index(); });
+}
+int kneedyn_problem_is_dae(const kneedyn_problem* p, int* is_dae) {
+  return Call("kneedyn_problem_is_dae", p, [&] { NotNull(is_dae, "is_dae"); *is_dae = p->problem->is_dae() ? 1 : 0; });
+}
+int kneedyn_problem_times(const kneedyn_problem* p, double* t0, double* t_end) {
+  return Call("kneedyn_problem_times", p, [&] {
+    if (t0) *t0 = p->problem->t0();
+    if (t_end) *t_end = p->problem->t_end();
+  });
+}
+int kneedyn_problem_phase(const kneedyn_problem* p, int* phase, double* phase_t0) {
+  return Call("kneedyn_problem_phase", p, [&] {
+    if (phase) *phase = p->problem->phase();
+    if (phase_t0) *phase_t0 = p->problem->phase_start_time();
+  });
+}
+int kneedyn_problem_tolerances(const kneedyn_problem* p, double* rtol, double* atol) {
+  return Call("kneedyn_problem_tolerances", p, [&] {
+    if (rtol) *rtol = p->problem->rtol();
+    if (atol) *atol = p->problem->atol();
+  });
+}
+int kneedyn_problem_initial_values(const kneedyn_problem* p, double* y0, double* yp0, int n) {
+  return Call("kneedyn_problem_initial_values", p, [&] {
+    NotNull(y0, "y0");
+    SizeIs(n, p->problem->size(), "n");
+    if (p->problem->ended()) throw kneedyn::ProblemError("the run has ended; no phase is open");
+    std::copy(p->problem->y0().begin(), p->problem->y0().end(), y0);
+    if (yp0) std::copy(p->problem->yp0().begin(), p->problem->yp0().end(), yp0);
+  });
+}
+int kneedyn_problem_differential_ids(const kneedyn_problem* p, double* ids, int n) {
+  return Call("kneedyn_problem_differential_ids", p, [&] {
+    NotNull(ids, "ids");
+    SizeIs(n, p->problem->size(), "n");
+    const std::vector<double> id = p->problem->differential_ids();
+    std::copy(id.begin(), id.end(), ids);
+  });
+}
+int kneedyn_problem_rhs(const kneedyn_problem* p, double t, const double* y, int n, double* f) {
+  return Call("kneedyn_problem_rhs", p, [&] {
+    NotNull(f, "f");
+    p->problem->Rhs(t, y, n, f);
+  });
+}
+int kneedyn_problem_jacobian(const kneedyn_problem* p, double t, const double* y, int n, double* J) {
+  return Call("kneedyn_problem_jacobian", p, [&] {
+    NotNull(J, "J");
+    p->problem->Jacobian(t, y, n, J);
+  });
+}
+int kneedyn_problem_residual(const kneedyn_problem* p, double t, const double* y, const double* yp, int n, double* F) {
+  return Call("kneedyn_problem_residual", p, [&] {
+    NotNull(F, "F");
+    p->problem->Residual(t, y, yp, n, F);
+  });
+}
+int kneedyn_problem_dae_jacobian(const kneedyn_problem* p, double t, const double* y, const double* yp, double c, int n,
+                                 double* J) {
+  return Call("kneedyn_problem_dae_jacobian", p, [&] {
+    NotNull(J, "J");
+    p->problem->Jacobian(t, y, yp, c, n, J);
+  });
+}
+int kneedyn_problem_event_count(const kneedyn_problem* p, int* m) {
+  return Call("kneedyn_problem_event_count", p, [&] { NotNull(m, "m"); *m = p->problem->event_count(); });
+}
+int kneedyn_problem_event_name(const kneedyn_problem* p, int k, const char** name) {
+  return Call("kneedyn_problem_event_name", p, [&] {
+    NotNull(name, "name");
+    if (k < 0 || k >= p->problem->event_count()) throw kneedyn::ProblemError("k = " + std::to_string(k) + ": out of range");
+    *name = p->event_names[k].c_str();
+  });
+}
+int kneedyn_problem_event_direction(const kneedyn_problem* p, int k, int* direction) {
+  return Call("kneedyn_problem_event_direction", p, [&] {
+    NotNull(direction, "direction");
+    if (k < 0 || k >= p->problem->event_count()) throw kneedyn::ProblemError("k = " + std::to_string(k) + ": out of range");
+    *direction = p->problem->event_directions()[k];
+  });
+}
+int kneedyn_problem_events(const kneedyn_problem* p, double t, const double* y, int n, double* g, int m) {
+  return Call("kneedyn_problem_events", p, [&] {
+    NotNull(g, "g");
+    SizeIs(m, p->problem->event_count(), "m");
+    p->problem->Events(t, y, n, g);
+  });
+}
+int kneedyn_problem_transition(kneedyn_problem* p, double t, const double* y, const double* yp, int n,
+                               const int* events, int n_events, int* ended) {
+  return Call("kneedyn_problem_transition", p, [&] {
+    NotNull(events, "events");
+    NotNull(ended, "ended");
+    if (n_events < 1) throw kneedyn::ProblemError("n_events = " + std::to_string(n_events) + ": at least 1");
+    *ended = p->problem->Transition(t, y, yp, n, std::vector<int>(events, events + n_events)) ? 1 : 0;
+    RefreshNames(p);
+  });
+}
+
+}  // extern "C"

@@ -1,0 +1,242 @@
+#include "problem/problem.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "solver/consistent_init.hpp"
+#include "solver/constraint_residuals.hpp"
+#include "solver/error.hpp"
+
+namespace kneedyn {
+namespace {
+
+[[noreturn]] void Fail(const std::string& message) { throw ProblemError(message); }
+
+}  // namespace
+
+Problem::Problem(const Scene& scene, const std::string& form, double rtol, double atol)
+    : scene_(scene), form_(form), rtol_(rtol), atol_(atol), workspace_(scene.model) {
+  if (form != "ede" && form != "dae" && form != "dae-ggl") {
+    Fail("Problem: form = '" + form + "': one of 'ede', 'dae', 'dae-ggl'");
+  }
+  if (!(rtol > 0.0) || !(atol > 0.0) || !std::isfinite(rtol) || !std::isfinite(atol)) {
+    Fail(StrCat("Problem: rtol = ", rtol, ", atol = ", atol, ": both must be finite and > 0"));
+  }
+  const Model& model = scene.model;
+  ConsistentInitOptions init;  // as kneedyn run: every contact active at t0
+  init.form = is_dae() ? ContactForm::kChapter : ContactForm::kClosedForm;
+  std::vector<int> active;
+  for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
+  InitReport report;
+  state_ = ConsistentInitialize(model, scene.initial, active, init, &report);
+  SolveConstrainedAcceleration(model, state_.t, state_.q, state_.qd, state_.active);  // dependent rows: refused
+  if (is_dae()) {
+    dae_ = std::make_unique<DaeSystem>(model, ContactForm::kChapter, ConstraintLevel::kVelocity, form == "dae-ggl");
+  }
+  double rate = 0.0;
+  MaxActiveConstraintResiduals(model, state_, &max_position_residual_, &rate);
+  t0_ = state_.t;
+  normal_.assign(model.contacts.size(), 0.0);
+  acc_.normal_force.reserve(kMaxConstrainedContacts);
+  BeginPhase();
+}
+
+void Problem::BeginPhase() {
+  const double gap_tolerance = RecontactGapTolerance(max_position_residual_, state_.q, rtol_, atol_);
+  specs_ = StartPhase(scene_.model, scene_.end, gap_tolerance, RestartProjection::kProject, &state_);
+  if (is_dae()) {
+    dae_->SetPhase(state_.active, state_.contact, state_.ligament_branch);
+    n_ = dae_->size();
+    y0_.assign(n_, 0.0);
+    yp0_.assign(n_, 0.0);
+    dae_->InitialValues(state_, y0_.data(), yp0_.data());
+  } else {
+    n_ = 12;
+    y0_.assign(12, 0.0);
+    yp0_.assign(12, 0.0);
+    for (int i = 0; i < 6; ++i) {
+      y0_[i] = state_.q(i);
+      y0_[6 + i] = state_.qd(i);
+      yp0_[i] = state_.qd(i);
+      yp0_[6 + i] = state_.qdd(i);
+    }
+  }
+}
+
+void Problem::CheckOpen(const char* call) const {
+  if (ended_) Fail(StrCat("Problem::", call, ": the run has ended (", end_reason_, "); no phase is open"));
+}
+
+void Problem::CheckState(const char* call, const double* y, int n) const {
+  CheckOpen(call);
+  if (y == nullptr) Fail(StrCat("Problem::", call, ": null state array"));
+  if (n != n_) {
+    Fail(StrCat("Problem::", call, ": state of size ", n, ", but phase ", phase_, " of the '", form_, "' form has ", n_,
+                " components"));
+  }
+  for (int i = 0; i < n; ++i) {
+    if (!std::isfinite(y[i])) Fail(StrCat("Problem::", call, ": y[", i, "] = ", y[i], ": every component must be finite"));
+  }
+}
+
+std::vector<double> Problem::differential_ids() const {
+  std::vector<double> id(n_, 1.0);
+  if (is_dae()) {
+    for (int i = 0; i < n_; ++i) id[i] = dae_->IsDifferential(i) ? 1.0 : 0.0;
+  }
+  return id;
+}
+
+std::vector<std::string> Problem::component_names() const {
+  std::vector<std::string> names;
+  for (int i = 0; i < n_; ++i) {
+    if (is_dae()) {
+      names.push_back(dae_->UnknownName(i));
+    } else {
+      names.push_back(i < 6 ? std::string(CoordinateName(i)) : std::string(CoordinateName(i - 6)) + "_rate");
+    }
+  }
+  return names;
+}
+
+void Problem::AccelerationAt(double t, const double* y) const {
+  const Vector6d q = Eigen::Map<const Vector6d>(y);
+  const Vector6d qd = Eigen::Map<const Vector6d>(y + 6);
+  SolveConstrainedAcceleration(scene_.model, t, q, qd, state_.active, {}, &state_.ligament_branch, &workspace_, &acc_);
+}
+
+// The ede formulation's right-hand side (formulations/ede.cpp, --stabilization none).
+void Problem::Rhs(double t, const double* y, int n, double* f) const {
+  if (is_dae()) Fail(StrCat("Problem::Rhs: the '", form_, "' form is a DAE; call Residual"));
+  CheckState("Rhs", y, n);
+  AccelerationAt(t, y);
+  for (int i = 0; i < 6; ++i) {
+    f[i] = y[6 + i];
+    f[6 + i] = acc_.qdd(i);
+  }
+}
+
+void Problem::Jacobian(double t, const double* y, int n, double* J) const {
+  if (is_dae()) Fail(StrCat("Problem::Jacobian: the '", form_, "' form is a DAE; call Jacobian(t, y, yp, c)"));
+  CheckState("Jacobian", y, n);
+  double yh[12], fp[12], fm[12];
+  for (int j = 0; j < 12; ++j) {
+    for (int i = 0; i < 12; ++i) yh[i] = y[i];
+    const double h = 1.0e-7 * (1.0 + std::abs(y[j]));
+    yh[j] = y[j] + h;
+    Rhs(t, yh, 12, fp);
+    yh[j] = y[j] - h;
+    Rhs(t, yh, 12, fm);
+    for (int i = 0; i < 12; ++i) J[12 * i + j] = (fp[i] - fm[i]) / (2.0 * h);
+  }
+}
+
+void Problem::Residual(double t, const double* y, const double* yp, int n, double* F) const {
+  if (!is_dae()) Fail("Problem::Residual: the 'ede' form is an ODE; call Rhs");
+  CheckState("Residual", y, n);
+  CheckState("Residual", yp, n);
+  if (!dae_->Residual(t, y, yp, F)) Fail(StrCat("Problem::Residual: at t = ", t, " s a contact surface is evaluated outside its domain"));
+}
+
+void Problem::Jacobian(double t, const double* y, const double* yp, double c, int n, double* J) const {
+  if (!is_dae()) Fail("Problem::Jacobian: the 'ede' form is an ODE; call Jacobian(t, y)");
+  CheckState("Jacobian", y, n);
+  CheckState("Jacobian", yp, n);
+  if (!std::isfinite(c)) Fail(StrCat("Problem::Jacobian: c = ", c, ": must be finite"));
+  std::vector<double> column_major(static_cast<size_t>(n_) * n_);
+  if (!dae_->Jacobian(t, c, y, yp, column_major.data())) {
+    Fail(StrCat("Problem::Jacobian: at t = ", t, " s a contact surface is evaluated outside its domain"));
+  }
+  for (int i = 0; i < n_; ++i) {
+    for (int j = 0; j < n_; ++j) J[n_ * i + j] = column_major[static_cast<size_t>(n_) * j + i];
+  }
+}
+
+std::vector<std::string> Problem::event_names() const {
+  std::vector<std::string> names;
+  for (const EventSpec& e : specs_) names.push_back(e.name);
+  return names;
+}
+
+std::vector<int> Problem::event_directions() const {
+  std::vector<int> d;
+  for (const EventSpec& e : specs_) d.push_back(e.direction);
+  return d;
+}
+
+// The formulations' root functions (ede.cpp, dae.cpp: N from the hidden constraint or from y).
+void Problem::Events(double t, const double* y, int n, double* g) const {
+  CheckState("Events", y, n);
+  const Vector6d q = Eigen::Map<const Vector6d>(y);
+  std::fill(normal_.begin(), normal_.end(), 0.0);
+  if (is_dae()) {
+    for (size_t c = 0; c < state_.active.size(); ++c) normal_[state_.active[c]] = y[dae_->NormalIndex(static_cast<int>(c))];
+  } else if (!state_.active.empty()) {
+    AccelerationAt(t, y);
+    for (size_t c = 0; c < state_.active.size(); ++c) normal_[state_.active[c]] = acc_.normal_force[c];
+  }
+  EvaluateEvents(scene_.model, specs_, q, normal_, g);
+}
+
+MechanicalState Problem::StateAt(double t, const double* y, const double* yp) const {
+  MechanicalState s = state_;
+  s.t = t;
+  s.q = Eigen::Map<const Vector6d>(y);
+  s.qd = Eigen::Map<const Vector6d>(y + 6);
+  if (is_dae()) {
+    // q̈ from ẏ when given (the transition recomputes it from q, q̇ in any case).
+    s.qdd = yp != nullptr ? Vector6d(Eigen::Map<const Vector6d>(yp + 6)) : Vector6d::Zero();
+    const int per_contact = dae_->per_contact();
+    for (size_t c = 0; c < s.active.size(); ++c) {
+      ContactGuess& guess = s.contact[s.active[c]];
+      for (int j = 0; j < per_contact; ++j) guess.coordinates[j] = y[dae_->CoordinateIndex(static_cast<int>(c)) + j];
+      guess.normal_force = y[dae_->NormalIndex(static_cast<int>(c))];
+    }
+  } else {
+    AccelerationAt(t, y);
+    s.qdd = acc_.qdd;
+    for (size_t c = 0; c < s.active.size(); ++c) s.contact[s.active[c]].normal_force = acc_.normal_force[c];
+    FillContactCoordinates(scene_.model, &s);
+  }
+  return s;
+}
+
+bool Problem::Transition(double t, const double* y, const double* yp, int n, const std::vector<int>& events) {
+  CheckState("Transition", y, n);
+  if (is_dae()) CheckState("Transition", yp, n);
+  if (!std::isfinite(t)) Fail(StrCat("Problem::Transition: t = ", t, ": must be finite"));
+  if (events.empty()) Fail("Problem::Transition: no event given");
+  for (int k : events) {
+    if (k < 0 || k >= event_count()) {
+      Fail(StrCat("Problem::Transition: event = ", k, ": phase ", phase_, " has events 0 to ", event_count() - 1));
+    }
+  }
+  MechanicalState s = StateAt(t, y, yp);
+  // A ligament crossing the published law's jump alone only restarts the phase
+  // (Simulator::Run): new branches, no mode switch, no sample.
+  bool only_kinks = true;
+  for (int k : events) only_kinks = only_kinks && specs_[k].kind == EventKind::kLigamentKink;
+  if (only_kinks) {
+    state_ = s;
+    ++phase_;
+    BeginPhase();
+    return false;
+  }
+  double gap = 0.0, rate = 0.0;
+  MaxActiveConstraintResiduals(scene_.model, s, &gap, &rate);
+  max_position_residual_ = std::max(max_position_residual_, gap);
+  const TransitionOutcome outcome =
+      PhaseTransition(scene_.model, specs_, events, RestartProjection::kProject, PullingContact::kSeparate, &s, &events_);
+  if (outcome.ended) {
+    ended_ = true;
+    end_reason_ = outcome.end_reason;
+    state_ = s;
+    return true;
+  }
+  state_ = s;
+  ++phase_;
+  BeginPhase();
+  return false;
+}
+
+}  // namespace kneedyn

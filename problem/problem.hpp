@@ -1,0 +1,117 @@
+// The knee as an open initial-value problem, one phase at a time (docs/problem.md): what an
+// outside solver needs to run the whole hybrid problem itself — sizes and index, the
+// consistent initial values of the phase, f (ODE forms) or F (DAE forms) with Jacobians, the
+// named event functions, and the transition to the next phase. Built on the functions the
+// formulations call (solver/constrained_dynamics.hpp for the ODE form, DaeSystem for the
+// DAE forms) and on the simulator's own phase start and transition (StartPhase,
+// PhaseTransition in formulations/simulator.hpp), so no physics is written here.
+//
+// Forms: "ede"  y = (q, q̇) (12), f = (q̇, q̈) with q̈ from the hidden constraint (index 0 ODE);
+//        "dae"  the chapter's index-2 DAE (DaeSystem, chapter contact form), y = (q, u, c, N);
+//        "dae-ggl" its Gear–Gupta–Leimkuhler form (index 2), y = (q, u, c, N, μ).
+// Errors: ProblemError (a std::invalid_argument) names the call, the value and the rule.
+#pragma once
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "formulations/dae_system.hpp"
+#include "formulations/run.hpp"
+#include "formulations/simulator.hpp"
+#include "scene/scene.hpp"
+#include "solver/constrained_dynamics.hpp"
+
+namespace kneedyn {
+
+class ProblemError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+class Problem {
+ public:
+  // form: "ede", "dae", "dae-ggl". Throws ProblemError for another form and InputError for a
+  // scene whose start is inconsistent. rtol, atol: the defaults an adaptive solver is run
+  // with (they also set the re-contact hysteresis, as in kneedyn run).
+  Problem(const Scene& scene, const std::string& form, double rtol = 1.0e-6, double atol = 1.0e-8);
+
+  const std::string& form() const { return form_; }
+  bool is_dae() const { return form_ != "ede"; }
+  // Index of the form: 0 (ODE), 2 (both DAE forms, velocity-level constraint).
+  int index() const { return is_dae() ? 2 : 0; }
+  int size() const { return n_; }  // of the current phase (the DAE size changes with contacts)
+  double t0() const { return t0_; }
+  double t_end() const { return scene_.end.time; }
+  double rtol() const { return rtol_; }
+  double atol() const { return atol_; }
+  bool ended() const { return ended_; }
+  const std::string& end_reason() const { return end_reason_; }
+  // Phases started so far − 1 (a restart at a ligament kink counts, as in the simulator).
+  int phase() const { return phase_; }
+  const MechanicalState& phase_state() const { return state_; }
+  double phase_start_time() const { return state_.t; }
+
+  // Consistent values at the phase start (t0 for the first phase, else the transition time).
+  const std::vector<double>& y0() const { return y0_; }
+  const std::vector<double>& yp0() const { return yp0_; }
+  // 1 for differential, 0 for algebraic components (DAE forms; all 1 for ede).
+  std::vector<double> differential_ids() const;
+  std::vector<std::string> component_names() const;
+
+  // ODE form: f(t, y) into f (size()).
+  void Rhs(double t, const double* y, int n, double* f) const;
+  // ODE form: ∂f/∂y (row-major size()×size()) by central difference quotients of Rhs with
+  // step 1e-7 (1 + |y_i|): ede has no exact Jacobian in kneedyn (the hidden-constraint solve
+  // is written for double only).
+  void Jacobian(double t, const double* y, int n, double* J_row_major) const;
+  // DAE forms: F(t, y, ẏ) into F.
+  void Residual(double t, const double* y, const double* yp, int n, double* F) const;
+  // DAE forms: ∂F/∂y + c ∂F/∂ẏ, exact (DaeSystem::Jacobian), row-major.
+  void Jacobian(double t, const double* y, const double* yp, double c, int n, double* J_row_major) const;
+
+  // The events of the phase: g_k, their names and directions (−1 decreasing, +1 increasing,
+  // 0 both; SUNDIALS convention).
+  int event_count() const { return static_cast<int>(specs_.size()); }
+  std::vector<std::string> event_names() const;
+  std::vector<int> event_directions() const;
+  void Events(double t, const double* y, int n, double* g) const;
+
+  // n: the length of y (and yp), checked against size(); states must be finite.
+  // The transition at the roots of `events` (t, y: the event state; yp for the DAE forms):
+  // the simulator's PhaseTransition and StartPhase. Returns true when the run has ended;
+  // otherwise y0(), yp0(), size() and the events are the next phase's. The events recorded
+  // (with pulling contacts that lift off at once) are appended to events_recorded().
+  bool Transition(double t, const double* y, const double* yp, int n, const std::vector<int>& events);
+  const std::vector<EventRecord>& events_recorded() const { return events_; }
+
+  // The mechanical state (t, q, q̇, q̈, N, contact coordinates) a form's (t, y, ẏ) stands for.
+  MechanicalState StateAt(double t, const double* y, const double* yp) const;
+
+ private:
+  void BeginPhase();
+  void CheckState(const char* call, const double* y, int n) const;
+  void CheckOpen(const char* call) const;
+  void AccelerationAt(double t, const double* y) const;
+
+  const Scene& scene_;
+  std::string form_;
+  double rtol_, atol_;
+  double t0_ = 0.0;
+  int n_ = 12;
+  int phase_ = 0;
+  bool ended_ = false;
+  std::string end_reason_;
+  double max_position_residual_ = 0.0;  // observed drift, for the re-contact hysteresis (m)
+  MechanicalState state_;                // the phase start
+  std::vector<EventSpec> specs_;
+  std::vector<EventRecord> events_;
+  std::vector<double> y0_, yp0_;
+  std::unique_ptr<DaeSystem> dae_;
+  mutable ConstrainedDynamicsWorkspace workspace_;
+  mutable ConstrainedAcceleration acc_;
+  mutable std::vector<double> normal_;
+};
+
+}  // namespace kneedyn

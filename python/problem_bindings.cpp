@@ -1,0 +1,183 @@
+// kneedyn.Problem: the knee as an open initial-value problem, per phase (problem/problem.hpp,
+// docs/problem.md), for outside solvers such as SciPy's solve_ivp. Arrays are float64
+// NumPy arrays; every bad argument (form, sizes, NaN, a call out of phase, after the end)
+// raises ValueError with the C++ message.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "problem/problem.hpp"
+#include "scene/scene.hpp"
+
+namespace py = pybind11;
+
+namespace kneedyn {
+namespace {
+
+using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+// The problem and the scene it reads (kept alive together).
+struct PyProblem {
+  std::shared_ptr<Scene> scene;
+  std::unique_ptr<Problem> problem;
+};
+
+py::array_t<double> ToArray(const std::vector<double>& v) {
+  py::array_t<double> a(static_cast<py::ssize_t>(v.size()));
+  std::copy(v.begin(), v.end(), a.mutable_data());
+  return a;
+}
+
+// A 1-D array; its length is checked by Problem against the phase's size.
+Array Vector1d(const py::handle& obj, const char* name) {
+  Array a = Array::ensure(obj);
+  if (!a || a.ndim() != 1) {
+    throw ProblemError(std::string("kneedyn.Problem: ") + name + " must be a 1-D array of floats");
+  }
+  return a;
+}
+
+int Length(const Array& a) { return static_cast<int>(a.shape(0)); }
+
+// The scene: a kneedyn.Scene (its .compiled), a CompiledScene, or a path / shipped name.
+std::shared_ptr<Scene> SceneFrom(const py::object& obj) {
+  if (py::isinstance<Scene>(obj)) return obj.cast<std::shared_ptr<Scene>>();
+  if (py::hasattr(obj, "compiled")) return obj.attr("compiled").cast<std::shared_ptr<Scene>>();
+  if (py::isinstance<py::str>(obj)) {
+    std::string path = obj.cast<std::string>();
+    if (path.find('/') == std::string::npos && path.find(".yaml") == std::string::npos) {
+      path = py::module_::import("kneedyn").attr("scene_path")(path).cast<std::string>();
+    }
+    return std::make_shared<Scene>(LoadScene(path));
+  }
+  throw ProblemError("kneedyn.Problem: scene must be a kneedyn.Scene, a scene file path or a shipped scene name");
+}
+
+std::vector<int> EventIndices(const Problem& p, const py::object& event) {
+  auto one = [&](const py::handle& e) {
+    if (py::isinstance<py::str>(e)) {
+      const std::string name = e.cast<std::string>();
+      const std::vector<std::string> names = p.event_names();
+      for (size_t k = 0; k < names.size(); ++k) {
+        if (names[k] == name) return static_cast<int>(k);
+      }
+      throw ProblemError("kneedyn.Problem.transition: event = '" + name + "': not an event of phase " +
+                         std::to_string(p.phase()));
+    }
+    return e.cast<int>();
+  };
+  std::vector<int> out;
+  if (py::isinstance<py::str>(event) || !py::isinstance<py::sequence>(event)) {
+    out.push_back(one(event));
+  } else {
+    for (const py::handle& e : event.cast<py::sequence>()) out.push_back(one(e));
+  }
+  return out;
+}
+
+}  // namespace
+
+void BindProblem(py::module_& m) {
+  py::class_<PyProblem>(m, "Problem", R"doc(The knee as an open initial-value problem, one phase at a time.
+
+    p = kneedyn.Problem(scene, form="ede")     # or "dae", "dae-ggl"
+    p.t0, p.y0, p.yp0, p.t_end, p.rtol, p.atol
+    p.rhs(t, y)                  # ODE form;  p.jacobian(t, y)
+    p.residual(t, y, yp)         # DAE forms; p.jacobian(t, y, yp, c) = dF/dy + c dF/dyp
+    p.events(t, y), p.event_names, p.event_directions
+    y, ended = p.transition(t, y, event)          # ODE form
+    y, yp, ended = p.transition(t, y, event, yp)  # DAE forms
+y0, yp0, size, the events and their names are those of the current phase; transition moves
+to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
+      .def(py::init([](const py::object& scene, const std::string& form, double rtol, double atol) {
+             auto s = SceneFrom(scene);
+             auto p = std::make_unique<Problem>(*s, form, rtol, atol);
+             return PyProblem{s, std::move(p)};
+           }),
+           py::arg("scene"), py::arg("form") = "ede", py::arg("rtol") = 1.0e-6, py::arg("atol") = 1.0e-8)
+      .def_property_readonly("form", [](const PyProblem& p) { return p.problem->form(); })
+      .def_property_readonly("index", [](const PyProblem& p) { return p.problem->index(); })
+      .def_property_readonly("size", [](const PyProblem& p) { return p.problem->size(); })
+      .def_property_readonly("t0", [](const PyProblem& p) { return p.problem->t0(); })
+      .def_property_readonly("t_end", [](const PyProblem& p) { return p.problem->t_end(); })
+      .def_property_readonly("rtol", [](const PyProblem& p) { return p.problem->rtol(); })
+      .def_property_readonly("atol", [](const PyProblem& p) { return p.problem->atol(); })
+      .def_property_readonly("phase", [](const PyProblem& p) { return p.problem->phase(); })
+      .def_property_readonly("phase_t0", [](const PyProblem& p) { return p.problem->phase_start_time(); })
+      .def_property_readonly("ended", [](const PyProblem& p) { return p.problem->ended(); })
+      .def_property_readonly("end_reason", [](const PyProblem& p) { return p.problem->end_reason(); })
+      .def_property_readonly("y0", [](const PyProblem& p) { return ToArray(p.problem->y0()); })
+      .def_property_readonly("yp0", [](const PyProblem& p) { return ToArray(p.problem->yp0()); })
+      .def_property_readonly("differential_ids", [](const PyProblem& p) { return ToArray(p.problem->differential_ids()); })
+      .def_property_readonly("component_names", [](const PyProblem& p) { return p.problem->component_names(); })
+      .def_property_readonly("event_names", [](const PyProblem& p) { return p.problem->event_names(); })
+      .def_property_readonly("event_directions", [](const PyProblem& p) {
+        const std::vector<int> d = p.problem->event_directions();
+        py::array_t<int> a(static_cast<py::ssize_t>(d.size()));
+        std::copy(d.begin(), d.end(), a.mutable_data());
+        return a;
+      })
+      .def_property_readonly("events_recorded", [](const PyProblem& p) {
+        py::list l;
+        for (const EventRecord& e : p.problem->events_recorded()) l.append(py::make_tuple(e.name, e.time, e.flexion));
+        return l;
+      }, "(name, time s, flexion rad) of every event so far, pulling contacts included")
+      .def("rhs", [](const PyProblem& p, double t, const py::object& y) {
+        const Array a = Vector1d(y, "y");
+        std::vector<double> f(p.problem->size());
+        p.problem->Rhs(t, a.data(), Length(a), f.data());
+        return ToArray(f);
+      }, py::arg("t"), py::arg("y"))
+      .def("residual", [](const PyProblem& p, double t, const py::object& y, const py::object& yp) {
+        const Array a = Vector1d(y, "y"), b = Vector1d(yp, "yp");
+        if (Length(a) != Length(b)) throw ProblemError("kneedyn.Problem.residual: y and yp differ in length");
+        std::vector<double> F(p.problem->size());
+        p.problem->Residual(t, a.data(), b.data(), Length(a), F.data());
+        return ToArray(F);
+      }, py::arg("t"), py::arg("y"), py::arg("yp"))
+      .def("jacobian", [](const PyProblem& p, double t, const py::object& y, const py::object& yp, py::object c) {
+        const Array a = Vector1d(y, "y");
+        const int n = p.problem->size();
+        py::array_t<double> J({n, n});
+        if (yp.is_none()) {
+          p.problem->Jacobian(t, a.data(), Length(a), J.mutable_data());
+        } else {
+          const Array b = Vector1d(yp, "yp");
+          if (Length(a) != Length(b)) throw ProblemError("kneedyn.Problem.jacobian: y and yp differ in length");
+          if (c.is_none()) throw ProblemError("kneedyn.Problem.jacobian: the DAE form needs c (dF/dy + c dF/dyp)");
+          p.problem->Jacobian(t, a.data(), b.data(), c.cast<double>(), Length(a), J.mutable_data());
+        }
+        return J;
+      }, py::arg("t"), py::arg("y"), py::arg("yp") = py::none(), py::arg("c") = py::none())
+      .def("events", [](const PyProblem& p, double t, const py::object& y) {
+        const Array a = Vector1d(y, "y");
+        std::vector<double> g(p.problem->event_count());
+        p.problem->Events(t, a.data(), Length(a), g.data());
+        return ToArray(g);
+      }, py::arg("t"), py::arg("y"))
+      .def("transition", [](PyProblem& p, double t, const py::object& y, const py::object& event, const py::object& yp) {
+        const Array a = Vector1d(y, "y");
+        const std::vector<int> events = EventIndices(*p.problem, event);
+        bool ended;
+        if (yp.is_none()) {
+          ended = p.problem->Transition(t, a.data(), nullptr, Length(a), events);
+        } else {
+          const Array b = Vector1d(yp, "yp");
+          if (Length(a) != Length(b)) throw ProblemError("kneedyn.Problem.transition: y and yp differ in length");
+          ended = p.problem->Transition(t, a.data(), b.data(), Length(a), events);
+        }
+        const py::object y_next = ended ? py::object(py::none()) : py::object(ToArray(p.problem->y0()));
+        if (!p.problem->is_dae()) return py::make_tuple(y_next, ended);
+        const py::object yp_next = ended ? py::object(py::none()) : py::object(ToArray(p.problem->yp0()));
+        return py::make_tuple(y_next, yp_next, ended);
+      }, py::arg("t"), py::arg("y"), py::arg("event"), py::arg("yp") = py::none(),
+      "event: an index, a name of event_names, or a list of them (simultaneous roots). Returns "
+      "(y0, ended) for the ODE form, (y0, yp0, ended) for the DAE forms: the next phase's "
+      "consistent values, None when the run has ended.");
+}
+
+}  // namespace kneedyn

@@ -1,0 +1,83 @@
+"""kneedyn.Problem (python/problem_bindings.cpp, docs/problem.md): the contract names, values
+equal to the C++ run's, the exact DAE Jacobian against central differences, the whole
+hybrid run driven from Python reproducing `kneedyn run`'s events, and ValueError for bad calls."""
+import math
+
+import numpy as np
+import pytest
+
+import kneedyn
+
+SCENE = kneedyn.scene_path("chapter_impact")
+
+
+@pytest.mark.parametrize("form", ["ede", "dae", "dae-ggl"])
+def test_contract_names(form):
+    p = kneedyn.Problem(kneedyn.load_scene(SCENE), form=form)
+    for name in ["t0", "y0", "t_end", "rtol", "atol", "event_names", "event_directions"]:
+        assert hasattr(p, name), name
+    assert p.y0.shape == (p.size,) and p.yp0.shape == (p.size,)
+    assert len(p.events(p.t0, p.y0)) == len(p.event_names) == len(p.event_directions)
+    assert p.rtol == 1e-6 and p.atol == 1e-8 and p.t_end > p.t0
+    assert p.index == (0 if form == "ede" else 2)
+
+
+def test_initial_state_is_the_runs_first_row():
+    """y0 is kneedyn run's consistent start: its first trajectory row, to the row's digits."""
+    p = kneedyn.Problem(SCENE, form="ede")
+    result = kneedyn.run(kneedyn.load_scene(SCENE), "ede")
+    traj = result.trajectory
+    assert traj["time_s"][0] == p.t0
+    assert traj["x0_mm"][0] == pytest.approx(p.y0[0] * 1e3, rel=1e-12, abs=1e-12)
+    assert traj["flexion_deg"][0] == pytest.approx(math.degrees(p.y0[3]), rel=1e-12, abs=1e-12)
+
+
+def test_ode_rhs_is_consistent_with_yp0():
+    """f(t0, y0) is the phase start's (q̇, q̈) (the same hidden-constraint solve)."""
+    p = kneedyn.Problem(SCENE, form="ede")
+    np.testing.assert_allclose(p.rhs(p.t0, p.y0), p.yp0, rtol=1e-12, atol=1e-9)
+
+
+@pytest.mark.parametrize("form", ["dae", "dae-ggl"])
+def test_dae_jacobian_matches_central_differences(form):
+    p = kneedyn.Problem(SCENE, form=form)
+    y, yp, c, t = p.y0 + 1e-3 * p.yp0, p.yp0, 25.0, p.t0 + 1e-3
+    J = p.jacobian(t, y, yp, c)
+    F0 = p.residual(t, y, yp)
+    assert J.shape == (p.size, p.size) and F0.shape == (p.size,)
+    for j in range(p.size):
+        hy, hp = 1e-9 * (1 + abs(y[j])), 1e-9 * (1 + abs(yp[j]))  # O(h) convergence (problem_test.cpp)
+        e = np.zeros(p.size); e[j] = 1
+        fd = (p.residual(t, y + hy * e, yp) - p.residual(t, y - hy * e, yp)) / (2 * hy) \
+            + c * (p.residual(t, y, yp + hp * e) - p.residual(t, y, yp - hp * e)) / (2 * hp)
+        np.testing.assert_allclose(J[:, j], fd, atol=1e-6 * max(1.0, np.abs(J[:, j]).max()))
+
+
+def test_transition_by_name_and_end():
+    p = kneedyn.Problem(SCENE, form="dae")
+    end = [n for n in p.event_names if n.startswith("flexion_")][0]
+    y, yp, ended = p.transition(p.t0 + 0.01, p.y0, end, yp=p.yp0)
+    assert ended and y is None and yp is None and p.end_reason == end
+    with pytest.raises(ValueError, match="ended"):
+        p.residual(p.t0, p.y0, p.yp0)
+
+
+def test_bad_calls_raise_value_error():
+    with pytest.raises(ValueError, match="'rk4'"):
+        kneedyn.Problem(SCENE, form="rk4")
+    p = kneedyn.Problem(SCENE, form="ede")
+    with pytest.raises(ValueError, match="size 11"):
+        p.rhs(p.t0, p.y0[:11])
+    y = p.y0.copy(); y[2] = np.nan
+    with pytest.raises(ValueError, match=r"y\[2\] = nan"):
+        p.rhs(p.t0, y)
+    with pytest.raises(ValueError, match="1-D"):
+        p.rhs(p.t0, np.zeros((3, 4)))
+    with pytest.raises(ValueError, match="ODE"):
+        p.residual(p.t0, p.y0, p.y0)
+    with pytest.raises(ValueError, match="event = 99"):
+        p.transition(p.t0, p.y0, 99)
+    with pytest.raises(ValueError, match="not an event"):
+        p.transition(p.t0, p.y0, "liftoff_nowhere")
+    with pytest.raises(ValueError):
+        kneedyn.Problem(SCENE, form="dae").jacobian(0.0, np.zeros(3), np.zeros(3), 1.0)

@@ -1,0 +1,298 @@
+// Tests of the open problem interface (problem/problem.hpp, problem/kneedyn/problem.h):
+//  - the transition and the phase starts equal the hybrid simulator's (a spy stepper records
+//    the simulator's event states and restarts; Problem is handed the same event states);
+//  - f, F and the DAE Jacobian through Problem and the C interface equal the functions the
+//    formulations call (SolveConstrainedAcceleration, DaeSystem) bitwise;
+//  - the exact DAE Jacobian agrees with central differences of the residual;
+//  - bad handles, sizes, NaN states, calls of the other form and after the end return
+//    error codes with messages.
+#include "problem/problem.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "formulations/simulator.hpp"
+#include "kneedyn/problem.h"
+#include "test_support.hpp"
+
+namespace kneedyn {
+namespace {
+
+using test_support::ChapterScene;
+using test_support::ScenesDir;
+
+// Records the simulator's restarts (state and events watched) and the event states with the
+// roots found.
+class SpyStepper : public Formulation {
+ public:
+  SpyStepper(const std::string& name, const Scene& scene) : inner_(CreateFormulation(name, scene, {})) {}
+  ContactForm contact_form() const override { return inner_->contact_form(); }
+  void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
+    starts.push_back(state);
+    start_events.push_back(events);
+    inner_->Start(state, events);
+  }
+  AdvanceResult Advance(double t_out, MechanicalState* state) override {
+    const AdvanceResult r = inner_->Advance(t_out, state);
+    if (r.status == AdvanceStatus::kEvent) {
+      event_states.push_back(*state);
+      fired.push_back(r.events);
+      event_phase.push_back(static_cast<int>(starts.size()) - 1);
+    }
+    return r;
+  }
+  SolverStats stats() const override { return inner_->stats(); }
+
+  std::vector<MechanicalState> starts, event_states;
+  std::vector<std::vector<EventSpec>> start_events;
+  std::vector<std::vector<int>> fired;
+  std::vector<int> event_phase;
+
+ private:
+  std::unique_ptr<Formulation> inner_;
+};
+
+struct SimulatorRun {
+  explicit SimulatorRun(const std::string& formulation, const Scene& scene) : spy(formulation, scene) {
+    SimulatorSettings s;
+    s.init.form = spy.contact_form();
+    s.output_interval = scene.output_interval;
+    Simulator simulator(scene, &spy, s, &record);
+    simulator.Initialize();
+    simulator.Run();
+  }
+  SpyStepper spy;
+  RunResult record;
+};
+
+std::vector<std::string> Names(const std::vector<EventSpec>& specs) {
+  std::vector<std::string> n;
+  for (const EventSpec& e : specs) n.push_back(e.name);
+  return n;
+}
+
+void ExpectBitwise(const double* a, const double* b, int n, const std::string& what) {
+  for (int i = 0; i < n; ++i) EXPECT_EQ(std::memcmp(&a[i], &b[i], sizeof(double)), 0) << what << "[" << i << "]: " << a[i] << " vs " << b[i];
+}
+
+// The y of a form at a mechanical state (DaeSystem's layout for the DAE forms).
+void FormValues(const std::string& form, const Model& model, const MechanicalState& state, std::vector<double>* y,
+                std::vector<double>* yp) {
+  if (form == "ede") {
+    y->assign(12, 0.0);
+    yp->assign(12, 0.0);
+    for (int i = 0; i < 6; ++i) {
+      (*y)[i] = state.q(i), (*y)[6 + i] = state.qd(i);
+      (*yp)[i] = state.qd(i), (*yp)[6 + i] = state.qdd(i);
+    }
+    return;
+  }
+  DaeSystem system(model, ContactForm::kChapter, ConstraintLevel::kVelocity, form == "dae-ggl");
+  system.SetPhase(state.active, state.contact, state.ligament_branch);
+  y->assign(system.size(), 0.0);
+  yp->assign(system.size(), 0.0);
+  system.InitialValues(state, y->data(), yp->data());
+}
+
+// The phase starts and transitions of Problem equal the simulator's, bitwise, along the
+// whole chapter run (lift-off, then the end flexion).
+TEST(Problem, TransitionEqualsSimulator) {
+  const Scene& scene = ChapterScene();
+  for (const std::string form : {"ede", "dae", "dae-ggl"}) {
+    SCOPED_TRACE(form);
+    SimulatorRun run(form, scene);
+    ASSERT_EQ(run.record.end_reason, "flexion_90");
+    Problem problem(scene, form);
+    std::vector<double> y, yp;
+    FormValues(form, scene.model, run.spy.starts[0], &y, &yp);
+    ASSERT_EQ(problem.size(), static_cast<int>(y.size()));
+    ExpectBitwise(problem.y0().data(), y.data(), problem.size(), "y0 of phase 0");
+    EXPECT_EQ(problem.event_names(), Names(run.spy.start_events[0]));
+    ASSERT_GE(run.spy.event_states.size(), 2u);
+    for (size_t e = 0; e < run.spy.event_states.size(); ++e) {
+      ASSERT_EQ(run.spy.event_phase[e], problem.phase());
+      const MechanicalState& at = run.spy.event_states[e];
+      FormValues(form, scene.model, at, &y, &yp);
+      const bool ended = problem.Transition(at.t, y.data(), yp.data(), static_cast<int>(y.size()), run.spy.fired[e]);
+      const bool last = e + 1 == run.spy.event_states.size();
+      ASSERT_EQ(ended, last);
+      if (last) {
+        EXPECT_EQ(problem.end_reason(), run.record.end_reason);
+        break;
+      }
+      const MechanicalState& next = run.spy.starts[run.spy.event_phase[e] + 1];
+      EXPECT_EQ(problem.phase_state().active, next.active);
+      FormValues(form, scene.model, next, &y, &yp);
+      ASSERT_EQ(problem.size(), static_cast<int>(y.size()));
+      ExpectBitwise(problem.y0().data(), y.data(), problem.size(), "y0 after the transition");
+      ExpectBitwise(problem.yp0().data(), yp.data(), problem.size(), "yp0 after the transition");
+      EXPECT_EQ(problem.event_names(), Names(run.spy.start_events[run.spy.event_phase[e] + 1]));
+    }
+    ASSERT_EQ(problem.events_recorded().size(), run.record.events.size());
+    for (size_t k = 0; k < run.record.events.size(); ++k) {
+      EXPECT_EQ(problem.events_recorded()[k].name, run.record.events[k].name);
+      EXPECT_EQ(problem.events_recorded()[k].time, run.record.events[k].time);
+    }
+  }
+}
+
+// A state of the first phase away from its start: y0 advanced by a small explicit step.
+std::vector<double> Perturbed(const Problem& p) {
+  std::vector<double> y = p.y0();
+  for (size_t i = 0; i < y.size(); ++i) y[i] += 1.0e-3 * p.yp0()[i];
+  return y;
+}
+
+TEST(Problem, EdeRhsEqualsHiddenConstraintSolve) {
+  const Scene& scene = ChapterScene();
+  Problem p(scene, "ede");
+  const std::vector<double> y = Perturbed(p);
+  const double t = p.t0() + 1.0e-3;
+  std::vector<double> f(12), f_c(12);
+  p.Rhs(t, y.data(), 12, f.data());
+  const MechanicalState& s = p.phase_state();
+  const ConstrainedAcceleration a = SolveConstrainedAcceleration(
+      scene.model, t, Eigen::Map<const Vector6d>(y.data()), Eigen::Map<const Vector6d>(y.data() + 6), s.active, {},
+      &s.ligament_branch);
+  ExpectBitwise(f.data(), y.data() + 6, 6, "f(q part)");
+  ExpectBitwise(f.data() + 6, a.qdd.data(), 6, "f(q̇ part)");
+  // Through the C interface.
+  kneedyn_problem* h = nullptr;
+  ASSERT_EQ(kneedyn_problem_create((ScenesDir() + "/chapter_impact.yaml").c_str(), "ede", 0.0, 0.0, &h), KNEEDYN_OK)
+      << kneedyn_last_error();
+  ASSERT_EQ(kneedyn_problem_rhs(h, t, y.data(), 12, f_c.data()), KNEEDYN_OK) << kneedyn_last_error();
+  ExpectBitwise(f_c.data(), f.data(), 12, "C f");
+  std::vector<double> J(144), J_c(144), g(p.event_count()), g_c(p.event_count());
+  p.Jacobian(t, y.data(), 12, J.data());
+  ASSERT_EQ(kneedyn_problem_jacobian(h, t, y.data(), 12, J_c.data()), KNEEDYN_OK);
+  ExpectBitwise(J_c.data(), J.data(), 144, "C df/dy");
+  p.Events(t, y.data(), 12, g.data());
+  ASSERT_EQ(kneedyn_problem_events(h, t, y.data(), 12, g_c.data(), p.event_count()), KNEEDYN_OK);
+  ExpectBitwise(g_c.data(), g.data(), p.event_count(), "C events");
+  // Lift-off events are the contact forces of the same solve.
+  EXPECT_EQ(p.event_names()[0], std::string("liftoff_") + CompartmentName(scene.model.contacts[s.active[0]].compartment));
+  EXPECT_EQ(g[0], a.normal_force[0]);
+  // The difference-quotient ∂f/∂y: its q̇ block of ∂(q̇)/∂q̇ is the identity.
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 12; ++j) EXPECT_NEAR(J[12 * i + j], j == 6 + i ? 1.0 : 0.0, 1e-8) << i << "," << j;
+  }
+  EXPECT_EQ(kneedyn_problem_destroy(h), KNEEDYN_OK);
+}
+
+TEST(Problem, DaeResidualAndJacobianEqualDaeSystem) {
+  const Scene& scene = ChapterScene();
+  kneedyn_problem* h = nullptr;
+  for (const std::string form : {"dae", "dae-ggl"}) {
+    SCOPED_TRACE(form);
+    Problem p(scene, form);
+    ASSERT_EQ(kneedyn_problem_create((ScenesDir() + "/chapter_impact.yaml").c_str(), form.c_str(), 0.0, 0.0, &h),
+              KNEEDYN_OK) << kneedyn_last_error();
+    const int n = p.size();
+    const std::vector<double> y = Perturbed(p), yp = p.yp0();
+    const double t = p.t0() + 1.0e-3, c = 37.5;
+    DaeSystem system(scene.model, ContactForm::kChapter, ConstraintLevel::kVelocity, form == "dae-ggl");
+    system.SetPhase(p.phase_state().active, p.phase_state().contact, p.phase_state().ligament_branch);
+    ASSERT_EQ(system.size(), n);
+    std::vector<double> F(n), F_ref(n), F_c(n), J(n * n), J_ref(n * n), J_c(n * n);
+    p.Residual(t, y.data(), yp.data(), n, F.data());
+    ASSERT_TRUE(system.Residual(t, y.data(), yp.data(), F_ref.data()));
+    ExpectBitwise(F.data(), F_ref.data(), n, "F");
+    ASSERT_EQ(kneedyn_problem_residual(h, t, y.data(), yp.data(), n, F_c.data()), KNEEDYN_OK);
+    ExpectBitwise(F_c.data(), F_ref.data(), n, "C F");
+    p.Jacobian(t, y.data(), yp.data(), c, n, J.data());
+    ASSERT_TRUE(system.Jacobian(t, c, y.data(), yp.data(), J_ref.data()));  // column-major
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j < n; ++j) ExpectBitwise(&J[n * i + j], &J_ref[n * j + i], 1, "J");
+    }
+    ASSERT_EQ(kneedyn_problem_dae_jacobian(h, t, y.data(), yp.data(), c, n, J_c.data()), KNEEDYN_OK);
+    ExpectBitwise(J_c.data(), J.data(), n * n, "C J");
+    // Central differences of F in y and ẏ: dF/dy + c dF/dẏ, to 1e-6 of the column scale.
+    // Step 1e-9: the ligament terms make the difference quotient converge only as O(h)
+    // (2e-5 relative at h = 1e-6, 2e-8 at 1e-9, measured on x0).
+    for (int j = 0; j < n; ++j) {
+      std::vector<double> yh = y, yph = yp, Fp(n), Fm(n), Gp(n), Gm(n);
+      const double hy = 1e-9 * (1.0 + std::abs(y[j])), hp = 1e-9 * (1.0 + std::abs(yp[j]));
+      yh[j] = y[j] + hy, p.Residual(t, yh.data(), yp.data(), n, Fp.data());
+      yh[j] = y[j] - hy, p.Residual(t, yh.data(), yp.data(), n, Fm.data());
+      yph[j] = yp[j] + hp, p.Residual(t, y.data(), yph.data(), n, Gp.data());
+      yph[j] = yp[j] - hp, p.Residual(t, y.data(), yph.data(), n, Gm.data());
+      double scale = 1.0;
+      for (int i = 0; i < n; ++i) scale = std::max(scale, std::abs(J[n * i + j]));
+      for (int i = 0; i < n; ++i) {
+        const double fd = (Fp[i] - Fm[i]) / (2 * hy) + c * (Gp[i] - Gm[i]) / (2 * hp);
+        EXPECT_NEAR(J[n * i + j], fd, 1e-6 * scale) << p.component_names()[j] << " row " << i;
+      }
+    }
+    EXPECT_EQ(kneedyn_problem_destroy(h), KNEEDYN_OK);
+  }
+}
+
+TEST(Problem, BadCallsReturnErrorsWithMessages) {
+  const std::string scene = ScenesDir() + "/chapter_impact.yaml";
+  kneedyn_problem* h = nullptr;
+  int n = 0;
+  double y[64] = {}, f[64] = {}, J[64 * 64] = {};
+  // Creation.
+  EXPECT_EQ(kneedyn_problem_create(scene.c_str(), "rk4", 0.0, 0.0, &h), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("'rk4'"), std::string::npos) << kneedyn_last_error();
+  EXPECT_EQ(h, nullptr);
+  EXPECT_EQ(kneedyn_problem_create("/nonexistent.yaml", "ede", 0.0, 0.0, &h), KNEEDYN_INPUT_ERROR);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("nonexistent"), std::string::npos) << kneedyn_last_error();
+  EXPECT_EQ(kneedyn_problem_create(nullptr, "ede", 0.0, 0.0, &h), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_EQ(kneedyn_problem_create(scene.c_str(), "ede", 0.0, 0.0, nullptr), KNEEDYN_BAD_ARGUMENT);
+  // Bad handles: null, foreign, destroyed.
+  EXPECT_EQ(kneedyn_problem_size(nullptr, &n), KNEEDYN_BAD_HANDLE);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("kneedyn_problem_size"), std::string::npos);
+  EXPECT_EQ(kneedyn_problem_size(reinterpret_cast<kneedyn_problem*>(y), &n), KNEEDYN_BAD_HANDLE);
+  ASSERT_EQ(kneedyn_problem_create(scene.c_str(), "ede", 0.0, 0.0, &h), KNEEDYN_OK);
+  kneedyn_problem* dead = nullptr;
+  ASSERT_EQ(kneedyn_problem_create(scene.c_str(), "dae", 0.0, 0.0, &dead), KNEEDYN_OK);
+  ASSERT_EQ(kneedyn_problem_destroy(dead), KNEEDYN_OK);
+  EXPECT_EQ(kneedyn_problem_rhs(dead, 0.0, y, 12, f), KNEEDYN_BAD_HANDLE);
+  EXPECT_EQ(kneedyn_problem_destroy(dead), KNEEDYN_BAD_HANDLE);
+  // Sizes, NaN, null arrays, the other form's calls.
+  ASSERT_EQ(kneedyn_problem_initial_values(h, y, nullptr, 12), KNEEDYN_OK);
+  EXPECT_EQ(kneedyn_problem_rhs(h, 0.0, y, 11, f), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("size 11"), std::string::npos) << kneedyn_last_error();
+  EXPECT_EQ(kneedyn_problem_initial_values(h, y, nullptr, 13), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_EQ(kneedyn_problem_rhs(h, 0.0, nullptr, 12, f), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_EQ(kneedyn_problem_rhs(h, 0.0, y, 12, nullptr), KNEEDYN_BAD_ARGUMENT);
+  double y_nan[12];
+  std::memcpy(y_nan, y, sizeof y_nan);
+  y_nan[4] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(kneedyn_problem_rhs(h, 0.0, y_nan, 12, f), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("y[4] = nan"), std::string::npos) << kneedyn_last_error();
+  EXPECT_EQ(kneedyn_problem_jacobian(h, 0.0, y_nan, 12, J), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_EQ(kneedyn_problem_residual(h, 0.0, y, y, 12, f), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("ODE"), std::string::npos) << kneedyn_last_error();
+  EXPECT_EQ(kneedyn_problem_dae_jacobian(h, 0.0, y, y, 1.0, 12, J), KNEEDYN_BAD_ARGUMENT);
+  int m = 0, ended = 0;
+  ASSERT_EQ(kneedyn_problem_event_count(h, &m), KNEEDYN_OK);
+  EXPECT_EQ(kneedyn_problem_events(h, 0.0, y, 12, f, m + 1), KNEEDYN_BAD_ARGUMENT);
+  const char* name = nullptr;
+  EXPECT_EQ(kneedyn_problem_event_name(h, m, &name), KNEEDYN_BAD_ARGUMENT);
+  // Transitions: an event out of range; then the end event (the last), after which no
+  // phase is open.
+  int bad_event = m;
+  EXPECT_EQ(kneedyn_problem_transition(h, 0.1, y, nullptr, 12, &bad_event, 1, &ended), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("event = "), std::string::npos) << kneedyn_last_error();
+  int end_event = -1;
+  for (int k = 0; k < m; ++k) {
+    ASSERT_EQ(kneedyn_problem_event_name(h, k, &name), KNEEDYN_OK);
+    if (std::string(name).rfind("flexion_", 0) == 0) end_event = k;
+  }
+  ASSERT_GE(end_event, 0);
+  ASSERT_EQ(kneedyn_problem_transition(h, 0.1, y, nullptr, 12, &end_event, 1, &ended), KNEEDYN_OK);
+  EXPECT_EQ(ended, 1);
+  EXPECT_EQ(kneedyn_problem_rhs(h, 0.1, y, 12, f), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("ended"), std::string::npos) << kneedyn_last_error();
+  EXPECT_EQ(kneedyn_problem_transition(h, 0.1, y, nullptr, 12, &end_event, 1, &ended), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_EQ(kneedyn_problem_destroy(h), KNEEDYN_OK);
+  EXPECT_EQ(kneedyn_problem_destroy(nullptr), KNEEDYN_OK);
+}
+
+}  // namespace
+}  // namespace kneedyn
