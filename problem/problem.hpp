@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "formulations/dae_system.hpp"
+#include "formulations/internal/dae_system.hpp"
 #include "formulations/run.hpp"
 #include "formulations/simulator.hpp"
 #include "scene/scene.hpp"
