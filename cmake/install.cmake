@@ -17,7 +17,8 @@ install(TARGETS kneedyn_solver kneedyn_scene kneedyn_formulations EXPORT kneedyn
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn)
 install(TARGETS kneedyn kneedyn_catalog RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
 # Public headers only: formulations/internal/ (SUNDIALS glue, the methods' shared machinery,
-# test hooks) is not installed.
+# test hooks) and scene/internal/ (the loader's sections, key table and YAML reader) are not
+# installed.
 foreach(dir solver scene formulations)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/kneedyn/${dir}

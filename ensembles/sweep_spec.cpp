@@ -8,7 +8,7 @@
 #include <set>
 #include <sstream>
 
-#include "scene/yaml_field.hpp"
+#include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
 #include "solver/ligament.hpp"
 #include "solver/model_builder.hpp"
@@ -22,7 +22,7 @@ namespace fs = std::filesystem;
 namespace {
 
 // A YAML node of the spec with its path for messages "SPEC:LINE: field 'a.b[2]' = 'v': rule"
-// (scene/yaml_field.hpp, the project's YAML reader, with this file's names).
+// (scene/internal/yaml_field.hpp, the project's YAML reader, with this file's names).
 class Node {
  public:
   explicit Node(scene_detail::Field f) : f_(std::move(f)) {}

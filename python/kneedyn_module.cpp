@@ -31,7 +31,7 @@
 #include "solver/error.hpp"
 #include "solver/loads.hpp"
 #include "scene/scene.hpp"
-#include "scene/yaml_field.hpp"
+#include "scene/internal/yaml_field.hpp"
 #include "solver/units.hpp"
 
 namespace py = pybind11;

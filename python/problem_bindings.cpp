@@ -82,7 +82,7 @@ std::vector<int> EventIndices(const Problem& p, const py::object& event) {
 }  // namespace
 
 void BindProblem(py::module_& m) {
-  py::class_<PyProblem>(m, "Problem", R"doc(The knee as an open initial-value problem, one phase at a time.
+  py::class_<PyProblem>(m, "Problem", R"doc(The knee as an open initial-value problem, one phase at a time::
 
     p = kneedyn.Problem(scene, form="ede")     # or "dae", "dae-ggl"
     p.t0, p.y0, p.yp0, p.t_end, p.rtol, p.atol
@@ -91,6 +91,7 @@ void BindProblem(py::module_& m) {
     p.events(t, y), p.event_names, p.event_directions
     y, ended = p.transition(t, y, event)          # ODE form
     y, yp, ended = p.transition(t, y, event, yp)  # DAE forms
+
 y0, yp0, size, the events and their names are those of the current phase; transition moves
 to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
       .def(py::init([](const py::object& scene, const std::string& form, double rtol, double atol) {

@@ -1,6 +1,6 @@
 // Scene sections: end (flexion and/or time) and output (interval).
-#include "scene/scene_keys.hpp"
-#include "scene/sections.hpp"
+#include "scene/internal/scene_keys.hpp"
+#include "scene/internal/sections.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 

@@ -2,8 +2,8 @@
 // read into the model builder's InitialStateRequest.
 #include <algorithm>
 
-#include "scene/scene_keys.hpp"
-#include "scene/sections.hpp"
+#include "scene/internal/scene_keys.hpp"
+#include "scene/internal/sections.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 

@@ -1,8 +1,8 @@
 // Scene sections: ligament_law, ligaments, ligament_stiffness_scale, ligament_parameters.
 #include <algorithm>
 
-#include "scene/scene_keys.hpp"
-#include "scene/sections.hpp"
+#include "scene/internal/scene_keys.hpp"
+#include "scene/internal/sections.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 

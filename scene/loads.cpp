@@ -1,6 +1,6 @@
 // Scene sections: body, gravity, pulse, constant_load.
-#include "scene/scene_keys.hpp"
-#include "scene/sections.hpp"
+#include "scene/internal/scene_keys.hpp"
+#include "scene/internal/sections.hpp"
 #include "solver/error.hpp"
 #include "solver/loads.hpp"
 

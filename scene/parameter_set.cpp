@@ -1,7 +1,7 @@
 // A parameter set file: body, gravity, compartments, ligaments, reference pose and the
 // chapter's initial guesses (reference-data/scenes/README.md, "Parameter sets").
-#include "scene/scene_keys.hpp"
-#include "scene/sections.hpp"
+#include "scene/internal/scene_keys.hpp"
+#include "scene/internal/sections.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 

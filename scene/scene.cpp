@@ -5,8 +5,8 @@
 #include <cstdlib>
 #include <filesystem>
 
-#include "scene/scene_keys.hpp"
-#include "scene/sections.hpp"
+#include "scene/internal/scene_keys.hpp"
+#include "scene/internal/sections.hpp"
 #include "solver/error.hpp"
 #include "solver/model_builder.hpp"
 

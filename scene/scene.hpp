@@ -1,11 +1,11 @@
 // Scenes: what one run models. A scene file (YAML, human-written) names a parameter set
 // under reference-data/ and selects ligaments, contacts, loads, gravity, the ligament-law
 // variant, the initial state and the end condition. Only what a scene names is built. See
-// reference-data/scenes/README.md for the format and scene/scene_keys.hpp for the table of
+// reference-data/scenes/README.md for the format and scene/internal/scene_keys.hpp for the table of
 // accepted keys and values.
 //
 // The loader (library kneedyn_scene, parsing with libyaml) only reads: each section of the
-// file (scene/sections.hpp) fills a plain description, and the model builder of the physics
+// file (scene/internal/sections.hpp) fills a plain description, and the model builder of the physics
 // library (solver/model_builder.hpp) turns the descriptions into the Model, InitialState
 // and EndCondition the physics functions take; solver/ includes nothing from here.
 //

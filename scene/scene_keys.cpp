@@ -1,4 +1,4 @@
-#include "scene/scene_keys.hpp"
+#include "scene/internal/scene_keys.hpp"
 
 #include <stdexcept>
 

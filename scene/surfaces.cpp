@@ -1,8 +1,8 @@
 // Scene and parameter-set sections: surfaces, compartments and the scene's contacts.
 #include <cmath>
 
-#include "scene/scene_keys.hpp"
-#include "scene/sections.hpp"
+#include "scene/internal/scene_keys.hpp"
+#include "scene/internal/sections.hpp"
 #include "solver/ellipsoid_cap.hpp"
 #include "solver/error.hpp"
 #include "solver/polynomial_surface.hpp"

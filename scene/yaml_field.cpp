@@ -1,4 +1,4 @@
-#include "scene/yaml_field.hpp"
+#include "scene/internal/yaml_field.hpp"
 
 #include <yaml.h>
 

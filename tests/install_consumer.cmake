@@ -27,10 +27,12 @@ foreach(f bin/kneedyn bin/kneedyn_catalog share/kneedyn/scenes/chapter_impact.ya
     message(FATAL_ERROR "not installed: ${prefix}/${f}")
   endif()
 endforeach()
-# Only the public API: formulations/internal/ (test hooks, SUNDIALS glue) is not installed.
+# Only the public API: formulations/internal/ (test hooks, SUNDIALS glue) and scene/internal/
+# (the loader's sections, key table, YAML reader) are not installed.
 file(GLOB_RECURSE internal_headers ${prefix}/include/kneedyn/formulations/internal/*
+     ${prefix}/include/kneedyn/scene/internal/*
      ${prefix}/include/kneedyn/*/dae_testing.hpp ${prefix}/include/kneedyn/*/ida_phase.hpp
-     ${prefix}/include/kneedyn/*/sundials_kernels.hpp)
+     ${prefix}/include/kneedyn/*/sections.hpp ${prefix}/include/kneedyn/*/yaml_field.hpp)
 if(internal_headers)
   message(FATAL_ERROR "internal headers installed: ${internal_headers}")
 endif()

@@ -1,6 +1,6 @@
 // Tests of scene reading and validation (scene/scene.hpp).
 //
-// Validates: the table of accepted keys and values (scene/scene_keys.hpp) is what the format
+// Validates: the table of accepted keys and values (scene/internal/scene_keys.hpp) is what the format
 // document (reference-data/scenes/README.md) and the fuzzer's dictionary (fuzz/yaml.dict)
 // list, and its pulse shapes are the solver's; every kind of bad input is refused with InputError whose message names the
 // file label, the field path and the offending value; a scene builds exactly
@@ -22,7 +22,7 @@
 #include <sstream>
 
 #include "scene/scene.hpp"
-#include "scene/scene_keys.hpp"
+#include "scene/internal/scene_keys.hpp"
 #include "solver/error.hpp"
 #include "solver/loads.hpp"
 #include "solver/units.hpp"

@@ -8,7 +8,7 @@
 #include <string>
 
 #include "scene/scene.hpp"
-#include "scene/yaml_field.hpp"
+#include "scene/internal/yaml_field.hpp"
 #include "solver/model_builder.hpp"
 
 namespace kneedyn::scene_detail {
