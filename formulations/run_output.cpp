@@ -211,10 +211,18 @@ void CheckOutputWritable(const std::string& dir_name, const fs::path& out, bool 
                       "; a run replaces the directory and its files, so it must be writable");
   }
   std::error_code ec;
-  fs::path ancestor = out.parent_path().empty() ? fs::path(".") : out.parent_path();
-  while (!fs::exists(fs::symlink_status(ancestor, ec)) && ancestor.has_parent_path() &&
-         ancestor.parent_path() != ancestor) {
-    ancestor = ancestor.parent_path();
+  // The nearest existing ancestor, where the run would create the missing levels; a relative
+  // path whose first level is missing ends at the working directory.
+  fs::path ancestor = out.parent_path();
+  for (;;) {
+    if (ancestor.empty()) {
+      ancestor = ".";
+      break;
+    }
+    if (fs::exists(fs::symlink_status(ancestor, ec))) break;
+    const fs::path up = ancestor.parent_path();
+    if (up == ancestor) break;
+    ancestor = up;
   }
   if (!fs::is_directory(ancestor, ec)) {
     Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': '", Echo(ancestor.string(), 256),

@@ -159,6 +159,16 @@ TEST_F(HostileInput, UnusableOutIsRefusedBeforeTheRun) {
   EXPECT_FALSE(fs::exists("/proc/kneedyn_x"));
 }
 
+// The check before the run accepts what the run can create: a relative --out whose first
+// levels do not exist yet (`--out out/chapter_impact` in a fresh clone, as the main job
+// runs it) is made, levels and all.
+TEST_F(HostileInput, RelativeOutWithMissingLevelsIsCreated) {
+  const CommandResult r = RunShell("cd '" + dir_.string() + "' && '" + KNEEDYN_EXE + "' run '" +
+                                   ChapterScenePath() + "' --quiet --out fresh/level/set");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir_ / "fresh/level/set/summary.json")) << r.output;
+}
+
 // A read-only --out (mode 555) whose parent is writable, for a user whom the mode binds:
 // the previous set cannot be deleted once swapped aside, so the run is refused, and the
 // previous set stays where and as it was, with no temporary beside it. Run as `nobody`
