@@ -41,20 +41,6 @@ double ParseCell(const std::string& cell, const std::string& path, size_t line, 
   return v;
 }
 
-int EditDistance(const std::string& a, const std::string& b) {
-  std::vector<int> row(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) row[j] = static_cast<int>(j);
-  for (size_t i = 1; i <= a.size(); ++i) {
-    int diag = row[0];
-    row[0] = static_cast<int>(i);
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const int up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diag = up;
-    }
-  }
-  return row[b.size()];
-}
 
 nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
@@ -84,7 +70,8 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
       std::string nearest;
       int best = std::numeric_limits<int>::max();
       for (const std::string& k : known) {
-        if (EditDistance(name, k) < best) best = EditDistance(name, k), nearest = k;
+        const int d = EditDistance(name, k);
+        if (d < best) best = d, nearest = k;
       }
       Throw<InputError>("kneedyn score", path, " header: column '", Echo(name),
                         "' is not a trajectory.csv column of this scene (docs/outputs.md); nearest: '", nearest, "'");

@@ -17,20 +17,6 @@ namespace kneedyn::scene_detail {
 namespace fs = std::filesystem;
 namespace {
 
-size_t EditDistance(const std::string& a, const std::string& b) {
-  std::vector<size_t> row(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (size_t i = 1; i <= a.size(); ++i) {
-    size_t diag = row[0];
-    row[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diag = up;
-    }
-  }
-  return row[b.size()];
-}
 
 // `text` with each byte that does not start a valid UTF-8 sequence, and each character
 // outside YAML's printable set (libyaml's reader: tab, LF, CR, 0x20-0x7E, 0x85,
@@ -386,7 +372,7 @@ const Field& Field::Keys(const std::vector<const char*>& keys) const {
     size_t best = std::string::npos;
     std::string list;
     for (const char* valid : keys) {
-      const size_t d = EditDistance(std::string(k), valid);
+      const size_t d = static_cast<size_t>(EditDistance(std::string(k), valid));
       if (d < best) {
         best = d;
         nearest = valid;

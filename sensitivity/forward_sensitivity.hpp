@@ -130,7 +130,7 @@ SensitivityResult RunSensitivity(const Scene& scene, const std::vector<ensembles
 const char* SensitivityIntegrator(const std::string& formulation);
 const char* SensitivityMethod(const std::string& formulation);
 
-// Levenshtein distance (for "nearest valid name").
-int EditDistance(const std::string& a, const std::string& b);
+// Levenshtein distance: kneedyn::EditDistance (solver/error.hpp).
+using kneedyn::EditDistance;
 
 }  // namespace kneedyn::sensitivity

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 #include <type_traits>
+#include <vector>
 
 namespace kneedyn {
 
@@ -83,6 +84,23 @@ inline std::string Echo(const std::string& value, size_t max_chars = 80) {
   }
   if (value.size() > max_chars) out += StrCat("... (", value.size(), " bytes)");
   return out;
+}
+
+// Levenshtein distance, for the "nearest valid name" of a refusal message (scene keys,
+// sweep and sensitivity names, trajectory columns).
+inline int EditDistance(const std::string& a, const std::string& b) {
+  std::vector<int> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = static_cast<int>(j);
+  for (size_t i = 1; i <= a.size(); ++i) {
+    int diag = row[0];
+    row[0] = static_cast<int>(i);
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const int up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
 }
 
 // "function(): message" as Drake does.
