@@ -24,8 +24,9 @@
 //       matrix, size in the counter n): SUNDIALS' dense getrf/getrs (what IDA and CVODE
 //       call through SUNLinSol_Dense; built with kneedyn's flags, cmake/sundials.cmake) and
 //       Eigen's PartialPivLU.
-//   init/<form>                  ConsistentInitialize (three levels, Ceres), counters: the
-//       Ceres iterations of the position and hidden levels.
+//   init/<form>                  ConsistentInitialize (three levels; Newton directly on the
+//       chapter scene, Ceres as the fallback), counters: the iterations of the position and
+//       hidden levels.
 //   restart/hidden_constraint    CompleteHiddenConstraint, the driver's part of a restart
 //       (projection onto the contacts, velocity level, direct hidden-level solve).
 //   start/<formulation>          Formulation::Start from a consistent state (one restart

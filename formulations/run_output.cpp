@@ -125,8 +125,9 @@ nlohmann::json JacobianSetting(const RunSettings& settings) {
 
 
 nlohmann::json LevelJson(const InitLevelReport& r) {
+  const char* method = r.method == InitMethod::kNewton ? "newton" : r.method == InitMethod::kCeres ? "ceres" : "none";
   return {{"residual_before", r.residual_before}, {"residual_after", r.residual_after},
-          {"iterations", r.iterations}};
+          {"iterations", r.iterations}, {"method", method}};
 }
 
 nlohmann::json StateJson(const Scene& scene, const MechanicalState& st) {

@@ -112,30 +112,89 @@ double MaxResidual(const Functor& f, const std::vector<double>& x, int num_resid
   return m;
 }
 
+// The direct path: Newton's method on a square system (as many unknowns as residuals) with
+// the Jacobian from the same automatic differentiation Ceres would use. Iterates until the
+// step no longer changes x (relative 1e-15), as Ceres's parameter tolerance does, so both
+// paths end at the same root to round-off. Returns false, leaving *x unchanged, when the
+// system is not square, the functor fails, the Jacobian is singular or the residual does
+// not reach `tolerance` within `max_iterations`: the caller falls back to Ceres.
+template <typename Functor>
+bool SolveLevelByNewton(const Functor& functor, std::vector<double>* x, int num_residuals,
+                        double tolerance, int max_iterations, int* iterations) {
+  const int n = static_cast<int>(x->size());
+  if (n != num_residuals || n == 0 || max_iterations < 1) return false;
+  ceres::DynamicAutoDiffCostFunction<Functor, kStride> cost(const_cast<Functor*>(&functor),
+                                                            ceres::DO_NOT_TAKE_OWNERSHIP);
+  cost.AddParameterBlock(n);
+  cost.SetNumResiduals(n);
+  Eigen::Map<VectorXd> xv(x->data(), n);
+  const VectorXd x_start = xv;
+  VectorXd r(n);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J(n, n);
+  double* jacobians[] = {J.data()};
+  const double* params[] = {x->data()};
+  bool converged = false;
+  int it = 0;
+  double previous = std::numeric_limits<double>::infinity();
+  for (; it < max_iterations; ++it) {
+    if (!cost.Evaluate(params, r.data(), jacobians) || !r.allFinite() || !J.allFinite()) break;
+    // At the root's round-off level the residual stops falling: done.
+    const double current = r.cwiseAbs().maxCoeff();
+    if (current <= tolerance && (current == 0.0 || current >= previous)) {
+      converged = true;
+      break;
+    }
+    previous = current;
+    const Eigen::PartialPivLU<MatrixXd> lu(J);
+    // A (near-)singular Jacobian: no unique Newton step; Ceres's damped steps handle it.
+    if (!(std::abs(lu.determinant()) > 0.0) || lu.rcond() < 1e-14) break;
+    const VectorXd step = lu.solve(r);
+    if (!step.allFinite()) break;
+    xv -= step;
+    if (step.cwiseAbs().maxCoeff() <= 1e-15 * std::max(1.0, xv.cwiseAbs().maxCoeff())) {
+      converged = true;
+      ++it;
+      break;
+    }
+  }
+  if (converged && MaxResidual(functor, *x, num_residuals) <= tolerance) {
+    *iterations = it;
+    return true;
+  }
+  xv = x_start;
+  return false;
+}
+
 template <typename Functor>
 InitLevelReport SolveLevel(const char* level, Functor* functor, std::vector<double>* x,
-                           int num_residuals, double tolerance, int max_iterations) {
+                           int num_residuals, double tolerance, const ConsistentInitOptions& options) {
   InitLevelReport rep;
   rep.residual_before = MaxResidual(*functor, *x, num_residuals);
   // Nothing free (every coordinate held, closed form): nothing to solve; Ceres would abort.
   if (rep.residual_before > tolerance && !x->empty()) {
-    auto* cost = new ceres::DynamicAutoDiffCostFunction<Functor, kStride>(
-        functor, ceres::DO_NOT_TAKE_OWNERSHIP);
-    cost->AddParameterBlock(static_cast<int>(x->size()));
-    cost->SetNumResiduals(num_residuals);
-    ceres::Problem problem;
-    problem.AddResidualBlock(cost, nullptr, x->data());
-    QuietCeresLogging();
-    ceres::Solver::Options opts;
-    opts.linear_solver_type = ceres::DENSE_QR;
-    opts.max_num_iterations = max_iterations;
-    opts.function_tolerance = 1e-30;
-    opts.gradient_tolerance = 1e-30;
-    opts.parameter_tolerance = 1e-16;
-    opts.logging_type = ceres::SILENT;
-    ceres::Solver::Summary summary;
-    ceres::Solve(opts, &problem, &summary);
-    rep.iterations = static_cast<int>(summary.iterations.size());
+    if (SolveLevelByNewton(*functor, x, num_residuals, tolerance, options.newton_iterations,
+                           &rep.iterations)) {
+      rep.method = InitMethod::kNewton;
+    } else {
+      rep.method = InitMethod::kCeres;
+      auto* cost = new ceres::DynamicAutoDiffCostFunction<Functor, kStride>(
+          functor, ceres::DO_NOT_TAKE_OWNERSHIP);
+      cost->AddParameterBlock(static_cast<int>(x->size()));
+      cost->SetNumResiduals(num_residuals);
+      ceres::Problem problem;
+      problem.AddResidualBlock(cost, nullptr, x->data());
+      QuietCeresLogging();
+      ceres::Solver::Options opts;
+      opts.linear_solver_type = ceres::DENSE_QR;
+      opts.max_num_iterations = options.max_iterations;
+      opts.function_tolerance = 1e-30;
+      opts.gradient_tolerance = 1e-30;
+      opts.parameter_tolerance = 1e-16;
+      opts.logging_type = ceres::SILENT;
+      ceres::Solver::Summary summary;
+      ceres::Solve(opts, &problem, &summary);
+      rep.iterations = static_cast<int>(summary.iterations.size());
+    }
   }
   rep.residual_after = MaxResidual(*functor, *x, num_residuals);
   if (!(rep.residual_after <= tolerance)) {
@@ -159,6 +218,7 @@ bool ConsistentInitOptions::IsValid(std::string* error) const {
   if (!(velocity_tolerance > 0.0)) return fail(StrCat("velocity_tolerance = ", velocity_tolerance, "; must be > 0"));
   if (!(hidden_tolerance > 0.0)) return fail(StrCat("hidden_tolerance = ", hidden_tolerance, "; must be > 0"));
   if (max_iterations < 1) return fail(StrCat("max_iterations = ", max_iterations, "; must be >= 1"));
+  if (newton_iterations < 0) return fail(StrCat("newton_iterations = ", newton_iterations, "; must be >= 0"));
   return true;
 }
 
@@ -267,7 +327,7 @@ InitLevelReport SolveHiddenLevel(const Model& model, const Pose& pose, const Mat
   std::vector<double> x(6 + k, 0.0);
   for (int c = 0; c < k; ++c) x[6 + c] = state->contact[state->active[c]].normal_force;
   const InitLevelReport hid =
-      SolveLevel("hidden-constraint", hidden, &x, 6 + k, options.hidden_tolerance, options.max_iterations);
+      SolveLevel("hidden-constraint", hidden, &x, 6 + k, options.hidden_tolerance, options);
   Vector6d nu_dot;
   for (int i = 0; i < 6; ++i) nu_dot(i) = x[i];
   state->qdd = CoordinateAcceleration(state->q, state->qd, nu_dot);
@@ -309,8 +369,7 @@ MechanicalState ConsistentInitialize(const Model& model, const InitialState& ini
       for (int c : active) {
         for (double v : state.contact[c].coordinates) x.push_back(v);
       }
-      rep.position = SolveLevel("position", f, &x, 5 * k, options.position_tolerance,
-                                options.max_iterations);
+      rep.position = SolveLevel("position", f, &x, 5 * k, options.position_tolerance, options);
       for (size_t i = 0; i < free.size(); ++i) state.q(free[i]) = x[i];
       for (int c = 0; c < k; ++c) {
         for (int j = 0; j < 4; ++j) state.contact[active[c]].coordinates[j] = x[free.size() + 4 * c + j];
@@ -320,8 +379,7 @@ MechanicalState ConsistentInitialize(const Model& model, const InitialState& ini
       std::unique_ptr<ClosedPositionResidual> owner(f);
       std::vector<double> x;
       for (int i : free) x.push_back(state.q(i));
-      rep.position = SolveLevel("position", f, &x, k, options.position_tolerance,
-                                options.max_iterations);
+      rep.position = SolveLevel("position", f, &x, k, options.position_tolerance, options);
       for (size_t i = 0; i < free.size(); ++i) state.q(free[i]) = x[i];
       FillContactCoordinates(model, &state);
     }

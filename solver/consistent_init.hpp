@@ -2,12 +2,16 @@
 // inconsistent state and returns one that satisfies, in order:
 //   1. position level: the contact conditions of the active contacts — chapter form
 //      (Eqs. 1.8, 1.13: five residuals per contact, contact coordinates free) or closed form
-//      (gap φ_i = 0) — over the coordinates not held (Ceres, Levenberg–Marquardt, AD);
+//      (gap φ_i = 0) — over the coordinates not held;
 //   2. velocity level: φ̇_i = G_i ν = 0 over the velocities not held (minimum-norm
 //      correction);
 //   3. the hidden constraint: N_i and ν̇ from the Newton–Euler equations and φ̈_i = 0
-//      (Ceres, starting from the scene's contact-force guesses; the problem is linear in
-//      them, which is why the chapter found their initial values do not matter).
+//      (starting from the scene's contact-force guesses; the problem is linear in them,
+//      which is why the chapter found their initial values do not matter).
+// Levels 1 and 3 take Newton's method directly when the system is square (as many unknowns
+// as residuals, e.g. the chapter scene's four held coordinates) and it converges; otherwise
+// (more unknowns than residuals, a singular Jacobian, no convergence) Ceres's
+// Levenberg–Marquardt from the same start. Jacobians by automatic differentiation in both.
 // Each level reports its residual norm before and after; a level that cannot reach its
 // tolerance throws SolverError naming the level, the residual and the tolerance.
 #pragma once
@@ -28,14 +32,21 @@ struct ConsistentInitOptions {
   double velocity_tolerance = 1.0e-11;  // max |φ̇| (m/s)
   double hidden_tolerance = 1.0e-7;     // max |residual| (N, N m, m/s²)
   int max_iterations = 200;             // Ceres iterations per level
+  // Newton iterations per level before falling back to Ceres; 0: Ceres only.
+  int newton_iterations = 20;
 
   bool IsValid(std::string* error) const;
 };
 
+// How a level was solved: nothing to do (already within tolerance, or the linear velocity
+// level), Newton's method directly, or Ceres after the direct path failed or was declined.
+enum class InitMethod { kNone, kNewton, kCeres };
+
 struct InitLevelReport {
   double residual_before = 0.0;  // max |residual| at the start
   double residual_after = 0.0;
-  int iterations = 0;            // Ceres iterations (0 for the linear velocity level)
+  int iterations = 0;            // Newton or Ceres iterations (0 for the velocity level)
+  InitMethod method = InitMethod::kNone;
 };
 
 struct InitReport {

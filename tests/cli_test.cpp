@@ -190,6 +190,10 @@ TEST_F(CliTest, ChapterRunWritesTrajectoryStorageAndSummary) {
   }
   EXPECT_GT(init.at("position").at("residual_before").get<double>(),
             init.at("position").at("residual_after").get<double>());
+  // Four coordinates held: square systems, solved by Newton's method directly.
+  EXPECT_EQ(init.at("position").at("method"), "newton");
+  EXPECT_EQ(init.at("hidden_constraint").at("method"), "newton");
+  EXPECT_EQ(init.at("velocity").at("method"), "none");
   // docs/model.md §10: consistent forces, N_medial ≈ 233.35 N, N_lateral ≈ 243.33 N.
   const auto& forces = init.at("normal_force_N");
   EXPECT_NEAR(forces.at("medial").get<double>(), 233.35, 0.0051);

@@ -9,6 +9,12 @@
 // throw SolverError naming the level and the residual; with the velocities freed the
 // start is corrected to G ν = 0; a partial initial pose (`pose: assemble`) closes both gaps
 // with the given coordinate unchanged, and the assembled pose given back reproduces itself.
+// The two solution paths of the position and hidden levels: Newton's method directly on the
+// chapter scene (square systems), and Ceres when Newton is declined (newton_iterations = 0),
+// cannot converge in its budget (newton_iterations = 1), or the system is not square (a
+// partial pose); each end state is checked against the constraints by functions the solve
+// does not use (constraint_residuals.hpp's gaps and rates, the direct saddle-point solve of
+// constrained_dynamics.hpp), and the two paths agree to round-off.
 // Does not validate: the integration after the start (dae_test.cpp, conformance_test.cpp).
 #include <gtest/gtest.h>
 
@@ -17,6 +23,8 @@
 #include <vector>
 
 #include "solver/consistent_init.hpp"
+#include "solver/constrained_dynamics.hpp"
+#include "solver/constraint_residuals.hpp"
 #include "solver/contact.hpp"
 #include "solver/error.hpp"
 #include "solver/pose.hpp"
@@ -58,6 +66,26 @@ constexpr double kPointTol_mm = 5.1e-7;
 // docs/model.md §10: N_medial ≈ 233.35 N, N_lateral ≈ 243.33 N (two decimals printed).
 constexpr double kNormal_N[2] = {233.35, 243.33};
 constexpr double kNormalTol_N = 0.0051;
+
+// Gaps, approach rates and the hidden constraint of `s`, checked without the functors the
+// initialization solves: the gaps and rates from the general contact kinematics
+// (constraint_residuals.hpp), q̈ and N from the direct saddle-point solve of the
+// Newton–Euler equations with φ̈ = 0 (constrained_dynamics.hpp).
+void ExpectConsistent(const Scene& scene, const MechanicalState& s, const std::string& what) {
+  std::vector<double> gap, gap_rate;
+  ConstraintResiduals(scene.model, s, &gap, &gap_rate);
+  ASSERT_EQ(gap.size(), 2u);
+  for (int c = 0; c < 2; ++c) {
+    EXPECT_LE(std::abs(gap[c]), 1e-13) << what << ": contact " << c << " gap (m)";
+    EXPECT_LE(std::abs(gap_rate[c]), 1e-13) << what << ": contact " << c << " gap rate (m/s)";
+  }
+  const ConstrainedAcceleration a = SolveConstrainedAcceleration(scene.model, s.t, s.q, s.qd, s.active);
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(s.qdd(i), a.qdd(i), 1e-9 * (1.0 + std::abs(a.qdd(i)))) << what << ": qdd " << i;
+  for (int c = 0; c < 2; ++c) {
+    EXPECT_NEAR(s.contact[c].normal_force, a.normal_force[c], 1e-9 * std::abs(a.normal_force[c]))
+        << what << ": N " << c;
+  }
+}
 
 class ConsistentInitForms : public ::testing::TestWithParam<ContactForm> {};
 
@@ -235,8 +263,11 @@ TEST_P(ConsistentInitForms, PartialPoseIsAssembledAndTheFullResultReproducesIt) 
     EXPECT_LE(std::abs(g.gap), 1e-11) << "contact " << c;
   }
   EXPECT_GT(report.position.iterations, 0);
+  // Five coordinates free: more unknowns than residuals, so no Newton step; Ceres solves it.
+  EXPECT_EQ(report.position.method, InitMethod::kCeres);
   EXPECT_LE(report.velocity.residual_after, options.velocity_tolerance);
   EXPECT_LE(report.hidden.residual_after, options.hidden_tolerance);
+  ExpectConsistent(partial, s, "assembled");
   EXPECT_EQ(s.qd, Vector6d::Zero());  // rates held by default (and consistent at rest)
 
   // The full pose back, in the scene's units with every digit (StrCat: round trip).
@@ -255,6 +286,44 @@ TEST_P(ConsistentInitForms, PartialPoseIsAssembledAndTheFullResultReproducesIt) 
   for (int c = 0; c < 2; ++c) {
     EXPECT_NEAR(s2.contact[c].normal_force, s.contact[c].normal_force, 1e-6 * std::abs(s.contact[c].normal_force))
         << "contact " << c;
+  }
+}
+
+TEST_P(ConsistentInitForms, NewtonPathOnTheChapterSceneSatisfiesTheConstraints) {
+  const Scene& scene = ChapterScene();
+  ConsistentInitOptions options;
+  options.form = GetParam();
+  InitReport report;
+  const MechanicalState s = ConsistentInitialize(scene.model, scene.initial, kBoth, options, &report);
+  // Four coordinates held: as many unknowns as residuals at both levels.
+  EXPECT_EQ(report.position.method, InitMethod::kNewton);
+  EXPECT_EQ(report.hidden.method, InitMethod::kNewton);
+  EXPECT_EQ(report.velocity.method, InitMethod::kNone);
+  EXPECT_GT(report.position.iterations, 0);
+  EXPECT_LE(report.position.iterations, options.newton_iterations);
+  ExpectConsistent(scene, s, "newton");
+}
+
+// Ceres, the fallback, reaches the same consistent state: declined (0 Newton iterations)
+// and failed (1 iteration cannot converge on the nonlinear position level).
+TEST_P(ConsistentInitForms, CeresFallbackReachesTheSameConsistentState) {
+  const Scene& scene = ChapterScene();
+  ConsistentInitOptions options;
+  options.form = GetParam();
+  const MechanicalState newton = ConsistentInitialize(scene.model, scene.initial, kBoth, options, nullptr);
+  for (int budget : {0, 1}) {
+    const std::string what = StrCat("newton_iterations = ", budget);
+    options.newton_iterations = budget;
+    InitReport report;
+    const MechanicalState s = ConsistentInitialize(scene.model, scene.initial, kBoth, options, &report);
+    EXPECT_EQ(report.position.method, InitMethod::kCeres) << what;
+    EXPECT_EQ(report.hidden.method, InitMethod::kCeres) << what;
+    EXPECT_GT(report.position.iterations, 1) << what;  // Ceres's, from the scene's start
+    ExpectConsistent(scene, s, what);
+    for (int i = 0; i < kNumCoordinates; ++i) EXPECT_NEAR(s.q(i), newton.q(i), 1e-14) << what << " " << CoordinateName(i);
+    for (int c = 0; c < 2; ++c) {
+      EXPECT_NEAR(s.contact[c].normal_force, newton.contact[c].normal_force, 1e-9) << what << " N " << c;
+    }
   }
 }
 
