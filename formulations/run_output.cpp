@@ -10,11 +10,13 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <random>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include <ceres/version.h>
 #include <sundials/sundials_config.h>
@@ -36,12 +38,110 @@ std::string ColumnSafeName(const std::string& name) {
   return out;
 }
 
-size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
-  // std::to_chars(general, precision) is specified as printf's %.*g in the "C" locale
-  // (C++17 [charconv.to.chars]); libstdc++ formats it exactly (Ryu printf), without the
-  // multi-precision arithmetic of glibc's printf (about 10x fewer instructions).
+namespace {
+// printf's %.12g through std::to_chars(general, 12) (C++17 [charconv.to.chars]: exactly
+// %.*g in the "C" locale; libstdc++'s Ryu printf, ~700 instructions a number).
+size_t FormatGeneral12(double v, char (&out)[kTrajectoryNumberChars]) {
   const std::to_chars_result r = std::to_chars(out, out + kTrajectoryNumberChars, v, std::chars_format::general, 12);
   return static_cast<size_t>(r.ptr - out);  // 12 significant digits fit: never errc::value_too_large
+}
+}  // namespace
+
+__extension__ typedef unsigned __int128 Uint128;  // GCC/Clang; __extension__: no -Wpedantic
+
+size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
+  // Faster, same bytes, for 1e-8 ≤ |v| < 1e12 (the columns' values but the round-off-sized
+  // gaps): v = m 2^e exactly (m < 2^53), so N = m 10^s / 2^-e with s = 11 − X (X the
+  // decimal exponent of |v|, 10^s ≤ 10^19) is an exact 128-bit integer quotient and
+  // remainder: the 12 significant digits rounded to nearest, as printf rounds the exact
+  // value. An exact tie (printf: to even) and every other |v| take FormatGeneral12.
+  // Then %g's layout: fixed when −4 ≤ X < 12, else d.ddde−XX; no trailing zeros.
+  const double a = std::abs(v);
+  if (!(a >= 1e-8 && a < 1e12)) {
+    if (a != 0.0) return FormatGeneral12(v, out);
+    char* o = out;
+    if (std::signbit(v)) *o++ = '-';
+    *o++ = '0';
+    return static_cast<size_t>(o - out);
+  }
+  static constexpr uint64_t kPow10[20] = {1ULL, 10ULL, 100ULL, 1000ULL, 10000ULL, 100000ULL, 1000000ULL,
+                                          10000000ULL, 100000000ULL, 1000000000ULL, 10000000000ULL,
+                                          100000000000ULL, 1000000000000ULL, 10000000000000ULL,
+                                          100000000000000ULL, 1000000000000000ULL, 10000000000000000ULL,
+                                          100000000000000000ULL, 1000000000000000000ULL,
+                                          10000000000000000000ULL};
+  uint64_t bits;
+  std::memcpy(&bits, &a, sizeof bits);
+  const int e2 = static_cast<int>(bits >> 52) - 1022;                // a = f 2^e2, f in [0.5, 1)
+  const uint64_t m = (bits & ((1ULL << 52) - 1)) | (1ULL << 52);    // a normal here: m = f 2^53
+  const int shift = 53 - e2;                                        // a = m / 2^shift; 13..79 here
+  // log10(a) is in [(e2 − 1) log10 2, e2 log10 2): X is about the floor of the lower end
+  // (78913 / 2^18 = log10 2 to 6 digits; >> on a negative int rounds down); the loop below
+  // corrects it by the digit count.
+  int exponent = ((e2 - 1) * 78913) >> 18;
+  uint64_t digits12 = 0;
+  bool found = false;
+  for (int attempt = 0; attempt < 3 && !found; ++attempt) {
+    const int s = 11 - exponent;
+    if (s < 0 || s > 19) return FormatGeneral12(v, out);
+    const Uint128 product = static_cast<Uint128>(m) * kPow10[s];
+    const Uint128 quotient = product >> shift;
+    if (quotient >= kPow10[12]) {
+      ++exponent;
+      continue;
+    }
+    if (quotient < kPow10[11]) {
+      --exponent;
+      continue;
+    }
+    const Uint128 remainder = product - (quotient << shift);
+    const Uint128 half = static_cast<Uint128>(1) << (shift - 1);
+    if (remainder == half) return FormatGeneral12(v, out);
+    digits12 = static_cast<uint64_t>(quotient) + (remainder > half ? 1 : 0);
+    if (digits12 == kPow10[12]) {  // 9.99…95 → 10: one digit more before the point
+      digits12 = kPow10[11];
+      ++exponent;
+    }
+    found = true;
+  }
+  if (!found) return FormatGeneral12(v, out);
+  char digits[12];
+  uint32_t high = static_cast<uint32_t>(digits12 / 1000000), low = static_cast<uint32_t>(digits12 % 1000000);
+  for (int i = 5; i >= 0; --i) {
+    digits[i] = static_cast<char>('0' + high % 10);
+    digits[6 + i] = static_cast<char>('0' + low % 10);
+    high /= 10;
+    low /= 10;
+  }
+  int n = 12;
+  while (n > 1 && digits[n - 1] == '0') --n;
+  char* o = out;
+  if (v < 0.0) *o++ = '-';
+  if (exponent < -4) {  // here −8 ≤ X: two exponent digits
+    *o++ = digits[0];
+    if (n > 1) {
+      *o++ = '.';
+      for (int i = 1; i < n; ++i) *o++ = digits[i];
+    }
+    *o++ = 'e';
+    *o++ = '-';
+    *o++ = static_cast<char>('0' + (-exponent) / 10);
+    *o++ = static_cast<char>('0' + (-exponent) % 10);
+  } else if (exponent >= 12) {  // 1e12 reached by rounding up
+    return FormatGeneral12(v, out);
+  } else if (exponent >= 0) {
+    for (int i = 0; i <= exponent; ++i) *o++ = i < n ? digits[i] : '0';
+    if (n > exponent + 1) {
+      *o++ = '.';
+      for (int i = exponent + 1; i < n; ++i) *o++ = digits[i];
+    }
+  } else {
+    *o++ = '0';
+    *o++ = '.';
+    for (int i = 0; i < -exponent - 1; ++i) *o++ = '0';
+    for (int i = 0; i < n; ++i) *o++ = digits[i];
+  }
+  return static_cast<size_t>(o - out);
 }
 
 TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result) {

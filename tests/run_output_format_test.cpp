@@ -2,7 +2,7 @@
 // (FormatTrajectoryNumber) instead of snprintf("%.12g"). The files must stay byte-identical:
 //  - the formatter agrees with snprintf("%.12g") on special values, decade and rounding
 //    boundaries and 600,000 doubles of every magnitude (random bit patterns, and values of
-//    the ranges the columns hold);
+//    the ranges the columns hold), and on 12-digit midpoints, their neighbours and carries;
 //  - the files WriteRunOutputs writes equal those of the snprintf writer they replaced, kept
 //    below verbatim as the oracle (formulations/run_output.cpp of 68610df), on several scenes
 //    and formulations, with separated contacts (empty CSV cells, NaN in the .sto) and a
@@ -120,6 +120,36 @@ TEST(TrajectoryNumber, RandomDoublesOfEveryMagnitudeAsPrintf) {
     if (ToChars12g(v) != Printf12g(v) && ++mismatches <= 5) {
       ADD_FAILURE() << std::hexfloat << v << ": to_chars " << ToChars12g(v) << ", printf " << Printf12g(v);
     }
+  }
+  EXPECT_EQ(mismatches, 0);
+}
+
+// Near the formatter's rounding decisions: doubles nearest the 12-digit midpoints (13
+// digits ending in 5), their neighbours one ulp away, exact dyadic ties, and 12-digit values
+// with runs of 9 (the carry into a new leading digit) of every decade, against printf.
+TEST(TrajectoryNumber, TwelveDigitMidpointsAndCarriesAsPrintf) {
+  std::mt19937_64 rng(20261202);
+  std::uniform_int_distribution<long long> mantissa(100000000000LL, 999999999999LL);
+  std::uniform_int_distribution<int> decade(-20, 20);
+  long mismatches = 0;
+  auto check = [&](double v) {
+    for (double w : {v, -v, std::nextafter(v, 0.0), std::nextafter(v, INFINITY)}) {
+      if (ToChars12g(w) != Printf12g(w) && ++mismatches <= 5) {
+        ADD_FAILURE() << std::hexfloat << w << ": formatter " << ToChars12g(w) << ", printf " << Printf12g(w);
+      }
+    }
+  };
+  // Exact ties at the 13th digit (dyadic values; printf rounds them to even).
+  for (double v : {1234567890.125, 100000000000.5, 100000000001.5, 0.000152587890625, 2.384185791015625e-07,
+                   1.1920928955078125e-07, 3.0517578125e-05, 9.5367431640625e-07}) {
+    check(v);
+  }
+  char text[64];
+  for (int i = 0; i < 100000; ++i) {
+    std::snprintf(text, sizeof text, "%lld5e%d", mantissa(rng), decade(rng));  // 13 digits, last 5
+    check(std::strtod(text, nullptr));
+    std::snprintf(text, sizeof text, "%lld9999e%d", mantissa(rng) / 1000 * 1000 + 999, decade(rng));
+    check(std::strtod(text, nullptr));
   }
   EXPECT_EQ(mismatches, 0);
 }
