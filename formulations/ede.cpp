@@ -125,7 +125,9 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
     }
     AccelerationAt(t, y);
     for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = acc_.normal_force[c];
-    EvaluateEvents(scene_.model, events_, q, workspace_.pose, normal_, g);  // the solve's pose at q
+    // The solve's pose and ligament lengths at q (the constrained solve at this (t, y) is
+    // new: CVODE's Adams corrector never evaluates f at the accepted y_n).
+    EvaluateEvents(scene_.model, events_, q, workspace_.pose, normal_, workspace_.data.ligament_length, g);
   }
 
  private:

@@ -45,6 +45,12 @@ void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, con
 // of the same point).
 void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const Pose& pose, const std::vector<double>& normal_force, double* g);
+// The same with the ligament lengths L_j at `pose` too (DataTpl::ligament_length, filled by
+// ComputeAppliedWrench from the same LigamentSpan_F, so the same values): the kink events
+// take them instead of recomputing every span.
+void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
+                    const Pose& pose, const std::vector<double>& normal_force,
+                    const std::vector<double>& ligament_length, double* g);
 
 // "flexion_90" for 90°; integer degrees when whole, else one decimal.
 std::string FlexionEventName(double flexion_rad);
