@@ -8,6 +8,8 @@ lateral lift-off time.
   PYTHONPATH=build/python /usr/bin/python3 benchmarks/scipy_side_by_side.py [--quick]
       [--check-digits D]          exit 1 unless SciPy's tightest lift-off agrees with the
                                   reference to >= D digits (the cross-check test)
+      [--json PATH]               also write the runs as JSON, with the fairness manifest
+                                  (context.components: kneedyn's build, then SciPy's)
   cmake --build build --target bench_scipy
 
 The SciPy model is what a researcher writes first: the excess ODE in (q, q̇) with the
@@ -199,6 +201,53 @@ def digits(t, ref):
     return math.inf if t == ref else -math.log10(abs(t - ref) / ref)
 
 
+# ---------------------------------------------------------------- fairness manifest
+
+def scipy_component():
+    """SciPy's entry of the fairness manifest (context.components): its version, where it came
+    from (the Debian package when dpkg has it) and how it was compiled, as far as SciPy's own
+    build configuration (scipy.show_config) records it: compilers, no optimization flags."""
+    import subprocess
+    import scipy
+    try:
+        deb = subprocess.run(["dpkg-query", "-W", "-f=${Version}", "python3-scipy"], capture_output=True,
+                             text=True, check=False).stdout.strip()
+    except OSError:
+        deb = ""
+    origin = ("Debian 12 binary package python3-scipy %s (shared)" % deb if deb
+              else "not a Debian package (%s)" % os.path.dirname(scipy.__file__))
+    try:
+        config = scipy.show_config(mode="dicts")
+    except (TypeError, ValueError):  # SciPy before 1.10: no dict form
+        config = {}
+    parts = []
+    for lang, c in sorted(config.get("Compilers", {}).items()):
+        if isinstance(c, dict) and c.get("version"):
+            parts.append("%s: %s %s" % (lang, c.get("name", lang), c["version"]))
+    for dep, c in sorted(config.get("Build Dependencies", {}).items()):
+        if isinstance(c, dict) and c.get("found"):
+            parts.append("%s %s" % (c.get("name", dep), c.get("version", "")))
+    flags = "; ".join(parts) + "; " if parts else ""
+    flags += ("optimization flags not recorded in SciPy's build config: as built by Debian (dpkg-buildflags: -O2)"
+              if deb else "optimization flags not recorded in SciPy's build config")
+    return {"name": "SciPy", "version": scipy.__version__, "origin": origin, "compile_flags": flags}
+
+
+def components(kn):
+    """context.components of the side-by-side JSON: the kneedyn build it ran (kn.build_manifest(),
+    formulations/version.hpp), then SciPy."""
+    return list(kn.build_manifest()) + [scipy_component()]
+
+
+def side_by_side_json(kn, rows, t_ref, repeats):
+    """The --json document: the fairness manifest in context.components (as work_precision's
+    and simbody_work_precision's files have it) and one result per timed run."""
+    return {"context": {"components": components(kn), "scene": "chapter_impact",
+                        "reference_liftoff_lateral_s": t_ref, "repeats": repeats},
+            "results": [{"run": who, "tolerance": tol, "liftoff_lateral_s": t, "digits": d, "cpu_time_s": sec}
+                        for who, tol, t, d, sec in rows]}
+
+
 def best_time(f, repeats):
     best, out = math.inf, None
     for _ in range(repeats):
@@ -220,6 +269,7 @@ def main():
     ap.add_argument("--check-digits", type=float, default=None,
                     help="exit 1 unless SciPy's tightest run agrees with the reference to this many digits")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--json", default=None, help="also write the runs and the fairness manifest to this JSON file")
     a = ap.parse_args()
     repeats = 1 if a.quick else a.repeats
     try:
@@ -276,6 +326,13 @@ def main():
                   (need, s[4], s[0], s[1], k[4], k[0], k[1], s[4] / k[4]))
         else:
             print("  %d digits: not reached by %s" % (need, " and ".join(x for x in ("scipy", "kneedyn") if x not in best)))
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump(side_by_side_json(kn, rows, t_ref, repeats), f, indent=1)
+        print("wrote %s" % a.json)
+    print("\ncomponents:")
+    for c in components(kn):
+        print("  %-9s %-8s %s; %s" % (c["name"], c["version"], c["origin"], c["compile_flags"]))
     tight = [r for r in rows if r[0].startswith("scipy")][-1]
     print("\nSciPy's tightest run agrees with the kneedyn reference to %.2f digits" % tight[3])
     if a.check_digits is not None and not tight[3] >= a.check_digits:

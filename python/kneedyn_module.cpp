@@ -28,6 +28,7 @@
 #include "sensitivity/sensitivity_cli.hpp"
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
+#include "formulations/version.hpp"
 #include "solver/error.hpp"
 #include "solver/loads.hpp"
 #include "scene/scene.hpp"
@@ -261,6 +262,20 @@ PYBIND11_MODULE(_kneedyn, m) {
   m.def("to_yaml", [](const py::dict& doc) { return EmitYaml(doc); }, py::arg("document"));
 
   m.def("data_dir", &ReferenceDataDir, "directory of the reference data (KNEEDYN_DATA_DIR overrides)");
+
+  m.def("build_manifest", []() {
+    py::list out;
+    for (const BuildComponent& c : BuildManifest()) {
+      py::dict d;
+      d["name"] = c.name;
+      d["version"] = c.version;
+      d["origin"] = c.origin;
+      d["compile_flags"] = c.compile_flags;
+      out.append(d);
+    }
+    return out;
+  }, "the fairness manifest of this build (formulations/version.hpp BuildManifest): list of dicts "
+     "name, version, origin, compile_flags, as in the benchmark JSON's context.components");
 
   m.def("formulations", []() {
     py::list out;

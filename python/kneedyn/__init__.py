@@ -26,12 +26,19 @@ from . import _kneedyn
 from ._kneedyn import Error, InputError, SolverError, CompiledScene, Problem
 
 __all__ = ["Problem", "sensitivity", "sweep", "SweepResult", "Scene", "Result", "Trajectory", "Event", "load_scene", "run", "formulations",
-           "data_dir", "scene_path", "Error", "InputError", "SolverError"]
+           "data_dir", "scene_path", "build_manifest", "Error", "InputError", "SolverError"]
 
 
 def data_dir():
     """Directory of the reference data (parameter sets, scenes); KNEEDYN_DATA_DIR overrides."""
     return _kneedyn.data_dir()
+
+
+def build_manifest():
+    """The fairness manifest of this build (formulations/version.hpp): list of dicts with name,
+    version, origin and compile_flags for kneedyn, SUNDIALS, Ceres and Eigen, as the benchmark
+    JSON's context.components has them."""
+    return _kneedyn.build_manifest()
 
 
 def scene_path(name):
