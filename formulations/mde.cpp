@@ -144,7 +144,9 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
     const MdeKinematics kin = Evaluate(t, y, nullptr);
     std::fill(normal_.begin(), normal_.end(), 0.0);
     for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = kin.normal_force[c];
-    EvaluateEvents(scene_.model, events_, kin.q, normal_, g);
+    // The evaluation's pose and ligament lengths at kin.q (pose_ and data_ belong to the
+    // cached point: only EvaluateUncached writes them, and it refills the cache).
+    EvaluateEvents(scene_.model, events_, kin.q, pose_, normal_, data_.ligament_length, g);
   }
 
  private:
@@ -316,7 +318,8 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
                            kMaxChartDegradation, "; reduce --rtol or --max-step)");
       }
     }
-    const Pose pose = PoseFromCoordinates(kin.q, trig);
+    pose_ = PoseFromCoordinates(kin.q, trig);
+    const Pose& pose = pose_;
     const Matrix3d E = AngularVelocityMap(kin.q(kBeta), trig);
     // J = ∂φ/∂q = G B, and P = ∂q/∂s.
     MatK6 J(k, 6), G(k, 6);
@@ -390,6 +393,7 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
   // right-hand side is a function of (t, y) alone (no dependence on the call history).
   Vector6d last_q_ = Vector6d::Zero();   // steps since Start (the --max-steps budget is per phase)
   mutable Data data_;           // applied-load workspace of Evaluate
+  mutable Pose pose_;           // pose of the last EvaluateUncached (the cached point's)
   // Evaluate's last result and its (t, y) (2 m ≤ 12 values; reset by StartIntegrator).
   mutable bool cache_valid_ = false;
   mutable double cache_t_ = 0.0;
