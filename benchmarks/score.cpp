@@ -233,6 +233,10 @@ Score ScoreResult(const ScoredResult& result, const Solution& reference) {
 
 nlohmann::json ScoreRecord(const ScoredResult& result, const Score& score, const ScoreInfo& info) {
   nlohmann::json metrics = MetricsJson(score.metrics);
+  // A class the CSV does not give has no error (MetricsJson writes 0 for an empty class).
+  for (const auto& [c, n] : result.given_columns) {
+    if (n == 0 && metrics.contains("mixed_error")) metrics["mixed_error"][c] = nullptr;
+  }
   for (const auto& [c, v] : score.mescd) metrics["mescd"][c] = Finite(v);
   for (const auto& [e, v] : score.event_digits) metrics["event_time_digits"][e] = Finite(v);
   nlohmann::json r;
