@@ -214,6 +214,15 @@ int kneedyn_problem_events(const kneedyn_problem* p, double t, const double* y, 
     p->problem->Events(t, y, n, g);
   });
 }
+int kneedyn_problem_coordinates(const kneedyn_problem* p, double t, const double* y, const double* yp, int n,
+                                double* q, double* qd) {
+  return Call("kneedyn_problem_coordinates", p, [&] {
+    NotNull(q, "q");
+    NotNull(qd, "qd");
+    const kneedyn::MechanicalState s = p->problem->Coordinates(t, y, yp, n);
+    for (int i = 0; i < 6; ++i) q[i] = s.q(i), qd[i] = s.qd(i);
+  });
+}
 int kneedyn_problem_transition(kneedyn_problem* p, double t, const double* y, const double* yp, int n,
                                const int* events, int n_events, int* ended) {
   return Call("kneedyn_problem_transition", p, [&] {

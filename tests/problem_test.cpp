@@ -14,6 +14,7 @@
 #include <cstring>
 #include <limits>
 
+#include "formulations/internal/ode_integrator.hpp"
 #include "formulations/simulator.hpp"
 #include "kneedyn/problem.h"
 #include "test_support.hpp"
@@ -74,13 +75,32 @@ std::vector<std::string> Names(const std::vector<EventSpec>& specs) {
   return n;
 }
 
+// Problem's events without mde's chart switch (the simulator's mde switches charts inside
+// a step, no event).
+std::vector<std::string> PhaseEventNames(const Problem& p) {
+  std::vector<std::string> n = p.event_names();
+  if (p.is_mde() && !n.empty() && n.back() == Problem::kChartEvent) n.pop_back();
+  return n;
+}
+
 void ExpectBitwise(const double* a, const double* b, int n, const std::string& what) {
   for (int i = 0; i < n; ++i) EXPECT_EQ(std::memcmp(&a[i], &b[i], sizeof(double)), 0) << what << "[" << i << "]: " << a[i] << " vs " << b[i];
 }
 
-// The y of a form at a mechanical state (DaeSystem's layout for the DAE forms).
+// The y of a form at a mechanical state (DaeSystem's layout for the DAE forms; for mde the
+// coordinates `free` of the chart in use, ẏ = (ṡ, s̈) from the state's q̈).
 void FormValues(const std::string& form, const Model& model, const MechanicalState& state, std::vector<double>* y,
-                std::vector<double>* yp) {
+                std::vector<double>* yp, const std::vector<int>& free = {}) {
+  if (form == "mde") {
+    const int m = static_cast<int>(free.size());
+    y->assign(2 * m, 0.0);
+    yp->assign(2 * m, 0.0);
+    for (int j = 0; j < m; ++j) {
+      (*y)[j] = state.q(free[j]), (*y)[m + j] = state.qd(free[j]);
+      (*yp)[j] = state.qd(free[j]), (*yp)[m + j] = state.qdd(free[j]);
+    }
+    return;
+  }
   if (form == "ede") {
     y->assign(12, 0.0);
     yp->assign(12, 0.0);
@@ -98,24 +118,31 @@ void FormValues(const std::string& form, const Model& model, const MechanicalSta
 }
 
 // The phase starts and transitions of Problem equal the simulator's, bitwise, along the
-// whole chapter run (lift-off, then the end flexion).
+// whole chapter run (lift-off, then the end flexion). For mde the phase start's ẏ is the
+// chart's (ṡ, s̈) where the simulator's start holds q̈ of the hidden-constraint solve: the
+// same physics by two formulations, compared to 1e-9 relative.
 TEST(Problem, TransitionEqualsSimulator) {
   const Scene& scene = ChapterScene();
-  for (const std::string form : {"ede", "dae", "dae-ggl"}) {
+  for (const std::string form : {"ede", "mde", "dae", "dae-ggl"}) {
     SCOPED_TRACE(form);
     SimulatorRun run(form, scene);
     ASSERT_EQ(run.record.end_reason, "flexion_90");
     Problem problem(scene, form);
+    const auto expect_yp0 = [&](const std::vector<double>& want, const char* what) {
+      if (form != "mde") return ExpectBitwise(problem.yp0().data(), want.data(), problem.size(), what);
+      for (int i = 0; i < problem.size(); ++i) EXPECT_NEAR(problem.yp0()[i], want[i], 1e-9 * (1.0 + std::abs(want[i]))) << what << i;
+    };
     std::vector<double> y, yp;
-    FormValues(form, scene.model, run.spy.starts[0], &y, &yp);
+    FormValues(form, scene.model, run.spy.starts[0], &y, &yp, problem.free_coordinates());
+    expect_yp0(yp, "yp0 of phase 0");
     ASSERT_EQ(problem.size(), static_cast<int>(y.size()));
     ExpectBitwise(problem.y0().data(), y.data(), problem.size(), "y0 of phase 0");
-    EXPECT_EQ(problem.event_names(), Names(run.spy.start_events[0]));
+    EXPECT_EQ(PhaseEventNames(problem), Names(run.spy.start_events[0]));
     ASSERT_GE(run.spy.event_states.size(), 2u);
     for (size_t e = 0; e < run.spy.event_states.size(); ++e) {
       ASSERT_EQ(run.spy.event_phase[e], problem.phase());
       const MechanicalState& at = run.spy.event_states[e];
-      FormValues(form, scene.model, at, &y, &yp);
+      FormValues(form, scene.model, at, &y, &yp, problem.free_coordinates());
       const bool ended = problem.Transition(at.t, y.data(), yp.data(), static_cast<int>(y.size()), run.spy.fired[e]);
       const bool last = e + 1 == run.spy.event_states.size();
       ASSERT_EQ(ended, last);
@@ -125,11 +152,11 @@ TEST(Problem, TransitionEqualsSimulator) {
       }
       const MechanicalState& next = run.spy.starts[run.spy.event_phase[e] + 1];
       EXPECT_EQ(problem.phase_state().active, next.active);
-      FormValues(form, scene.model, next, &y, &yp);
+      FormValues(form, scene.model, next, &y, &yp, problem.free_coordinates());
       ASSERT_EQ(problem.size(), static_cast<int>(y.size()));
       ExpectBitwise(problem.y0().data(), y.data(), problem.size(), "y0 after the transition");
-      ExpectBitwise(problem.yp0().data(), yp.data(), problem.size(), "yp0 after the transition");
-      EXPECT_EQ(problem.event_names(), Names(run.spy.start_events[run.spy.event_phase[e] + 1]));
+      expect_yp0(yp, "yp0 after the transition");
+      EXPECT_EQ(PhaseEventNames(problem), Names(run.spy.start_events[run.spy.event_phase[e] + 1]));
     }
     ASSERT_EQ(problem.events_recorded().size(), run.record.events.size());
     for (size_t k = 0; k < run.record.events.size(); ++k) {
@@ -179,6 +206,72 @@ TEST(Problem, EdeRhsEqualsHiddenConstraintSolve) {
   for (int i = 0; i < 6; ++i) {
     for (int j = 0; j < 12; ++j) EXPECT_NEAR(J[12 * i + j], j == 6 + i ? 1.0 : 0.0, 1e-8) << i << "," << j;
   }
+  EXPECT_EQ(kneedyn_problem_destroy(h), KNEEDYN_OK);
+}
+
+// The mde form's f and events are the mde formulation's own right-hand side and root
+// functions (its OdeProblem callbacks, started at the same phase start), bitwise, through
+// Problem and the C interface; its chart leaves the contacts' translations out.
+TEST(Problem, MdeRhsAndEventsEqualMdeFormulation) {
+  const Scene& scene = ChapterScene();
+  SimulatorRun run("mde", scene);
+  Problem p(scene, "mde");
+  ASSERT_EQ(p.phase_state().active.size(), 2u);
+  ASSERT_EQ(p.size(), 8);  // 6 − 2 free coordinates and their rates
+  EXPECT_EQ(p.free_coordinates(), (std::vector<int>{kY0, kAlpha, kBeta, kGamma}));
+  std::unique_ptr<Formulation> mde = CreateFormulation("mde", scene, {});
+  mde->Start(run.spy.starts[0], run.spy.start_events[0]);
+  OdeProblem* ode = dynamic_cast<OdeProblem*>(mde.get());
+  ASSERT_NE(ode, nullptr);
+  const int n = p.size();
+  const std::vector<double> y = Perturbed(p);
+  const double t = p.t0() + 1.0e-3;
+  std::vector<double> f(n), f_ref(n), f_c(n), J(n * n), J_c(n * n);
+  p.Rhs(t, y.data(), n, f.data());
+  ASSERT_TRUE(ode->Rhs(t, y.data(), f_ref.data()));
+  ExpectBitwise(f.data(), f_ref.data(), n, "f");
+  const int m = p.event_count();
+  ASSERT_EQ(p.event_names().back(), Problem::kChartEvent);
+  std::vector<double> g(m), g_ref(m - 1), g_c(m);
+  p.Events(t, y.data(), n, g.data());
+  ode->Roots(t, y.data(), g_ref.data());
+  ExpectBitwise(g.data(), g_ref.data(), m - 1, "events");
+  EXPECT_GT(g[m - 1], 0.0) << "the chart chosen at the start is the best one";
+  kneedyn_problem* h = nullptr;
+  ASSERT_EQ(kneedyn_problem_create((ScenesDir() + "/chapter_impact.yaml").c_str(), "mde", 0.0, 0.0, &h), KNEEDYN_OK)
+      << kneedyn_last_error();
+  int n_c = 0;
+  ASSERT_EQ(kneedyn_problem_size(h, &n_c), KNEEDYN_OK);
+  ASSERT_EQ(n_c, n);
+  ASSERT_EQ(kneedyn_problem_rhs(h, t, y.data(), n, f_c.data()), KNEEDYN_OK) << kneedyn_last_error();
+  ExpectBitwise(f_c.data(), f.data(), n, "C f");
+  p.Jacobian(t, y.data(), n, J.data());
+  ASSERT_EQ(kneedyn_problem_jacobian(h, t, y.data(), n, J_c.data()), KNEEDYN_OK);
+  ExpectBitwise(J_c.data(), J.data(), n * n, "C df/dy");
+  ASSERT_EQ(kneedyn_problem_events(h, t, y.data(), n, g_c.data(), m), KNEEDYN_OK);
+  ExpectBitwise(g_c.data(), g.data(), m, "C events");
+  // The coordinates y stands for: s itself, and the eliminated x0, z0 on both contacts.
+  double q[6], qd[6];
+  ASSERT_EQ(kneedyn_problem_coordinates(h, t, y.data(), nullptr, n, q, qd), KNEEDYN_OK);
+  for (int j = 0; j < 4; ++j) EXPECT_EQ(q[p.free_coordinates()[j]], y[j]);
+  const MechanicalState at = p.Coordinates(t, y.data(), nullptr, n);
+  double gap = 1.0, rate = 1.0;
+  MaxActiveConstraintResiduals(scene.model, at, &gap, &rate);
+  EXPECT_LT(gap, 1e-15) << "the elimination puts both contacts on their surfaces";
+  EXPECT_LT(rate, 1e-12);
+  // The other form's calls and a chart switch with another event are refused.
+  EXPECT_EQ(kneedyn_problem_residual(h, t, y.data(), y.data(), n, f_c.data()), KNEEDYN_BAD_ARGUMENT);
+  const int both[2] = {0, m - 1};
+  int ended = 0;
+  EXPECT_EQ(kneedyn_problem_transition(h, t, y.data(), nullptr, n, both, 2, &ended), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("mde_chart"), std::string::npos) << kneedyn_last_error();
+  // The chart switch alone: the same state in the best chart (here the same one), same size.
+  const int chart = m - 1;
+  ASSERT_EQ(kneedyn_problem_transition(h, t, y.data(), nullptr, n, &chart, 1, &ended), KNEEDYN_OK);
+  EXPECT_EQ(ended, 0);
+  std::vector<double> y_next(n);
+  ASSERT_EQ(kneedyn_problem_initial_values(h, y_next.data(), nullptr, n), KNEEDYN_OK);
+  ExpectBitwise(y_next.data(), y.data(), n, "y after the chart switch");
   EXPECT_EQ(kneedyn_problem_destroy(h), KNEEDYN_OK);
 }
 
