@@ -152,6 +152,21 @@ void Problem::Rhs(double t, const double* y, int n, double* f) const {
 void Problem::Jacobian(double t, const double* y, int n, double* J) const {
   if (is_dae()) Fail(StrCat("Problem::Jacobian: the '", form_, "' form is a DAE; call Jacobian(t, y, yp, c)"));
   CheckState("Jacobian", y, n);
+  if (!is_mde()) {  // ede: exact where every active contact is a sphere on a plane
+    AccelerationAt(t, y);
+    double dqdd_dx[72];
+    if (ConstrainedAccelerationJacobian(scene_.model, t, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
+                                        acc_.qdd, state_.active, acc_.normal_force, &state_.ligament_branch, dqdd_dx)) {
+      for (int i = 0; i < 6; ++i) {
+        for (int j = 0; j < 12; ++j) {
+          J[12 * i + j] = j == 6 + i ? 1.0 : 0.0;  // ∂q̇/∂(q, q̇)
+          J[12 * (6 + i) + j] = dqdd_dx[12 * i + j];
+        }
+      }
+      return;
+    }
+  }
+  // Central difference quotients (mde; ede with a general surface pair).
   double yh[12], fp[12], fm[12];
   for (int j = 0; j < n; ++j) {
     for (int i = 0; i < n; ++i) yh[i] = y[i];

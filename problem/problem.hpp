@@ -70,9 +70,10 @@ class Problem {
 
   // ODE form: f(t, y) into f (size()).
   void Rhs(double t, const double* y, int n, double* f) const;
-  // ODE form: ∂f/∂y (row-major size()×size()) by central difference quotients of Rhs with
-  // step 1e-7 (1 + |y_i|): ede has no exact Jacobian in kneedyn (the hidden-constraint solve
-  // is written for double only).
+  // ODE forms: ∂f/∂y (row-major size()×size()). ede: exact (ConstrainedAccelerationJacobian,
+  // forward AD and the implicit function theorem) when every active contact is a sphere on a
+  // plane; otherwise, and for mde (its chart's elimination is written for double only),
+  // central difference quotients of Rhs with step 1e-7 (1 + |y_i|).
   void Jacobian(double t, const double* y, int n, double* J_row_major) const;
   // DAE forms: F(t, y, ẏ) into F.
   void Residual(double t, const double* y, const double* yp, int n, double* F) const;
