@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "solver/consistent_init.hpp"
+#include "solver/contact_kinematics.hpp"
 #include "solver/constraint_residuals.hpp"
 #include "solver/error.hpp"
 
@@ -166,7 +167,8 @@ void Problem::Jacobian(double t, const double* y, int n, double* J) const {
       return;
     }
   }
-  // Central difference quotients (mde; ede with a general surface pair).
+  if (is_mde() && MdeJacobian(t, y, J)) return;
+  // Central difference quotients (a general surface pair).
   double yh[12], fp[12], fm[12];
   for (int j = 0; j < n; ++j) {
     for (int i = 0; i < n; ++i) yh[i] = y[i];
@@ -177,6 +179,67 @@ void Problem::Jacobian(double t, const double* y, int n, double* J) const {
     Rhs(t, yh, n, fm);
     for (int i = 0; i < n; ++i) J[n * i + j] = (fp[i] - fm[i]) / (2.0 * h);
   }
+}
+
+// mde: f = (ṡ, s̈) with s̈ = q̈_F, the free rows of the constrained acceleration at
+// (q(s), q̇(s, ṡ)) (the chart's elimination; mde and ede solve the same equations). Chain rule:
+//   ∂q/∂s = P = [I; −J_D⁻¹ J_F] (J = ∂φ/∂q), ∂q̇/∂ṡ = P,
+//   ∂q̇/∂s: F rows 0, D rows −J_D⁻¹ (∂φ̇/∂q) P (from φ̇(q(s), q̇(s, ṡ)) ≡ 0, ∂φ̇/∂q̇ = J),
+//   ∂s̈/∂(s, ṡ) = A_F [P 0; ∂q̇/∂s P],  A = ∂q̈/∂(q, q̇) (ConstrainedAccelerationJacobian);
+// J and ∂φ̇/∂q by forward AD (ceres::Jet over q). False: a contact is not a sphere on a plane.
+bool Problem::MdeJacobian(double t, const double* y, double* Jf) const {
+  const Model& model = scene_.model;
+  const std::vector<int>& active = state_.active;
+  const int k = static_cast<int>(active.size());
+  std::vector<SphereOnPlane> sop(k);
+  for (int c = 0; c < k; ++c) {
+    if (!SphereOnPlaneForm(model.contacts[active[c]], &sop[c])) return false;
+  }
+  VecM sdd(n_ / 2);
+  const MdeKinematics kin = chart_.Evaluate(t, y, &state_.ligament_branch, &sdd);
+  std::vector<double> normal_force(kin.normal_force.begin(), kin.normal_force.begin() + k);
+  double A[72];
+  if (!ConstrainedAccelerationJacobian(model, t, kin.q, kin.qd, kin.qdd, active, normal_force, &state_.ligament_branch,
+                                       A)) {
+    return false;
+  }
+  using Jet6 = ceres::Jet<double, 6>;
+  Vector6<Jet6> qj, qdj;
+  for (int i = 0; i < 6; ++i) qj(i) = Jet6(kin.q(i), i), qdj(i) = Jet6(kin.qd(i));
+  const PoseTpl<Jet6> pose = PoseFromCoordinates(qj);
+  const Vector6<Jet6> nu = GeneralizedVelocity(qj, qdj);
+  MatrixXd phi_q(k, 6), phidot_q(k, 6);
+  for (int c = 0; c < k; ++c) {
+    const ContactGeometryTpl<Jet6> geo = SphereOnPlaneContact(sop[c], pose);
+    const Jet6 phidot = ContactConstraintRow(pose, geo).dot(nu);
+    for (int i = 0; i < 6; ++i) phi_q(c, i) = geo.gap.v(i), phidot_q(c, i) = phidot.v(i);
+  }
+  const std::vector<int>& free = chart_.free();
+  const std::vector<int>& elim = chart_.eliminated();
+  const int m = static_cast<int>(free.size());
+  MatrixXd P = MatrixXd::Zero(6, m), dqd_ds = MatrixXd::Zero(6, m);
+  for (int j = 0; j < m; ++j) P(free[j], j) = 1.0;
+  if (k > 0) {
+    MatrixXd JD(k, k), JF(k, m);
+    for (int c = 0; c < k; ++c) JD.col(c) = phi_q.col(elim[c]);
+    for (int j = 0; j < m; ++j) JF.col(j) = phi_q.col(free[j]);
+    const Eigen::FullPivLU<MatrixXd> lu(JD);
+    const MatrixXd PD = -lu.solve(JF);
+    for (int c = 0; c < k; ++c) P.row(elim[c]) = PD.row(c);
+    const MatrixXd dD = -lu.solve(phidot_q * P);
+    for (int c = 0; c < k; ++c) dqd_ds.row(elim[c]) = dD.row(c);
+  }
+  const Eigen::Map<const Eigen::Matrix<double, 6, 12, Eigen::RowMajor>> dqdd(A);
+  const MatrixXd dsdd_ds = dqdd.leftCols(6) * P + dqdd.rightCols(6) * dqd_ds;
+  const MatrixXd dsdd_dsd = dqdd.rightCols(6) * P;
+  const int n = 2 * m;
+  for (int i = 0; i < m; ++i) {
+    for (int j = 0; j < n; ++j) {
+      Jf[n * i + j] = j == m + i ? 1.0 : 0.0;  // ∂ṡ/∂(s, ṡ)
+      Jf[n * (m + i) + j] = j < m ? dsdd_ds(free[i], j) : dsdd_dsd(free[i], j - m);
+    }
+  }
+  return true;
 }
 
 void Problem::Residual(double t, const double* y, const double* yp, int n, double* F) const {

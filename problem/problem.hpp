@@ -70,9 +70,9 @@ class Problem {
 
   // ODE form: f(t, y) into f (size()).
   void Rhs(double t, const double* y, int n, double* f) const;
-  // ODE forms: ∂f/∂y (row-major size()×size()). ede: exact (ConstrainedAccelerationJacobian,
-  // forward AD and the implicit function theorem) when every active contact is a sphere on a
-  // plane; otherwise, and for mde (its chart's elimination is written for double only),
+  // ODE forms: ∂f/∂y (row-major size()×size()), exact when every active contact is a sphere
+  // on a plane: ede by ConstrainedAccelerationJacobian (forward AD and the implicit function
+  // theorem), mde by the chain rule through the chart's elimination (MdeJacobian); otherwise
   // central difference quotients of Rhs with step 1e-7 (1 + |y_i|).
   void Jacobian(double t, const double* y, int n, double* J_row_major) const;
   // DAE forms: F(t, y, ẏ) into F.
@@ -112,6 +112,7 @@ class Problem {
   void CheckOpen(const char* call) const;
   void AccelerationAt(double t, const double* y) const;
   void BeginChart();  // mde: y0, yp0 in the chart in use
+  bool MdeJacobian(double t, const double* y, double* J) const;
   bool has_chart_event() const { return is_mde() && !state_.active.empty(); }
 
   const Scene& scene_;

@@ -186,39 +186,46 @@ TEST(Problem, EdeRhsEqualsHiddenConstraintSolve) {
 // terms make the quotient converge only as O(h) (measured in the first phase: 4.0e-4, 4.0e-5,
 // 4.0e-6 relative at h = 1e-6, 1e-7, 1e-8, then round-off, 3.7e-5 at 1e-9): a wrong
 // Jacobian would stay off by a constant instead.
-TEST(Problem, EdeJacobianMatchesCentralDifferences) {
+// mde likewise: its exact ∂f/∂y (the chain rule through the chart's elimination on ede's
+// constrained-acceleration Jacobian) against central differences of its own f.
+class OdeJacobian : public ::testing::TestWithParam<const char*> {};
+INSTANTIATE_TEST_SUITE_P(Problem, OdeJacobian, ::testing::Values("ede", "mde"));
+
+TEST_P(OdeJacobian, MatchesCentralDifferences) {
+  const std::string form = GetParam();
   const Scene& scene = ChapterScene();
-  SimulatorRun run("ede", scene);
+  SimulatorRun run(form, scene);
   for (size_t phase : {size_t{0}, size_t{1}}) {
     SCOPED_TRACE(phase);
-    Problem p(scene, "ede");
+    Problem p(scene, form);
     // To the phase after the lift-off: the simulator's event states handed over in turn.
     for (size_t e = 0; phase == 1 && p.phase_state().active.size() == 2; ++e) {
       ASSERT_LT(e, run.spy.event_states.size());
       std::vector<double> y, yp;
-      FormValues("ede", scene.model, run.spy.event_states[e], &y, &yp);
-      ASSERT_FALSE(p.Transition(run.spy.event_states[e].t, y.data(), nullptr, 12, run.spy.fired[e]));
+      FormValues(form, scene.model, run.spy.event_states[e], &y, &yp, p.free_coordinates());
+      ASSERT_FALSE(p.Transition(run.spy.event_states[e].t, y.data(), nullptr, p.size(), run.spy.fired[e]));
     }
+    const int n = p.size();
     const std::vector<double> y = Perturbed(p);
     const double t = p.phase_start_time() + 1.0e-3;
-    std::vector<double> J(144);
-    p.Jacobian(t, y.data(), 12, J.data());
+    std::vector<double> J(n * n);
+    p.Jacobian(t, y.data(), n, J.data());
     double worst = 0.0;
-    for (int j = 0; j < 12; ++j) {
-      std::vector<double> yh = y, fp(12), fm(12);
+    for (int j = 0; j < n; ++j) {
+      std::vector<double> yh = y, fp(n), fm(n);
       const double h = 1e-8 * (1.0 + std::abs(y[j]));
-      yh[j] = y[j] + h, p.Rhs(t, yh.data(), 12, fp.data());
-      yh[j] = y[j] - h, p.Rhs(t, yh.data(), 12, fm.data());
+      yh[j] = y[j] + h, p.Rhs(t, yh.data(), n, fp.data());
+      yh[j] = y[j] - h, p.Rhs(t, yh.data(), n, fm.data());
       double scale = 1.0;
-      for (int i = 0; i < 12; ++i) scale = std::max(scale, std::abs(J[12 * i + j]));
-      for (int i = 0; i < 12; ++i) {
+      for (int i = 0; i < n; ++i) scale = std::max(scale, std::abs(J[n * i + j]));
+      for (int i = 0; i < n; ++i) {
         const double fd = (fp[i] - fm[i]) / (2 * h);
-        worst = std::max(worst, std::abs(J[12 * i + j] - fd) / scale);
-        EXPECT_NEAR(J[12 * i + j], fd, 1e-5 * scale) << p.component_names()[j] << " row " << i;
+        worst = std::max(worst, std::abs(J[n * i + j] - fd) / scale);
+        EXPECT_NEAR(J[n * i + j], fd, 1e-5 * scale) << p.component_names()[j] << " row " << i;
       }
     }
-    std::printf("ede phase %zu (%zu contacts): max |J - FD| / column scale = %.2g\n", phase, p.phase_state().active.size(),
-                worst);
+    std::printf("%s phase %zu (%zu contacts): max |J - FD| / column scale = %.2g\n", form.c_str(), phase,
+                p.phase_state().active.size(), worst);
   }
 }
 
