@@ -62,11 +62,12 @@ const std::vector<std::string>& VariableClasses() {
   return kClasses;
 }
 
-Solution ExtractSolution(const Scene& scene, ContactForm form, const RunResult& result,
-                         double interval) {
-  if (!(interval > 0.0)) {
-    Throw<InputError>("ExtractSolution", "comparison interval = ", interval, " s; must be > 0");
-  }
+namespace {
+
+// The solution of `result` at its non-event samples whose time `keep` accepts, plus the end
+// event's state (metrics.hpp).
+template <typename Keep>
+Solution Extract(const Scene& scene, ContactForm form, const RunResult& result, Keep keep) {
   const Model& model = scene.model;
   Solution s;
   s.names["positions"] = {"x0_mm", "y0_mm", "z0_mm", "flexion_deg", "valgus_deg",
@@ -87,9 +88,7 @@ Solution ExtractSolution(const Scene& scene, ContactForm form, const RunResult& 
 
   for (size_t k = 0; k < result.samples.size(); ++k) {
     const MechanicalState& st = result.samples[k];
-    if (result.sample_is_event[k]) continue;
-    const double n = std::round(st.t / interval);
-    if (std::abs(st.t - n * interval) > kTimeMatch) continue;
+    if (result.sample_is_event[k] || !keep(st.t)) continue;
     s.times.push_back(st.t);
     AppendRow(scene, form, st, &s);
   }
@@ -102,6 +101,27 @@ Solution ExtractSolution(const Scene& scene, ContactForm form, const RunResult& 
   }
   s.events = result.events;
   return s;
+}
+
+}  // namespace
+
+Solution ExtractSolution(const Scene& scene, ContactForm form, const RunResult& result,
+                         double interval) {
+  if (!(interval > 0.0)) {
+    Throw<InputError>("ExtractSolution", "comparison interval = ", interval, " s; must be > 0");
+  }
+  return Extract(scene, form, result, [interval](double t) {
+    const double n = std::round(t / interval);
+    return std::abs(t - n * interval) <= kTimeMatch;
+  });
+}
+
+Solution ExtractSolutionAt(const Scene& scene, ContactForm form, const RunResult& result,
+                           const std::vector<double>& times) {
+  return Extract(scene, form, result, [&times](double t) {
+    const auto it = std::lower_bound(times.begin(), times.end(), t - kTimeMatch);
+    return it != times.end() && std::abs(*it - t) <= kTimeMatch;
+  });
 }
 
 double ScdFromErrors(const std::vector<double>& x, const std::vector<double>& x_ref,

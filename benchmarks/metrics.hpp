@@ -63,6 +63,11 @@ struct Solution {
 Solution ExtractSolution(const Scene& scene, ContactForm form, const RunResult& result,
                          double interval = kDefaultComparisonInterval);
 
+// Values of `result` at its non-event samples within 1e-9 s of one of `times` (increasing),
+// plus the end event's state like ExtractSolution.
+Solution ExtractSolutionAt(const Scene& scene, ContactForm form, const RunResult& result,
+                           const std::vector<double>& times);
+
 struct Metrics {
   double scd = 0.0;                          // digits; +inf for an exact match; NaN: times missing
   double scd_compared = 0.0;                 // the same over the times compared only

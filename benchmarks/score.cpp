@@ -7,6 +7,7 @@
 #include <limits>
 #include <sstream>
 
+#include "formulations/formulation.hpp"
 #include "formulations/run_output.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -231,8 +232,88 @@ Score ScoreResult(const ScoredResult& result, const Solution& reference) {
   return score;
 }
 
+std::vector<double> OffGridTimes(const ScoredResult& result, const Solution& reference) {
+  std::vector<double> off;
+  if (reference.times.empty()) return off;
+  const Solution& r = result.solution;
+  const size_t n = r.end_is_event ? r.times.size() - 1 : r.times.size();
+  const double t_last = reference.times.back();
+  for (size_t i = 0; i < n; ++i) {
+    const double t = r.times[i];
+    if (t < reference.times.front() - kTimeMatch || t > t_last + kTimeMatch) continue;
+    const auto it = std::lower_bound(reference.times.begin(), reference.times.end(), t - kTimeMatch);
+    if (it != reference.times.end() && std::abs(*it - t) <= kTimeMatch) continue;
+    off.push_back(t);
+  }
+  return off;
+}
+
+Solution DenseReference(const Scene& scene, const nlohmann::json& reference_json, const Solution& reference,
+                        const std::vector<double>& times, double* reproduced_scd) {
+  const nlohmann::json primary = reference_json.value("primary", nlohmann::json::object());
+  RunSettings settings;
+  FormulationOptions& o = settings.options;
+  try {
+    settings.formulation = primary.at("formulation").get<std::string>();
+    o.integrator = IntegratorOption(primary.value("integrator", std::string()));
+    o.rtol = primary.at("rtol").get<double>();
+    o.atol = primary.at("atol").get<double>();
+  } catch (const nlohmann::json::exception& e) {
+    Throw<InputError>("kneedyn score", "the reference records no configuration to run again (primary: ",
+                      primary.dump(), "; ", e.what(), ")");
+  }
+  settings.output_times = times;
+  const ContactForm form = CreateFormulation(settings.formulation, scene, o)->contact_form();
+  const RunResult run = RunScene(scene, settings);
+  if (!run.completed) {
+    Throw<SolverError>("kneedyn score", "the reference configuration (", primary.value("command", ""),
+                       ") failed when run again with output at the result's times: ", run.failure);
+  }
+  // The run again must be the stored reference: its sampling times against the stored samples.
+  const double interval = reference_json.value("comparison_interval_s", kDefaultComparisonInterval);
+  const Metrics check = Compare(ExtractSolution(scene, form, run, interval), reference);
+  const double accuracy = reference_json.value("accuracy_scd", 0.0);
+  *reproduced_scd = check.scd;
+  if (!(check.scd >= accuracy)) {
+    Throw<SolverError>("kneedyn score", "the reference configuration (", primary.value("command", ""),
+                       ") run again with output at the result's times reproduces the stored samples to ", check.scd,
+                       " digits (rule: at least the reference's accuracy_scd = ", accuracy,
+                       "); score at the reference's sampling times instead");
+  }
+  const Solution at = ExtractSolutionAt(scene, form, run, times);
+  // Merge: the stored samples at their times, the run's rows at `times`, in time order; the
+  // end event (stored) last.
+  Solution dense = reference;
+  dense.times.clear();
+  for (const std::string& c : VariableClasses()) dense.values[c].clear();
+  const size_t n_stored = reference.end_is_event ? reference.times.size() - 1 : reference.times.size();
+  const size_t n_at = at.end_is_event ? at.times.size() - 1 : at.times.size();
+  size_t i = 0, j = 0;
+  const auto take = [&](const Solution& from, size_t k) {
+    dense.times.push_back(from.times[k]);
+    for (const std::string& c : VariableClasses()) dense.values[c].push_back(from.values.at(c)[k]);
+  };
+  while (i < n_stored || j < n_at) {
+    if (j >= n_at || (i < n_stored && reference.times[i] <= at.times[j])) {
+      take(reference, i++);
+    } else {
+      take(at, j++);
+    }
+  }
+  if (reference.end_is_event) take(reference, reference.times.size() - 1);
+  if (j != times.size()) {
+    Throw<SolverError>("kneedyn score", "the reference run again has rows at ", j, " of the ", times.size(),
+                       " result times inside its span");
+  }
+  return dense;
+}
+
 nlohmann::json ScoreRecord(const ScoredResult& result, const Score& score, const ScoreInfo& info) {
   nlohmann::json metrics = MetricsJson(score.metrics);
+  // A class the CSV does not give has no error (MetricsJson writes 0 for an empty class).
+  for (const auto& [c, n] : result.given_columns) {
+    if (n == 0 && metrics.contains("mixed_error")) metrics["mixed_error"][c] = nullptr;
+  }
   for (const auto& [c, v] : score.mescd) metrics["mescd"][c] = Finite(v);
   for (const auto& [e, v] : score.event_digits) metrics["event_time_digits"][e] = Finite(v);
   nlohmann::json r;

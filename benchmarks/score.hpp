@@ -14,9 +14,14 @@
 //     any use: cubic Hermite interpolation from its positions and velocities is 1.4 digits
 //     off at the midpoints on chapter_impact (measured against dae at rtol 1e-10, which
 //     agrees with the samples to 8.1 digits); the trajectory oscillates faster than 0.02 s.
-//     So the comparison times are the reference's sampling times, matched by the result's
-//     rows within 1e-9 s, as in the work-precision sweep: a result must write rows there.
-//     Reference times without a row are missing (scd null; scd_compared over the rest).
+//     So the reference's dense output is the reference run itself: rows at the sampling
+//     times (matched within 1e-9 s) are compared with the stored samples; for rows at any
+//     other time inside the reference's span (DenseReference below) the configuration
+//     the reference records (`primary`: formulation, integrator, rtol, atol) is run again
+//     with output rows at those times, and that run must reproduce the stored samples to
+//     the reference's stated accuracy (accuracy_scd digits) before its rows are used.
+//     Reference sampling times without a row are missing (scd null; scd_compared over the
+//     rest).
 //   - Metrics: scd (positions, floors 1 mm and 1 deg: the work-precision figure; null when
 //     a reference time is missing), mescd per class = −log10(mixed error), the mixed error
 //     being max |e| / (1 + |x_ref|) in the class's units — kneedyn's scd with its floors of
@@ -60,6 +65,18 @@ struct Score {
 };
 
 Score ScoreResult(const ScoredResult& result, const Solution& reference);
+
+// The result's non-event row times inside the reference's span (t0 to its last sampling
+// time or end event) that are not sampling times of the reference (within 1e-9 s).
+std::vector<double> OffGridTimes(const ScoredResult& result, const Solution& reference);
+
+// The reference at its sampling times plus `times` (OffGridTimes): the stored samples, and
+// at `times` the rows of the configuration reference_json["primary"] run again with output
+// there. Throws SolverError when that run fails or reproduces the stored samples to fewer
+// than reference_json["accuracy_scd"] digits (scd of positions); *reproduced_scd: what it
+// reached.
+Solution DenseReference(const Scene& scene, const nlohmann::json& reference_json, const Solution& reference,
+                        const std::vector<double>& times, double* reproduced_scd);
 
 // The work-precision `results` record of a score (docs/outputs.md, `work_precision --json`).
 struct ScoreInfo {

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "benchmarks/score.hpp"
 #include "formulations/version.hpp"
@@ -15,6 +16,8 @@ namespace kneedyn::bench {
 namespace fs = std::filesystem;
 
 namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::string Digits(double v) {
   if (std::isnan(v)) return "-";
@@ -110,7 +113,18 @@ int ScoreCommand::Run(int argc, char** argv) {
     }
     info.cpu_time_s = cpu_time_;
     info.failure = failure_;
-    const Score score = ScoreResult(result, reference);
+    // Rows off the reference's sampling times: against the reference run again there.
+    const std::vector<double> off_grid = OffGridTimes(result, reference);
+    std::string comparison = "the reference's sampling times (within 1e-9 s) and its end event";
+    double reproduced_scd = kNaN;
+    const Solution compared_to =
+        off_grid.empty() ? reference : DenseReference(scene, ref_json, reference, off_grid, &reproduced_scd);
+    if (!off_grid.empty()) {
+      comparison += StrCat(", and ", off_grid.size(), " other result times, where the reference configuration ",
+                           "was run again with output there (it reproduces the stored samples to ",
+                           Digits(reproduced_scd), " digits)");
+    }
+    const Score score = ScoreResult(result, compared_to);
 
     nlohmann::json out;
     out["kneedyn_version"] = KneedynVersion();
@@ -121,7 +135,10 @@ int ScoreCommand::Run(int argc, char** argv) {
                      {"reference", reference_file},
                      {"reference_primary", ref_json.value("primary", nlohmann::json::object()).value("command", "")},
                      {"reference_accuracy_scd", ref_json.value("accuracy_scd", nlohmann::json(nullptr))},
-                     {"comparison", "the reference's sampling times (within 1e-9 s) and its end event"},
+                     {"comparison", comparison},
+                     {"off_grid_times", off_grid.size()},
+                     {"reference_reproduced_scd", std::isfinite(reproduced_scd) ? nlohmann::json(reproduced_scd)
+                                                                                : nlohmann::json(nullptr)},
                      {"metrics_definition", "benchmarks/metrics.hpp, benchmarks/score.hpp, docs/problem.md"},
                      {"result_file", result_path_}};
     out["results"] = nlohmann::json::array({ScoreRecord(result, score, info)});
@@ -140,6 +157,10 @@ int ScoreCommand::Run(int argc, char** argv) {
     const Metrics& m = score.metrics;
     std::printf("%s (%s) against %s: %d of %d reference times compared", result_path_.c_str(), solver_name_.c_str(),
                 reference_file.c_str(), m.compared_times, m.compared_times + m.missing_times);
+    if (!off_grid.empty()) {
+      std::printf(" (%zu of them off its sampling grid: the reference run again there, reproducing the stored "
+                  "samples to %s digits)", off_grid.size(), Digits(reproduced_scd).c_str());
+    }
     std::printf("%s\n", failure_.empty() ? "" : (" [failed: " + failure_ + "]").c_str());
     std::printf("  scd %s (positions; over the compared times %s)\n", Digits(m.scd).c_str(), Digits(m.scd_compared).c_str());
     std::printf("  %-16s %8s %8s\n", "class", "columns", "mescd");

@@ -3,7 +3,7 @@
 //
 //   work_precision [--short] [--scene FILE] [--reference FILE] [--json OUT] [--csv OUT]
 //                  [--repetitions N] [--only SUBSTRING] [--rtol-min R] [--include-broken]
-//                  [--benchmark_* flags]
+//                  [--include DIR]... [--benchmark_* flags]
 //
 // For every formulation in RegisteredFormulations() (and each of its integrators):
 //   adaptive    rtol = 10^(−k/4), atol = 1e-2 rtol: 1e-2 … 1e-11 (37 settings; --short 3);
@@ -22,6 +22,12 @@
 // counters go to state.counters too. A run that fails is a result: status failed with the
 // solver's reason (its partial metrics and time are kept). --include-broken adds one
 // deliberately broken setting (dae with max_steps = 3) for the tests.
+//
+// --include DIR: outside solvers' results scored by `kneedyn score` (docs/problem.md), every
+// file named score.json or *.score.json under DIR, join the results as they are (status,
+// reason, metrics, their own CPU time and counters; "origin": "outside", "source": the file):
+// not run or timed here, and a failed outside run stays a failed result. Each file must be
+// scored against this sweep's scene and reference, else exit 2 naming the file.
 //
 // Output: one JSON per sweep {header: {machine, scene, reference, mode, date, ...},
 // results: [{formulation, integrator, setting, status, reason, metrics, cpu_time_s
@@ -158,6 +164,69 @@ std::vector<BenchConfig> Grid(bool short_mode, double rtol_min, const std::strin
   return grid;
 }
 
+bool IsScoreFile(const std::filesystem::path& p) {
+  const std::string name = p.filename().string();
+  const std::string suffix = ".score.json";
+  return name == "score.json" ||
+         (name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0);
+}
+
+// The results of every score file under `dir` (sorted by path, so the output is stable),
+// each marked as an outside result with its file. Throws InputError naming the directory
+// or the file: no such directory, no score file in it, not kneedyn score's JSON, scored
+// against another scene or reference.
+std::vector<nlohmann::json> IncludedResults(const std::string& dir, const std::string& scene_name,
+                                            const std::string& reference_command, nlohmann::json* files) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) Throw<InputError>("work_precision", "--include = '", Echo(dir), "': not a directory");
+  std::vector<fs::path> paths;
+  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
+    if (entry.is_regular_file() && IsScoreFile(entry.path())) paths.push_back(entry.path());
+  }
+  if (paths.empty()) {
+    Throw<InputError>("work_precision", "--include = '", Echo(dir),
+                      "': no score.json or *.score.json (written by kneedyn score) under it");
+  }
+  std::sort(paths.begin(), paths.end());
+  std::vector<nlohmann::json> results;
+  for (const fs::path& path : paths) {
+    const std::string where = "--include = '" + Echo(dir) + "': '" + path.string() + "'";
+    nlohmann::json j;
+    try {
+      std::ifstream in(path);
+      j = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::exception& e) {
+      Throw<InputError>("work_precision", where, ": not JSON (", e.what(), ")");
+    }
+    if (!j.is_object() || !j.contains("header") || !j["header"].is_object() || !j.contains("results") ||
+        !j["results"].is_array()) {
+      Throw<InputError>("work_precision", where, ": not kneedyn score's JSON (no header and results)");
+    }
+    const nlohmann::json& h = j["header"];
+    const std::string scored_scene = h.value("scene", std::string());
+    if (scored_scene != scene_name) {
+      Throw<InputError>("work_precision", where, ": scored on scene '", scored_scene, "', the sweep runs '",
+                        scene_name, "'");
+    }
+    const std::string scored_reference = h.value("reference_primary", std::string());
+    if (scored_reference != reference_command) {
+      Throw<InputError>("work_precision", where, ": scored against another reference (made by '", scored_reference,
+                        "'; the sweep's was made by '", reference_command, "')");
+    }
+    for (nlohmann::json r : j["results"]) {
+      if (!r.is_object() || !r.contains("formulation") || !r.contains("status") || !r.contains("metrics")) {
+        Throw<InputError>("work_precision", where, ": a result without formulation, status and metrics");
+      }
+      r["origin"] = "outside";
+      r["source"] = path.string();
+      results.push_back(r);
+    }
+    files->push_back(path.string());
+  }
+  return results;
+}
+
 nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 void WriteAtomically(const std::string& path, const std::string& text) {
@@ -190,6 +259,7 @@ int main(int argc, char** argv) {
   std::string reference_path;
   std::string json_path = "work_precision.json", csv_path;
   std::string only;
+  std::vector<std::string> include_dirs;
   int repetitions = 0;  // default: 3 (--short), 5 (full)
   double rtol_min = 1e-11;  // reference at rtol 1e-14: three decades tighter
   CLI::App app{"work_precision: accuracy (scd) against the stored reference and CPU time of every "
@@ -202,6 +272,9 @@ int main(int argc, char** argv) {
   app.add_option("--json", json_path, "output JSON (Google Benchmark's format)")->capture_default_str();
   app.add_option("--csv", csv_path, "output CSV (default: the JSON's name with .csv)");
   app.add_option("--only", only, "only configurations whose name contains this");
+  app.add_option("--include", include_dirs,
+                 "also the outside results scored by `kneedyn score` under DIR (score.json, *.score.json; "
+                 "repeatable)");
   app.add_option("--rtol-min", rtol_min, "tightest rtol of the sweep")
       ->check(CLI::Range(1e-300, 1e-2))->capture_default_str();
   app.add_option("--repetitions", repetitions, "repetitions per setting (default 3 short, 5 full)")
@@ -230,6 +303,15 @@ int main(int argc, char** argv) {
     const Scene scene = LoadScene(scene_path);
     if (reference_path.empty()) reference_path = ReferenceDataDir() + "/references/" + scene.name + ".json";
     const Reference reference = LoadReference(reference_path);
+    // Read before the sweep runs: a bad file stops it at once.
+    nlohmann::json included_files = nlohmann::json::array();
+    std::vector<nlohmann::json> included;
+    for (const std::string& dir : include_dirs) {
+      for (nlohmann::json& r : IncludedResults(dir, scene.name, reference.json.at("primary").value("command", ""),
+                                               &included_files)) {
+        included.push_back(std::move(r));
+      }
+    }
 
     std::vector<Entry> entries;
     for (const BenchConfig& c : Grid(short_mode, rtol_min, only, include_broken)) entries.push_back({c, {}, {}, {}});
@@ -326,6 +408,11 @@ int main(int argc, char** argv) {
     h["repetitions"] = repetitions;
     h["rtol_min"] = rtol_min;
     h["metrics_definition"] = "benchmarks/metrics.hpp";
+    if (!include_dirs.empty()) {
+      h["included"] = {{"directories", include_dirs}, {"files", included_files},
+                       {"note", "outside results scored by kneedyn score; their CPU times are their own, "
+                                "measured by the outside driver, not by Google Benchmark here"}};
+    }
     const std::time_t now = std::time(nullptr);
     char date[32];
     std::strftime(date, sizeof date, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
@@ -354,25 +441,30 @@ int main(int argc, char** argv) {
         if (ev.name.rfind("kink_", 0) == 0 || r["events"].size() >= 20) continue;
         r["events"].push_back({{"name", ev.name}, {"time_s", ev.time}});
       }
-      const nlohmann::json& m = r["metrics"];
-      const nlohmann::json& s = r["setting"];
-      const nlohmann::json& c = r["counters"];
+      out["results"].push_back(r);
+    }
+    for (nlohmann::json& r : included) out["results"].push_back(std::move(r));
+    for (const nlohmann::json& r : out["results"]) {
+      // Included records may lack fields (a hand-written score): missing cells are empty.
+      const auto field = [](const nlohmann::json& o, const char* k) {
+        return o.is_object() ? o.value(k, nlohmann::json(nullptr)) : nlohmann::json(nullptr);
+      };
+      const nlohmann::json m = field(r, "metrics"), s = field(r, "setting"), c = field(r, "counters"),
+                           cpu = field(r, "cpu_time_s"), mixed = field(m, "mixed_error");
       std::vector<nlohmann::json> cells = {
-          r["formulation"], r["integrator"], s.value("rtol", nlohmann::json(nullptr)),
-          s.value("atol", nlohmann::json(nullptr)), s.value("step", nlohmann::json(nullptr)), r["status"],
-          m["scd"], m["mixed_error"]["positions"], m["mixed_error"]["velocities"],
-          m["mixed_error"]["contact_points"], m["mixed_error"]["contact_forces"],
-          m["mixed_error"]["ligament_forces"], m["max_position_residual_m"], r["cpu_time_s"]["median"],
-          r["cpu_time_s"]["min"], r["cpu_time_s"]["max"], c["residual_evaluations"],
-          c["jacobian_evaluations"], c["linear_solver_setups"], c["nonlinear_iterations"], c["steps"],
-          c["rejected_steps"], r["reason"]};
+          field(r, "formulation"), field(r, "integrator"), field(s, "rtol"), field(s, "atol"), field(s, "step"),
+          field(r, "status"), field(m, "scd"), field(mixed, "positions"), field(mixed, "velocities"),
+          field(mixed, "contact_points"), field(mixed, "contact_forces"), field(mixed, "ligament_forces"),
+          field(m, "max_position_residual_m"), field(cpu, "median"), field(cpu, "min"), field(cpu, "max"),
+          field(c, "residual_evaluations"), field(c, "jacobian_evaluations"), field(c, "linear_solver_setups"),
+          field(c, "nonlinear_iterations"), field(c, "steps"), field(c, "rejected_steps"), field(r, "reason")};
       for (size_t i = 0; i < cells.size(); ++i) csv += (i ? "," : "") + CsvCell(cells[i]);
       csv += "\n";
-      out["results"].push_back(r);
     }
     WriteAtomically(json_path, out.dump(1) + "\n");
     WriteAtomically(csv_path, csv);
-    std::fprintf(stderr, "wrote %s and %s (%zu results)\n", json_path.c_str(), csv_path.c_str(), entries.size());
+    std::fprintf(stderr, "wrote %s and %s (%zu results, %zu of them included)\n", json_path.c_str(), csv_path.c_str(),
+                 out["results"].size(), included.size());
     return 0;
   } catch (const InputError& e) {
     std::cerr << "work_precision: " << e.what() << "\n";

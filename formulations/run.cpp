@@ -47,6 +47,7 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
   sim.init.form = formulation->contact_form();
   sim.init.chart = settings.options.contact_chart;
   sim.output_interval = dt;
+  sim.output_times = settings.output_times;
   sim.rtol = settings.options.rtol;
   sim.atol = settings.options.atol;
   if (settings.progress) {

@@ -18,6 +18,7 @@ struct RunSettings {
   FormulationOptions options;
   ConsistentInitOptions init;       // init.form is set from the formulation
   double output_interval = 0.0;     // s; 0 = the scene's output.interval_s
+  std::vector<double> output_times;  // s, increasing: more output rows (SimulatorSettings)
   // Called after every output row with (t, flexion in rad); may be empty.
   std::function<void(double, double)> progress;
   // The command that asked for the run (argv), recorded in summary.json; may be empty.

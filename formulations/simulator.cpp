@@ -128,6 +128,13 @@ void Simulator::Run() {
   const double dt = settings_.output_interval;
   const double t_end = scene_.end.time;
   long next_index = 1;  // next uniform output time = next_index * dt
+  const std::vector<double>& extra = settings_.output_times;
+  size_t next_extra = 0;  // next of the extra output times
+  // Drops the extra output times up to t (+1e-12 s): reached, or an output or event there.
+  const auto pass_extra = [&](double t) {
+    while (next_extra < extra.size() && extra[next_extra] <= t + 1e-12) ++next_extra;
+  };
+  pass_extra(state_.t);
   bool done = false;
   bool first_phase = true;
   while (!done) {
@@ -138,10 +145,15 @@ void Simulator::Run() {
     if (first_phase && settings_.first_phase_started) settings_.first_phase_started(state_);
     first_phase = false;
     for (;;) {
-      const double t_next = std::min(next_index * dt, t_end);
+      const double t_uniform = std::min(next_index * dt, t_end);
+      // An extra time less than 1e-12 s before the uniform one is that one.
+      const bool extra_first = next_extra < extra.size() && extra[next_extra] < t_uniform - 1e-12;
+      const double t_next = extra_first ? extra[next_extra] : t_uniform;
       const AdvanceResult adv = stepper_->Advance(t_next, &state_);
       if (adv.status == AdvanceStatus::kReachedTime) {
         Record(false);
+        pass_extra(t_next);
+        if (extra_first) continue;
         if (t_next >= t_end) {
           record_->end_reason = "end_time";
           done = true;
@@ -160,6 +172,7 @@ void Simulator::Run() {
       }
       // Events: record them, then switch mode.
       if (std::abs(state_.t - next_index * dt) < 1e-12) ++next_index;
+      pass_extra(state_.t);
       Record(true);
       const TransitionOutcome outcome =
           PhaseTransition(model, specs, adv.events, settings_.restart, settings_.pulling, &state_, &record_->events);

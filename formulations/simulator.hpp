@@ -66,6 +66,10 @@ enum class PullingContact {
 struct SimulatorSettings {
   ConsistentInitOptions init;     // form and chart of the stepper
   double output_interval = 0.0;   // s, > 0 (callers validate it with IsValidOutputInterval)
+  // More output times (s, increasing) besides the uniform ones; a time within 1e-12 s of a
+  // uniform output time, an earlier output or an event adds no sample. Empty: the uniform
+  // grid alone (kneedyn run). `kneedyn score` asks for a result's own times here.
+  std::vector<double> output_times;
   double rtol = 1.0e-6;           // the stepper's tolerances, for the re-contact hysteresis
   double atol = 1.0e-8;
   RestartProjection restart = RestartProjection::kProject;

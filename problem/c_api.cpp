@@ -35,10 +35,9 @@ bool Live(const kneedyn_problem* p) {
   return p != nullptr && g_handles.count(p) > 0;
 }
 
-// Runs body on a live handle, translating exceptions.
+// Runs body, translating its exceptions into a status and the message of `function`.
 template <typename Body>
-int Call(const char* function, const kneedyn_problem* p, Body body) {
-  if (!Live(p)) return Set(KNEEDYN_BAD_HANDLE, std::string(function) + ": not a live kneedyn_problem handle");
+int Translate(const char* function, Body body) {
   try {
     body();
     g_last_error.clear();
@@ -54,6 +53,13 @@ int Call(const char* function, const kneedyn_problem* p, Body body) {
   } catch (...) {
     return Set(KNEEDYN_INTERNAL_ERROR, std::string(function) + ": unknown exception");
   }
+}
+
+// Runs body on a live handle (every entry point but create and destroy).
+template <typename Body>
+int Call(const char* function, const kneedyn_problem* p, Body body) {
+  if (!Live(p)) return Set(KNEEDYN_BAD_HANDLE, std::string(function) + ": not a live kneedyn_problem handle");
+  return Translate(function, body);
 }
 
 void NotNull(const void* ptr, const char* name) {
@@ -85,7 +91,7 @@ int kneedyn_problem_create(const char* scene_path, const char* form, double rtol
   if (std::isnan(rtol) || std::isnan(atol)) {
     return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": rtol and atol must not be NaN");
   }
-  try {
+  return Translate(function, [&] {
     auto handle = std::make_unique<kneedyn_problem>();
     handle->scene = kneedyn::LoadScene(scene_path);
     handle->problem = std::make_unique<kneedyn::Problem>(handle->scene, form, rtol > 0.0 ? rtol : 1.0e-6,
@@ -96,17 +102,7 @@ int kneedyn_problem_create(const char* scene_path, const char* form, double rtol
       g_handles.insert(handle.get());
     }
     *out = handle.release();
-    g_last_error.clear();
-    return KNEEDYN_OK;
-  } catch (const kneedyn::ProblemError& e) {
-    return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": " + e.what());
-  } catch (const kneedyn::InputError& e) {
-    return Set(KNEEDYN_INPUT_ERROR, std::string(function) + ": " + e.what());
-  } catch (const kneedyn::SolverError& e) {
-    return Set(KNEEDYN_SOLVER_ERROR, std::string(function) + ": " + e.what());
-  } catch (const std::exception& e) {
-    return Set(KNEEDYN_INTERNAL_ERROR, std::string(function) + ": " + e.what());
-  }
+  });
 }
 
 int kneedyn_problem_destroy(kneedyn_problem* p) {
@@ -212,6 +208,15 @@ int kneedyn_problem_events(const kneedyn_problem* p, double t, const double* y, 
     NotNull(g, "g");
     SizeIs(m, p->problem->event_count(), "m");
     p->problem->Events(t, y, n, g);
+  });
+}
+int kneedyn_problem_coordinates(const kneedyn_problem* p, double t, const double* y, const double* yp, int n,
+                                double* q, double* qd) {
+  return Call("kneedyn_problem_coordinates", p, [&] {
+    NotNull(q, "q");
+    NotNull(qd, "qd");
+    const kneedyn::MechanicalState s = p->problem->Coordinates(t, y, yp, n);
+    for (int i = 0; i < 6; ++i) q[i] = s.q(i), qd[i] = s.qd(i);
   });
 }
 int kneedyn_problem_transition(kneedyn_problem* p, double t, const double* y, const double* yp, int n,

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "solver/consistent_init.hpp"
+#include "solver/contact_kinematics.hpp"
 #include "solver/constraint_residuals.hpp"
 #include "solver/error.hpp"
 
@@ -15,9 +16,9 @@ namespace {
 }  // namespace
 
 Problem::Problem(const Scene& scene, const std::string& form, double rtol, double atol)
-    : scene_(scene), form_(form), rtol_(rtol), atol_(atol), workspace_(scene.model) {
-  if (form != "ede" && form != "dae" && form != "dae-ggl") {
-    Fail("Problem: form = '" + form + "': one of 'ede', 'dae', 'dae-ggl'");
+    : scene_(scene), form_(form), rtol_(rtol), atol_(atol), workspace_(scene.model), chart_(scene.model) {
+  if (form != "ede" && form != "mde" && form != "dae" && form != "dae-ggl") {
+    Fail("Problem: form = '" + form + "': one of 'ede', 'mde', 'dae', 'dae-ggl'");
   }
   if (!(rtol > 0.0) || !(atol > 0.0) || !std::isfinite(rtol) || !std::isfinite(atol)) {
     Fail(StrCat("Problem: rtol = ", rtol, ", atol = ", atol, ": both must be finite and > 0"));
@@ -50,6 +51,11 @@ void Problem::BeginPhase() {
     y0_.assign(n_, 0.0);
     yp0_.assign(n_, 0.0);
     dae_->InitialValues(state_, y0_.data(), yp0_.data());
+  } else if (is_mde()) {
+    // As the mde formulation's Start: a fresh chart at the phase start.
+    chart_.Begin(state_.active, state_.q);
+    chart_.Choose(state_.q);
+    BeginChart();
   } else {
     n_ = 12;
     y0_.assign(12, 0.0);
@@ -61,6 +67,19 @@ void Problem::BeginPhase() {
       yp0_[6 + i] = state_.qdd(i);
     }
   }
+}
+
+void Problem::BeginChart() {
+  const std::vector<int>& free = chart_.free();
+  const int m = static_cast<int>(free.size());
+  n_ = 2 * m;
+  y0_.assign(n_, 0.0);
+  yp0_.assign(n_, 0.0);
+  for (int j = 0; j < m; ++j) {
+    y0_[j] = state_.q(free[j]);
+    y0_[m + j] = state_.qd(free[j]);
+  }
+  Rhs(state_.t, y0_.data(), n_, yp0_.data());
 }
 
 void Problem::CheckOpen(const char* call) const {
@@ -92,6 +111,10 @@ std::vector<std::string> Problem::component_names() const {
   for (int i = 0; i < n_; ++i) {
     if (is_dae()) {
       names.push_back(dae_->UnknownName(i));
+    } else if (is_mde()) {
+      const int m = n_ / 2;
+      names.push_back(i < m ? std::string(CoordinateName(chart_.free()[i]))
+                            : std::string(CoordinateName(chart_.free()[i - m])) + "_rate");
     } else {
       names.push_back(i < 6 ? std::string(CoordinateName(i)) : std::string(CoordinateName(i - 6)) + "_rate");
     }
@@ -105,10 +128,21 @@ void Problem::AccelerationAt(double t, const double* y) const {
   SolveConstrainedAcceleration(scene_.model, t, q, qd, state_.active, {}, &state_.ligament_branch, &workspace_, &acc_);
 }
 
-// The ede formulation's right-hand side (formulations/ede.cpp, --stabilization none).
+// The ede formulation's right-hand side (formulations/ede.cpp, --stabilization none), or
+// the mde formulation's (formulations/mde.cpp: MdeChart::Evaluate in the chart in use).
 void Problem::Rhs(double t, const double* y, int n, double* f) const {
   if (is_dae()) Fail(StrCat("Problem::Rhs: the '", form_, "' form is a DAE; call Residual"));
   CheckState("Rhs", y, n);
+  if (is_mde()) {
+    const int m = n_ / 2;
+    VecM sdd(m);
+    chart_.Evaluate(t, y, &state_.ligament_branch, &sdd);
+    for (int j = 0; j < m; ++j) {
+      f[j] = y[m + j];
+      f[m + j] = sdd(j);
+    }
+    return;
+  }
   AccelerationAt(t, y);
   for (int i = 0; i < 6; ++i) {
     f[i] = y[6 + i];
@@ -119,27 +153,104 @@ void Problem::Rhs(double t, const double* y, int n, double* f) const {
 void Problem::Jacobian(double t, const double* y, int n, double* J) const {
   if (is_dae()) Fail(StrCat("Problem::Jacobian: the '", form_, "' form is a DAE; call Jacobian(t, y, yp, c)"));
   CheckState("Jacobian", y, n);
+  if (!is_mde()) {  // ede: exact where every active contact is a sphere on a plane
+    AccelerationAt(t, y);
+    double dqdd_dx[72];
+    if (ConstrainedAccelerationJacobian(scene_.model, t, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
+                                        acc_.qdd, state_.active, acc_.normal_force, &state_.ligament_branch, dqdd_dx)) {
+      for (int i = 0; i < 6; ++i) {
+        for (int j = 0; j < 12; ++j) {
+          J[12 * i + j] = j == 6 + i ? 1.0 : 0.0;  // ∂q̇/∂(q, q̇)
+          J[12 * (6 + i) + j] = dqdd_dx[12 * i + j];
+        }
+      }
+      return;
+    }
+  }
+  if (is_mde() && MdeJacobian(t, y, J)) return;
+  // Central difference quotients (a general surface pair).
   double yh[12], fp[12], fm[12];
-  for (int j = 0; j < 12; ++j) {
-    for (int i = 0; i < 12; ++i) yh[i] = y[i];
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) yh[i] = y[i];
     const double h = 1.0e-7 * (1.0 + std::abs(y[j]));
     yh[j] = y[j] + h;
-    Rhs(t, yh, 12, fp);
+    Rhs(t, yh, n, fp);
     yh[j] = y[j] - h;
-    Rhs(t, yh, 12, fm);
-    for (int i = 0; i < 12; ++i) J[12 * i + j] = (fp[i] - fm[i]) / (2.0 * h);
+    Rhs(t, yh, n, fm);
+    for (int i = 0; i < n; ++i) J[n * i + j] = (fp[i] - fm[i]) / (2.0 * h);
   }
 }
 
+// mde: f = (ṡ, s̈) with s̈ = q̈_F, the free rows of the constrained acceleration at
+// (q(s), q̇(s, ṡ)) (the chart's elimination; mde and ede solve the same equations). Chain rule:
+//   ∂q/∂s = P = [I; −J_D⁻¹ J_F] (J = ∂φ/∂q), ∂q̇/∂ṡ = P,
+//   ∂q̇/∂s: F rows 0, D rows −J_D⁻¹ (∂φ̇/∂q) P (from φ̇(q(s), q̇(s, ṡ)) ≡ 0, ∂φ̇/∂q̇ = J),
+//   ∂s̈/∂(s, ṡ) = A_F [P 0; ∂q̇/∂s P],  A = ∂q̈/∂(q, q̇) (ConstrainedAccelerationJacobian);
+// J and ∂φ̇/∂q by forward AD (ceres::Jet over q). False: a contact is not a sphere on a plane.
+bool Problem::MdeJacobian(double t, const double* y, double* Jf) const {
+  const Model& model = scene_.model;
+  const std::vector<int>& active = state_.active;
+  const int k = static_cast<int>(active.size());
+  std::vector<SphereOnPlane> sop(k);
+  for (int c = 0; c < k; ++c) {
+    if (!SphereOnPlaneForm(model.contacts[active[c]], &sop[c])) return false;
+  }
+  VecM sdd(n_ / 2);
+  const MdeKinematics kin = chart_.Evaluate(t, y, &state_.ligament_branch, &sdd);
+  std::vector<double> normal_force(kin.normal_force.begin(), kin.normal_force.begin() + k);
+  double A[72];
+  if (!ConstrainedAccelerationJacobian(model, t, kin.q, kin.qd, kin.qdd, active, normal_force, &state_.ligament_branch,
+                                       A)) {
+    return false;
+  }
+  using Jet6 = ceres::Jet<double, 6>;
+  Vector6<Jet6> qj, qdj;
+  for (int i = 0; i < 6; ++i) qj(i) = Jet6(kin.q(i), i), qdj(i) = Jet6(kin.qd(i));
+  const PoseTpl<Jet6> pose = PoseFromCoordinates(qj);
+  const Vector6<Jet6> nu = GeneralizedVelocity(qj, qdj);
+  MatrixXd phi_q(k, 6), phidot_q(k, 6);
+  for (int c = 0; c < k; ++c) {
+    const ContactGeometryTpl<Jet6> geo = SphereOnPlaneContact(sop[c], pose);
+    const Jet6 phidot = ContactConstraintRow(pose, geo).dot(nu);
+    for (int i = 0; i < 6; ++i) phi_q(c, i) = geo.gap.v(i), phidot_q(c, i) = phidot.v(i);
+  }
+  const std::vector<int>& free = chart_.free();
+  const std::vector<int>& elim = chart_.eliminated();
+  const int m = static_cast<int>(free.size());
+  MatrixXd P = MatrixXd::Zero(6, m), dqd_ds = MatrixXd::Zero(6, m);
+  for (int j = 0; j < m; ++j) P(free[j], j) = 1.0;
+  if (k > 0) {
+    MatrixXd JD(k, k), JF(k, m);
+    for (int c = 0; c < k; ++c) JD.col(c) = phi_q.col(elim[c]);
+    for (int j = 0; j < m; ++j) JF.col(j) = phi_q.col(free[j]);
+    const Eigen::FullPivLU<MatrixXd> lu(JD);
+    const MatrixXd PD = -lu.solve(JF);
+    for (int c = 0; c < k; ++c) P.row(elim[c]) = PD.row(c);
+    const MatrixXd dD = -lu.solve(phidot_q * P);
+    for (int c = 0; c < k; ++c) dqd_ds.row(elim[c]) = dD.row(c);
+  }
+  const Eigen::Map<const Eigen::Matrix<double, 6, 12, Eigen::RowMajor>> dqdd(A);
+  const MatrixXd dsdd_ds = dqdd.leftCols(6) * P + dqdd.rightCols(6) * dqd_ds;
+  const MatrixXd dsdd_dsd = dqdd.rightCols(6) * P;
+  const int n = 2 * m;
+  for (int i = 0; i < m; ++i) {
+    for (int j = 0; j < n; ++j) {
+      Jf[n * i + j] = j == m + i ? 1.0 : 0.0;  // ∂ṡ/∂(s, ṡ)
+      Jf[n * (m + i) + j] = j < m ? dsdd_ds(free[i], j) : dsdd_dsd(free[i], j - m);
+    }
+  }
+  return true;
+}
+
 void Problem::Residual(double t, const double* y, const double* yp, int n, double* F) const {
-  if (!is_dae()) Fail("Problem::Residual: the 'ede' form is an ODE; call Rhs");
+  if (!is_dae()) Fail(StrCat("Problem::Residual: the '", form_, "' form is an ODE; call Rhs"));
   CheckState("Residual", y, n);
   CheckState("Residual", yp, n);
   if (!dae_->Residual(t, y, yp, F)) Fail(StrCat("Problem::Residual: at t = ", t, " s a contact surface is evaluated outside its domain"));
 }
 
 void Problem::Jacobian(double t, const double* y, const double* yp, double c, int n, double* J) const {
-  if (!is_dae()) Fail("Problem::Jacobian: the 'ede' form is an ODE; call Jacobian(t, y)");
+  if (!is_dae()) Fail(StrCat("Problem::Jacobian: the '", form_, "' form is an ODE; call Jacobian(t, y)"));
   CheckState("Jacobian", y, n);
   CheckState("Jacobian", yp, n);
   if (!std::isfinite(c)) Fail(StrCat("Problem::Jacobian: c = ", c, ": must be finite"));
@@ -155,20 +266,33 @@ void Problem::Jacobian(double t, const double* y, const double* yp, double c, in
 std::vector<std::string> Problem::event_names() const {
   std::vector<std::string> names;
   for (const EventSpec& e : specs_) names.push_back(e.name);
+  if (has_chart_event()) names.push_back(kChartEvent);
   return names;
 }
 
 std::vector<int> Problem::event_directions() const {
   std::vector<int> d;
   for (const EventSpec& e : specs_) d.push_back(e.direction);
+  if (has_chart_event()) d.push_back(-1);
   return d;
 }
 
 // The formulations' root functions (ede.cpp, dae.cpp: N from the hidden constraint or from y).
 void Problem::Events(double t, const double* y, int n, double* g) const {
   CheckState("Events", y, n);
-  const Vector6d q = Eigen::Map<const Vector6d>(y);
   std::fill(normal_.begin(), normal_.end(), 0.0);
+  if (is_mde()) {  // the mde formulation's Roots, then the chart's conditioning
+    const MdeKinematics kin = chart_.Evaluate(t, y, &state_.ligament_branch, nullptr);
+    for (size_t c = 0; c < state_.active.size(); ++c) normal_[state_.active[c]] = kin.normal_force[c];
+    EvaluateEvents(scene_.model, specs_, kin.q, normal_, g);
+    if (has_chart_event()) {
+      double current = 0.0, best = 0.0;
+      chart_.Conditioning(kin.q, &current, &best);
+      g[specs_.size()] = current - 0.5 * best;  // the formulation's switch threshold (factor 2)
+    }
+    return;
+  }
+  const Vector6d q = Eigen::Map<const Vector6d>(y);
   if (is_dae()) {
     for (size_t c = 0; c < state_.active.size(); ++c) normal_[state_.active[c]] = y[dae_->NormalIndex(static_cast<int>(c))];
   } else if (!state_.active.empty()) {
@@ -192,6 +316,14 @@ MechanicalState Problem::StateAt(double t, const double* y, const double* yp) co
       for (int j = 0; j < per_contact; ++j) guess.coordinates[j] = y[dae_->CoordinateIndex(static_cast<int>(c)) + j];
       guess.normal_force = y[dae_->NormalIndex(static_cast<int>(c))];
     }
+  } else if (is_mde()) {
+    VecM sdd(n_ / 2);
+    const MdeKinematics kin = chart_.Evaluate(t, y, &state_.ligament_branch, &sdd);
+    s.q = kin.q;
+    s.qd = kin.qd;
+    s.qdd = kin.qdd;
+    for (size_t c = 0; c < s.active.size(); ++c) s.contact[s.active[c]].normal_force = kin.normal_force[c];
+    FillContactCoordinates(scene_.model, &s);
   } else {
     AccelerationAt(t, y);
     s.qdd = acc_.qdd;
@@ -212,6 +344,18 @@ bool Problem::Transition(double t, const double* y, const double* yp, int n, con
     }
   }
   MechanicalState s = StateAt(t, y, yp);
+  // mde: the chart alone switches (the formulation's restart after a step, at its root here).
+  const int chart_event = has_chart_event() ? static_cast<int>(specs_.size()) : -1;
+  if (std::find(events.begin(), events.end(), chart_event) != events.end()) {
+    if (events.size() > 1) {
+      Fail(StrCat("Problem::Transition: '", kChartEvent, "' together with another event: hand them one at a time"));
+    }
+    state_.t = s.t, state_.q = s.q, state_.qd = s.qd, state_.qdd = s.qdd;
+    chart_.ChooseAfresh(s.q);
+    chart_.SetStartPose(s.q);
+    BeginChart();
+    return false;
+  }
   // A ligament crossing the published law's jump alone only restarts the phase
   // (Simulator::Run): new branches, no mode switch, no sample.
   bool only_kinks = true;

@@ -7,6 +7,10 @@
 // PhaseTransition in formulations/simulator.hpp), so no physics is written here.
 //
 // Forms: "ede"  y = (q, q̇) (12), f = (q̇, q̈) with q̈ from the hidden constraint (index 0 ODE);
+//        "mde"  y = (s, ṡ), s the 6 − k coordinates the k active contacts leave free (the mde
+//               formulation's chart, MdeChart; 12 − 2k), f = (ṡ, s̈) (index 0 ODE, no drift);
+//               a phase with contacts also watches "mde_chart" (the chart in use lost a factor
+//               2 against the best one), whose transition restarts in the best chart;
 //        "dae"  the chapter's index-2 DAE (DaeSystem, chapter contact form), y = (q, u, c, N);
 //        "dae-ggl" its Gear–Gupta–Leimkuhler form (index 2), y = (q, u, c, N, μ).
 // Errors: ProblemError (a std::invalid_argument) names the call, the value and the rule.
@@ -18,6 +22,7 @@
 #include <vector>
 
 #include "formulations/internal/dae_system.hpp"
+#include "formulations/internal/mde_chart.hpp"
 #include "formulations/run.hpp"
 #include "formulations/simulator.hpp"
 #include "scene/scene.hpp"
@@ -32,13 +37,16 @@ class ProblemError : public std::invalid_argument {
 
 class Problem {
  public:
-  // form: "ede", "dae", "dae-ggl". Throws ProblemError for another form and InputError for a
+  // form: "ede", "mde", "dae", "dae-ggl". Throws ProblemError for another form and InputError for a
   // scene whose start is inconsistent. rtol, atol: the defaults an adaptive solver is run
   // with (they also set the re-contact hysteresis, as in kneedyn run).
   Problem(const Scene& scene, const std::string& form, double rtol = 1.0e-6, double atol = 1.0e-8);
 
   const std::string& form() const { return form_; }
-  bool is_dae() const { return form_ != "ede"; }
+  bool is_dae() const { return form_ == "dae" || form_ == "dae-ggl"; }
+  bool is_mde() const { return form_ == "mde"; }
+  // mde: the coordinates of q that s holds (ascending) in the chart in use.
+  const std::vector<int>& free_coordinates() const { return chart_.free(); }
   // Index of the form: 0 (ODE), 2 (both DAE forms, velocity-level constraint).
   int index() const { return is_dae() ? 2 : 0; }
   int size() const { return n_; }  // of the current phase (the DAE size changes with contacts)
@@ -62,9 +70,10 @@ class Problem {
 
   // ODE form: f(t, y) into f (size()).
   void Rhs(double t, const double* y, int n, double* f) const;
-  // ODE form: ∂f/∂y (row-major size()×size()) by central difference quotients of Rhs with
-  // step 1e-7 (1 + |y_i|): ede has no exact Jacobian in kneedyn (the hidden-constraint solve
-  // is written for double only).
+  // ODE forms: ∂f/∂y (row-major size()×size()), exact when every active contact is a sphere
+  // on a plane: ede by ConstrainedAccelerationJacobian (forward AD and the implicit function
+  // theorem), mde by the chain rule through the chart's elimination (MdeJacobian); otherwise
+  // central difference quotients of Rhs with step 1e-7 (1 + |y_i|).
   void Jacobian(double t, const double* y, int n, double* J_row_major) const;
   // DAE forms: F(t, y, ẏ) into F.
   void Residual(double t, const double* y, const double* yp, int n, double* F) const;
@@ -73,7 +82,7 @@ class Problem {
 
   // The events of the phase: g_k, their names and directions (−1 decreasing, +1 increasing,
   // 0 both; SUNDIALS convention).
-  int event_count() const { return static_cast<int>(specs_.size()); }
+  int event_count() const { return static_cast<int>(specs_.size()) + (has_chart_event() ? 1 : 0); }
   std::vector<std::string> event_names() const;
   std::vector<int> event_directions() const;
   void Events(double t, const double* y, int n, double* g) const;
@@ -85,15 +94,26 @@ class Problem {
   // (with pulling contacts that lift off at once) are appended to events_recorded().
   bool Transition(double t, const double* y, const double* yp, int n, const std::vector<int>& events);
   const std::vector<EventRecord>& events_recorded() const { return events_; }
+  // The name of the mde chart-switch event.
+  static constexpr const char* kChartEvent = "mde_chart";
 
   // The mechanical state (t, q, q̇, q̈, N, contact coordinates) a form's (t, y, ẏ) stands for.
   MechanicalState StateAt(double t, const double* y, const double* yp) const;
+  // StateAt with y (and yp for the DAE forms, may be null) checked like the other calls.
+  MechanicalState Coordinates(double t, const double* y, const double* yp, int n) const {
+    CheckState("Coordinates", y, n);
+    if (yp != nullptr) CheckState("Coordinates", yp, n);
+    return StateAt(t, y, yp);
+  }
 
  private:
   void BeginPhase();
   void CheckState(const char* call, const double* y, int n) const;
   void CheckOpen(const char* call) const;
   void AccelerationAt(double t, const double* y) const;
+  void BeginChart();  // mde: y0, yp0 in the chart in use
+  bool MdeJacobian(double t, const double* y, double* J) const;
+  bool has_chart_event() const { return is_mde() && !state_.active.empty(); }
 
   const Scene& scene_;
   std::string form_;
@@ -112,6 +132,7 @@ class Problem {
   mutable ConstrainedDynamicsWorkspace workspace_;
   mutable ConstrainedAcceleration acc_;
   mutable std::vector<double> normal_;
+  MdeChart chart_;
 };
 
 }  // namespace kneedyn

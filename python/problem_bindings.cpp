@@ -84,11 +84,12 @@ std::vector<int> EventIndices(const Problem& p, const py::object& event) {
 void BindProblem(py::module_& m) {
   py::class_<PyProblem>(m, "Problem", R"doc(The knee as an open initial-value problem, one phase at a time::
 
-    p = kneedyn.Problem(scene, form="ede")     # or "dae", "dae-ggl"
+    p = kneedyn.Problem(scene, form="ede")     # or "mde", "dae", "dae-ggl"
     p.t0, p.y0, p.yp0, p.t_end, p.rtol, p.atol
     p.rhs(t, y)                  # ODE form;  p.jacobian(t, y)
     p.residual(t, y, yp)         # DAE forms; p.jacobian(t, y, yp, c) = dF/dy + c dF/dyp
     p.events(t, y), p.event_names, p.event_directions
+    q, qd = p.coordinates(t, y)  # the generalized coordinates y stands for
     y, ended = p.transition(t, y, event)          # ODE form
     y, yp, ended = p.transition(t, y, event, yp)  # DAE forms
 
@@ -160,6 +161,14 @@ to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
         p.problem->Events(t, a.data(), Length(a), g.data());
         return ToArray(g);
       }, py::arg("t"), py::arg("y"))
+      .def("coordinates", [](const PyProblem& p, double t, const py::object& y) {
+        const Array a = Vector1d(y, "y");
+        const MechanicalState s = p.problem->Coordinates(t, a.data(), nullptr, Length(a));
+        return py::make_tuple(ToArray(std::vector<double>(s.q.data(), s.q.data() + 6)),
+                              ToArray(std::vector<double>(s.qd.data(), s.qd.data() + 6)));
+      }, py::arg("t"), py::arg("y"),
+      "(q, qdot) the state y stands for: x0, y0, z0 [m], alpha, beta, gamma [rad] and their rates "
+      "(mde: the eliminated translations computed from s)")
       .def("transition", [](PyProblem& p, double t, const py::object& y, const py::object& event, const py::object& yp) {
         const Array a = Vector1d(y, "y");
         const std::vector<int> events = EventIndices(*p.problem, event);

@@ -215,16 +215,21 @@ def make_family_figures(outdir, members):
 # Reading the sweep file and deciding which runs are results: bench_data.py (shared with
 # benchmarks/work_precision_table.py). Re-exported here for the report and its tests.
 from bench_data import (WRONG_EVENT_TIME_S, bench_key, classify_run, event_digits,  # noqa: E402,F401
-                        failure_counts, load_bench, pareto_front, setting_str, split_runs)
+                        failure_counts, load_bench, load_included, pareto_front, reference_command,
+                        setting_str, split_runs)
 
 POSITION_SCD_LABEL = "scd of positions vs reference\n−log10 max|e|/(|ref| + 1 mm or 1°)"
 FAILURE_MARKER = dict(marker="x", color="k", ms=8, mew=1.6, ls="none")
 
 
-def failure_title(formulation, n_failed, n_untimed=0):
-  """A panel's title: the formulation and how many of its runs are drawn as failures."""
+OUTSIDE_MARK = " [outside, kneedyn score]"
+
+
+def failure_title(formulation, n_failed, n_untimed=0, outside=False):
+  """A panel's title: the formulation (an outside solver marked so) and how many of its runs
+  are drawn as failures."""
   untimed = f", {n_untimed} without a time" if n_untimed else ""
-  return f"{formulation}  ({n_failed} failed / wrong event{untimed})"
+  return f"{formulation}{OUTSIDE_MARK if outside else ''}  ({n_failed} failed / wrong event{untimed})"
 
 
 def failure_row(values):
@@ -241,7 +246,7 @@ def _save(fig, path, title, panel_titles, **savefig_args):
   plt.close(fig)
 
 
-def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark):
+def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark, outside):
   """One axis, every formulation's front (SciMLBenchmarks' layout: error against time, both
   logarithmic; here the error falls to the right, as scd grows in the panels): the cheapest
   run reaching each accuracy, as a staircase (the minimal cost among runs reaching at least
@@ -251,16 +256,17 @@ def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark):
   nfail = failure_counts(runs)
   for f in forms:
     front = pareto_front([r for r in ok_runs if r["formulation"] == f])
-    titles.append(failure_title(f, nfail.get(f, 0)))
+    titles.append(failure_title(f, nfail.get(f, 0), outside=f in outside))
+    name = f + (OUTSIDE_MARK if f in outside else "")
     if not front:  # still in the legend, with its failures
-      ax.plot([], [], color=fcol[f], lw=1.6, ls=":", label=f"{f} (none on a front, {nfail.get(f, 0)} failed / wrong event)")
+      ax.plot([], [], color=fcol[f], lw=1.6, ls=":", label=f"{name} (none on a front, {nfail.get(f, 0)} failed / wrong event)")
       continue
     err = [10.0 ** -r["scd"] for r in front]
     cpu = [r["cpu_s"] for r in front]
     # Staircase in order of growing error: between front points i and i+1 the cheapest run
     # reaching the accuracy is point i.
     ax.plot(err[::-1], cpu[::-1], drawstyle="steps-post", color=fcol[f], lw=1.6,
-            label=f"{f} ({len(front)} on the front, {nfail.get(f, 0)} failed / wrong event)")
+            label=f"{name} ({len(front)} on the front, {nfail.get(f, 0)} failed / wrong event)")
     for r, x, y in zip(front, err, cpu):
       ax.plot([x], [y], ls="none", marker=imark[r["integrator"] or "-"], color=fcol[f], ms=6, mfc="white")
   ax.set_xscale("log")
@@ -288,12 +294,20 @@ def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark):
   _save(fig, path, title, titles, bbox_inches="tight", bbox_extra_artists=legends)
 
 
-def make_work_precision(outdir, bench_path, prefix=""):
+def make_work_precision(outdir, bench_path, prefix="", include=()):
   """Returns (figure files, not-plotted rows [(key, setting, reason)], header). `prefix` keeps a
   second diagram set (e.g. the Simbody peer sweep) from overwriting the first. The first
   figure overlays each formulation's Pareto front; the others have one panel per formulation
-  with every integrator and setting, failures as crosses on a row below the data."""
+  with every integrator and setting, failures as crosses on a row below the data. `include`:
+  directories of outside results scored by `kneedyn score` (bench_data.load_included, checked
+  against the sweep's scene and reference), drawn beside the sweep's, their failures counted
+  as failures; results the sweep file already holds (work_precision --include) are drawn too.
+  header["included_runs"] lists every outside run drawn."""
   header, runs = load_bench(bench_path)
+  for d in include:
+    runs += load_included(d, header.get("scene"), reference_command(header))
+  outside = {r["formulation"] for r in runs if r.get("origin") == "outside"}
+  header["included_runs"] = [r for r in runs if r.get("origin") == "outside"]
   ok_runs, failed = split_runs(runs)
   forms = sorted({r["formulation"] for r in runs})
   integs = sorted({r["integrator"] or "-" for r in runs})
@@ -305,7 +319,7 @@ def make_work_precision(outdir, bench_path, prefix=""):
   figdir = os.path.join(outdir, "figures")
   os.makedirs(figdir, exist_ok=True)
   files = [prefix + "work_precision_pareto.png"]
-  _pareto_figure(os.path.join(figdir, files[0]), header, runs, ok_runs, failed, forms, fcol, imark)
+  _pareto_figure(os.path.join(figdir, files[0]), header, runs, ok_runs, failed, forms, fcol, imark, outside)
   specs = [("work_precision_cpu.png", "cpu_s", "CPU time per run (median) [s]", lambda r: r["scd"],
             POSITION_SCD_LABEL),
            ("work_precision_residuals.png", "residual_evaluations", "Residual (right-hand-side) evaluations",
@@ -344,7 +358,7 @@ def make_work_precision(outdir, bench_path, prefix=""):
         ax.semilogx([r[xkey] for r in placed], [fail_y] * len(placed), label=f"failed / wrong event ({len(mine)})",
                     **FAILURE_MARKER)
       ax.axhline(fail_y + 0.5, color="k", lw=0.5, ls="--")
-      titles.append(failure_title(f, len(mine), len(mine) - len(placed)))
+      titles.append(failure_title(f, len(mine), len(mine) - len(placed), outside=f in outside))
       ax.set_title(titles[-1], color=fcol[f], fontsize=10, fontweight="bold")
       ax.grid(alpha=0.3, which="both")
       ax.set_ylim(fail_y - 0.7, top)
@@ -371,12 +385,14 @@ def main(argv=None):
   ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
   ap.add_argument("--out", required=True, help="directory written by run_families.py")
   ap.add_argument("--bench", help="benchmark JSON (work-precision diagrams)")
+  ap.add_argument("--include", action="append", default=[], metavar="DIR",
+                  help="outside results scored by kneedyn score under DIR, beside the sweep's (repeatable)")
   args = ap.parse_args(argv)
   _, members = load_families(args.out)
   files = make_family_figures(args.out, members)
   print(f"figures: {len(files)} family figures -> {os.path.join(args.out, 'figures')}")
   if args.bench and os.path.exists(args.bench):
-    wp, failed, _ = make_work_precision(args.out, args.bench)
+    wp, failed, _ = make_work_precision(args.out, args.bench, include=args.include)
     print(f"figures: {len(wp)} work-precision figures, {len(failed)} failed runs listed")
   return 0
 

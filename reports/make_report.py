@@ -336,14 +336,38 @@ def calibration_part(outdir):
   return "\n".join(parts)
 
 
-def bench_section(outdir, bench, prefix="", title="Work-precision", anchor="work-precision", intro=""):
+def included_table(runs):
+  """The outside results drawn in the diagrams (kneedyn score's records): solver, method,
+  setting, status, scd, CPU time as the outside driver measured it, and the score file."""
+  rows = []
+  for r in runs:
+    scd, cpu = r.get("scd"), r.get("cpu_s")
+    rows.append([r["formulation"], r.get("integrator") or "—", bench_data.setting_str(r.get("setting") or {}),
+                 r["status"] + (f": {r['reason']}" if r.get("reason") else ""),
+                 f"{scd:.2f}" if isinstance(scd, (int, float)) else "—",
+                 f"{cpu:.4g}" if isinstance(cpu, (int, float)) else "—", os.path.basename(os.path.dirname(r.get("source") or ""))
+                 + "/" + os.path.basename(r.get("source") or "")])
+  return ("<h3>Outside solvers (scored by <code>kneedyn score</code>)</h3>"
+          "<p>Outside solvers ran the knee through the open problem interface (<code>docs/problem.md</code>: "
+          "SciPy's <code>solve_ivp</code> on <code>kneedyn.Problem</code>, examples/python/scipy_on_the_knee.py; a "
+          "C program with RK4 on <code>kneedyn/problem.h</code>, examples/c/rk4_on_the_knee.c; "
+          "examples/outside_results.sh runs them) and were scored by <code>kneedyn score</code> against the same "
+          "reference with the same metrics, their failures counted as failures. Their CPU times are measured by "
+          "the outside driver (Python's <code>time.process_time</code>, C's <code>clock</code>, around the whole "
+          "hybrid loop, interpreter overhead included), once, on the machine that built this report, not by Google "
+          "Benchmark in the sweep's run: compare them as orders of magnitude.</p>"
+          "<div class='scroll'>" + table(["solver", "method", "setting", "status", "scd", "CPU [s]", "score file"], rows)
+          + "</div>")
+
+
+def bench_section(outdir, bench, prefix="", title="Work-precision", anchor="work-precision", intro="", include=()):
   parts = [f"<h2 id='{anchor}'>{esc(title)}</h2>"]
   if intro:
     parts.append(intro)
   if not bench or not os.path.exists(bench):
     parts.append("<p>No benchmark JSON given (<code>--bench JSON</code>); diagrams omitted.</p>")
     return "\n".join(parts)
-  files, failed, header = figures.make_work_precision(outdir, bench, prefix)
+  files, failed, header = figures.make_work_precision(outdir, bench, prefix, include)
   prov = header.get("provenance") or {}
   kv = [("Source", os.path.basename(bench)), ("Scene", header.get("scene", "?")),
         ("Sweep", f"{header.get('mode', '?')} (repetitions {header.get('repetitions', '?')}, tightest rtol "
@@ -368,6 +392,8 @@ def bench_section(outdir, bench, prefix="", title="Work-precision", anchor="work
     if prefix + fname in files:
       parts.append(f"<figure><img src='figures/{esc(prefix + fname)}' alt='{esc(caption)}'>"
                    f"<figcaption>{esc(caption)}</figcaption></figure>")
+  if header.get("included_runs"):
+    parts.append(included_table(header["included_runs"]))
   if failed:
     parts.append(f"<details><summary>{len(failed)} runs drawn as failures (failed or wrong event)</summary>")
     parts.append(table(["formulation / integrator", "setting", "why"], [list(map(str, f)) for f in failed]))
@@ -474,10 +500,10 @@ def hard_cases_section(hard_cases):
   return "\n".join(parts)
 
 
-def commands_section(outdir, kneedyn, quick, bench, fam):
+def commands_section(outdir, kneedyn, quick, bench, fam, include=()):
   kd = kneedyn or "build/formulations/kneedyn"
   cmd = f"/usr/bin/python3 reports/report.py --kneedyn {kd} --out {outdir}" + (" --quick" if quick else "") + (
-      f" --bench {bench}" if bench else "")
+      f" --bench {bench}" if bench else "") + "".join(f" --include {d}" for d in include)
   cands = [m for m in fam.get("members", []) if m.get("command")]
   one = next((m for m in cands if m["name"] == "amplitude_100"), cands[0] if cands else None)
   lines = ["# whole report (families + sensitivity + figures + claims + this page)", cmd,
@@ -498,7 +524,7 @@ PEER_INTRO = ("<p>Simbody's integrators (<code>crosscheck/simbody</code>, the ch
               "times compare as ratios. Same reference and metrics as above.</p>")
 
 
-def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, peer_bench=None):
+def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, peer_bench=None, include=()):
   fam, members = load_families(outdir)
   with open(os.path.join(outdir, "claims.json")) as f:
     rows = json.load(f)
@@ -512,11 +538,11 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, 
           "<a href='#hard-cases'>Hard cases</a>"
           "<a href='#reproduce'>Reproduction</a></nav>",
           summary_section(fam, members), claims_section(rows), figures_section(outdir),
-          sensitivity_section(outdir), reconstruction_section(outdir), global_sensitivity.section(outdir), bench_section(outdir, bench), \
+          sensitivity_section(outdir), reconstruction_section(outdir), global_sensitivity.section(outdir), bench_section(outdir, bench, include=include), \
           methods_comparison.section(outdir, kneedyn, bench), \
           *([bench_section(outdir, peer_bench, "peer_", "kneedyn and Simbody, same run", "peer-work-precision",
                            PEER_INTRO)] if peer_bench else []), hard_cases_section(hard_cases),
-          commands_section(outdir, kneedyn, quick, bench, fam)]
+          commands_section(outdir, kneedyn, quick, bench, fam, include)]
   page = ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
           "<title>kneedyn chapter report</title><style>" + CSS + "</style></head><body>\n"
           + "\n".join(body) + "\n</body></html>\n")

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """One command for the whole chapter report: families + sensitivity runs, figures, claims, HTML.
 
-  report.py --kneedyn PATH --out DIR [--quick] [--bench JSON] [--hard-cases CSV]
+  report.py --kneedyn PATH --out DIR [--quick] [--bench JSON] [--include DIR]... [--hard-cases CSV]
             [--reconstruction [--calibrate BIN]]
 
 Exit status: 0 when every family and sensitivity run completed (possibly with a documented
@@ -16,6 +16,7 @@ import sys
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, HERE)
+import bench_data  # noqa: E402
 import claims  # noqa: E402
 import figures  # noqa: E402
 import make_report  # noqa: E402
@@ -31,6 +32,9 @@ def main(argv=None):
   ap.add_argument("--bench", help="benchmark JSON for the work-precision diagrams")
   ap.add_argument("--peer-bench", help="work-precision JSON with Simbody's integrators beside kneedyn's, "
                   "measured in one run (crosscheck/simbody/simbody_work_precision --merge)")
+  ap.add_argument("--include", action="append", default=[], metavar="DIR",
+                  help="outside solvers' results scored by kneedyn score under DIR (score.json, *.score.json), "
+                  "drawn beside the --bench sweep (repeatable; examples/outside_results.sh writes them)")
   ap.add_argument("--hard-cases", help="hard_cases.csv (or .md beside it) from kneedyn_catalog")
   ap.add_argument("--reconstruction", action="store_true", help="run the reconstruction study")
   ap.add_argument("--calibrate", help="calibrate_reconstruction binary: also the Ceres calibration")
@@ -39,6 +43,17 @@ def main(argv=None):
     if path and not os.path.exists(path):
       print(f"report: {flag} = '{path}': file not found", file=sys.stderr)
       return 2
+  if args.include and not args.bench:
+    print("report: --include needs --bench (the sweep the outside results are drawn beside)", file=sys.stderr)
+    return 2
+  if args.include:  # checked before the long family runs: scene and reference must match the sweep's
+    header, _ = bench_data.load_bench(args.bench)
+    for d in args.include:
+      try:
+        bench_data.load_included(d, header.get("scene"), bench_data.reference_command(header))
+      except ValueError as e:
+        print(f"report: {e}", file=sys.stderr)
+        return 2
   fam_args = ["--kneedyn", args.kneedyn, "--out", args.out] + (["--quick"] if args.quick else [])
   rc = run_families.main(fam_args)
   if rc == 2 or not os.path.exists(os.path.join(args.out, "families.json")):
@@ -54,7 +69,7 @@ def main(argv=None):
   figures.main(["--out", args.out])
   claims.build_claims(args.out)
   path = make_report.make_report(args.out, args.bench, os.path.abspath(args.kneedyn), args.quick,
-                                 args.hard_cases, args.peer_bench)
+                                 args.hard_cases, args.peer_bench, args.include)
   print(f"report: {path}")
   return 1 if rc else 0
 

@@ -4,6 +4,7 @@
 
 #include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
+#include "solver/newton_euler.hpp"
 
 namespace kneedyn {
 
@@ -104,6 +105,54 @@ ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double 
   ConstrainedAcceleration out;
   SolveConstrainedAcceleration(model, t, q, qd, active, gains, ligament_branch, &workspace, &out);
   return out;
+}
+
+bool ConstrainedAccelerationJacobian(const Model& model, double t, const Vector6d& q, const Vector6d& qd,
+                                     const Vector6d& qdd, const std::vector<int>& active,
+                                     const std::vector<double>& normal_force,
+                                     const std::vector<signed char>* ligament_branch, double* dqdd_dx) {
+  const int k = static_cast<int>(active.size());
+  if (k > kMaxJetSize - 18) {
+    Throw<SolverError>("ConstrainedAccelerationJacobian", k, " active contacts; at most ", kMaxJetSize - 18);
+  }
+  std::vector<SphereOnPlane> sop(k);
+  for (int c = 0; c < k; ++c) {
+    if (!SphereOnPlaneForm(model.contacts[active[c]], &sop[c])) return false;
+  }
+  // Jet components: 0–5 q, 6–11 q̇, 12–17 q̈, 18… N.
+  Vector6<JetD> qj, qdj, qddj;
+  for (int i = 0; i < 6; ++i) {
+    qj(i) = JetD(q(i), i);
+    qdj(i) = JetD(qd(i), 6 + i);
+    qddj(i) = JetD(qdd(i), 12 + i);
+  }
+  std::vector<JetD> nj(k);
+  std::vector<ContactGeometryTpl<JetD>> geo(k);
+  const EulerAngleTrig<JetD> trig = EulerAngleTrigOf(qj);
+  const PoseTpl<JetD> pose = PoseFromCoordinates(qj, trig);
+  for (int c = 0; c < k; ++c) {
+    nj[c] = JetD(normal_force[c], 18 + c);
+    geo[c] = SphereOnPlaneContact(sop[c], pose);
+  }
+  DataTpl<JetD> data(model);
+  data.ligament_branch = ligament_branch;
+  const Vector6<JetD> r = NewtonEulerResidual(model, t, qj, trig, qdj, qddj, pose, k, geo.data(), nj.data(), &data);
+  const Vector6<JetD> nu = GeneralizedVelocity(qj, trig, qdj);
+  const Vector6<JetD> nu_dot = GeneralizedAcceleration(qj, trig, qdj, qddj);
+  const int m = 6 + k;
+  MatrixXd H_x(m, 12), H_z(m, m);
+  for (int row = 0; row < m; ++row) {
+    const JetD h = row < 6 ? r(row)
+                           : JetD(ContactConstraintRow(pose, geo[row - 6]).dot(nu_dot)) +
+                                 SphereOnPlaneRateTerm(sop[row - 6], pose, nu);
+    for (int j = 0; j < 12; ++j) H_x(row, j) = h.v(j);
+    for (int j = 0; j < m; ++j) H_z(row, j) = h.v(12 + j);
+  }
+  const MatrixXd dz_dx = -H_z.fullPivLu().solve(H_x);
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 12; ++j) dqdd_dx[12 * i + j] = dz_dx(i, j);
+  }
+  return true;
 }
 
 }  // namespace kneedyn

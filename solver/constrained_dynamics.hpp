@@ -68,6 +68,18 @@ ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double 
                                                      BaumgarteGains gains = {},
                                                      const std::vector<signed char>* ligament_branch = nullptr);
 
+// ∂q̈/∂(q, q̇) (6×12, row-major into dqdd_dx) of the hidden-constraint solve above (gains 0)
+// at (q, q̇) with its solution q̈, N (normal_force, one per active contact), exactly: by the
+// implicit function theorem on H(x, z) = (Newton–Euler residual, G ν̇ + κ) = 0 with
+// x = (q, q̇), z = (q̈, N), dz/dx = −H_z⁻¹ H_x, H_x and H_z by forward AD (ceres::Jet)
+// through NewtonEulerResidual and the contact kinematics. Returns false (nothing written)
+// when a contact is not a sphere on a plane: κ of the general pair is itself a derivative
+// (ContactRateTerm), whose derivative would need nested Jets.
+bool ConstrainedAccelerationJacobian(const Model& model, double t, const Vector6d& q, const Vector6d& qd,
+                                     const Vector6d& qdd, const std::vector<int>& active,
+                                     const std::vector<double>& normal_force,
+                                     const std::vector<signed char>* ligament_branch, double* dqdd_dx);
+
 // Gaps φ_i (m) of the listed contacts at q and their Jacobian
 // ∂φ/∂q = G B(q) (k×6; G from contact.hpp, B = diag(1, E)).
 void ContactGapsAndJacobian(const Model& model, const Vector6d& q, const std::vector<int>& contacts,

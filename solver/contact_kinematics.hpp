@@ -126,6 +126,17 @@ bool ContactKinematics(const ContactPair& pair, const PoseTpl<T>& pose,
 ContactGeometry RequireContactKinematics(const ContactPair& pair, const Pose& pose,
                                          const char* caller, double chart[4] = nullptr);
 
+// κ of a sphere on a plane (the gap is linear in R0; n = R n̂′), any scalar type:
+//   κ = (w_F × (w_F × n)) · (C − R0) − 2 (w_F × n) · v_F.
+template <typename T>
+T SphereOnPlaneRateTerm(const SphereOnPlane& sop, const PoseTpl<T>& pose, const Vector6<T>& nu) {
+  const Vector3<T> n = pose.R_FT * sop.normal_T.template cast<T>();
+  const Vector3<T> w_F = pose.R_FT * Vector3<T>(nu.template tail<3>());
+  const Vector3<T> v_F = nu.template head<3>();
+  const Vector3<T> wxn = w_F.cross(n);
+  return w_F.cross(wxn).dot(sop.centre_F.template cast<T>() - pose.p_FoTo_F) - T(2.0) * wxn.dot(v_F);
+}
+
 // κ in φ̈ = G ν̇ + κ at (q, q̇) (header comment). Throws like RequireContactKinematics.
 double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6d& qd);
 // The same with the pose and ν = (v_F, w_T) of (q, q̇) already at hand (the hidden-constraint

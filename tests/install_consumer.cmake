@@ -3,21 +3,8 @@
 # against it, runs the installed kneedyn from an unrelated directory (data found in
 # share/kneedyn), checks the pkg-config file and that no internal header is installed.
 #   cmake -DBUILD=<build dir> -DSOURCE=<source dir> -DWORK=<scratch dir> -P install_consumer.cmake
-foreach(v BUILD SOURCE WORK)
-  if(NOT DEFINED ${v})
-    message(FATAL_ERROR "install_consumer.cmake: -D${v}=... is required")
-  endif()
-endforeach()
-file(REMOVE_RECURSE ${WORK})
-set(prefix ${WORK}/prefix)
-
-function(run)
-  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-  if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "failed (${rc}): ${ARGN}\n${out}\n${err}")
-  endif()
-  set(out "${out}" PARENT_SCOPE)
-endfunction()
+set(REQUIRED_VARIABLES BUILD SOURCE WORK)
+include(${CMAKE_CURRENT_LIST_DIR}/install_common.cmake)
 
 run(${CMAKE_COMMAND} --install ${BUILD} --prefix ${prefix})
 foreach(f bin/kneedyn bin/kneedyn_catalog share/kneedyn/scenes/chapter_impact.yaml

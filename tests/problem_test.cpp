@@ -14,8 +14,10 @@
 #include <cstring>
 #include <limits>
 
+#include "formulations/internal/ode_integrator.hpp"
 #include "formulations/simulator.hpp"
 #include "kneedyn/problem.h"
+#include "spy_stepper.hpp"
 #include "test_support.hpp"
 
 namespace kneedyn {
@@ -23,37 +25,7 @@ namespace {
 
 using test_support::ChapterScene;
 using test_support::ScenesDir;
-
-// Records the simulator's restarts (state and events watched) and the event states with the
-// roots found.
-class SpyStepper : public Formulation {
- public:
-  SpyStepper(const std::string& name, const Scene& scene) : inner_(CreateFormulation(name, scene, {})) {}
-  ContactForm contact_form() const override { return inner_->contact_form(); }
-  void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
-    starts.push_back(state);
-    start_events.push_back(events);
-    inner_->Start(state, events);
-  }
-  AdvanceResult Advance(double t_out, MechanicalState* state) override {
-    const AdvanceResult r = inner_->Advance(t_out, state);
-    if (r.status == AdvanceStatus::kEvent) {
-      event_states.push_back(*state);
-      fired.push_back(r.events);
-      event_phase.push_back(static_cast<int>(starts.size()) - 1);
-    }
-    return r;
-  }
-  SolverStats stats() const override { return inner_->stats(); }
-
-  std::vector<MechanicalState> starts, event_states;
-  std::vector<std::vector<EventSpec>> start_events;
-  std::vector<std::vector<int>> fired;
-  std::vector<int> event_phase;
-
- private:
-  std::unique_ptr<Formulation> inner_;
-};
+using test_support::SpyStepper;
 
 struct SimulatorRun {
   explicit SimulatorRun(const std::string& formulation, const Scene& scene) : spy(formulation, scene) {
@@ -74,13 +46,32 @@ std::vector<std::string> Names(const std::vector<EventSpec>& specs) {
   return n;
 }
 
+// Problem's events without mde's chart switch (the simulator's mde switches charts inside
+// a step, no event).
+std::vector<std::string> PhaseEventNames(const Problem& p) {
+  std::vector<std::string> n = p.event_names();
+  if (p.is_mde() && !n.empty() && n.back() == Problem::kChartEvent) n.pop_back();
+  return n;
+}
+
 void ExpectBitwise(const double* a, const double* b, int n, const std::string& what) {
   for (int i = 0; i < n; ++i) EXPECT_EQ(std::memcmp(&a[i], &b[i], sizeof(double)), 0) << what << "[" << i << "]: " << a[i] << " vs " << b[i];
 }
 
-// The y of a form at a mechanical state (DaeSystem's layout for the DAE forms).
+// The y of a form at a mechanical state (DaeSystem's layout for the DAE forms; for mde the
+// coordinates `free` of the chart in use, ẏ = (ṡ, s̈) from the state's q̈).
 void FormValues(const std::string& form, const Model& model, const MechanicalState& state, std::vector<double>* y,
-                std::vector<double>* yp) {
+                std::vector<double>* yp, const std::vector<int>& free = {}) {
+  if (form == "mde") {
+    const int m = static_cast<int>(free.size());
+    y->assign(2 * m, 0.0);
+    yp->assign(2 * m, 0.0);
+    for (int j = 0; j < m; ++j) {
+      (*y)[j] = state.q(free[j]), (*y)[m + j] = state.qd(free[j]);
+      (*yp)[j] = state.qd(free[j]), (*yp)[m + j] = state.qdd(free[j]);
+    }
+    return;
+  }
   if (form == "ede") {
     y->assign(12, 0.0);
     yp->assign(12, 0.0);
@@ -98,24 +89,31 @@ void FormValues(const std::string& form, const Model& model, const MechanicalSta
 }
 
 // The phase starts and transitions of Problem equal the simulator's, bitwise, along the
-// whole chapter run (lift-off, then the end flexion).
+// whole chapter run (lift-off, then the end flexion). For mde the phase start's ẏ is the
+// chart's (ṡ, s̈) where the simulator's start holds q̈ of the hidden-constraint solve: the
+// same physics by two formulations, compared to 1e-9 relative.
 TEST(Problem, TransitionEqualsSimulator) {
   const Scene& scene = ChapterScene();
-  for (const std::string form : {"ede", "dae", "dae-ggl"}) {
+  for (const std::string form : {"ede", "mde", "dae", "dae-ggl"}) {
     SCOPED_TRACE(form);
     SimulatorRun run(form, scene);
     ASSERT_EQ(run.record.end_reason, "flexion_90");
     Problem problem(scene, form);
+    const auto expect_yp0 = [&](const std::vector<double>& want, const char* what) {
+      if (form != "mde") return ExpectBitwise(problem.yp0().data(), want.data(), problem.size(), what);
+      for (int i = 0; i < problem.size(); ++i) EXPECT_NEAR(problem.yp0()[i], want[i], 1e-9 * (1.0 + std::abs(want[i]))) << what << i;
+    };
     std::vector<double> y, yp;
-    FormValues(form, scene.model, run.spy.starts[0], &y, &yp);
+    FormValues(form, scene.model, run.spy.starts[0], &y, &yp, problem.free_coordinates());
+    expect_yp0(yp, "yp0 of phase 0");
     ASSERT_EQ(problem.size(), static_cast<int>(y.size()));
     ExpectBitwise(problem.y0().data(), y.data(), problem.size(), "y0 of phase 0");
-    EXPECT_EQ(problem.event_names(), Names(run.spy.start_events[0]));
+    EXPECT_EQ(PhaseEventNames(problem), Names(run.spy.start_events[0]));
     ASSERT_GE(run.spy.event_states.size(), 2u);
     for (size_t e = 0; e < run.spy.event_states.size(); ++e) {
       ASSERT_EQ(run.spy.event_phase[e], problem.phase());
       const MechanicalState& at = run.spy.event_states[e];
-      FormValues(form, scene.model, at, &y, &yp);
+      FormValues(form, scene.model, at, &y, &yp, problem.free_coordinates());
       const bool ended = problem.Transition(at.t, y.data(), yp.data(), static_cast<int>(y.size()), run.spy.fired[e]);
       const bool last = e + 1 == run.spy.event_states.size();
       ASSERT_EQ(ended, last);
@@ -125,11 +123,11 @@ TEST(Problem, TransitionEqualsSimulator) {
       }
       const MechanicalState& next = run.spy.starts[run.spy.event_phase[e] + 1];
       EXPECT_EQ(problem.phase_state().active, next.active);
-      FormValues(form, scene.model, next, &y, &yp);
+      FormValues(form, scene.model, next, &y, &yp, problem.free_coordinates());
       ASSERT_EQ(problem.size(), static_cast<int>(y.size()));
       ExpectBitwise(problem.y0().data(), y.data(), problem.size(), "y0 after the transition");
-      ExpectBitwise(problem.yp0().data(), yp.data(), problem.size(), "yp0 after the transition");
-      EXPECT_EQ(problem.event_names(), Names(run.spy.start_events[run.spy.event_phase[e] + 1]));
+      expect_yp0(yp, "yp0 after the transition");
+      EXPECT_EQ(PhaseEventNames(problem), Names(run.spy.start_events[run.spy.event_phase[e] + 1]));
     }
     ASSERT_EQ(problem.events_recorded().size(), run.record.events.size());
     for (size_t k = 0; k < run.record.events.size(); ++k) {
@@ -175,10 +173,125 @@ TEST(Problem, EdeRhsEqualsHiddenConstraintSolve) {
   // Lift-off events are the contact forces of the same solve.
   EXPECT_EQ(p.event_names()[0], std::string("liftoff_") + CompartmentName(scene.model.contacts[s.active[0]].compartment));
   EXPECT_EQ(g[0], a.normal_force[0]);
-  // The difference-quotient ∂f/∂y: its q̇ block of ∂(q̇)/∂q̇ is the identity.
+  // The exact ∂f/∂y: its q̇ rows are (0 I) exactly.
   for (int i = 0; i < 6; ++i) {
-    for (int j = 0; j < 12; ++j) EXPECT_NEAR(J[12 * i + j], j == 6 + i ? 1.0 : 0.0, 1e-8) << i << "," << j;
+    for (int j = 0; j < 12; ++j) EXPECT_EQ(J[12 * i + j], j == 6 + i ? 1.0 : 0.0) << i << "," << j;
   }
+  EXPECT_EQ(kneedyn_problem_destroy(h), KNEEDYN_OK);
+}
+
+// Central differences of f against the exact ∂f/∂y of ede (forward AD + the implicit
+// function theorem), in the first phase (2 contacts) and after the lateral lift-off (1), to
+// 1e-5 of each column's scale. Step 1e-8 (1 + |y_j|): as for the DAE residual, the ligament
+// terms make the quotient converge only as O(h) (measured in the first phase: 4.0e-4, 4.0e-5,
+// 4.0e-6 relative at h = 1e-6, 1e-7, 1e-8, then round-off, 3.7e-5 at 1e-9): a wrong
+// Jacobian would stay off by a constant instead.
+// mde likewise: its exact ∂f/∂y (the chain rule through the chart's elimination on ede's
+// constrained-acceleration Jacobian) against central differences of its own f.
+class OdeJacobian : public ::testing::TestWithParam<const char*> {};
+INSTANTIATE_TEST_SUITE_P(Problem, OdeJacobian, ::testing::Values("ede", "mde"));
+
+TEST_P(OdeJacobian, MatchesCentralDifferences) {
+  const std::string form = GetParam();
+  const Scene& scene = ChapterScene();
+  SimulatorRun run(form, scene);
+  for (size_t phase : {size_t{0}, size_t{1}}) {
+    SCOPED_TRACE(phase);
+    Problem p(scene, form);
+    // To the phase after the lift-off: the simulator's event states handed over in turn.
+    for (size_t e = 0; phase == 1 && p.phase_state().active.size() == 2; ++e) {
+      ASSERT_LT(e, run.spy.event_states.size());
+      std::vector<double> y, yp;
+      FormValues(form, scene.model, run.spy.event_states[e], &y, &yp, p.free_coordinates());
+      ASSERT_FALSE(p.Transition(run.spy.event_states[e].t, y.data(), nullptr, p.size(), run.spy.fired[e]));
+    }
+    const int n = p.size();
+    const std::vector<double> y = Perturbed(p);
+    const double t = p.phase_start_time() + 1.0e-3;
+    std::vector<double> J(n * n);
+    p.Jacobian(t, y.data(), n, J.data());
+    double worst = 0.0;
+    for (int j = 0; j < n; ++j) {
+      std::vector<double> yh = y, fp(n), fm(n);
+      const double h = 1e-8 * (1.0 + std::abs(y[j]));
+      yh[j] = y[j] + h, p.Rhs(t, yh.data(), n, fp.data());
+      yh[j] = y[j] - h, p.Rhs(t, yh.data(), n, fm.data());
+      double scale = 1.0;
+      for (int i = 0; i < n; ++i) scale = std::max(scale, std::abs(J[n * i + j]));
+      for (int i = 0; i < n; ++i) {
+        const double fd = (fp[i] - fm[i]) / (2 * h);
+        worst = std::max(worst, std::abs(J[n * i + j] - fd) / scale);
+        EXPECT_NEAR(J[n * i + j], fd, 1e-5 * scale) << p.component_names()[j] << " row " << i;
+      }
+    }
+    std::printf("%s phase %zu (%zu contacts): max |J - FD| / column scale = %.2g\n", form.c_str(), phase,
+                p.phase_state().active.size(), worst);
+  }
+}
+
+// The mde form's f and events are the mde formulation's own right-hand side and root
+// functions (its OdeProblem callbacks, started at the same phase start), bitwise, through
+// Problem and the C interface; its chart leaves the contacts' translations out.
+TEST(Problem, MdeRhsAndEventsEqualMdeFormulation) {
+  const Scene& scene = ChapterScene();
+  SimulatorRun run("mde", scene);
+  Problem p(scene, "mde");
+  ASSERT_EQ(p.phase_state().active.size(), 2u);
+  ASSERT_EQ(p.size(), 8);  // 6 − 2 free coordinates and their rates
+  EXPECT_EQ(p.free_coordinates(), (std::vector<int>{kY0, kAlpha, kBeta, kGamma}));
+  std::unique_ptr<Formulation> mde = CreateFormulation("mde", scene, {});
+  mde->Start(run.spy.starts[0], run.spy.start_events[0]);
+  OdeProblem* ode = dynamic_cast<OdeProblem*>(mde.get());
+  ASSERT_NE(ode, nullptr);
+  const int n = p.size();
+  const std::vector<double> y = Perturbed(p);
+  const double t = p.t0() + 1.0e-3;
+  std::vector<double> f(n), f_ref(n), f_c(n), J(n * n), J_c(n * n);
+  p.Rhs(t, y.data(), n, f.data());
+  ASSERT_TRUE(ode->Rhs(t, y.data(), f_ref.data()));
+  ExpectBitwise(f.data(), f_ref.data(), n, "f");
+  const int m = p.event_count();
+  ASSERT_EQ(p.event_names().back(), Problem::kChartEvent);
+  std::vector<double> g(m), g_ref(m - 1), g_c(m);
+  p.Events(t, y.data(), n, g.data());
+  ode->Roots(t, y.data(), g_ref.data());
+  ExpectBitwise(g.data(), g_ref.data(), m - 1, "events");
+  EXPECT_GT(g[m - 1], 0.0) << "the chart chosen at the start is the best one";
+  kneedyn_problem* h = nullptr;
+  ASSERT_EQ(kneedyn_problem_create((ScenesDir() + "/chapter_impact.yaml").c_str(), "mde", 0.0, 0.0, &h), KNEEDYN_OK)
+      << kneedyn_last_error();
+  int n_c = 0;
+  ASSERT_EQ(kneedyn_problem_size(h, &n_c), KNEEDYN_OK);
+  ASSERT_EQ(n_c, n);
+  ASSERT_EQ(kneedyn_problem_rhs(h, t, y.data(), n, f_c.data()), KNEEDYN_OK) << kneedyn_last_error();
+  ExpectBitwise(f_c.data(), f.data(), n, "C f");
+  p.Jacobian(t, y.data(), n, J.data());
+  ASSERT_EQ(kneedyn_problem_jacobian(h, t, y.data(), n, J_c.data()), KNEEDYN_OK);
+  ExpectBitwise(J_c.data(), J.data(), n * n, "C df/dy");
+  ASSERT_EQ(kneedyn_problem_events(h, t, y.data(), n, g_c.data(), m), KNEEDYN_OK);
+  ExpectBitwise(g_c.data(), g.data(), m, "C events");
+  // The coordinates y stands for: s itself, and the eliminated x0, z0 on both contacts.
+  double q[6], qd[6];
+  ASSERT_EQ(kneedyn_problem_coordinates(h, t, y.data(), nullptr, n, q, qd), KNEEDYN_OK);
+  for (int j = 0; j < 4; ++j) EXPECT_EQ(q[p.free_coordinates()[j]], y[j]);
+  const MechanicalState at = p.Coordinates(t, y.data(), nullptr, n);
+  double gap = 1.0, rate = 1.0;
+  MaxActiveConstraintResiduals(scene.model, at, &gap, &rate);
+  EXPECT_LT(gap, 1e-15) << "the elimination puts both contacts on their surfaces";
+  EXPECT_LT(rate, 1e-12);
+  // The other form's calls and a chart switch with another event are refused.
+  EXPECT_EQ(kneedyn_problem_residual(h, t, y.data(), y.data(), n, f_c.data()), KNEEDYN_BAD_ARGUMENT);
+  const int both[2] = {0, m - 1};
+  int ended = 0;
+  EXPECT_EQ(kneedyn_problem_transition(h, t, y.data(), nullptr, n, both, 2, &ended), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("mde_chart"), std::string::npos) << kneedyn_last_error();
+  // The chart switch alone: the same state in the best chart (here the same one), same size.
+  const int chart = m - 1;
+  ASSERT_EQ(kneedyn_problem_transition(h, t, y.data(), nullptr, n, &chart, 1, &ended), KNEEDYN_OK);
+  EXPECT_EQ(ended, 0);
+  std::vector<double> y_next(n);
+  ASSERT_EQ(kneedyn_problem_initial_values(h, y_next.data(), nullptr, n), KNEEDYN_OK);
+  ExpectBitwise(y_next.data(), y.data(), n, "y after the chart switch");
   EXPECT_EQ(kneedyn_problem_destroy(h), KNEEDYN_OK);
 }
 

@@ -174,5 +174,93 @@ TEST(Score, MissingTimesAndBadColumns) {
   fs::remove_all(dir);
 }
 
+// Rows off the reference's sampling grid (docs/problem.md): the reference's own check
+// configuration (ede dopri5 rtol 1e-13, which agrees with the stored samples to 11.2 digits)
+// written every 5 ms scores >= 10 digits over all its rows, three quarters of them off the
+// 20 ms grid, compared with the reference configuration run again there; a planted 1e-6 deg
+// error on one off-grid row brings the scd to ~6 (so those rows count); and a reference
+// whose recorded configuration cannot reproduce its samples is refused.
+TEST(Score, RowsOffTheSamplingGridAreComparedWithTheReferenceRunAgain) {
+  const Scene& scene = ChapterScene();
+  RunSettings settings;
+  settings.formulation = "ede";
+  settings.options.integrator = IntegratorOption("dopri5");
+  settings.options.rtol = 1e-13;
+  settings.options.atol = 1e-15;
+  settings.output_interval = 0.005;
+  const RunResult run = RunScene(scene, settings);
+  ASSERT_TRUE(run.completed) << run.failure;
+  const fs::path dir = fs::temp_directory_path() / ("kneedyn_score_test_dense" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  WriteRunOutputs(dir.string(), scene, settings, run);
+  const std::string csv = (dir / "trajectory.csv").string();
+  const bench::Solution& stored = Reference().solution;
+  bench::ScoredResult result = bench::ReadResultCsv(csv, scene, stored);
+  const std::vector<double> off = bench::OffGridTimes(result, stored);
+  ASSERT_GE(off.size(), 3 * (stored.times.size() - 1) - 3);  // 5 ms rows between the 20 ms ones
+  double reproduced = 0.0;
+  const bench::Solution dense = bench::DenseReference(scene, Reference().json, stored, off, &reproduced);
+  EXPECT_GE(reproduced, Reference().json.at("accuracy_scd").get<double>());
+  EXPECT_EQ(dense.times.size(), stored.times.size() + off.size());
+  const bench::Score score = bench::ScoreResult(result, dense);
+  std::printf("ede dopri5 1e-13 every 5 ms: scd %.2f over %d times (%zu off the grid); reference run again: %.2f\n",
+              score.metrics.scd, score.metrics.compared_times, off.size(), reproduced);
+  EXPECT_EQ(score.metrics.missing_times, 0);
+  EXPECT_EQ(score.metrics.compared_times, static_cast<int>(dense.times.size()));
+  EXPECT_GE(score.metrics.scd, 10.0);
+
+  // One planted error on an off-grid row: flexion + 1e-6 deg at the first off-grid time.
+  std::ifstream in(csv);
+  std::stringstream text;
+  text << in.rdbuf();
+  std::istringstream lines(text.str());
+  std::string header, line, out;
+  std::getline(lines, header);
+  out = header + "\n";
+  std::vector<std::string> names;
+  {
+    std::istringstream h(header);
+    std::string cell;
+    while (std::getline(h, cell, ',')) names.push_back(cell);
+  }
+  const size_t flexion = std::find(names.begin(), names.end(), "flexion_deg") - names.begin();
+  ASSERT_LT(flexion, names.size());
+  bool planted = false;
+  while (std::getline(lines, line)) {
+    std::vector<std::string> cells;
+    std::istringstream l(line);
+    std::string cell;
+    while (std::getline(l, cell, ',')) cells.push_back(cell);
+    if (!planted && std::abs(std::stod(cells[0]) - off[0]) < 1e-12) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%.17g", std::stod(cells[flexion]) + 1e-6);
+      cells[flexion] = buf;
+      planted = true;
+    }
+    for (size_t k = 0; k < cells.size(); ++k) out += (k ? "," : "") + cells[k];
+    out += "\n";
+  }
+  ASSERT_TRUE(planted);
+  const fs::path bad_csv = dir / "planted.csv";
+  std::ofstream(bad_csv) << out;
+  const bench::ScoredResult bad = bench::ReadResultCsv(bad_csv.string(), scene, stored);
+  const bench::Score bad_score = bench::ScoreResult(bad, dense);
+  // |e| = 1e-6 deg over |α| + 1 deg, α(off[0]) < 1 deg at 5 ms: between 5.7 and 6.
+  EXPECT_GT(bad_score.metrics.scd, 5.6);
+  EXPECT_LT(bad_score.metrics.scd, 6.1);
+
+  // A reference whose recorded configuration is too loose to reproduce its samples.
+  nlohmann::json loose = Reference().json;
+  loose["primary"]["rtol"] = 1e-5;
+  loose["primary"]["atol"] = 1e-7;
+  try {
+    bench::DenseReference(scene, loose, stored, off, &reproduced);
+    ADD_FAILURE() << "a reference reproduced to " << reproduced << " digits was accepted";
+  } catch (const SolverError& e) {
+    EXPECT_NE(std::string(e.what()).find("accuracy_scd"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace kneedyn

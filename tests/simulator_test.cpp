@@ -10,6 +10,7 @@
 
 #include "solver/constraint_residuals.hpp"
 #include "solver/error.hpp"
+#include "spy_stepper.hpp"
 #include "test_support.hpp"
 
 namespace kneedyn {
@@ -17,29 +18,7 @@ namespace {
 
 using test_support::ChapterScene;
 using test_support::ScenesDir;
-
-// A formulation that remembers the states it was started from and the event states it
-// reported (delegates the integration to a registered formulation).
-class SpyStepper : public Formulation {
- public:
-  SpyStepper(const std::string& name, const Scene& scene) : inner_(CreateFormulation(name, scene, {})) {}
-  ContactForm contact_form() const override { return inner_->contact_form(); }
-  void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
-    starts.push_back(state);
-    inner_->Start(state, events);
-  }
-  AdvanceResult Advance(double t_out, MechanicalState* state) override {
-    const AdvanceResult r = inner_->Advance(t_out, state);
-    if (r.status == AdvanceStatus::kEvent) event_states.push_back(*state);
-    return r;
-  }
-  SolverStats stats() const override { return inner_->stats(); }
-
-  std::vector<MechanicalState> starts, event_states;
-
- private:
-  std::unique_ptr<Formulation> inner_;
-};
+using test_support::SpyStepper;
 
 SimulatorSettings Settings(const Scene& scene, const Formulation& stepper) {
   SimulatorSettings s;

@@ -4,12 +4,15 @@
  * the RK4 step length to 1e-13 s) and the transition to the next phase.
  *
  *   rk4_on_the_knee SCENE.yaml STEP_S OUT_DIR
- * writes OUT_DIR/trajectory.csv (rows at multiples of 0.02 s plus every event) and
- * OUT_DIR/events.csv, to be scored by `kneedyn score`. Exit code 1 on a kneedyn error. */
+ * writes OUT_DIR/trajectory.csv (rows at multiples of 0.02 s plus every event),
+ * OUT_DIR/events.csv and OUT_DIR/counters.json (f evaluations, steps) to be scored by
+ * `kneedyn score`, and OUT_DIR/cpu_time_s (the CPU time of the run, clock()). Exit code 1
+ * on a kneedyn error. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "kneedyn/problem.h"
 
@@ -19,6 +22,7 @@ static const double kOutputInterval = 0.02; /* s, the reference's sampling */
 static const double kPi = 3.14159265358979323846;
 
 static kneedyn_problem* p;
+static long rhs_evaluations = 0;
 
 static void check(int status, const char* call) {
   if (status != KNEEDYN_OK) {
@@ -38,6 +42,7 @@ static void rk4(double t, const double* y, double h, double* out) {
   check(kneedyn_problem_rhs(p, t + 0.5 * h, tmp, N, k3), "rhs");
   for (i = 0; i < N; ++i) tmp[i] = y[i] + h * k3[i];
   check(kneedyn_problem_rhs(p, t + h, tmp, N, k4), "rhs");
+  rhs_evaluations += 4;
   for (i = 0; i < N; ++i) out[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
 }
 
@@ -61,11 +66,13 @@ int main(int argc, char** argv) {
   int m, k, ended = 0, phase = 0, dirs[MAX_EVENTS];
   long next_out = 1, steps = 0;
   char path[4096];
-  FILE *traj, *events;
+  FILE *traj, *events, *out;
+  clock_t start;
   if (argc != 4 || (h = atof(argv[2])) <= 0.0) {
     fprintf(stderr, "usage: %s SCENE.yaml STEP_S OUT_DIR\n", argv[0]);
     return 2;
   }
+  start = clock();
   check(kneedyn_problem_create(argv[1], "ede", 0.0, 0.0, &p), "create");
   check(kneedyn_problem_times(p, &t, &t_end), "times");
   check(kneedyn_problem_initial_values(p, y, NULL, N), "initial_values");
@@ -133,9 +140,19 @@ int main(int argc, char** argv) {
       break;
     }
   }
-  printf("rk4, h = %g s: %ld steps, %d phases\n", h, steps, phase + 1);
+  kneedyn_problem_destroy(p);
   fclose(traj);
   fclose(events);
-  kneedyn_problem_destroy(p);
+  snprintf(path, sizeof path, "%s/cpu_time_s", argv[3]);
+  if ((out = fopen(path, "w")) != NULL) {
+    fprintf(out, "%.6g\n", (double)(clock() - start) / CLOCKS_PER_SEC);
+    fclose(out);
+  }
+  snprintf(path, sizeof path, "%s/counters.json", argv[3]);
+  if ((out = fopen(path, "w")) != NULL) {
+    fprintf(out, "{\"residual_evaluations\": %ld, \"steps\": %ld}\n", rhs_evaluations, steps);
+    fclose(out);
+  }
+  printf("rk4, h = %g s: %ld steps, %ld f evaluations, %d phases\n", h, steps, rhs_evaluations, phase + 1);
   return 0;
 }

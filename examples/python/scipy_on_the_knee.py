@@ -12,6 +12,7 @@ import argparse
 import csv
 import os
 import subprocess
+import sys
 import time
 
 import numpy as np
@@ -24,10 +25,11 @@ COLUMNS = ["x0_mm", "y0_mm", "z0_mm", "flexion_deg", "valgus_deg", "external_rot
            "vx_mm_s", "vy_mm_s", "vz_mm_s", "flexion_rate_deg_s", "valgus_rate_deg_s", "external_rotation_rate_deg_s"]
 
 
-def row(t, y, is_event):
+def row(p, t, y, is_event):
+    q, qd = p.coordinates(t, y)  # ede: y itself; mde: with the eliminated translations
     scale = [M_TO_MM] * 3 + [RAD_TO_DEG] * 3
-    pos = [y[i] * scale[i] - (90.0 if i == 4 else 0.0) for i in range(6)]  # valgus_deg = beta - 90 deg
-    return [t] + pos + [y[6 + i] * scale[i] for i in range(6)] + [int(is_event)]
+    pos = [q[i] * scale[i] - (90.0 if i == 4 else 0.0) for i in range(6)]  # valgus_deg = beta - 90 deg
+    return [t] + pos + [qd[i] * scale[i] for i in range(6)] + [int(is_event)]
 
 
 def event_functions(p):
@@ -47,8 +49,11 @@ def event_functions(p):
     return funcs
 
 
-def run(p, method, rtol, atol, dt):
-    rows, events, nfev, njev = [row(p.t0, p.y0, False)], [], 0, 0
+def run(p, method, rtol, atol, dt, out):
+    """Fills out: rows, events, nfev, njev; returns the end event's name. Raises on a failure
+    (out keeps what was reached)."""
+    rows, events = out["rows"], out["events"]
+    rows.append(row(p, p.t0, p.y0, False))
     t, y = p.t0, p.y0
     while True:
         grid = dt * np.arange(np.floor(t / dt + 1e-9) + 1, np.floor(p.t_end / dt + 1e-9) + 1)
@@ -56,40 +61,46 @@ def run(p, method, rtol, atol, dt):
                         atol=atol, **({} if method == "DOP853" else {"jac": p.jacobian}))
         if sol.status < 0:
             raise RuntimeError(f"solve_ivp ({method}) at t = {sol.t[-1] if sol.t.size else t} s: {sol.message}")
-        nfev, njev = nfev + sol.nfev, njev + sol.njev
-        rows += [row(tk, yk, False) for tk, yk in zip(sol.t, np.asarray(sol.y).T)]
+        out["nfev"], out["njev"] = out["nfev"] + sol.nfev, out["njev"] + sol.njev
+        rows += [row(p, tk, yk, False) for tk, yk in zip(sol.t, np.asarray(sol.y).T)]
         fired = [k for k, te in enumerate(sol.t_events) if te.size]
         if not fired:  # reached t_end
-            return rows, events, nfev, njev, "end_time"
+            return "end_time"
         t_event = min(sol.t_events[k][0] for k in fired)
         fired = [k for k in fired if sol.t_events[k][0] == t_event]
         y_event = sol.y_events[fired[0]][0]
-        rows = [r for r in rows if r[0] < t_event - 1e-12] + [row(t_event, y_event, True)]
+        rows[:] = [r for r in rows if r[0] < t_event - 1e-12] + [row(p, t_event, y_event, True)]
         names = p.event_names
         y_next, ended = p.transition(t_event, y_event, fired)
-        events += [(name, t_e, fl * RAD_TO_DEG) for name, t_e, fl in p.events_recorded[len(events):]]
+        events += [(name, t_e, fl * RAD_TO_DEG) for name, t_e, fl in p.events_recorded[len(events):]]  # mde_chart: none
         if ended:
-            return rows, events, nfev, njev, names[fired[0]]
+            return names[fired[0]]
         # The root just handled is ~0 at the restart (a ligament kink stays watched): step
         # 1e-9 s without events so that solve_ivp does not find it again at the start.
         step = solve_ivp(p.rhs, (t_event, t_event + 1e-9), y_next, method=method, rtol=rtol, atol=atol)
-        t, y, nfev = step.t[-1], step.y[:, -1], nfev + step.nfev
+        t, y, out["nfev"] = step.t[-1], step.y[:, -1], out["nfev"] + step.nfev
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default=kneedyn.scene_path("chapter_impact"))
     ap.add_argument("--method", default="Radau", choices=["Radau", "BDF", "LSODA", "DOP853"])
+    ap.add_argument("--form", default="ede", choices=["ede", "mde"], help="the ODE form (docs/problem.md)")
     ap.add_argument("--rtol", type=float, default=1e-8)
     ap.add_argument("--atol", type=float, default=1e-10)
     ap.add_argument("--dt", type=float, default=0.02, help="output interval (s): the reference's sampling")
     ap.add_argument("--out", default="out/scipy_on_the_knee")
     ap.add_argument("--kneedyn", help="kneedyn executable: score the result with `kneedyn score`")
     a = ap.parse_args()
-    p = kneedyn.Problem(a.scene, form="ede", rtol=a.rtol, atol=a.atol)
+    p = kneedyn.Problem(a.scene, form=a.form, rtol=a.rtol, atol=a.atol)
     start = time.process_time()
-    rows, events, nfev, njev, end = run(p, a.method, a.rtol, a.atol, a.dt)
+    res = {"rows": [], "events": [], "nfev": 0, "njev": 0}
+    try:
+        end, failure = run(p, a.method, a.rtol, a.atol, a.dt, res), ""
+    except (RuntimeError, ValueError) as e:  # a failed run is a result: scored as failed
+        end, failure = None, str(e).replace("\n", " ")
     cpu = time.process_time() - start
+    rows, events, nfev, njev = res["rows"], res["events"], res["nfev"], res["njev"]
     os.makedirs(a.out, exist_ok=True)
     traj, ev = os.path.join(a.out, "trajectory.csv"), os.path.join(a.out, "events.csv")
     with open(traj, "w", newline="") as f:
@@ -98,14 +109,16 @@ def main():
         csv.writer(f).writerows([["name", "time_s", "flexion_deg"]] + [[n, repr(t), repr(d)] for n, t, d in events])
     for name, t_e, fl in events:
         print(f"{name}: t = {t_e:.12g} s, flexion = {fl:.10g} deg")
-    print(f"scipy {a.method}: end {end}, {nfev} f evaluations, {njev} Jacobians, {cpu:.3f} s CPU")
-    if a.kneedyn:
+    print(f"scipy {a.method}: end {end or 'failed: ' + failure}, {nfev} f evaluations, {njev} Jacobians, "
+          f"{cpu:.3f} s CPU")
+    if a.kneedyn:  # one curve per method in the work-precision diagrams: solver scipy, integrator the method
         subprocess.run([a.kneedyn, "score", traj, "--scene", a.scene, "--events", ev, "--solver-name",
-                        f"scipy-{a.method}", "--integrator", f"scipy.integrate.solve_ivp {a.method}", "--rtol",
-                        str(a.rtol), "--atol", str(a.atol), "--cpu-time", repr(cpu), "--counter", f"f_evaluations={nfev}",
-                        "--counter", f"jacobian_evaluations={njev}", "--out", os.path.join(a.out, "score.json")],
-                       check=True)
+                        "scipy" if a.form == "ede" else f"scipy-{a.form}", "--integrator", a.method, "--rtol", str(a.rtol), "--atol", str(a.atol), "--cpu-time",
+                        repr(cpu), "--counter", f"residual_evaluations={nfev}", "--counter",
+                        f"jacobian_evaluations={njev}", "--out", os.path.join(a.out, "score.json")]
+                       + (["--failed", failure] if failure else []), check=True)
+    return 1 if failure else 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -6,7 +6,7 @@
  *   if (kneedyn_problem_create("scene.yaml", "ede", 0.0, 0.0, &p) != KNEEDYN_OK)
  *     fprintf(stderr, "%s\n", kneedyn_last_error());
  *   kneedyn_problem_size(p, &n);  kneedyn_problem_initial_values(p, y, yp, n);
- *   kneedyn_problem_rhs(p, t, y, n, f);             (ODE form "ede")
+ *   kneedyn_problem_rhs(p, t, y, n, f);             (ODE forms "ede", "mde")
  *   kneedyn_problem_residual(p, t, y, yp, n, F);    (DAE forms "dae", "dae-ggl")
  *   kneedyn_problem_events(p, t, y, n, g, m);
  *   kneedyn_problem_transition(p, t, y, yp, n, &event, 1, &ended);   next phase
@@ -40,7 +40,8 @@ typedef enum kneedyn_status {
 /* The message of the last failed call on this thread ("" if none). */
 const char* kneedyn_last_error(void);
 
-/* form: "ede", "dae" or "dae-ggl"; rtol, atol <= 0: the defaults (1e-6, 1e-8). */
+/* form: "ede", "mde", "dae" or "dae-ggl"; rtol, atol <= 0: the defaults (1e-6, 1e-8).
+ * Sizes change between phases for mde (12 - 2k) and the DAE forms. */
 int kneedyn_problem_create(const char* scene_path, const char* form, double rtol, double atol,
                            kneedyn_problem** out);
 /* Null is accepted; a foreign pointer returns KNEEDYN_BAD_HANDLE. */
@@ -57,7 +58,7 @@ int kneedyn_problem_initial_values(const kneedyn_problem* p, double* y0, double*
 /* 1 differential, 0 algebraic. */
 int kneedyn_problem_differential_ids(const kneedyn_problem* p, double* ids, int n);
 
-/* ODE form: f(t, y); df/dy (difference quotients, docs/problem.md). */
+/* ODE forms: f(t, y); df/dy (exact for sphere-on-plane contacts; docs/problem.md). */
 int kneedyn_problem_rhs(const kneedyn_problem* p, double t, const double* y, int n, double* f);
 int kneedyn_problem_jacobian(const kneedyn_problem* p, double t, const double* y, int n, double* J);
 /* DAE forms: F(t, y, yp); dF/dy + c dF/dyp (exact). */
@@ -71,6 +72,12 @@ int kneedyn_problem_event_count(const kneedyn_problem* p, int* m);
 int kneedyn_problem_event_name(const kneedyn_problem* p, int k, const char** name);
 int kneedyn_problem_event_direction(const kneedyn_problem* p, int k, int* direction);
 int kneedyn_problem_events(const kneedyn_problem* p, double t, const double* y, int n, double* g, int m);
+
+/* The generalized coordinates q (x0, y0, z0 [m], alpha, beta, gamma [rad]) and their rates
+ * a state stands for (6 each): for mde the eliminated translations are computed from s.
+ * yp may be null. (Added in API version 1, additive.) */
+int kneedyn_problem_coordinates(const kneedyn_problem* p, double t, const double* y, const double* yp, int n,
+                                double* q, double* qd);
 
 /* At the roots events[0..n_events): the next phase (its size, y0, yp0, events), or
  * *ended = 1 when the run has ended. yp may be null. */

@@ -11,7 +11,7 @@ import kneedyn
 SCENE = kneedyn.scene_path("chapter_impact")
 
 
-@pytest.mark.parametrize("form", ["ede", "dae", "dae-ggl"])
+@pytest.mark.parametrize("form", ["ede", "mde", "dae", "dae-ggl"])
 def test_contract_names(form):
     p = kneedyn.Problem(kneedyn.load_scene(SCENE), form=form)
     for name in ["t0", "y0", "t_end", "rtol", "atol", "event_names", "event_directions"]:
@@ -19,7 +19,7 @@ def test_contract_names(form):
     assert p.y0.shape == (p.size,) and p.yp0.shape == (p.size,)
     assert len(p.events(p.t0, p.y0)) == len(p.event_names) == len(p.event_directions)
     assert p.rtol == 1e-6 and p.atol == 1e-8 and p.t_end > p.t0
-    assert p.index == (0 if form == "ede" else 2)
+    assert p.index == (0 if form in ("ede", "mde") else 2)
 
 
 def test_initial_state_is_the_runs_first_row():
@@ -36,6 +36,22 @@ def test_ode_rhs_is_consistent_with_yp0():
     """f(t0, y0) is the phase start's (q̇, q̈) (the same hidden-constraint solve)."""
     p = kneedyn.Problem(SCENE, form="ede")
     np.testing.assert_allclose(p.rhs(p.t0, p.y0), p.yp0, rtol=1e-12, atol=1e-9)
+
+
+def test_mde_is_ede_in_minimal_coordinates():
+    """mde's y0 is ede's (q, q̇) at the free coordinates (y0, α, β, γ with both contacts
+    closed), its coordinates() give ede's full start back, and its f agrees with ede's
+    hidden-constraint solve on the free rows: two formulations of the same physics."""
+    ede, mde = kneedyn.Problem(SCENE, form="ede"), kneedyn.Problem(SCENE, form="mde")
+    free = [1, 3, 4, 5]
+    assert mde.size == 8 and mde.component_names[:4] == ["y0", "alpha", "beta", "gamma"]
+    np.testing.assert_array_equal(mde.y0, np.concatenate([ede.y0[free], ede.y0[[6 + i for i in free]]]))
+    q, qd = mde.coordinates(mde.t0, mde.y0)
+    np.testing.assert_allclose(q, ede.y0[:6], rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(qd, ede.y0[6:], rtol=1e-12, atol=1e-12)
+    f_ede = ede.rhs(ede.t0, ede.y0)
+    np.testing.assert_allclose(mde.rhs(mde.t0, mde.y0)[4:], f_ede[[6 + i for i in free]], rtol=1e-9, atol=1e-9)
+    assert mde.event_names[-1] == "mde_chart" and mde.event_directions[-1] == -1
 
 
 @pytest.mark.parametrize("form", ["dae", "dae-ggl"])
