@@ -17,7 +17,7 @@ double RecontactGapTolerance(double max_position_residual, const Vector6d& q, do
 }
 
 Simulator::Simulator(const Scene& scene, Formulation* stepper, SimulatorSettings settings, RunResult* record)
-    : scene_(scene), stepper_(stepper), settings_(std::move(settings)), record_(record) {}
+    : map_reading_(scene.model.angular_velocity_map), scene_(scene), stepper_(stepper), settings_(std::move(settings)), record_(record) {}
 
 void Simulator::Record(bool is_event) {
   const Model& model = scene_.model;

@@ -37,6 +37,7 @@
 
 #include "formulations/formulation.hpp"
 #include "formulations/run.hpp"
+#include "solver/rotation.hpp"
 
 namespace kneedyn {
 
@@ -128,6 +129,8 @@ class Simulator {
  private:
   void Record(bool is_event);
 
+  // The model's reading of the angular-velocity map, on this thread for the simulator's life.
+  ScopedAngularVelocityMapReading map_reading_;
   const Scene& scene_;
   Formulation* stepper_;
   SimulatorSettings settings_;
