@@ -108,9 +108,9 @@ void CompleteRestartState(const Model& model, RestartProjection restart, Mechani
 // The start of a phase at *state, as Simulator::Run does it: the phase's events
 // (EventsForPhase with the re-contact hysteresis gap_tolerance) and, for the published
 // ligament law, the branches locked from the direction of motion with the restart state
-// solved on them.
+// solved on them (not when `complete` is false: the chapter's DASSL start).
 std::vector<EventSpec> StartPhase(const Model& model, const EndCondition& end, double gap_tolerance,
-                                  RestartProjection restart, MechanicalState* state);
+                                  RestartProjection restart, MechanicalState* state, bool complete = true);
 
 class Simulator {
  public:

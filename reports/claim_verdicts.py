@@ -95,10 +95,32 @@ def verdicts(rows, rec, inverse=None):
     gains = {r["key"]: sorted({c for c, v in r["verdicts"].items() if v == REPRODUCED} - project_ok) for r in fixing}
     ev["readings_tried"] = len(readings)
     ev["readings_not_informative"] = skipped
+    if cid == "S2" and rec.get("s2_dassl_start"):
+      ds = rec["s2_dassl_start"]
+      ev["dassl_start_reading"] = ds
+      reproduced = any(
+          (t["max_dflexion_deg"] or 0.0) > 0.5 or
+          (any(r["ok"] for r in t["runs"] if r["offset_mm"] == 0.0) and not all(r["ok"] for r in t["runs"]))
+          for t in ds["tolerances"])
+      if reproduced:
+        entry["explanation"] = "reading"
+        ev.update({"best_reading": "s2_dassl_start", "why": "under the chapter's DASSL start an offset of at most "
+                   "0.1 mm changes the motion by more than 0.5° or breaks a run that starts without it"})
+        continue
     if cid in TEXT_CONTRADICTIONS and not fixing:
       other, words = TEXT_CONTRADICTIONS[cid]
       entry["explanation"] = "contradicted"
       ev.update({"other_statement": other, "why": words})
+      if cid == "S2" and rec.get("s2_dassl_start"):
+        parts = []
+        for t in rec["s2_dassl_start"]["tolerances"]:
+          n_ok = sum(r["ok"] for r in t["runs"])
+          parts.append(f"rtol {t['rtol']:g}: {n_ok}/{len(t['runs'])} runs complete"
+                       + (f", max |Δflexion| {t['max_dflexion_deg']:.2g}° over offsets ≤ 0.1 mm"
+                          if t["max_dflexion_deg"] is not None else "")
+                       + ("" if n_ok else " (IDA refuses the inconsistent start at t = 0 for every offset, zero included)"))
+        ev["why"] = words.replace("(the DASSL-start reading, not run here)", "(the DASSL-start reading, run: "
+                                  + "; ".join(parts) + ")")
       continue
     if fixing:
       best = min(fixing, key=lambda r: (len(costs[r["key"]]), -len(gains[r["key"]])))

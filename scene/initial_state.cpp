@@ -113,6 +113,11 @@ void ParseGuesses(const Field& f, const ParameterSet& ps, const ModelDescription
       request->origin = InitialStateRequest::OriginSource::kMedialContact;
     }
   }
+  if (f.Has("start")) {
+    // The chapter's DASSL start: the guesses handed to IDA without the consistent initialization.
+    request->unprojected_start =
+        f.Required("start").OneOf(ValuesOf("scene.initial_state.start"), "initial start") == "unprojected";
+  }
 }
 
 }  // namespace

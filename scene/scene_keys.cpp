@@ -27,7 +27,7 @@ const std::vector<SceneKeyTable>& SceneMappingKeys() {
       {"scene.pulse", {"shape", "amplitude_N", "duration_s", "direction_T"}},
       {"scene.constant_load", {"force_F_N", "torque_T_N_m"}},
       {"scene.initial_state", {"pose", "coordinates", "velocities", "hold", "guesses", "normal_force_guesses_N",
-                               "contact_guess_offset_mm", "origin"}},
+                               "contact_guess_offset_mm", "origin", "start"}},
       {"scene.initial_state.coordinates", {"x0_mm", "y0_mm", "z0_mm", "alpha_deg", "beta_deg", "gamma_deg"}},
       {"scene.initial_state.velocities",
        {"x0_mm_s", "y0_mm_s", "z0_mm_s", "alpha_deg_s", "beta_deg_s", "gamma_deg_s"}},
@@ -68,6 +68,7 @@ const std::vector<SceneKeyTable>& SceneFieldValues() {
       {"scene.initial_state.pose", {"reference", "explicit", "assemble"}},
       {"scene.initial_state.guesses", {"pose", "chapter"}},
       {"scene.initial_state.origin", {"both_contacts", "medial_contact"}},
+      {"scene.initial_state.start", {"consistent", "unprojected"}},
       {"scene.initial_state.hold[]", {"x0", "y0", "z0", "alpha", "beta", "gamma", "x0_dot", "y0_dot", "z0_dot",
                                       "alpha_dot", "beta_dot", "gamma_dot", "velocities"}},
   };

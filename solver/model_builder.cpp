@@ -230,6 +230,7 @@ InitialState BuildInitialState(const Model& model, const Vector6d& reference_q, 
   if (request.origin == InitialStateRequest::OriginSource::kMedialContact) {
     MedialOrigin(chapter_surfaces, request, &init);
   }
+  init.unprojected = request.unprojected_start;
   for (size_t k = 0; k < model.contacts.size(); ++k) {
     const auto& force = request.normal_force_guesses[static_cast<int>(model.contacts[k].compartment)];
     if (force) init.contact_guesses[k].normal_force = *force;

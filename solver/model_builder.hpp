@@ -86,6 +86,8 @@ struct InitialStateRequest {
   // Needs GuessSource::kChapter and PoseSource::kReference.
   enum class OriginSource { kBothContacts, kMedialContact };
   OriginSource origin = OriginSource::kBothContacts;
+  // true: InitialState::unprojected (the chapter's DASSL start).
+  bool unprojected_start = false;
 };
 
 // The constant model but for the quantities derived here.

@@ -328,6 +328,26 @@ TEST(SceneOptions, AngularVelocityMapKeyIsReadAndCheckedAndExactByDefault) {
   }
 }
 
+// The chapter's DASSL start (docs/model.md §6): the guesses go out as they are. Independent
+// check: the chapter's R0 from its medial guesses leaves the medial gap at −0.00703 mm and the
+// lateral at −0.0650 mm (closed-form gaps; docs/model.md §6), and the forces are the
+// parameter set's guesses, 150 N and 130 N.
+TEST(ConsistentInit, UnprojectedStartHandsOverTheChaptersInconsistentGuesses) {
+  const Scene scene = ChapterVariant("{pose: reference, guesses: chapter, start: unprojected}");
+  ASSERT_TRUE(scene.initial.unprojected);
+  InitReport report;
+  const MechanicalState s = ConsistentInitialize(scene.model, scene.initial, kBoth, ConsistentInitOptions{}, &report);
+  EXPECT_EQ(s.q, scene.initial.q);
+  EXPECT_NEAR(MToMm(s.q(kX0)), -16.72913866466 - (-16.980955), 1e-9);  // xc − x′c
+  const Pose pose = PoseFromCoordinates(s.q);
+  EXPECT_NEAR(MToMm(SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[0]), pose).gap), -0.00703, 1e-5);
+  EXPECT_NEAR(MToMm(SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[1]), pose).gap), -0.0650, 1e-4);
+  EXPECT_EQ(s.contact[0].normal_force, 150.0);
+  EXPECT_EQ(s.contact[1].normal_force, 130.0);
+  EXPECT_EQ(s.qdd, Vector6d::Zero());
+  EXPECT_FALSE(ChapterScene().initial.unprojected);
+}
+
 INSTANTIATE_TEST_SUITE_P(Forms, ConsistentInitForms,
                          ::testing::Values(ContactForm::kChapter, ContactForm::kClosedForm),
                          [](const ::testing::TestParamInfo<ContactForm>& info) {
