@@ -274,7 +274,10 @@ def reconstruction_section(outdir):
   parts.append(
       "<p>The printed chapter leaves parts of the model uncertain: Eq. 1.62 (the pulse) is garbled, the "
       "direction of the weight is not stated, and the published ligament law has a force jump the chapter does "
-      "not discuss. The project's reading (first column) is one hypothesis. Here every claim is re-evaluated "
+      "not discuss; docs/model.md lists further ambiguities (the sign of ω′y's β̇ cos γ term, R0 from the medial "
+      "condition, Table 1.2's column labels, the plateaus' slope direction, the printed precision of Tables 1.1 "
+      "and 1.3), each a reading <code>model/…</code> here, alone and combined (docs/model.md §11). The "
+      "project's reading (first column) is one hypothesis. Here every claim is re-evaluated "
       "under each plausible reading (the same families, solver and checks; only the scene changes). A claim "
       "whose verdict changes across columns rests on the reading; one that does not is robust to it."
       + (" <b>Quick mode: reduced families.</b>" if rec.get("quick") else "") + "</p>")
