@@ -138,9 +138,11 @@ def explanation_cell(v):
     return "–"
   if e == "reading":
     lo = ev.get("best_reading_liftoff_deg")
-    return Raw(f"<b>reading</b>: {esc(ev.get('best_reading'))} ({esc(ev.get('best_reading_docs_model_md') or '')}"
-               f"{f', lift-off {lo:.1f}°' if lo is not None else ''}); loses "
-               f"{esc(', '.join(ev.get('best_reading_loses') or []) or 'nothing')}")
+    notes = [f"docs/model.md {ev['best_reading_docs_model_md']}"] if ev.get("best_reading_docs_model_md") else []
+    notes += [f"lift-off {lo:.1f}°"] if lo is not None else []
+    return Raw(f"<b>reading</b>: {esc(ev.get('best_reading'))}{' (' + esc('; '.join(notes)) + ')' if notes else ''}; "
+               f"loses {esc(', '.join(ev.get('best_reading_loses') or []) or 'nothing')}"
+               f"<div class='why'>{esc(ev.get('why', ''))}</div>")
   if e == "contradicted":
     other = ev.get("other_statement")
     other = ", ".join(other) if isinstance(other, list) else other

@@ -102,7 +102,8 @@ def combination(keys):
     patch = merge_patch(patch, p)
   if variants:
     patch["parameter_set"] = "variant:" + "+".join(variants)
-  return ("model/" + "+".join(keys), "combination: " + " + ".join(keys), patch, ", ".join(by[k][3] for k in keys))
+  sections = sorted({by[k][3] for k in keys}, key=lambda x: int(x.strip("§")))
+  return ("model/" + "+".join(keys), "combination: " + " + ".join(keys), patch, ", ".join(sections))
 
 
 def half_digit(value):
@@ -147,7 +148,8 @@ def resolve_patch(patch, rdir):
 
 READINGS += [(f"model/{k}", label, patch) for k, label, patch, _ in MODEL_READINGS]
 READINGS += [combination(c)[:3] for c in COMBINATIONS]
-READING_DOCS = {f"model/{k}": sec for k, _, _, sec in MODEL_READINGS}
+READING_DOCS = {key: ("§5, §7" if key.endswith("c1_law") else "§7") for key, _, _ in READINGS if not key.startswith("model/")}
+READING_DOCS.update({f"model/{k}": sec for k, _, _, sec in MODEL_READINGS})
 READING_DOCS.update({combination(c)[0]: combination(c)[3] for c in COMBINATIONS})
 # --quick (the report's tests): the pulse readings, each model reading alone but the
 # precision ones, and the first combination; the families are shrunk too.
