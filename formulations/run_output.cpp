@@ -395,6 +395,10 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
                            {"amplitude_N", scene.model.pulse.amplitude},
                            {"duration_s", scene.model.pulse.duration}}},
                 {"ligament_law", scene.model.ligament_law == LigamentLaw::kPublished ? "published" : "c1_continuous"}};
+  // Named only when it is not the default, so that default runs keep their summary.
+  if (scene.model.angular_velocity_map == AngularVelocityMapReading::kPrintedEq1_20b) {
+    j["scene"]["angular_velocity_map"] = "printed_eq_1_20b";
+  }
   const FormulationOptions& o = settings.options;
   j["formulation"] = settings.formulation;
   // What ran: the integrator and step actually used; adaptive runs record their mean step.

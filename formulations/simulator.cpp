@@ -17,7 +17,7 @@ double RecontactGapTolerance(double max_position_residual, const Vector6d& q, do
 }
 
 Simulator::Simulator(const Scene& scene, Formulation* stepper, SimulatorSettings settings, RunResult* record)
-    : scene_(scene), stepper_(stepper), settings_(std::move(settings)), record_(record) {}
+    : map_reading_(scene.model.angular_velocity_map), scene_(scene), stepper_(stepper), settings_(std::move(settings)), record_(record) {}
 
 void Simulator::Record(bool is_event) {
   const Model& model = scene_.model;
@@ -44,11 +44,11 @@ void CompleteRestartState(const Model& model, RestartProjection restart, Mechani
 }
 
 std::vector<EventSpec> StartPhase(const Model& model, const EndCondition& end, double gap_tolerance,
-                                  RestartProjection restart, MechanicalState* state) {
+                                  RestartProjection restart, MechanicalState* state, bool complete) {
   std::vector<EventSpec> specs = EventsForPhase(model, end, *state, gap_tolerance);
   if (model.ligament_law == LigamentLaw::kPublished) {
     state->ligament_branch = LigamentBranchesAt(model, state->q, state->qd);
-    CompleteRestartState(model, restart, state);  // forces on the locked branches
+    if (complete) CompleteRestartState(model, restart, state);  // forces on the locked branches
   }
   return specs;
 }
@@ -140,7 +140,11 @@ void Simulator::Run() {
   while (!done) {
     const double gap_tolerance =
         RecontactGapTolerance(record_->max_position_residual, state_.q, settings_.rtol, settings_.atol);
-    const std::vector<EventSpec> specs = StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_);
+    // The chapter's DASSL start hands its first phase to the stepper unprojected.
+    const std::vector<EventSpec> specs =
+        first_phase && scene_.initial.unprojected
+            ? StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_, /*complete=*/false)
+            : StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_);
     stepper_->Start(state_, specs);
     if (first_phase && settings_.first_phase_started) settings_.first_phase_started(state_);
     first_phase = false;

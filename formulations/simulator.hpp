@@ -37,6 +37,7 @@
 
 #include "formulations/formulation.hpp"
 #include "formulations/run.hpp"
+#include "solver/rotation.hpp"
 
 namespace kneedyn {
 
@@ -111,9 +112,9 @@ void CompleteRestartState(const Model& model, RestartProjection restart, Mechani
 // The start of a phase at *state, as Simulator::Run does it: the phase's events
 // (EventsForPhase with the re-contact hysteresis gap_tolerance) and, for the published
 // ligament law, the branches locked from the direction of motion with the restart state
-// solved on them.
+// solved on them (not when `complete` is false: the chapter's DASSL start).
 std::vector<EventSpec> StartPhase(const Model& model, const EndCondition& end, double gap_tolerance,
-                                  RestartProjection restart, MechanicalState* state);
+                                  RestartProjection restart, MechanicalState* state, bool complete = true);
 
 class Simulator {
  public:
@@ -132,6 +133,8 @@ class Simulator {
  private:
   void Record(bool is_event);
 
+  // The model's reading of the angular-velocity map, on this thread for the simulator's life.
+  ScopedAngularVelocityMapReading map_reading_;
   const Scene& scene_;
   Formulation* stepper_;
   SimulatorSettings settings_;

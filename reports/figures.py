@@ -8,6 +8,7 @@ Frames (spec knee-model.md): x lateral, y anterior, z proximal; valgus = beta - 
 external tibial rotation = gamma (+).
 """
 import argparse
+import json
 import math
 import os
 import sys
@@ -379,6 +380,43 @@ def make_work_precision(outdir, bench_path, prefix="", include=()):
     _save(fig, os.path.join(figdir, prefix + fname), title, titles)
     files.append(prefix + fname)
   return files, [(bench_key(r), setting_str(r["setting"]), why) for r, why in failed], header
+
+
+def reading_claim_matrix(verdicts_json, path):
+  """The reading × claim matrix of the recorded verdicts (reports/recorded/claims.json): one row
+  per reading of the printed chapter, one column per claim (green reproduced, red not, grey not
+  checkable or a reading whose runs did not all reach 90°), and each reading's lateral lift-off
+  angle at the right. Returns the path, or None when the file has no matrix."""
+  with open(verdicts_json, encoding="utf-8") as f:
+    rec = json.load(f)
+  m = rec.get("matrix")
+  if not m or not m.get("readings"):
+    return None
+  ids, rows = m["claims"], m["readings"]
+  grid = np.full((len(rows), len(ids)), np.nan)
+  for i, r in enumerate(rows):
+    for j, c in enumerate(r["cells"]):
+      if c is not None and r["informative"]:
+        grid[i, j] = c
+  from matplotlib.colors import ListedColormap
+  fig, ax = plt.subplots(figsize=(max(8.0, 0.26 * len(ids) + 5.5), 0.3 * len(rows) + 1.8))
+  cmap = ListedColormap(["#e8a5a5", "#9fd49f"])
+  cmap.set_bad("#dddddd")
+  ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, vmin=0, vmax=1, aspect="auto", interpolation="nearest")
+  ax.set_xticks(range(len(ids)))
+  ax.set_xticklabels(ids, rotation=90, fontsize=7)
+  ax.set_yticks(range(len(rows)))
+  ax.set_yticklabels([r["key"] + ("" if r["informative"] else " (incomplete)") for r in rows], fontsize=7)
+  for i, r in enumerate(rows):
+    lo = r.get("liftoff_lateral_deg")
+    ax.text(len(ids) - 0.3, i, f"  {lo:.1f}°  {r.get('reproduced')}✓" if lo is not None else "  none",
+            va="center", ha="left", fontsize=7)
+  title = ("Reading × claim: green reproduced, red not reproduced, grey not checkable or incomplete; "
+           "right: lateral lift-off (chapter ≈ 66°) and claims reproduced")
+  ax.set_title(title, fontsize=8)
+  fig.tight_layout()
+  _save(fig, path, "Reading x claim matrix", [title], bbox_inches="tight")
+  return path
 
 
 def main(argv=None):

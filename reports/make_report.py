@@ -118,7 +118,41 @@ def summary_section(fam, members):
   return "\n".join(parts)
 
 
-def claims_section(rows):
+RECORDED_VERDICTS = os.path.join(HERE, "recorded", "claims.json")
+
+
+def load_recorded_verdicts(path=RECORDED_VERDICTS):
+  """reports/recorded/claims.json (reports/claim_verdicts.py), or None."""
+  if not os.path.exists(path):
+    return None
+  with open(path, encoding="utf-8") as f:
+    return json.load(f)
+
+
+def explanation_cell(v):
+  """The verdict column: why a claim is not reproduced, with its evidence in short."""
+  if v is None:
+    return "not recorded"
+  e, ev = v.get("explanation"), v.get("evidence", {})
+  if e is None:
+    return "–"
+  if e == "reading":
+    lo = ev.get("best_reading_liftoff_deg")
+    notes = [f"docs/model.md {ev['best_reading_docs_model_md']}"] if ev.get("best_reading_docs_model_md") else []
+    notes += [f"lift-off {lo:.1f}°"] if lo is not None else []
+    return Raw(f"<b>reading</b>: {esc(ev.get('best_reading'))}{' (' + esc('; '.join(notes)) + ')' if notes else ''}; "
+               f"loses {esc(', '.join(ev.get('best_reading_loses') or []) or 'nothing')}"
+               f"<div class='why'>{esc(ev.get('why', ''))}</div>")
+  if e == "contradicted":
+    other = ev.get("other_statement")
+    other = ", ".join(other) if isinstance(other, list) else other
+    return Raw(f"<b>contradicted</b> by {esc(other)}<div class='why'>{esc(ev.get('why', ''))}</div>")
+  if e == "beyond_precision":
+    return Raw(f"<b>beyond precision</b>: normalized change {esc(ev.get('normalized_change'))}")
+  return Raw(f"<b>unexplained</b><div class='why'>{esc(ev.get('why', ''))}</div>")
+
+
+def claims_section(rows, recorded=None):
   n = {v: sum(r["verdict"] == v for r in rows) for v in ("reproduced", "not reproduced", "not checkable")}
   parts = ["<h2 id='claims'>Chapter claims</h2>",
            f"<p>{n['reproduced']} reproduced, {n['not reproduced']} not reproduced, {n['not checkable']} not checkable "
@@ -126,12 +160,38 @@ def claims_section(rows):
            "the families. Claims, checks and the justification of every tolerance band: "
            "<code>reports/claims.yaml</code> (S1/S2 are the sensitivity statements). "
            "Also as <a href='claims.csv'>claims.csv</a> and <a href='claims.md'>claims.md</a>.</p>"]
-  parts.append(table(["id", "claim (source)", "check (tolerance band)", "measured", "verdict", "reason"],
+  rv = (recorded or {}).get("claims", {})
+  if recorded:
+    parts.append("<p>The column <i>why not</i> is the recorded verdict on each claim that is not reproduced "
+                 "(<code>reports/recorded/claims.json</code>, made by <code>reports/claim_verdicts.py</code> from "
+                 f"the reconstruction study at commit {esc(recorded.get('commit'))}, {esc(recorded.get('date'))}; "
+                 f"command: <code>{esc(recorded.get('command'))}</code>): <b>reading</b> — a named reading of the "
+                 "printed chapter (docs/model.md) reproduces it; <b>contradicted</b> — another of the chapter's "
+                 "statements excludes it; <b>beyond precision</b> — only parameter changes beyond the printed "
+                 "precision reach it; <b>unexplained</b>. Inverse problem: "
+                 f"{esc(recorded.get('inverse_problem'))}.</p>")
+  parts.append(table(["id", "claim (source)", "check (tolerance band)", "measured", "verdict", "why not", "reason"],
                      [[r["id"], f"{r['claim']} ({r.get('source', '')})",
                        Raw(f"{esc(r['check'])}<div class='why'>why: {esc(r.get('justification', ''))}</div>"),
-                       r["measured"], r["verdict"], r["reason"]] for r in rows],
+                       r["measured"], r["verdict"],
+                       "–" if r["verdict"] == "reproduced" else explanation_cell(rv.get(r["id"])), r["reason"]]
+                      for r in rows],
                      row_classes=[r["verdict"].replace(" ", "-") for r in rows],
-                     cell_classes=["id", None, None, None, "verdict", None]))
+                     cell_classes=["id", None, None, None, "verdict", None, None]))
+  if recorded and recorded.get("matrix"):
+    parts.append("<figure><img src='figures/reading_claim_matrix.png' alt='reading × claim matrix'>"
+                 "<figcaption>Reading × claim matrix of the recorded verdicts: every reading of the study (the "
+                 "pulse readings R1–R9, one per documented ambiguity of docs/model.md, and their combinations in "
+                 "the order the Sobol' indices rank what they touch), each claim's verdict under it, and its "
+                 "lateral lift-off angle (chapter ≈ 66°).</figcaption></figure>")
+    hl = recorded.get("headline", {})
+    best = (hl.get("by_reading") or [None])[0]
+    if best:
+      parts.append(f"<p><b>Headline.</b> The project's reading lifts off at {hl['project_liftoff_deg']:.1f}°. The "
+                   f"reading that moves lift-off furthest towards 66° is <code>{esc(best['reading'])}</code>: "
+                   f"{best['liftoff_deg']:.1f}° ({best['towards_66_deg']:+.1f}° towards 66°), losing "
+                   f"{esc(', '.join(best['loses']) or 'no claim')} and gaining {esc(', '.join(best['gains']) or 'none')}."
+                   "</p>")
   return "\n".join(parts)
 
 
@@ -216,7 +276,10 @@ def reconstruction_section(outdir):
   parts.append(
       "<p>The printed chapter leaves parts of the model uncertain: Eq. 1.62 (the pulse) is garbled, the "
       "direction of the weight is not stated, and the published ligament law has a force jump the chapter does "
-      "not discuss. The project's reading (first column) is one hypothesis. Here every claim is re-evaluated "
+      "not discuss; docs/model.md lists further ambiguities (the sign of ω′y's β̇ cos γ term, R0 from the medial "
+      "condition, Table 1.2's column labels, the plateaus' slope direction, the printed precision of Tables 1.1 "
+      "and 1.3), each a reading <code>model/…</code> here, alone and combined (docs/model.md §11). The "
+      "project's reading (first column) is one hypothesis. Here every claim is re-evaluated "
       "under each plausible reading (the same families, solver and checks; only the scene changes). A claim "
       "whose verdict changes across columns rests on the reading; one that does not is robust to it."
       + (" <b>Quick mode: reduced families.</b>" if rec.get("quick") else "") + "</p>")
@@ -528,6 +591,10 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, 
   fam, members = load_families(outdir)
   with open(os.path.join(outdir, "claims.json")) as f:
     rows = json.load(f)
+  recorded = load_recorded_verdicts()
+  if recorded and recorded.get("matrix"):
+    os.makedirs(os.path.join(outdir, "figures"), exist_ok=True)
+    figures.reading_claim_matrix(RECORDED_VERDICTS, os.path.join(outdir, "figures", "reading_claim_matrix.png"))
   body = [f"<h1>kneedyn: chapter reproduction report</h1>",
           "<p>Hefzy &amp; Abdel-Rahman, 3D dynamic knee model: pulse families of section 1.4 "
           "(Figs. 1.4–1.25) with the reference solver, the chapter's claims checked automatically.</p>",
@@ -537,7 +604,7 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, 
           "<a href='#methods'>Methods</a>"
           "<a href='#hard-cases'>Hard cases</a>"
           "<a href='#reproduce'>Reproduction</a></nav>",
-          summary_section(fam, members), claims_section(rows), figures_section(outdir),
+          summary_section(fam, members), claims_section(rows, recorded), figures_section(outdir),
           sensitivity_section(outdir), reconstruction_section(outdir), global_sensitivity.section(outdir), bench_section(outdir, bench, include=include), \
           methods_comparison.section(outdir, kneedyn, bench), \
           *([bench_section(outdir, peer_bench, "peer_", "kneedyn and Simbody, same run", "peer-work-precision",

@@ -102,6 +102,22 @@ void ParseGuesses(const Field& f, const ParameterSet& ps, const ModelDescription
   if (f.Has("contact_guess_offset_mm")) {
     request->contact_guess_offset = MmToM(f.Required("contact_guess_offset_mm").Range(-100.0, 100.0));
   }
+  if (f.Has("origin")) {
+    // R0 from both contacts (default) or, in the chapter's words, from the medial one (docs/model.md §6).
+    const Field origin = f.Required("origin");
+    if (origin.OneOf(ValuesOf("scene.initial_state.origin"), "origin") == "medial_contact") {
+      if (request->guesses != InitialStateRequest::GuessSource::kChapter ||
+          request->pose != InitialStateRequest::PoseSource::kReference) {
+        origin.Fail("medial_contact needs pose: reference and guesses: chapter (R0 comes from the chapter's medial guesses)");
+      }
+      request->origin = InitialStateRequest::OriginSource::kMedialContact;
+    }
+  }
+  if (f.Has("start")) {
+    // The chapter's DASSL start: the guesses handed to IDA without the consistent initialization.
+    request->unprojected_start =
+        f.Required("start").OneOf(ValuesOf("scene.initial_state.start"), "initial start") == "unprojected";
+  }
 }
 
 }  // namespace

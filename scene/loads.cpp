@@ -10,6 +10,13 @@ namespace kneedyn::scene_detail {
 void ParseBody(const Field& top, const ParameterSet& ps, ModelDescription* model) {
   model->mass = ps.mass;
   model->inertia_T = ps.inertia_T;
+  if (top.Has("angular_velocity_map")) {
+    // The body's kinematics: the exact map or the printed Eq. 1.20b (docs/model.md §2).
+    const std::string map =
+        top.Required("angular_velocity_map").OneOf(ValuesOf("scene.angular_velocity_map"), "angular velocity map");
+    model->angular_velocity_map =
+        map == "printed_eq_1_20b" ? AngularVelocityMapReading::kPrintedEq1_20b : AngularVelocityMapReading::kExact;
+  }
   if (!top.Has("body")) return;
   const Field body = top.Required("body");
   body.Keys(KeysOf("scene.body"));

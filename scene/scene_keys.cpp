@@ -17,7 +17,7 @@ const std::vector<const char*>& Find(const std::vector<SceneKeyTable>& table, co
 const std::vector<SceneKeyTable>& SceneMappingKeys() {
   static const std::vector<SceneKeyTable> table = {
       // A scene file.
-      {"scene", {"name", "description", "parameter_set", "body", "ligament_law", "ligaments",
+      {"scene", {"name", "description", "parameter_set", "body", "angular_velocity_map", "ligament_law", "ligaments",
                  "ligament_stiffness_scale", "ligament_parameters", "contacts", "surfaces", "gravity", "pulse",
                  "constant_load", "initial_state", "end", "output"}},
       {"scene.body", {"mass_kg", "principal_inertia_kg_m2"}},
@@ -27,7 +27,7 @@ const std::vector<SceneKeyTable>& SceneMappingKeys() {
       {"scene.pulse", {"shape", "amplitude_N", "duration_s", "direction_T"}},
       {"scene.constant_load", {"force_F_N", "torque_T_N_m"}},
       {"scene.initial_state", {"pose", "coordinates", "velocities", "hold", "guesses", "normal_force_guesses_N",
-                               "contact_guess_offset_mm"}},
+                               "contact_guess_offset_mm", "origin", "start"}},
       {"scene.initial_state.coordinates", {"x0_mm", "y0_mm", "z0_mm", "alpha_deg", "beta_deg", "gamma_deg"}},
       {"scene.initial_state.velocities",
        {"x0_mm_s", "y0_mm_s", "z0_mm_s", "alpha_deg_s", "beta_deg_s", "gamma_deg_s"}},
@@ -59,6 +59,7 @@ const std::vector<SceneKeyTable>& SceneMappingKeys() {
 const std::vector<SceneKeyTable>& SceneFieldValues() {
   static const std::vector<SceneKeyTable> table = {
       {"scene.ligament_law", {"published", "c1_continuous"}},
+      {"scene.angular_velocity_map", {"exact", "printed_eq_1_20b"}},
       {"scene.ligaments", {"all", "none"}},  // or a list of element names
       {"scene.contacts[]", {"medial", "lateral"}},
       // As solver/loads.cpp's ParsePulseShape reads them (checked by tests/scene_test.cpp).
@@ -66,6 +67,8 @@ const std::vector<SceneKeyTable>& SceneFieldValues() {
       {"surface.type", {"sphere_cap", "plane", "ellipsoid_cap", "polynomial"}},
       {"scene.initial_state.pose", {"reference", "explicit", "assemble"}},
       {"scene.initial_state.guesses", {"pose", "chapter"}},
+      {"scene.initial_state.origin", {"both_contacts", "medial_contact"}},
+      {"scene.initial_state.start", {"consistent", "unprojected"}},
       {"scene.initial_state.hold[]", {"x0", "y0", "z0", "alpha", "beta", "gamma", "x0_dot", "y0_dot", "z0_dot",
                                       "alpha_dot", "beta_dot", "gamma_dot", "velocities"}},
   };

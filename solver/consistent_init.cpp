@@ -351,6 +351,17 @@ MechanicalState ConsistentInitialize(const Model& model, const InitialState& ini
   ConvertContactCoordinates(model, options.chart, &state);
   InitReport rep;
   rep.form = options.form == ContactForm::kChapter ? "chapter" : "closed_form";
+  if (init.unprojected) {
+    // The chapter's DASSL start: the guesses as they are, accelerations zero; no level solved.
+    state.qdd = Vector6d::Zero();
+    for (const ContactGuess& g : state.contact) {
+      rep.normal_force_guess.push_back(g.normal_force);
+      rep.normal_force.push_back(g.normal_force);
+    }
+    rep.form += " (unprojected start)";
+    if (report) *report = rep;
+    return state;
+  }
   for (int i : init.held) rep.held.push_back(CoordinateName(i));
   for (int i : init.held_velocities) rep.held.push_back(std::string(CoordinateName(i)) + "_dot");
   for (const ContactGuess& g : state.contact) rep.normal_force_guess.push_back(g.normal_force);

@@ -58,7 +58,9 @@ struct InitReport {
 };
 
 // `active`: contacts in contact at the start (indices into model.contacts); `initial`: the
-// starting point, the held coordinates and rates and the contact guesses.
+// starting point, the held coordinates and rates and the contact guesses. With
+// initial.unprojected the state is the guesses as they are (q̈ = 0, N the guesses), no level
+// solved: the chapter's DASSL start.
 MechanicalState ConsistentInitialize(const Model& model, const InitialState& initial,
                                      const std::vector<int>& active,
                                      const ConsistentInitOptions& options, InitReport* report);

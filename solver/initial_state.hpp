@@ -37,6 +37,9 @@ struct InitialState {
   // Per model.contacts entry: starting guesses for the chapter-form unknowns.
   std::vector<ContactGuess> contact_guesses;
   std::string guesses_source;  // "chapter" or "pose"
+  // The chapter's DASSL start (docs/model.md §6): the guesses go to the integrator as they are,
+  // without the consistent initialization's levels (dae only; scene key initial_state.start).
+  bool unprojected = false;
 };
 
 // When a run stops: at the first of α reaching `flexion` (if set) and t reaching `time`.

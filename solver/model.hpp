@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "solver/height_field.hpp"
+#include "solver/rotation.hpp"
 #include "solver/scalar.hpp"
 
 namespace kneedyn {
@@ -86,6 +87,8 @@ struct Model {
   // to the constant load. Never set by a scene; empty = none.
   std::function<void(double t, Vector3d* force_F, Vector3d* torque_T)> manufactured_load;
   LigamentLaw ligament_law = LigamentLaw::kPublished;
+  // The exact angular velocity, or the chapter's printed Eq. 1.20b (docs/model.md §2).
+  AngularVelocityMapReading angular_velocity_map = AngularVelocityMapReading::kExact;
 
   // Index of the contact pair for a compartment, or -1 when the scene has none there.
   int ContactIndex(Compartment c) const;

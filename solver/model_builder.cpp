@@ -96,6 +96,41 @@ void ChapterGuesses(const Model& model, const SurfacePair& medial_surfaces, cons
   }
 }
 
+// R0 from the medial condition alone (InitialStateRequest::kMedialContact): x0 = xc − (R r′)x
+// with the chapter's medial guesses (Eq. 1.8), y0 as given, and z0 from the medial gap
+// n · (C − R0) − d − r = 0, which is linear in z0 (docs/model.md §4). R0 is held; unless the
+// scene lists its own holds, γ is held and α, β are left to close the lateral contact (the
+// gaps' gradients in β and γ are nearly parallel at full extension, in α and β they are not).
+void MedialOrigin(const SurfacePair& medial_surfaces, const InitialStateRequest& request, InitialState* init) {
+  using PoseSource = InitialStateRequest::PoseSource;
+  if (request.guesses != InitialStateRequest::GuessSource::kChapter || request.pose != PoseSource::kReference) {
+    Throw<InputError>("BuildInitialState",
+                      "an origin from the medial contact needs the reference pose and the chapter's guesses");
+  }
+  SphereOnPlane medial;
+  if (!SphereOnPlaneForm(AsPair(medial_surfaces), &medial)) {
+    Throw<InputError>("BuildInitialState", "an origin from the medial contact needs a sphere on a plane medially");
+  }
+  const auto& guess = *request.chapter_guesses[static_cast<int>(Compartment::kMedial)];
+  HeightSample fs, gs;
+  const double xt = (*guess.tibial_xy)[0], yt = (*guess.tibial_xy)[1];
+  medial_surfaces.femoral->Evaluate(guess.femoral_xy[0], guess.femoral_xy[1], &fs);
+  medial_surfaces.tibial->Evaluate(xt, yt, &gs);
+  const Matrix3d R = RotationFT(init->q(kAlpha), init->q(kBeta), init->q(kGamma));
+  init->q(kX0) = guess.femoral_xy[0] - (R * Vector3d(xt, yt, gs.value)).x();
+  const Vector3d n = R * medial.normal_T;
+  if (std::abs(n.z()) < 1e-6) {
+    Throw<InputError>("BuildInitialState", "the medial plateau is vertical (n_z = ", n.z(),
+                      "); the medial gap does not fix z0");
+  }
+  init->q(kZ0) = (n.dot(medial.centre_F) - medial.offset - medial.radius - n.x() * init->q(kX0) -
+                  n.y() * init->q(kY0)) / n.z();
+  if (!request.hold) init->held = {kX0, kY0, kZ0, kGamma};
+  for (int i : {kX0, kY0, kZ0}) {
+    if (std::find(init->held.begin(), init->held.end(), i) == init->held.end()) init->held.push_back(i);
+  }
+}
+
 }  // namespace
 
 Vector6d SolveReferencePose(const ReferencePoseDescription& d) {
@@ -155,6 +190,7 @@ Model BuildModel(const ModelDescription& d, const Vector6d& reference_q) {
   model.inertia_T = d.inertia_T;
   model.gravity_F = d.gravity_F;
   model.ligament_law = d.ligament_law;
+  model.angular_velocity_map = d.angular_velocity_map;
   model.contacts = d.contacts;
   model.pulse = d.pulse;
   model.constant_load = d.constant_load;
@@ -191,6 +227,10 @@ InitialState BuildInitialState(const Model& model, const Vector6d& reference_q, 
   if (request.guesses == InitialStateRequest::GuessSource::kChapter) {
     ChapterGuesses(model, chapter_surfaces, request, &init);
   }
+  if (request.origin == InitialStateRequest::OriginSource::kMedialContact) {
+    MedialOrigin(chapter_surfaces, request, &init);
+  }
+  init.unprojected = request.unprojected_start;
   for (size_t k = 0; k < model.contacts.size(); ++k) {
     const auto& force = request.normal_force_guesses[static_cast<int>(model.contacts[k].compartment)];
     if (force) init.contact_guesses[k].normal_force = *force;

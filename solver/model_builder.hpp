@@ -79,6 +79,15 @@ struct InitialStateRequest {
   std::array<std::optional<ChapterContactGuess>, kMaxContacts> chapter_guesses;
   std::array<std::optional<double>, kMaxContacts> normal_force_guesses;  // N
   std::optional<double> contact_guess_offset;                           // m, every coordinate
+  // Where the initial R0 comes from (docs/model.md §6). kBothContacts: x0 and z0 are solved
+  // so that both contacts close at the held angles. kMedialContact, the chapter's words
+  // ("thus satisfying the contact condition at the medial side"): x0 from the medial guesses
+  // (Eq. 1.8), z0 closing the medial gap; R0 is then held and α, β close the lateral contact.
+  // Needs GuessSource::kChapter and PoseSource::kReference.
+  enum class OriginSource { kBothContacts, kMedialContact };
+  OriginSource origin = OriginSource::kBothContacts;
+  // true: InitialState::unprojected (the chapter's DASSL start).
+  bool unprojected_start = false;
 };
 
 // The constant model but for the quantities derived here.
@@ -87,6 +96,7 @@ struct ModelDescription {
   Vector3d inertia_T = Vector3d::Zero();  // kg m²
   Vector3d gravity_F = Vector3d::Zero();  // m/s²
   LigamentLaw ligament_law = LigamentLaw::kPublished;
+  AngularVelocityMapReading angular_velocity_map = AngularVelocityMapReading::kExact;
   // Attachments, k_linear, k_parabolic_published and extension_ratio given; lengths and
   // k_parabolic are set by BuildModel.
   std::vector<Ligament> ligaments;

@@ -18,6 +18,19 @@ Vector3d SolveAngularVelocityMap(double beta, const EulerAngleTrig<double>& trig
   const double sb = trig.sb, cb = trig.cb;
   const double sg = trig.sg, cg = trig.cg;
   Vector3d x;
+  if (ThreadAngularVelocityMapReading() == AngularVelocityMapReading::kPrintedEq1_20b) {
+    // E(1, 1) = +cγ (Eq. 1.20b): the 2×2 block's determinant is −sin β cos 2γ.
+    const double det = -sb * (cg * cg - sg * sg);
+    if (std::abs(det) < kJcsSingularityTolerance) {
+      Throw<SolverError>(caller, "the printed map of Eq. 1.20b is singular at gamma = ", std::atan2(sg, cg),
+                         " rad (|sin beta cos 2 gamma| = ", std::abs(det), " < ", kJcsSingularityTolerance,
+                         "; docs/model.md §2)");
+    }
+    x(0) = (cg * r(0) - sg * r(1)) / det;
+    x(1) = sb * (sg * r(0) - cg * r(1)) / det;
+    x(2) = -r(2) - cb * x(0);
+    return x;
+  }
   x(0) = (-cg * r(0) - sg * r(1)) / sb;
   x(1) = sg * r(0) - cg * r(1);
   x(2) = -r(2) - cb * x(0);

@@ -79,6 +79,34 @@ inline void CheckJcsRegular(double beta, const char* caller) {
   CheckJcsRegular(beta, std::sin(beta), caller);
 }
 
+// Which map from (α̇, β̇, γ̇) to w_T a run uses (docs/model.md §2). kExact is the angular
+// velocity of R_FT. kPrintedEq1_20b is the chapter's printed Eq. 1.20b, whose β̇ cos γ term of
+// ω′y has the sign + (Eq. 1.28b and the exact map have −): a reading of the chapter, not an
+// angular velocity (E's leading 2×2 block then has determinant −sin β cos 2γ).
+enum class AngularVelocityMapReading { kExact, kPrintedEq1_20b };
+
+// The reading of the map on this thread. A run sets it for its whole life from its model
+// (ScopedAngularVelocityMapReading in the hybrid simulator), so that the free functions below
+// and every formulation that calls them need no extra argument; outside a run it is kExact.
+inline AngularVelocityMapReading& ThreadAngularVelocityMapReading() {
+  thread_local AngularVelocityMapReading reading = AngularVelocityMapReading::kExact;
+  return reading;
+}
+
+class ScopedAngularVelocityMapReading {
+ public:
+  explicit ScopedAngularVelocityMapReading(AngularVelocityMapReading reading)
+      : previous_(ThreadAngularVelocityMapReading()) {
+    ThreadAngularVelocityMapReading() = reading;
+  }
+  ~ScopedAngularVelocityMapReading() { ThreadAngularVelocityMapReading() = previous_; }
+  ScopedAngularVelocityMapReading(const ScopedAngularVelocityMapReading&) = delete;
+  ScopedAngularVelocityMapReading& operator=(const ScopedAngularVelocityMapReading&) = delete;
+
+ private:
+  AngularVelocityMapReading previous_;
+};
+
 // E(β, γ): w_T = E · (α̇, β̇, γ̇). Throws at the JCS singularity (`beta` only names it there).
 template <typename T>
 Matrix3<T> AngularVelocityMap(const T& beta, const EulerAngleTrig<T>& trig) {
@@ -91,6 +119,9 @@ Matrix3<T> AngularVelocityMap(const T& beta, const EulerAngleTrig<T>& trig) {
   E << -sb * cg, sg, T(0.0),  //
       -sb * sg, -cg, T(0.0),  //
       -cb, T(0.0), T(-1.0);
+  if (ThreadAngularVelocityMapReading() == AngularVelocityMapReading::kPrintedEq1_20b) {
+    E(1, 1) = cg;  // Eq. 1.20b: ω′y = … + β̇ cos γ
+  }
   return E;
 }
 
@@ -114,6 +145,11 @@ Vector3<T> AngularVelocityMapRateTimesRate(const EulerAngleTrig<T>& trig, const 
   // d(î)/dt = î_β β̇ + î_γ γ̇;  d(ê2)/dt = ê2_γ γ̇;  k̂′ constant.
   const Vector3<T> di(cb * cg * bd - sb * sg * gd, cb * sg * bd + sb * cg * gd, -sb * bd);
   const Vector3<T> de2(-cg * gd, -sg * gd, T(0.0));
+  if (ThreadAngularVelocityMapReading() == AngularVelocityMapReading::kPrintedEq1_20b) {
+    // E's β column is (sγ, +cγ, 0): its rate is (cγ γ̇, −sγ γ̇, 0).
+    const Vector3<T> dcol_beta(cg * gd, -sg * gd, T(0.0));
+    return -di * ad + dcol_beta * bd;
+  }
   return -di * ad - de2 * bd;
 }
 

@@ -337,6 +337,86 @@ TEST(ConsistentInit, AssembleWithoutCoordinatesIsRefusedNamingTheField) {
   }
 }
 
+// R0 from the medial condition only (docs/model.md §6, the chapter's "thus satisfying the
+// contact condition at the medial side"). Independent checks: x0 is the chapter's medial
+// guesses' xc − x′c (R = I at full extension; numbers from the parameter set, not from the
+// code); the medial closed-form gap is zero at that R0 (exactly, to round-off) while the
+// lateral one is not (the default pose closes both, so this one differs from it); the
+// consistent initialization then keeps R0 and γ and closes the lateral contact with α, β.
+TEST_P(ConsistentInitForms, MedialOriginSatisfiesTheMedialConditionAndDiffersFromTheDefault) {
+  const Scene scene = ChapterVariant("{pose: reference, guesses: chapter, origin: medial_contact}");
+  const double x0_mm = -16.72913866466 - (-16.980955);  // xc − x′c, chapter_knee.yaml
+  EXPECT_NEAR(MToMm(scene.initial.q(kX0)), x0_mm, 1e-9);
+  EXPECT_EQ(scene.initial.q(kY0), ChapterScene().reference_q(kY0));
+  const Pose start = PoseFromCoordinates(scene.initial.q);
+  const double medial_gap = SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[0]), start).gap;
+  const double lateral_gap = SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[1]), start).gap;
+  EXPECT_LE(std::abs(medial_gap), 1e-15) << "medial gap " << medial_gap << " m";
+  EXPECT_GT(std::abs(lateral_gap), 1e-6) << "lateral gap " << lateral_gap << " m";
+  EXPECT_GT(std::abs(MToMm(scene.initial.q(kX0)) - kR0_mm[0]), 0.05);  // the default R0 (§10)
+  EXPECT_GT(std::abs(MToMm(scene.initial.q(kZ0)) - kR0_mm[2]), 1e-3);
+
+  ConsistentInitOptions options;
+  options.form = GetParam();
+  InitReport report;
+  const MechanicalState s = ConsistentInitialize(scene.model, scene.initial, kBoth, options, &report);
+  for (int i : {kX0, kY0, kZ0, kGamma}) EXPECT_EQ(s.q(i), scene.initial.q(i)) << CoordinateName(i);
+  EXPECT_GT(std::abs(s.q(kAlpha) - scene.initial.q(kAlpha)) + std::abs(s.q(kBeta) - scene.initial.q(kBeta)), 1e-6);
+  const Pose pose = PoseFromCoordinates(s.q);
+  for (int c = 0; c < 2; ++c) {
+    EXPECT_LE(std::abs(SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[c]), pose).gap), 1e-11)
+        << "contact " << c;
+  }
+  EXPECT_LE(report.hidden.residual_after, options.hidden_tolerance);
+}
+
+TEST(ConsistentInit, MedialOriginWithoutTheChapterGuessesIsRefusedNamingTheField) {
+  try {
+    (void)ChapterVariant("{pose: reference, guesses: pose, origin: medial_contact}");
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("initial_state.origin"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("guesses: chapter"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SceneOptions, AngularVelocityMapKeyIsReadAndCheckedAndExactByDefault) {
+  EXPECT_EQ(ChapterScene().model.angular_velocity_map, AngularVelocityMapReading::kExact);
+  const std::string head =
+      "name: variant\nparameter_set: ../chapter_knee.yaml\nligaments: all\ncontacts: [medial, lateral]\n"
+      "gravity: {enabled: true}\npulse: {shape: reconstructed, amplitude_N: 100.0, duration_s: 0.1}\n"
+      "initial_state: {pose: reference, guesses: chapter}\nend: {flexion_deg: 90.0}\n";
+  const Scene printed = ParseScene(head + "angular_velocity_map: printed_eq_1_20b\n", "v.yaml", ScenesDir());
+  EXPECT_EQ(printed.model.angular_velocity_map, AngularVelocityMapReading::kPrintedEq1_20b);
+  try {
+    (void)ParseScene(head + "angular_velocity_map: printed\n", "v.yaml", ScenesDir());
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("angular_velocity_map"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("printed_eq_1_20b"), std::string::npos) << e.what();
+  }
+}
+
+// The chapter's DASSL start (docs/model.md §6): the guesses go out as they are. Independent
+// check: the chapter's R0 from its medial guesses leaves the medial gap at −0.00703 mm and the
+// lateral at −0.0650 mm (closed-form gaps; docs/model.md §6), and the forces are the
+// parameter set's guesses, 150 N and 130 N.
+TEST(ConsistentInit, UnprojectedStartHandsOverTheChaptersInconsistentGuesses) {
+  const Scene scene = ChapterVariant("{pose: reference, guesses: chapter, start: unprojected}");
+  ASSERT_TRUE(scene.initial.unprojected);
+  InitReport report;
+  const MechanicalState s = ConsistentInitialize(scene.model, scene.initial, kBoth, ConsistentInitOptions{}, &report);
+  EXPECT_EQ(s.q, scene.initial.q);
+  EXPECT_NEAR(MToMm(s.q(kX0)), -16.72913866466 - (-16.980955), 1e-9);  // xc − x′c
+  const Pose pose = PoseFromCoordinates(s.q);
+  EXPECT_NEAR(MToMm(SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[0]), pose).gap), -0.00703, 1e-5);
+  EXPECT_NEAR(MToMm(SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[1]), pose).gap), -0.0650, 1e-4);
+  EXPECT_EQ(s.contact[0].normal_force, 150.0);
+  EXPECT_EQ(s.contact[1].normal_force, 130.0);
+  EXPECT_EQ(s.qdd, Vector6d::Zero());
+  EXPECT_FALSE(ChapterScene().initial.unprojected);
+}
+
 INSTANTIATE_TEST_SUITE_P(Forms, ConsistentInitForms,
                          ::testing::Values(ContactForm::kChapter, ContactForm::kClosedForm),
                          [](const ::testing::TestParamInfo<ContactForm>& info) {

@@ -76,6 +76,13 @@ TEST_F(HostileInput, TinySceneOutputIntervalIsRefused) {
   ExpectRefused(RunArgs(scene), {"output.interval_s", "1e-7"});
 }
 
+// The chapter's DASSL start is a start for IDA (dae) only; the others refuse it before running.
+TEST_F(HostileInput, UnprojectedStartIsRefusedForAFormulationOtherThanDae) {
+  const std::string scene =
+      Input("scene.yaml", Replaced(ChapterSceneText(), "guesses: chapter", "guesses: chapter\n  start: unprojected"));
+  ExpectRefused(RunArgs(scene, "--formulation mde"), {"initial_state.start", "unprojected", "dae only", "'mde'"});
+}
+
 TEST_F(HostileInput, BadOutputIntervalOptionsAreRefused) {
   for (const char* v : {"1e-300", "-1", "0", "nan", "1e-5"}) {  // 1e-5: 2e5 rows up to 2 s
     ExpectRefused(RunArgs(ChapterScenePath(), std::string("--output-interval ") + v), {"--output-interval"});

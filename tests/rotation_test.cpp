@@ -269,5 +269,49 @@ TEST(EulerAngleTrig, OverloadsEqualTheAngleOverloadsBitwise) {
   }
 }
 
+// The printed Eq. 1.20b reading (docs/model.md §2): ω′y's β̇ cos γ term gets the sign +.
+// Independent of the implementation: the expected difference is the term itself,
+// w_printed − w_exact = (0, 2 β̇ cos γ, 0), and nothing else changes; its rate term is
+// checked by central differences of the printed map itself; ν ↔ q̇ still round-trips.
+TEST(AngularVelocityMapPrintedEq1_20b, DiffersFromTheExactMapByTwiceTheBetaDotCosGammaTermInYOnly) {
+  std::mt19937 rng(11);
+  const double h = 1e-6;
+  int compared = 0;
+  for (int s = 0; s < kSamples; ++s) {
+    const Vector6d q = RandomCoordinates(rng);
+    const Vector6d qd = RandomVector6(rng, 2.0);
+    if (std::abs(std::cos(2.0 * q(kGamma)) * std::sin(q(kBeta))) < 0.05) continue;  // printed map singular there
+    const Vector3d qd_ang = qd.tail<3>();
+    const Vector3d w_exact = AngularVelocityT(q, qd);
+    const Vector3d rate_exact = AngularVelocityMapRateTimesRate(q(kBeta), q(kGamma), qd_ang);
+    Vector3d w_printed, rate_printed, fd;
+    Vector6d qd_back;
+    {
+      ScopedAngularVelocityMapReading printed(AngularVelocityMapReading::kPrintedEq1_20b);
+      w_printed = AngularVelocityT(q, qd);
+      rate_printed = AngularVelocityMapRateTimesRate(q(kBeta), q(kGamma), qd_ang);
+      const Vector6d qp = q + h * qd, qm = q - h * qd;
+      fd = (AngularVelocityMap(qp(kBeta), qp(kGamma)) - AngularVelocityMap(qm(kBeta), qm(kGamma))) / (2 * h) * qd_ang;
+      qd_back = CoordinateVelocity(q, GeneralizedVelocity(q, qd));
+    }
+    const double beta_dot = qd(kBeta), gamma = q(kGamma), gamma_dot = qd(kGamma);
+    EXPECT_EQ(w_printed.x(), w_exact.x());
+    EXPECT_EQ(w_printed.z(), w_exact.z());
+    EXPECT_NEAR(w_printed.y() - w_exact.y(), 2.0 * beta_dot * std::cos(gamma), 1e-14);
+    EXPECT_EQ(rate_printed.x(), rate_exact.x());
+    EXPECT_EQ(rate_printed.z(), rate_exact.z());
+    // d/dt (2 β̇ cos γ) at constant β̇: −2 β̇ γ̇ sin γ.
+    EXPECT_NEAR(rate_printed.y() - rate_exact.y(), -2.0 * beta_dot * gamma_dot * std::sin(gamma), 1e-13);
+    EXPECT_LT((rate_printed - fd).norm(), 1e-8);
+    EXPECT_LT((qd_back - qd).norm(), 1e-10);
+    ++compared;
+  }
+  EXPECT_GT(compared, kSamples / 2);
+  // The reading ends with its scope: the exact map again.
+  const Vector6d q = Vector6d::Zero().eval() + (Vector6d() << 0, 0, 0, 0.3, 1.4, 0.2).finished();
+  const Vector6d qd = (Vector6d() << 0, 0, 0, 1.0, 0.5, -0.7).finished();
+  EXPECT_NEAR(AngularVelocityT(q, qd).y(), -std::sin(1.4) * std::sin(0.2) * 1.0 - std::cos(0.2) * 0.5, 1e-15);
+}
+
 }  // namespace
 }  // namespace kneedyn
