@@ -99,7 +99,7 @@ DaeForm DaeFormOf(const std::string& name, const Scene& scene) {
   if (info.sensitivity != SensitivityForm::kDae && info.sensitivity != SensitivityForm::kDaeGgl) {
     Throw<InputError>("RunDaeSensitivity", "--formulation = '", Echo(name), "' is not a DAE form");
   }
-  return {info.create(scene, FormulationOptions())->contact_form(), info.sensitivity == SensitivityForm::kDaeGgl};
+  return {Configure(info, FormulationOptions())(scene)->contact_form(), info.sensitivity == SensitivityForm::kDaeGgl};
 }
 
 // The DAE and its sensitivities on IDAS as a stepper of the hybrid simulator
@@ -290,7 +290,7 @@ class DaeSensitivity : public Formulation {
   std::vector<double> pbar_, h_;     // |p_j| (1 when 0) and the central-difference steps
   DaeSystem system_;
   SensitivityResult* result_;
-  FormulationOptions ida_options_;   // rtol, atol, max_steps for IdaPhase
+  StepControl ida_options_;   // rtol, atol, max_steps for IdaPhase
   Mode mode_;                        // the phase's contacts, branches and events
   int n_ = 0;
 

@@ -127,7 +127,7 @@ class OdeSensitivity : public Formulation {
         np_(static_cast<int>(values.size())),
         with_s_(options.derivatives && !values.empty()),
         scene_p_(problem.SceneCopyAt(values)),
-        contact_form_(FindFormulation(options.formulation).create(scene_p_, FormulationOptions())->contact_form()),
+        contact_form_(CreateFormulation(options.formulation, scene_p_, FormulationOptions())->contact_form()),
         y_(kN),
         s_(np_, VectorXd::Zero(kN)),
         pbar_(np_),
