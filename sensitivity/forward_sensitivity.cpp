@@ -464,7 +464,11 @@ const char* SensitivityMethod(const std::string& formulation) {
                                 "F_p by central differences over perturbed models (relative step 1e-5)";
 }
 
-bool SensitivityOptions::IsValid(std::string* error) const {
+bool SensitivityOptions::IsValid(std::string* error, const OptionText& typed) const {
+  const auto shown = [&typed](const char* flag, auto value) {
+    const auto it = typed.find(flag);
+    return it != typed.end() ? StrCat("'", Echo(it->second), "'") : StrCat(value);
+  };
   const std::vector<std::string> forms = SensitivityFormulations();
   if (std::find(forms.begin(), forms.end(), formulation) == forms.end()) {
     std::string ode, dae;
@@ -477,19 +481,19 @@ bool SensitivityOptions::IsValid(std::string* error) const {
     return false;
   }
   if (!(rtol > 0.0 && rtol < 1.0)) {
-    *error = StrCat("--rtol = ", rtol, ": must be in (0, 1)");
+    *error = StrCat("--rtol = ", shown("--rtol", rtol), ": must be in (0, 1)");
     return false;
   }
   if (!(output_interval >= 0.0 && std::isfinite(output_interval))) {
-    *error = StrCat("--output-interval = ", output_interval, ": must be >= 0 (0: the scene's)");
+    *error = StrCat("--output-interval = ", shown("--output-interval", output_interval), ": must be >= 0 (0: the scene's)");
     return false;
   }
   if (!(atol > 0.0 && std::isfinite(atol))) {
-    *error = StrCat("--atol = ", atol, ": must be > 0");
+    *error = StrCat("--atol = ", shown("--atol", atol), ": must be > 0");
     return false;
   }
   if (max_steps < 1) {
-    *error = StrCat("--max-steps = ", max_steps, ": must be >= 1");
+    *error = StrCat("--max-steps = ", shown("--max-steps", max_steps), ": must be >= 1");
     return false;
   }
   return true;
