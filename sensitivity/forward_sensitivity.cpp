@@ -395,36 +395,10 @@ AdvanceResult OdeSensitivity::Advance(double t_out, MechanicalState* state) {
 }
 
 void OdeSensitivity::Run() {
-  const double t_end = scene_p_.end.time;
-  const double dt_out = options_.output_interval > 0.0 ? options_.output_interval : scene_p_.output_interval;
-  std::string why;
-  if (!IsValidOutputInterval(dt_out, t_end, &why)) {
-    Throw<InputError>("RunSensitivity", options_.output_interval > 0.0 ? "--output-interval: " : "scene output.interval_s: ", why);
-  }
-  // The trajectory rows: t0 (with s0) once the first phase has started, then every output
-  // time before the end (no event rows).
-  auto row = [&](const MechanicalState& st) {
-    TrajectorySample sample;
-    sample.t = st.t;
-    sample.q = st.q;
-    if (with_s_) {
-      for (int j = 0; j < np_; ++j) sample.dq.push_back(s_[j].head<6>());
-    }
-    result_->trajectory.push_back(sample);
-  };
-  SimulatorSettings sim;
+  SimulatorSettings sim = TrajectorySettings(
+      scene_p_, options_, with_s_, np_, [this](int j) -> Vector6d { return s_[j].head<6>(); }, result_);
   sim.init.form = contact_form_;
-  sim.output_interval = dt_out;
-  sim.rtol = options_.rtol;
-  sim.atol = options_.atol;
   sim.restart = RestartProjection::kKeepState;  // the jump condition needs y continuous
-  sim.pulling = PullingContact::kRefuse;
-  sim.first_phase_started = row;
-  bool initial_sample = true;
-  sim.sample = [&](const MechanicalState& st, bool is_event) {
-    if (!initial_sample && !is_event && st.t < t_end) row(st);
-    initial_sample = false;
-  };
   RunResult record;
   Simulator simulator(scene_p_, this, sim, &record);
   simulator.Initialize();
