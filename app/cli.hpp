@@ -15,30 +15,6 @@
 
 namespace kneedyn {
 
-// A number given as an option's text: the whole text (no blanks, no trailing characters),
-// finite and representable (strtod's ERANGE refused, so 1e999 is not taken as inf nor 1e-999
-// as 0). CLI11 itself would read "" as 0 and clamp an integer beyond the type's range.
-inline bool ParseReal(const std::string& text, double* value) {
-  if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
-  errno = 0;
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (end != text.c_str() + text.size() || errno == ERANGE || !std::isfinite(v)) return false;
-  *value = v;
-  return true;
-}
-
-// A decimal integer given as text: the whole text, within long's range.
-inline bool ParseInteger(const std::string& text, long* value) {
-  if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
-  errno = 0;
-  char* end = nullptr;
-  const long v = std::strtol(text.c_str(), &end, 10);
-  if (end != text.c_str() + text.size() || errno == ERANGE) return false;
-  *value = v;
-  return true;
-}
-
 // Parses argv into `app`. Returns -1 when the program should go on, else the exit code the
 // program must return (0 after --help/--version, 2 after an argument error).
 inline int ParseCommandLine(CLI::App& app, int argc, char** argv, const std::string& program) {

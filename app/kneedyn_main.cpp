@@ -108,58 +108,17 @@ std::string FixedStepMethods() {
   return out;
 }
 
-// An enum option's spelling into `value`; `why` gets the refusal.
-template <typename Enum>
-void ReadOptionName(const std::string& text, Enum* value, std::string* why) {
-  ParseOptionValue(text, value, why);
-}
-template <typename Enum>
-void ReadOptionName(const std::string& text, std::optional<Enum>* value, std::string* why) {
-  Enum v{};
-  if (ParseOptionValue(text, &v, why)) *value = v;
-}
-
-// The options of `kneedyn run` as typed (flag -> text) into `settings`: numbers must be the
-// whole text, finite and representable; names must be among the accepted spellings. Returns
-// the first refusal, naming the flag and the text, or "".
+// The options of `kneedyn run` as typed (flag -> text) into `settings` (ReadOptionText, and
+// --output-interval). Returns the first refusal, naming the flag and the text, or "".
 std::string ReadRunOptions(const OptionText& typed, RunSettings* settings) {
-  FormulationOptions& o = settings->options;
-  std::string why;
-  for (const auto& entry : typed) {
-    const std::string& flag = entry.first;
-    const std::string& text = entry.second;
-    const auto number = [&](double* value) {
-      if (!ParseReal(text, value)) why = StrCat(flag, " = '", Echo(text), "': must be a finite number (in double's range)");
-    };
-    const auto optional_number = [&](std::optional<double>* value) {
-      double v = 0.0;
-      number(&v);
-      *value = v;
-    };
-    const auto name = [&](auto* value) { ReadOptionName(text, value, &why); };
-    if (flag == "--rtol") number(&o.rtol);
-    else if (flag == "--atol") number(&o.atol);
-    else if (flag == "--step") number(&o.step);
-    else if (flag == "--max-step") number(&o.max_step);
-    else if (flag == "--rho-inf") number(&o.rho_inf);
-    else if (flag == "--alpha-m") optional_number(&o.alpha_m);
-    else if (flag == "--alpha-f") optional_number(&o.alpha_f);
-    else if (flag == "--beta") optional_number(&o.newmark_beta);
-    else if (flag == "--gamma") optional_number(&o.newmark_gamma);
-    else if (flag == "--output-interval") {
-      number(&settings->output_interval);
-      if (why.empty() && !(settings->output_interval > 0.0)) {
-        why = StrCat("--output-interval = '", Echo(text), "'; must be > 0 (omit it for the scene's)");
-      }
-    } else if (flag == "--max-steps") {
-      if (!ParseInteger(text, &o.max_steps)) {
-        why = StrCat("--max-steps = '", Echo(text), "': not an integer in [1, 1e8]");
-      }
-    } else if (flag == "--integrator") name(&o.integrator);
-    else if (flag == "--stabilization") name(&o.stabilization);
-    else if (flag == "--constraint-level") name(&o.constraint_level);
-    else if (flag == "--jacobian") name(&o.jacobian);
-    if (!why.empty()) return why;
+  if (std::string why = ReadOptionText(typed, &settings->options); !why.empty()) return why;
+  const auto it = typed.find("--output-interval");
+  if (it == typed.end()) return "";
+  if (!ParseReal(it->second, &settings->output_interval)) {
+    return StrCat("--output-interval = '", Echo(it->second), "': must be a finite number (in double's range)");
+  }
+  if (!(settings->output_interval > 0.0)) {
+    return StrCat("--output-interval = '", Echo(it->second), "'; must be > 0 (omit it for the scene's)");
   }
   return "";
 }

@@ -216,7 +216,7 @@ FormulationOptions OptionsFor(const FormulationInfo& info) {
 
 void BM_Start(benchmark::State& st, const FormulationInfo* info) {
   const FormulationOptions o = OptionsFor(*info);
-  std::unique_ptr<Formulation> f = info->create(Chapter(), o);
+  std::unique_ptr<Formulation> f = Configure(*info, o)(Chapter());
   const MechanicalState s = Consistent(f->contact_form());
   for (auto _ : st) f->Start(s, {});
   st.counters["restarts"] = benchmark::Counter(static_cast<double>(f->stats().restarts) / st.iterations());

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include "ensembles/batch.hpp"
 #include "solver/error.hpp"
@@ -16,30 +17,44 @@ BatchCommand::BatchCommand(CLI::App& app) {
   cmd_->add_option("--variants", variants_path_, "CSV: header of parameter names, one row per run")->required();
   cmd_->add_option("--out", out_path_, "results table (CSV)")->capture_default_str();
   cmd_->add_option("--formulation", settings_.formulation, "formulation name")->capture_default_str();
-  cmd_->add_option("--rtol", settings_.options.rtol, "relative tolerance")->capture_default_str();
-  cmd_->add_option("--atol", settings_.options.atol, "absolute tolerance (SI)")->capture_default_str();
-  cmd_->add_option_function<std::string>(
-      "--integrator",
-      [this](const std::string& text) {
-        IntegratorKind kind{};
-        std::string why;
-        if (!ParseOptionValue(text, &kind, &why)) throw CLI::ValidationError(why);
-        settings_.options.integrator = kind;
-      },
-      "integrator (formulations with a choice: see `kneedyn formulations`)");
-  cmd_->add_option("--step", settings_.options.step, "fixed step in s");
-  cmd_->add_option("--output-interval", settings_.output_interval, "s between samples the outcomes see (0: scene's)");
+  // Numbers and names are kept as typed and converted once in Run (ReadOptionText), so that
+  // every refusal echoes the text given.
+  auto text_option = [this](const char* flag, const std::string& help, const std::string& default_text = "") {
+    CLI::Option* o = cmd_->add_option(flag, typed_[flag], help);
+    if (!default_text.empty()) o->default_str(default_text);
+  };
+  text_option("--rtol", "relative tolerance", StrCat(settings_.options.rtol));
+  text_option("--atol", "absolute tolerance (SI)", StrCat(settings_.options.atol));
+  text_option("--integrator", "integrator (formulations with a choice: see `kneedyn formulations`)");
+  text_option("--step", "fixed step in s");
+  text_option("--output-interval", "s between samples the outcomes see (0: scene's)");
   cmd_->add_option("--outcomes", outcomes_, "outcome groups (as in a sweep spec)")->delimiter(',')->capture_default_str();
-  cmd_->add_option("--threads", threads_, "worker threads")->capture_default_str();
+  text_option("--threads", "worker threads", StrCat(threads_));
   cmd_->add_flag("--quiet", quiet_, "no summary on stdout");
 }
 
 int BatchCommand::Run() {
   try {
-    if (threads_ < 1 || threads_ > 4096) Throw<InputError>("kneedyn batch", "--threads = ", threads_, ": must be in [1, 4096]");
-    if (settings_.output_interval < 0.0) {
-      Throw<InputError>("kneedyn batch", "--output-interval = ", settings_.output_interval, ": must be >= 0");
+    for (auto it = typed_.begin(); it != typed_.end();) {  // keep only the options given
+      it = cmd_->count(it->first) ? std::next(it) : typed_.erase(it);
     }
+    if (const std::string why = ReadOptionText(typed_, &settings_.options); !why.empty()) {
+      Throw<InputError>("kneedyn batch", why);
+    }
+    if (const auto it = typed_.find("--threads"); it != typed_.end()) {
+      long threads = 0;
+      if (!ParseInteger(it->second, &threads) || threads < 1 || threads > 4096) {
+        Throw<InputError>("kneedyn batch", "--threads = '", Echo(it->second), "': must be an integer in [1, 4096]");
+      }
+      threads_ = static_cast<int>(threads);
+    }
+    if (const auto it = typed_.find("--output-interval"); it != typed_.end()) {
+      if (!ParseReal(it->second, &settings_.output_interval) || settings_.output_interval < 0.0) {
+        Throw<InputError>("kneedyn batch", "--output-interval = '", Echo(it->second),
+                          "': must be a finite number >= 0 (0: the scene's)");
+      }
+    }
+    CheckOptions(FindFormulation(settings_.formulation), settings_.options, typed_);
     const std::filesystem::path out(out_path_);
     if (out_path_.empty() || std::filesystem::is_directory(out)) {
       Throw<InputError>("kneedyn batch", "--out = '", out_path_, "': must name a file");

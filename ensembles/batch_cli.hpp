@@ -26,6 +26,7 @@ class BatchCommand {
   CLI::App* cmd_;
   std::string scene_path_, variants_path_, out_path_ = "out/batch.csv";
   RunSettings settings_;
+  OptionText typed_;  // the numeric and named options as typed (flag -> text)
   std::vector<std::string> outcomes_ = {"liftoff_time", "liftoff_flexion", "time_at_90"};
   int threads_ = 1;
   bool quiet_ = false;

@@ -52,7 +52,7 @@ namespace {
 
 class DaeOnIda final : public FormulationBase {
  public:
-  DaeOnIda(const Scene& scene, const FormulationOptions& options, ContactForm form, const DaeOnIdaVariant& variant)
+  DaeOnIda(const Scene& scene, const IdaOptions& options, ContactForm form, const DaeOnIdaVariant& variant)
       : FormulationBase(scene),
         options_(options),
         form_(form),
@@ -82,11 +82,11 @@ class DaeOnIda final : public FormulationBase {
     double* at = NvData(atol);
     for (int i = 0; i < n_; ++i) {
       idp[i] = system_.IsDifferential(i) ? 1.0 : 0.0;
-      at[i] = DaeUnknownAtol(variant_.ggl, system_, i, options_.atol);  // dae_on_ida.hpp
+      at[i] = DaeUnknownAtol(variant_.ggl, system_, i, options_.control.atol);  // dae_on_ida.hpp
     }
     ida_.Start(ctx_, n_, &DaeOnIda::Residual,
                options_.jacobian == JacobianKind::kDifferenceQuotient ? nullptr : &DaeOnIda::Jacobian,
-               &DaeOnIda::Roots, this, state.t, atol, id, options_, scene_.end.time, events_, variant_.name,
+               &DaeOnIda::Roots, this, state.t, atol, id, options_.control, scene_.end.time, events_, variant_.name,
                &sundials_messages_);
     N_VDestroy(id);
     N_VDestroy(atol);
@@ -212,7 +212,7 @@ class DaeOnIda final : public FormulationBase {
     if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
-  FormulationOptions options_;
+  IdaOptions options_;
   ContactForm form_;
   DaeOnIdaVariant variant_;
   SundialsContext ctx_;
@@ -233,16 +233,30 @@ constexpr DaeOnIdaVariant kPlainReduced = {"dae-reduced", false};
 
 }  // namespace
 
-std::unique_ptr<Formulation> CreateDaeOnIda(const Scene& scene, const FormulationOptions& options,
+bool ReadIdaOptions(const OptionRequest& request, IdaOptions* options) {
+  const FormulationOptions& o = request.options;
+  options->control = o.step_control();
+  options->constraint_level = o.constraint_level;
+  options->jacobian = o.jacobian.value_or(JacobianKind::kExact);
+  return true;
+}
+
+std::unique_ptr<Formulation> CreateDaeOnIda(const Scene& scene, const IdaOptions& options,
                                             ContactForm form, const DaeOnIdaVariant& variant) {
   return std::make_unique<DaeOnIda>(scene, options, form, variant);
 }
 
-std::unique_ptr<Formulation> CreateDae(const Scene& scene, const FormulationOptions& options) {
-  return CreateDaeOnIda(scene, options, ContactForm::kChapter, kPlain);
+FormulationMaker ConfigureDae(const OptionRequest& request) {
+  IdaOptions options;
+  if (!ReadIdaOptions(request, &options)) return nullptr;
+  return [options](const Scene& scene) { return CreateDaeOnIda(scene, options, ContactForm::kChapter, kPlain); };
 }
-std::unique_ptr<Formulation> CreateDaeReduced(const Scene& scene, const FormulationOptions& options) {
-  return CreateDaeOnIda(scene, options, ContactForm::kClosedForm, kPlainReduced);
+FormulationMaker ConfigureDaeReduced(const OptionRequest& request) {
+  IdaOptions options;
+  if (!ReadIdaOptions(request, &options)) return nullptr;
+  return [options](const Scene& scene) {
+    return CreateDaeOnIda(scene, options, ContactForm::kClosedForm, kPlainReduced);
+  };
 }
 
 // Test hook (dae_testing.hpp).

@@ -53,11 +53,17 @@ constexpr DaeOnIdaVariant kGglReduced = {"dae-ggl-reduced", true};
 
 }  // namespace
 
-std::unique_ptr<Formulation> CreateDaeGgl(const Scene& scene, const FormulationOptions& options) {
-  return CreateDaeOnIda(scene, options, ContactForm::kChapter, kGgl);
+FormulationMaker ConfigureDaeGgl(const OptionRequest& request) {
+  IdaOptions options;
+  if (!ReadIdaOptions(request, &options)) return nullptr;
+  return [options](const Scene& scene) { return CreateDaeOnIda(scene, options, ContactForm::kChapter, kGgl); };
 }
-std::unique_ptr<Formulation> CreateDaeGglReduced(const Scene& scene, const FormulationOptions& options) {
-  return CreateDaeOnIda(scene, options, ContactForm::kClosedForm, kGglReduced);
+FormulationMaker ConfigureDaeGglReduced(const OptionRequest& request) {
+  IdaOptions options;
+  if (!ReadIdaOptions(request, &options)) return nullptr;
+  return [options](const Scene& scene) {
+    return CreateDaeOnIda(scene, options, ContactForm::kClosedForm, kGglReduced);
+  };
 }
 
 }  // namespace kneedyn

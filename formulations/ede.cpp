@@ -36,7 +36,7 @@ constexpr double kProjectionTolerance = 1.0e-14;  // m
 
 class EdeFormulation final : public FormulationBase, public OdeProblem {
  public:
-  EdeFormulation(const Scene& scene, const FormulationOptions& options)
+  EdeFormulation(const Scene& scene, const OdeOptions& options)
       : FormulationBase(scene), options_(options), integrator_(options, "ede"),
         workspace_(model_) {
     acc_.normal_force.reserve(kMaxConstrainedContacts);
@@ -161,7 +161,7 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
     return true;
   }
 
-  FormulationOptions options_;
+  OdeOptions options_;
   OdeIntegrator integrator_;
   BaumgarteGains gains_;
   bool project_ = false;
@@ -180,8 +180,10 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
 
 }  // namespace
 
-std::unique_ptr<Formulation> CreateEde(const Scene& scene, const FormulationOptions& options) {
-  return std::make_unique<EdeFormulation>(scene, options);
+FormulationMaker ConfigureEde(const OptionRequest& request) {
+  OdeOptions options;
+  if (!ReadOdeOptions(request, &options)) return nullptr;
+  return [options](const Scene& scene) { return std::make_unique<EdeFormulation>(scene, options); };
 }
 
 }  // namespace kneedyn

@@ -1,6 +1,9 @@
 #include "formulations/formulation.hpp"
 
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cstdlib>
 #include <cmath>
 #include <iterator>
 #include <utility>
@@ -84,13 +87,6 @@ bool ParseIn(const Spelling<Enum> (&table)[N], const char* flag, const char* rul
   return false;
 }
 
-// The value as the user typed it when known, else as printed.
-template <typename T>
-std::string Shown(const OptionText& typed, const char* flag, const T& value) {
-  const auto it = typed.find(flag);
-  return it != typed.end() ? Echo(it->second) : StrCat(value);
-}
-
 template <typename Enum>
 bool Accepts(const std::vector<Enum>& accepted, Enum value) {
   return std::find(accepted.begin(), accepted.end(), value) != accepted.end();
@@ -144,115 +140,190 @@ template Stabilization ParsedOptionValue<Stabilization>(const std::string&);
 template ConstraintLevel ParsedOptionValue<ConstraintLevel>(const std::string&);
 template JacobianKind ParsedOptionValue<JacobianKind>(const std::string&);
 
-bool ValidateOptions(const FormulationInfo& info, const FormulationOptions& o, std::string* error,
-                     const OptionText& typed) {
-  auto fail = [&](const std::string& m) {
-    if (error) *error = m;
-    return false;
-  };
+bool ParseReal(const std::string& text, double* value) {
+  if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
+  errno = 0;
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (end != text.c_str() + text.size() || errno == ERANGE || !std::isfinite(v)) return false;
+  *value = v;
+  return true;
+}
+
+bool ParseInteger(const std::string& text, long* value) {
+  if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
+  errno = 0;
+  char* end = nullptr;
+  const long v = std::strtol(text.c_str(), &end, 10);
+  if (end != text.c_str() + text.size() || errno == ERANGE) return false;
+  *value = v;
+  return true;
+}
+
+namespace {
+
+// An enum option's spelling into `value`; `why` gets the refusal.
+template <typename Enum>
+void ReadName(const std::string& text, Enum* value, std::string* why) {
+  ParseOptionValue(text, value, why);
+}
+template <typename Enum>
+void ReadName(const std::string& text, std::optional<Enum>* value, std::string* why) {
+  Enum v{};
+  if (ParseOptionValue(text, &v, why)) *value = v;
+}
+
+}  // namespace
+
+std::string ReadOptionText(const OptionText& typed, FormulationOptions* options) {
+  FormulationOptions& o = *options;
+  std::string why;
+  for (const auto& entry : typed) {
+    const std::string& flag = entry.first;
+    const std::string& text = entry.second;
+    const auto number = [&](double* value) {
+      if (!ParseReal(text, value)) why = StrCat(flag, " = '", Echo(text), "': must be a finite number (in double's range)");
+    };
+    const auto optional_number = [&](std::optional<double>* value) {
+      double v = 0.0;
+      number(&v);
+      *value = v;
+    };
+    const auto name = [&](auto* value) { ReadName(text, value, &why); };
+    if (flag == "--rtol") number(&o.rtol);
+    else if (flag == "--atol") number(&o.atol);
+    else if (flag == "--step") number(&o.step);
+    else if (flag == "--max-step") number(&o.max_step);
+    else if (flag == "--rho-inf") number(&o.rho_inf);
+    else if (flag == "--alpha-m") optional_number(&o.alpha_m);
+    else if (flag == "--alpha-f") optional_number(&o.alpha_f);
+    else if (flag == "--beta") optional_number(&o.newmark_beta);
+    else if (flag == "--gamma") optional_number(&o.newmark_gamma);
+    else if (flag == "--max-steps") {
+      if (!ParseInteger(text, &o.max_steps)) {
+        why = StrCat("--max-steps = '", Echo(text), "': not an integer in [1, 1e8]");
+      }
+    } else if (flag == "--integrator") name(&o.integrator);
+    else if (flag == "--stabilization") name(&o.stabilization);
+    else if (flag == "--constraint-level") name(&o.constraint_level);
+    else if (flag == "--jacobian") name(&o.jacobian);
+    if (!why.empty()) return why;
+  }
+  return "";
+}
+
+std::string OptionRequest::Shown(const char* flag, double value) const {
+  const auto it = typed.find(flag);
+  return it != typed.end() ? Echo(it->second) : StrCat(value);
+}
+
+bool OptionRequest::Fail(const std::string& message) const {
+  if (error) *error = message;
+  return false;
+}
+
+namespace {
+
+// The rules every formulation shares (StepControl's ranges) and what its registry line
+// accepts; the formulation's reader checks the rest (its own options' rules).
+bool CheckShared(const OptionRequest& r) {
+  const FormulationInfo& info = r.info;
+  const FormulationOptions& o = r.options;
   const std::string& name = info.name;
-  // The rules every formulation shares.
   if (!(std::isfinite(o.rtol) && o.rtol > 0.0 && o.rtol <= 0.5)) {
-    return fail(StrCat("--rtol = ", Shown(typed, "--rtol", o.rtol), "; must lie in (0, 0.5]"));
+    return r.Fail(StrCat("--rtol = ", r.Shown("--rtol", o.rtol), "; must lie in (0, 0.5]"));
   }
   if (!(std::isfinite(o.atol) && o.atol > 0.0 && o.atol <= 1e-2)) {
-    return fail(StrCat("--atol = ", Shown(typed, "--atol", o.atol), "; must lie in (0, 1e-2] (SI: m, m/s, rad)"));
+    return r.Fail(StrCat("--atol = ", r.Shown("--atol", o.atol), "; must lie in (0, 1e-2] (SI: m, m/s, rad)"));
   }
   if (!(std::isfinite(o.step) && (o.step == 0.0 || (o.step >= 1e-9 && o.step <= 0.1)))) {
-    return fail(StrCat("--step = ", Shown(typed, "--step", o.step),
-                       " s; must be 0 (method default) or lie in [1e-9, 0.1] s"));
+    return r.Fail(StrCat("--step = ", r.Shown("--step", o.step),
+                         " s; must be 0 (method default) or lie in [1e-9, 0.1] s"));
   }
   if (!(std::isfinite(o.max_step) && o.max_step >= 0.0 && o.max_step <= 100.0)) {
-    return fail(StrCat("--max-step = ", Shown(typed, "--max-step", o.max_step), " s; must lie in [0, 100] s (0: none)"));
+    return r.Fail(StrCat("--max-step = ", r.Shown("--max-step", o.max_step), " s; must lie in [0, 100] s (0: none)"));
   }
   if (o.max_steps < 1 || o.max_steps > 100000000) {
-    return fail(StrCat("--max-steps = ", Shown(typed, "--max-steps", o.max_steps), "; must lie in [1, 1e8]"));
-  }
-  if (!(o.baumgarte_alpha >= 0.0) || !(o.baumgarte_beta >= 0.0)) {
-    return fail(StrCat("Baumgarte gains (", o.baumgarte_alpha, ", ", o.baumgarte_beta, "); must be >= 0"));
-  }
-  if (!(o.rho_inf >= 0.0 && o.rho_inf <= 1.0)) {
-    return fail(StrCat("--rho-inf = ", Shown(typed, "--rho-inf", o.rho_inf), "; must be in [0, 1]"));
-  }
-  const std::optional<double>* scheme[] = {&o.alpha_m, &o.alpha_f, &o.newmark_beta, &o.newmark_gamma};
-  const char* scheme_flags[] = {"--alpha-m", "--alpha-f", "--beta", "--gamma"};
-  int given = 0;
-  std::string given_list;
-  for (int i = 0; i < 4; ++i) {
-    if (!scheme[i]->has_value()) continue;
-    ++given;
-    given_list += StrCat(given_list.empty() ? "" : ", ", scheme_flags[i], " = ", Shown(typed, scheme_flags[i], **scheme[i]));
-    if (!std::isfinite(**scheme[i])) {
-      return fail(StrCat(scheme_flags[i], " = ", Shown(typed, scheme_flags[i], **scheme[i]), "; must be finite"));
-    }
+    const auto it = r.typed.find("--max-steps");
+    return r.Fail(StrCat("--max-steps = ", it != r.typed.end() ? Echo(it->second) : StrCat(o.max_steps),
+                         "; must lie in [1, 1e8]"));
   }
   // What the formulation accepts (its registry line).
-  if (!info.scheme_parameters && (given > 0 || o.rho_inf != FormulationOptions().rho_inf)) {
-    return fail(StrCat("--rho-inf / --alpha-m / --alpha-f / --beta / --gamma apply to generalized-alpha only, not to ",
-                       name, info.fixed_step ? " (its rule is fixed: beta = 1/4, gamma = 1/2)" : ""));
-  }
-  if (given != 0 && given != 4) {
-    return fail(StrCat("--alpha-m/--alpha-f/--beta/--gamma: ", given, " of 4 given (", given_list,
-                       "); give all four or none (then from --rho-inf)"));
-  }
-  if (given == 4 && !(*o.alpha_m < 1.0 && *o.alpha_f < 1.0 && *o.newmark_beta > 0.0 && *o.newmark_gamma > 0.0)) {
-    return fail(StrCat("generalized-alpha parameters (alpha_m, alpha_f, beta, gamma) = (", *o.alpha_m, ", ",
-                       *o.alpha_f, ", ", *o.newmark_beta, ", ", *o.newmark_gamma,
-                       "); need alpha_m < 1, alpha_f < 1, beta > 0, gamma > 0"));
+  const bool scheme_given = o.alpha_m || o.alpha_f || o.newmark_beta || o.newmark_gamma;
+  if (!info.scheme_parameters && (scheme_given || o.rho_inf != FormulationOptions().rho_inf)) {
+    return r.Fail(StrCat("--rho-inf / --alpha-m / --alpha-f / --beta / --gamma apply to generalized-alpha only, not to ",
+                         name, info.fixed_step ? " (its rule is fixed: beta = 1/4, gamma = 1/2)" : ""));
   }
   if (o.integrator && info.integrators.empty()) {
-    return fail(StrCat("--integrator = '", OptionName(*o.integrator), "': formulation '", name,
-                       "' has a fixed integrator and takes no --integrator"));
+    return r.Fail(StrCat("--integrator = '", OptionName(*o.integrator), "': formulation '", name,
+                         "' has a fixed integrator and takes no --integrator"));
   }
   if (o.integrator && !Accepts(info.integrators, *o.integrator)) {
-    return fail(StrCat("--integrator = '", OptionName(*o.integrator), "' is not available for formulation '", name,
-                       "'; choose one of: ", Accepted(info.integrators)));
+    return r.Fail(StrCat("--integrator = '", OptionName(*o.integrator), "' is not available for formulation '", name,
+                         "'; choose one of: ", Accepted(info.integrators)));
   }
   if (!Accepts(info.stabilizations, o.stabilization)) {
-    return fail(StrCat("--stabilization = '", OptionName(o.stabilization), "' is not available for formulation '",
-                       name, "'; it accepts: ", Accepted(info.stabilizations)));
+    return r.Fail(StrCat("--stabilization = '", OptionName(o.stabilization), "' is not available for formulation '",
+                         name, "'; it accepts: ", Accepted(info.stabilizations)));
   }
   if (!Accepts(info.constraint_levels, o.constraint_level)) {
-    return fail(StrCat("--constraint-level = '", OptionName(o.constraint_level),
-                       "' is not available for formulation '", name, "'; it accepts: ",
-                       Accepted(info.constraint_levels)));
+    return r.Fail(StrCat("--constraint-level = '", OptionName(o.constraint_level),
+                         "' is not available for formulation '", name, "'; it accepts: ",
+                         Accepted(info.constraint_levels)));
   }
   if (o.jacobian && info.jacobians.empty()) {
-    return fail(StrCat("--jacobian = '", OptionName(*o.jacobian), "': formulation '", name,
-                       "' forms no Newton matrix of its own; the option does not apply"));
+    return r.Fail(StrCat("--jacobian = '", OptionName(*o.jacobian), "': formulation '", name,
+                         "' forms no Newton matrix of its own; the option does not apply"));
   }
   if (o.jacobian && !Accepts(info.jacobians, *o.jacobian)) {
-    return fail(StrCat("--jacobian = '", OptionName(*o.jacobian), "' is not available for formulation '", name,
-                       "'; it accepts: ", Accepted(info.jacobians)));
+    return r.Fail(StrCat("--jacobian = '", OptionName(*o.jacobian), "' is not available for formulation '", name,
+                         "'; it accepts: ", Accepted(info.jacobians)));
   }
   // Step control: a fixed-step method takes --step, an error-controlled one --max-step.
-  const std::string with = o.integrator ? StrCat(" with --integrator ", OptionName(*o.integrator)) : "";
   if (IsFixedStep(info, o.integrator)) {
     if (info.fixed_step && o.max_step != 0.0) {
-      return fail(StrCat("--max-step = ", Shown(typed, "--max-step", o.max_step), " s: ", name,
-                         " takes fixed steps; use --step"));
+      return r.Fail(StrCat("--max-step = ", r.Shown("--max-step", o.max_step), " s: ", name,
+                           " takes fixed steps; use --step"));
     }
   } else if (o.step != 0.0) {
-    return fail(StrCat("--step = ", Shown(typed, "--step", o.step), " s: ", name, with,
-                       " chooses its own steps under --rtol/--atol",
-                       info.integrators.empty() ? "" : " (only euler and rk4 take a fixed step)", "; use --max-step"));
-  }
-  if (o.stabilization == Stabilization::kCvodeProjection && o.integrator != IntegratorKind::kCvodeBdf) {
-    return fail(StrCat("--stabilization cvode-projection", with.empty() ? " with the default integrator" : with,
-                       ": CVODE's projection (CVodeSetProjFn) exists only for cvode-bdf; use --integrator "
-                       "cvode-bdf or --stabilization projection"));
-  }
-  if (o.stabilization == Stabilization::kProjection && o.integrator == IntegratorKind::kCvodeAdams) {
-    // The project-and-restart loop would restart the multistep method at order 1 every step.
-    return fail("--stabilization projection with --integrator cvode-adams: not supported (CVODE projects only "
-                "with BDF); use cvode-bdf or an ERK method");
+    const std::string with = o.integrator ? StrCat(" with --integrator ", OptionName(*o.integrator)) : "";
+    return r.Fail(StrCat("--step = ", r.Shown("--step", o.step), " s: ", name, with,
+                         " chooses its own steps under --rtol/--atol",
+                         info.integrators.empty() ? "" : " (only euler and rk4 take a fixed step)", "; use --max-step"));
   }
   return true;
+}
+
+// The maker, or an empty one with the refusal in *error.
+FormulationMaker ConfigureOrRefuse(const FormulationInfo& info, const FormulationOptions& options,
+                                   const OptionText& typed, std::string* error) {
+  const OptionRequest request{info, options, typed, error};
+  if (!CheckShared(request)) return nullptr;
+  FormulationMaker maker = info.create(request);
+  if (!maker && error->empty()) *error = StrCat("formulation '", info.name, "' refused its options");
+  return maker;
+}
+
+}  // namespace
+
+bool ValidateOptions(const FormulationInfo& info, const FormulationOptions& options, std::string* error,
+                     const OptionText& typed) {
+  std::string why;
+  if (ConfigureOrRefuse(info, options, typed, &why)) return true;
+  if (error) *error = why;
+  return false;
 }
 
 void CheckOptions(const FormulationInfo& info, const FormulationOptions& options, const OptionText& typed) {
   std::string why;
   if (!ValidateOptions(info, options, &why, typed)) Throw<InputError>("CheckOptions", why);
+}
+
+FormulationMaker Configure(const FormulationInfo& info, const FormulationOptions& options, const OptionText& typed) {
+  std::string why;
+  FormulationMaker maker = ConfigureOrRefuse(info, options, typed, &why);
+  if (!maker) Throw<InputError>("CreateFormulation", why);
+  return maker;
 }
 
 std::vector<int> RootDirections(const std::vector<EventSpec>& events) {
@@ -297,10 +368,7 @@ const FormulationInfo& FindFormulation(const std::string& name) {
 
 std::unique_ptr<Formulation> CreateFormulation(const std::string& name, const Scene& scene,
                                                const FormulationOptions& options) {
-  const FormulationInfo& info = FindFormulation(name);
-  std::string why;
-  if (!ValidateOptions(info, options, &why)) Throw<InputError>("CreateFormulation", why);
-  return info.create(scene, options);
+  return Configure(FindFormulation(name), options)(scene);
 }
 
 }  // namespace kneedyn

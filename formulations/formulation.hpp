@@ -5,8 +5,8 @@
 // contact switching (lift-off, re-contact, both separated), the end condition and output
 // times; the run driver (run.hpp) writes the files.
 //
-// Adding a formulation: one new file defining a Formulation subclass and its Create
-// function, and one line in registry.cpp (KNEEDYN_FACTORY declares the Create function there;
+// Adding a formulation: one new file defining a Formulation subclass, its typed options and
+// its Configure function, and one line in registry.cpp (KNEEDYN_FACTORY declares the Configure function there;
 // CMake globs formulations/*.cpp). It then appears in `kneedyn run --formulation`, the conformance tests,
 // the benchmarks and the reports.
 #pragma once
@@ -80,20 +80,31 @@ std::vector<std::string> OptionNames(const std::vector<Enum>& values) {
   return names;
 }
 
-// The typed options of every formulation: each uses the ones that apply to it. They are
-// checked once, by ValidateOptions, against the rules all share and the formulation's
-// FormulationInfo; a constructor receives them valid and compares no strings.
+// Step control, which every formulation has.
+struct StepControl {
+  double rtol = 1.0e-6;    // relative tolerance (adaptive methods; the Newton test of fixed-step ones)
+  double atol = 1.0e-8;    // absolute tolerance (SI units of each state)
+  double step = 0.0;       // s: fixed step (euler, rk4, newmark*, generalized-alpha*); 0 = method default
+  double max_step = 0.0;   // s: cap on adaptive steps; 0 = none
+  long max_steps = 200000;  // per phase
+};
+
+// What a boundary (the command line, Python, a sweep spec, a batch, a driver) was given: one
+// typed value per option any formulation takes, the defaults where nothing was given. No
+// formulation receives it: each reads its own typed options from it, once (OptionRequest,
+// Configure below), and refuses what does not apply to it. Summaries record it as requested.
 struct FormulationOptions {
-  double rtol = 1.0e-6;           // relative tolerance (adaptive methods)
-  double atol = 1.0e-8;           // absolute tolerance (SI units of each state)
+  double rtol = StepControl().rtol;
+  double atol = StepControl().atol;
   std::optional<IntegratorKind> integrator;  // mde, ede; not given: dopri5
-  double step = 0.0;              // s: fixed step (euler, rk4, newmark); 0 = method default
-  double max_step = 0.0;          // s: cap on adaptive steps; 0 = none
-  long max_steps = 200000;        // per phase
+  double step = StepControl().step;
+  double max_step = StepControl().max_step;
+  long max_steps = StepControl().max_steps;
   Stabilization stabilization = Stabilization::kNone;  // ede
   double baumgarte_alpha = 20.0;  // 1/s
   double baumgarte_beta = 20.0;   // 1/s
-  // dae, newmark: chart of the contact coordinates (contact.hpp): regular | height-field
+  // Chart of the contact coordinates (contact.hpp) the consistent initialization and the
+  // chapter-form formulations use: regular | height-field
   ContactChart contact_chart = ContactChart::kRegular;
   ConstraintLevel constraint_level = ConstraintLevel::kVelocity;  // dae: index 2 | index 3
   // dae*, dae-ggl*, newmark*, generalized-alpha*; not given: exact (FormulationInfo::jacobians
@@ -106,7 +117,26 @@ struct FormulationOptions {
   std::optional<double> alpha_f;
   std::optional<double> newmark_beta;
   std::optional<double> newmark_gamma;
+
+  StepControl step_control() const { return {rtol, atol, step, max_step, max_steps}; }
 };
+
+// How the user spelled options on the command line ("--rtol" -> "1e-6"), so that messages
+// echo the text; options absent from it are printed from their values.
+using OptionText = std::map<std::string, std::string>;
+
+// A number given as an option's text: the whole text (no blanks, no trailing characters),
+// finite and representable (strtod's ERANGE refused, so 1e999 is not taken as inf nor 1e-999
+// as 0). A command-line parser would read "" as 0 and clamp an integer beyond its type's range.
+bool ParseReal(const std::string& text, double* value);
+// A decimal integer given as text: the whole text, within long's range.
+bool ParseInteger(const std::string& text, long* value);
+
+// The text options of a boundary (flag -> text as typed: "--rtol" -> "1e-6", "--integrator"
+// -> "rk4", ...) converted into `options`: numbers must be the whole text, finite and
+// representable; names one of their spellings. Flags it does not know are left alone.
+// Returns the first refusal, naming the flag and the text as typed, or "".
+std::string ReadOptionText(const OptionText& typed, FormulationOptions* options);
 
 enum class AdvanceStatus { kReachedTime, kEvent };
 
@@ -146,8 +176,29 @@ class Formulation {
   virtual bool EvaluateHotPathForTesting(int n) { (void)n; return false; }
 };
 
-using FormulationFactory =
-    std::function<std::unique_ptr<Formulation>(const Scene&, const FormulationOptions&)>;
+struct FormulationInfo;
+
+// A request for one formulation's options, with where a refusal goes. A formulation's file reads
+// its own typed options from it (the family readers: ReadIdaOptions, ReadOdeOptions,
+// ReadNewmarkOptions in formulations/internal/) after Configure has checked what every
+// formulation shares (StepControl's ranges, the capabilities of the registry line).
+struct OptionRequest {
+  const FormulationInfo& info;
+  const FormulationOptions& options;
+  const OptionText& typed;  // the text given, for the messages
+  std::string* error;       // the refusal: the option, its value as typed and the rule
+
+  // The value as the user typed it when known, else as printed.
+  std::string Shown(const char* flag, double value) const;
+  // Stores `message` as the refusal; returns false.
+  bool Fail(const std::string& message) const;
+};
+
+// A formulation bound to its typed options, read and checked: builds it for a scene.
+using FormulationMaker = std::function<std::unique_ptr<Formulation>(const Scene&)>;
+// A registry line's factory: reads the formulation's typed options from the request and binds
+// them to its constructor; an empty maker after request.Fail.
+using FormulationFactory = std::function<FormulationMaker(const OptionRequest&)>;
 
 // The forward sensitivities a form has (sensitivity/, `kneedyn sensitivity --formulation`):
 // none; CVODES on its ODE y = (q, q̇); IDAS on its index-2 DAE (dae_system.hpp), plain or GGL.
@@ -190,31 +241,38 @@ struct FormulationInfo {
   FormulationInfo& Sensitivity(SensitivityForm form) { sensitivity = form; return *this; }
 };
 
-// How the user spelled options on the command line ("--rtol" -> "1e-6"), so that messages
-// echo the text; options absent from it are printed from their values.
-using OptionText = std::map<std::string, std::string>;
-
-// The one check of FormulationOptions: the rules every formulation shares (ranges of the
-// numbers) and what `info` accepts (integrators, stabilizations, constraint levels,
-// Jacobians, step control, scheme parameters). False with a message naming the option, its
-// value as typed and the rule. The CLI, Python, sweep specs and batches call it where the
-// options come in; CreateFormulation calls it before the factory, as its precondition.
+// The one check of FormulationOptions for a formulation: the rules every formulation shares
+// (StepControl's ranges) and what `info` accepts (integrators, stabilizations, constraint
+// levels, Jacobians, step control, scheme parameters), then the formulation's own rules as it
+// reads its typed options. False with a message naming the option, its value as typed and the
+// rule. The CLI, Python, sweep specs and batches call it where the options come in;
+// CreateFormulation calls it before building, as its precondition.
 bool ValidateOptions(const FormulationInfo& info, const FormulationOptions& options, std::string* error,
                      const OptionText& typed = {});
 // Throwing variant: InputError with that message.
 void CheckOptions(const FormulationInfo& info, const FormulationOptions& options, const OptionText& typed = {});
+// The formulation bound to its typed options (ValidateOptions' check, then the binding);
+// throws InputError with the refusal.
+FormulationMaker Configure(const FormulationInfo& info, const FormulationOptions& options,
+                           const OptionText& typed = {});
 
 // Adaptive step size under --rtol/--atol (error control): not IsFixedStep.
 bool HasErrorControl(const FormulationInfo& info, const std::string& integrator);
 bool HasErrorControl(const FormulationInfo& info, std::optional<IntegratorKind> integrator);
 
-// A registry line's factory (registry.cpp): a Create function defined in the formulation's
+// A registry line's factory (registry.cpp): a Configure function defined in the formulation's
 // own file, declared inside the lambda, so that the registry line is all a new formulation
-// adds outside its file.
+// adds outside its file. The function reads the formulation's typed options and returns them
+// bound to its constructor:
+//   FormulationMaker ConfigureName(const OptionRequest& request) {
+//     NameOptions options;  // typed: enums, numbers; no strings
+//     if (!ReadNameOptions(request, &options)) return nullptr;
+//     return [options](const Scene& scene) { return std::make_unique<NameFormulation>(scene, options); };
+//   }
 #define KNEEDYN_FACTORY(function)                                                             \
-  [](const Scene& scene, const FormulationOptions& options) {                                 \
-    std::unique_ptr<Formulation> function(const Scene&, const FormulationOptions&);            \
-    return function(scene, options);                                                          \
+  [](const OptionRequest& request) {                                                          \
+    FormulationMaker function(const OptionRequest&);                                           \
+    return function(request);                                                                 \
   }
 
 // Step a fixed-step method takes when --step is 0 (s).

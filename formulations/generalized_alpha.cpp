@@ -13,17 +13,69 @@
 // test as for newmark.
 #include "formulations/internal/newmark_scheme.hpp"
 
-namespace kneedyn {
+#include <cmath>
+#include <string>
 
-std::unique_ptr<Formulation> CreateGeneralizedAlpha(const Scene& scene, const FormulationOptions& options) {
-  return CreateNewmarkScheme(scene, options, ContactForm::kChapter, SchemeFromOptions(options),
-                             "generalized-alpha");
+#include "solver/error.hpp"
+
+namespace kneedyn {
+namespace {
+
+// Newmark's options with the scheme asked for: αm, αf, β, γ when given explicitly (all four),
+// else Chung–Hulbert from --rho-inf.
+bool ReadGeneralizedAlphaOptions(const OptionRequest& request, NewmarkOptions* options) {
+  if (!ReadNewmarkOptions(request, options)) return false;
+  const FormulationOptions& o = request.options;
+  if (!(o.rho_inf >= 0.0 && o.rho_inf <= 1.0)) {
+    return request.Fail(StrCat("--rho-inf = ", request.Shown("--rho-inf", o.rho_inf), "; must be in [0, 1]"));
+  }
+  const std::optional<double>* given_values[] = {&o.alpha_m, &o.alpha_f, &o.newmark_beta, &o.newmark_gamma};
+  const char* flags[] = {"--alpha-m", "--alpha-f", "--beta", "--gamma"};
+  int given = 0;
+  std::string given_list;
+  for (int i = 0; i < 4; ++i) {
+    if (!given_values[i]->has_value()) continue;
+    const double value = **given_values[i];
+    ++given;
+    given_list += StrCat(given_list.empty() ? "" : ", ", flags[i], " = ", request.Shown(flags[i], value));
+    if (!std::isfinite(value)) {
+      return request.Fail(StrCat(flags[i], " = ", request.Shown(flags[i], value), "; must be finite"));
+    }
+  }
+  if (given == 0) {
+    options->scheme = ChungHulbertScheme(o.rho_inf);
+    return true;
+  }
+  if (given != 4) {
+    return request.Fail(StrCat("--alpha-m/--alpha-f/--beta/--gamma: ", given, " of 4 given (", given_list,
+                               "); give all four or none (then from --rho-inf)"));
+  }
+  const NewmarkScheme scheme{*o.alpha_m, *o.alpha_f, *o.newmark_beta, *o.newmark_gamma};
+  if (!(scheme.alpha_m < 1.0 && scheme.alpha_f < 1.0 && scheme.beta > 0.0 && scheme.gamma > 0.0)) {
+    return request.Fail(StrCat("generalized-alpha parameters (alpha_m, alpha_f, beta, gamma) = (", scheme.alpha_m,
+                               ", ", scheme.alpha_f, ", ", scheme.beta, ", ", scheme.gamma,
+                               "); need alpha_m < 1, alpha_f < 1, beta > 0, gamma > 0"));
+  }
+  options->scheme = scheme;
+  return true;
 }
 
-std::unique_ptr<Formulation> CreateGeneralizedAlphaReduced(const Scene& scene,
-                                                           const FormulationOptions& options) {
-  return CreateNewmarkScheme(scene, options, ContactForm::kClosedForm, SchemeFromOptions(options),
-                             "generalized-alpha-reduced");
+}  // namespace
+
+FormulationMaker ConfigureGeneralizedAlpha(const OptionRequest& request) {
+  NewmarkOptions options;
+  if (!ReadGeneralizedAlphaOptions(request, &options)) return nullptr;
+  return [options](const Scene& scene) {
+    return CreateNewmarkScheme(scene, options, ContactForm::kChapter);
+  };
+}
+
+FormulationMaker ConfigureGeneralizedAlphaReduced(const OptionRequest& request) {
+  NewmarkOptions options;
+  if (!ReadGeneralizedAlphaOptions(request, &options)) return nullptr;
+  return [options](const Scene& scene) {
+    return CreateNewmarkScheme(scene, options, ContactForm::kClosedForm);
+  };
 }
 
 }  // namespace kneedyn

@@ -17,7 +17,7 @@ namespace {
 
 class MdeFormulation final : public FormulationBase, public OdeProblem {
  public:
-  MdeFormulation(const Scene& scene, const FormulationOptions& options)
+  MdeFormulation(const Scene& scene, const OdeOptions& options)
       : FormulationBase(scene), options_(options), integrator_(options, "mde"), chart_(model_) {
     normal_.assign(model_.contacts.size(), 0.0);
   }
@@ -54,8 +54,8 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
       // One step at a time: the chart is checked after every step, not only at output
       // times (whose spacing must not change the physics).
       root = integrator_.Evolve(t_out, true, &t_, &y_, &found);
-      if (++phase_steps_ > options_.max_steps) {  // the budget ARKODE applies per call only
-        Throw<SolverError>("MdeFormulation::Advance", "more than --max-steps = ", options_.max_steps,
+      if (++phase_steps_ > options_.control.max_steps) {  // the budget ARKODE applies per call only
+        Throw<SolverError>("MdeFormulation::Advance", "more than --max-steps = ", options_.control.max_steps,
                            " steps in this contact phase at t = ", t_, " s");
       }
       if (!root && !active_.empty()) SwitchChartIfBetter();
@@ -134,7 +134,7 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
     return kin;
   }
 
-  FormulationOptions options_;
+  OdeOptions options_;
   OdeIntegrator integrator_;
   double t_ = 0.0;
   VectorXd y_;
@@ -151,8 +151,10 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
 
 }  // namespace
 
-std::unique_ptr<Formulation> CreateMde(const Scene& scene, const FormulationOptions& options) {
-  return std::make_unique<MdeFormulation>(scene, options);
+FormulationMaker ConfigureMde(const OptionRequest& request) {
+  OdeOptions options;
+  if (!ReadOdeOptions(request, &options)) return nullptr;
+  return [options](const Scene& scene) { return std::make_unique<MdeFormulation>(scene, options); };
 }
 
 }  // namespace kneedyn

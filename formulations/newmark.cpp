@@ -92,13 +92,11 @@ struct StepState {
 
 class NewmarkFormulation final : public FormulationBase {
  public:
-  NewmarkFormulation(const Scene& scene, const FormulationOptions& options, ContactForm form,
-                     const NewmarkScheme& scheme = NewmarkScheme(), const char* name = nullptr)
-      : FormulationBase(scene), options_(options), form_(form), scheme_(scheme), data_(model_),
+  NewmarkFormulation(const Scene& scene, const NewmarkOptions& options, ContactForm form)
+      : FormulationBase(scene), options_(options.control), form_(form), scheme_(options.scheme), data_(model_),
         data_jet_(model_) {
-    if (name == nullptr) name = form == ContactForm::kChapter ? "newmark" : "newmark-reduced";
     jet_jacobian_ = options.jacobian == JacobianKind::kJet;
-    step_ = options.step > 0.0 ? options.step : kDefaultFixedStep;
+    step_ = options.control.step > 0.0 ? options.control.step : kDefaultFixedStep;
     if (step_ > scene.end.time) {
       Throw<InputError>("NewmarkFormulation", "--step = ", step_, " s exceeds the scene's end time ",
                         scene.end.time, " s");
@@ -547,7 +545,7 @@ class NewmarkFormulation final : public FormulationBase {
     state->active = active_;
   }
 
-  FormulationOptions options_;
+  StepControl options_;
   ContactForm form_;
   NewmarkScheme scheme_;
   bool jet_jacobian_ = false;  // --jacobian jet: the Jet<24> tangent (the reference)
@@ -581,17 +579,30 @@ class NewmarkFormulation final : public FormulationBase {
 
 }  // namespace
 
-std::unique_ptr<Formulation> CreateNewmarkScheme(const Scene& scene, const FormulationOptions& options,
-                                                 ContactForm form, const NewmarkScheme& scheme,
-                                                 const char* name) {
-  return std::make_unique<NewmarkFormulation>(scene, options, form, scheme, name);
+bool ReadNewmarkOptions(const OptionRequest& request, NewmarkOptions* options) {
+  const FormulationOptions& o = request.options;
+  options->control = o.step_control();
+  options->jacobian = o.jacobian.value_or(JacobianKind::kExact);
+  options->scheme = NewmarkScheme();  // average acceleration: β = 1/4, γ = 1/2
+  return true;
 }
 
-std::unique_ptr<Formulation> CreateNewmark(const Scene& scene, const FormulationOptions& options) {
-  return std::make_unique<NewmarkFormulation>(scene, options, ContactForm::kChapter);
+std::unique_ptr<Formulation> CreateNewmarkScheme(const Scene& scene, const NewmarkOptions& options,
+                                                 ContactForm form) {
+  return std::make_unique<NewmarkFormulation>(scene, options, form);
 }
-std::unique_ptr<Formulation> CreateNewmarkReduced(const Scene& scene, const FormulationOptions& options) {
-  return std::make_unique<NewmarkFormulation>(scene, options, ContactForm::kClosedForm);
+
+FormulationMaker ConfigureNewmark(const OptionRequest& request) {
+  NewmarkOptions options;
+  if (!ReadNewmarkOptions(request, &options)) return nullptr;
+  return [options](const Scene& scene) { return CreateNewmarkScheme(scene, options, ContactForm::kChapter); };
+}
+FormulationMaker ConfigureNewmarkReduced(const OptionRequest& request) {
+  NewmarkOptions options;
+  if (!ReadNewmarkOptions(request, &options)) return nullptr;
+  return [options](const Scene& scene) {
+    return CreateNewmarkScheme(scene, options, ContactForm::kClosedForm);
+  };
 }
 
 }  // namespace kneedyn

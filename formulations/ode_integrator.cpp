@@ -55,12 +55,36 @@ ARKodeButcherTable FixedStepTable(IntegratorKind kind) {
 
 }  // namespace
 
-OdeIntegrator::OdeIntegrator(const FormulationOptions& options, std::string owner)
-    : options_(options),
+bool ReadOdeOptions(const OptionRequest& request, OdeOptions* options) {
+  const FormulationOptions& o = request.options;
+  options->control = o.step_control();
+  options->integrator = o.integrator.value_or(IntegratorKind::kDopri5);
+  options->stabilization = o.stabilization;
+  options->baumgarte_alpha = o.baumgarte_alpha;
+  options->baumgarte_beta = o.baumgarte_beta;
+  if (!(o.baumgarte_alpha >= 0.0) || !(o.baumgarte_beta >= 0.0)) {
+    return request.Fail(StrCat("Baumgarte gains (", o.baumgarte_alpha, ", ", o.baumgarte_beta, "); must be >= 0"));
+  }
+  const std::string with = o.integrator ? StrCat(" with --integrator ", OptionName(*o.integrator)) : "";
+  if (o.stabilization == Stabilization::kCvodeProjection && options->integrator != IntegratorKind::kCvodeBdf) {
+    return request.Fail(StrCat("--stabilization cvode-projection", with.empty() ? " with the default integrator" : with,
+                               ": CVODE's projection (CVodeSetProjFn) exists only for cvode-bdf; use --integrator "
+                               "cvode-bdf or --stabilization projection"));
+  }
+  if (o.stabilization == Stabilization::kProjection && options->integrator == IntegratorKind::kCvodeAdams) {
+    // The project-and-restart loop would restart the multistep method at order 1 every step.
+    return request.Fail("--stabilization projection with --integrator cvode-adams: not supported (CVODE projects only "
+                        "with BDF); use cvode-bdf or an ERK method");
+  }
+  return true;
+}
+
+OdeIntegrator::OdeIntegrator(const OdeOptions& options, std::string owner)
+    : options_(options.control),
       owner_(std::move(owner)),
-      kind_(options.integrator.value_or(IntegratorKind::kDopri5)),
+      kind_(options.integrator),
       name_(OptionName(kind_)) {
-  if (fixed_step()) step_ = options.step > 0.0 ? options.step : kDefaultFixedStep;
+  if (fixed_step()) step_ = options.control.step > 0.0 ? options.control.step : kDefaultFixedStep;
 }
 
 OdeIntegrator::~OdeIntegrator() { Free(); }

@@ -1,7 +1,7 @@
 // The formulation registry: one line per formulation (formulation.hpp). A line names the
-// formulation, says what it is, gives its factory (KNEEDYN_FACTORY declares the Create
-// function defined in the formulation's own file) and sets, by name, the capabilities that
-// differ from FormulationInfo's defaults.
+// formulation, says what it is, gives its factory (KNEEDYN_FACTORY declares the Configure
+// function defined in the formulation's own file, which reads the formulation's typed
+// options) and sets, by name, the capabilities that differ from FormulationInfo's defaults.
 #include "formulations/formulation.hpp"
 
 namespace kneedyn {
@@ -19,16 +19,16 @@ const std::vector<JacobianKind> kNewtonJacobians = {JacobianKind::kExact, Jacobi
 
 const std::vector<FormulationInfo>& RegisteredFormulations() {
   static const std::vector<FormulationInfo> kRegistry = {
-      FormulationInfo("dae", "chapter's index-2 DAE (modified reverse EDE), contact coordinates, IDA", KNEEDYN_FACTORY(CreateDae)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDae),
-      FormulationInfo("dae-reduced", "index-2 DAE with closed-form sphere-on-plane contact, IDA", KNEEDYN_FACTORY(CreateDaeReduced)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDae),
-      FormulationInfo("dae-ggl", "Gear-Gupta-Leimkuhler stabilized index-2 DAE (position and velocity constraints), contact coordinates, IDA", KNEEDYN_FACTORY(CreateDaeGgl)).AlgebraicForces().Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDaeGgl),
-      FormulationInfo("dae-ggl-reduced", "GGL stabilized index-2 DAE with closed-form sphere-on-plane contact, IDA", KNEEDYN_FACTORY(CreateDaeGglReduced)).AlgebraicForces().Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDaeGgl),
-      FormulationInfo("newmark", "chapter's reverse EDE: Newmark average acceleration, position-level contact coordinates, Newton", KNEEDYN_FACTORY(CreateNewmark)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians),
-      FormulationInfo("newmark-reduced", "reverse EDE with closed-form sphere-on-plane gap, Newmark average acceleration", KNEEDYN_FACTORY(CreateNewmarkReduced)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians),
-      FormulationInfo("generalized-alpha", "reverse EDE with the generalized-alpha scheme (Arnold-Bruels index 3, Chung-Hulbert --rho-inf), contact coordinates, Newton", KNEEDYN_FACTORY(CreateGeneralizedAlpha)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians).SchemeParameters(),
-      FormulationInfo("generalized-alpha-reduced", "generalized-alpha with closed-form sphere-on-plane gap", KNEEDYN_FACTORY(CreateGeneralizedAlphaReduced)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians).SchemeParameters(),
-      FormulationInfo("mde", "minimal ODE: closed-form elimination of the contact translations, projected Newton-Euler", KNEEDYN_FACTORY(CreateMde)).Integrators(kOdeIntegrators),
-      FormulationInfo("ede", "excess ODE in (q, qdot) with the hidden constraint; --stabilization none|baumgarte|projection|cvode-projection", KNEEDYN_FACTORY(CreateEde)).Integrators(kOdeIntegrators).Stabilizations({Stabilization::kNone, Stabilization::kBaumgarte, Stabilization::kProjection, Stabilization::kCvodeProjection}).Sensitivity(SensitivityForm::kOde),
+      FormulationInfo("dae", "chapter's index-2 DAE (modified reverse EDE), contact coordinates, IDA", KNEEDYN_FACTORY(ConfigureDae)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDae),
+      FormulationInfo("dae-reduced", "index-2 DAE with closed-form sphere-on-plane contact, IDA", KNEEDYN_FACTORY(ConfigureDaeReduced)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDae),
+      FormulationInfo("dae-ggl", "Gear-Gupta-Leimkuhler stabilized index-2 DAE (position and velocity constraints), contact coordinates, IDA", KNEEDYN_FACTORY(ConfigureDaeGgl)).AlgebraicForces().Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDaeGgl),
+      FormulationInfo("dae-ggl-reduced", "GGL stabilized index-2 DAE with closed-form sphere-on-plane contact, IDA", KNEEDYN_FACTORY(ConfigureDaeGglReduced)).AlgebraicForces().Jacobians(kIdaJacobians).Sensitivity(SensitivityForm::kDaeGgl),
+      FormulationInfo("newmark", "chapter's reverse EDE: Newmark average acceleration, position-level contact coordinates, Newton", KNEEDYN_FACTORY(ConfigureNewmark)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians),
+      FormulationInfo("newmark-reduced", "reverse EDE with closed-form sphere-on-plane gap, Newmark average acceleration", KNEEDYN_FACTORY(ConfigureNewmarkReduced)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians),
+      FormulationInfo("generalized-alpha", "reverse EDE with the generalized-alpha scheme (Arnold-Bruels index 3, Chung-Hulbert --rho-inf), contact coordinates, Newton", KNEEDYN_FACTORY(ConfigureGeneralizedAlpha)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians).SchemeParameters(),
+      FormulationInfo("generalized-alpha-reduced", "generalized-alpha with closed-form sphere-on-plane gap", KNEEDYN_FACTORY(ConfigureGeneralizedAlphaReduced)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians).SchemeParameters(),
+      FormulationInfo("mde", "minimal ODE: closed-form elimination of the contact translations, projected Newton-Euler", KNEEDYN_FACTORY(ConfigureMde)).Integrators(kOdeIntegrators),
+      FormulationInfo("ede", "excess ODE in (q, qdot) with the hidden constraint; --stabilization none|baumgarte|projection|cvode-projection", KNEEDYN_FACTORY(ConfigureEde)).Integrators(kOdeIntegrators).Stabilizations({Stabilization::kNone, Stabilization::kBaumgarte, Stabilization::kProjection, Stabilization::kCvodeProjection}).Sensitivity(SensitivityForm::kOde),
   };
   return kRegistry;
 }

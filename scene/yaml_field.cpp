@@ -134,6 +134,69 @@ class EventPath {
   std::vector<Frame> frames_;
 };
 
+// A document's nodes as libyaml's yaml_node_t, stored by this reader: every scalar's text in
+// one buffer, every sequence's items and every mapping's pairs in one array each (contiguous
+// per collection), so that building and freeing a document costs a few allocations, not
+// several per node as libyaml's document API (yaml_document_add_* copy each value and each
+// default tag, and every collection grows its own stack; benchmarks/README.md, "YAML
+// libraries"). Indices are 1-based, as libyaml's.
+struct YamlNodes {
+  std::vector<yaml_node_t> nodes;
+  std::vector<size_t> text_at;  // per node: where a scalar's text starts in `text`
+  std::vector<size_t> first;    // per node: a collection's first item or pair
+  std::string text;
+  std::vector<yaml_node_item_t> items;
+  std::vector<yaml_node_pair_t> pairs;
+
+  int Add(yaml_node_type_t type, const yaml_mark_t& mark) {
+    yaml_node_t n{};
+    n.type = type;
+    n.start_mark = mark;
+    nodes.push_back(n);
+    text_at.push_back(0);
+    first.push_back(0);
+    return static_cast<int>(nodes.size());
+  }
+  int AddScalar(const yaml_event_t& event) {
+    const auto& sc = event.data.scalar;
+    const int node = Add(YAML_SCALAR_NODE, event.start_mark);
+    text_at[node - 1] = text.size();
+    text.append(reinterpret_cast<const char*>(sc.value), sc.length);
+    nodes[node - 1].data.scalar.length = sc.length;
+    nodes[node - 1].data.scalar.style = sc.style;
+    return node;
+  }
+  // A collection's children (`children`: items, or keys and values in turn) once it ends.
+  void Close(int node, const int* children, size_t count) {
+    yaml_node_t& n = nodes[node - 1];
+    if (n.type == YAML_SEQUENCE_NODE) {
+      first[node - 1] = items.size();
+      items.insert(items.end(), children, children + count);
+    } else {
+      first[node - 1] = pairs.size();
+      for (size_t i = 0; i + 1 < count; i += 2) pairs.push_back(yaml_node_pair_t{children[i], children[i + 1]});
+    }
+  }
+  // Points every node at its text, items and pairs, once nothing moves any more. A collection
+  // still open (a refused document) is left empty.
+  void Finish(const std::vector<size_t>& counts) {
+    for (size_t i = 0; i < nodes.size(); ++i) {
+      yaml_node_t& n = nodes[i];
+      if (n.type == YAML_SCALAR_NODE) {
+        n.data.scalar.value = reinterpret_cast<yaml_char_t*>(text.data() + text_at[i]);
+      } else if (n.type == YAML_SEQUENCE_NODE) {
+        yaml_node_item_t* begin = items.data() + first[i];
+        n.data.sequence.items.start = begin;
+        n.data.sequence.items.top = n.data.sequence.items.end = begin + counts[i];
+      } else if (n.type == YAML_MAPPING_NODE) {
+        yaml_node_pair_t* begin = pairs.data() + first[i];
+        n.data.mapping.pairs.start = begin;
+        n.data.mapping.pairs.top = n.data.mapping.pairs.end = begin + counts[i];
+      }
+    }
+  }
+};
+
 // Builds `doc` from libyaml's events in one pass (the work of yaml_parser_load, which it
 // replaces), refusing on the way, as soon as they are met: nesting deeper than
 // kMaxYamlDepth (libyaml's scanner slows with the square of the depth, so the rest of such
@@ -142,24 +205,25 @@ class EventPath {
 // so the document has no cycles. The first document of the stream is read, as
 // yaml_parser_load does. Returns "" or the problem, prefixed ":LINE: " or " not valid
 // YAML: ...".
-std::string Compose(yaml_parser_t* parser, const std::string& text, yaml_document_t* doc) {
+std::string Compose(yaml_parser_t* parser, const std::string& text, YamlNodes* doc) {
   EventPath path;
   std::vector<int> open;  // collection nodes being filled
-  std::vector<int> pending_key;  // per open collection: a mapping's key awaiting its value
+  std::vector<size_t> open_children;  // per open collection: where its children start in `children`
+  std::vector<int> children;  // the children of the open collections, innermost last
+  std::vector<size_t> counts(0);  // per node: a collection's items or pairs
   std::unordered_map<std::string, int> anchors;
   std::vector<std::string> open_anchor;  // per open collection: its anchor, registered at its end
   const auto attach = [&](int node) {
-    if (open.empty()) return;
-    const int parent = open.back();
-    if (doc->nodes.start[parent - 1].type == YAML_SEQUENCE_NODE) {
-      yaml_document_append_sequence_item(doc, parent, node);
-    } else if (pending_key.back() == 0) {
-      pending_key.back() = node;
-    } else {
-      yaml_document_append_mapping_pair(doc, parent, pending_key.back(), node);
-      pending_key.back() = 0;
-    }
+    if (!open.empty()) children.push_back(node);
   };
+  struct Finisher {  // the nodes' pointers, whatever way Compose returns
+    YamlNodes* doc;
+    std::vector<size_t>* counts;
+    ~Finisher() {
+      counts->resize(doc->nodes.size(), 0);
+      doc->Finish(*counts);
+    }
+  } finisher{doc, &counts};
   const auto name = [](const unsigned char* s) { return std::string(reinterpret_cast<const char*>(s)); };
   for (;;) {
     yaml_event_t event;
@@ -178,10 +242,8 @@ std::string Compose(yaml_parser_t* parser, const std::string& text, yaml_documen
                        is_key ? " (a key)" : "", " has the YAML tag '", Echo(TagAsWritten(tag), 64),
                        "'; tags are not accepted: write the plain value");
     } else if (type == YAML_SCALAR_EVENT) {
-      const auto& sc = event.data.scalar;
-      const int node = yaml_document_add_scalar(doc, nullptr, sc.value, static_cast<int>(sc.length), sc.style);
-      doc->nodes.start[node - 1].start_mark = event.start_mark;
-      if (sc.anchor) anchors[name(sc.anchor)] = node;
+      const int node = doc->AddScalar(event);
+      if (event.data.scalar.anchor) anchors[name(event.data.scalar.anchor)] = node;
       attach(node);
       path.Done(event);
     } else if (type == YAML_ALIAS_EVENT) {
@@ -195,13 +257,16 @@ std::string Compose(yaml_parser_t* parser, const std::string& text, yaml_documen
       }
     } else if (type == YAML_SEQUENCE_START_EVENT || type == YAML_MAPPING_START_EVENT) {
       const bool map = type == YAML_MAPPING_START_EVENT;
-      const int node = map ? yaml_document_add_mapping(doc, nullptr, event.data.mapping_start.style)
-                           : yaml_document_add_sequence(doc, nullptr, event.data.sequence_start.style);
-      doc->nodes.start[node - 1].start_mark = event.start_mark;
+      const int node = doc->Add(map ? YAML_MAPPING_NODE : YAML_SEQUENCE_NODE, event.start_mark);
+      if (map) {
+        doc->nodes[node - 1].data.mapping.style = event.data.mapping_start.style;
+      } else {
+        doc->nodes[node - 1].data.sequence.style = event.data.sequence_start.style;
+      }
       attach(node);
       const unsigned char* anchor = map ? event.data.mapping_start.anchor : event.data.sequence_start.anchor;
       open.push_back(node);
-      pending_key.push_back(0);
+      open_children.push_back(children.size());
       open_anchor.push_back(anchor ? name(anchor) : std::string());
       bool is_key = false;
       if (path.depth() + 1 > kMaxYamlDepth) {
@@ -210,9 +275,16 @@ std::string Compose(yaml_parser_t* parser, const std::string& text, yaml_documen
       }
       path.Push(map);
     } else if (type == YAML_SEQUENCE_END_EVENT || type == YAML_MAPPING_END_EVENT) {
-      if (!open_anchor.back().empty()) anchors[open_anchor.back()] = open.back();
+      const int node = open.back();
+      if (!open_anchor.back().empty()) anchors[open_anchor.back()] = node;
+      const size_t begin = open_children.back();
+      const size_t count = children.size() - begin;
+      doc->Close(node, children.data() + begin, count);
+      counts.resize(doc->nodes.size(), 0);
+      counts[node - 1] = type == YAML_SEQUENCE_END_EVENT ? count : count / 2;
+      children.resize(begin);
       open.pop_back();
-      pending_key.pop_back();
+      open_children.pop_back();
       open_anchor.pop_back();
       path.Pop();
       path.Done(event);
@@ -225,7 +297,7 @@ std::string Compose(yaml_parser_t* parser, const std::string& text, yaml_documen
 
 }  // namespace
 
-// A YAML document parsed by libyaml's document API (aliases are the node they name).
+// A YAML document parsed from libyaml's events (aliases are the node they name).
 class YamlDocument {
  public:
   YamlDocument(const std::string& raw, std::string label, const char* reader)
@@ -233,35 +305,27 @@ class YamlDocument {
     const std::string text = AllowedUtf8(raw);
     yaml_parser_t parser;
     if (!yaml_parser_initialize(&parser)) Throw<InputError>(reader_, Echo(label_), ": out of memory");
-    if (!yaml_document_initialize(&doc_, nullptr, nullptr, nullptr, 1, 1)) {
-      yaml_parser_delete(&parser);
-      Throw<InputError>(reader_, Echo(label_), ": out of memory");
-    }
     yaml_parser_set_input_string(&parser, reinterpret_cast<const unsigned char*>(text.data()), text.size());
     const std::string problem = Compose(&parser, text, &doc_);
     yaml_parser_delete(&parser);
-    if (!problem.empty()) {
-      // A throwing constructor runs no destructor.
-      yaml_document_delete(&doc_);
-      Throw<InputError>(reader_, Echo(label_, 256), problem[0] == ' ' ? ":" : "", problem);
-    }
+    if (!problem.empty()) Throw<InputError>(reader_, Echo(label_, 256), problem[0] == ' ' ? ":" : "", problem);
   }
-  ~YamlDocument() { yaml_document_delete(&doc_); }
   YamlDocument(const YamlDocument&) = delete;
   YamlDocument& operator=(const YamlDocument&) = delete;
 
-  const yaml_node_t* Root() const { return yaml_document_get_root_node(Doc()); }
-  const yaml_node_t* Node(int index) const { return yaml_document_get_node(Doc(), index); }
+  const yaml_node_t* Root() const { return doc_.nodes.empty() ? nullptr : &doc_.nodes[0]; }
+  const yaml_node_t* Node(int index) const {
+    return index >= 1 && static_cast<size_t>(index) <= doc_.nodes.size() ? &doc_.nodes[index - 1] : nullptr;
+  }
   const std::string& label() const { return label_; }
   const char* reader() const { return reader_; }
   // One stream for every number of the document: its locale is built once.
   std::istringstream& NumberStream() const { return numbers_; }
 
  private:
-  yaml_document_t* Doc() const { return const_cast<yaml_document_t*>(&doc_); }
   std::string label_;
   const char* reader_;  // the function named in messages
-  yaml_document_t doc_{};
+  YamlNodes doc_;
   mutable std::istringstream numbers_;
 };
 

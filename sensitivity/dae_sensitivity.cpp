@@ -99,7 +99,7 @@ DaeForm DaeFormOf(const std::string& name, const Scene& scene) {
   if (info.sensitivity != SensitivityForm::kDae && info.sensitivity != SensitivityForm::kDaeGgl) {
     Throw<InputError>("RunDaeSensitivity", "--formulation = '", Echo(name), "' is not a DAE form");
   }
-  return {info.create(scene, FormulationOptions())->contact_form(), info.sensitivity == SensitivityForm::kDaeGgl};
+  return {Configure(info, FormulationOptions())(scene)->contact_form(), info.sensitivity == SensitivityForm::kDaeGgl};
 }
 
 // The DAE and its sensitivities on IDAS as a stepper of the hybrid simulator
@@ -290,7 +290,7 @@ class DaeSensitivity : public Formulation {
   std::vector<double> pbar_, h_;     // |p_j| (1 when 0) and the central-difference steps
   DaeSystem system_;
   SensitivityResult* result_;
-  FormulationOptions ida_options_;   // rtol, atol, max_steps for IdaPhase
+  StepControl ida_options_;   // rtol, atol, max_steps for IdaPhase
   Mode mode_;                        // the phase's contacts, branches and events
   int n_ = 0;
 
@@ -658,37 +658,12 @@ void DaeSensitivity::Run() {
   e_.assign(np_, 0.0);
   first_phase_ = true;
 
-  const double t_end = nominal_.end.time;
-  const double dt_out = options_.output_interval > 0.0 ? options_.output_interval : nominal_.output_interval;
-  std::string why;
-  if (!IsValidOutputInterval(dt_out, t_end, &why)) {
-    Throw<InputError>("RunSensitivity", options_.output_interval > 0.0 ? "--output-interval: " : "scene output.interval_s: ", why);
-  }
-  // The trajectory rows: t0 once the first phase has started (its consistent initial
-  // sensitivities), then every output time before the end (no event rows).
-  auto row = [&](const MechanicalState& st) {
-    TrajectorySample sample;
-    sample.t = st.t;
-    sample.q = st.q;
-    if (with_s_) {
-      for (int j = 0; j < np_; ++j) sample.dq.push_back(Eigen::Map<const Vector6d>(s_[j].data()));
-    }
-    result_->trajectory.push_back(sample);
-  };
-  SimulatorSettings sim;
+  SimulatorSettings sim = TrajectorySettings(
+      nominal_, options_, with_s_, np_, [this](int j) -> Vector6d { return Eigen::Map<const Vector6d>(s_[j].data()); },
+      result_);
   sim.init.form = form_.contact;
   sim.init.chart = FormulationOptions().contact_chart;
-  sim.output_interval = dt_out;
-  sim.rtol = options_.rtol;
-  sim.atol = options_.atol;
   sim.restart = RestartProjection::kProject;  // as kneedyn run; RestartSensitivities differentiates it
-  sim.pulling = PullingContact::kRefuse;
-  sim.first_phase_started = row;
-  bool initial_sample = true;
-  sim.sample = [&](const MechanicalState& st, bool is_event) {
-    if (!initial_sample && !is_event && st.t < t_end) row(st);
-    initial_sample = false;
-  };
   RunResult record;
   Simulator simulator(nominal_, this, sim, &record);
   simulator.Initialize();

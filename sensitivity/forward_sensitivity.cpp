@@ -127,7 +127,7 @@ class OdeSensitivity : public Formulation {
         np_(static_cast<int>(values.size())),
         with_s_(options.derivatives && !values.empty()),
         scene_p_(problem.SceneCopyAt(values)),
-        contact_form_(FindFormulation(options.formulation).create(scene_p_, FormulationOptions())->contact_form()),
+        contact_form_(CreateFormulation(options.formulation, scene_p_, FormulationOptions())->contact_form()),
         y_(kN),
         s_(np_, VectorXd::Zero(kN)),
         pbar_(np_),
@@ -395,36 +395,10 @@ AdvanceResult OdeSensitivity::Advance(double t_out, MechanicalState* state) {
 }
 
 void OdeSensitivity::Run() {
-  const double t_end = scene_p_.end.time;
-  const double dt_out = options_.output_interval > 0.0 ? options_.output_interval : scene_p_.output_interval;
-  std::string why;
-  if (!IsValidOutputInterval(dt_out, t_end, &why)) {
-    Throw<InputError>("RunSensitivity", options_.output_interval > 0.0 ? "--output-interval: " : "scene output.interval_s: ", why);
-  }
-  // The trajectory rows: t0 (with s0) once the first phase has started, then every output
-  // time before the end (no event rows).
-  auto row = [&](const MechanicalState& st) {
-    TrajectorySample sample;
-    sample.t = st.t;
-    sample.q = st.q;
-    if (with_s_) {
-      for (int j = 0; j < np_; ++j) sample.dq.push_back(s_[j].head<6>());
-    }
-    result_->trajectory.push_back(sample);
-  };
-  SimulatorSettings sim;
+  SimulatorSettings sim = TrajectorySettings(
+      scene_p_, options_, with_s_, np_, [this](int j) -> Vector6d { return s_[j].head<6>(); }, result_);
   sim.init.form = contact_form_;
-  sim.output_interval = dt_out;
-  sim.rtol = options_.rtol;
-  sim.atol = options_.atol;
   sim.restart = RestartProjection::kKeepState;  // the jump condition needs y continuous
-  sim.pulling = PullingContact::kRefuse;
-  sim.first_phase_started = row;
-  bool initial_sample = true;
-  sim.sample = [&](const MechanicalState& st, bool is_event) {
-    if (!initial_sample && !is_event && st.t < t_end) row(st);
-    initial_sample = false;
-  };
   RunResult record;
   Simulator simulator(scene_p_, this, sim, &record);
   simulator.Initialize();
@@ -464,7 +438,11 @@ const char* SensitivityMethod(const std::string& formulation) {
                                 "F_p by central differences over perturbed models (relative step 1e-5)";
 }
 
-bool SensitivityOptions::IsValid(std::string* error) const {
+bool SensitivityOptions::IsValid(std::string* error, const OptionText& typed) const {
+  const auto shown = [&typed](const char* flag, auto value) {
+    const auto it = typed.find(flag);
+    return it != typed.end() ? StrCat("'", Echo(it->second), "'") : StrCat(value);
+  };
   const std::vector<std::string> forms = SensitivityFormulations();
   if (std::find(forms.begin(), forms.end(), formulation) == forms.end()) {
     std::string ode, dae;
@@ -477,19 +455,19 @@ bool SensitivityOptions::IsValid(std::string* error) const {
     return false;
   }
   if (!(rtol > 0.0 && rtol < 1.0)) {
-    *error = StrCat("--rtol = ", rtol, ": must be in (0, 1)");
+    *error = StrCat("--rtol = ", shown("--rtol", rtol), ": must be in (0, 1)");
     return false;
   }
   if (!(output_interval >= 0.0 && std::isfinite(output_interval))) {
-    *error = StrCat("--output-interval = ", output_interval, ": must be >= 0 (0: the scene's)");
+    *error = StrCat("--output-interval = ", shown("--output-interval", output_interval), ": must be >= 0 (0: the scene's)");
     return false;
   }
   if (!(atol > 0.0 && std::isfinite(atol))) {
-    *error = StrCat("--atol = ", atol, ": must be > 0");
+    *error = StrCat("--atol = ", shown("--atol", atol), ": must be > 0");
     return false;
   }
   if (max_steps < 1) {
-    *error = StrCat("--max-steps = ", max_steps, ": must be >= 1");
+    *error = StrCat("--max-steps = ", shown("--max-steps", max_steps), ": must be >= 1");
     return false;
   }
   return true;

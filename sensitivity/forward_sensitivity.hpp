@@ -66,7 +66,9 @@ struct SensitivityOptions {
   double output_interval = 0.0;     // s between trajectory samples; 0: the scene's
   bool derivatives = true;          // false: outcomes only (for finite differences)
 
-  bool IsValid(std::string* error) const;
+  // False with a message naming the option, its value (as typed when `typed` has it: flag ->
+  // text) and the rule.
+  bool IsValid(std::string* error, const OptionText& typed = {}) const;
 };
 
 struct SensitivityEvent {

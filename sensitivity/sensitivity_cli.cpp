@@ -215,13 +215,16 @@ SensitivityCommand::SensitivityCommand(CLI::App& app) {
   }
   cmd_->add_option("--formulation", options_.formulation, "form integrated: " + ode + " (CVODES) | " + dae + " (IDAS)")
       ->capture_default_str();
-  cmd_->add_option("--rtol", options_.rtol, "relative tolerance")->capture_default_str();
-  cmd_->add_option("--atol", options_.atol, "absolute tolerance (SI)")->capture_default_str();
-  cmd_->add_option("--max-steps", options_.max_steps, "step budget per phase")->capture_default_str();
-  cmd_->add_option("--output-interval", options_.output_interval, "s between trajectory rows (0: scene's)")
-      ->capture_default_str();
-  cmd_->add_option("--fd-step", fd_step_, "relative step of central finite differences to print beside (0: none)")
-      ->capture_default_str();
+  // Numbers are kept as typed and converted once in Run, so that every refusal echoes the
+  // text given.
+  auto text_option = [this](const char* flag, const std::string& help, const std::string& default_text) {
+    cmd_->add_option(flag, typed_[flag], help)->default_str(default_text);
+  };
+  text_option("--rtol", "relative tolerance", StrCat(options_.rtol));
+  text_option("--atol", "absolute tolerance (SI)", StrCat(options_.atol));
+  text_option("--max-steps", "step budget per phase", StrCat(options_.max_steps));
+  text_option("--output-interval", "s between trajectory rows (0: scene's)", StrCat(options_.output_interval));
+  text_option("--fd-step", "relative step of central finite differences to print beside (0: none)", StrCat(fd_step_));
   cmd_->add_option("--out", out_dir_, "output directory")->capture_default_str();
   cmd_->add_flag("--list", list_, "print the parameter and outcome names of the scene");
 }
@@ -231,9 +234,27 @@ int SensitivityCommand::Run(int argc, char** argv) {
     for (const std::string* s : {&scene_path_, &spec_path_, &out_dir_, &options_.formulation}) {
       if (s->size() > 1024) Throw<InputError>("kneedyn sensitivity", "argument '", Echo(*s), "' is longer than 1024 characters");
     }
+    for (auto it = typed_.begin(); it != typed_.end();) {  // keep only the options given
+      it = cmd_->count(it->first) ? std::next(it) : typed_.erase(it);
+    }
+    for (const auto& [flag, text] : typed_) {
+      const bool ok = flag == "--max-steps"         ? ParseInteger(text, &options_.max_steps)
+                      : flag == "--rtol"            ? ParseReal(text, &options_.rtol)
+                      : flag == "--atol"            ? ParseReal(text, &options_.atol)
+                      : flag == "--output-interval" ? ParseReal(text, &options_.output_interval)
+                                                    : ParseReal(text, &fd_step_);
+      if (!ok) {
+        Throw<InputError>("kneedyn sensitivity", flag, " = '", Echo(text), "': must be ",
+                          flag == "--max-steps" ? "an integer >= 1 (in long's range)" : "a finite number (in double's range)");
+      }
+    }
     std::string why;
-    if (!options_.IsValid(&why)) Throw<InputError>("kneedyn sensitivity", why);
-    if (!(fd_step_ >= 0.0 && fd_step_ < 0.5)) Throw<InputError>("kneedyn sensitivity", "--fd-step = ", fd_step_, ": must be in [0, 0.5)");
+    if (!options_.IsValid(&why, typed_)) Throw<InputError>("kneedyn sensitivity", why);
+    if (!(fd_step_ >= 0.0 && fd_step_ < 0.5)) {
+      const auto it = typed_.find("--fd-step");
+      Throw<InputError>("kneedyn sensitivity", "--fd-step = '", Echo(it != typed_.end() ? it->second : StrCat(fd_step_)),
+                        "': must be in [0, 0.5)");
+    }
     if (scene_path_.empty() == spec_path_.empty()) {
       Throw<InputError>("kneedyn sensitivity", "give either a scene file or --spec (", scene_path_.empty() ? "neither" : "both",
                         " given)");

@@ -32,6 +32,7 @@ class SensitivityCommand {
   std::vector<std::string> outcomes_;
   SensitivityOptions options_;
   double fd_step_ = 0.0;
+  OptionText typed_;  // the numeric options as typed (flag -> text)
   std::string out_dir_ = "out/sensitivity";
   bool list_ = false;
   std::string spec_path_;  // --spec: scene, parameter names and outcomes of a sweep spec

@@ -6,11 +6,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <string>
 #include <vector>
 
 #include "ensembles/sweep.hpp"
+#include "formulations/simulator.hpp"
 #include "sensitivity/forward_sensitivity.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/error.hpp"
@@ -23,6 +25,41 @@ using ensembles::ParameterSpec;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr int kN = 12;  // y = (q, q̇)
+
+// The simulator settings both drivers share: the output interval (--output-interval, else
+// the scene's; refused when unusable), the tolerances, pulling contacts refused, and the
+// trajectory rows: t0 once the first phase has started (with its consistent initial
+// sensitivities), then every output time before the end (no event rows). `dq(j)` is
+// ∂q/∂p_j at the state the simulator hands over; called for j < np when `with_s`.
+inline SimulatorSettings TrajectorySettings(const Scene& scene, const SensitivityOptions& options, bool with_s, int np,
+                                            std::function<Vector6d(int)> dq, SensitivityResult* result) {
+  const double t_end = scene.end.time;
+  const double dt_out = options.output_interval > 0.0 ? options.output_interval : scene.output_interval;
+  std::string why;
+  if (!IsValidOutputInterval(dt_out, t_end, &why)) {
+    Throw<InputError>("RunSensitivity", options.output_interval > 0.0 ? "--output-interval: " : "scene output.interval_s: ", why);
+  }
+  const auto row = [with_s, np, dq = std::move(dq), result](const MechanicalState& st) {
+    TrajectorySample sample;
+    sample.t = st.t;
+    sample.q = st.q;
+    if (with_s) {
+      for (int j = 0; j < np; ++j) sample.dq.push_back(dq(j));
+    }
+    result->trajectory.push_back(sample);
+  };
+  SimulatorSettings sim;
+  sim.output_interval = dt_out;
+  sim.rtol = options.rtol;
+  sim.atol = options.atol;
+  sim.pulling = PullingContact::kRefuse;
+  sim.first_phase_started = row;
+  sim.sample = [row, t_end, initial_sample = true](const MechanicalState& st, bool is_event) mutable {
+    if (!initial_sample && !is_event && st.t < t_end) row(st);
+    initial_sample = false;
+  };
+  return sim;
+}
 
 // Relative size of the directional central differences of g and v (their truncation error
 // ~ε², round-off ~1e-16/ε: both near 1e-11 relative).

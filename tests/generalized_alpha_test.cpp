@@ -124,8 +124,7 @@ TEST(GeneralizedAlpha, ChungHulbertLimits) {
   EXPECT_DOUBLE_EQ(zero.alpha_f, 0.0);
   EXPECT_DOUBLE_EQ(zero.beta, 1.0);
   EXPECT_DOUBLE_EQ(zero.gamma, 1.5);
-  FormulationOptions o;
-  const NewmarkScheme def = SchemeFromOptions(o);  // ρ∞ = 0.9
+  const NewmarkScheme def = ChungHulbertScheme(FormulationOptions().rho_inf);  // the default ρ∞ = 0.9
   EXPECT_NEAR(def.alpha_m, 0.8 / 1.9, 1e-15);
   EXPECT_NEAR(def.alpha_f, 0.9 / 1.9, 1e-15);
 }

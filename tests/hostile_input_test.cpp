@@ -147,6 +147,42 @@ TEST_F(HostileInput, OptionMessagesEchoTheTextTyped) {
   }
 }
 
+// The same for `kneedyn batch` and `kneedyn sensitivity`: their numbers are read from the text
+// too, so a refusal shows what was typed, not what a conversion made of it.
+TEST_F(HostileInput, BatchAndSensitivityMessagesEchoTheTextTyped) {
+  struct Case {
+    std::string args;
+    std::vector<std::string> needles;
+    std::string absent;  // what a converted value would have shown
+  };
+  const std::string variants = Input("variants.csv", "pulse.amplitude\n100\n");
+  const std::string batch =
+      "batch '" + ChapterScenePath() + "' --variants '" + variants + "' --quiet --out '" + Out() + "/r.csv' ";
+  const std::string sensitivity =
+      "sensitivity '" + ChapterScenePath() + "' --parameters mass --outcomes time_90_s --out '" + Out() + "' ";
+  const std::vector<Case> cases = {
+      {batch + "--rtol ''", {"--rtol = ''"}, "--rtol = 0"},
+      {batch + "--rtol 0.0", {"--rtol = 0.0;"}, "--rtol = 0;"},
+      {batch + "--atol 1e-999", {"--atol = '1e-999'"}, "--atol = 0"},
+      {batch + "--formulation newmark --step ' 1e-4'", {"--step = ' 1e-4'"}, ""},
+      {batch + "--threads 99999999999999999999", {"--threads = '99999999999999999999'"}, ""},
+      {batch + "--output-interval nan", {"--output-interval = 'nan'"}, ""},
+      {batch + "--formulation mde --integrator rk9", {"--integrator = 'rk9'", "cvode-adams"}, ""},
+      {sensitivity + "--rtol ''", {"--rtol = ''"}, "--rtol = 0"},
+      {sensitivity + "--rtol 0.0", {"--rtol = '0.0'"}, "--rtol = 0:"},
+      {sensitivity + "--max-steps 99999999999999999999", {"--max-steps = '99999999999999999999'"}, "9223372036854775807"},
+      {sensitivity + "--max-steps 1e3", {"--max-steps = '1e3'"}, ""},
+      {sensitivity + "--atol 1e-999", {"--atol = '1e-999'"}, "--atol = 0"},
+      {sensitivity + "--fd-step nan", {"--fd-step = 'nan'"}, ""},
+  };
+  for (const Case& c : cases) {
+    const CommandResult r = ExpectRefused(c.args, c.needles);
+    if (!c.absent.empty()) {
+      EXPECT_EQ(r.output.find(c.absent), std::string::npos) << c.args << ": " << r.output;
+    }
+  }
+}
+
 // How often `needle` occurs in `text`.
 size_t Occurrences(const std::string& text, const std::string& needle) {
   size_t n = 0;

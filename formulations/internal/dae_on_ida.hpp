@@ -30,7 +30,17 @@ inline double DaeUnknownAtol(bool ggl, const DaeSystem& system, int i, double at
   return ggl ? std::max(kGglIndexTwoAtolFloor, scaled) : scaled;
 }
 
-std::unique_ptr<Formulation> CreateDaeOnIda(const Scene& scene, const FormulationOptions& options,
+// The options of dae, dae-reduced, dae-ggl and dae-ggl-reduced, typed and checked.
+struct IdaOptions {
+  StepControl control;  // IDA's tolerances, step cap and step budget
+  ConstraintLevel constraint_level = ConstraintLevel::kVelocity;  // dae: index 2 | index-3 variant
+  JacobianKind jacobian = JacobianKind::kExact;                    // the iteration matrix
+};
+// Reads them from a request (dae.cpp); the registry line's capabilities have been checked,
+// and these formulations have no rule of their own beyond them.
+bool ReadIdaOptions(const OptionRequest& request, IdaOptions* options);
+
+std::unique_ptr<Formulation> CreateDaeOnIda(const Scene& scene, const IdaOptions& options,
                                             ContactForm form, const DaeOnIdaVariant& variant);
 
 }  // namespace kneedyn

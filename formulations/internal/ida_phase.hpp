@@ -63,7 +63,7 @@ struct IdaPhase {
   // `extra_root_directions`: root functions `roots` evaluates after the events' (the IDAS
   // sensitivities' peak conditions dv/dt = 0), with their directions.
   void Start(SUNContext ctx, int n, IDAResFn residual, IDALsJacFn jacobian, IDARootFn roots,
-             void* user, double t0, N_Vector atol, N_Vector id, const FormulationOptions& options,
+             void* user, double t0, N_Vector atol, N_Vector id, const StepControl& options,
              double end_time, const std::vector<EventSpec>& events, const char* owner,
              SundialsMessages* messages, const std::vector<int>& extra_root_directions = {}) {
     auto check = [&](int flag, const char* call) {

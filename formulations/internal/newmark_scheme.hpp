@@ -39,19 +39,18 @@ inline NewmarkScheme ChungHulbertScheme(double rho_inf) {
   return s;
 }
 
-// The scheme the options ask for: αm, αf, β, γ when given explicitly (all four), else
-// Chung–Hulbert from --rho-inf. ValidateOptions has checked the values (all four or none).
-inline NewmarkScheme SchemeFromOptions(const FormulationOptions& options) {
-  if (options.alpha_m) {
-    return {*options.alpha_m, *options.alpha_f, *options.newmark_beta, *options.newmark_gamma};
-  }
-  return ChungHulbertScheme(options.rho_inf);
-}
+// The options of newmark, newmark-reduced, generalized-alpha and generalized-alpha-reduced,
+// typed and checked.
+struct NewmarkOptions {
+  StepControl control;  // the fixed step; rtol, atol: the Newton test
+  JacobianKind jacobian = JacobianKind::kExact;  // the Newton matrix
+  NewmarkScheme scheme;  // newmark: average acceleration; generalized-alpha: ReadGeneralizedAlphaOptions
+};
+// Reads them from a request (newmark.cpp), with the average-acceleration rule.
+bool ReadNewmarkOptions(const OptionRequest& request, NewmarkOptions* options);
 
-// newmark.cpp: the Newmark machinery (Newton, step halving, events) with `scheme`; `name`
-// appears in messages.
-std::unique_ptr<Formulation> CreateNewmarkScheme(const Scene& scene, const FormulationOptions& options,
-                                                 ContactForm form, const NewmarkScheme& scheme,
-                                                 const char* name);
+// newmark.cpp: the Newmark machinery (Newton, step halving, events) with options.scheme.
+std::unique_ptr<Formulation> CreateNewmarkScheme(const Scene& scene, const NewmarkOptions& options,
+                                                 ContactForm form);
 
 }  // namespace kneedyn

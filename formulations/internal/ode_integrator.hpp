@@ -49,11 +49,23 @@ class OdeProblem {
   virtual std::string StateName(int i) const { return "y[" + std::to_string(i) + "]"; }
 };
 
+// The options of mde and ede, typed and checked (ReadOdeOptions).
+struct OdeOptions {
+  StepControl control;
+  IntegratorKind integrator = IntegratorKind::kDopri5;
+  Stabilization stabilization = Stabilization::kNone;  // ede
+  double baumgarte_alpha = 20.0;  // 1/s, --stabilization baumgarte
+  double baumgarte_beta = 20.0;   // 1/s
+};
+// Reads them from a request (ode_integrator.cpp): the integrator (not given: dopri5) and the
+// rules that tie the stabilization to the integrator.
+bool ReadOdeOptions(const OptionRequest& request, OdeOptions* options);
+
 class OdeIntegrator {
  public:
-  // options.integrator (not given: dopri5) with options.step, as ValidateOptions checked
-  // them; `owner` names the formulation in messages.
-  OdeIntegrator(const FormulationOptions& options, std::string owner);
+  // options.integrator with options.control (its step for euler and rk4); `owner` names the
+  // formulation in messages.
+  OdeIntegrator(const OdeOptions& options, std::string owner);
   ~OdeIntegrator();
   OdeIntegrator(const OdeIntegrator&) = delete;
   OdeIntegrator& operator=(const OdeIntegrator&) = delete;
@@ -94,7 +106,7 @@ class OdeIntegrator {
   double LastStep() const;
   void Free();
 
-  FormulationOptions options_;
+  StepControl options_;
   std::string owner_;
   IntegratorKind kind_ = IntegratorKind::kDopri5;
   std::string name_;  // OptionName(kind_)

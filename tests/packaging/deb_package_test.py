@@ -9,14 +9,13 @@
     dpkg-shlibdeps), the Debian package that holds it; and python3 and python3-numpy for
     the Python module (in Debian's /usr/lib/python3/dist-packages).
 """
-import argparse
 import os
 import re
-import shutil
 import subprocess
 import sys
 import time
-from pathlib import Path
+
+from packaging_common import source_build_work, verdict
 
 
 def run(cmd, **kw):
@@ -57,14 +56,7 @@ def owner(path):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--source", required=True, type=Path)
-    ap.add_argument("--build-dir", required=True, type=Path)
-    ap.add_argument("--work", required=True, type=Path)
-    args = ap.parse_args()
-    source, build, work = args.source.resolve(), args.build_dir.resolve(), args.work.resolve()
-    shutil.rmtree(work, ignore_errors=True)
-    work.mkdir(parents=True)
+    source, build, work = source_build_work()
     problems = []
 
     version = re.search(r"project\(kneedyn\s+VERSION\s+([0-9.]+)", (source / "CMakeLists.txt").read_text()).group(1)
@@ -128,12 +120,8 @@ def main():
     print("Depends: %s" % fields["Depends"])
     print("needed packages: %s" % ", ".join(sorted(required)))
 
-    if problems:
-        print("FAIL:\n  " + "\n  ".join(problems))
-        return 1
-    print("OK: %s holds what the install rules install, and Depends covers its %d runtime packages"
-          % (deb.name, len(required)))
-    return 0
+    return verdict(problems, "OK: %s holds what the install rules install, and Depends covers its %d runtime packages"
+                   % (deb.name, len(required)))
 
 
 if __name__ == "__main__":

@@ -10,7 +10,6 @@ Builds the site from this build tree into WORK/site, then checks:
   - the Doxygen gate can fail: a copy of the installed headers with a planted bad command
     (`\\frobnicate`) must make Doxygen report it.
 """
-import argparse
 import html
 import html.parser
 import re
@@ -18,8 +17,9 @@ import shutil
 import subprocess
 import sys
 import time
-from pathlib import Path
 from urllib.parse import unquote, urldefrag
+
+from packaging_common import source_build_work, verdict
 
 
 class Page(html.parser.HTMLParser):
@@ -44,14 +44,7 @@ def parse(path):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--source", required=True, type=Path)
-    ap.add_argument("--build-dir", required=True, type=Path)
-    ap.add_argument("--work", required=True, type=Path)
-    args = ap.parse_args()
-    source, build, work = args.source.resolve(), args.build_dir.resolve(), args.work.resolve()
-    shutil.rmtree(work, ignore_errors=True)
-    work.mkdir(parents=True)
+    source, build, work = source_build_work()
     site = work / "site"
     t0 = time.monotonic()
     subprocess.run([sys.executable, source / "docs" / "build_docs.py", "--build-dir", build, "--out", site,
@@ -129,11 +122,7 @@ def main():
     if "frobnicate" not in warnings:
         problems.append("Doxygen did not report the planted bad command in %s: %r" % (headers[0], warnings[:300]))
 
-    if problems:
-        print("FAIL:\n  " + "\n  ".join(problems))
-        return 1
-    print("OK")
-    return 0
+    return verdict(problems)
 
 
 if __name__ == "__main__":

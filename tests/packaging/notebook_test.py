@@ -8,7 +8,6 @@ formulations agree on the lift-off and that the sensitivity matches central diff
 or if the executed notebook lacks its figures.
 """
 import argparse
-import shutil
 import subprocess
 import sys
 import time
@@ -16,15 +15,15 @@ from pathlib import Path
 
 import nbformat
 
+from packaging_common import fresh_directory, verdict
+
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--notebook", required=True, type=Path)
     ap.add_argument("--work", required=True, type=Path)
     args = ap.parse_args()
-    work = args.work.resolve()
-    shutil.rmtree(work, ignore_errors=True)
-    work.mkdir(parents=True)
+    work = fresh_directory(args.work)
     problems = []
 
     committed = nbformat.read(args.notebook, as_version=4)
@@ -49,11 +48,7 @@ def main():
             problems.append("%d cells hold errors" % len(errors))
         if figures < 2:
             problems.append("the executed notebook has %d figures, expected 2" % figures)
-    if problems:
-        print("FAIL:\n  " + "\n  ".join(problems))
-        return 1
-    print("OK")
-    return 0
+    return verdict(problems)
 
 
 if __name__ == "__main__":

@@ -11,7 +11,6 @@ tree and without PYTHONPATH or KNEEDYN_DATA_DIR:
   - kneedyn.run(kneedyn.load_scene(kneedyn.scene_path('chapter_impact'))) completes, and
     the venv's `kneedyn` program runs that installed scene to the same summary.
 """
-import argparse
 import json
 import os
 import shutil
@@ -20,6 +19,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from packaging_common import source_build_work, verdict
 
 
 def run(cmd, **kw):
@@ -44,6 +45,7 @@ def make_venv(path):
 CHECK = r"""
 import json, os, sys
 import kneedyn
+
 scene_path = kneedyn.scene_path('chapter_impact')
 r = kneedyn.run(kneedyn.load_scene(scene_path))
 print(json.dumps({"module": kneedyn.__file__, "data_dir": kneedyn.data_dir(), "scene_path": scene_path,
@@ -94,14 +96,7 @@ def check_venv(venv, expected, pyrel, outside):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--source", required=True, type=Path)
-    ap.add_argument("--build-dir", required=True, type=Path)
-    ap.add_argument("--work", required=True, type=Path)
-    args = ap.parse_args()
-    source, build, work = args.source.resolve(), args.build_dir.resolve(), args.work.resolve()
-    shutil.rmtree(work, ignore_errors=True)
-    work.mkdir(parents=True)
+    source, build, work = source_build_work()
 
     env = clean_env(KNEEDYN_CMAKE_BUILD_DIR=str(build))
     outside = Path(tempfile.mkdtemp(prefix="kneedyn-user-", dir=work))
@@ -139,11 +134,8 @@ def main():
 
     for what, seconds in timings.items():
         print("%-22s %.1f s" % (what, seconds))
-    if problems:
-        print("FAIL:\n  " + "\n  ".join(problems))
-        return 1
-    print("OK: %s and the venvs of both paths hold the %d files of the runtime component" % (found[0].name, len(expected)))
-    return 0
+    return verdict(problems, "OK: %s and the venvs of both paths hold the %d files of the runtime component"
+                   % (found[0].name, len(expected)))
 
 
 if __name__ == "__main__":
