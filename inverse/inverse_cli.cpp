@@ -1,7 +1,7 @@
 // kneedyn_inverse — the bounded inverse problem on one scene (inverse_problem.hpp).
 //
 //   kneedyn_inverse --scene FILE --spec inverse/inverse_problem.yaml --out FIT.json
-//                   [--targets C1,K6,...] [--no-leave-some-out] [--formulation dae] [--rtol R]
+//                   [--targets C1,K6,...|none] [--folds A,B|none] [--no-leave-some-out] [--formulation dae] [--rtol R]
 //                   [--max-iterations K] [--weights W,...] [--multiplier-updates U]
 //
 // Per target (a claim id: all statements of that claim together):
@@ -18,6 +18,8 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+
+#include <Eigen/Dense>
 
 #include "inverse/inverse_problem.hpp"
 #include "solver/error.hpp"
@@ -89,6 +91,29 @@ nlohmann::json FitJson(const StatementModel& model, const FitResult& f, const st
           {"ceres", f.report}};
 }
 
+// The minimum-norm change of the problem linearized at x = 0: x = Jᵀ (J Jᵀ)⁻¹ (target − value),
+// J from the sensitivities. A first-order estimate beside the nonlinear fit.
+nlohmann::json Linearized(const StatementModel& model, const std::vector<int>& fit) {
+  const auto ev = model.Evaluate(std::vector<double>(model.num_parameters(), 0.0), fit, true);
+  const int ns = static_cast<int>(fit.size()), np = model.num_parameters();
+  Eigen::MatrixXd J(ns, np);
+  Eigen::VectorXd d(ns);
+  for (int k = 0; k < ns; ++k) {
+    for (int j = 0; j < np; ++j) J(k, j) = ev.jacobian[k][j];
+    d(k) = model.spec().statements[fit[k]].target - ev.value[k];
+  }
+  const Eigen::VectorXd x = J.transpose() * (J * J.transpose()).ldlt().solve(d);
+  nlohmann::json top = nlohmann::json::object();
+  std::vector<int> order(np);
+  for (int j = 0; j < np; ++j) order[j] = j;
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return std::abs(x(a)) > std::abs(x(b)); });
+  for (int i = 0; i < std::min(np, 8); ++i) top[model.spec().parameters[order[i]].name] = x(order[i]);
+  nlohmann::json gradient_norm = nlohmann::json::object();
+  for (int k = 0; k < ns; ++k) gradient_norm[model.spec().statements[fit[k]].id] = J.row(k).norm();
+  return {{"normalized_change", x.norm()}, {"max_normalized_change", x.cwiseAbs().maxCoeff()},
+          {"largest_normalized", top}, {"gradient_norm_per_unit_x", gradient_norm}};
+}
+
 std::vector<std::string> Split(const std::string& s) {
   std::vector<std::string> out;
   size_t start = 0;
@@ -106,19 +131,22 @@ std::vector<std::string> Split(const std::string& s) {
 
 int main(int argc, char** argv) {
   CLI::App app{"kneedyn_inverse: the smallest change of the uncertain quantities that reaches the chapter's statements"};
-  std::string scene_path, spec_path, out_path, targets_arg, formulation = "dae";
+  std::string scene_path, spec_path, out_path, targets_arg, folds_arg = "A,B", formulation = "dae";
   double rtol = 1e-8;
-  int max_iterations = 10, multiplier_updates = FitOptions().multiplier_updates;
-  bool no_lso = false;
+  int max_iterations = FitOptions().max_iterations, multiplier_updates = FitOptions().multiplier_updates;
+  bool no_lso = false, isotropic = false;
   std::vector<double> weights = FitOptions().weights;
   app.add_option("--scene", scene_path, "scene file (a reading is a scene variant)")->required();
   app.add_option("--spec", spec_path, "parameter/bounds and statements file")->required();
   app.add_option("--out", out_path, "output JSON")->required();
   app.add_option("--targets", targets_arg, "claim ids to reach one at a time (default: every claim of the statements)");
   app.add_flag("--no-leave-some-out", no_lso, "skip the leave-some-out folds");
+  app.add_option("--folds", folds_arg, "leave-some-out folds to run: the halves fitted (A, B; 'none': no fold)")
+      ->capture_default_str();
   app.add_option("--formulation", formulation, "sensitivity formulation (ede, dae, ...)")->capture_default_str();
   app.add_option("--rtol", rtol, "relative tolerance of every run (atol = 1e-2 rtol)")->capture_default_str();
   app.add_option("--max-iterations", max_iterations, "Ceres iterations per continuation stage")->capture_default_str();
+  app.add_flag("--isotropic", isotropic, "Levenberg-Marquardt trust region as a ball in x (no Jacobi scaling)");
   app.add_option("--multiplier-updates", multiplier_updates, "augmented-Lagrangian updates per weight (>= 0)")
       ->capture_default_str();
   app.add_option("--weights", weights, "penalty weights of the statement residuals, one Ceres stage each")
@@ -151,6 +179,11 @@ int main(int argc, char** argv) {
       if (std::find(claims.begin(), claims.end(), spec.statements[i].claim) == claims.end()) claims.push_back(spec.statements[i].claim);
     }
     std::vector<std::string> targets = targets_arg.empty() ? claims : Split(targets_arg);
+    if (targets_arg == "none") targets.clear();
+    std::vector<std::string> folds = folds_arg == "none" || no_lso ? std::vector<std::string>() : Split(folds_arg);
+    for (const std::string& h : folds) {
+      if (h != "A" && h != "B") Throw<InputError>("kneedyn_inverse", "--folds: '", Echo(h), "': expected A, B or none");
+    }
     for (const std::string& t : targets) {
       if (std::find(claims.begin(), claims.end(), t) == claims.end()) {
         Throw<InputError>("kneedyn_inverse", "--targets: '", Echo(t), "' is no claim of the statements in ", spec_path);
@@ -161,25 +194,33 @@ int main(int argc, char** argv) {
     out["spec"] = spec_path;
     out["settings"] = {{"formulation", formulation}, {"rtol", rtol}, {"atol", 1e-2 * rtol}, {"output_interval_s", 0.001},
                        {"max_iterations_per_stage", max_iterations}, {"weights", weights},
-                       {"multiplier_updates", multiplier_updates},
+                       {"multiplier_updates", multiplier_updates}, {"isotropic", isotropic},
                        {"reach_fraction", spec.reach_fraction}};
     out["statements"] = nlohmann::json::array();
     for (const Statement& st : spec.statements) {
       out["statements"].push_back({{"id", st.id}, {"claim", st.claim}, {"target", st.target}, {"tolerance", st.tolerance},
                                    {"half", st.half}, {"duration_s", st.duration_s}});
     }
+    out["targets"] = nlohmann::json::object();
+    out["leave_some_out"] = nlohmann::json::object();
     out["baseline"] = StatementValues(model, std::vector<double>(model.num_parameters(), 0.0), all);
     std::cerr << "kneedyn_inverse: baseline done\n";
     FitOptions fo;
     fo.max_iterations = max_iterations;
     fo.weights = weights;
     fo.multiplier_updates = multiplier_updates;
+    fo.isotropic = isotropic;
     for (const std::string& t : targets) {
       std::vector<int> fit;
       for (int i : all) {
         if (spec.statements[i].claim == t) fit.push_back(i);
       }
-      nlohmann::json tj;
+      nlohmann::json tj, linear;
+      try {
+        linear = Linearized(model, fit);
+      } catch (const Error& e) {
+        linear = {{"error", e.what()}};
+      }
       try {
         const FitResult f = Fit(model, fit, fo);
         tj = FitJson(model, f, fit);
@@ -194,12 +235,13 @@ int main(int argc, char** argv) {
       } catch (const Error& e) {
         tj = {{"reached", false}, {"error", e.what()}};
       }
+      tj["linearized"] = linear;
       std::cerr << "kneedyn_inverse: target " << t << ": reached " << tj["reached"] << ", |x| "
                 << (tj.contains("normalized_change") ? tj["normalized_change"].dump() : "-") << "\n";
       out["targets"][t] = tj;
     }
-    if (!no_lso) {
-      for (const char* half : {"A", "B"}) {
+    {
+      for (const std::string& half : folds) {
         std::vector<int> fit, judged;
         for (int i : all) (spec.statements[i].half == half ? fit : judged).push_back(i);
         nlohmann::json fj;

@@ -364,6 +364,9 @@ FitResult Fit(const StatementModel& model, const std::vector<int>& fit, const Fi
   std::vector<double> y(nf, 0.0);
   FitResult result;
   std::vector<double> shift(fit.size(), 0.0);
+  std::vector<double> best_y;
+  bool best_reached = false;
+  double best_norm = 0.0, best_worst = 0.0;
   for (double w : options.weights) {
     for (int outer = 0; outer <= options.multiplier_updates; ++outer) {
       ceres::Problem::Options po;
@@ -380,6 +383,12 @@ FitResult Fit(const StatementModel& model, const std::vector<int>& fit, const Fi
       so.linear_solver_type = ceres::DENSE_QR;
       so.max_num_iterations = options.max_iterations;
       so.num_threads = 1;  // deterministic
+      if (options.isotropic) {
+        // Isotropic trust region in x (D = I, no Jacobi scaling).
+        so.jacobi_scaling = false;
+        so.min_lm_diagonal = 1.0;
+        so.max_lm_diagonal = 1.0;
+      }
       so.function_tolerance = 1e-10;
       so.parameter_tolerance = 1e-10;
       so.logging_type = ceres::SILENT;
@@ -389,25 +398,41 @@ FitResult Fit(const StatementModel& model, const std::vector<int>& fit, const Fi
       result.converged = summary.termination_type == ceres::CONVERGENCE;
       result.report += (result.report.empty() ? "" : " | ") +
                        ("w " + std::to_string(w) + " update " + std::to_string(outer) + ": " + summary.BriefReport());
-      if (options.multiplier_updates == 0) break;
-      // Multiplier update λ ← λ + w² r (here μ = λ / w²: μ ← μ + r), at the solve's end point.
+      // The stage's end point: kept if it is the best so far (reaching every statement with the
+      // smallest ‖x‖, else the smallest largest |r|), and the multiplier update
+      // λ ← λ + w² r (here μ = λ / w²: μ ← μ + r).
       std::vector<double> x(model.num_parameters(), 0.0);
       for (int j = 0; j < nf; ++j) x[model.free()[j]] = y[j];
-      bool met = true;
+      bool met = true, reached = true;
+      double worst = 0.0;
       try {
         const StatementModel::Evaluation ev = model.Evaluate(x, fit, false);
         for (size_t k = 0; k < fit.size(); ++k) {
           const Statement& st = model.spec().statements[fit[k]];
           const double r = (ev.value[k] - st.target) / st.tolerance;
           met = met && std::abs(r) <= 0.1 * model.spec().reach_fraction;
+          reached = reached && std::abs(r) <= model.spec().reach_fraction;
+          worst = std::max(worst, std::abs(r));
           shift[k] += r;
         }
       } catch (const Error&) {
         break;
       }
-      if (met) break;
+      double norm = 0.0;
+      for (double v : y) norm += v * v;
+      norm = std::sqrt(norm);
+      const bool better = best_y.empty() || (reached && !best_reached) ||
+                          (reached == best_reached && (reached ? norm < best_norm : worst < best_worst));
+      if (better) {
+        best_y = y;
+        best_reached = reached;
+        best_norm = norm;
+        best_worst = worst;
+      }
+      if (met || options.multiplier_updates == 0) break;
     }
   }
+  if (!best_y.empty()) y = best_y;
   result.x.assign(model.num_parameters(), 0.0);
   for (int j = 0; j < nf; ++j) result.x[model.free()[j]] = y[j];
   double n2 = 0.0;
