@@ -4,7 +4,7 @@ claims check at each fit.
 
   inverse_problem.py --inverse BIN --kneedyn BIN --out DIR --scenes S1 [S2 ...]
                      [--record FILE] [--targets C1,K6] [--max-iterations N] [--quick] [--jobs N]
-                     [--parallel N] [--reuse]
+                     [--parallel N] [--reuse] [--reuse-only]
 
 Per scene: `kneedyn_inverse` (inverse/inverse_problem.hpp; one process per target and per
 fold, --parallel at a time, merged into DIR/<scene>/fit.json) fits each target claim's
@@ -155,7 +155,10 @@ def run_fits(args, scene_path, sdir, fit_path):
     name, extra = job
     out = os.path.join(sdir, f"fit_{name}.json")
     cmd = base + ["--out", out] + extra
-    if args.reuse and os.path.exists(out):
+    if args.reuse_only and not os.path.exists(out):
+      print(f"inverse_problem: {os.path.basename(sdir)}: {name}: no {out}, not run (--reuse-only)", flush=True)
+      return name, cmd, 3, "not run (--reuse-only): no fit file", out
+    if (args.reuse or args.reuse_only) and os.path.exists(out):
       # A fit run earlier (e.g. as its own process): its file is used as it is; the command
       # that made it is the first line of fit_<job>.cmd or of its log when there is one.
       for path in (os.path.join(sdir, f"fit_{name}.cmd"), os.path.join(sdir, f"fit_{name}.log")):
@@ -223,6 +226,7 @@ def main(argv=None):
   ap.add_argument("--parallel", type=int, default=3, help="kneedyn_inverse processes at a time")
   ap.add_argument("--reuse", action="store_true",
                   help="use DIR/<scene>/fit_<job>.json where it exists instead of running that fit again")
+  ap.add_argument("--reuse-only", action="store_true", help="as --reuse, and run no fit: a missing one is reported")
   args = ap.parse_args(argv)
   for flag, path in (("--inverse", args.inverse), ("--kneedyn", args.kneedyn)):
     if not os.access(path, os.X_OK):
@@ -283,7 +287,7 @@ def main(argv=None):
       print(f"inverse_problem: {key}: {cid}: reached {entry['reached']}, |x| {entry['normalized_change']}, "
             f"fixes {entry['fixes']}, breaks {entry['breaks']}", flush=True)
     readings[key] = {"scene": os.path.relpath(os.path.abspath(scene_path), ROOT), "targets": targets,
-                     "claims_unchanged": before,
+                     "claims_unchanged": before, "fit_errors": err or None,
                      "baseline_statements": fit.get("baseline"),
                      "leave_some_out": {fold: leave_some_out_summary(fit, fold)
                                         for fold in fit.get("leave_some_out", {})},
