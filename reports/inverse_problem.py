@@ -282,6 +282,11 @@ def main(argv=None):
         failed |= bool(bad)
         entry["fixes"], entry["breaks"] = compare(before, after)
         entry["claims_at_fit"] = after
+        # The reference member (A = 100 N, t0 = 0.1 s) by `kneedyn run` at the fit: an
+        # independent check of the lift-off the sensitivity driver fitted.
+        ref_run = os.path.join(rdir, "runs", run_families.member_name("amplitude", run_families.BASE_AMPLITUDE_N))
+        if os.path.exists(os.path.join(ref_run, "summary.json")):
+          entry["liftoff_lateral_deg_by_kneedyn_run"] = run_families.event_summary(ref_run)["liftoff_lateral_deg"]
         entry["failed_family_runs"] = bad
       targets[cid] = entry
       print(f"inverse_problem: {key}: {cid}: reached {entry['reached']}, |x| {entry['normalized_change']}, "
