@@ -264,6 +264,7 @@ def main(argv=None):
       entry = {"reached": bool(t.get("reached")), "normalized_change": t.get("normalized_change"),
                "max_normalized_change": t.get("max_normalized_change"),
                "beyond_precision": t.get("beyond_precision"), "parameters": t.get("parameters", {}),
+               "moved": t.get("moved"), "linearized": t.get("linearized"),
                "fitted_statements": t.get("fitted_statements"), "statements_at_fit": t.get("statements_at_fit"),
                "within_precision": {k: t.get("within_precision", {}).get(k)
                                     for k in ("reached", "normalized_change", "max_normalized_change",
