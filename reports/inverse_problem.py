@@ -1,0 +1,332 @@
+#!/usr/bin/python3
+"""The bounded inverse problem over scene files (a reading is a scene variant), with the
+claims check at each fit.
+
+  inverse_problem.py --inverse BIN --kneedyn BIN --out DIR --scenes S1 [S2 ...]
+                     [--record FILE] [--targets C1,K6] [--max-iterations N] [--quick] [--jobs N]
+                     [--parallel N] [--reuse] [--reuse-only]
+
+Per scene: `kneedyn_inverse` (inverse/inverse_problem.hpp; one process per target and per
+fold, --parallel at a time, merged into DIR/<scene>/fit.json) fits each target claim's
+statements (inverse/inverse_problem.yaml) with the smallest change of the uncertain
+quantities, normalized by their printed precision, and runs the leave-some-out folds. Then
+the chapter's pulse families are run at the unchanged parameters and at each target's fit
+(the fitted Tables 1.1-1.3 written as a parameter set beside the scene), and
+reports/claims.py judges every claim on both: `fixes` are claims not reproduced before and
+reproduced at the fit, `breaks` the reverse. S1/S2 (the sensitivity studies) are not re-run.
+
+Writes DIR/<scene>/fit.json (kneedyn_inverse's file), DIR/<scene>/<run>/ (families, claims)
+and DIR/inverse_problem.json; with --record the same JSON also there (the first scene's
+targets at the top level, every scene under `readings`). Exit 0 done, 1 a fit or a family
+run failed, 2 bad input.
+"""
+import argparse
+import concurrent.futures
+import datetime
+import json
+import os
+import subprocess
+import sys
+import time
+
+import yaml
+
+sys.dont_write_bytecode = True  # keep the source tree clean
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, HERE)
+import claims  # noqa: E402
+import run_families  # noqa: E402
+
+SPEC = os.path.join(ROOT, "inverse", "inverse_problem.yaml")
+SENSITIVITY_IDS = {"S1", "S2"}
+# kneedyn sensitivity property -> parameter-set key (reference-data/chapter_knee.yaml) and index.
+PROPERTY_KEYS = {"femoral_x": ("femoral_mm", 0), "femoral_y": ("femoral_mm", 1), "femoral_z": ("femoral_mm", 2),
+                 "tibial_x": ("tibial_mm", 0), "tibial_y": ("tibial_mm", 1), "tibial_z": ("tibial_mm", 2),
+                 "extension_ratio": ("extension_ratio", None), "k_linear": ("k_linear_N_mm", None),
+                 "k_parabolic": ("k_parabolic_N_mm2", None)}
+
+
+def scene_key(path):
+  return os.path.splitext(os.path.basename(path))[0]
+
+
+def load_scene(path):
+  with open(path) as f:
+    scene = yaml.safe_load(f)
+  scene["parameter_set"] = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(path)),
+                                                         scene["parameter_set"]))
+  return scene
+
+
+def write_parameter_set(scene, changes, path):
+  """The scene's parameter set with `changes` ({sensitivity name: change in its units}) added."""
+  with open(scene["parameter_set"]) as f:
+    pset = yaml.safe_load(f)
+  by_name = {l["name"].replace(" ", "_"): l for l in pset["ligaments"]}
+  for name, change in changes.items():
+    element, prop = name.rsplit(".", 1)
+    key, idx = PROPERTY_KEYS[prop]
+    lig = by_name[element]
+    if idx is None:
+      lig[key] = float(lig[key]) + change
+    else:
+      lig[key] = [float(v) for v in lig[key]]
+      lig[key][idx] += change
+  with open(path, "w") as f:
+    yaml.safe_dump(pset, f, sort_keys=False)
+  return path
+
+
+def run_claims(kneedyn, scene, rdir, quick, jobs):
+  """Runs the pulse families of `scene` (a dict) into rdir and judges the claims."""
+  for sub in ("scenes", "runs"):
+    os.makedirs(os.path.join(rdir, sub), exist_ok=True)
+  members = []
+  for family, value, amp, dur in run_families.family_members(quick):
+    name = run_families.member_name(family, value)
+    s = json.loads(json.dumps(scene))
+    s["name"] = name
+    s["pulse"]["amplitude_N"] = float(amp)
+    s["pulse"]["duration_s"] = float(dur)
+    path = os.path.join(rdir, "scenes", name + ".yaml")
+    with open(path, "w") as f:
+      yaml.safe_dump(s, f, sort_keys=False)
+    members.append((name, family, value, amp, dur, path))
+  with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+    res = list(pool.map(lambda m: run_families.run_one(kneedyn, m[5], os.path.join(rdir, "runs", m[0])), members))
+  fam = [{"name": n, "family": fa, "value": v, "amplitude_N": a, "duration_s": d, "run_dir": os.path.join("runs", n),
+          "ok": r["ok"], "status": r["status"], "command": r["command"], "stderr": r["stderr"], "fallback": r["fallback"]}
+         for (n, fa, v, a, d, _), r in zip(members, res)]
+  with open(os.path.join(rdir, "families.json"), "w") as f:
+    json.dump({"solver_args": run_families.SOLVER_ARGS, "output_interval_s": run_families.OUTPUT_INTERVAL_S,
+               "quick": quick, "members": fam}, f, indent=1)
+  ck = claims.Checker(rdir)
+  claims.check_all(ck)
+  verdicts = {r["id"]: r["verdict"] for r in ck.rows if r["id"] not in SENSITIVITY_IDS}
+  return verdicts, [m["name"] for m in fam if not m["ok"]]
+
+
+def compare(before, after):
+  fixes = sorted(c for c, v in after.items() if v == claims.REPRODUCED and before.get(c) != claims.REPRODUCED)
+  breaks = sorted(c for c, v in after.items() if v != claims.REPRODUCED and before.get(c) == claims.REPRODUCED)
+  return fixes, breaks
+
+
+def leave_some_out_summary(fit, fold):
+  """Judged statements of one fold: residual before (x = 0) and at the fit."""
+  f = fit["leave_some_out"].get(fold, {})
+  out = {"fitted": f.get("fitted", []), "judged": f.get("judged", []),
+         "normalized_change": f.get("normalized_change"), "max_normalized_change": f.get("max_normalized_change"),
+         "fitted_reached": f.get("reached"), "parameters": f.get("parameters", {}), "judged_statements": {}}
+  if "error" in f:
+    out["error"] = f["error"]
+  better = worse = inside_before = inside_after = 0
+  for sid in out["judged"]:
+    b = fit["baseline"].get(sid, {})
+    a = f.get("judged_at_fit", {}).get(sid, {})
+    rb, ra = b.get("residual"), a.get("residual")
+    out["judged_statements"][sid] = {"target": b.get("target"), "value_before": b.get("value"),
+                                     "value_at_fit": a.get("value"), "residual_before": rb, "residual_at_fit": ra}
+    if rb is not None and ra is not None:
+      better += abs(ra) < abs(rb)
+      worse += abs(ra) > abs(rb)
+      inside_before += abs(rb) <= 1.0
+      inside_after += abs(ra) <= 1.0
+  out.update({"judged_closer": better, "judged_further": worse, "judged_within_tolerance_before": inside_before,
+              "judged_within_tolerance_at_fit": inside_after})
+  return out
+
+
+def run_fits(args, scene_path, sdir, fit_path):
+  """kneedyn_inverse once per target and once per leave-some-out fold, --parallel at a time
+  (independent fits: the same result as one process doing them in turn); merged into
+  fit_path. Returns (merged JSON or None, error text)."""
+  with open(SPEC) as f:
+    spec = yaml.safe_load(f)
+  claim_ids = list(dict.fromkeys(st["claim"] for st in spec["statements"]))
+  targets = [t for t in args.targets.split(",") if t] if args.targets else claim_ids
+  jobs = [("target_" + t, ["--targets", t, "--folds", "none"]) for t in targets]
+  jobs += [("fold_" + h, ["--targets", "none", "--folds", h]) for h in ("A", "B")]
+  base = [args.inverse, "--scene", os.path.abspath(scene_path), "--spec", SPEC,
+          "--max-iterations", str(args.max_iterations)]
+
+  def one(job):
+    name, extra = job
+    out = os.path.join(sdir, f"fit_{name}.json")
+    cmd = base + ["--out", out] + extra
+    if args.reuse_only and not os.path.exists(out):
+      print(f"inverse_problem: {os.path.basename(sdir)}: {name}: no {out}, not run (--reuse-only)", flush=True)
+      return name, cmd, 3, "not run (--reuse-only): no fit file", out
+    if (args.reuse or args.reuse_only) and os.path.exists(out):
+      # A fit run earlier (e.g. as its own process): its file is used as it is; the command
+      # that made it is the first line of fit_<job>.cmd or of its log when there is one.
+      for path in (os.path.join(sdir, f"fit_{name}.cmd"), os.path.join(sdir, f"fit_{name}.log")):
+        if os.path.exists(path):
+          with open(path) as f:
+            first = f.readline().strip()
+          if first and "kneedyn_inverse" in first.split(" ")[0]:
+            cmd = first.split(" ")
+            break
+      print(f"inverse_problem: {os.path.basename(sdir)}: {name} reused", flush=True)
+      return name, cmd, 0, "reused", out
+    p = subprocess.run(cmd, text=True, stderr=subprocess.PIPE)
+    with open(os.path.join(sdir, f"fit_{name}.log"), "w") as f:
+      f.write(" ".join(cmd) + "\n" + p.stderr)
+    print(f"inverse_problem: {os.path.basename(sdir)}: {name} exit {p.returncode}", flush=True)
+    return name, cmd, p.returncode, p.stderr, out
+
+  with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, args.parallel)) as pool:
+    results = list(pool.map(one, jobs))
+  merged, errors = None, ""
+  for name, cmd, rc, err, out in results:
+    if rc != 0 or not os.path.exists(out):
+      errors += f"{name}: exit {rc}: {err[-500:]}\n"
+      continue
+    with open(out) as f:
+      part = json.load(f)
+    if merged is None:
+      merged = dict(part, targets={}, leave_some_out={}, runtime_s=0.0, runs=0, commands=[])
+    merged["targets"].update(part.get("targets", {}))
+    merged["leave_some_out"].update(part.get("leave_some_out", {}))
+    merged["runtime_s"] += part.get("runtime_s", 0.0)
+    if err == "reused":
+      merged["reused_runtime_s"] = merged.get("reused_runtime_s", 0.0) + part.get("runtime_s", 0.0)
+    merged["runs"] += part.get("runs", 0)
+    merged["commands"].append(" ".join(os.path.relpath(c, ROOT) if os.path.isabs(c) and c.startswith(ROOT) else c
+                                       for c in cmd))
+  if merged is not None:
+    merged["cpu_runtime_note"] = "runtime_s: the jobs' wall times summed (they ran --parallel at a time)"
+    with open(fit_path, "w") as f:
+      json.dump(merged, f, indent=1)
+  return merged, errors
+
+
+def git_commit():
+  try:
+    return subprocess.run(["git", "-C", ROOT, "rev-parse", "HEAD"], capture_output=True, text=True,
+                          check=True).stdout.strip()
+  except (OSError, subprocess.CalledProcessError):
+    return None
+
+
+def main(argv=None):
+  ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+  ap.add_argument("--inverse", required=True, help="kneedyn_inverse binary")
+  ap.add_argument("--kneedyn", required=True)
+  ap.add_argument("--out", required=True)
+  ap.add_argument("--scenes", nargs="+", required=True, help="scene files; the first is the headline")
+  ap.add_argument("--record", help="also write the result JSON here (reports/recorded/inverse_problem.json)")
+  ap.add_argument("--targets", default="C1,K6,K7,V2,V4",
+                  help="claim ids ('' = every claim with a statement); default: the statements the "
+                       "unchanged model misses (C1, K6, K7, V2, V4)")
+  ap.add_argument("--max-iterations", type=int, default=8)
+  ap.add_argument("--quick", action="store_true", help="reduced pulse families for the claims check")
+  ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="family runs at a time (claims check)")
+  ap.add_argument("--parallel", type=int, default=3, help="kneedyn_inverse processes at a time")
+  ap.add_argument("--reuse", action="store_true",
+                  help="use DIR/<scene>/fit_<job>.json where it exists instead of running that fit again")
+  ap.add_argument("--reuse-only", action="store_true", help="as --reuse, and run no fit: a missing one is reported")
+  args = ap.parse_args(argv)
+  for flag, path in (("--inverse", args.inverse), ("--kneedyn", args.kneedyn)):
+    if not os.access(path, os.X_OK):
+      print(f"inverse_problem: {flag} = '{path}': not an executable file", file=sys.stderr)
+      return 2
+  for s in args.scenes:
+    if not os.path.isfile(s):
+      print(f"inverse_problem: --scenes: '{s}': no such file", file=sys.stderr)
+      return 2
+  t_start = time.monotonic()
+  outdir = os.path.abspath(args.out)
+  os.makedirs(outdir, exist_ok=True)
+  failed = False
+  readings = {}
+  for scene_path in args.scenes:
+    key = scene_key(scene_path)
+    sdir = os.path.join(outdir, key)
+    os.makedirs(sdir, exist_ok=True)
+    fit_path = os.path.join(sdir, "fit.json")
+    t0 = time.monotonic()
+    fit, err = run_fits(args, scene_path, sdir, fit_path)
+    fit_s = time.monotonic() - t0
+    if err:
+      print(f"inverse_problem: {key}: kneedyn_inverse failed: {err[-800:]}", file=sys.stderr)
+      failed = True
+    if fit is None:
+      readings[key] = {"scene": scene_path, "error": err[-2000:]}
+      continue
+    scene = load_scene(scene_path)
+    t0 = time.monotonic()
+    before, bad = run_claims(args.kneedyn, scene, os.path.join(sdir, "unchanged"), args.quick, args.jobs)
+    failed |= bool(bad)
+    targets = {}
+    for cid, t in fit.get("targets", {}).items():
+      entry = {"reached": bool(t.get("reached")), "normalized_change": t.get("normalized_change"),
+               "max_normalized_change": t.get("max_normalized_change"),
+               "beyond_precision": t.get("beyond_precision"), "parameters": t.get("parameters", {}),
+               "moved": t.get("moved"), "linearized": t.get("linearized"),
+               "fitted_statements": t.get("fitted_statements"), "statements_at_fit": t.get("statements_at_fit"),
+               "within_precision": {k: t.get("within_precision", {}).get(k)
+                                    for k in ("reached", "normalized_change", "max_normalized_change",
+                                              "fitted_statements")},
+               "fixes": [], "breaks": []}
+      if "error" in t:
+        entry["error"] = t["error"]
+      if t.get("all_parameters_normalized"):
+        spec_bounds = {p["name"]: p["bound"] for p in yaml.safe_load(open(SPEC))["parameters"]}
+        changes = {n: x * spec_bounds[n] for n, x in t["all_parameters_normalized"].items() if x != 0.0}
+        rdir = os.path.join(sdir, "fit_" + cid)
+        os.makedirs(rdir, exist_ok=True)
+        s = json.loads(json.dumps(scene))
+        s["parameter_set"] = write_parameter_set(scene, changes, os.path.join(rdir, "fitted_knee.yaml"))
+        after, bad = run_claims(args.kneedyn, s, rdir, args.quick, args.jobs)
+        failed |= bool(bad)
+        entry["fixes"], entry["breaks"] = compare(before, after)
+        entry["claims_at_fit"] = after
+        # The reference member (A = 100 N, t0 = 0.1 s) by `kneedyn run` at the fit: an
+        # independent check of the lift-off the sensitivity driver fitted.
+        ref_run = os.path.join(rdir, "runs", run_families.member_name("amplitude", run_families.BASE_AMPLITUDE_N))
+        if os.path.exists(os.path.join(ref_run, "summary.json")):
+          entry["liftoff_lateral_deg_by_kneedyn_run"] = run_families.event_summary(ref_run)["liftoff_lateral_deg"]
+        entry["failed_family_runs"] = bad
+      targets[cid] = entry
+      print(f"inverse_problem: {key}: {cid}: reached {entry['reached']}, |x| {entry['normalized_change']}, "
+            f"fixes {entry['fixes']}, breaks {entry['breaks']}", flush=True)
+    readings[key] = {"scene": os.path.relpath(os.path.abspath(scene_path), ROOT), "targets": targets,
+                     "claims_unchanged": before, "fit_errors": err or None,
+                     "baseline_statements": fit.get("baseline"),
+                     "leave_some_out": {fold: leave_some_out_summary(fit, fold)
+                                        for fold in fit.get("leave_some_out", {})},
+                     "fit_wall_s": fit_s, "reused_fit_s": fit.get("reused_runtime_s", 0.0),
+                     "fit_commands": fit.get("commands"), "claims_runtime_s": time.monotonic() - t0,
+                     "sensitivity_runs": fit.get("runs"), "settings": fit.get("settings")}
+  first = readings.get(scene_key(args.scenes[0]), {})
+  result = {"targets": first.get("targets", {}),
+            "leave_some_out": first.get("leave_some_out", {}),
+            "readings": readings,
+            "spec": os.path.relpath(SPEC, ROOT),
+            "normalization": "x_i = change_i / bound_i (inverse/inverse_problem.yaml: half a unit of the last printed "
+                             "digit); normalized_change = ||x||_2; beyond_precision: max |x_i| > 1",
+            "command": " ".join(["/usr/bin/python3"] + [os.path.relpath(a, ROOT) if os.path.isabs(a) and a.startswith(ROOT)
+                                                         else a for a in [sys.argv[0]] + (argv if argv is not None
+                                                                                          else sys.argv[1:])]),
+            "commit": git_commit(),
+            "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            # This run's wall time plus the wall times of the fits it reused (--reuse), i.e. the
+            # study's time with the fit processes counted one after the other.
+            "runtime_s": time.monotonic() - t_start + sum(r.get("reused_fit_s", 0.0) for r in readings.values()),
+            "runtime_note": "fits: one kneedyn_inverse process per target and per fold, run concurrently "
+                            "(--parallel); runtime_s sums their wall times and adds the claims runs",
+            "quick": args.quick}
+  for path in [os.path.join(outdir, "inverse_problem.json")] + ([args.record] if args.record else []):
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path, "w") as f:
+      json.dump(result, f, indent=1, ensure_ascii=False)
+      f.write("\n")
+  print(f"inverse_problem: {len(readings)} scene(s) in {result['runtime_s']:.0f} s -> "
+        f"{args.record or os.path.join(outdir, 'inverse_problem.json')}", flush=True)
+  return 1 if failed else 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())
