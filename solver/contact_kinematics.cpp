@@ -122,12 +122,7 @@ double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6
                        const Vector6d& nu) {
   SphereOnPlane sop;
   if (SphereOnPlaneForm(pair, &sop)) {
-    // κ = (w_F × (w_F × n)) · (C − R0) − 2 (w_F × n) · v_F  (gap linear in R0, n = R n̂′).
-    const Vector3d n = pose.R_FT * sop.normal_T;
-    const Vector3d w_F = pose.R_FT * nu.tail<3>();
-    const Vector3d v_F = nu.head<3>();
-    const Vector3d wxn = w_F.cross(n);
-    return w_F.cross(wxn).dot(sop.centre_F - pose.p_FoTo_F) - 2.0 * wxn.dot(v_F);
+    return SphereOnPlaneRateTerm(sop, pose, nu);
   }
   // κ = (dG/dt) ν: G along q(t) = q + t q̇ with a one-component Jet.
   using Jet1 = ceres::Jet<double, 1>;

@@ -27,6 +27,7 @@
 #pragma once
 
 #include <Eigen/LU>
+#include <type_traits>
 
 #include "solver/contact.hpp"
 
@@ -126,11 +127,54 @@ bool ContactKinematics(const ContactPair& pair, const PoseTpl<T>& pose,
 ContactGeometry RequireContactKinematics(const ContactPair& pair, const Pose& pose,
                                          const char* caller, double chart[4] = nullptr);
 
+// RequireContactKinematics for any scalar type. Beyond double (long double) only sphere on
+// plane: the general solve runs in double, so another pair is a SolverError there.
+template <typename T>
+ContactGeometryTpl<T> RequireContactKinematicsTpl(const ContactPair& pair, const PoseTpl<T>& pose,
+                                                  const char* caller) {
+  if constexpr (std::is_same_v<T, double>) {
+    return RequireContactKinematics(pair, pose, caller);
+  } else {
+    SphereOnPlane sop;
+    if (!SphereOnPlaneForm(pair, &sop)) {
+      Throw<SolverError>(caller, "the ", CompartmentName(pair.compartment),
+                         " pair is not sphere on plane: only that closed form is evaluated beyond double precision");
+    }
+    return SphereOnPlaneContact(sop, pose);
+  }
+}
+
 // κ in φ̈ = G ν̇ + κ at (q, q̇) (header comment). Throws like RequireContactKinematics.
 double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6d& qd);
 // The same with the pose and ν = (v_F, w_T) of (q, q̇) already at hand (the hidden-constraint
 // solve computes them once for all contacts).
 double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6d& qd, const Pose& pose,
                        const Vector6d& nu);
+// The sphere-on-plane closed form of κ in any scalar type (gap linear in R0, n = R n̂′):
+//   κ = (w_F × (w_F × n)) · (C − R0) − 2 (w_F × n) · v_F.
+template <typename T>
+T SphereOnPlaneRateTerm(const SphereOnPlane& sop, const PoseTpl<T>& pose, const Vector6<T>& nu) {
+  const Vector3<T> n = pose.R_FT * sop.normal_T.template cast<T>();
+  const Vector3<T> w_F = pose.R_FT * nu.template tail<3>();
+  const Vector3<T> v_F = nu.template head<3>();
+  const Vector3<T> wxn = w_F.cross(n);
+  return w_F.cross(wxn).dot(sop.centre_F.template cast<T>() - pose.p_FoTo_F) - 2.0 * wxn.dot(v_F);
+}
+// κ for a wider scalar (long double): sphere on plane only; SolverError for other pairs
+// (their contact points are solved in double).
+template <typename T>
+T ContactRateTermTpl(const ContactPair& pair, const Vector6<T>& q, const Vector6<T>& qd, const PoseTpl<T>& pose,
+                     const Vector6<T>& nu) {
+  if constexpr (std::is_same_v<T, double>) {
+    return ContactRateTerm(pair, q, qd, pose, nu);
+  } else {
+    SphereOnPlane sop;
+    if (!SphereOnPlaneForm(pair, &sop)) {
+      Throw<SolverError>("ContactRateTerm", "the ", CompartmentName(pair.compartment),
+                         " pair is not sphere on plane: only that closed form is evaluated beyond double precision");
+    }
+    return SphereOnPlaneRateTerm(sop, pose, nu);
+  }
+}
 
 }  // namespace kneedyn

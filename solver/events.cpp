@@ -57,26 +57,7 @@ void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, con
 
 void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const Pose& pose, const std::vector<double>& normal_force, double* g) {
-  for (size_t k = 0; k < specs.size(); ++k) {
-    const EventSpec& s = specs[k];
-    switch (s.kind) {
-      case EventKind::kLiftoff:
-        g[k] = normal_force[s.contact];
-        break;
-      case EventKind::kRecontact:
-        g[k] = RequireContactKinematics(model.contacts[s.contact], pose, "EvaluateEvents").gap -
-               s.offset;
-        break;
-      case EventKind::kFlexionEnd:
-        g[k] = q(kAlpha) - s.offset;
-        break;
-      case EventKind::kLigamentKink: {
-        const Ligament& lig = model.ligaments[s.ligament];
-        g[k] = LigamentSpan_F(lig, pose).norm() - s.offset;
-        break;
-      }
-    }
-  }
+  EvaluateEventsTpl(model, specs, q, pose, normal_force, g);
 }
 
 }  // namespace kneedyn
