@@ -6,6 +6,7 @@
 #include <limits>
 #include <type_traits>
 
+#include "benchmarks/float128_scalar.hpp"
 #include "benchmarks/gauss_legendre.hpp"
 #include "formulations/internal/formulation_base.hpp"
 #include "formulations/simulator.hpp"
@@ -223,13 +224,14 @@ class ExtendedStepper final : public FormulationBase {
   // Root of g_k in (0, h] from the step start: Illinois regula falsi on τ, each trial an
   // exact step of size τ; returns the right end of the final bracket (g_k crossed there).
   T LocateRoot(size_t k, const T& h, const T& g_h, Vector* y_root) {
+    using std::abs;
     const T eps = std::numeric_limits<T>::epsilon();
     T a = 0, b = h, ga = g_left_[k], gb = g_h;
     Vector y_b(12), y_trial(12);
     StepOrThrow(t_, y_, h, &y_b);
     std::vector<T> g;
     int side = 0;
-    for (int iter = 0; iter < 200 && b - a > 4 * eps * (std::abs(t_) + h); ++iter) {
+    for (int iter = 0; iter < 200 && b - a > 4 * eps * (abs(t_) + h); ++iter) {
       T tau = b - gb * (b - a) / (gb - ga);
       const T margin = (b - a) / 1000;  // keep trials inside the bracket
       tau = std::min(std::max(tau, a + margin), b - margin);
@@ -338,7 +340,8 @@ ExtendedReferenceRun RunExtendedReference(const Scene& scene, const ExtendedRefe
       energy0 = energy;
       have_energy0 = true;
     }
-    run.energy_error = std::max(run.energy_error, static_cast<double>(std::abs((energy - energy0) / energy0)));
+    using std::abs;
+    run.energy_error = std::max(run.energy_error, static_cast<double>(abs((energy - energy0) / energy0)));
   };
   Simulator simulator(scene, &stepper, sim, &run.result);
   simulator.Initialize();
@@ -382,6 +385,7 @@ ExtendedReferenceRun RunExtendedReference(const Scene& scene, const ExtendedRefe
 template ExtendedReferenceRun RunExtendedReference<double>(const Scene&, const ExtendedReferenceSettings&, double);
 template ExtendedReferenceRun RunExtendedReference<long double>(const Scene&, const ExtendedReferenceSettings&,
                                                                 double);
+template ExtendedReferenceRun RunExtendedReference<Float128>(const Scene&, const ExtendedReferenceSettings&, double);
 
 }  // namespace bench
 }  // namespace kneedyn

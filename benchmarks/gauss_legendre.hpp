@@ -39,9 +39,10 @@ class GaussLegendre {
   };
 
   explicit GaussLegendre(int stages) : s_(stages), c_(stages), b_(stages), a_(stages, stages) {
-    using std::abs;
+    using std::abs;  // std:: for the builtin types, argument-dependent lookup for others
+    using std::acos;
     using std::cos;
-    const T pi = std::acos(T(-1));
+    const T pi = acos(T(-1));
     for (int i = 0; i < s_; ++i) {
       T x = cos(pi * (T(i) + T(0.75)) / (T(s_) + T(0.5)));
       T dp = 0;
@@ -60,12 +61,14 @@ class GaussLegendre {
       b_(i) = T(1) / ((T(1) - x * x) * dp * dp);
     }
     Matrix V(s_, s_);  // V(k, j) = c_j^k
-    for (int k = 0; k < s_; ++k) {
-      for (int j = 0; j < s_; ++j) V(k, j) = std::pow(c_(j), T(k));
-    }
     Matrix R(s_, s_);  // R(k, i) = c_i^{k+1} / (k + 1)
-    for (int k = 0; k < s_; ++k) {
-      for (int i = 0; i < s_; ++i) R(k, i) = std::pow(c_(i), T(k + 1)) / T(k + 1);
+    for (int j = 0; j < s_; ++j) {
+      T power = 1;
+      for (int k = 0; k < s_; ++k) {
+        V(k, j) = power;
+        power *= c_(j);
+        R(k, j) = power / T(k + 1);
+      }
     }
     a_ = V.fullPivLu().solve(R).transpose();  // Σ_j a_ij c_j^k = c_i^{k+1}/(k+1)
   }
@@ -78,6 +81,7 @@ class GaussLegendre {
 
   // One step; false when Newton does not converge in 60 iterations.
   bool Step(const Rhs& f, const T& t, const Vector& y, const T& h, Vector* y_next) {
+    using std::abs;
     const int n = static_cast<int>(y.size());
     const int N = s_ * n;
     Vector f0(n);
@@ -110,8 +114,8 @@ class GaussLegendre {
       // must converge as far as large positions).
       T size = 0;
       for (int k = 0; k < N; ++k) {
-        const T scale = std::abs(y(k % n)) + std::abs(Z(k)) + std::numeric_limits<T>::min();
-        size = std::max(size, std::abs(dZ(k)) / scale);
+        const T scale = abs(y(k % n)) + abs(Z(k)) + std::numeric_limits<T>::min();
+        size = std::max(size, T(abs(dZ(k)) / scale));
       }
       // Converged at round-off: the update is below 2 ε, or below 1e3 ε and no longer halving.
       if (size <= 2 * eps || (size <= 1000 * eps && size >= previous / 2)) {
@@ -155,12 +159,14 @@ class GaussLegendre {
 
   // ∂f/∂y by central differences with steps ε^(1/3) (|y_k| + 1): only the Newton matrix.
   Matrix Jacobian(const Rhs& f, const T& t, const Vector& y) {
+    using std::abs;
+    using std::cbrt;
     const int n = static_cast<int>(y.size());
     Matrix J(n, n);
     Vector yp = y, ym = y, fp(n), fm(n);
-    const T step = std::cbrt(std::numeric_limits<T>::epsilon());
+    const T step = cbrt(std::numeric_limits<T>::epsilon());
     for (int k = 0; k < n; ++k) {
-      const T dk = step * (std::abs(y(k)) + T(1));
+      const T dk = step * (abs(y(k)) + T(1));
       yp(k) = y(k) + dk;
       ym(k) = y(k) - dk;
       f(t, yp, &fp);

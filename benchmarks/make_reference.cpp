@@ -1,12 +1,13 @@
 // make_reference — reference solution of a scene (benchmarks/README.md,
 // "Reference solutions").
-//   make_reference --scene FILE --out FILE.json [--stages 6 --step 1.25e-4 --check-step 2.5e-4
-//                  --interval 0.02 --conservative]
+//   make_reference --scene FILE --out FILE.json [--scalar float128 --stages 6 --step 1.25e-4
+//                  --check-step 2.5e-4 --interval 0.02 --conservative]
 //   make_reference --scene FILE --out FILE.json --method formulations [--formulation mde
 //                  --integrator cvode-adams --rtol 1e-14 --atol 1e-16 --check ede
 //                  --check-integrator dopri5 --check-rtol 1e-13 --check-atol 1e-15]
 //   make_reference --scene FILE --verify STORED.json
-// --method extended (default): the knee in long double through the templated physics,
+// --method extended (default): the knee in quadruple precision (--scalar float128; or
+// long-double, or double for comparison) through the templated physics,
 // integrated by s-stage Gauss–Legendre collocation (extended_reference.hpp) at step h
 // (primary, stored) and checked by the same at step 2h (order 2s: the check's error is
 // 2^(2s) times the primary's, so their agreement bounds the primary's error). The values are
@@ -39,6 +40,7 @@
 
 #include "benchmarks/bench_run.hpp"
 #include "benchmarks/extended_reference.hpp"
+#include "benchmarks/float128_scalar.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -74,22 +76,25 @@ double LeastAccuracy(const nlohmann::json& per_class) {
   return least;
 }
 
-std::string ExtendedCommand(const std::string& scene_path, const ExtendedReferenceSettings& s) {
+std::string ExtendedCommand(const std::string& scene_path, const ExtendedReferenceSettings& s,
+                            const std::string& scalar) {
   char buf[128];
   std::snprintf(buf, sizeof buf, " --stages %d --step %.17g", s.stages, s.step);
-  return StrCat("make_reference --scene ", scene_path, " --method extended", buf);  // long double
+  return StrCat("make_reference --scene ", scene_path, " --method extended --scalar ", scalar, buf);
 }
 
 nlohmann::json ExtendedJson(const std::string& scene_path, const ExtendedReferenceSettings& s,
                             const ExtendedReferenceRun& r, const std::string& scalar) {
-  const bool ld = scalar != "double";
+  const int bits = scalar == "double"     ? std::numeric_limits<double>::digits
+                   : scalar == "float128" ? std::numeric_limits<Float128>::digits
+                                          : std::numeric_limits<long double>::digits;
   return {{"formulation", "extended-precision"},
           {"integrator", r.result.integrator},
-          {"scalar", ld ? "long double" : "double"},
-          {"mantissa_bits", ld ? std::numeric_limits<long double>::digits : std::numeric_limits<double>::digits},
+          {"scalar", scalar},
+          {"mantissa_bits", bits},
           {"stages", s.stages},
           {"step_s", s.step},
-          {"command", ExtendedCommand(scene_path, s)},
+          {"command", ExtendedCommand(scene_path, s, scalar)},
           {"counters", CountersJson(r.result.stats)},
           {"event_iterations", r.event_iterations},
           {"slack_breakpoints", r.slack_breakpoints},
@@ -125,9 +130,12 @@ int Verify(const Scene& scene, const std::string& stored_path) {
     x.stages = primary.at("stages").get<int>();
     x.step = primary.at("step_s").get<double>();
     x.output_interval = ref.comparison_interval;
-    name = StrCat("extended-precision ", primary.value("integrator", ""), " step ", x.step, " s");
+    const std::string scalar = primary.value("scalar", "long-double");
+    name = StrCat("extended-precision ", scalar, " ", primary.value("integrator", ""), " step ", x.step, " s");
     try {
-      regenerated = RunExtendedReference<long double>(scene, x, ref.comparison_interval).solution;
+      regenerated = scalar == "float128" ? RunExtendedReference<Float128>(scene, x, ref.comparison_interval).solution
+                    : scalar == "double" ? RunExtendedReference<double>(scene, x, ref.comparison_interval).solution
+                                         : RunExtendedReference<long double>(scene, x, ref.comparison_interval).solution;
     } catch (const InputError&) {
       throw;
     } catch (const std::exception& e) {
@@ -267,6 +275,9 @@ int GenerateExtended(const Scene& scene, const std::string& scene_path, const st
     if (scalar == "double") {  // the same integrator in double: what the wider type buys
       p = RunExtendedReference<double>(scene, primary, interval);
       k = RunExtendedReference<double>(scene, check, interval);
+    } else if (scalar == "float128") {
+      p = RunExtendedReference<Float128>(scene, primary, interval);
+      k = RunExtendedReference<Float128>(scene, check, interval);
     } else {
       p = RunExtendedReference<long double>(scene, primary, interval);
       k = RunExtendedReference<long double>(scene, check, interval);
@@ -286,7 +297,7 @@ int GenerateExtended(const Scene& scene, const std::string& scene_path, const st
   j["primary"] = ExtendedJson(scene_path, primary, p, scalar);
   j["check"] = ExtendedJson(scene_path, check, k, scalar);
   if (conservative) {
-    // Over the samples, evaluated in long double (the stored states in double: EnergyError).
+    // Over the samples, evaluated in the extended scalar (the stored states in double: EnergyError).
     j["primary"]["energy_error"] = p.energy_error;
     j["check"]["energy_error"] = k.energy_error;
     j["primary"]["energy_error_double_samples"] = EnergyError(scene, p.result);
@@ -296,7 +307,7 @@ int GenerateExtended(const Scene& scene, const std::string& scene_path, const st
   j["accuracy_scd"] = LeastAccuracy(j["accuracy_scd_per_class"]);
   j["metrics_definition"] = "benchmarks/metrics.hpp";
   j["setup_documentation"] =
-      "benchmarks/README.md, Reference solutions: the knee in long double (64-bit mantissa) through the templated "
+      "benchmarks/README.md, Reference solutions: the knee in extended precision (scalar) through the templated "
       "physics, Gauss-Legendre collocation at step h (primary) checked by step 2h; values stored in double";
   j["generator"] = command_line;
   j["versions"] = LibraryVersionsJson();
@@ -313,7 +324,7 @@ int GenerateExtended(const Scene& scene, const std::string& scene_path, const st
   for (const EventRecord& e : p.solution.events) std::printf(" %s t=%.17g s", e.name.c_str(), e.time);
   std::printf("\n");
   PrintAgreement(j);
-  if (conservative) std::printf("  energy error (long double) %.3g\n", p.energy_error);
+  if (conservative) std::printf("  energy error (%s) %.3g\n", scalar.c_str(), p.energy_error);
   std::printf("wrote %s\n", out_path.c_str());
   return 0;
 }
@@ -356,9 +367,9 @@ int main(int argc, char** argv) {
   app.add_option("--stages", extended.stages, "extended: Gauss-Legendre stages (order 2s)")->capture_default_str();
   app.add_option("--step", extended.step, "extended: primary's largest step, s")->capture_default_str();
   app.add_option("--check-step", extended_check_step, "extended: the check's largest step, s")->capture_default_str();
-  std::string scalar = "long-double";
-  app.add_option("--scalar", scalar, "extended: long-double, or double (the same integrator, for comparison)")
-      ->check(CLI::IsMember({"long-double", "double"}))
+  std::string scalar = "float128";
+  app.add_option("--scalar", scalar, "extended: long-double, float128 (quadruple), or double (for comparison)")
+      ->check(CLI::IsMember({"long-double", "double", "float128"}))
       ->capture_default_str();
   if (const int code = ParseCommandLine(app, argc, argv, "make_reference"); code >= 0) return code;
   check.rtol = check_rtol > 0.0 ? check_rtol : primary.rtol;
