@@ -12,6 +12,7 @@
 
 #include <cmath>
 
+#include "benchmarks/float128_scalar.hpp"
 #include "benchmarks/gauss_legendre.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/consistent_init.hpp"
@@ -104,6 +105,30 @@ TEST(ExtendedPrecision, ExactIdentitiesHoldToLongDoubleRoundOff) {
     const LD expected = LD(sop.radius) * sop.normal_T.cast<LD>().norm();
     EXPECT_LT(static_cast<double>(std::abs(r - expected) / expected), 1e-18);
   }
+}
+
+// The same in quadruple precision (the references' scalar, ε = 1.9e-34): the right-hand
+// side equals double's to double round-off, exact identities hold to ~1e-32.
+TEST(ExtendedPrecision, Float128RightHandSideAndIdentities) {
+  using Q = bench::Float128;
+  const Model& model = test_support::ChapterScene().model;
+  Vector6d qd_d;
+  const Vector6d q_d = ChapterLikeState(1, &qd_d);
+  const std::vector<int> active = {0, 1};
+  const ConstrainedAcceleration a = SolveConstrainedAcceleration(model, 0.05, q_d, qd_d, active);
+  ConstrainedDynamicsWorkspaceTpl<Q> ws(model);
+  ConstrainedAccelerationTpl<Q> aq;
+  const Vector6<Q> q = q_d.cast<Q>(), qd = qd_d.cast<Q>();
+  SolveConstrainedAccelerationTpl<Q>(model, 0.05, q, qd, active, {}, nullptr, &ws, &aq);
+  const double scale = a.qdd.cwiseAbs().maxCoeff();
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(aq.qdd(i).convert_to<double>(), a.qdd(i), 2e-15 * scale) << i;
+  const PoseTpl<Q> pose = PoseFromCoordinates(q);
+  const Vector3<Q> p_T(Q(0.0123), Q(-0.0456), Q(0.0789));
+  EXPECT_LT(((pose.PointInT(pose.PointInF(p_T)) - p_T).cwiseAbs().maxCoeff()).convert_to<double>(), 1e-33);
+  Vector6<Q> qdd;
+  qdd << Q(0.1), Q(-2.0), Q(0.3), Q(40.0), Q(-5.0), Q(7.0);
+  const Vector6<Q> back = CoordinateAccelerationTpl(q, EulerAngleTrigOf(q), qd, GeneralizedAcceleration(q, qd, qdd));
+  EXPECT_LT(((back - qdd).cwiseAbs().maxCoeff() / Q(40)).convert_to<double>(), 1e-32);
 }
 
 TEST(GaussLegendre, CoefficientsSatisfyTheOrderConditionsInLongDouble) {
