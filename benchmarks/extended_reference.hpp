@@ -1,6 +1,7 @@
 // Extended-precision reference solutions (benchmarks/README.md, "Reference solutions"):
-// the knee integrated in long double (x87 80-bit, 64-bit mantissa, ε = 1.1e-19) through the
-// same templated physics as every formulation, by implicit Gauss–Legendre collocation
+// the knee integrated in a wider scalar — float128 (float128_scalar.hpp, 113-bit mantissa,
+// ε = 1.9e-34; the stored references) or long double (x87, 64-bit mantissa, ε = 1.1e-19) —
+// through the same templated physics as every formulation, by implicit Gauss–Legendre collocation
 // (gauss_legendre.hpp), as the stepper of the one hybrid Simulator (formulations/simulator.hpp:
 // consistent initialization, samples, lift-off and re-contact transitions, ligament-branch
 // restarts are the simulator's, as in every run).
@@ -23,7 +24,7 @@
 // The Solution's values are computed from the long double state and rounded once (the
 // conversions of metrics.hpp: mm, deg, valgus = β − 90°); the double observables would lose
 // digits to cancellation (valgus near β = 90°, ligament elongation L − L0).
-// T = long double: sphere-on-plane contacts only (the general contact solve runs in double).
+// T wider than double: sphere-on-plane contacts only (the general contact solve runs in double).
 #pragma once
 
 #include <string>
@@ -55,7 +56,7 @@ struct ExtendedReferenceRun {
   double cpu_time_s = 0.0;
 };
 
-// Runs the scene with scalar T (double or long double). Throws SolverError/InputError like
+// Runs the scene with scalar T (double, long double, Float128). Throws SolverError/InputError like
 // RunScene's simulator (not caught here).
 template <typename T>
 ExtendedReferenceRun RunExtendedReference(const Scene& scene, const ExtendedReferenceSettings& settings,
