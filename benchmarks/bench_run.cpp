@@ -94,6 +94,9 @@ Reference LoadReference(const std::string& path) {
     r.solution = SolutionFromJson(r.json.at("solution"));
     r.comparison_interval = r.json.at("comparison_interval_s").get<double>();
     r.conservative = r.json.value("conservative", false);
+    if (r.json.contains("accuracy_scd") && r.json["accuracy_scd"].is_number()) {
+      r.accuracy_scd = r.json["accuracy_scd"].get<double>();
+    }
   } catch (const nlohmann::json::exception& e) {
     Throw<InputError>("LoadReference", "reference file '", path, "': ", e.what());
   }
@@ -110,6 +113,7 @@ Metrics Evaluate(const Scene& scene, const Outcome& outcome, const Reference& re
   }
   m = Compare(outcome.solution, reference.solution);
   AddRunMetrics(scene, outcome.result, reference.conservative, &m);
+  ApplyScdCeiling(reference.accuracy_scd, &m);
   return m;
 }
 

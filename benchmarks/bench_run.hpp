@@ -4,6 +4,7 @@
 #pragma once
 
 #include <nlohmann/json.hpp>
+#include <limits>
 #include <string>
 
 #include "benchmarks/metrics.hpp"
@@ -48,6 +49,7 @@ struct Reference {
   Solution solution;
   double comparison_interval = kDefaultComparisonInterval;
   bool conservative = false;
+  double accuracy_scd = std::numeric_limits<double>::quiet_NaN();  // stated; NaN: none
 };
 // Reads reference-data/references/<file>.json; throws InputError.
 Reference LoadReference(const std::string& path);

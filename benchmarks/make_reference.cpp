@@ -1,18 +1,27 @@
 // make_reference — reference solution of a scene (benchmarks/README.md,
 // "Reference solutions").
-//   make_reference --scene FILE --out FILE.json [--formulation mde --integrator cvode-adams
-//                  --rtol 1e-14 --atol 1e-16 --check ede --check-integrator dopri5
-//                  --check-rtol 1e-13 --check-atol 1e-15 --interval 0.02 --conservative]
+//   make_reference --scene FILE --out FILE.json [--scalar float128 --stages 6 --step 1.25e-4
+//                  --check-step 2.5e-4 --interval 0.02 --conservative]
+//   make_reference --scene FILE --out FILE.json --method formulations [--formulation mde
+//                  --integrator cvode-adams --rtol 1e-14 --atol 1e-16 --check ede
+//                  --check-integrator dopri5 --check-rtol 1e-13 --check-atol 1e-15]
 //   make_reference --scene FILE --verify STORED.json
-// Runs the primary (mde, CVODE Adams at rtol 1e-14) and an independent second formulation
-// (ede, Dormand–Prince at rtol 1e-13); stores the primary's values at the comparison times
-// (metrics.hpp), both settings and commands, their agreement (scd, digits per class, event
-// errors), library versions and the date. The stated accuracy (accuracy_scd) is the
-// agreement, rounded down to 0.1 digit. Not used: dae/dae-reduced (IDA stops at rtol
-// 1e-10 on the index-2 round-off) and fehlberg78 (its 7(8) error estimate
-// 41/840 (k1 + k11 − k12 − k13) misses the error of the time-dependent terms). The stored
-// agreement and the digits of each rejected setup: benchmarks/README.md, "Reference
-// solutions".
+// --method extended (default): the knee in quadruple precision (--scalar float128; or
+// long-double, or double for comparison) through the templated physics,
+// integrated by s-stage Gauss–Legendre collocation (extended_reference.hpp) at step h
+// (primary, stored) and checked by the same at step 2h (order 2s: the check's error is
+// 2^(2s) times the primary's, so their agreement bounds the primary's error). The values are
+// stored in double with max_digits10 digits.
+// --method formulations: the earlier setup, the primary (mde, CVODE Adams at rtol 1e-14)
+// and an independent second formulation (ede, Dormand–Prince at rtol 1e-13), ~11 digits.
+// Not used: dae/dae-reduced (IDA stops at rtol 1e-10 on the index-2 round-off) and
+// fehlberg78 (its 7(8) error estimate 41/840 (k1 + k11 − k12 − k13) misses the error of the
+// time-dependent terms).
+// Either way the file stores the primary's values at the comparison times (metrics.hpp),
+// both settings and commands, their agreement (scd, digits per class, event errors), the
+// stated accuracy per class (accuracy_scd_per_class: the agreement rounded down to 0.1
+// digit, at most 16) and overall (accuracy_scd: the least of them), library versions,
+// the cost and the date.
 // --verify regenerates the primary and exits 1 if it differs from the stored solution by
 // more than the stated accuracy (scd below accuracy_scd, or a class's digits below the
 // stored agreement digits, or an event time further than the stored event agreement).
@@ -27,8 +36,11 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 
 #include "benchmarks/bench_run.hpp"
+#include "benchmarks/extended_reference.hpp"
+#include "benchmarks/float128_scalar.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -37,7 +49,60 @@ using namespace kneedyn::bench;
 namespace {
 
 double Digits(double mixed) { return mixed > 0.0 ? -std::log10(mixed) : 16.0; }
-double RoundDown(double v) { return std::isfinite(v) ? std::floor(v * 10.0) / 10.0 : 16.0; }
+// Rounded down to 0.1 digit; at most 16 (double storage).
+double RoundDown(double v) { return std::isfinite(v) ? std::min(16.0, std::floor(v * 10.0) / 10.0) : 16.0; }
+
+// The stated accuracy per class: scd for positions, digits of the mixed error for the other
+// classes, relative digits of the event times (|Δt| / t), each rounded down.
+nlohmann::json AccuracyPerClass(const Metrics& m, const Solution& primary) {
+  nlohmann::json j;
+  j["positions"] = RoundDown(m.scd);
+  for (const auto& [c, v] : m.mixed) {
+    if (c != "positions" && !std::isnan(v)) j[c] = RoundDown(Digits(v));
+  }
+  double worst = 0.0;
+  for (const EventRecord& e : primary.events) {
+    const auto it = m.event_time.find(e.name);
+    if (it == m.event_time.end()) continue;
+    worst = std::max(worst, (std::isnan(it->second) ? INFINITY : it->second) / std::max(std::abs(e.time), 1e-3));
+  }
+  if (!primary.events.empty()) j["event_times"] = RoundDown(Digits(worst));
+  return j;
+}
+
+double LeastAccuracy(const nlohmann::json& per_class) {
+  double least = 16.0;
+  for (const auto& [c, v] : per_class.items()) least = std::min(least, v.get<double>());
+  return least;
+}
+
+std::string ExtendedCommand(const std::string& scene_path, const ExtendedReferenceSettings& s,
+                            const std::string& scalar) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, " --stages %d --step %.17g", s.stages, s.step);
+  return StrCat("make_reference --scene ", scene_path, " --method extended --scalar ", scalar, buf);
+}
+
+nlohmann::json ExtendedJson(const std::string& scene_path, const ExtendedReferenceSettings& s,
+                            const ExtendedReferenceRun& r, const std::string& scalar) {
+  const int bits = scalar == "double"     ? std::numeric_limits<double>::digits
+                   : scalar == "float128" ? std::numeric_limits<Float128>::digits
+                                          : std::numeric_limits<long double>::digits;
+  return {{"formulation", "extended-precision"},
+          {"integrator", r.result.integrator},
+          {"scalar", scalar},
+          {"mantissa_bits", bits},
+          {"stages", s.stages},
+          {"step_s", s.step},
+          {"command", ExtendedCommand(scene_path, s, scalar)},
+          {"counters", CountersJson(r.result.stats)},
+          {"event_iterations", r.event_iterations},
+          {"slack_breakpoints", r.slack_breakpoints},
+          {"restarts_from_double", r.restarts_from_double},
+          {"cpu_time_s", r.cpu_time_s},
+          {"max_position_residual_m", r.max_gap_m},
+          {"max_velocity_residual_m_s", r.max_gap_rate_m_s}};
+}
 
 nlohmann::json AgreementJson(const Metrics& m) {
   nlohmann::json j;
@@ -57,21 +122,45 @@ std::string RunCommand(const std::string& scene_path, const BenchConfig& c) {
 
 int Verify(const Scene& scene, const std::string& stored_path) {
   const Reference ref = LoadReference(stored_path);
-  BenchConfig c;
-  c.formulation = ref.json.at("primary").at("formulation").get<std::string>();
-  c.integrator = ref.json.at("primary").value("integrator", "");
-  c.rtol = ref.json.at("primary").at("rtol").get<double>();
-  c.atol = ref.json.at("primary").at("atol").get<double>();
-  const Outcome out = RunConfig(scene, c, ref.comparison_interval);
-  if (out.status != "ok") {
-    std::cerr << "make_reference --verify: " << c.Name() << " failed: " << out.reason << "\n";
-    return 1;
+  const nlohmann::json& primary = ref.json.at("primary");
+  Solution regenerated;
+  std::string name;
+  if (primary.at("formulation").get<std::string>() == "extended-precision") {
+    ExtendedReferenceSettings x;
+    x.stages = primary.at("stages").get<int>();
+    x.step = primary.at("step_s").get<double>();
+    x.output_interval = ref.comparison_interval;
+    const std::string scalar = primary.value("scalar", "long-double");
+    name = StrCat("extended-precision ", scalar, " ", primary.value("integrator", ""), " step ", x.step, " s");
+    try {
+      regenerated = scalar == "float128" ? RunExtendedReference<Float128>(scene, x, ref.comparison_interval).solution
+                    : scalar == "double" ? RunExtendedReference<double>(scene, x, ref.comparison_interval).solution
+                                         : RunExtendedReference<long double>(scene, x, ref.comparison_interval).solution;
+    } catch (const InputError&) {
+      throw;
+    } catch (const std::exception& e) {
+      std::cerr << "make_reference --verify: " << name << " failed: " << e.what() << "\n";
+      return 1;
+    }
+  } else {
+    BenchConfig c;
+    c.formulation = primary.at("formulation").get<std::string>();
+    c.integrator = primary.value("integrator", "");
+    c.rtol = primary.at("rtol").get<double>();
+    c.atol = primary.at("atol").get<double>();
+    name = c.Name();
+    const Outcome out = RunConfig(scene, c, ref.comparison_interval);
+    if (out.status != "ok") {
+      std::cerr << "make_reference --verify: " << c.Name() << " failed: " << out.reason << "\n";
+      return 1;
+    }
+    regenerated = out.solution;
   }
-  const Metrics m = Compare(out.solution, ref.solution);
+  const Metrics m = Compare(regenerated, ref.solution);
   const nlohmann::json& agreement = ref.json.at("agreement");
   const double stated = ref.json.at("accuracy_scd").get<double>();
   bool ok = m.missing_times == 0 && m.scd >= stated;
-  std::printf("regenerated %s vs stored: scd %.2f (stated accuracy %.1f)\n", c.Name().c_str(), m.scd, stated);
+  std::printf("regenerated %s vs stored: scd %.2f (stated accuracy %.1f)\n", name.c_str(), m.scd, stated);
   for (const auto& [cls, v] : m.mixed) {
     const auto& d = agreement.at("digits").at(cls);
     if (d.is_null()) continue;
@@ -122,6 +211,7 @@ int Generate(const Scene& scene, const std::string& scene_path, const std::strin
     j["check"]["energy_error"] = EnergyError(scene, k.result);
   }
   j["agreement"] = AgreementJson(agreement);
+  j["accuracy_scd_per_class"] = AccuracyPerClass(agreement, p.solution);
   j["accuracy_scd"] = RoundDown(std::isfinite(agreement.scd) ? agreement.scd : 16.0);
   j["metrics_definition"] = "benchmarks/metrics.hpp";
   j["setup_documentation"] =
@@ -153,6 +243,92 @@ int Generate(const Scene& scene, const std::string& scene_path, const std::strin
   return 0;
 }
 
+// Writes the reference JSON (atomically) and prints the agreement table.
+int WriteReference(const nlohmann::json& j, const std::string& out_path) {
+  const std::filesystem::path out(out_path);
+  if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
+  const std::string tmp = out_path + ".tmp";
+  {
+    std::ofstream f(tmp);
+    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
+    f << j.dump(1) << "\n";
+    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
+  }
+  std::filesystem::rename(tmp, out);
+  return 0;
+}
+
+void PrintAgreement(const nlohmann::json& j) {
+  std::printf("  %-16s %s\n", "class", "digits of agreement (stated accuracy)");
+  for (const auto& [c, v] : j.at("accuracy_scd_per_class").items()) {
+    std::printf("  %-16s %.1f\n", c.c_str(), v.get<double>());
+  }
+  std::printf("  accuracy_scd     %.1f\n", j.at("accuracy_scd").get<double>());
+}
+
+int GenerateExtended(const Scene& scene, const std::string& scene_path, const std::string& out_path,
+                     const ExtendedReferenceSettings& primary, const ExtendedReferenceSettings& check,
+                     double interval, bool conservative, const std::string& scalar,
+                     const std::string& command_line) {
+  ExtendedReferenceRun p, k;
+  try {
+    if (scalar == "double") {  // the same integrator in double: what the wider type buys
+      p = RunExtendedReference<double>(scene, primary, interval);
+      k = RunExtendedReference<double>(scene, check, interval);
+    } else if (scalar == "float128") {
+      p = RunExtendedReference<Float128>(scene, primary, interval);
+      k = RunExtendedReference<Float128>(scene, check, interval);
+    } else {
+      p = RunExtendedReference<long double>(scene, primary, interval);
+      k = RunExtendedReference<long double>(scene, check, interval);
+    }
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    std::cerr << "make_reference: extended-precision run failed: " << e.what() << "\n";
+    return 1;
+  }
+  const Metrics agreement = Compare(k.solution, p.solution);
+  nlohmann::json j;
+  j["scene"] = scene.name;
+  j["scene_file"] = scene_path;
+  j["conservative"] = conservative;
+  j["comparison_interval_s"] = interval;
+  j["primary"] = ExtendedJson(scene_path, primary, p, scalar);
+  j["check"] = ExtendedJson(scene_path, check, k, scalar);
+  if (conservative) {
+    // Over the samples, evaluated in the extended scalar (the stored states in double: EnergyError).
+    j["primary"]["energy_error"] = p.energy_error;
+    j["check"]["energy_error"] = k.energy_error;
+    j["primary"]["energy_error_double_samples"] = EnergyError(scene, p.result);
+  }
+  j["agreement"] = AgreementJson(agreement);
+  j["accuracy_scd_per_class"] = AccuracyPerClass(agreement, p.solution);
+  j["accuracy_scd"] = LeastAccuracy(j["accuracy_scd_per_class"]);
+  j["metrics_definition"] = "benchmarks/metrics.hpp";
+  j["setup_documentation"] =
+      "benchmarks/README.md, Reference solutions: the knee in extended precision (scalar) through the templated "
+      "physics, Gauss-Legendre collocation at step h (primary) checked by step 2h; values stored in double";
+  j["generator"] = command_line;
+  j["versions"] = LibraryVersionsJson();
+  j["machine"] = MachineJson();
+  const std::time_t now = std::time(nullptr);
+  char date[32];
+  std::strftime(date, sizeof date, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
+  j["date"] = date;
+  j["solution"] = SolutionJson(p.solution);
+  WriteReference(j, out_path);
+  std::printf("%s: extended precision, %s step %.3g s vs step %.3g s agree to scd %.2f; cost %.2f s + %.2f s CPU; events:",
+              scene.name.c_str(), p.result.integrator.c_str(), primary.step, check.step, agreement.scd, p.cpu_time_s,
+              k.cpu_time_s);
+  for (const EventRecord& e : p.solution.events) std::printf(" %s t=%.17g s", e.name.c_str(), e.time);
+  std::printf("\n");
+  PrintAgreement(j);
+  if (conservative) std::printf("  energy error (%s) %.3g\n", scalar.c_str(), p.energy_error);
+  std::printf("wrote %s\n", out_path.c_str());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -181,6 +357,20 @@ int main(int argc, char** argv) {
   app.add_option("--check-atol", check_atol, "second formulation's atol (0: --atol)")->capture_default_str();
   app.add_option("--interval", interval, "comparison interval, s")->capture_default_str();
   app.add_flag("--conservative", conservative, "record the energy error (conservative scene)");
+  std::string method = "extended";
+  app.add_option("--method", method, "extended (long double Gauss-Legendre) | formulations (mde checked by ede)")
+      ->check(CLI::IsMember({"extended", "formulations"}))
+      ->capture_default_str();
+  ExtendedReferenceSettings extended;
+  extended.step = 1.25e-4;
+  double extended_check_step = 2.5e-4;
+  app.add_option("--stages", extended.stages, "extended: Gauss-Legendre stages (order 2s)")->capture_default_str();
+  app.add_option("--step", extended.step, "extended: primary's largest step, s")->capture_default_str();
+  app.add_option("--check-step", extended_check_step, "extended: the check's largest step, s")->capture_default_str();
+  std::string scalar = "float128";
+  app.add_option("--scalar", scalar, "extended: long-double, float128 (quadruple), or double (for comparison)")
+      ->check(CLI::IsMember({"long-double", "double", "float128"}))
+      ->capture_default_str();
   if (const int code = ParseCommandLine(app, argc, argv, "make_reference"); code >= 0) return code;
   check.rtol = check_rtol > 0.0 ? check_rtol : primary.rtol;
   check.atol = check_atol > 0.0 ? check_atol : primary.atol;
@@ -192,6 +382,13 @@ int main(int argc, char** argv) {
     }
     const Scene scene = LoadScene(scene_path);
     if (!verify_path.empty()) return Verify(scene, verify_path);
+    if (method == "extended") {
+      extended.output_interval = interval;
+      ExtendedReferenceSettings extended_check = extended;
+      extended_check.step = extended_check_step;
+      return GenerateExtended(scene, scene_path, out_path, extended, extended_check, interval, conservative,
+                              scalar, command_line);
+    }
     return Generate(scene, scene_path, out_path, primary, check, interval, conservative, command_line);
   } catch (const InputError& e) {
     std::cerr << "make_reference: " << e.what() << "\n";

@@ -263,6 +263,11 @@ Solution SolutionFromJson(const nlohmann::json& j) {
   return s;
 }
 
+void ApplyScdCeiling(double reference_accuracy_scd, Metrics* m) {
+  m->scd_ceiling = reference_accuracy_scd - kScdCeilingMargin;
+  m->scd_above_ceiling = std::isfinite(m->scd_ceiling) && !std::isnan(m->scd) && m->scd > m->scd_ceiling;
+}
+
 nlohmann::json MetricsJson(const Metrics& m) {
   nlohmann::json j;
   j["scd"] = Finite(m.scd);
@@ -275,6 +280,8 @@ nlohmann::json MetricsJson(const Metrics& m) {
   j["energy_error"] = m.energy_error < 0.0 ? nlohmann::json(nullptr) : Finite(m.energy_error);
   j["compared_times"] = m.compared_times;
   j["missing_times"] = m.missing_times;
+  j["scd_ceiling"] = Finite(m.scd_ceiling);
+  j["scd_above_ceiling"] = m.scd_above_ceiling;
   return j;
 }
 

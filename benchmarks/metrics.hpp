@@ -28,10 +28,13 @@
 //   residuals: RunResult.max_position_residual [m], max_velocity_residual [m/s].
 //   energy: max_i |E(t_i) − E(0)| / |E(0)| over all samples (mechanical energy of
 //           solver/observables.hpp), meaningful on conservative scenes only.
+//   ceiling: scd_ceiling = the reference's accuracy_scd − 1; scd_above_ceiling flags an scd
+//           the reference cannot measure (ApplyScdCeiling).
 // Every per-state quantity comes from solver/observables.hpp (ComputeObservables), like
 // trajectory.csv's columns.
 #pragma once
 
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -79,7 +82,17 @@ struct Metrics {
   double energy_error = -1.0;                // relative; < 0: not computed
   int compared_times = 0;                    // comparison times found in both
   int missing_times = 0;                     // reference times the run lacks (failure)
+  // The highest scd the reference can measure: its accuracy_scd − 1 (kScdCeilingMargin);
+  // NaN when the reference states none. scd above it is flagged, not a result: the error
+  // measured there is the reference's own.
+  double scd_ceiling = std::numeric_limits<double>::quiet_NaN();
+  bool scd_above_ceiling = false;
 };
+
+// Digits kept between a reference's stated accuracy and the highest scd it scores.
+constexpr double kScdCeilingMargin = 1.0;
+// Sets m->scd_ceiling = reference_accuracy_scd − kScdCeilingMargin and flags m->scd above it.
+void ApplyScdCeiling(double reference_accuracy_scd, Metrics* m);
 
 // scd of positions: −log10 max |e| / (|ref| + floor). Exposed for tests.
 double ScdFromErrors(const std::vector<double>& x, const std::vector<double>& x_ref,

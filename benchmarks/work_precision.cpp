@@ -404,6 +404,10 @@ int main(int argc, char** argv) {
     h["reference"] = reference_path;
     h["reference_primary"] = reference.json.at("primary");
     h["reference_accuracy_scd"] = reference.json.at("accuracy_scd");
+    // The highest scd the reference can measure (metrics.hpp: ApplyScdCeiling); runs above
+    // it carry metrics.scd_above_ceiling.
+    h["scd_ceiling"] = std::isfinite(reference.accuracy_scd) ? nlohmann::json(reference.accuracy_scd - kScdCeilingMargin)
+                                                             : nlohmann::json(nullptr);
     h["mode"] = short_mode ? "short" : "full";
     h["repetitions"] = repetitions;
     h["rtol_min"] = rtol_min;

@@ -61,9 +61,34 @@ def load_bench(path):
     if isinstance(context, dict) and "components" in context:
       header["components"] = context["components"]
     if not isinstance(data.get("results"), list) and isinstance(data.get("benchmarks"), list):
-      return header, _from_google_benchmark(data["benchmarks"])
+      return header, flag_above_ceiling(_from_google_benchmark(data["benchmarks"]), scd_ceiling(header))
     data = data.get("results", data.get("runs", []))
-  return header, [normalize_result(r) for r in data if isinstance(r, dict)]
+  return header, flag_above_ceiling([normalize_result(r) for r in data if isinstance(r, dict)],
+                                    scd_ceiling(header))
+
+
+def scd_ceiling(header):
+  """The highest scd the file's reference can measure: its stated accuracy minus one digit
+  (`scd_ceiling` of work_precision's header; for files written before that field,
+  `reference_accuracy_scd` − 1); None when neither is recorded. A run above it measures the
+  reference's error, not its own: flagged (`above_ceiling`), drawn and tabulated as such."""
+  c = header.get("scd_ceiling")
+  if isinstance(c, (int, float)) and math.isfinite(c):
+    return float(c)
+  a = header.get("reference_accuracy_scd")
+  if isinstance(a, (int, float)) and math.isfinite(a):
+    return float(a) - 1.0
+  return None
+
+
+def flag_above_ceiling(runs, ceiling):
+  """Sets r["above_ceiling"] on every run: its scd exceeds the ceiling (or the sweep flagged
+  it, metrics.scd_above_ceiling)."""
+  for r in runs:
+    scd = r.get("scd")
+    over = (ceiling is not None and isinstance(scd, (int, float)) and math.isfinite(scd) and scd > ceiling)
+    r["above_ceiling"] = bool(over or r.get("above_ceiling"))
+  return runs
 
 
 def normalize_result(r):
@@ -76,7 +101,8 @@ def normalize_result(r):
           "reason": r.get("reason") or "", "scd": m.get("scd"),
           "event_time_error_s": m.get("event_time_error_s") or {},
           "cpu_s": cpu, "residual_evaluations": (r.get("counters") or {}).get("residual_evaluations"),
-          "events": r.get("events"), "origin": r.get("origin") or "kneedyn", "source": r.get("source")}
+          "events": r.get("events"), "origin": r.get("origin") or "kneedyn", "source": r.get("source"),
+          "above_ceiling": bool(m.get("scd_above_ceiling"))}
 
 
 def is_score_file(name):

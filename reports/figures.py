@@ -217,7 +217,7 @@ def make_family_figures(outdir, members):
 # benchmarks/work_precision_table.py). Re-exported here for the report and its tests.
 from bench_data import (WRONG_EVENT_TIME_S, bench_key, classify_run, event_digits,  # noqa: E402,F401
                         failure_counts, load_bench, load_included, pareto_front, reference_command,
-                        setting_str, split_runs)
+                        scd_ceiling, setting_str, split_runs)
 
 POSITION_SCD_LABEL = "scd of positions vs reference\n−log10 max|e|/(|ref| + 1 mm or 1°)"
 FAILURE_MARKER = dict(marker="x", color="k", ms=8, mew=1.6, ls="none")
@@ -270,6 +270,10 @@ def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark, outs
             label=f"{name} ({len(front)} on the front, {nfail.get(f, 0)} failed / wrong event)")
     for r, x, y in zip(front, err, cpu):
       ax.plot([x], [y], ls="none", marker=imark[r["integrator"] or "-"], color=fcol[f], ms=6, mfc="white")
+  ceiling = scd_ceiling(header)
+  if ceiling is not None:  # the reference cannot measure errors below this one
+    ax.axvline(10.0 ** -ceiling, color="0.4", lw=1.2, ls="-.",
+               label=f"reference ceiling: scd {ceiling:.1f} (stated accuracy − 1 digit)")
   ax.set_xscale("log")
   ax.set_yscale("log")
   ax.invert_xaxis()
@@ -342,6 +346,9 @@ def make_work_precision(outdir, bench_path, prefix="", include=()):
                              squeeze=False)
     ys = [yfn(r) for r in ok_runs if yfn(r) is not None]
     top = max(ys) + 0.5 if ys else 10.0
+    ceiling = scd_ceiling(header) if ylabel == POSITION_SCD_LABEL else None
+    if ceiling is not None:
+      top = max(top, ceiling + 0.5)
     fail_y = failure_row(ys)
     titles = []
     for ax, f in zip(axes.flat, forms):
@@ -359,6 +366,8 @@ def make_work_precision(outdir, bench_path, prefix="", include=()):
         ax.semilogx([r[xkey] for r in placed], [fail_y] * len(placed), label=f"failed / wrong event ({len(mine)})",
                     **FAILURE_MARKER)
       ax.axhline(fail_y + 0.5, color="k", lw=0.5, ls="--")
+      if ceiling is not None:  # above it the reference's own error is measured
+        ax.axhline(ceiling, color="0.4", lw=1.2, ls="-.", label=f"reference ceiling (scd {ceiling:.1f})")
       titles.append(failure_title(f, len(mine), len(mine) - len(placed), outside=f in outside))
       ax.set_title(titles[-1], color=fcol[f], fontsize=10, fontweight="bold")
       ax.grid(alpha=0.3, which="both")

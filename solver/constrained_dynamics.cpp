@@ -51,49 +51,7 @@ void SolveConstrainedAcceleration(const Model& model, double t, const Vector6d& 
                                   const std::vector<int>& active, BaumgarteGains gains,
                                   const std::vector<signed char>* ligament_branch,
                                   ConstrainedDynamicsWorkspace* ws, ConstrainedAcceleration* out) {
-  const int k = static_cast<int>(active.size());
-  if (k > kMaxConstrainedContacts) {
-    Throw<SolverError>("SolveConstrainedAcceleration", k, " active contacts exceed ",
-                       kMaxConstrainedContacts, " (kMaxConstrainedContacts)");
-  }
-  const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);  // once per pose
-  ws->pose = PoseFromCoordinates(q, trig);
-  const Pose& pose = ws->pose;
-  const Vector6d nu = GeneralizedVelocity(q, trig, qd);
-  Data& data = ws->data;
-  data.ligament_branch = ligament_branch;
-  ComputeAppliedWrench(model, t, pose, &data);
-  const Vector6d Q = GeneralizedForce(model, data, Vector3d(nu.tail<3>()));
-
-  Vector6d M_inverse;
-  M_inverse.head<3>().setConstant(1.0 / model.mass);
-  M_inverse.tail<3>() = model.inertia_T.cwiseInverse();
-  const Vector6d a_free = M_inverse.cwiseProduct(Q);  // M⁻¹ Q
-  ws->G.resize(k, 6);
-  ws->b.resize(k);
-  for (int r = 0; r < k; ++r) {
-    const ContactPair& pair = model.contacts[active[r]];
-    const ContactGeometry geo = RequireContactKinematics(pair, pose, "SolveConstrainedAcceleration");
-    const Eigen::Matrix<double, 1, 6> G = ContactConstraintRow(pose, geo);
-    ws->G.row(r) = G;
-    ws->b(r) = -ContactRateTerm(pair, q, qd, pose, nu) - 2.0 * gains.alpha * G.dot(nu) - gains.beta * gains.beta * geo.gap -
-               G.dot(a_free);
-  }
-  Vector6d nu_dot = a_free;
-  out->normal_force.resize(k);
-  if (k > 0) {
-    ws->S.noalias() = ws->G * M_inverse.asDiagonal() * ws->G.transpose();
-    ws->lu.compute(ws->S);
-    if (!ws->lu.isInvertible()) {
-      Throw<SolverError>("SolveConstrainedAcceleration", "the contact constraint rows are dependent (rank ",
-                         6 + ws->lu.rank(), " of ", 6 + k, ") at t = ", t, " s");
-    }
-    ws->N = ws->lu.solve(ws->b);
-    nu_dot += M_inverse.cwiseProduct(ws->G.transpose() * ws->N);
-    for (int r = 0; r < k; ++r) out->normal_force[r] = ws->N(r);
-  }
-  out->nu_dot = nu_dot;
-  out->qdd = CoordinateAcceleration(q, trig, qd, out->nu_dot);
+  SolveConstrainedAccelerationTpl(model, t, q, qd, active, gains, ligament_branch, ws, out);
 }
 
 ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double t,

@@ -17,15 +17,19 @@
 
 #include <Eigen/LU>
 
+#include "solver/contact_kinematics.hpp"
 #include "solver/dynamics.hpp"
+#include "solver/error.hpp"
 
 namespace kneedyn {
 
-struct ConstrainedAcceleration {
-  Vector6d nu_dot = Vector6d::Zero();  // (a_F, ẇ_T)
-  Vector6d qdd = Vector6d::Zero();     // q̈
-  std::vector<double> normal_force;    // N_i per active contact, N (may be < 0: lift-off)
+template <typename T>
+struct ConstrainedAccelerationTpl {
+  Vector6<T> nu_dot = Vector6<T>::Zero();  // (a_F, ẇ_T)
+  Vector6<T> qdd = Vector6<T>::Zero();     // q̈
+  std::vector<T> normal_force;             // N_i per active contact, N (may be < 0: lift-off)
 };
+using ConstrainedAcceleration = ConstrainedAccelerationTpl<double>;
 
 struct BaumgarteGains {
   double alpha = 0.0;  // 1/s, velocity feedback (2a φ̇)
@@ -38,19 +42,75 @@ constexpr int kMaxConstrainedContacts = 8;
 // Workspace of the allocation-free SolveConstrainedAcceleration (mutable data kept
 // apart from the constant Model): the applied-load workspace and the Schur-complement system in
 // fixed-capacity Eigen types (at most kMaxConstrainedContacts rows, in this object).
-struct ConstrainedDynamicsWorkspace {
-  using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxConstrainedContacts, kMaxConstrainedContacts>;
-  using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxConstrainedContacts, 1>;
-  using Rows = Eigen::Matrix<double, Eigen::Dynamic, 6, 0, kMaxConstrainedContacts, 6>;
-  explicit ConstrainedDynamicsWorkspace(const Model& model) : data(model) {}
-  Data data;
-  Pose pose;  // of the last solve's q (for callers evaluating more at the same point)
+template <typename T>
+struct ConstrainedDynamicsWorkspaceTpl {
+  using Matrix = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxConstrainedContacts, kMaxConstrainedContacts>;
+  using Vector = Eigen::Matrix<T, Eigen::Dynamic, 1, 0, kMaxConstrainedContacts, 1>;
+  using Rows = Eigen::Matrix<T, Eigen::Dynamic, 6, 0, kMaxConstrainedContacts, 6>;
+  explicit ConstrainedDynamicsWorkspaceTpl(const Model& model) : data(model) {}
+  DataTpl<T> data;
+  PoseTpl<T> pose;  // of the last solve's q (for callers evaluating more at the same point)
   Rows G;    // constraint rows G_i (k×6)
   Matrix S;  // G M⁻¹ Gᵀ (k×k, symmetric positive definite for independent rows)
   Vector b;  // −κ − 2a φ̇ − b² φ − G M⁻¹ Q
   Vector N;  // normal forces
   Eigen::FullPivLU<Matrix> lu;  // of S: rank-revealing, for dependent rows
 };
+using ConstrainedDynamicsWorkspace = ConstrainedDynamicsWorkspaceTpl<double>;
+
+// SolveConstrainedAcceleration below in any scalar type T with a double time (the pulse is
+// evaluated at t; double and long double, the extended-precision references of
+// benchmarks/extended_reference.hpp). T = long double: sphere-on-plane contacts only
+// (RequireContactKinematicsTpl).
+template <typename T>
+void SolveConstrainedAccelerationTpl(const Model& model, double t, const Vector6<T>& q, const Vector6<T>& qd,
+                                     const std::vector<int>& active, BaumgarteGains gains,
+                                     const std::vector<signed char>* ligament_branch,
+                                     ConstrainedDynamicsWorkspaceTpl<T>* ws, ConstrainedAccelerationTpl<T>* out) {
+  const int k = static_cast<int>(active.size());
+  if (k > kMaxConstrainedContacts) {
+    Throw<SolverError>("SolveConstrainedAcceleration", k, " active contacts exceed ",
+                       kMaxConstrainedContacts, " (kMaxConstrainedContacts)");
+  }
+  const EulerAngleTrig<T> trig = EulerAngleTrigOf(q);  // once per pose
+  ws->pose = PoseFromCoordinates(q, trig);
+  const PoseTpl<T>& pose = ws->pose;
+  const Vector6<T> nu = GeneralizedVelocity(q, trig, qd);
+  DataTpl<T>& data = ws->data;
+  data.ligament_branch = ligament_branch;
+  ComputeAppliedWrench(model, t, pose, &data);
+  const Vector6<T> Q = GeneralizedForce(model, data, Vector3<T>(nu.template tail<3>()));
+
+  Vector6<T> M_inverse;
+  M_inverse.template head<3>().setConstant(T(1.0) / T(model.mass));
+  M_inverse.template tail<3>() = model.inertia_T.template cast<T>().cwiseInverse();
+  const Vector6<T> a_free = M_inverse.cwiseProduct(Q);  // M⁻¹ Q
+  ws->G.resize(k, 6);
+  ws->b.resize(k);
+  for (int r = 0; r < k; ++r) {
+    const ContactPair& pair = model.contacts[active[r]];
+    const ContactGeometryTpl<T> geo = RequireContactKinematicsTpl(pair, pose, "SolveConstrainedAcceleration");
+    const Eigen::Matrix<T, 1, 6> G = ContactConstraintRow(pose, geo);
+    ws->G.row(r) = G;
+    ws->b(r) = -ContactRateTermTpl(pair, q, qd, pose, nu) - 2.0 * gains.alpha * G.dot(nu) -
+               gains.beta * gains.beta * geo.gap - G.dot(a_free);
+  }
+  Vector6<T> nu_dot = a_free;
+  out->normal_force.resize(k);
+  if (k > 0) {
+    ws->S.noalias() = ws->G * M_inverse.asDiagonal() * ws->G.transpose();
+    ws->lu.compute(ws->S);
+    if (!ws->lu.isInvertible()) {
+      Throw<SolverError>("SolveConstrainedAcceleration", "the contact constraint rows are dependent (rank ",
+                         6 + ws->lu.rank(), " of ", 6 + k, ") at t = ", t, " s");
+    }
+    ws->N = ws->lu.solve(ws->b);
+    nu_dot += M_inverse.cwiseProduct(ws->G.transpose() * ws->N);
+    for (int r = 0; r < k; ++r) out->normal_force[r] = ws->N(r);
+  }
+  out->nu_dot = nu_dot;
+  out->qdd = CoordinateAccelerationTpl(q, trig, qd, out->nu_dot);
+}
 
 // The same solve without allocation after the first call with a given number of active
 // contacts: into `out` (its normal_force keeps its capacity), using `workspace`.

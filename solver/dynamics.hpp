@@ -98,5 +98,19 @@ std::vector<signed char> LigamentBranchesAt(const Model& model, const Vector6d& 
 // Kinetic + gravitational + ligament strain energy (J), for conservative scenes.
 // Gravitational potential −m g·R0 (g constant); constant loads add −F·R0.
 double MechanicalEnergy(const Model& model, const Vector6d& q, const Vector6d& qd);
+// The same in any scalar type (the double overload calls it).
+template <typename T>
+T MechanicalEnergyTpl(const Model& model, const Vector6<T>& q, const Vector6<T>& qd) {
+  const Vector6<T> nu = GeneralizedVelocity(q, qd);
+  const Vector3<T> w = nu.template tail<3>();
+  T energy = 0.5 * model.mass * nu.template head<3>().squaredNorm() +
+             0.5 * w.dot(model.inertia_T.template cast<T>().cwiseProduct(w));
+  energy -= (model.mass * model.gravity_F + model.constant_load.force_F).template cast<T>().dot(q.template head<3>());
+  const PoseTpl<T> pose = PoseFromCoordinates(q);
+  for (const Ligament& lig : model.ligaments) {
+    energy += LigamentPotentialTpl(lig, T(LigamentSpan_F(lig, pose).norm()));
+  }
+  return energy;
+}
 
 }  // namespace kneedyn

@@ -55,44 +55,15 @@ void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, con
   EvaluateEvents(model, specs, q, PoseFromCoordinates(q), normal_force, g);
 }
 
-namespace {
-// Lengths: null, or L_j per model ligament at `pose`.
-void EvaluateEventsAt(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
-                      const Pose& pose, const std::vector<double>& normal_force,
-                      const std::vector<double>* ligament_length, double* g) {
-  for (size_t k = 0; k < specs.size(); ++k) {
-    const EventSpec& s = specs[k];
-    switch (s.kind) {
-      case EventKind::kLiftoff:
-        g[k] = normal_force[s.contact];
-        break;
-      case EventKind::kRecontact:
-        g[k] = RequireContactKinematics(model.contacts[s.contact], pose, "EvaluateEvents").gap -
-               s.offset;
-        break;
-      case EventKind::kFlexionEnd:
-        g[k] = q(kAlpha) - s.offset;
-        break;
-      case EventKind::kLigamentKink: {
-        const double length = ligament_length ? (*ligament_length)[s.ligament]
-                                              : LigamentSpan_F(model.ligaments[s.ligament], pose).norm();
-        g[k] = length - s.offset;
-        break;
-      }
-    }
-  }
-}
-}  // namespace
-
 void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const Pose& pose, const std::vector<double>& normal_force, double* g) {
-  EvaluateEventsAt(model, specs, q, pose, normal_force, nullptr, g);
+  EvaluateEventsTpl(model, specs, q, pose, normal_force, g);
 }
 
 void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const Pose& pose, const std::vector<double>& normal_force,
                     const std::vector<double>& ligament_length, double* g) {
-  EvaluateEventsAt(model, specs, q, pose, normal_force, &ligament_length, g);
+  EvaluateEventsTpl(model, specs, q, pose, normal_force, g, &ligament_length);
 }
 
 }  // namespace kneedyn

@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "solver/contact_kinematics.hpp"
+#include "solver/ligament.hpp"
 #include "solver/pose.hpp"
 #include "solver/state.hpp"
 
@@ -51,6 +53,35 @@ void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, con
 void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const Pose& pose, const std::vector<double>& normal_force,
                     const std::vector<double>& ligament_length, double* g);
+
+// EvaluateEvents in any scalar type (the double overloads above call it); T = long double:
+// sphere-on-plane gaps only (RequireContactKinematicsTpl).
+template <typename T>
+void EvaluateEventsTpl(const Model& model, const std::vector<EventSpec>& specs, const Vector6<T>& q,
+                       const PoseTpl<T>& pose, const std::vector<T>& normal_force, T* g,
+                       const std::vector<T>* ligament_length = nullptr) {
+  for (size_t k = 0; k < specs.size(); ++k) {
+    const EventSpec& s = specs[k];
+    switch (s.kind) {
+      case EventKind::kLiftoff:
+        g[k] = normal_force[s.contact];
+        break;
+      case EventKind::kRecontact:
+        g[k] = RequireContactKinematicsTpl(model.contacts[s.contact], pose, "EvaluateEvents").gap - s.offset;
+        break;
+      case EventKind::kFlexionEnd:
+        g[k] = q(kAlpha) - s.offset;
+        break;
+      case EventKind::kLigamentKink: {
+        // The lengths at `pose` when the caller has them (DataTpl::ligament_length), else spans.
+        const T length = ligament_length ? (*ligament_length)[s.ligament]
+                                         : T(LigamentSpan_F(model.ligaments[s.ligament], pose).norm());
+        g[k] = length - s.offset;
+        break;
+      }
+    }
+  }
+}
 
 // "flexion_90" for 90°; integer degrees when whole, else one decimal.
 std::string FlexionEventName(double flexion_rad);

@@ -91,6 +91,47 @@ Vector6<T> GeneralizedAcceleration(const Vector6<T>& q, const Vector6<T>& qd, co
   return GeneralizedAcceleration(q, EulerAngleTrigOf(q), qd, qdd);
 }
 
+// x = E(β, γ)⁻¹ r in closed form (rotation.hpp: the leading 2×2 block of E has
+// determinant sin β, its third column is −k̂′). Throws at the JCS singularity.
+template <typename T>
+Vector3<T> SolveAngularVelocityMap(const T& beta, const EulerAngleTrig<T>& trig, const Vector3<T>& r,
+                                   const char* caller) {
+  CheckJcsRegular(ScalarPart(beta), ScalarPart(trig.sb), caller);
+  const T &sb = trig.sb, &cb = trig.cb;
+  const T &sg = trig.sg, &cg = trig.cg;
+  Vector3<T> x;
+  if (ThreadAngularVelocityMapReading() == AngularVelocityMapReading::kPrintedEq1_20b) {
+    // E(1, 1) = +cγ (Eq. 1.20b): the 2×2 block's determinant is −sin β cos 2γ.
+    const T det = -sb * (cg * cg - sg * sg);
+    if (std::abs(static_cast<double>(ScalarPart(det))) < kJcsSingularityTolerance) {
+      Throw<SolverError>(caller, "the printed map of Eq. 1.20b is singular at gamma = ",
+                         std::atan2(static_cast<double>(ScalarPart(sg)), static_cast<double>(ScalarPart(cg))), " rad (|sin beta cos 2 gamma| = ",
+                         std::abs(static_cast<double>(ScalarPart(det))), " < ", kJcsSingularityTolerance, "; docs/model.md §2)");
+    }
+    x(0) = (cg * r(0) - sg * r(1)) / det;
+    x(1) = sb * (sg * r(0) - cg * r(1)) / det;
+    x(2) = -r(2) - cb * x(0);
+    return x;
+  }
+  x(0) = (-cg * r(0) - sg * r(1)) / sb;
+  x(1) = sg * r(0) - cg * r(1);
+  x(2) = -r(2) - cb * x(0);
+  return x;
+}
+
+// q̈ from ν̇ for any scalar type (the double overloads below call it).
+template <typename T>
+Vector6<T> CoordinateAccelerationTpl(const Vector6<T>& q, const EulerAngleTrig<T>& trig, const Vector6<T>& qd,
+                                     const Vector6<T>& nu_dot) {
+  const Vector3<T> qd_ang = qd.template tail<3>();
+  Vector6<T> qdd;
+  qdd.template head<3>() = nu_dot.template head<3>();
+  qdd.template tail<3>() = SolveAngularVelocityMap<T>(
+      q(kBeta), trig, nu_dot.template tail<3>() - AngularVelocityMapRateTimesRate(trig, qd_ang),
+      "CoordinateAcceleration");
+  return qdd;
+}
+
 // Inverse of the above: q̈ from ν̇ (q̈_ang = E⁻¹ (ẇ_T − Ė q̇_ang)). Throws at the singularity.
 Vector6d CoordinateAcceleration(const Vector6d& q, const Vector6d& qd, const Vector6d& nu_dot);
 Vector6d CoordinateAcceleration(const Vector6d& q, const EulerAngleTrig<double>& trig, const Vector6d& qd,

@@ -1,14 +1,29 @@
-// Scalar-type helpers so that physics templates run on double and on ceres::Jet
-// (forward-mode automatic differentiation, used for every Jacobian in kneedyn).
+// Scalar-type helpers so that physics templates run on double, on ceres::Jet (forward-mode
+// automatic differentiation, used for every Jacobian in kneedyn) and on long double (x87
+// 80-bit, 64-bit mantissa: the extended-precision references, benchmarks/extended_reference.hpp).
 #pragma once
 
 #include <ceres/jet.h>
 
 #include <Eigen/Dense>
 
+// Model data are double; long double expressions mix them in (products, sums) and get
+// long double, as Eigen's Jet traits do for ceres::Jet.
+namespace Eigen {
+template <typename BinaryOp>
+struct ScalarBinaryOpTraits<long double, double, BinaryOp> {
+  typedef long double ReturnType;
+};
+template <typename BinaryOp>
+struct ScalarBinaryOpTraits<double, long double, BinaryOp> {
+  typedef long double ReturnType;
+};
+}  // namespace Eigen
+
 namespace kneedyn {
 
 inline double ScalarPart(double x) { return x; }
+inline double ScalarPart(long double x) { return static_cast<double>(x); }
 template <typename T, int N>
 double ScalarPart(const ceres::Jet<T, N>& x) {
   return ScalarPart(x.a);

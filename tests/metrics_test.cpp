@@ -88,6 +88,30 @@ TEST(Compare, ScdOfPositionsWithTheFloor) {
   EXPECT_DOUBLE_EQ(m.mixed.at("ligament_forces"), 1e-3);
 }
 
+// A planted score above what the reference can measure: a run that matches an 11.2-digit
+// reference to 14 digits is flagged (its error is the reference's own), one at 9 digits is
+// not, and without a stated accuracy nothing is flagged.
+TEST(ScdCeiling, FlagsAScoreAboveTheReferenceAccuracyMinusOneDigit) {
+  const Solution ref = Synthetic({0.0, 0.02, 0.3}, true, 0.0);
+  Metrics over = Compare(Synthetic({0.0, 0.02, 0.3}, true, 1e-14), ref);
+  ASSERT_GT(over.scd, 13.5);
+  ApplyScdCeiling(11.2, &over);
+  EXPECT_NEAR(over.scd_ceiling, 10.2, 1e-12);
+  EXPECT_TRUE(over.scd_above_ceiling);
+  const nlohmann::json j = MetricsJson(over);
+  EXPECT_TRUE(j.at("scd_above_ceiling").get<bool>());
+  EXPECT_NEAR(j.at("scd_ceiling").get<double>(), 10.2, 1e-12);
+
+  Metrics under = Compare(Synthetic({0.0, 0.02, 0.3}, true, 1e-9), ref);
+  ApplyScdCeiling(11.2, &under);
+  EXPECT_FALSE(under.scd_above_ceiling);
+
+  Metrics unstated = Compare(Synthetic({0.0, 0.02, 0.3}, true, 1e-14), ref);
+  ApplyScdCeiling(std::numeric_limits<double>::quiet_NaN(), &unstated);
+  EXPECT_FALSE(unstated.scd_above_ceiling);
+  EXPECT_TRUE(MetricsJson(unstated).at("scd_ceiling").is_null());
+}
+
 TEST(Solution, JsonRoundTripKeepsNaN) {
   Solution s = Synthetic({0.0, 0.02}, false, 0.5);
   s.values["contact_points"][1][2] = kNaN;

@@ -57,6 +57,34 @@ def summary(runs):
                 for r in runs)
 
 
+def ceiling_errors(tmp):
+  """A planted score above the reference's ceiling (accuracy 7.0 → ceiling 6.0): dopri5's 6.5
+  is flagged by the reader (from the header alone, as in files written before the sweep set
+  metrics.scd_above_ceiling), marked in work_precision_table's best scd, and the diagrams
+  still draw; euler's 1.2 is not flagged."""
+  import importlib
+  errors = []
+  doc = json.loads(json.dumps(RESULTS))
+  doc["header"]["reference_accuracy_scd"] = 7.0
+  path = os.path.join(tmp, "ceiling.json")
+  with open(path, "w") as f:
+    json.dump(doc, f)
+  header, runs = figures.load_bench(path)
+  flagged = sorted(r["integrator"] for r in runs if r.get("above_ceiling"))
+  if flagged != ["dopri5"]:
+    errors.append(f"ceiling 6.0: flagged {flagged}, expected ['dopri5']")
+  sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+  table = importlib.import_module("work_precision_table").table(path)
+  if not any(line.startswith("| mde:dopri5 |") and "| 6.50* |" in line for line in table):
+    errors.append("work_precision_table: mde:dopri5's 6.50 not marked above the ceiling:\n" + "\n".join(table))
+  if not any(line.startswith("Reference ceiling: scd 6.0") for line in table):
+    errors.append("work_precision_table: no ceiling note")
+  files, _, _ = figures.make_work_precision(os.path.join(tmp, "ceiling"), path)
+  if len(files) != len(figures.WORK_PRECISION_FIGURES):
+    errors.append(f"ceiling: {len(files)} diagrams")
+  return errors
+
+
 def main():
   errors = []
   with tempfile.TemporaryDirectory(prefix="kneedyn_bench_reader_") as tmp:
@@ -82,6 +110,7 @@ def main():
                 ("mde", "dopri5", 0.02, "ok"), ("mde", "euler", 0.01, "wrong event time")]
     if got["results"] != expected:
       errors.append(f"results layout: {got['results']} != {expected}")
+    errors += ceiling_errors(tmp)
   for e in errors:
     print("report_bench_reader_test: FAIL:", e, file=sys.stderr)
   print("report_bench_reader_test:", "ok" if not errors else f"{len(errors)} failures")
