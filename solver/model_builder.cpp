@@ -157,6 +157,7 @@ Model BuildModel(const ModelDescription& d, const Vector6d& reference_q) {
   model.ligament_law = d.ligament_law;
   model.contacts = d.contacts;
   model.pulse = d.pulse;
+  model.patella = d.patella;
   model.constant_load = d.constant_load;
   const Pose reference = PoseFromCoordinates(reference_q);
   model.ligaments = d.ligaments;
