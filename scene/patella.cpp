@@ -50,7 +50,9 @@ void ParsePatella(const Field& top, ModelDescription* model) {
   // A massless patella has no equilibrium without a pulling quadriceps.
   std::string why;
   if (!QuadricepsPositive(quadriceps, &why)) {
-    q.Required(why.find("baseline_N") != std::string::npos ? "baseline_N" : "magnitude_N").Fail(why);
+    const char* key = why.find("baseline_N") != std::string::npos ? "baseline_N" : "magnitude_N";
+    if (q.Has(key)) q.Required(key).Fail(why);
+    q.Fail(why);
   }
   model->patella = patella;
 }

@@ -221,11 +221,20 @@ void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, P
   guess.valid = true;
   try {
     SolvePatella(*patella, tuberosity_F, "SolvePatellaStart", &guess);
-    // Along the straight path in q to the initial pose, 1° of flexion or less per step.
+    // To the initial pose, 1° or less per step: the angles interpolated linearly and the
+    // tibial point that sits at F's origin in the reference pose (the knee's centre)
+    // moved on the straight line between its positions, so that the tibia turns about
+    // the knee, as it does, and not about its centre of mass.
+    const Pose reference = PoseFromCoordinates(reference_q), initial = PoseFromCoordinates(initial_q);
+    const Vector3d knee_T = reference.PointInT(Vector3d::Zero());
+    const Vector3d knee_start_F = Vector3d::Zero(), knee_end_F = initial.PointInF(knee_T);
     const double angle = (initial_q - reference_q).tail<3>().cwiseAbs().maxCoeff();
     const int steps = std::max(1, static_cast<int>(std::ceil(angle / DegToRad(1.0))));
     for (int k = 1; k <= steps; ++k) {
-      const Vector6d q = reference_q + (initial_q - reference_q) * (static_cast<double>(k) / steps);
+      const double s = static_cast<double>(k) / steps;
+      Vector6d q = reference_q + (initial_q - reference_q) * s;
+      const Pose rotated = PoseFromCoordinates(q);
+      q.head<3>() = (1.0 - s) * knee_start_F + s * knee_end_F - rotated.R_FT * knee_T;
       SolvePatella(*patella, PoseFromCoordinates(q).PointInF(patella->tuberosity_T), "SolvePatellaStart", &guess);
     }
   } catch (const SolverError& e) {

@@ -180,7 +180,8 @@ inline LaggedTendon SolvedTendon(const Patella& patella, double t, const Pose& t
 
 // The start of the solve for a scene (the model builder): from a geometric guess at the
 // reference tibial pose (zero patellar angles, both facets touching, the tendon at its
-// length), Newton there, then continuation along the straight path in q to `initial_q`.
+// length), Newton there, then continuation to `initial_q` (angles linear, the tibia turning
+// about the knee's centre).
 // Fills patella->start_unknowns and start_q. Throws InputError when no equilibrium is found.
 void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, Patella* patella);
 

@@ -17,21 +17,33 @@ namespace {
 
 Scene ImpactScene() { return LoadScene("reference-data/scenes/patellofemoral_impact.yaml"); }
 
-// Tibial pose of the impact scene's start with α replaced (a pose the tuberosity reaches).
-Vector6d FlexedPose(const Scene& scene, double alpha_deg) {
-  Vector6d q = scene.initial.q;
-  q(kAlpha) = DegToRad(alpha_deg);
-  return q;
+// Tibial poses the knee passes through: the chapter's impact (no patella, ede) at the first
+// output rows past the given flexion angles.
+std::vector<Vector6d> ChapterPoses(const std::vector<double>& alpha_deg) {
+  RunSettings settings;
+  settings.formulation = "ede";
+  const RunResult run = RunScene(LoadScene("reference-data/scenes/chapter_impact.yaml"), settings);
+  std::vector<Vector6d> poses;
+  for (double a : alpha_deg) {
+    for (const MechanicalState& s : run.samples) {
+      if (s.q(kAlpha) >= DegToRad(a) - 1e-9) {
+        poses.push_back(s.q);
+        break;
+      }
+    }
+  }
+  EXPECT_EQ(poses.size(), alpha_deg.size());
+  return poses;
 }
 
 TEST(Patella, EquilibriumHoldsAtTheSolvedPatellaByASecondContactDescription) {
   const Scene scene = ImpactScene();
   ASSERT_TRUE(scene.model.patella.has_value());
   const Patella& patella = *scene.model.patella;
-  for (double alpha_deg : {0.0, 30.0, 60.0, 90.0}) {
-    SCOPED_TRACE(alpha_deg);
+  for (const Vector6d& q : ChapterPoses({0.0, 30.0, 60.0, 89.0})) {
+    SCOPED_TRACE(q(kAlpha));
     PatellaGuess guess;
-    const Vector3d tuberosity_F = TuberosityInF(patella, PoseFromCoordinates(FlexedPose(scene, alpha_deg)));
+    const Vector3d tuberosity_F = TuberosityInF(patella, PoseFromCoordinates(q));
     SolvePatella(patella, tuberosity_F, "test", &guess);
     EXPECT_LT(PatellaResidualNorm(patella, tuberosity_F, guess.x), 1e-13);
     // Independent of the chapter-form residuals: the closed-form sphere-on-plane contact
@@ -66,7 +78,7 @@ TEST(Patella, EquilibriumHoldsAtTheSolvedPatellaByASecondContactDescription) {
 TEST(Patella, TendonForceDerivativeMatchesCentralDifferences) {
   const Scene scene = ImpactScene();
   const Patella& patella = *scene.model.patella;
-  const Vector6d q = FlexedPose(scene, 40.0);
+  const Vector6d q = ChapterPoses({40.0}).at(0);
   using J6 = ceres::Jet<double, 6>;
   Vector6<J6> qj;
   for (int i = 0; i < 6; ++i) qj(i) = J6(q(i), i);
@@ -178,7 +190,9 @@ std::vector<std::array<double, 6>> PatellarPoseAtEvents(const Scene& scene, cons
 TEST(PatellaRuns, OdeAndDaeAgreeOnEventTimesAndPatellarPose) {
   const Scene scene = ImpactScene();
   const RunResult ode = RunWith(scene, "ede", 1e-12, 1e-14);
-  const RunResult dae = RunWith(scene, "dae", 1e-11, 1e-13);
+  // IDA at rtol 1e-11 fails (corrector convergence, h → 1e-14): the patella's Newton solve
+  // inside the residual has a round-off floor that a tighter DAE tolerance cannot pass.
+  const RunResult dae = RunWith(scene, "dae", 1e-10, 1e-12);
   ASSERT_EQ(ode.events.size(), dae.events.size());
   ASSERT_GE(ode.events.size(), 1u);
   for (size_t i = 0; i < ode.events.size(); ++i) {
