@@ -34,8 +34,24 @@ def run(kneedyn, scene, outdir, formulation, args):
   with open(os.path.join(d, "summary.json")) as f:
     summary = json.load(f)
   with open(os.path.join(d, "trajectory.csv")) as f:
-    rows = [(float(r["time_s"]), float(r["flexion_deg"])) for r in csv.DictReader(f)]
-  return {"summary": summary, "rows": rows}
+    table = list(csv.DictReader(f))
+  rows = [(float(r["time_s"]), float(r["flexion_deg"])) for r in table]
+  return {"summary": summary, "rows": rows, "table": table}
+
+
+PATELLA_COLUMNS = ["flexion_deg", "patella_flexion_deg", "patella_tilt_deg", "patella_rotation_deg",
+                   "patella_shift_mm", "tendon_force_N", "N_patella_medial_N", "N_patella_lateral_N",
+                   "tendon_quadriceps_ratio"]
+
+
+def against_flexion(result, every_deg=10.0):
+  """The patella's columns at the first rows past 0, 10, 20, ... degrees of flexion."""
+  out, next_deg = [], 0.0
+  for r in result["table"]:
+    if float(r["flexion_deg"]) >= next_deg:
+      out.append({c: float(r[c]) for c in PATELLA_COLUMNS})
+      next_deg += every_deg
+  return out
 
 
 def coupling_error(result, reference):
@@ -68,7 +84,7 @@ def main():
   ref_events = reference["summary"]["events"]
   table = {"reference": "ede rtol 1e-12", "events": ref_events,
            "dae_event_time_differences_s": [d["time"] - r["time"] for d, r in zip(dae["summary"]["events"], ref_events)],
-           "staggered": []}
+           "staggered": [], "patella_against_flexion": against_flexion(reference)}
   ok = True
   for dt in STEPS:
     r = run(a.kneedyn, a.scene, out, "staggered", ["--step", repr(dt), "--rtol", "1e-12", "--atol", "1e-14"])
@@ -110,6 +126,11 @@ def main():
     fig.savefig(os.path.join(out, "coupling.png"), dpi=120)
   except ImportError:
     pass
+  print("flexion  patella flexion/tilt/rotation (deg)  tendon (N)  facets m/l (N)  tendon/quadriceps")
+  for r in table["patella_against_flexion"]:
+    print(f"{r['flexion_deg']:6.1f}  {r['patella_flexion_deg']:7.2f} {r['patella_tilt_deg']:6.2f} {r['patella_rotation_deg']:6.2f}"
+          f"  {r['tendon_force_N']:7.2f}  {r['N_patella_medial_N']:6.2f} {r['N_patella_lateral_N']:6.2f}"
+          f"  {r['tendon_quadriceps_ratio']:.3f}")
   for r in rows:
     print(f"dt = {r['dt_s']:.2e} s  error = {r['flexion_error_deg']:.3e} deg  order = {r.get('observed_order', float('nan')):.3f}"
           f"  event time errors = {['%.2e' % e for e in r['event_time_errors_s']]}  wall = {r['wall_time_s']} s")
