@@ -216,6 +216,7 @@ int Main(int argc, char** argv) {
           for (IntegratorKind i : f.integrators) std::printf(" %s", OptionName(i));
           std::printf("]");
         }
+        if (f.needs_patella) std::printf(" [needs a patella: scene section patella]");
         std::printf("\n");
       }
       return 0;

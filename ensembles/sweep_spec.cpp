@@ -12,6 +12,7 @@
 #include "solver/error.hpp"
 #include "solver/ligament.hpp"
 #include "solver/model_builder.hpp"
+#include "solver/patella.hpp"
 #include "solver/pose.hpp"
 #include "solver/units.hpp"
 
@@ -112,10 +113,18 @@ void ResolveParameter(const Where& where, AnalyticModel analytic, const Model& m
     p->column = p->name + "_kg_m2";
     return;
   }
+  if (p->name == "quadriceps.magnitude" || p->name == "patella.tendon_length") {
+    if (!m.patella) where.Fail("names the patella; the base scene has no patella: section");
+    const bool quadriceps = p->name == "quadriceps.magnitude";
+    p->kind = quadriceps ? ParameterKind::kQuadricepsMagnitude : ParameterKind::kTendonLength;
+    p->nominal = quadriceps ? m.patella->quadriceps.magnitude : MToMm(m.patella->tendon_length);
+    p->column = quadriceps ? "quadriceps.magnitude_N" : "patella.tendon_length_mm";
+    return;
+  }
   const size_t dot = p->name.rfind('.');
   if (dot == std::string::npos) {
     where.Fail("unknown parameter; expected pulse.amplitude, pulse.duration, mass, "
-               "inertia_x|y|z or '<element>.<property>'");
+               "inertia_x|y|z, quadriceps.magnitude, patella.tendon_length or '<element>.<property>'");
   }
   const std::string element = p->name.substr(0, dot), prop = p->name.substr(dot + 1);
   int idx = -1;
@@ -176,6 +185,8 @@ bool MustBePositive(ParameterKind k) {
     case ParameterKind::kLigamentSlackLength:
     case ParameterKind::kLigamentExtensionRatio:
     case ParameterKind::kPulseDuration:
+    case ParameterKind::kQuadricepsMagnitude:
+    case ParameterKind::kTendonLength:
     case ParameterKind::kMass:
     case ParameterKind::kPrincipalInertia: return true;
     default: return false;
@@ -459,6 +470,8 @@ Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values) {
       case ParameterKind::kPulseDuration: m.pulse.duration = v; break;
       case ParameterKind::kMass: m.mass = v; break;
       case ParameterKind::kPrincipalInertia: m.inertia_T(p.axis) = v; break;
+      case ParameterKind::kQuadricepsMagnitude: m.patella->quadriceps.magnitude = v; break;
+      case ParameterKind::kTendonLength: m.patella->tendon_length = MmToM(v); break;
       case ParameterKind::kLigamentSlackLength:
       case ParameterKind::kAnalytic: break;
     }
@@ -473,6 +486,13 @@ Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values) {
     if (p.kind == ParameterKind::kLigamentSlackLength) SetSlackLength(MmToM(values[k]), &m.ligaments[p.ligament]);
   }
   for (Ligament& l : m.ligaments) SetLigamentLaw(m.ligament_law, &l);
+  // A new tendon length moves the patella's equilibrium: the builder's start solve again.
+  for (const ParameterSpec& p : spec.parameters) {
+    if (p.kind == ParameterKind::kTendonLength) {
+      SolvePatellaStart(scene.reference_q, scene.initial.q, &*m.patella);
+      break;
+    }
+  }
   return scene;
 }
 

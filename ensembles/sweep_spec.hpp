@@ -30,6 +30,8 @@ enum class ParameterKind {
   kPulseDuration,               // pulse.duration, s
   kMass,                        // mass, kg
   kPrincipalInertia,            // inertia_x|y|z, kg m² (principal moments about the COM, in T)
+  kQuadricepsMagnitude,         // quadriceps.magnitude, N (scenes with a patella)
+  kTendonLength,                // patella.tendon_length, mm (scenes with a patella)
   kAnalytic,                    // x1, x2, x3 of an analytic test function
 };
 

@@ -226,6 +226,9 @@ struct FormulationInfo {
   bool scheme_parameters = false;
   // Which forward sensitivities `kneedyn sensitivity` runs for it (none: not available).
   SensitivityForm sensitivity = SensitivityForm::kNone;
+  // Runs only scenes with a patella (scene section patella; docs/model.md §12): refused
+  // with InputError on others.
+  bool needs_patella = false;
 
   FormulationInfo(std::string name_, std::string summary_, FormulationFactory create_)
       : name(std::move(name_)), summary(std::move(summary_)), create(std::move(create_)) {}
@@ -239,6 +242,7 @@ struct FormulationInfo {
   FormulationInfo& Jacobians(std::vector<JacobianKind> v) { jacobians = std::move(v); return *this; }
   FormulationInfo& SchemeParameters() { scheme_parameters = true; return *this; }
   FormulationInfo& Sensitivity(SensitivityForm form) { sensitivity = form; return *this; }
+  FormulationInfo& NeedsPatella() { needs_patella = true; return *this; }
 };
 
 // The one check of FormulationOptions for a formulation: the rules every formulation shares

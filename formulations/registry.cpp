@@ -29,6 +29,7 @@ const std::vector<FormulationInfo>& RegisteredFormulations() {
       FormulationInfo("generalized-alpha-reduced", "generalized-alpha with closed-form sphere-on-plane gap", KNEEDYN_FACTORY(ConfigureGeneralizedAlphaReduced)).FixedStep().AlgebraicForces().Jacobians(kNewtonJacobians).SchemeParameters(),
       FormulationInfo("mde", "minimal ODE: closed-form elimination of the contact translations, projected Newton-Euler", KNEEDYN_FACTORY(ConfigureMde)).Integrators(kOdeIntegrators),
       FormulationInfo("ede", "excess ODE in (q, qdot) with the hidden constraint; --stabilization none|baumgarte|projection|cvode-projection", KNEEDYN_FACTORY(ConfigureEde)).Integrators(kOdeIntegrators).Stabilizations({Stabilization::kNone, Stabilization::kBaumgarte, Stabilization::kProjection, Stabilization::kCvodeProjection}).Sensitivity(SensitivityForm::kOde),
+      FormulationInfo("staggered", "the chapter's staggered tibia-patella procedure (section 1.7): the tendon force lagged one step --step, dopri5 inside a step", KNEEDYN_FACTORY(ConfigureStaggered)).FixedStep().NeedsPatella(),
   };
   return kRegistry;
 }

@@ -26,6 +26,7 @@
 #include "solver/observables.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
+#include "solver/patella.hpp"
 
 namespace kneedyn {
 namespace fs = std::filesystem;
@@ -166,8 +167,17 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
   for (const std::string& c : contact_names) cols.push_back(StrCat("gap_rate_", c, "_mm_s"));
   for (const Ligament& lig : model.ligaments) cols.push_back("L_" + ColumnSafeName(lig.name) + "_mm");
   for (const Ligament& lig : model.ligaments) cols.push_back("strain_" + ColumnSafeName(lig.name));
+  // With a patella (docs/model.md §12): its equilibrium at each row's tibial pose.
+  if (model.patella) {
+    for (const char* c : {"patella_shift_mm", "patella_anterior_mm", "patella_proximal_mm", "patella_flexion_deg",
+                          "patella_tilt_deg", "patella_rotation_deg", "quadriceps_N", "tendon_force_N",
+                          "N_patella_medial_N", "N_patella_lateral_N", "tendon_quadriceps_ratio"}) {
+      cols.push_back(c);
+    }
+  }
 
   Observables obs;
+  PatellaGuess patella_guess;
   for (size_t s = 0; s < result.samples.size(); ++s) {
     const MechanicalState& st = result.samples[s];
     ComputeObservables(model, st, ContactPointSource::kStateCoordinates, &obs);
@@ -193,6 +203,19 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
     for (const ContactObservables& c : obs.contacts) row.push_back(MToMm(c.gap_rate));
     for (const LigamentObservables& l : obs.ligaments) row.push_back(MToMm(l.length));
     for (const LigamentObservables& l : obs.ligaments) row.push_back(l.strain);
+    if (model.patella) {
+      const Patella& p = *model.patella;
+      SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(q)), "MakeTrajectoryTable", &patella_guess);
+      const std::array<double, kPatellaUnknowns>& x = patella_guess.x;
+      const double quadriceps = QuadricepsMagnitude(p.quadriceps, st.t);
+      for (int i = 0; i < 3; ++i) row.push_back(MToMm(x[i]));
+      for (int i = 3; i < 6; ++i) row.push_back(RadToDeg(x[i]));
+      row.push_back(quadriceps);
+      row.push_back(x[kPatellaTendonRatio] * quadriceps);
+      row.push_back(x[kPatellaFacetRatio] * quadriceps);
+      row.push_back(x[kPatellaFacetRatio + 1] * quadriceps);
+      row.push_back(x[kPatellaTendonRatio]);
+    }
     table.rows.push_back(std::move(row));
   }
   return table;

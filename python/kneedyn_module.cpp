@@ -290,6 +290,7 @@ PYBIND11_MODULE(_kneedyn, m) {
         if (IsFixedStep(f, i)) fixed.push_back(OptionName(i));
       }
       d["fixed_step_integrators"] = fixed;
+      d["needs_patella"] = f.needs_patella;
       out.append(d);
     }
     return out;

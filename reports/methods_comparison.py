@@ -61,7 +61,8 @@ def builtin_integrator_methods(kneedyn=None, results=()):
   if kneedyn and os.path.exists(kneedyn):
     p = subprocess.run([kneedyn, "formulations"], capture_output=True, text=True)
     if p.returncode == 0:
-      return [line.split()[0] for line in p.stdout.splitlines() if line.strip() and "--integrator" not in line]
+      return [line.split()[0] for line in p.stdout.splitlines() if line.strip() and "--integrator" not in line
+              and "needs a patella" not in line]
   return list(dict.fromkeys(r.get("formulation") for r in results if not r.get("integrator")))
 
 

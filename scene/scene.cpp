@@ -9,6 +9,7 @@
 #include "scene/internal/sections.hpp"
 #include "solver/error.hpp"
 #include "solver/model_builder.hpp"
+#include "solver/patella.hpp"
 
 namespace kneedyn {
 namespace {
@@ -108,6 +109,7 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label, const s
   ParseGravity(top, ps, &model);
   ParsePulse(top, &model);
   ParseConstantLoad(top, &model);
+  ParsePatella(top, &model);
   scene.model = BuildModel(model, ps.reference_q);
 
   const InitialStateRequest request = ParseInitialState(top, ps, model);
@@ -117,6 +119,13 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label, const s
     scene.initial = BuildInitialState(scene.model, ps.reference_q, chapter_surfaces, request);
   } catch (const InputError& e) {
     top.Required("initial_state").Fail(e.what());
+  }
+  if (scene.model.patella) {  // the patella's equilibrium at the initial pose (builder)
+    try {
+      SolvePatellaStart(ps.reference_q, scene.initial.q, &*scene.model.patella);
+    } catch (const InputError& e) {
+      top.Required("patella").Fail(e.what());
+    }
   }
   ParseEndAndOutput(top, &scene);
   return scene;

@@ -19,13 +19,18 @@ const std::vector<SceneKeyTable>& SceneMappingKeys() {
       // A scene file.
       {"scene", {"name", "description", "parameter_set", "body", "angular_velocity_map", "ligament_law", "ligaments",
                  "ligament_stiffness_scale", "ligament_parameters", "contacts", "surfaces", "gravity", "pulse",
-                 "constant_load", "initial_state", "end", "output"}},
+                 "constant_load", "initial_state", "end", "output", "patella"}},
       {"scene.body", {"mass_kg", "principal_inertia_kg_m2"}},
       {"scene.ligament_parameters.NAME", {"k_linear_N_mm", "k_parabolic_N_mm2", "extension_ratio"}},
       {"scene.surfaces", {"medial", "lateral"}},
       {"scene.gravity", {"enabled", "direction_F", "magnitude_m_s2"}},
       {"scene.pulse", {"shape", "amplitude_N", "duration_s", "direction_T"}},
       {"scene.constant_load", {"force_F_N", "torque_T_N_m"}},
+      {"scene.patella", {"trochlea_medial", "trochlea_lateral", "facet_medial", "facet_lateral", "apex_P_mm",
+                         "base_P_mm", "tuberosity_T_mm", "tendon_length_mm", "quadriceps"}},
+      {"scene.patella.trochlea", {"centre_mm", "radius_mm"}},
+      {"scene.patella.facet", {"normal_P", "offset_mm"}},
+      {"scene.patella.quadriceps", {"shape", "magnitude_N", "baseline_N", "duration_s", "direction_F"}},
       {"scene.initial_state", {"pose", "coordinates", "velocities", "hold", "guesses", "normal_force_guesses_N",
                                "contact_guess_offset_mm", "origin", "start"}},
       {"scene.initial_state.coordinates", {"x0_mm", "y0_mm", "z0_mm", "alpha_deg", "beta_deg", "gamma_deg"}},
@@ -64,6 +69,8 @@ const std::vector<SceneKeyTable>& SceneFieldValues() {
       {"scene.contacts[]", {"medial", "lateral"}},
       // As solver/loads.cpp's ParsePulseShape reads them (checked by tests/scene_test.cpp).
       {"scene.pulse.shape", {"reconstructed", "half_sine", "reconstructed_peak", "damped_sine", "none"}},
+      // As solver/patella.cpp's ParseQuadricepsShape reads them.
+      {"scene.patella.quadriceps.shape", {"constant", "ramp", "half_sine"}},
       {"surface.type", {"sphere_cap", "plane", "ellipsoid_cap", "polynomial"}},
       {"scene.initial_state.pose", {"reference", "explicit", "assemble"}},
       {"scene.initial_state.guesses", {"pose", "chapter"}},

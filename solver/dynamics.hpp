@@ -14,6 +14,7 @@
 #include "solver/contact_kinematics.hpp"
 #include "solver/ligament.hpp"
 #include "solver/loads.hpp"
+#include "solver/patella.hpp"
 
 namespace kneedyn {
 
@@ -30,6 +31,14 @@ struct DataTpl {
   double pulse_magnitude = 0.0;     // Fe(t), N
   // Optional branch per ligament (ligament.hpp, discontinuity locking); null = by length.
   const std::vector<signed char>* ligament_branch = nullptr;
+  // Patella (model.patella only): the warm start of its equilibrium solve, and the tendon
+  // tension F_t (N) of the last computation.
+  PatellaGuess patella_guess;
+  T tendon_tension = T(0.0);
+  // Staggered coupling (chapter §1.7): when set, the tendon pulls the tibia with the
+  // tension and towards the apex position found at the end of the previous step (held over
+  // the step) instead of the patella's equilibrium at the current pose.
+  const LaggedTendon* lagged_tendon = nullptr;
 };
 using Data = DataTpl<double>;
 
@@ -64,6 +73,18 @@ void ComputeAppliedWrench(const Model& model, double t, const PoseTpl<T>& pose,
     const Vector3<T> f_F = tension * span_F / length;  // towards the femoral attachment
     force += f_F;
     moment += lig.p_ToB_T.template cast<T>().cross(R_TF * f_F);
+  }
+  if (model.patella) {  // the patellar tendon at the tuberosity (docs/model.md §12, Eq. 1.63)
+    Vector3<T> f_F;
+    if (data->lagged_tendon != nullptr) {
+      const Vector3<T> span_F = data->lagged_tendon->apex_F.template cast<T>() - TuberosityInF(*model.patella, pose);
+      data->tendon_tension = T(data->lagged_tendon->tension);
+      f_F = data->tendon_tension * span_F / span_F.norm();
+    } else {
+      PatellarTendonForce(*model.patella, t, pose, &data->patella_guess, &data->tendon_tension, &f_F);
+    }
+    force += f_F;
+    moment += model.patella->tuberosity_T.template cast<T>().cross(R_TF * f_F);
   }
   data->applied_force_F = force;
   data->applied_moment_T = moment;

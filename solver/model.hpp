@@ -74,6 +74,39 @@ struct ConstantLoad {
   Vector3d torque_T = Vector3d::Zero();  // N m
 };
 
+// Magnitude of the quadriceps force against time (docs/model.md §12):
+//   constant   F_Q = magnitude
+//   ramp       F_Q = baseline + (magnitude − baseline) min(t / duration, 1)
+//   half_sine  F_Q = baseline + magnitude sin(π t / duration) on [0, duration], baseline after
+enum class QuadricepsShape { kConstant, kRamp, kHalfSine };
+
+struct QuadricepsForce {
+  QuadricepsShape shape = QuadricepsShape::kConstant;
+  double magnitude = 0.0;  // N
+  double baseline = 0.0;   // N (ramp start, half-sine base)
+  double duration = 0.1;   // s
+  Vector3d direction_F = Vector3d::UnitZ();  // unit line of action on the patella, fixed in F
+};
+
+// The patella (docs/model.md §12): a massless third body whose pose relative to the femur
+// is the solution of its equilibrium (solver/patella.hpp). Frame P: origin on the
+// patellar ridge, axes parallel to F in the reference patellar pose.
+struct Patella {
+  // Trochlear facet of the femur (in F) against the patellar facet (in P, normal towards
+  // the femur): medial = facet[0], lateral = facet[1]. ContactPair's "tibial" surface is
+  // the patellar one here; the contact kinematics are those of the tibia (contact.hpp).
+  std::array<ContactPair, 2> facet;
+  Vector3d apex_P = Vector3d::Zero();        // patellar apex (tendon origin), m
+  Vector3d base_P = Vector3d::Zero();        // patellar base (quadriceps insertion), m
+  Vector3d tuberosity_T = Vector3d::Zero();  // tibial tuberosity (tendon insertion), m
+  double tendon_length = 0.0;                // rigid patellar tendon, apex to tuberosity, m
+  QuadricepsForce quadriceps;
+  // Starting guess of the equilibrium solve (PatellaUnknowns, patella.hpp) and the tibial
+  // coordinates q it solves at: the model builder's solution at the initial pose.
+  std::array<double, 17> start_unknowns{};
+  Vector6d start_q = Vector6d::Zero();
+};
+
 struct Model {
   double mass = 0.0;                               // kg
   Vector3d inertia_T = Vector3d::Zero();           // principal moments about the COM, kg m²
@@ -89,6 +122,9 @@ struct Model {
   LigamentLaw ligament_law = LigamentLaw::kPublished;
   // The exact angular velocity, or the chapter's printed Eq. 1.20b (docs/model.md §2).
   AngularVelocityMapReading angular_velocity_map = AngularVelocityMapReading::kExact;
+  // Present only when the scene has a patella: section; then the patellar tendon force
+  // acts on the tibia at the tuberosity (dynamics.hpp).
+  std::optional<Patella> patella;
 
   // Index of the contact pair for a compartment, or -1 when the scene has none there.
   int ContactIndex(Compartment c) const;

@@ -193,6 +193,7 @@ Model BuildModel(const ModelDescription& d, const Vector6d& reference_q) {
   model.angular_velocity_map = d.angular_velocity_map;
   model.contacts = d.contacts;
   model.pulse = d.pulse;
+  model.patella = d.patella;
   model.constant_load = d.constant_load;
   const Pose reference = PoseFromCoordinates(reference_q);
   model.ligaments = d.ligaments;

@@ -103,6 +103,9 @@ struct ModelDescription {
   std::vector<ContactPair> contacts;
   Pulse pulse;
   ConstantLoad constant_load;
+  // Scene section patella (docs/model.md §12); its start guess is set by SolvePatellaStart
+  // (solver/patella.hpp) once the initial pose is known.
+  std::optional<Patella> patella;
 };
 
 // The Model: ligament lengths at `reference_q` and k_par by the law.

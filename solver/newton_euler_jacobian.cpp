@@ -51,6 +51,26 @@ void AppliedWrenchPartials(const Model& model, double t, const Vector6d& q, cons
     for (int a = 0; a < 3; ++a) dRtf.col(3 + a) += dR[a].transpose() * f_F;
     D.bottomRows<3>() += Sb * dRtf;
   }
+  // Patellar tendon at the tuberosity (docs/model.md §12): a Jet over q through the
+  // implicit-function lift of the patella's equilibrium (PatellarTendonForce).
+  if (model.patella) {
+    using J6 = ceres::Jet<double, 6>;
+    const PoseTpl<J6> pose = PoseWithCoordinateDerivatives<6>(q);
+    Vector3<J6> f_F;
+    if (data.lagged_tendon != nullptr) {
+      const Vector3<J6> span_F = data.lagged_tendon->apex_F.cast<J6>() - TuberosityInF(*model.patella, pose);
+      f_F = J6(data.lagged_tendon->tension) * span_F / span_F.norm();
+    } else {
+      PatellaGuess guess = data.patella_guess;
+      J6 tension;
+      PatellarTendonForce(*model.patella, t, pose, &guess, &tension, &f_F);
+    }
+    const Vector3<J6> moment_T = model.patella->tuberosity_T.cast<J6>().cross(pose.R_FT.transpose() * f_F);
+    for (int i = 0; i < 3; ++i) {
+      D.row(i) += f_F(i).v.transpose();
+      D.row(3 + i) += moment_T(i).v.transpose();
+    }
+  }
 }
 
 void FreeNewtonEulerPartials(const Model& model, double t, const Vector6d& q, const Vector6d& qd,

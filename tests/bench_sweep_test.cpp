@@ -85,6 +85,7 @@ TEST_F(ShortSweep, CoversEveryRegisteredFormulation) {
   std::set<std::string> seen;
   for (const auto& r : json_["results"]) seen.insert(r["formulation"].get<std::string>());
   for (const kneedyn::FormulationInfo& info : kneedyn::RegisteredFormulations()) {
+    if (info.needs_patella) continue;  // the sweep's scene has no patella
     EXPECT_TRUE(seen.count(info.name)) << info.name;
   }
 }

@@ -30,9 +30,12 @@ inline const Scene& ChapterScene() {
   return scene;
 }
 
+// Those that run the tibio-femoral scenes (not the ones that need a patella).
 inline std::vector<std::string> RegisteredFormulationNames() {
   std::vector<std::string> names;
-  for (const FormulationInfo& info : RegisteredFormulations()) names.push_back(info.name);
+  for (const FormulationInfo& info : RegisteredFormulations()) {
+    if (!info.needs_patella) names.push_back(info.name);
+  }
   return names;
 }
 

@@ -9,6 +9,7 @@
 
 #include "ensembles/sweep_spec.hpp"
 #include "solver/error.hpp"
+#include "solver/patella.hpp"
 #include "solver/pose.hpp"
 
 using namespace kneedyn;
@@ -152,6 +153,28 @@ TEST(SweepSpec, PrincipalInertiaIsAParameter) {
   EXPECT_DOUBLE_EQ(scene.model.inertia_T.x(), 0.065);
   EXPECT_DOUBLE_EQ(scene.model.inertia_T.y(), 0.0672);
   EXPECT_THROW(Parse(Spec("  - {name: inertia_w, relative: 0.1}")), InputError);
+}
+
+// The patella's quadriceps magnitude and tendon length are sweep parameters of a scene with
+// a patella (nominal values from patellofemoral_impact.yaml: 50 N, 42 mm); a longer tendon
+// moves the patella's start equilibrium, whose tendon then has the new length.
+TEST(SweepSpec, QuadricepsAndTendonLengthAreParameters) {
+  const std::string params = "  - {name: quadriceps.magnitude, uniform: [40, 60]}\n"
+                             "  - {name: patella.tendon_length, uniform: [40, 46]}";
+  const SweepSpec s = Parse("scene: patellofemoral_impact.yaml\nparameters:\n" + params +
+                            "\ndesign: {type: sobol, samples: 4}\noutcomes: [liftoff_time]\n");
+  EXPECT_EQ(s.parameters[0].kind, ParameterKind::kQuadricepsMagnitude);
+  EXPECT_DOUBLE_EQ(s.parameters[0].nominal, 50.0);
+  EXPECT_EQ(s.parameters[1].column, "patella.tendon_length_mm");
+  EXPECT_DOUBLE_EQ(s.parameters[1].nominal, 42.0);
+  const Scene scene = SceneForRun(s, {55.0, 45.0});
+  const Patella& p = *scene.model.patella;
+  EXPECT_DOUBLE_EQ(p.quadriceps.magnitude, 55.0);
+  EXPECT_DOUBLE_EQ(p.tendon_length, 0.045);
+  const Vector3d apex_F = PatellaPose(p.start_unknowns.data()).PointInF(p.apex_P);
+  const Vector3d tuberosity_F = TuberosityInF(p, PoseFromCoordinates(p.start_q));
+  EXPECT_NEAR((tuberosity_F - apex_F).norm(), 0.045, 1e-13);
+  EXPECT_NE(Rejection(Spec("  - {name: quadriceps.magnitude, uniform: [40, 60]}")).find("no patella"), std::string::npos);
 }
 
 TEST(SweepSpec, InverseNormalCdfMatchesScipy) {

@@ -35,6 +35,7 @@ void ParseBody(const Field& top, const ParameterSet& ps, ModelDescription* model
 void ParseGravity(const Field& top, const ParameterSet& ps, ModelDescription* model);       // loads.cpp
 void ParsePulse(const Field& top, ModelDescription* model);                                 // loads.cpp
 void ParseConstantLoad(const Field& top, ModelDescription* model);                          // loads.cpp
+void ParsePatella(const Field& top, ModelDescription* model);                               // patella.cpp
 void ParseLigaments(const Field& top, const ParameterSet& ps, ModelDescription* model);     // ligaments.cpp
 void ParseContacts(const Field& top, const ParameterSet& ps, ModelDescription* model);      // surfaces.cpp
 InitialStateRequest ParseInitialState(const Field& top, const ParameterSet& ps,

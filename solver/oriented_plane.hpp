@@ -1,0 +1,32 @@
+// A plane with any unit normal n̂ (towards the body it faces) and offset d, n̂ · p = d, in
+// the frame of the bone that carries it. The patellar facets face the femur, i.e. roughly
+// posteriorly, where a height field z = h(x, y) of PlaneSurface cannot describe them
+// (docs/model.md §12). Regular chart: P(u, v) = d n̂ + u e1 + v e2 with e1 × e2 = n̂, so
+// that P_u × P_v = n̂ points out of the surface towards the other body, as the contact
+// kinematics expect of a tibial surface (height_field.hpp).
+#pragma once
+
+#include "solver/height_field.hpp"
+
+namespace kneedyn {
+
+class OrientedPlane final : public HeightField {
+ public:
+  // Throws InputError for a zero or non-finite normal or a non-finite offset (m).
+  OrientedPlane(const Vector3d& normal, double offset);
+  // Height-field chart z = (d − n_x x − n_y y) / n_z: false where the plane is within
+  // 1e-6 of vertical (n_z ≈ 0).
+  bool Evaluate(double x, double y, HeightSample* sample) const override;
+  std::string Describe() const override;
+  bool EvaluateChart(double u, double v, ChartSample* sample) const override;
+  void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
+  bool PlaneForm(Vector3d* unit_normal, double* offset) const override;
+  const Vector3d& normal() const { return normal_; }
+  double offset() const { return offset_; }
+
+ private:
+  Vector3d normal_, e1_, e2_;
+  double offset_;
+};
+
+}  // namespace kneedyn

@@ -1,0 +1,247 @@
+#include "solver/patella.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "solver/error.hpp"
+
+namespace kneedyn {
+namespace {
+
+using PatellaJet = ceres::Jet<double, kPatellaUnknowns>;
+constexpr int kMaxNewtonIterations = 30;
+// Newton stops one step after max |Δx| ≤ this (m, rad, chart units, force ratios): the
+// convergence is quadratic, so that last step reaches round-off.
+constexpr double kNewtonStepTolerance = 1.0e-10;
+
+// r(x) and ∂r/∂x at x; false outside a chart.
+bool Linearize(const Patella& patella, const Vector3d& tuberosity_F, const std::array<double, kPatellaUnknowns>& x,
+               Eigen::Matrix<double, kPatellaUnknowns, 1>* r, PatellaJacobian* J) {
+  PatellaJet xj[kPatellaUnknowns], rj[kPatellaUnknowns];
+  for (int i = 0; i < kPatellaUnknowns; ++i) xj[i] = PatellaJet(x[i], i);
+  if (!PatellaResiduals(patella, Vector3<PatellaJet>(tuberosity_F.cast<PatellaJet>()), xj, rj)) return false;
+  for (int i = 0; i < kPatellaUnknowns; ++i) {
+    (*r)(i) = rj[i].a;
+    J->row(i) = rj[i].v.transpose();
+    if (!std::isfinite(rj[i].a)) return false;
+  }
+  return true;
+}
+
+// Newton from *x at R_a; true on convergence (then *x is the solution).
+bool Newton(const Patella& patella, const Vector3d& tuberosity_F, std::array<double, kPatellaUnknowns>* x,
+            Eigen::PartialPivLU<PatellaJacobian>* lu_out) {
+  Eigen::Matrix<double, kPatellaUnknowns, 1> r;
+  PatellaJacobian J;
+  bool last = false;
+  for (int iteration = 0; iteration < kMaxNewtonIterations; ++iteration) {
+    if (!Linearize(patella, tuberosity_F, *x, &r, &J)) return false;
+    Eigen::PartialPivLU<PatellaJacobian> lu(J);
+    const Eigen::Matrix<double, kPatellaUnknowns, 1> dx = -lu.solve(r);
+    if (!dx.allFinite()) return false;
+    for (int i = 0; i < kPatellaUnknowns; ++i) (*x)[i] += dx(i);
+    if (last) {
+      if (lu_out != nullptr) *lu_out = lu;
+      return true;
+    }
+    if (dx.cwiseAbs().maxCoeff() <= kNewtonStepTolerance) last = true;
+  }
+  return false;
+}
+
+}  // namespace
+
+const char* PatellaUnknownName(int i) {
+  static const char* const kNames[kPatellaUnknowns] = {
+      "patella_shift", "patella_anterior", "patella_proximal", "patella_flexion", "patella_tilt",
+      "patella_rotation", "medial_uf", "medial_vf", "medial_up", "medial_vp", "lateral_uf", "lateral_vf",
+      "lateral_up", "lateral_vp", "medial_facet_ratio", "lateral_facet_ratio", "tendon_ratio"};
+  return i >= 0 && i < kPatellaUnknowns ? kNames[i] : "?";
+}
+
+double QuadricepsMagnitude(const QuadricepsForce& q, double t) {
+  const double s = std::max(t, 0.0) / q.duration;
+  switch (q.shape) {
+    case QuadricepsShape::kConstant:
+      return q.magnitude;
+    case QuadricepsShape::kRamp:
+      return q.baseline + (q.magnitude - q.baseline) * std::min(s, 1.0);
+    case QuadricepsShape::kHalfSine:
+      return s <= 1.0 ? q.baseline + q.magnitude * std::sin(kPi * s) : q.baseline;
+  }
+  return 0.0;
+}
+
+bool QuadricepsPositive(const QuadricepsForce& q, std::string* why) {
+  // Extremes over t ≥ 0: the magnitude (constant); both ends (ramp: linear, then constant);
+  // the base and the peak base + magnitude (half-sine, sin ∈ [0, 1]).
+  const char* shape = QuadricepsShapeName(q.shape);
+  auto fail = [&](const char* field, double value, const std::string& rule) {
+    if (why) *why = StrCat("patella.quadriceps.", field, " = ", value, " N with shape ", shape, ": ", rule);
+    return false;
+  };
+  switch (q.shape) {
+    case QuadricepsShape::kConstant:
+      if (!(q.magnitude > 0.0)) return fail("magnitude_N", q.magnitude, "the quadriceps force must be > 0");
+      return true;
+    case QuadricepsShape::kRamp:
+      if (!(q.baseline > 0.0)) {
+        return fail("baseline_N", q.baseline, "the ramp starts there at t = 0; the quadriceps force must be > 0 over the run");
+      }
+      if (!(q.magnitude > 0.0)) {
+        return fail("magnitude_N", q.magnitude, "the ramp ends there; the quadriceps force must be > 0 over the run");
+      }
+      return true;
+    case QuadricepsShape::kHalfSine:
+      if (!(q.baseline > 0.0)) {
+        return fail("baseline_N", q.baseline, "the half-sine starts and ends there; the quadriceps force must be > 0 over the run");
+      }
+      if (!(q.baseline + q.magnitude > 0.0)) {
+        return fail("magnitude_N", q.magnitude, StrCat("baseline + magnitude = ", q.baseline + q.magnitude,
+                                                       " N at the peak; the quadriceps force must be > 0 over the run"));
+      }
+      return true;
+  }
+  return false;
+}
+
+QuadricepsShape ParseQuadricepsShape(const std::string& name) {
+  if (name == "constant") return QuadricepsShape::kConstant;
+  if (name == "ramp") return QuadricepsShape::kRamp;
+  if (name == "half_sine") return QuadricepsShape::kHalfSine;
+  Throw<InputError>("ParseQuadricepsShape", "unknown quadriceps shape '", name, "'; expected one of: constant, ramp, half_sine");
+}
+
+const char* QuadricepsShapeName(QuadricepsShape shape) {
+  switch (shape) {
+    case QuadricepsShape::kConstant: return "constant";
+    case QuadricepsShape::kRamp: return "ramp";
+    case QuadricepsShape::kHalfSine: return "half_sine";
+  }
+  return "?";
+}
+
+void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const char* caller, PatellaGuess* guess,
+                  Eigen::PartialPivLU<PatellaJacobian>* jacobian_lu) {
+  if (!guess->valid) {
+    guess->x = patella.start_unknowns;
+    guess->tuberosity_F = PoseFromCoordinates(patella.start_q).PointInF(patella.tuberosity_T);
+    guess->valid = true;
+  }
+  std::array<double, kPatellaUnknowns> x = guess->x;
+  if (Newton(patella, tuberosity_F, &x, jacobian_lu)) {
+    guess->x = x;
+    guess->tuberosity_F = tuberosity_F;
+    return;
+  }
+  for (int steps = 2; steps <= 256; steps *= 2) {
+    x = guess->x;
+    bool ok = true;
+    for (int k = 1; k <= steps && ok; ++k) {
+      const double s = static_cast<double>(k) / steps;
+      const Vector3d target = (1.0 - s) * guess->tuberosity_F + s * tuberosity_F;
+      ok = Newton(patella, target, &x, k == steps ? jacobian_lu : nullptr);
+    }
+    if (ok) {
+      guess->x = x;
+      guess->tuberosity_F = tuberosity_F;
+      return;
+    }
+  }
+  Throw<SolverError>(caller, "no patellar equilibrium found at the tuberosity position (", MToMm(tuberosity_F.x()), ", ",
+                     MToMm(tuberosity_F.y()), ", ", MToMm(tuberosity_F.z()), ") mm in F (Newton from the last solution at (",
+                     MToMm(guess->tuberosity_F.x()), ", ", MToMm(guess->tuberosity_F.y()), ", ",
+                     MToMm(guess->tuberosity_F.z()), ") mm and 256-step continuation both failed; docs/model.md §12)");
+}
+
+double PatellaResidualNorm(const Patella& patella, const Vector3d& tuberosity_F,
+                           const std::array<double, kPatellaUnknowns>& x) {
+  double r[kPatellaUnknowns];
+  if (!PatellaResiduals(patella, tuberosity_F, x.data(), r)) return std::numeric_limits<double>::infinity();
+  double norm = 0.0;
+  for (double v : r) norm = std::max(norm, std::abs(v));
+  return norm;
+}
+
+void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, Patella* patella) {
+  // Geometric guess at the reference pose: zero angles; the origin o such that each facet
+  // plane n_i · (p − o) = d_i touches its sphere, n_i · (C_i − o) − d_i = r_i (two linear
+  // equations in o, least-norm in their span); then o moved along the remaining direction
+  // until the tendon has its length, the apex proximal of the tuberosity.
+  const Vector3d tuberosity_F = PoseFromCoordinates(reference_q).PointInF(patella->tuberosity_T);
+  Eigen::Matrix<double, 2, 3> A;
+  Eigen::Vector2d b;
+  Vector3d centre[2];
+  double radius[2];
+  Vector3d normal[2];
+  double offset[2];
+  for (int i = 0; i < 2; ++i) {
+    if (!patella->facet[i].femoral_surface->SphereForm(&centre[i], &radius[i]) ||
+        !patella->facet[i].tibial_surface->PlaneForm(&normal[i], &offset[i])) {
+      Throw<InputError>("SolvePatellaStart", "patellar facet ", i, ": the start guess needs a trochlear sphere and a patellar plane");
+    }
+    A.row(i) = normal[i].transpose();
+    b(i) = normal[i].dot(centre[i]) - offset[i] - radius[i];
+  }
+  Vector3d origin = A.completeOrthogonalDecomposition().solve(b);
+  Vector3d free_direction = normal[0].cross(normal[1]);
+  if (free_direction.norm() < 1e-9) Throw<InputError>("SolvePatellaStart", "the two patellar facets are parallel");
+  free_direction.normalize();
+  if (free_direction.z() < 0.0) free_direction = -free_direction;
+  // |o + s e + apex − R_a| = L, largest root s.
+  const Vector3d w = origin + patella->apex_P - tuberosity_F;
+  const double half_b = w.dot(free_direction), c = w.squaredNorm() - patella->tendon_length * patella->tendon_length;
+  const double disc = half_b * half_b - c;
+  if (!(disc >= 0.0)) Throw<InputError>("SolvePatellaStart", "the tendon (length ", MToMm(patella->tendon_length),
+                                        " mm) cannot reach the tuberosity with both facets in contact");
+  origin += (-half_b + std::sqrt(disc)) * free_direction;
+  std::array<double, kPatellaUnknowns> x{};
+  for (int k = 0; k < 3; ++k) x[k] = origin(k);
+  for (int i = 0; i < 2; ++i) {
+    const Vector3d on_sphere = centre[i] - radius[i] * normal[i];
+    patella->facet[i].femoral_surface->ChartCoordinates(on_sphere, &x[kPatellaChart + 4 * i]);
+    patella->facet[i].tibial_surface->ChartCoordinates(on_sphere - origin, &x[kPatellaChart + 4 * i + 2]);
+  }
+  // Force ratios: least squares of the force balance with the guessed pose.
+  const Vector3d apex_F = origin + patella->apex_P;
+  Eigen::Matrix3d M;
+  M.col(0) = -normal[0];
+  M.col(1) = -normal[1];
+  M.col(2) = (tuberosity_F - apex_F).normalized();
+  const Vector3d ratios = M.completeOrthogonalDecomposition().solve(Vector3d(-patella->quadriceps.direction_F));
+  x[kPatellaFacetRatio] = ratios(0);
+  x[kPatellaFacetRatio + 1] = ratios(1);
+  x[kPatellaTendonRatio] = ratios(2);
+  patella->start_q = reference_q;
+  patella->start_unknowns = x;
+  PatellaGuess guess;
+  guess.x = x;
+  guess.tuberosity_F = tuberosity_F;
+  guess.valid = true;
+  try {
+    SolvePatella(*patella, tuberosity_F, "SolvePatellaStart", &guess);
+    // To the initial pose, 1° or less per step: the angles interpolated linearly and the
+    // tibial point that sits at F's origin in the reference pose (the knee's centre)
+    // moved on the straight line between its positions, so that the tibia turns about
+    // the knee, as it does, and not about its centre of mass.
+    const Pose reference = PoseFromCoordinates(reference_q), initial = PoseFromCoordinates(initial_q);
+    const Vector3d knee_T = reference.PointInT(Vector3d::Zero());
+    const Vector3d knee_start_F = Vector3d::Zero(), knee_end_F = initial.PointInF(knee_T);
+    const double angle = (initial_q - reference_q).tail<3>().cwiseAbs().maxCoeff();
+    const int steps = std::max(1, static_cast<int>(std::ceil(angle / DegToRad(1.0))));
+    for (int k = 1; k <= steps; ++k) {
+      const double s = static_cast<double>(k) / steps;
+      Vector6d q = reference_q + (initial_q - reference_q) * s;
+      const Pose rotated = PoseFromCoordinates(q);
+      q.head<3>() = (1.0 - s) * knee_start_F + s * knee_end_F - rotated.R_FT * knee_T;
+      SolvePatella(*patella, PoseFromCoordinates(q).PointInF(patella->tuberosity_T), "SolvePatellaStart", &guess);
+    }
+  } catch (const SolverError& e) {
+    Throw<InputError>("SolvePatellaStart", "no patellar equilibrium at the scene's start: ", e.what());
+  }
+  patella->start_q = initial_q;
+  patella->start_unknowns = guess.x;
+}
+
+}  // namespace kneedyn

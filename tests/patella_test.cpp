@@ -1,0 +1,236 @@
+// The patello-femoral joint (docs/model.md §12): the patella's equilibrium, the tendon
+// force's derivative, the refusal of a non-pulling quadriceps, and the three couplings
+// (ODE check, Newton-based DAE, staggered) against each other.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "formulations/formulation.hpp"
+#include "formulations/run.hpp"
+#include "scene/scene.hpp"
+#include "solver/contact_kinematics.hpp"
+#include "solver/dynamics.hpp"
+#include "solver/patella.hpp"
+
+namespace kneedyn {
+namespace {
+
+Scene ImpactScene() { return LoadScene("reference-data/scenes/patellofemoral_impact.yaml"); }
+
+// Tibial poses the knee passes through: the chapter's impact (no patella, ede) at the first
+// output rows past the given flexion angles.
+std::vector<Vector6d> ChapterPoses(const std::vector<double>& alpha_deg) {
+  RunSettings settings;
+  settings.formulation = "ede";
+  const RunResult run = RunScene(LoadScene("reference-data/scenes/chapter_impact.yaml"), settings);
+  std::vector<Vector6d> poses;
+  for (double a : alpha_deg) {
+    for (const MechanicalState& s : run.samples) {
+      if (s.q(kAlpha) >= DegToRad(a) - 1e-9) {
+        poses.push_back(s.q);
+        break;
+      }
+    }
+  }
+  EXPECT_EQ(poses.size(), alpha_deg.size());
+  return poses;
+}
+
+TEST(Patella, EquilibriumHoldsAtTheSolvedPatellaByASecondContactDescription) {
+  const Scene scene = ImpactScene();
+  ASSERT_TRUE(scene.model.patella.has_value());
+  const Patella& patella = *scene.model.patella;
+  for (const Vector6d& q : ChapterPoses({0.0, 30.0, 60.0, 89.0})) {
+    SCOPED_TRACE(q(kAlpha));
+    PatellaGuess guess;
+    const Vector3d tuberosity_F = TuberosityInF(patella, PoseFromCoordinates(q));
+    SolvePatella(patella, tuberosity_F, "test", &guess);
+    EXPECT_LT(PatellaResidualNorm(patella, tuberosity_F, guess.x), 1e-13);
+    // Independent of the chapter-form residuals: the closed-form sphere-on-plane contact
+    // (contact.hpp) at the solved pose closes both facets, and the six equilibrium
+    // equations written with its contact points and the tendon from the apex hold in N.
+    const Pose pose = PatellaPose(guess.x.data());
+    const double F_Q = 50.0;
+    Vector3d force = F_Q * patella.quadriceps.direction_F;
+    const Vector3d base_F = pose.PointInF(patella.base_P), apex_F = pose.PointInF(patella.apex_P);
+    Vector3d moment = base_F.cross(force);  // about F's origin this time
+    EXPECT_NEAR((tuberosity_F - apex_F).norm(), patella.tendon_length, 1e-14);
+    const Vector3d tendon = guess.x[kPatellaTendonRatio] * F_Q * (tuberosity_F - apex_F).normalized();
+    force += tendon;
+    moment += apex_F.cross(tendon);
+    for (int i = 0; i < 2; ++i) {
+      SphereOnPlane sop;
+      ASSERT_TRUE(SphereOnPlaneForm(patella.facet[i], &sop));
+      const ContactGeometry g = SphereOnPlaneContact(sop, pose);
+      EXPECT_NEAR(g.gap, 0.0, 1e-14) << "facet " << i;
+      const double N = guess.x[kPatellaFacetRatio + i] * F_Q;
+      EXPECT_GT(N, 0.0) << "facet " << i << " pulls";
+      const Vector3d contact_force = -N * (pose.R_FT * g.normal_T);
+      force += contact_force;
+      moment += g.point_F.cross(contact_force);
+    }
+    EXPECT_LT(force.norm(), 1e-11 * F_Q);
+    EXPECT_LT(moment.norm(), 1e-12 * F_Q);
+    EXPECT_GT(guess.x[kPatellaTendonRatio], 0.0);
+  }
+}
+
+TEST(Patella, TendonForceDerivativeMatchesCentralDifferences) {
+  const Scene scene = ImpactScene();
+  const Patella& patella = *scene.model.patella;
+  const Vector6d q = ChapterPoses({40.0}).at(0);
+  using J6 = ceres::Jet<double, 6>;
+  Vector6<J6> qj;
+  for (int i = 0; i < 6; ++i) qj(i) = J6(q(i), i);
+  PatellaGuess guess;
+  J6 tension;
+  Vector3<J6> force;
+  PatellarTendonForce(patella, 0.0, PoseFromCoordinates(qj), &guess, &tension, &force);
+  for (int i = 0; i < 6; ++i) {
+    const double h = i < 3 ? 1e-6 : 1e-5;
+    Vector6d qp = q, qm = q;
+    qp(i) += h;
+    qm(i) -= h;
+    double tp, tm;
+    Vector3d fp, fm;
+    PatellaGuess g = guess;
+    PatellarTendonForce(patella, 0.0, PoseFromCoordinates(qp), &g, &tp, &fp);
+    PatellarTendonForce(patella, 0.0, PoseFromCoordinates(qm), &g, &tm, &fm);
+    const Vector3d fd = (fp - fm) / (2 * h);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(force(k).v(i), fd(k), 1e-6 * (1.0 + fd.norm())) << "dF_" << k << "/dq_" << i;
+    }
+    EXPECT_NEAR(tension.v(i), (tp - tm) / (2 * h), 1e-6 * (1.0 + std::abs(tension.v(i))));
+  }
+}
+
+std::string SceneWithQuadriceps(const std::string& quadriceps) {
+  return R"(name: q
+parameter_set: ../chapter_knee.yaml
+ligaments: all
+contacts: [medial, lateral]
+gravity: {enabled: true}
+pulse: {shape: none}
+patella:
+  trochlea_medial: {centre_mm: [-22.0, -8.0, 14.0], radius_mm: 28.0}
+  trochlea_lateral: {centre_mm: [22.0, -8.0, 14.0], radius_mm: 28.0}
+  facet_medial: {normal_P: [-0.5, -0.8660254037844386, 0.0], offset_mm: 0.0}
+  facet_lateral: {normal_P: [0.42261826174069944, -0.9063077870366499, 0.0], offset_mm: 0.0}
+  apex_P_mm: [0.0, 8.0, -22.0]
+  base_P_mm: [0.0, 12.0, 20.0]
+  tuberosity_T_mm: [4.0, 34.0, 183.0]
+  tendon_length_mm: 42.0
+  quadriceps: )" + quadriceps + R"(
+initial_state: {pose: reference}
+end: {time_s: 0.1}
+)";
+}
+
+TEST(Patella, QuadricepsThatDoesNotPullIsRefusedNamingTheField) {
+  const std::string dir = "reference-data/scenes";
+  const std::pair<std::string, std::string> cases[] = {
+      {"{shape: constant, magnitude_N: 0.0}", "patella.quadriceps.magnitude_N = 0"},
+      {"{shape: constant, magnitude_N: -20}", "patella.quadriceps.magnitude_N = -20"},
+      {"{shape: ramp, magnitude_N: 200.0, duration_s: 0.1}", "patella.quadriceps.baseline_N = 0"},
+      {"{shape: half_sine, baseline_N: 50, magnitude_N: -80, duration_s: 0.1}", "magnitude_N = -80"},
+  };
+  for (const auto& [quadriceps, expected] : cases) {
+    try {
+      ParseScene(SceneWithQuadriceps(quadriceps), "q.yaml", dir);
+      ADD_FAILURE() << quadriceps << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_NO_THROW(ParseScene(SceneWithQuadriceps("{shape: ramp, baseline_N: 10, magnitude_N: 200, duration_s: 0.1}"),
+                             "q.yaml", dir));
+}
+
+TEST(Patella, StaggeredRefusesASceneWithoutPatella) {
+  const Scene chapter = LoadScene("reference-data/scenes/chapter_impact.yaml");
+  EXPECT_FALSE(chapter.model.patella.has_value());
+  FormulationOptions options;
+  options.step = 1e-3;
+  try {
+    CreateFormulation("staggered", chapter, options);
+    ADD_FAILURE() << "staggered accepted a scene without a patella";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no patella"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(FindFormulation("staggered").needs_patella);
+}
+
+RunResult RunWith(const Scene& scene, const std::string& formulation, double rtol, double atol, double step = 0.0) {
+  RunSettings settings;
+  settings.formulation = formulation;
+  settings.options.rtol = rtol;
+  settings.options.atol = atol;
+  settings.options.step = step;
+  RunResult result = RunScene(scene, settings);
+  EXPECT_TRUE(result.completed) << formulation << ": " << result.failure;
+  return result;
+}
+
+// The patella's six coordinates at every event row of a run.
+std::vector<std::array<double, 6>> PatellarPoseAtEvents(const Scene& scene, const RunResult& run) {
+  std::vector<std::array<double, 6>> out;
+  PatellaGuess guess;
+  for (size_t i = 0; i < run.samples.size(); ++i) {
+    if (!run.sample_is_event[i]) continue;
+    const Patella& p = *scene.model.patella;
+    SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(run.samples[i].q)), "test", &guess);
+    out.push_back({guess.x[0], guess.x[1], guess.x[2], guess.x[3], guess.x[4], guess.x[5]});
+  }
+  return out;
+}
+
+// The ODE check (ede: the tibia's ODE, the patella solved inside the right-hand side) and
+// dae (IDA on the tibia's index-2 DAE, the tendon force and its implicit-function
+// derivative in the residual): two integrators, two contact descriptions, one patella.
+TEST(PatellaRuns, OdeAndDaeAgreeOnEventTimesAndPatellarPose) {
+  const Scene scene = ImpactScene();
+  const RunResult ode = RunWith(scene, "ede", 1e-12, 1e-14);
+  // IDA at rtol 1e-11 fails (corrector convergence, h → 1e-14): the patella's Newton solve
+  // inside the residual has a round-off floor that a tighter DAE tolerance cannot pass.
+  const RunResult dae = RunWith(scene, "dae", 1e-10, 1e-12);
+  ASSERT_EQ(ode.events.size(), dae.events.size());
+  ASSERT_GE(ode.events.size(), 1u);
+  for (size_t i = 0; i < ode.events.size(); ++i) {
+    EXPECT_EQ(ode.events[i].name, dae.events[i].name);
+    EXPECT_NEAR(ode.events[i].time, dae.events[i].time, 1e-8 * ode.events[i].time) << ode.events[i].name;
+  }
+  const auto a = PatellarPoseAtEvents(scene, ode), b = PatellarPoseAtEvents(scene, dae);
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    for (int k = 0; k < 6; ++k) {
+      const double scale = k < 3 ? 0.05 : 1.0;  // m, rad: the size of the coordinate
+      EXPECT_NEAR(a[i][k], b[i][k], 1e-8 * scale) << "event " << i << " " << PatellaUnknownName(k);
+    }
+  }
+}
+
+// The chapter's one-step lag is a first-order splitting: halving Δt halves the coupling
+// error against the ODE check (the inner integration is tight, so the lag dominates).
+TEST(PatellaRuns, StaggeredCouplingErrorShrinksAtFirstOrder) {
+  Scene scene = ImpactScene();
+  scene.end.flexion.reset();
+  scene.end.time = 0.1;
+  const RunResult reference = RunWith(scene, "ede", 1e-12, 1e-14);
+  double error[2];
+  const double steps[2] = {2e-3, 1e-3};
+  for (int k = 0; k < 2; ++k) {
+    const RunResult run = RunWith(scene, "staggered", 1e-12, 1e-14, steps[k]);
+    ASSERT_EQ(run.samples.size(), reference.samples.size());
+    error[k] = (run.samples.back().q - reference.samples.back().q).tail<3>().cwiseAbs().maxCoeff();
+  }
+  const double order = std::log2(error[0] / error[1]);
+  RecordProperty("observed_order", std::to_string(order));
+  std::printf("coupling error at t = 0.1 s: %.3e (dt = 2 ms), %.3e (dt = 1 ms); observed order %.3f\n", error[0],
+              error[1], order);
+  EXPECT_GT(error[1], 0.0);
+  EXPECT_GE(order, 0.8);
+  EXPECT_LE(order, 1.3);
+}
+
+}  // namespace
+}  // namespace kneedyn
