@@ -19,7 +19,11 @@
 //     other time inside the reference's span (DenseReference below) the configuration
 //     the reference records (`primary`: formulation, integrator, rtol, atol) is run again
 //     with output rows at those times, and that run must reproduce the stored samples to
-//     the reference's stated accuracy (accuracy_scd digits) before its rows are used.
+//     the reference's stated accuracy (accuracy_scd digits) before its rows are used. An
+//     extended-precision reference cannot be run again by `kneedyn run`: its off-grid rows
+//     come from DenseDoubleConfiguration (mde cvode-adams, rtol 1e-14), which must reproduce
+//     the stored samples to kMinDenseReproductionScd digits, and what it reproduces then
+//     caps the score (scd_ceiling, as in the work-precision sweep).
 //     Reference sampling times without a row are missing (scd null; scd_compared over the
 //     rest).
 //   - Metrics: scd (positions, floors 1 mm and 1 deg: the work-precision figure; null when
@@ -75,6 +79,18 @@ std::vector<double> OffGridTimes(const ScoredResult& result, const Solution& ref
 // there. Throws SolverError when that run fails or reproduces the stored samples to fewer
 // than reference_json["accuracy_scd"] digits (scd of positions); *reproduced_scd: what it
 // reached.
+// make_reference's name for its extended-precision integrator (primary.formulation).
+inline constexpr const char* kExtendedPrecisionFormulation = "extended-precision";
+// The configuration run again for off-grid rows when the reference is extended precision
+// (no `kneedyn run` can repeat it): the earlier double reference's, mde cvode-adams at rtol
+// 1e-14 (about 11 digits from the extended one), and the least agreement with the stored
+// samples it must show before its rows are used.
+nlohmann::json DenseDoubleConfiguration();
+constexpr double kMinDenseReproductionScd = 10.0;
+// The accuracy a score's ceiling derives from (metrics.hpp ApplyScdCeiling): the reference's
+// stated accuracy_scd, or what the configuration run again for off-grid rows reproduced of
+// the stored samples when that is lower (NaN reproduced_scd: no off-grid rows).
+double ScoreCeilingAccuracy(const nlohmann::json& reference_json, double reproduced_scd);
 Solution DenseReference(const Scene& scene, const nlohmann::json& reference_json, const Solution& reference,
                         const std::vector<double>& times, double* reproduced_scd);
 

@@ -124,7 +124,11 @@ int ScoreCommand::Run(int argc, char** argv) {
                            "was run again with output there (it reproduces the stored samples to ",
                            Digits(reproduced_scd), " digits)");
     }
-    const Score score = ScoreResult(result, compared_to);
+    Score score = ScoreResult(result, compared_to);
+    // Above the reference's accuracy (or what the off-grid rerun reproduced) − 1 digit the
+    // error measured is the reference's own: flagged as in the work-precision sweep.
+    const double ceiling_accuracy = ScoreCeilingAccuracy(ref_json, reproduced_scd);
+    if (std::isfinite(ceiling_accuracy)) ApplyScdCeiling(ceiling_accuracy, &score.metrics);
 
     nlohmann::json out;
     out["kneedyn_version"] = KneedynVersion();

@@ -26,17 +26,25 @@
 namespace kneedyn {
 namespace {
 
-FormulationOptions InnerOptions(FormulationOptions options) {
-  options.integrator = IntegratorKind::kDopri5;
-  options.step = 0.0;
-  return options;
+// The scheme's options: the coupling step Δt (--step; 0 = kDefaultFixedStep) and the
+// tolerances of the dopri5 run inside each step.
+struct StaggeredOptions {
+  StepControl control;
+};
+
+OdeOptions InnerOptions(const StaggeredOptions& options) {
+  OdeOptions inner;
+  inner.control = options.control;
+  inner.control.step = 0.0;  // dopri5 is adaptive inside a coupling step
+  inner.integrator = IntegratorKind::kDopri5;
+  return inner;
 }
 
 class StaggeredFormulation final : public FormulationBase, public OdeProblem {
  public:
-  StaggeredFormulation(const Scene& scene, const FormulationOptions& options)
+  StaggeredFormulation(const Scene& scene, const StaggeredOptions& options)
       : FormulationBase(scene), integrator_(InnerOptions(options), "staggered"), workspace_(model_),
-        step_(options.step > 0.0 ? options.step : kDefaultFixedStep) {
+        step_(options.control.step > 0.0 ? options.control.step : kDefaultFixedStep) {
     if (!model_.patella) {
       Throw<InputError>("staggered", "scene '", scene.name,
                         "' has no patella: section; the staggered scheme couples the tibia to the patella "
@@ -140,8 +148,10 @@ class StaggeredFormulation final : public FormulationBase, public OdeProblem {
 
 }  // namespace
 
-std::unique_ptr<Formulation> CreateStaggered(const Scene& scene, const FormulationOptions& options) {
-  return std::make_unique<StaggeredFormulation>(scene, options);
+FormulationMaker ConfigureStaggered(const OptionRequest& request) {
+  StaggeredOptions options;
+  options.control = request.options.step_control();
+  return [options](const Scene& scene) { return std::make_unique<StaggeredFormulation>(scene, options); };
 }
 
 }  // namespace kneedyn

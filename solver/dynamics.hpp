@@ -80,8 +80,11 @@ void ComputeAppliedWrench(const Model& model, double t, const PoseTpl<T>& pose,
       const Vector3<T> span_F = data->lagged_tendon->apex_F.template cast<T>() - TuberosityInF(*model.patella, pose);
       data->tendon_tension = T(data->lagged_tendon->tension);
       f_F = data->tendon_tension * span_F / span_F.norm();
-    } else {
+    } else if constexpr (IsDoubleOrJet<T>::value) {
       PatellarTendonForce(*model.patella, t, pose, &data->patella_guess, &data->tendon_tension, &f_F);
+    } else {
+      Throw<SolverError>("ComputeAppliedWrench", "the patella's equilibrium is solved in double only, not in the "
+                         "extended-precision scalar (docs/model.md §12)");
     }
     force += f_F;
     moment += model.patella->tuberosity_T.template cast<T>().cross(R_TF * f_F);

@@ -6,6 +6,7 @@
 #include <ceres/jet.h>
 
 #include <Eigen/Dense>
+#include <type_traits>
 
 // Model data are double; long double expressions mix them in (products, sums) and get
 // long double, as Eigen's Jet traits do for ceres::Jet.
@@ -28,6 +29,14 @@ template <typename T, int N>
 double ScalarPart(const ceres::Jet<T, N>& x) {
   return ScalarPart(x.a);
 }
+
+// double or a Jet over double: the scalars of the general contact solve (height fields) and
+// of the patella's Newton solve; wider scalars (the extended-precision references) have the
+// sphere-on-plane closed forms only.
+template <typename T>
+struct IsDoubleOrJet : std::is_same<T, double> {};
+template <int N>
+struct IsDoubleOrJet<ceres::Jet<double, N>> : std::true_type {};
 
 template <typename T>
 using Vector3 = Eigen::Matrix<T, 3, 1>;
