@@ -33,10 +33,12 @@ double ScalarPart(const ceres::Jet<T, N>& x) {
 // double or a Jet over double: the scalars of the general contact solve (height fields) and
 // of the patella's Newton solve; wider scalars (the extended-precision references) have the
 // sphere-on-plane closed forms only.
+/// \cond INTERNAL
 template <typename T>
 struct IsDoubleOrJet : std::is_same<T, double> {};
 template <int N>
 struct IsDoubleOrJet<ceres::Jet<double, N>> : std::true_type {};
+/// \endcond
 
 template <typename T>
 using Vector3 = Eigen::Matrix<T, 3, 1>;
