@@ -139,6 +139,10 @@ def verdicts(rows, rec, inverse=None):
                  "why": (f"{len(fixing)} of {len(readings)} readings reproduce it; the one losing fewest of the "
                          f"project's reproduced claims ({best['key']}) loses {len(costs[best['key']])}"
                          + (f"; no reading reproduces it together with {', '.join(never)}" if never else ""))})
+      t = targets.get(cid)
+      if t:  # what the inverse problem needs instead of the reading (evidence, not the verdict)
+        ev["inverse_problem"] = {k: t.get(k) for k in ("reached", "normalized_change", "beyond_precision",
+                                                       "fixes", "breaks")}
       continue
     t = targets.get(cid)
     if t and t.get("reached") and t.get("beyond_precision"):
