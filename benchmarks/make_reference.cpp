@@ -113,6 +113,23 @@ nlohmann::json AgreementJson(const Metrics& m) {
   return j;
 }
 
+// What every reference file records besides its solutions' agreement: how it was made (the
+// command, the setup's documentation), the libraries, the machine, the date (UTC), and the
+// primary's samples.
+void AddProvenance(const std::string& command_line, const char* setup_documentation, const Solution& primary,
+                   nlohmann::json* j) {
+  (*j)["metrics_definition"] = "benchmarks/metrics.hpp";
+  (*j)["setup_documentation"] = setup_documentation;
+  (*j)["generator"] = command_line;
+  (*j)["versions"] = LibraryVersionsJson();
+  (*j)["machine"] = MachineJson();
+  const std::time_t now = std::time(nullptr);
+  char date[32];
+  std::strftime(date, sizeof date, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
+  (*j)["date"] = date;
+  (*j)["solution"] = SolutionJson(primary);
+}
+
 std::string RunCommand(const std::string& scene_path, const BenchConfig& c) {
   char tol[64];
   std::snprintf(tol, sizeof tol, " --rtol %g --atol %g", c.rtol, c.atol);
@@ -213,18 +230,11 @@ int Generate(const Scene& scene, const std::string& scene_path, const std::strin
   j["agreement"] = AgreementJson(agreement);
   j["accuracy_scd_per_class"] = AccuracyPerClass(agreement, p.solution);
   j["accuracy_scd"] = RoundDown(std::isfinite(agreement.scd) ? agreement.scd : 16.0);
-  j["metrics_definition"] = "benchmarks/metrics.hpp";
-  j["setup_documentation"] =
-      "benchmarks/README.md, Reference solutions: why mde cvode-adams rtol 1e-14 checked by ede dopri5 rtol 1e-13 "
-      "(dae/dae-reduced at rtol 1e-10 reach 7.8 digits only; fehlberg78's error estimate misses time-dependent errors)";
-  j["generator"] = command_line;
-  j["versions"] = LibraryVersionsJson();
-  j["machine"] = MachineJson();
-  const std::time_t now = std::time(nullptr);
-  char date[32];
-  std::strftime(date, sizeof date, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
-  j["date"] = date;
-  j["solution"] = SolutionJson(p.solution);
+  AddProvenance(command_line,
+                "benchmarks/README.md, Reference solutions: why mde cvode-adams rtol 1e-14 checked by ede dopri5 rtol 1e-13 "
+                "(dae/dae-reduced at rtol 1e-10 reach 7.8 digits only; fehlberg78's error estimate misses time-dependent "
+                "errors)",
+                p.solution, &j);
 
   const std::filesystem::path out(out_path);
   if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
@@ -305,18 +315,10 @@ int GenerateExtended(const Scene& scene, const std::string& scene_path, const st
   j["agreement"] = AgreementJson(agreement);
   j["accuracy_scd_per_class"] = AccuracyPerClass(agreement, p.solution);
   j["accuracy_scd"] = LeastAccuracy(j["accuracy_scd_per_class"]);
-  j["metrics_definition"] = "benchmarks/metrics.hpp";
-  j["setup_documentation"] =
-      "benchmarks/README.md, Reference solutions: the knee in extended precision (scalar) through the templated "
-      "physics, Gauss-Legendre collocation at step h (primary) checked by step 2h; values stored in double";
-  j["generator"] = command_line;
-  j["versions"] = LibraryVersionsJson();
-  j["machine"] = MachineJson();
-  const std::time_t now = std::time(nullptr);
-  char date[32];
-  std::strftime(date, sizeof date, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
-  j["date"] = date;
-  j["solution"] = SolutionJson(p.solution);
+  AddProvenance(command_line,
+                "benchmarks/README.md, Reference solutions: the knee in extended precision (scalar) through the templated "
+                "physics, Gauss-Legendre collocation at step h (primary) checked by step 2h; values stored in double",
+                p.solution, &j);
   WriteReference(j, out_path);
   std::printf("%s: extended precision, %s step %.3g s vs step %.3g s agree to scd %.2f; cost %.2f s + %.2f s CPU; events:",
               scene.name.c_str(), p.result.integrator.c_str(), primary.step, check.step, agreement.scd, p.cpu_time_s,
