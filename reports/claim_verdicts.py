@@ -38,6 +38,8 @@ import time
 sys.dont_write_bytecode = True  # keep the source tree clean
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
+sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+from record_sweep import git_commit  # noqa: E402  the recorded files' commit rule (+dirty), one copy
 EXPLANATIONS = ("reading", "beyond_precision", "contradicted", "unexplained")
 REPRODUCED = "reproduced"
 LIFTOFF_CHAPTER_DEG = 66.0  # claims.yaml liftoff_chapter_deg
@@ -53,17 +55,6 @@ TEXT_CONTRADICTIONS = {
                  "fixes the contact points by the pose, so their guesses cannot move the motion. Only an "
                  "inconsistent start handed to the integrator could (the DASSL-start reading, not run here)."),
 }
-
-
-def git_commit():
-  try:
-    head = subprocess.run(["git", "-C", ROOT, "rev-parse", "HEAD"], capture_output=True, text=True,
-                          check=True).stdout.strip()
-    dirty = subprocess.run(["git", "-C", ROOT, "status", "--porcelain", "--untracked-files=no"],
-                           capture_output=True, text=True, check=True).stdout.strip()
-    return head + ("+dirty" if dirty else "")
-  except (OSError, subprocess.CalledProcessError):
-    return "unknown (not a git checkout)"
 
 
 def informative(reading):
