@@ -6,9 +6,10 @@
 # libraries' consumers (the installed CMake package, kneedyn.pc), the tests, the Python
 # module (a shared object, which cannot take these archives) and the Simbody cross-check.
 #
-# How: Ceres::ceres (already libceres.a) gets, first in its link interface and only for a
-# target whose property KNEEDYN_STATIC_TOOL is true, the archives in one linker group.
-# They come after libceres.a and the kneedyn libraries on the link line, so they resolve
+# How: kneedyn_ceres_headers (Ceres' headers, which kneedyn_solver links; libceres itself
+# is in the plugin kneedyn_ceres_fallback.so, solver/ceres_fallback.hpp) gets, in its link
+# interface and only for a target whose property KNEEDYN_STATIC_TOOL is true, the archives
+# in one linker group. They come after the kneedyn libraries on the link line, so they resolve
 # every symbol those need; the shared libraries named later are then unused and, with
 # -Wl,--as-needed (Debian's GCC default, made explicit here), not recorded as DT_NEEDED.
 # SUNDIALS: the <package>_static twin of each SUNDIALS::<package>_shared the kneedyn
@@ -59,9 +60,8 @@ function(kneedyn_static_tool)
   set(runtime "-Wl,--push-state,--no-as-needed" -lgcc_s "-Wl,--pop-state" -lunwind ${KNEEDYN_RUNTIME_METIS}
               -lgomp -lgfortran -lpthread -lrt -ldl -lm)
   set(static_link "-Wl,--as-needed" "-Wl,--start-group" ${archives} ${sundials} "-Wl,--end-group" ${runtime})
-  get_target_property(ceres_interface Ceres::ceres INTERFACE_LINK_LIBRARIES)
-  set_property(TARGET Ceres::ceres PROPERTY INTERFACE_LINK_LIBRARIES
-    "$<$<BOOL:$<TARGET_PROPERTY:KNEEDYN_STATIC_TOOL>>:${static_link}>" ${ceres_interface})
+  set_property(TARGET kneedyn_ceres_headers APPEND PROPERTY INTERFACE_LINK_LIBRARIES
+    "$<$<BOOL:$<TARGET_PROPERTY:KNEEDYN_STATIC_TOOL>>:${static_link}>")
   foreach(tool ${ARGN})
     set_property(TARGET ${tool} PROPERTY KNEEDYN_STATIC_TOOL ON)
   endforeach()

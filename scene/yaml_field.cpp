@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -360,7 +361,39 @@ std::string_view KeyText(const yaml_node_t* key, std::string_view fallback) {
 
 // yaml-cpp's convert<double>::decode: `stream >> std::noskipws >> v` must succeed and only
 // white space may follow; else its spellings of infinity and NaN.
+// Plain decimals ([+-] digits [. digits] [e|E [+-] digits], a digit before or after the
+// point) take std::from_chars: correctly rounded, as the stream's strtod, so the value is
+// the same bits at ~1/10 of the cost (a parameter set holds ~200 numbers). Anything else
+// (hex, inf, nan, trailing text, out of range) takes the stream.
+bool PlainDecimal(std::string_view text, double* v) {
+  size_t i = 0;
+  const size_t n = text.size();
+  auto digits = [&] {
+    const size_t from = i;
+    while (i < n && text[i] >= '0' && text[i] <= '9') ++i;
+    return i - from;
+  };
+  if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
+  size_t count = digits();
+  if (i < n && text[i] == '.') {
+    ++i;
+    count += digits();
+  }
+  if (count == 0) return false;
+  if (i < n && (text[i] == 'e' || text[i] == 'E')) {
+    ++i;
+    if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
+    if (digits() == 0) return false;
+  }
+  if (i != n) return false;
+  // from_chars takes '-' but not '+'.
+  const char* first = text.data() + (text[0] == '+' ? 1 : 0);
+  const auto [end, ec] = std::from_chars(first, text.data() + n, *v, std::chars_format::general);
+  return ec == std::errc() && end == text.data() + n;
+}
+
 bool YamlCppDouble(std::istringstream& stream, std::string_view text, double* v) {
+  if (PlainDecimal(text, v)) return true;
   stream.clear();
   stream.str(std::string(text));
   if ((stream >> std::noskipws >> *v) && (stream >> std::ws).eof()) return true;

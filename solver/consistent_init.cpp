@@ -1,35 +1,23 @@
 #include "solver/consistent_init.hpp"
 
-#include <ceres/ceres.h>
-
 #include <algorithm>
 #include <cmath>
+#include <exception>
+#include <limits>
+#include <vector>
 
+#include <Eigen/LU>
+
+#include "solver/ceres_fallback.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
-
-namespace {
-// Ceres logs through glog; uninitialised, glog prints "Logging before InitGoogleLogging"
-// warnings, and initialised with defaults it writes log files under /tmp. Once per
-// process: initialise it to stderr, errors only (nothing stray is printed).
-void QuietCeresLogging() {
-  static const bool done = [] {
-    if (!google::IsGoogleLoggingInitialized()) {
-      FLAGS_logtostderr = true;
-      FLAGS_minloglevel = google::GLOG_ERROR;
-      google::InitGoogleLogging("kneedyn");
-    }
-    return true;
-  }();
-  (void)done;
-}
-}  // namespace
+#include "solver/scalar.hpp"
 
 namespace kneedyn {
 namespace {
 
-constexpr int kStride = 4;  // Jet size used by DynamicAutoDiffCostFunction passes
+constexpr int kStride = 4;  // Jet size of each forward-AD pass (as Ceres's DynamicAutoDiffCostFunction<F, 4>)
 
 // Position level: the pose with the free coordinates taken from the unknowns x[0].
 struct PositionUnknowns {
@@ -112,6 +100,53 @@ double MaxResidual(const Functor& f, const std::vector<double>& x, int num_resid
   return m;
 }
 
+// r(x) and, if J is not null, the row-major num_residuals × n Jacobian by forward AD in
+// passes of kStride unknowns: what Ceres's DynamicAutoDiffCostFunction<Functor, kStride>
+// computes (the same Jet operations, so the same bits), without linking Ceres itself
+// (solver/ceres_fallback.hpp).
+template <typename Functor>
+bool EvaluateResidual(const Functor& f, const double* x, int n, int num_residuals, double* r, double* J) {
+  if (J == nullptr) {
+    const double* params[] = {x};
+    return f(params, r);
+  }
+  using JetT = ceres::Jet<double, kStride>;
+  std::vector<JetT> xj(n), rj(num_residuals);
+  const JetT* params[] = {xj.data()};
+  for (int start = 0; start < n; start += kStride) {
+    for (int i = 0; i < n; ++i) {
+      xj[i].a = x[i];
+      xj[i].v.setZero();
+      if (i >= start && i < start + kStride) xj[i].v[i - start] = 1.0;
+    }
+    if (!f(params, rj.data())) return false;
+    for (int k = 0; k < num_residuals; ++k) {
+      for (int j = start; j < std::min(n, start + kStride); ++j) J[k * n + j] = rj[k].v[j - start];
+    }
+  }
+  for (int k = 0; k < num_residuals; ++k) r[k] = rj[k].a;
+  return true;
+}
+
+// The C callback of the Ceres plugin: a functor and its sizes; an exception thrown by the
+// functor (e.g. the JCS singularity of solver/rotation.hpp) is kept and rethrown after
+// Ceres returns, since nothing may cross the plugin's C interface.
+template <typename Functor>
+struct FallbackProblem {
+  const Functor* functor;
+  int n, num_residuals;
+  std::exception_ptr error;
+  static int Evaluate(void* user, const double* x, double* r, double* J) {
+    auto* self = static_cast<FallbackProblem*>(user);
+    try {
+      return EvaluateResidual(*self->functor, x, self->n, self->num_residuals, r, J) ? 1 : 0;
+    } catch (...) {
+      if (!self->error) self->error = std::current_exception();
+      return 0;
+    }
+  }
+};
+
 // The direct path: Newton's method on a square system (as many unknowns as residuals) with
 // the Jacobian from the same automatic differentiation Ceres would use. Iterates until the
 // step no longer changes x (relative 1e-15), as Ceres's parameter tolerance does, so both
@@ -123,21 +158,15 @@ bool SolveLevelByNewton(const Functor& functor, std::vector<double>* x, int num_
                         double tolerance, int max_iterations, int* iterations) {
   const int n = static_cast<int>(x->size());
   if (n != num_residuals || n == 0 || max_iterations < 1) return false;
-  ceres::DynamicAutoDiffCostFunction<Functor, kStride> cost(const_cast<Functor*>(&functor),
-                                                            ceres::DO_NOT_TAKE_OWNERSHIP);
-  cost.AddParameterBlock(n);
-  cost.SetNumResiduals(n);
   Eigen::Map<VectorXd> xv(x->data(), n);
   const VectorXd x_start = xv;
   VectorXd r(n);
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> J(n, n);
-  double* jacobians[] = {J.data()};
-  const double* params[] = {x->data()};
   bool converged = false;
   int it = 0;
   double previous = std::numeric_limits<double>::infinity();
   for (; it < max_iterations; ++it) {
-    if (!cost.Evaluate(params, r.data(), jacobians) || !r.allFinite() || !J.allFinite()) break;
+    if (!EvaluateResidual(functor, x->data(), n, n, r.data(), J.data()) || !r.allFinite() || !J.allFinite()) break;
     // At the root's round-off level the residual stops falling: done.
     const double current = r.cwiseAbs().maxCoeff();
     if (current <= tolerance && (current == 0.0 || current >= previous)) {
@@ -177,23 +206,12 @@ InitLevelReport SolveLevel(const char* level, Functor* functor, std::vector<doub
       rep.method = InitMethod::kNewton;
     } else {
       rep.method = InitMethod::kCeres;
-      auto* cost = new ceres::DynamicAutoDiffCostFunction<Functor, kStride>(
-          functor, ceres::DO_NOT_TAKE_OWNERSHIP);
-      cost->AddParameterBlock(static_cast<int>(x->size()));
-      cost->SetNumResiduals(num_residuals);
-      ceres::Problem problem;
-      problem.AddResidualBlock(cost, nullptr, x->data());
-      QuietCeresLogging();
-      ceres::Solver::Options opts;
-      opts.linear_solver_type = ceres::DENSE_QR;
-      opts.max_num_iterations = options.max_iterations;
-      opts.function_tolerance = 1e-30;
-      opts.gradient_tolerance = 1e-30;
-      opts.parameter_tolerance = 1e-16;
-      opts.logging_type = ceres::SILENT;
-      ceres::Solver::Summary summary;
-      ceres::Solve(opts, &problem, &summary);
-      rep.iterations = static_cast<int>(summary.iterations.size());
+      FallbackProblem<Functor> problem{functor, static_cast<int>(x->size()), num_residuals, nullptr};
+      const KneedynLeastSquares least_squares{problem.n, num_residuals, &FallbackProblem<Functor>::Evaluate,
+                                              &problem, options.max_iterations};
+      const int ran = CeresFallback()(&least_squares, x->data(), &rep.iterations);
+      if (problem.error) std::rethrow_exception(problem.error);
+      if (!ran) Throw<SolverError>("ConsistentInitialize", level, " level: the Ceres fallback failed internally");
     }
   }
   rep.residual_after = MaxResidual(*functor, *x, num_residuals);

@@ -41,7 +41,11 @@ const std::vector<std::string> kNumbers = {
     "1", "1.0", "+1", "-0", ".5", "5.", "2e0", "1E+2", "1e-2", "1e", "e3", "0x10", "0o7", "1_000", "1,5", "'2.5'",
     "\"2.5\"", "\" 3\"", "\"4 \"", "4 # comment", ".inf", "+.INF", "-.Inf", ".NaN", ".nan", "inf", "nan", "~",
     "null", "NULL", "''", "1e999", "1e-400", "0.001", "1000", "1000.0000001", "[1]", "{a: 1}", "1:2", "true",
-    "2.5.1", "--1", "1e+", "+-1", "007", "1.5e1", "'1e1'"};
+    "2.5.1", "--1", "1e+", "+-1", "007", "1.5e1", "'1e1'",
+    // Decimals that round: the reader's from_chars path must give the stream's bits.
+    "0.1", "0.30000000000000004", "1.0000000000000002", "2.675", "123.456789012345678901234567890",
+    "0.0010000000000000000208", "999.99999999999999999", "+.5", "-.5e1", "00.5e-0", "1.e1", ".e1", "5e", "+",
+    "."};
 // Tagged scalars (!!float 2, !!str 3) are refused by the loader (yaml-cpp ignored the tag):
 // tests/hostile_input_test.cpp, TaggedValuesAreRefusedNamingKeyAndTag.
 
