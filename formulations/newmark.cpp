@@ -58,6 +58,7 @@
 #include "formulations/formulation.hpp"
 #include "formulations/internal/formulation_base.hpp"
 #include "formulations/internal/newmark_scheme.hpp"
+#include "formulations/internal/newmark_testing.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/dynamics.hpp"
@@ -190,6 +191,33 @@ class NewmarkFormulation final : public FormulationBase {
       if (!SolveStep(current_, h_, &next)) return false;
       EventsInto(next, g_hot_path_.data());
     }
+    return true;
+  }
+
+  // Testing hook (formulations/internal/newmark_testing.hpp): the exact tangent and the
+  // Jet<24> one of the step h from the started state, at the predictor and at the iterate
+  // after `newton_steps` Newton steps with the Jet tangent. False when an evaluation fails.
+  bool TangentsForTesting(double h, int newton_steps, MatrixXd* exact, MatrixXd* jet) {
+    StepState from = current_;
+    RescalePseudoAcceleration(h, &from);
+    XVector x(n_);
+    x.head<6>() = from.q + h * from.qd + 0.5 * h * h * from.qdd;
+    x.tail(n_ - 6) = from.extra;
+    XMatrix Je(n_, n_), Jj(n_, n_);
+    XVector F(n_);
+    for (int iter = 0;; ++iter) {
+      for (int i = 0; i < n_; ++i) xj_[i] = JetD(x(i), i);
+      if (!StepResidual(from, h, xj_.data(), Fj_.data())) return false;
+      for (int r = 0; r < n_; ++r) {
+        F(r) = Fj_[r].a;
+        for (int c = 0; c < n_; ++c) Jj(r, c) = Fj_[r].v[c];
+      }
+      if (iter == newton_steps) break;
+      x += Jj.fullPivLu().solve(-F);
+    }
+    if (!StepJacobian(from, h, x.data(), &Je)) return false;
+    *exact = Je;
+    *jet = Jj;
     return true;
   }
 
@@ -590,6 +618,14 @@ bool ReadNewmarkOptions(const OptionRequest& request, NewmarkOptions* options) {
 std::unique_ptr<Formulation> CreateNewmarkScheme(const Scene& scene, const NewmarkOptions& options,
                                                  ContactForm form) {
   return std::make_unique<NewmarkFormulation>(scene, options, form);
+}
+
+bool NewmarkTangentsForTesting(const Scene& scene, const NewmarkOptions& options, ContactForm form,
+                               const MechanicalState& state, double h, int newton_steps, MatrixXd* exact,
+                               MatrixXd* jet) {
+  NewmarkFormulation f(scene, options, form);
+  f.Start(state, {});
+  return f.TangentsForTesting(h, newton_steps, exact, jet);
 }
 
 FormulationMaker ConfigureNewmark(const OptionRequest& request) {
