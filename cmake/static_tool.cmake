@@ -1,7 +1,8 @@
 # The kneedyn tools (kneedyn, kneedyn_catalog) link the static archives Debian
 # ships of their libraries — Ceres' dependencies (glog, gflags, SuiteSparse, CXSparse,
 # LAPACK/BLAS/ATLAS), SUNDIALS and libyaml — instead of the shared objects, so
-# that the dynamic loader maps and relocates 8 objects at start-up instead of 31
+# that the dynamic loader maps and relocates 3 objects at start-up (libc, libm, the loader)
+# instead of 31
 # (benchmarks/README.md, "Start-up"). Everything else keeps the shared libraries: the
 # libraries' consumers (the installed CMake package, kneedyn.pc), the tests, the Python
 # module (a shared object, which cannot take these archives) and the Simbody cross-check.
@@ -13,9 +14,13 @@
 # every symbol those need; the shared libraries named later are then unused and, with
 # -Wl,--as-needed (Debian's GCC default, made explicit here), not recorded as DT_NEEDED.
 # SUNDIALS: the <package>_static twin of each SUNDIALS::<package>_shared the kneedyn
-# libraries link, whatever they are (ida or idas...). libgcc_s is recorded before
-# libunwind (which glog's archive needs): C++ exceptions keep GCC's unwinder, as when
-# libunwind came in behind libglog.so.
+# libraries link, whatever they are (ida or idas...).
+# libstdc++ and libgcc are linked statically too (-static-libstdc++ -static-libgcc): the
+# loader then relocates libc and libm only (`kneedyn --version` 3.31 -> 1.48 M instructions).
+# The plugins (kneedyn_ceres_fallback.so, kneedyn_sweep_io.so) bring the shared libstdc++
+# with them; nothing C++ crosses their C interfaces (no objects, no exceptions), so the two
+# copies never meet. Before Ceres moved to its plugin this was not possible: glog's archive
+# needed libunwind.so, whose _Unwind_RaiseException then took GCC's place.
 #
 #   kneedyn_static_tool(<target>...)   after every kneedyn library is defined
 
@@ -56,14 +61,15 @@ function(kneedyn_static_tool)
     message(STATUS "KNEEDYN_STATIC_TOOL: not found ${missing}; the kneedyn tools link the shared libraries")
     return()
   endif()
-  # Runtime libraries the archives need, shared: libgcc_s first (see above).
-  set(runtime "-Wl,--push-state,--no-as-needed" -lgcc_s "-Wl,--pop-state" -lunwind ${KNEEDYN_RUNTIME_METIS}
-              -lgomp -lgfortran -lpthread -lrt -ldl -lm)
+  # Runtime libraries the archives may need, shared (--as-needed: recorded only if used;
+  # with Ceres in its plugin none of these is).
+  set(runtime ${KNEEDYN_RUNTIME_METIS} -lgomp -lgfortran -lpthread -lrt -ldl -lm)
   set(static_link "-Wl,--as-needed" "-Wl,--start-group" ${archives} ${sundials} "-Wl,--end-group" ${runtime})
   set_property(TARGET kneedyn_ceres_headers APPEND PROPERTY INTERFACE_LINK_LIBRARIES
     "$<$<BOOL:$<TARGET_PROPERTY:KNEEDYN_STATIC_TOOL>>:${static_link}>")
   foreach(tool ${ARGN})
     set_property(TARGET ${tool} PROPERTY KNEEDYN_STATIC_TOOL ON)
+    target_link_options(${tool} PRIVATE -static-libstdc++ -static-libgcc)
   endforeach()
   message(STATUS "KNEEDYN_STATIC_TOOL: ${ARGN} link static archives of Ceres' dependencies, SUNDIALS, libyaml")
 endfunction()

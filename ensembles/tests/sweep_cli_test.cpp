@@ -175,16 +175,17 @@ TEST(SweepCli, MissingPluginIsAClearErrorAndWritesNothing) {
   EXPECT_FALSE(fs::exists(work / "merged"));
 }
 
-// cmake/static_tool.cmake: with KNEEDYN_STATIC_TOOL the kneedyn binary takes
-// Ceres' dependencies, SUNDIALS, yaml-cpp and libyaml from their archives: none of them is
-// a DT_NEEDED entry; libgcc_s comes before libunwind, so that C++ exceptions keep GCC's
-// unwinder (libunwind.so.8 also defines _Unwind_RaiseException).
+// cmake/static_tool.cmake: with KNEEDYN_STATIC_TOOL the kneedyn binary takes SUNDIALS,
+// libyaml, libstdc++ and libgcc from their archives and links no Ceres (its plugin,
+// solver/ceres_fallback.hpp): none of them, nor Ceres' chain, is a DT_NEEDED entry; if
+// libunwind ever is, libgcc_s comes before it, so that C++ exceptions keep GCC's unwinder
+// (libunwind.so.8 also defines _Unwind_RaiseException).
 TEST(SweepCli, StaticToolNeedsOnlyRuntimeLibraries) {
   if (!KNEEDYN_STATIC_TOOL) GTEST_SKIP() << "KNEEDYN_STATIC_TOOL off";
   const std::string needed = RunShell("readelf -d " + Kneedyn()).output;
   ASSERT_NE(needed.find("(NEEDED)"), std::string::npos) << needed;
   for (const char* lib : {"libglog", "libgflags", "libsundials", "libyaml", "libcholmod", "libcxsparse", "liblapack",
-                          "libatlas", "libceres"}) {
+                          "libatlas", "libceres", "libstdc++", "libgfortran", "libgomp", "libmetis"}) {
     EXPECT_EQ(needed.find(lib), std::string::npos) << lib << " in DT_NEEDED:\n" << needed;
   }
   const size_t gcc_s = needed.find("[libgcc_s.so"), unwind = needed.find("[libunwind.so");
