@@ -3,7 +3,7 @@
 (benchmarks/README.md, "Work-precision sweep").
 
     build/benchmarks/work_precision --rtol-min 1e-13 --json wp.json
-    /usr/bin/python3 benchmarks/work_precision_table.py wp.json [MORE.json ...]
+    /usr/bin/python3 benchmarks/work_precision_table.py wp.json [MORE.json ...] [--efficiency EFF.json]
 
 Reads the full sweep (benchmarks/recorded/), the short one (`work_precision --short`) and
 a short one with Simbody's methods merged in (`simbody_work_precision --merge`). A method is
@@ -11,7 +11,9 @@ formulation[:integrator][/stabilization]. A run counts when the report's diagram
 (reports/bench_data.py: status ok, an scd, every reference event and no other, each event
 within 1 ms); the others are counted in the column "failed / wrong event". Prints one
 markdown table per file: median CPU time (s) and the setting of the cheapest counted run
-reaching each threshold, '—' if none.
+reaching each threshold, '—' if none. --efficiency EFF.json (benchmarks/efficiency.py
+--json) adds the column "efficiency": the share of the instructions of the scd ≥ 6 run spent
+in the model's residual / right-hand side, and in all model callbacks.
 """
 import math
 import os
@@ -57,17 +59,25 @@ def rows(runs):
   return out
 
 
-def table(path):
+def efficiency_cell(eff, method):
+  e = (eff or {}).get("methods", {}).get(method)
+  if not e:
+    return "—"
+  return f"{100 * e['residual_share']:.0f} % ({100 * e['callback_share']:.0f} %)"
+
+
+def table(path, eff=None):
   try:
     header, runs = load_bench(path)
   except (ValueError, UnicodeDecodeError) as e:  # json.JSONDecodeError is a ValueError
     print(f"work_precision_table: '{path}': not a JSON file ({e})", file=sys.stderr)
     sys.exit(2)
+  extra = " efficiency at scd ≥ 6: residual / rhs (all model callbacks) |" if eff else ""
   lines = ["| method | runs | failed / wrong event | best scd | "
-           + " | ".join(f"scd ≥ {t}: CPU s (setting)" for t in THRESHOLDS) + " |",
-           "|---|---|---|---|" + "---|" * len(THRESHOLDS)]
+           + " | ".join(f"scd ≥ {t}: CPU s (setting)" for t in THRESHOLDS) + " |" + extra,
+           "|---|---|---|---|" + "---|" * len(THRESHOLDS) + ("---|" if eff else "")]
   body = rows(runs)
-  lines += ["| " + " | ".join(r) + " |" for r in body]
+  lines += ["| " + " | ".join(r + ([efficiency_cell(eff, r[0])] if eff else [])) + " |" for r in body]
   ceiling = scd_ceiling(header)
   if ceiling is not None:
     lines.append("")
@@ -77,18 +87,31 @@ def table(path):
   return lines
 
 
-def main(paths):
+def main(paths, eff=None):
   for i, path in enumerate(paths):
     if len(paths) > 1:
       print(("\n" if i else "") + f"{path}:\n")
-    print("\n".join(table(path)))
+    print("\n".join(table(path, eff)))
 
 
 if __name__ == "__main__":
-  if len(sys.argv) < 2:
-    sys.exit("usage: work_precision_table.py WORK_PRECISION.json [MORE.json ...]")
-  missing = [p for p in sys.argv[1:] if not os.path.exists(p)]
+  args = sys.argv[1:]
+  eff_path = None
+  if "--efficiency" in args:
+    k = args.index("--efficiency")
+    if k + 1 >= len(args):
+      sys.exit("usage: work_precision_table.py WORK_PRECISION.json [MORE.json ...] [--efficiency EFF.json]")
+    eff_path = args[k + 1]
+    del args[k:k + 2]
+  if not args:
+    sys.exit("usage: work_precision_table.py WORK_PRECISION.json [MORE.json ...] [--efficiency EFF.json]")
+  missing = [p for p in args + ([eff_path] if eff_path else []) if not os.path.exists(p)]
   if missing:
     print(f"work_precision_table: '{missing[0]}': file not found", file=sys.stderr)
     sys.exit(2)
-  main(sys.argv[1:])
+  eff = None
+  if eff_path:
+    import json
+    with open(eff_path, encoding="utf-8") as f:
+      eff = json.load(f)
+  main(args, eff)

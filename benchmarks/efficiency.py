@@ -1,0 +1,144 @@
+#!/usr/bin/python3
+"""Efficiency: the share of a run's instructions spent in the model's own evaluations
+(benchmarks/README.md, "Work-precision sweep", column "efficiency").
+
+    /usr/bin/python3 benchmarks/efficiency.py --kneedyn build/formulations/kneedyn \
+        [--sweep benchmarks/recorded/work_precision_chapter_impact.json] [--scd 6] \
+        [--only SUBSTR] [--json OUT.json]
+
+For each method of the sweep (formulation[:integrator][/stabilization]) it takes the
+cheapest counted run reaching scd >= --scd (the cell of work_precision_table.py's column
+"scd >= 6"), runs that configuration once under `valgrind --tool=callgrind` (whole process:
+`kneedyn run <scene> ... --quiet --out TMP`) and reads the inclusive instruction counts of
+the callbacks the integrator calls (`callgrind_annotate --inclusive=yes`):
+
+  residual / right-hand side: DaeOnIda::Residual (IDA), OdeIntegrator::RhsCallback (CVODE,
+      ARKODE; includes mde's and ede's cache hits), StepResidual (newmark, generalized-alpha);
+  all model callbacks: the above plus the Jacobian (DaeOnIda::Jacobian, StepJacobian,
+      OdeIntegrator::JacCallback), the root functions (DaeOnIda::Roots,
+      OdeIntegrator::RootCallback, the fixed-step schemes' Events) and the projection
+      (OdeIntegrator::ProjCallback).
+
+Shares are of the whole process (start-up, loading and output included), so the column is
+what a user's run spends on the model. These callbacks do not call one another, so their
+inclusive counts add without overlap. Instruction counts are deterministic, unlike CPU time
+on a shared machine. Prints a markdown table; --json writes {method: {...}} for
+work_precision_table.py --efficiency.
+"""
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+sys.dont_write_bytecode = True  # keep the source tree clean
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "reports"))
+from bench_data import load_bench, method_of, split_runs  # noqa: E402
+
+# Function-name patterns (demangled, as callgrind_annotate prints them).
+RESIDUAL = (r"DaeOnIda::Residual\(", r"OdeIntegrator::RhsCallback\(", r"::StepResidual<double>\(")
+OTHER_CALLBACKS = (r"DaeOnIda::Jacobian\(", r"DaeOnIda::Roots\(", r"OdeIntegrator::RootCallback\(",
+                   r"OdeIntegrator::JacCallback\(", r"OdeIntegrator::ProjCallback\(",
+                   r"::StepJacobian\(", r"NewmarkFormulation::Events\(")
+LINE = re.compile(r"^\s*([\d,]+)\s+\(\s*[\d.]+%\)\s+(.*)$")
+
+
+def command_of(run, kneedyn, scene, out):
+  s = run.get("setting") or {}
+  cmd = [kneedyn, "run", scene, "--formulation", run["formulation"]]
+  if run.get("integrator"):
+    cmd += ["--integrator", run["integrator"]]
+  for key in ("rtol", "atol", "step"):
+    if key in s:
+      cmd += ["--" + key, repr(float(s[key]))]
+  if s.get("stabilization"):
+    cmd += ["--stabilization", s["stabilization"]]
+  return cmd + ["--quiet", "--out", out]
+
+
+def inclusive_costs(callgrind_out):
+  """(total instructions, {function: inclusive instructions}) of a callgrind output file."""
+  text = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--threshold=100", callgrind_out],
+                        check=True, capture_output=True, text=True).stdout
+  return parse_annotate(text)
+
+
+def parse_annotate(text):
+  """(total, {function: inclusive}) from `callgrind_annotate --inclusive=yes` output."""
+  total = None
+  costs = {}
+  for line in text.splitlines():
+    m = LINE.match(line)
+    if m is None:
+      t = re.match(r"^\s*([\d,]+)\s+\(100\.0%\)\s+PROGRAM TOTALS", line)
+      if t:
+        total = int(t.group(1).replace(",", ""))
+      continue
+    name = m.group(2)
+    costs[name] = costs.get(name, 0) + int(m.group(1).replace(",", ""))
+  if total is None:
+    t = re.search(r"^\s*([\d,]+)\s+\(100\.0%\)\s+PROGRAM TOTALS", text, re.M)
+    total = int(t.group(1).replace(",", "")) if t else None
+  return total, costs
+
+
+def share(costs, patterns):
+  """Inclusive instructions of the functions matching `patterns` ([clone .cold] parts added)."""
+  return sum(v for name, v in costs.items() if any(re.search(p, name) for p in patterns))
+
+
+def measure(run, kneedyn, scene, tmp):
+  out = os.path.join(tmp, "out")
+  cg = os.path.join(tmp, "callgrind.out")
+  cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={cg}"] + command_of(run, kneedyn, scene, out)
+  subprocess.run(cmd, check=True, capture_output=True)
+  total, costs = inclusive_costs(cg)
+  residual = share(costs, RESIDUAL)
+  callbacks = residual + share(costs, OTHER_CALLBACKS)
+  return {"setting": run.get("setting"), "scd": run["scd"], "instructions": total,
+          "residual_share": residual / total, "callback_share": callbacks / total,
+          "command": " ".join(command_of(run, "kneedyn", os.path.relpath(scene, ROOT), "TMP"))}
+
+
+def main():
+  ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+  ap.add_argument("--kneedyn", required=True)
+  ap.add_argument("--sweep", default=os.path.join(ROOT, "benchmarks/recorded/work_precision_chapter_impact.json"))
+  ap.add_argument("--scene", default=None, help="default: the sweep header's scene")
+  ap.add_argument("--scd", type=float, default=6.0)
+  ap.add_argument("--only", default="")
+  ap.add_argument("--json", default=None)
+  a = ap.parse_args()
+  header, runs = load_bench(a.sweep)
+  name = os.path.splitext(os.path.basename(str(header.get("scene") or "chapter_impact")))[0]
+  scene = a.scene or os.path.join(ROOT, "reference-data/scenes", name + ".yaml")
+  ok, _ = split_runs(runs)
+  result = {}
+  for m in dict.fromkeys(method_of(r) for r in runs):
+    if a.only not in m:
+      continue
+    reach = [r for r in ok if method_of(r) == m and r["scd"] >= a.scd and isinstance(r.get("cpu_s"), (int, float))]
+    if not reach:
+      continue
+    best = min(reach, key=lambda r: r["cpu_s"])
+    with tempfile.TemporaryDirectory() as tmp:
+      result[m] = measure(best, os.path.abspath(a.kneedyn), scene, tmp)
+    e = result[m]
+    print(f"{m}: {e['instructions'] / 1e6:.2f} M, residual/rhs {100 * e['residual_share']:.1f} %, "
+          f"all callbacks {100 * e['callback_share']:.1f} %", file=sys.stderr)
+  print(f"| method | configuration (cheapest at scd ≥ {a.scd:g}) | instructions | residual / rhs | all model callbacks |")
+  print("|---|---|---|---|---|")
+  for m, e in result.items():
+    setting = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in (e["setting"] or {}).items())
+    print(f"| {m} | {setting} | {e['instructions'] / 1e6:.2f} M | {100 * e['residual_share']:.1f} % | "
+          f"{100 * e['callback_share']:.1f} % |")
+  if a.json:
+    with open(a.json, "w") as f:
+      json.dump({"scd": a.scd, "sweep": os.path.relpath(a.sweep, ROOT), "methods": result}, f, indent=1)
+
+
+if __name__ == "__main__":
+  main()

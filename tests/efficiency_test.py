@@ -1,0 +1,96 @@
+#!/usr/bin/python3
+"""benchmarks/efficiency.py and work_precision_table.py --efficiency on planted inputs (no
+valgrind): the callback shares read from a hand-written callgrind_annotate listing (the
+callbacks' [clone .cold] parts added, functions they call not counted twice, other functions
+not counted), the command line rebuilt from a sweep run's setting, and the table's
+efficiency column (a method without a measured run shows '—'). Expected values are typed in
+from the planted numbers.
+"""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.dont_write_bytecode = True
+sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+import efficiency  # noqa: E402
+
+LISTING = """--------------------------------------------------------------------------------
+Ir
+--------------------------------------------------------------------------------
+1,000,000 (100.0%)  PROGRAM TOTALS
+
+--------------------------------------------------------------------------------
+Ir                 file:function
+--------------------------------------------------------------------------------
+  900,000 (90.00%)  ???:main [/x/kneedyn]
+  200,000 (20.00%)  ???:kneedyn::(anonymous namespace)::DaeOnIda::Residual(double, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*, void*) [/x/kneedyn]
+    1,000 ( 0.10%)  ???:kneedyn::(anonymous namespace)::DaeOnIda::Residual(double, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*, void*) [clone .cold] [/x/kneedyn]
+  190,000 (19.00%)  ???:kneedyn::DaeSystem::Residual(double, double const*, double const*, double*) const [/x/kneedyn]
+  150,000 (15.00%)  ???:kneedyn::(anonymous namespace)::DaeOnIda::Jacobian(double, double, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*, _generic_SUNMatrix*, void*, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*) [/x/kneedyn]
+   50,000 ( 5.00%)  ???:kneedyn::(anonymous namespace)::DaeOnIda::Roots(double, _generic_N_Vector*, _generic_N_Vector*, double*, void*) [/x/kneedyn]
+   70,000 ( 7.00%)  ???:kneedyn::WriteRunOutputs(...) [/x/kneedyn]
+"""
+
+
+def main():
+  failures = []
+
+  def check(cond, what):
+    if not cond:
+      failures.append(what)
+
+  total, costs = efficiency.parse_annotate(LISTING)
+  check(total == 1_000_000, f"total {total}")
+  residual = efficiency.share(costs, efficiency.RESIDUAL)
+  callbacks = residual + efficiency.share(costs, efficiency.OTHER_CALLBACKS)
+  check(residual == 201_000, f"residual {residual} (expected 200,000 + 1,000 cold)")
+  check(callbacks == 401_000, f"callbacks {callbacks} (expected 201,000 + 150,000 + 50,000)")
+
+  run = {"formulation": "ede", "integrator": "dopri5", "setting": {"rtol": 1e-7, "atol": 1e-9, "stabilization": "projection"}}
+  cmd = efficiency.command_of(run, "K", "S.yaml", "OUT")
+  check(cmd == ["K", "run", "S.yaml", "--formulation", "ede", "--integrator", "dopri5", "--rtol", "1e-07",
+                "--atol", "1e-09", "--stabilization", "projection", "--quiet", "--out", "OUT"], f"command {cmd}")
+  cmd = efficiency.command_of({"formulation": "newmark", "integrator": "", "setting": {"step": 0.001}}, "K", "S", "O")
+  check(cmd == ["K", "run", "S", "--formulation", "newmark", "--step", "0.001", "--quiet", "--out", "O"], f"command {cmd}")
+
+  events = {"liftoff_lateral": 1e-7, "flexion_90": 1e-7}
+  ref = [{"name": "liftoff_lateral", "time_s": 0.2163}, {"name": "flexion_90", "time_s": 0.2996}]
+
+  def result(form, integ, setting, scd, cpu):
+    return {"formulation": form, "integrator": integ, "setting": setting, "status": "ok", "reason": "",
+            "metrics": {"scd": scd, "event_time_error_s": dict(events)},
+            "cpu_time_s": {"median": cpu}, "counters": {}, "events": ref}
+
+  sweep = {"header": {"scene": "chapter_impact"},
+           "results": [result("dae", "", {"rtol": 1e-8, "atol": 1e-10}, 6.5, 0.01),
+                       result("ede", "dopri5", {"rtol": 1e-7, "atol": 1e-9}, 6.2, 0.005)]}
+  eff = {"scd": 6, "methods": {"dae": {"residual_share": 0.213, "callback_share": 0.415}}}
+  with tempfile.TemporaryDirectory() as tmp:
+    sp, ep = os.path.join(tmp, "wp.json"), os.path.join(tmp, "eff.json")
+    json.dump(sweep, open(sp, "w"))
+    json.dump(eff, open(ep, "w"))
+    out = subprocess.run([sys.executable, os.path.join(ROOT, "benchmarks", "work_precision_table.py"), sp,
+                          "--efficiency", ep], capture_output=True, text=True)
+    check(out.returncode == 0, f"table exit {out.returncode}: {out.stderr}")
+    rows = {line.split("|")[1].strip(): line for line in out.stdout.splitlines() if line.startswith("| ")}
+    check("efficiency" in out.stdout.splitlines()[0], f"header: {out.stdout.splitlines()[:1]}")
+    check(rows.get("dae", "").endswith("| 21 % (42 %) |"), f"dae row: {rows.get('dae')}")
+    check(rows.get("ede:dopri5", "").endswith("| — |"), f"ede row: {rows.get('ede:dopri5')}")
+    plain = subprocess.run([sys.executable, os.path.join(ROOT, "benchmarks", "work_precision_table.py"), sp],
+                           capture_output=True, text=True).stdout
+    check("efficiency" not in plain, "column without --efficiency")
+    missing = subprocess.run([sys.executable, os.path.join(ROOT, "benchmarks", "work_precision_table.py"), sp,
+                              "--efficiency", os.path.join(tmp, "none.json")], capture_output=True, text=True)
+    check(missing.returncode == 2 and "none.json" in missing.stderr, f"missing file: {missing.returncode} {missing.stderr}")
+
+  for f in failures:
+    print("FAIL:", f)
+  print("efficiency_test:", "FAILED" if failures else "ok")
+  return 1 if failures else 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())
