@@ -153,31 +153,21 @@ void Problem::Rhs(double t, const double* y, int n, double* f) const {
 void Problem::Jacobian(double t, const double* y, int n, double* J) const {
   if (is_dae()) Fail(StrCat("Problem::Jacobian: the '", form_, "' form is a DAE; call Jacobian(t, y, yp, c)"));
   CheckState("Jacobian", y, n);
-  if (!is_mde()) {  // ede: exact where every active contact is a sphere on a plane
-    AccelerationAt(t, y);
-    double dqdd_dx[72];
-    if (ConstrainedAccelerationJacobian(scene_.model, t, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
-                                        acc_.qdd, state_.active, acc_.normal_force, &state_.ligament_branch, dqdd_dx)) {
-      for (int i = 0; i < 6; ++i) {
-        for (int j = 0; j < 12; ++j) {
-          J[12 * i + j] = j == 6 + i ? 1.0 : 0.0;  // ∂q̇/∂(q, q̇)
-          J[12 * (6 + i) + j] = dqdd_dx[12 * i + j];
-        }
-      }
-      return;
-    }
+  if (is_mde()) {
+    MdeJacobian(t, y, J);
+    return;
   }
-  if (is_mde() && MdeJacobian(t, y, J)) return;
-  // Central difference quotients (a general surface pair).
-  double yh[12], fp[12], fm[12];
-  for (int j = 0; j < n; ++j) {
-    for (int i = 0; i < n; ++i) yh[i] = y[i];
-    const double h = 1.0e-7 * (1.0 + std::abs(y[j]));
-    yh[j] = y[j] + h;
-    Rhs(t, yh, n, fp);
-    yh[j] = y[j] - h;
-    Rhs(t, yh, n, fm);
-    for (int i = 0; i < n; ++i) J[n * i + j] = (fp[i] - fm[i]) / (2.0 * h);
+  AccelerationAt(t, y);
+  double dqdd_dx[72];
+  if (!ConstrainedAccelerationJacobian(scene_.model, t, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
+                                       acc_.qdd, state_.active, acc_.normal_force, &state_.ligament_branch, dqdd_dx)) {
+    Fail(StrCat("Problem::Jacobian: at t = ", t, " s a contact surface is evaluated outside its domain"));
+  }
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 12; ++j) {
+      J[12 * i + j] = j == 6 + i ? 1.0 : 0.0;  // ∂q̇/∂(q, q̇)
+      J[12 * (6 + i) + j] = dqdd_dx[12 * i + j];
+    }
   }
 }
 
@@ -186,22 +176,18 @@ void Problem::Jacobian(double t, const double* y, int n, double* J) const {
 //   ∂q/∂s = P = [I; −J_D⁻¹ J_F] (J = ∂φ/∂q), ∂q̇/∂ṡ = P,
 //   ∂q̇/∂s: F rows 0, D rows −J_D⁻¹ (∂φ̇/∂q) P (from φ̇(q(s), q̇(s, ṡ)) ≡ 0, ∂φ̇/∂q̇ = J),
 //   ∂s̈/∂(s, ṡ) = A_F [P 0; ∂q̇/∂s P],  A = ∂q̈/∂(q, q̇) (ConstrainedAccelerationJacobian);
-// J and ∂φ̇/∂q by forward AD (ceres::Jet over q). False: a contact is not a sphere on a plane.
-bool Problem::MdeJacobian(double t, const double* y, double* Jf) const {
+// J and ∂φ̇/∂q by forward AD (ceres::Jet over q) through the contact kinematics of any pair.
+void Problem::MdeJacobian(double t, const double* y, double* Jf) const {
   const Model& model = scene_.model;
   const std::vector<int>& active = state_.active;
   const int k = static_cast<int>(active.size());
-  std::vector<SphereOnPlane> sop(k);
-  for (int c = 0; c < k; ++c) {
-    if (!SphereOnPlaneForm(model.contacts[active[c]], &sop[c])) return false;
-  }
   VecM sdd(n_ / 2);
   const MdeKinematics kin = chart_.Evaluate(t, y, &state_.ligament_branch, &sdd);
   std::vector<double> normal_force(kin.normal_force.begin(), kin.normal_force.begin() + k);
   double A[72];
   if (!ConstrainedAccelerationJacobian(model, t, kin.q, kin.qd, kin.qdd, active, normal_force, &state_.ligament_branch,
                                        A)) {
-    return false;
+    Fail(StrCat("Problem::Jacobian: at t = ", t, " s a contact surface is evaluated outside its domain"));
   }
   using Jet6 = ceres::Jet<double, 6>;
   Vector6<Jet6> qj, qdj;
@@ -210,7 +196,10 @@ bool Problem::MdeJacobian(double t, const double* y, double* Jf) const {
   const Vector6<Jet6> nu = GeneralizedVelocity(qj, qdj);
   MatrixXd phi_q(k, 6), phidot_q(k, 6);
   for (int c = 0; c < k; ++c) {
-    const ContactGeometryTpl<Jet6> geo = SphereOnPlaneContact(sop[c], pose);
+    ContactGeometryTpl<Jet6> geo;
+    if (!ContactKinematics(model.contacts[active[c]], pose, &geo)) {
+      Fail(StrCat("Problem::Jacobian: at t = ", t, " s no contact point for contact ", c));
+    }
     const Jet6 phidot = ContactConstraintRow(pose, geo).dot(nu);
     for (int i = 0; i < 6; ++i) phi_q(c, i) = geo.gap.v(i), phidot_q(c, i) = phidot.v(i);
   }
@@ -239,7 +228,6 @@ bool Problem::MdeJacobian(double t, const double* y, double* Jf) const {
       Jf[n * (m + i) + j] = j < m ? dsdd_ds(free[i], j) : dsdd_dsd(free[i], j - m);
     }
   }
-  return true;
 }
 
 void Problem::Residual(double t, const double* y, const double* yp, int n, double* F) const {

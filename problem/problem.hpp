@@ -70,10 +70,10 @@ class Problem {
 
   // ODE form: f(t, y) into f (size()).
   void Rhs(double t, const double* y, int n, double* f) const;
-  // ODE forms: ∂f/∂y (row-major size()×size()), exact when every active contact is a sphere
-  // on a plane: ede by ConstrainedAccelerationJacobian (forward AD and the implicit function
-  // theorem), mde by the chain rule through the chart's elimination (MdeJacobian); otherwise
-  // central difference quotients of Rhs with step 1e-7 (1 + |y_i|).
+  // ODE forms: ∂f/∂y (row-major size()×size()), exact for every surface pair and the patella:
+  // ede by ConstrainedAccelerationJacobian (forward AD and the implicit function theorem;
+  // general pairs' κ through TimeDual over the Jet), mde by the chain rule through the
+  // chart's elimination (MdeJacobian).
   void Jacobian(double t, const double* y, int n, double* J_row_major) const;
   // DAE forms: F(t, y, ẏ) into F.
   void Residual(double t, const double* y, const double* yp, int n, double* F) const;
@@ -112,7 +112,7 @@ class Problem {
   void CheckOpen(const char* call) const;
   void AccelerationAt(double t, const double* y) const;
   void BeginChart();  // mde: y0, yp0 in the chart in use
-  bool MdeJacobian(double t, const double* y, double* J) const;
+  void MdeJacobian(double t, const double* y, double* J) const;
   bool has_chart_event() const { return is_mde() && !state_.active.empty(); }
 
   const Scene& scene_;

@@ -74,9 +74,8 @@ bool ConstrainedAccelerationJacobian(const Model& model, double t, const Vector6
     Throw<SolverError>("ConstrainedAccelerationJacobian", k, " active contacts; at most ", kMaxJetSize - 18);
   }
   std::vector<SphereOnPlane> sop(k);
-  for (int c = 0; c < k; ++c) {
-    if (!SphereOnPlaneForm(model.contacts[active[c]], &sop[c])) return false;
-  }
+  std::vector<bool> closed_form(k);
+  for (int c = 0; c < k; ++c) closed_form[c] = SphereOnPlaneForm(model.contacts[active[c]], &sop[c]);
   // Jet components: 0–5 q, 6–11 q̇, 12–17 q̈, 18… N.
   Vector6<JetD> qj, qdj, qddj;
   for (int i = 0; i < 6; ++i) {
@@ -90,7 +89,11 @@ bool ConstrainedAccelerationJacobian(const Model& model, double t, const Vector6
   const PoseTpl<JetD> pose = PoseFromCoordinates(qj, trig);
   for (int c = 0; c < k; ++c) {
     nj[c] = JetD(normal_force[c], 18 + c);
-    geo[c] = SphereOnPlaneContact(sop[c], pose);
+    if (closed_form[c]) {
+      geo[c] = SphereOnPlaneContact(sop[c], pose);
+    } else if (!ContactKinematics(model.contacts[active[c]], pose, &geo[c])) {
+      return false;
+    }
   }
   DataTpl<JetD> data(model);
   data.ligament_branch = ligament_branch;
@@ -100,9 +103,17 @@ bool ConstrainedAccelerationJacobian(const Model& model, double t, const Vector6
   const int m = 6 + k;
   MatrixXd H_x(m, 12), H_z(m, m);
   for (int row = 0; row < m; ++row) {
-    const JetD h = row < 6 ? r(row)
-                           : JetD(ContactConstraintRow(pose, geo[row - 6]).dot(nu_dot)) +
-                                 SphereOnPlaneRateTerm(sop[row - 6], pose, nu);
+    JetD h;
+    if (row < 6) {
+      h = r(row);
+    } else {
+      // κ of a general pair: its (q, q̇)-derivatives are second derivatives of the contact
+      // kinematics, carried by TimeDual over the Jet (time_dual.hpp).
+      const int c = row - 6;
+      const JetD kappa = closed_form[c] ? SphereOnPlaneRateTerm(sop[c], pose, nu)
+                                        : ContactRateTermAlongPath<TimeDual<JetD>>(model.contacts[active[c]], qj, qdj, nu);
+      h = JetD(ContactConstraintRow(pose, geo[c]).dot(nu_dot)) + kappa;
+    }
     for (int j = 0; j < 12; ++j) H_x(row, j) = h.v(j);
     for (int j = 0; j < m; ++j) H_z(row, j) = h.v(12 + j);
   }

@@ -132,9 +132,10 @@ ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double 
 // at (q, q̇) with its solution q̈, N (normal_force, one per active contact), exactly: by the
 // implicit function theorem on H(x, z) = (Newton–Euler residual, G ν̇ + κ) = 0 with
 // x = (q, q̇), z = (q̈, N), dz/dx = −H_z⁻¹ H_x, H_x and H_z by forward AD (ceres::Jet)
-// through NewtonEulerResidual and the contact kinematics. Returns false (nothing written)
-// when a contact is not a sphere on a plane: κ of the general pair is itself a derivative
-// (ContactRateTerm), whose derivative would need nested Jets.
+// through NewtonEulerResidual and the contact kinematics. Any surface pair: κ of a general
+// pair is itself a derivative (ContactRateTerm), differentiated through TimeDual over the Jet
+// (time_dual.hpp) with the surfaces' third chart derivatives (EvaluateChartThird). Returns
+// false (nothing written) when the general solve finds no contact point.
 bool ConstrainedAccelerationJacobian(const Model& model, double t, const Vector6d& q, const Vector6d& qd,
                                      const Vector6d& qdd, const std::vector<int>& active,
                                      const std::vector<double>& normal_force,

@@ -122,22 +122,7 @@ double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6
                        const Vector6d& nu) {
   SphereOnPlane sop;
   if (SphereOnPlaneForm(pair, &sop)) return SphereOnPlaneRateTerm(sop, pose, nu);
-  // κ = (dG/dt) ν: G along q(t) = q + t q̇ with a one-component Jet.
-  using Jet1 = ceres::Jet<double, 1>;
-  Vector6<Jet1> qj;
-  for (int i = 0; i < 6; ++i) {
-    qj(i) = Jet1(q(i));
-    qj(i).v(0) = qd(i);
-  }
-  const PoseTpl<Jet1> pose_path = PoseFromCoordinates(qj);
-  ContactGeometryTpl<Jet1> geo;
-  if (!ContactKinematics(pair, pose_path, &geo)) {
-    RequireContactKinematics(pair, ScalarPose(pose_path), "ContactRateTerm");
-  }
-  const Eigen::Matrix<Jet1, 1, 6> G = ContactConstraintRow(pose_path, geo);
-  double kappa = 0.0;
-  for (int i = 0; i < 6; ++i) kappa += G(i).v(0) * nu(i);
-  return kappa;
+  return ContactRateTermAlongPath<ceres::Jet<double, 1>>(pair, q, qd, nu);
 }
 
 }  // namespace kneedyn

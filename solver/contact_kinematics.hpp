@@ -30,6 +30,7 @@
 #include <type_traits>
 
 #include "solver/contact.hpp"
+#include "solver/time_dual.hpp"
 
 namespace kneedyn {
 
@@ -115,6 +116,17 @@ bool ContactKinematics(const ContactPair& pair, const PoseTpl<T>& pose,
   }
   T unused[4];
   ContactPointResiduals(pair, pose, z, &pf, &pt, &n_T, unused);
+  // Mixed second derivatives (TimeDual over a Jet, time_dual.hpp): each further chord step
+  // with the same J⁻¹ makes the lift exact to one more order (its error is the previous
+  // error times a first-order term).
+  for (int order = 1; order < DerivativeOrder<T>::value; ++order) {
+    for (int i = 0; i < 4; ++i) {
+      T dz = T(0.0);
+      for (int j = 0; j < 4; ++j) dz -= Jinv(i, j) * unused[j];
+      z[i] += dz - T(ScalarPart(dz));
+    }
+    ContactPointResiduals(pair, pose, z, &pf, &pt, &n_T, unused);
+  }
   geometry->point_F = pf;
   geometry->point_T = pt;
   geometry->normal_T = n_T;
@@ -153,6 +165,28 @@ ContactGeometryTpl<T> RequireContactKinematicsTpl(const ContactPair& pair, const
     }
     return SphereOnPlaneContact(sop, pose);
   }
+}
+
+// κ = (dG/dt) ν of any pair: G along the path q(t) = q + t q̇ in the scalar Path (a
+// one-direction dual over T: ceres::Jet<double, 1> for T = double, TimeDual<T> for a Jet,
+// time_dual.hpp; TimeDerivative reads the direction). The pose of the path is the general
+// solve's (ContactKinematics), so T = Jet gives κ with its exact derivatives in (q, q̇).
+template <typename Path, typename T>
+T ContactRateTermAlongPath(const ContactPair& pair, const Vector6<T>& q, const Vector6<T>& qd, const Vector6<T>& nu) {
+  Vector6<Path> q_path;
+  for (int i = 0; i < 6; ++i) {
+    q_path(i) = Path(q(i));
+    TimeDerivativeRef(q_path(i)) = qd(i);
+  }
+  const PoseTpl<Path> pose_path = PoseFromCoordinates(q_path);
+  ContactGeometryTpl<Path> geo;
+  if (!ContactKinematics(pair, pose_path, &geo)) {
+    RequireContactKinematics(pair, ScalarPose(pose_path), "ContactRateTerm");
+  }
+  const Eigen::Matrix<Path, 1, 6> G = ContactConstraintRow(pose_path, geo);
+  T kappa = T(0.0);
+  for (int i = 0; i < 6; ++i) kappa += TimeDerivativeRef(G(i)) * nu(i);
+  return kappa;
 }
 
 // κ in φ̈ = G ν̇ + κ at (q, q̇) (header comment). Throws like RequireContactKinematics.

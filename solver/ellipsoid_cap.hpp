@@ -20,6 +20,7 @@ class EllipsoidCap final : public HeightField {
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   std::string Describe() const override;
   bool EvaluateChart(double u, double v, ChartSample* sample) const override;
+  bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
   void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
   bool PointWithNormal(const Vector3d& n_up, double uv[2]) const override;
 

@@ -35,6 +35,12 @@ struct ChartSample {
   Vector3d p_uu = Vector3d::Zero(), p_uv = Vector3d::Zero(), p_vv = Vector3d::Zero();
 };
 
+// Third derivatives of a regular chart, for the second-order lift below (the derivative of
+// the contact rate term: surface_third_derivatives.cpp).
+struct ChartThirdSample {
+  Vector3d p_uuu = Vector3d::Zero(), p_uuv = Vector3d::Zero(), p_uvv = Vector3d::Zero(), p_vvv = Vector3d::Zero();
+};
+
 class HeightField {
  public:
   virtual ~HeightField() = default;
@@ -46,6 +52,9 @@ class HeightField {
 
   // Regular chart (see header comment). Default: (x, y, h(x, y)). False outside its domain.
   virtual bool EvaluateChart(double u, double v, ChartSample* sample) const;
+  // Third derivatives of that chart (false outside its domain). Every surface type gives
+  // them (surface_third_derivatives.cpp); the default throws SolverError naming the surface.
+  virtual bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const;
   // Chart coordinates of a point on the surface (exact inverse there); for points off the
   // surface, those of a nearby surface point (a starting guess). Default: (x, y).
   virtual void ChartCoordinates(const Vector3d& p, double uv[2]) const;
@@ -66,8 +75,10 @@ enum class ContactChart {
 };
 
 // P, P_u, P_v at chart coordinates (u, v) of scalar type T (double or Jet), by the chain
-// rule from one double sample: δ = u − ScalarPart(u) carries only derivatives.
-template <typename T>
+// rule from one double sample: δ = u − ScalarPart(u) carries only derivatives. A scalar with
+// mixed second derivatives (TimeDual over a Jet, time_dual.hpp; kOrder = 2) gets the
+// second-order Taylor terms, exact there since third-order products vanish.
+template <typename T, int kOrder = DerivativeOrder<T>::value>
 bool EvaluateChart(const HeightField& surface, const T& u, const T& v, Vector3<T>* p,
                    Vector3<T>* p_u, Vector3<T>* p_v) {
   ChartSample s;
@@ -77,6 +88,17 @@ bool EvaluateChart(const HeightField& surface, const T& u, const T& v, Vector3<T
     (*p)(i) = T(s.p(i)) + s.p_u(i) * du + s.p_v(i) * dv;
     (*p_u)(i) = T(s.p_u(i)) + s.p_uu(i) * du + s.p_uv(i) * dv;
     (*p_v)(i) = T(s.p_v(i)) + s.p_uv(i) * du + s.p_vv(i) * dv;
+  }
+  if constexpr (kOrder >= 2) {
+    static_assert(kOrder == 2, "EvaluateChart: at most second derivatives");
+    ChartThirdSample s3;
+    if (!surface.EvaluateChartThird(ScalarPart(u), ScalarPart(v), &s3)) return false;
+    const T duu = 0.5 * du * du, duv = du * dv, dvv = 0.5 * dv * dv;
+    for (int i = 0; i < 3; ++i) {
+      (*p)(i) += s.p_uu(i) * duu + s.p_uv(i) * duv + s.p_vv(i) * dvv;
+      (*p_u)(i) += s3.p_uuu(i) * duu + s3.p_uuv(i) * duv + s3.p_uvv(i) * dvv;
+      (*p_v)(i) += s3.p_uuv(i) * duu + s3.p_uvv(i) * duv + s3.p_vvv(i) * dvv;
+    }
   }
   return true;
 }
@@ -123,6 +145,7 @@ class SphereCap final : public HeightField {
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   std::string Describe() const override;
   bool EvaluateChart(double u, double v, ChartSample* sample) const override;
+  bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
   void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
   bool PointWithNormal(const Vector3d& n_up, double uv[2]) const override;
   bool SphereForm(Vector3d* centre, double* radius) const override;
@@ -141,6 +164,7 @@ class PlaneSurface final : public HeightField {
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   std::string Describe() const override;
   bool PlaneForm(Vector3d* unit_normal, double* offset) const override;
+  bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
   // Unit normal (−h_x, −h_y, 1)/norm, pointing to +z (towards the femur for a tibial
   // plateau), and offset d with normal·p = d for points p on the plane.
   Vector3d UnitNormal() const;

@@ -19,6 +19,7 @@ class OrientedPlane final : public HeightField {
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   std::string Describe() const override;
   bool EvaluateChart(double u, double v, ChartSample* sample) const override;
+  bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
   void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
   bool PlaneForm(Vector3d* unit_normal, double* offset) const override;
   const Vector3d& normal() const { return normal_; }

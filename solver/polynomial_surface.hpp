@@ -18,6 +18,7 @@ class PolynomialSurface final : public HeightField {
   PolynomialSurface(const Vector3d& origin, double rotation_z,
                     const double (&coefficients)[kMaxDegree + 1][kMaxDegree + 1]);
   bool Evaluate(double x, double y, HeightSample* sample) const override;
+  bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
   std::string Describe() const override;
 
  private:

@@ -58,7 +58,7 @@ int kneedyn_problem_initial_values(const kneedyn_problem* p, double* y0, double*
 /* 1 differential, 0 algebraic. */
 int kneedyn_problem_differential_ids(const kneedyn_problem* p, double* ids, int n);
 
-/* ODE forms: f(t, y); df/dy (exact for sphere-on-plane contacts; docs/problem.md). */
+/* ODE forms: f(t, y); df/dy (exact for every surface pair; docs/problem.md). */
 int kneedyn_problem_rhs(const kneedyn_problem* p, double t, const double* y, int n, double* f);
 int kneedyn_problem_jacobian(const kneedyn_problem* p, double t, const double* y, int n, double* J);
 /* DAE forms: F(t, y, yp); dF/dy + c dF/dyp (exact). */

@@ -97,3 +97,75 @@ def test_bad_calls_raise_value_error():
         p.transition(p.t0, p.y0, "liftoff_nowhere")
     with pytest.raises(ValueError):
         kneedyn.Problem(SCENE, form="dae").jacobian(0.0, np.zeros(3), np.zeros(3), 1.0)
+
+
+def _c_interface():
+    """The C interface (libkneedyn_problem_c, kneedyn/problem.h) through ctypes, from the build tree."""
+    import ctypes
+    import os
+    lib = os.path.join(os.environ.get("KNEEDYN_BUILD_DIR", ""), "problem", "libkneedyn_problem_c.so")
+    if not os.environ.get("KNEEDYN_BUILD_DIR") or not os.path.exists(lib):
+        pytest.skip("needs the build tree's libkneedyn_problem_c.so (run by ctest)")
+    c = ctypes.CDLL(lib)
+    dp = ctypes.POINTER(ctypes.c_double)
+    c.kneedyn_problem_create.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_double, ctypes.c_double,
+                                         ctypes.POINTER(ctypes.c_void_p)]
+    c.kneedyn_problem_jacobian.argtypes = [ctypes.c_void_p, ctypes.c_double, dp, ctypes.c_int, dp]
+    c.kneedyn_problem_rhs.argtypes = [ctypes.c_void_p, ctypes.c_double, dp, ctypes.c_int, dp]
+    c.kneedyn_problem_residual.argtypes = [ctypes.c_void_p, ctypes.c_double, dp, dp, ctypes.c_int, dp]
+    c.kneedyn_problem_dae_jacobian.argtypes = [ctypes.c_void_p, ctypes.c_double, dp, dp, ctypes.c_double,
+                                               ctypes.c_int, dp]
+    c.kneedyn_problem_destroy.argtypes = [ctypes.c_void_p]
+    c.kneedyn_last_error.restype = ctypes.c_char_p
+    return c, dp
+
+
+@pytest.mark.parametrize("scene", ["anatomical_surfaces", "patellofemoral_impact"])
+@pytest.mark.parametrize("form", ["ede", "mde"])
+def test_ode_jacobian_on_general_surfaces_equals_c_interface_bitwise(scene, form):
+    """p.jacobian and p.rhs on ellipsoid caps on polynomial plateaus and with the patella are
+    the C interface's, bitwise (the exact Jacobian against central differences with a step
+    study: tests/problem_test.cpp, GeneralSurfaceJacobian)."""
+    import ctypes
+    c, dp = _c_interface()
+    path = kneedyn.scene_path(scene)
+    p = kneedyn.Problem(path, form=form)
+    t, y = p.t0 + 1e-3, p.y0 + 1e-3 * p.yp0
+    J, f = p.jacobian(t, y), p.rhs(t, y)
+    h = ctypes.c_void_p()
+    assert c.kneedyn_problem_create(path.encode(), form.encode(), 0.0, 0.0, ctypes.byref(h)) == 0, \
+        c.kneedyn_last_error()
+    try:
+        yc = np.ascontiguousarray(y, dtype=np.float64)
+        Jc, fc = np.zeros((p.size, p.size)), np.zeros(p.size)
+        assert c.kneedyn_problem_jacobian(h, t, yc.ctypes.data_as(dp), p.size, Jc.ctypes.data_as(dp)) == 0, \
+            c.kneedyn_last_error()
+        assert c.kneedyn_problem_rhs(h, t, yc.ctypes.data_as(dp), p.size, fc.ctypes.data_as(dp)) == 0
+    finally:
+        c.kneedyn_problem_destroy(h)
+    assert np.array_equal(J.view(np.uint64), Jc.view(np.uint64))
+    assert np.array_equal(f.view(np.uint64), fc.view(np.uint64))
+
+
+@pytest.mark.parametrize("form", ["dae", "dae-ggl"])
+def test_dae_residual_and_jacobian_equal_c_interface_bitwise(form):
+    """p.residual and p.jacobian(t, y, yp, c) are the C interface's, bitwise."""
+    import ctypes
+    c, dp = _c_interface()
+    p = kneedyn.Problem(SCENE, form=form)
+    t, y, yp, cj = p.t0 + 1e-3, p.y0 + 1e-3 * p.yp0, p.yp0.copy(), 25.0
+    F, J = p.residual(t, y, yp), p.jacobian(t, y, yp, cj)
+    h = ctypes.c_void_p()
+    assert c.kneedyn_problem_create(SCENE.encode(), form.encode(), 0.0, 0.0, ctypes.byref(h)) == 0, \
+        c.kneedyn_last_error()
+    try:
+        yc, ypc = (np.ascontiguousarray(v, dtype=np.float64) for v in (y, yp))
+        Fc, Jc = np.zeros(p.size), np.zeros((p.size, p.size))
+        assert c.kneedyn_problem_residual(h, t, yc.ctypes.data_as(dp), ypc.ctypes.data_as(dp), p.size,
+                                          Fc.ctypes.data_as(dp)) == 0, c.kneedyn_last_error()
+        assert c.kneedyn_problem_dae_jacobian(h, t, yc.ctypes.data_as(dp), ypc.ctypes.data_as(dp), cj, p.size,
+                                              Jc.ctypes.data_as(dp)) == 0, c.kneedyn_last_error()
+    finally:
+        c.kneedyn_problem_destroy(h)
+    assert np.array_equal(F.view(np.uint64), Fc.view(np.uint64))
+    assert np.array_equal(J.view(np.uint64), Jc.view(np.uint64))
