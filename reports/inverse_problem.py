@@ -3,8 +3,9 @@
 claims check at each fit.
 
   inverse_problem.py --inverse BIN --kneedyn BIN --out DIR --scenes S1 [S2 ...]
-                     [--record FILE] [--targets C1,K6] [--max-iterations N] [--quick] [--jobs N]
-                     [--parallel N] [--reuse] [--reuse-only]
+                     [--readings KEY,...|model] [--reading-targets C1] [--merge-recorded FILE]
+                     [--record FILE] [--targets C1,K6|none] [--folds A,B|none] [--max-iterations N]
+                     [--quick] [--jobs N] [--parallel N] [--reuse] [--reuse-only]
 
 Per scene: `kneedyn_inverse` (inverse/inverse_problem.hpp; one process per target and per
 fold, --parallel at a time, merged into DIR/<scene>/fit.json) fits each target claim's
@@ -13,7 +14,17 @@ quantities, normalized by their printed precision, and runs the leave-some-out f
 the chapter's pulse families are run at the unchanged parameters and at each target's fit
 (the fitted Tables 1.1-1.3 written as a parameter set beside the scene), and
 reports/claims.py judges every claim on both: `fixes` are claims not reproduced before and
-reproduced at the fit, `breaks` the reverse. S1/S2 (the sensitivity studies) are not re-run.
+reproduced at the fit, `breaks` the reverse. The same claims check runs at each leave-some-out
+fold's fit. S1/S2 (the sensitivity studies) are not re-run.
+
+The discrete readings are the outer choices (--readings): each reading of the reconstruction
+study (reports/reconstruction.py READINGS, docs/model.md) becomes one scene, its reference
+member A = 100 N, t0 = 0.1 s, and is fitted like a scene file, for --reading-targets only (C1,
+lift-off 66°, by default; no folds). `model` = every model reading and the combinations the
+Sobol' indices rank first. Per reading the record also compares the claims at the fit with
+the project's reading (the first scene unchanged): `fixes_vs_project`, `breaks_vs_project`.
+--merge-recorded keeps what an earlier record has and this run does not redo (readings,
+targets), each entry marked with the earlier record's commit and date.
 
 Writes DIR/<scene>/fit.json (kneedyn_inverse's file), DIR/<scene>/<run>/ (families, claims)
 and DIR/inverse_problem.json; with --record the same JSON also there (the first scene's
@@ -35,8 +46,11 @@ sys.dont_write_bytecode = True  # keep the source tree clean
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 import claims  # noqa: E402
+import reconstruction  # noqa: E402
 import run_families  # noqa: E402
+from record_sweep import git_commit  # noqa: E402  the recorded files' commit rule (+dirty), one copy
 
 SPEC = os.path.join(ROOT, "inverse", "inverse_problem.yaml")
 SENSITIVITY_IDS = {"S1", "S2"}
@@ -59,23 +73,55 @@ def load_scene(path):
   return scene
 
 
-def write_parameter_set(scene, changes, path):
-  """The scene's parameter set with `changes` ({sensitivity name: change in its units}) added."""
+def fitted_scene(scene, changes, path):
+  """`scene` (a dict) with `changes` ({sensitivity name: change in its units}) added: the
+  parameter set is written to `path` with the changes; where the scene overrides a ligament's
+  stiffness or extension ratio (ligament_parameters, e.g. the reading of Table 1.2 as
+  labelled) the override carries the change instead, since it wins over the parameter set
+  (scene/ligaments.cpp). Returns the new scene dict."""
   with open(scene["parameter_set"]) as f:
     pset = yaml.safe_load(f)
+  out = json.loads(json.dumps(scene))
+  overrides = out.get("ligament_parameters") or {}
   by_name = {l["name"].replace(" ", "_"): l for l in pset["ligaments"]}
   for name, change in changes.items():
     element, prop = name.rsplit(".", 1)
+    if element not in by_name or prop not in PROPERTY_KEYS:
+      raise ValueError(f"fitted_scene: parameter '{name}': not a ligament property of {scene['parameter_set']}")
     key, idx = PROPERTY_KEYS[prop]
     lig = by_name[element]
-    if idx is None:
+    over = overrides.get(lig["name"], {})
+    if idx is None and key in over:
+      over[key] = float(over[key]) + change
+    elif idx is None:
       lig[key] = float(lig[key]) + change
     else:
       lig[key] = [float(v) for v in lig[key]]
       lig[key][idx] += change
   with open(path, "w") as f:
     yaml.safe_dump(pset, f, sort_keys=False)
-  return path
+  out["parameter_set"] = path
+  return out
+
+
+def reading_scene(key, outdir):
+  """The reference member (A = 100 N, t0 = 0.1 s) of reconstruction reading `key` written as a
+  scene file under outdir (its parameter-set variant beside it). Returns (path, label)."""
+  by = {k: (label, patch) for k, label, patch in reconstruction.READINGS}
+  if key not in by:
+    raise KeyError(key)
+  rdir = os.path.join(outdir, "reading_scenes", key.replace("/", "__"))
+  os.makedirs(os.path.join(rdir, "scenes"), exist_ok=True)
+  label, patch = by[key]
+  path = run_families.write_scene(rdir, "reference", run_families.BASE_AMPLITUDE_N, run_families.BASE_DURATION_S,
+                                  patch=reconstruction.resolve_patch(patch, rdir))
+  return path, label
+
+
+def model_readings():
+  """Every model reading alone, then the combinations the Sobol' indices rank first."""
+  return ([f"model/{k}" for k, _, _, _ in reconstruction.MODEL_READINGS]
+          + [reconstruction.combination(c)[0] for c in reconstruction.COMBINATIONS])
 
 
 def run_claims(kneedyn, scene, rdir, quick, jobs):
@@ -138,16 +184,22 @@ def leave_some_out_summary(fit, fold):
   return out
 
 
-def run_fits(args, scene_path, sdir, fit_path):
+def split_list(text, everything):
+  """'' -> everything, 'none' -> [], else the comma-separated items."""
+  if text == "none":
+    return []
+  return [t for t in text.split(",") if t] if text else list(everything)
+
+
+def run_fits(args, scene_path, sdir, fit_path, targets, folds):
   """kneedyn_inverse once per target and once per leave-some-out fold, --parallel at a time
   (independent fits: the same result as one process doing them in turn); merged into
-  fit_path. Returns (merged JSON or None, error text)."""
-  with open(SPEC) as f:
-    spec = yaml.safe_load(f)
-  claim_ids = list(dict.fromkeys(st["claim"] for st in spec["statements"]))
-  targets = [t for t in args.targets.split(",") if t] if args.targets else claim_ids
+  fit_path. With neither a target nor a fold, one run for the statements at x = 0 only.
+  Returns (merged JSON or None, error text)."""
   jobs = [("target_" + t, ["--targets", t, "--folds", "none"]) for t in targets]
-  jobs += [("fold_" + h, ["--targets", "none", "--folds", h]) for h in ("A", "B")]
+  jobs += [("fold_" + h, ["--targets", "none", "--folds", h]) for h in folds]
+  if not jobs:
+    jobs = [("baseline", ["--targets", "none", "--folds", "none"])]
   base = [args.inverse, "--scene", os.path.abspath(scene_path), "--spec", SPEC,
           "--max-iterations", str(args.max_iterations)]
 
@@ -202,12 +254,128 @@ def run_fits(args, scene_path, sdir, fit_path):
   return merged, errors
 
 
-def git_commit():
-  try:
-    return subprocess.run(["git", "-C", ROOT, "rev-parse", "HEAD"], capture_output=True, text=True,
-                          check=True).stdout.strip()
-  except (OSError, subprocess.CalledProcessError):
-    return None
+
+def claims_at_fit(args, scene, normalized, bounds, rdir, before):
+  """Runs the pulse families at the normalized change `normalized` ({name: x_i}) of `scene`
+  and judges the claims. Returns {claims_at_fit, fixes, breaks, liftoff by kneedyn run,
+  failed_family_runs} (fixes/breaks against `before`)."""
+  changes = {n: x * bounds[n] for n, x in normalized.items() if x != 0.0}
+  os.makedirs(rdir, exist_ok=True)
+  s = fitted_scene(scene, changes, os.path.join(rdir, "fitted_knee.yaml"))
+  after, bad = run_claims(args.kneedyn, s, rdir, args.quick, args.jobs)
+  fixes, breaks = compare(before, after)
+  out = {"claims_at_fit": after, "fixes": fixes, "breaks": breaks, "failed_family_runs": bad,
+         "reproduced_at_fit": sum(v == claims.REPRODUCED for v in after.values())}
+  # The reference member (A = 100 N, t0 = 0.1 s) by `kneedyn run` at the fit: an
+  # independent check of the lift-off the sensitivity driver fitted.
+  ref_run = os.path.join(rdir, "runs", run_families.member_name("amplitude", run_families.BASE_AMPLITUDE_N))
+  if os.path.exists(os.path.join(ref_run, "summary.json")):
+    out["liftoff_lateral_deg_by_kneedyn_run"] = run_families.event_summary(ref_run)["liftoff_lateral_deg"]
+  return out
+
+
+def target_entry(t):
+  """The recorded fields of one target's fit (kneedyn_inverse's JSON)."""
+  entry = {"reached": bool(t.get("reached")), "normalized_change": t.get("normalized_change"),
+           "max_normalized_change": t.get("max_normalized_change"),
+           "beyond_precision": t.get("beyond_precision"), "parameters": t.get("parameters", {}),
+           "moved": t.get("moved"), "linearized": t.get("linearized"),
+           "fitted_statements": t.get("fitted_statements"), "statements_at_fit": t.get("statements_at_fit"),
+           "within_precision": {k: (t.get("within_precision") or {}).get(k)
+                                for k in ("reached", "normalized_change", "max_normalized_change",
+                                          "fitted_statements")},
+           "fixes": [], "breaks": []}
+  if "error" in t:
+    entry["error"] = t["error"]
+  return entry
+
+
+def fit_scene(args, key, scene_path, outdir, targets, folds, bounds, project_before):
+  """Fits, then the claims check, of one scene. Returns (reading entry, failed)."""
+  sdir = os.path.join(outdir, key.replace("/", "__"))
+  os.makedirs(sdir, exist_ok=True)
+  t0 = time.monotonic()
+  fit, err = run_fits(args, scene_path, sdir, os.path.join(sdir, "fit.json"), targets, folds)
+  fit_s = time.monotonic() - t0
+  failed = bool(err)
+  if err:
+    print(f"inverse_problem: {key}: kneedyn_inverse failed: {err[-800:]}", file=sys.stderr)
+  rel_scene = os.path.relpath(os.path.abspath(scene_path), ROOT)
+  if fit is None:
+    return {"scene": rel_scene, "error": err[-2000:], "fit_wall_s": fit_s}, True
+  scene = load_scene(scene_path)
+  t0 = time.monotonic()
+  before, bad = run_claims(args.kneedyn, scene, os.path.join(sdir, "unchanged"), args.quick, args.jobs)
+  failed |= bool(bad)
+  ref = project_before if project_before is not None else before
+  out_targets = {}
+  for cid, t in fit.get("targets", {}).items():
+    entry = target_entry(t)
+    if t.get("all_parameters_normalized"):
+      entry.update(claims_at_fit(args, scene, t["all_parameters_normalized"], bounds,
+                                 os.path.join(sdir, "fit_" + cid), before))
+      entry["fixes_vs_project"], entry["breaks_vs_project"] = compare(ref, entry["claims_at_fit"])
+      failed |= bool(entry["failed_family_runs"])
+    out_targets[cid] = entry
+    print(f"inverse_problem: {key}: {cid}: reached {entry['reached']}, |x| {entry['normalized_change']}, "
+          f"fixes {entry['fixes']}, breaks {entry['breaks']}", flush=True)
+  lso = {}
+  for fold, f in fit.get("leave_some_out", {}).items():
+    lso[fold] = leave_some_out_summary(fit, fold)
+    if f.get("all_parameters_normalized"):
+      # The claims check at the fold's fit: the whole claims table, not only the judged half.
+      lso[fold].update(claims_at_fit(args, scene, f["all_parameters_normalized"], bounds,
+                                     os.path.join(sdir, fold), before))
+      failed |= bool(lso[fold]["failed_family_runs"])
+      print(f"inverse_problem: {key}: {fold}: claims fixed {lso[fold]['fixes']}, broken {lso[fold]['breaks']}",
+            flush=True)
+  entry = {"scene": rel_scene, "targets": out_targets, "claims_unchanged": before,
+           "reproduced_unchanged": sum(v == claims.REPRODUCED for v in before.values()),
+           "fit_errors": err or None, "baseline_statements": fit.get("baseline"), "leave_some_out": lso,
+           "fit_wall_s": fit_s, "reused_fit_s": fit.get("reused_runtime_s", 0.0),
+           "fit_commands": fit.get("commands"), "claims_runtime_s": time.monotonic() - t0,
+           "sensitivity_runs": fit.get("runs"), "settings": fit.get("settings")}
+  if project_before is not None:
+    entry["fixes_vs_project"], entry["breaks_vs_project"] = compare(project_before, before)
+  return entry, failed
+
+
+def merge_recorded(readings, old):
+  """Readings and targets of an earlier record that this run did not redo, each marked with
+  the earlier record's provenance."""
+  prov = {k: old.get(k) for k in ("command", "commit", "date")}
+  for key, r in old.get("readings", {}).items():
+    if key not in readings:
+      readings[key] = dict(r, recorded_earlier=r.get("recorded_earlier", prov))
+      continue
+    new = readings[key]
+    for cid, t in r.get("targets", {}).items():
+      if cid not in new.get("targets", {}):
+        new.setdefault("targets", {})[cid] = dict(t, recorded_earlier=t.get("recorded_earlier", prov))
+    for fold, f in r.get("leave_some_out", {}).items():
+      if fold not in new.get("leave_some_out", {}):
+        new.setdefault("leave_some_out", {})[fold] = dict(f, recorded_earlier=f.get("recorded_earlier", prov))
+  return readings
+
+
+def readings_table(readings, first):
+  """One row per reading: the lift-off at x = 0 and the C1 fit's size and cost."""
+  rows = []
+  for key, r in readings.items():
+    base = (r.get("baseline_statements") or {}).get("C1", {})
+    c1 = (r.get("targets") or {}).get("C1", {})
+    rows.append({"reading": key, "label": r.get("label"), "liftoff_deg_unchanged": base.get("value"),
+                 "reproduced_unchanged": r.get("reproduced_unchanged"),
+                 "C1_reached": c1.get("reached"), "C1_normalized_change": c1.get("normalized_change"),
+                 "C1_max_normalized_change": c1.get("max_normalized_change"),
+                 "C1_within_precision_liftoff_deg":
+                     ((c1.get("within_precision") or {}).get("fitted_statements") or {}).get("C1", {}).get("value"),
+                 "liftoff_deg_at_fit": (c1.get("fitted_statements") or {}).get("C1", {}).get("value"),
+                 "reproduced_at_fit": c1.get("reproduced_at_fit"),
+                 "fixes_vs_project": c1.get("fixes_vs_project", c1.get("fixes") if key == first else None),
+                 "breaks_vs_project": c1.get("breaks_vs_project", c1.get("breaks") if key == first else None),
+                 "error": r.get("error")})
+  return rows
 
 
 def main(argv=None):
@@ -216,10 +384,16 @@ def main(argv=None):
   ap.add_argument("--kneedyn", required=True)
   ap.add_argument("--out", required=True)
   ap.add_argument("--scenes", nargs="+", required=True, help="scene files; the first is the headline")
+  ap.add_argument("--readings", default="",
+                  help="reconstruction readings to fit as outer choices (comma-separated keys of "
+                       "reports/reconstruction.py READINGS, or 'model': every model reading and the combinations)")
+  ap.add_argument("--reading-targets", default="C1", help="targets fitted per reading ('none': the statements at x = 0 only)")
   ap.add_argument("--record", help="also write the result JSON here (reports/recorded/inverse_problem.json)")
+  ap.add_argument("--merge-recorded", help="an earlier record: keep its readings, targets and folds not redone here")
   ap.add_argument("--targets", default="C1,K6,K7,V2,V4",
-                  help="claim ids ('' = every claim with a statement); default: the statements the "
-                       "unchanged model misses (C1, K6, K7, V2, V4)")
+                  help="claim ids ('' = every claim with a statement, 'none' = no target); default: the statements "
+                       "the unchanged model misses (C1, K6, K7, V2, V4)")
+  ap.add_argument("--folds", default="A,B", help="leave-some-out folds of the scenes ('none': no fold)")
   ap.add_argument("--max-iterations", type=int, default=8)
   ap.add_argument("--quick", action="store_true", help="reduced pulse families for the claims check")
   ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="family runs at a time (claims check)")
@@ -236,74 +410,56 @@ def main(argv=None):
     if not os.path.isfile(s):
       print(f"inverse_problem: --scenes: '{s}': no such file", file=sys.stderr)
       return 2
+  with open(SPEC) as f:
+    spec = yaml.safe_load(f)
+  claim_ids = list(dict.fromkeys(st["claim"] for st in spec["statements"]))
+  bounds = {p["name"]: p["bound"] for p in spec["parameters"]}
+  reading_keys = model_readings() if args.readings == "model" else [k for k in args.readings.split(",") if k]
+  known = {k for k, _, _ in reconstruction.READINGS}
+  for flag, value, allowed in (("--targets", args.targets, claim_ids), ("--reading-targets", args.reading_targets, claim_ids),
+                               ("--folds", args.folds, ["A", "B"]), ("--readings", ",".join(reading_keys), known)):
+    bad = [v for v in split_list(value, allowed) if v not in allowed]
+    if bad:
+      print(f"inverse_problem: {flag}: '{bad[0]}' is none of {', '.join(sorted(allowed))}", file=sys.stderr)
+      return 2
+  old = None
+  if args.merge_recorded:
+    try:
+      with open(args.merge_recorded) as f:
+        old = json.load(f)
+    except (OSError, ValueError) as e:
+      print(f"inverse_problem: --merge-recorded = '{args.merge_recorded}': {e}", file=sys.stderr)
+      return 2
   t_start = time.monotonic()
   outdir = os.path.abspath(args.out)
   os.makedirs(outdir, exist_ok=True)
   failed = False
   readings = {}
-  for scene_path in args.scenes:
+  first = scene_key(args.scenes[0])
+  project_before = None
+  for n, scene_path in enumerate(args.scenes):
     key = scene_key(scene_path)
-    sdir = os.path.join(outdir, key)
-    os.makedirs(sdir, exist_ok=True)
-    fit_path = os.path.join(sdir, "fit.json")
-    t0 = time.monotonic()
-    fit, err = run_fits(args, scene_path, sdir, fit_path)
-    fit_s = time.monotonic() - t0
-    if err:
-      print(f"inverse_problem: {key}: kneedyn_inverse failed: {err[-800:]}", file=sys.stderr)
-      failed = True
-    if fit is None:
-      readings[key] = {"scene": scene_path, "error": err[-2000:]}
-      continue
-    scene = load_scene(scene_path)
-    t0 = time.monotonic()
-    before, bad = run_claims(args.kneedyn, scene, os.path.join(sdir, "unchanged"), args.quick, args.jobs)
-    failed |= bool(bad)
-    targets = {}
-    for cid, t in fit.get("targets", {}).items():
-      entry = {"reached": bool(t.get("reached")), "normalized_change": t.get("normalized_change"),
-               "max_normalized_change": t.get("max_normalized_change"),
-               "beyond_precision": t.get("beyond_precision"), "parameters": t.get("parameters", {}),
-               "moved": t.get("moved"), "linearized": t.get("linearized"),
-               "fitted_statements": t.get("fitted_statements"), "statements_at_fit": t.get("statements_at_fit"),
-               "within_precision": {k: t.get("within_precision", {}).get(k)
-                                    for k in ("reached", "normalized_change", "max_normalized_change",
-                                              "fitted_statements")},
-               "fixes": [], "breaks": []}
-      if "error" in t:
-        entry["error"] = t["error"]
-      if t.get("all_parameters_normalized"):
-        spec_bounds = {p["name"]: p["bound"] for p in yaml.safe_load(open(SPEC))["parameters"]}
-        changes = {n: x * spec_bounds[n] for n, x in t["all_parameters_normalized"].items() if x != 0.0}
-        rdir = os.path.join(sdir, "fit_" + cid)
-        os.makedirs(rdir, exist_ok=True)
-        s = json.loads(json.dumps(scene))
-        s["parameter_set"] = write_parameter_set(scene, changes, os.path.join(rdir, "fitted_knee.yaml"))
-        after, bad = run_claims(args.kneedyn, s, rdir, args.quick, args.jobs)
-        failed |= bool(bad)
-        entry["fixes"], entry["breaks"] = compare(before, after)
-        entry["claims_at_fit"] = after
-        # The reference member (A = 100 N, t0 = 0.1 s) by `kneedyn run` at the fit: an
-        # independent check of the lift-off the sensitivity driver fitted.
-        ref_run = os.path.join(rdir, "runs", run_families.member_name("amplitude", run_families.BASE_AMPLITUDE_N))
-        if os.path.exists(os.path.join(ref_run, "summary.json")):
-          entry["liftoff_lateral_deg_by_kneedyn_run"] = run_families.event_summary(ref_run)["liftoff_lateral_deg"]
-        entry["failed_family_runs"] = bad
-      targets[cid] = entry
-      print(f"inverse_problem: {key}: {cid}: reached {entry['reached']}, |x| {entry['normalized_change']}, "
-            f"fixes {entry['fixes']}, breaks {entry['breaks']}", flush=True)
-    readings[key] = {"scene": os.path.relpath(os.path.abspath(scene_path), ROOT), "targets": targets,
-                     "claims_unchanged": before, "fit_errors": err or None,
-                     "baseline_statements": fit.get("baseline"),
-                     "leave_some_out": {fold: leave_some_out_summary(fit, fold)
-                                        for fold in fit.get("leave_some_out", {})},
-                     "fit_wall_s": fit_s, "reused_fit_s": fit.get("reused_runtime_s", 0.0),
-                     "fit_commands": fit.get("commands"), "claims_runtime_s": time.monotonic() - t0,
-                     "sensitivity_runs": fit.get("runs"), "settings": fit.get("settings")}
-  first = readings.get(scene_key(args.scenes[0]), {})
-  result = {"targets": first.get("targets", {}),
-            "leave_some_out": first.get("leave_some_out", {}),
+    entry, bad = fit_scene(args, key, scene_path, outdir, split_list(args.targets, claim_ids),
+                           split_list(args.folds, ["A", "B"]), bounds, project_before)
+    readings[key] = entry
+    failed |= bad
+    if n == 0:
+      project_before = entry.get("claims_unchanged")
+  for key in reading_keys:
+    path, label = reading_scene(key, outdir)
+    entry, bad = fit_scene(args, key, path, outdir, split_list(args.reading_targets, claim_ids), [], bounds,
+                           project_before)
+    entry["label"] = label
+    entry["docs_model_md"] = reconstruction.READING_DOCS.get(key)
+    readings[key] = entry
+    failed |= bad
+  if old is not None:
+    readings = merge_recorded(readings, old)
+  head = readings.get(first, {})
+  result = {"targets": head.get("targets", {}),
+            "leave_some_out": head.get("leave_some_out", {}),
             "readings": readings,
+            "readings_table": readings_table(readings, first),
             "spec": os.path.relpath(SPEC, ROOT),
             "normalization": "x_i = change_i / bound_i (inverse/inverse_problem.yaml: half a unit of the last printed "
                              "digit); normalized_change = ||x||_2; beyond_precision: max |x_i| > 1",
@@ -314,9 +470,11 @@ def main(argv=None):
             "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
             # This run's wall time plus the wall times of the fits it reused (--reuse), i.e. the
             # study's time with the fit processes counted one after the other.
-            "runtime_s": time.monotonic() - t_start + sum(r.get("reused_fit_s", 0.0) for r in readings.values()),
+            "runtime_s": time.monotonic() - t_start + sum(r.get("reused_fit_s", 0.0) for r in readings.values()
+                                                          if "recorded_earlier" not in r),
             "runtime_note": "fits: one kneedyn_inverse process per target and per fold, run concurrently "
-                            "(--parallel); runtime_s sums their wall times and adds the claims runs",
+                            "(--parallel); runtime_s sums their wall times and adds the claims runs; entries with "
+                            "recorded_earlier come from an earlier record (--merge-recorded) and are not in it",
             "quick": args.quick}
   for path in [os.path.join(outdir, "inverse_problem.json")] + ([args.record] if args.record else []):
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
