@@ -378,6 +378,35 @@ def readings_table(readings, first):
   return rows
 
 
+def headline(rows, first):
+  """Which reading, or reading + smallest change, brings lift-off to 66° (C1), at what cost in
+  claims against the project's reading (the first scene unchanged)."""
+  def cost(r):
+    return f"fixes {', '.join(r.get('fixes_vs_project') or []) or 'none'}, breaks {', '.join(r.get('breaks_vs_project') or []) or 'none'}"
+  by = {r["reading"]: r for r in rows}
+  out = []
+  p = by.get(first)
+  if p and p.get("C1_normalized_change") is not None:
+    out.append(f"From the project's reading (lift-off {p['liftoff_deg_unchanged']:.1f}°) 66° "
+               f"{'is reached' if p['C1_reached'] else 'is not reached'} with ||x|| = {p['C1_normalized_change']:.1f} "
+               f"(largest |x_i| {p['C1_max_normalized_change']:.1f}); {cost(p)}.")
+  reached = [r for r in rows if r["reading"] != first and r.get("C1_reached") and r.get("C1_normalized_change") is not None]
+  if reached:
+    best = min(reached, key=lambda r: r["C1_normalized_change"])
+    out.append(f"Smallest change from a reading: {best['reading']} (lift-off {best['liftoff_deg_unchanged']:.1f}° "
+               f"unchanged) + ||x|| = {best['C1_normalized_change']:.1f} (largest |x_i| "
+               f"{best['C1_max_normalized_change']:.1f}), {best.get('reproduced_at_fit')} claims reproduced; {cost(best)}.")
+    cheap = min(reached, key=lambda r: (len(r.get("breaks_vs_project") or []), r["C1_normalized_change"]))
+    if cheap is not best:
+      out.append(f"Fewest claims broken: {cheap['reading']} + ||x|| = {cheap['C1_normalized_change']:.1f}; {cost(cheap)}.")
+  tried = [r["reading"] for r in rows if r["reading"] != first]
+  failed = [r["reading"] for r in rows if r["reading"] != first and r.get("error")]
+  if tried:
+    out.append(f"{len(tried)} readings tried, {len(reached)} reach 66° with a fit"
+               + (f"; {len(failed)} do not run ({', '.join(failed)})" if failed else "") + ".")
+  return " ".join(out)
+
+
 def main(argv=None):
   ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
   ap.add_argument("--inverse", required=True, help="kneedyn_inverse binary")
@@ -386,7 +415,7 @@ def main(argv=None):
   ap.add_argument("--scenes", nargs="+", required=True, help="scene files; the first is the headline")
   ap.add_argument("--readings", default="",
                   help="reconstruction readings to fit as outer choices (comma-separated keys of "
-                       "reports/reconstruction.py READINGS, or 'model': every model reading and the combinations)")
+                       "reports/reconstruction.py READINGS, 'model': every model reading and the combinations, 'none')")
   ap.add_argument("--reading-targets", default="C1", help="targets fitted per reading ('none': the statements at x = 0 only)")
   ap.add_argument("--record", help="also write the result JSON here (reports/recorded/inverse_problem.json)")
   ap.add_argument("--merge-recorded", help="an earlier record: keep its readings, targets and folds not redone here")
@@ -414,7 +443,8 @@ def main(argv=None):
     spec = yaml.safe_load(f)
   claim_ids = list(dict.fromkeys(st["claim"] for st in spec["statements"]))
   bounds = {p["name"]: p["bound"] for p in spec["parameters"]}
-  reading_keys = model_readings() if args.readings == "model" else [k for k in args.readings.split(",") if k]
+  reading_keys = (model_readings() if args.readings == "model"
+                  else [] if args.readings == "none" else [k for k in args.readings.split(",") if k])
   known = {k for k, _, _ in reconstruction.READINGS}
   for flag, value, allowed in (("--targets", args.targets, claim_ids), ("--reading-targets", args.reading_targets, claim_ids),
                                ("--folds", args.folds, ["A", "B"]), ("--readings", ",".join(reading_keys), known)):
@@ -460,6 +490,7 @@ def main(argv=None):
             "leave_some_out": head.get("leave_some_out", {}),
             "readings": readings,
             "readings_table": readings_table(readings, first),
+            "headline": headline(readings_table(readings, first), first),
             "spec": os.path.relpath(SPEC, ROOT),
             "normalization": "x_i = change_i / bound_i (inverse/inverse_problem.yaml: half a unit of the last printed "
                              "digit); normalized_change = ||x||_2; beyond_precision: max |x_i| > 1",

@@ -173,6 +173,8 @@ def test_driver(tmp):
   check(abs(e - (LCL_E - 0.0005 + 10.0 * LCL_E_BOUND)) < 1e-9, f"reading's fitted LCL e {e}")
   rows = {row["reading"]: row for row in res.get("readings_table", [])}
   check(set(rows) >= {"chapter_impact", "model/strains_down"}, f"readings_table rows {sorted(rows)}")
+  check("model/strains_down" in res.get("headline", "") and "breaks Q" in res.get("headline", ""),
+        f"headline does not name the reading reaching 66 deg and its cost: {res.get('headline')!r}")
   # Merged: an earlier target and reading kept, marked with the earlier record.
   k9 = res["readings"]["chapter_impact"]["targets"].get("K9", {})
   check(k9.get("recorded_earlier", {}).get("commit") == "abc", f"merged K9 {k9}")
