@@ -184,6 +184,102 @@ def leave_some_out_summary(fit, fold):
   return out
 
 
+def scene_spec(kneedyn, scene_path, sdir):
+  """The spec for one scene: inverse/inverse_problem.yaml, less the parameters the scene does
+  not have (`kneedyn sensitivity --list`; e.g. k_parabolic under the C¹ law, which derives
+  it). Returns (spec path, [names dropped])."""
+  p = subprocess.run([kneedyn, "sensitivity", "--list", scene_path], capture_output=True, text=True)
+  if p.returncode != 0:
+    return SPEC, []  # the fit itself reports why the scene does not run
+  have = {line.strip() for line in p.stdout.splitlines()}
+  with open(SPEC) as f:
+    spec = yaml.safe_load(f)
+  dropped = [q["name"] for q in spec["parameters"] if q["name"] not in have]
+  if not dropped:
+    return SPEC, []
+  spec["parameters"] = [q for q in spec["parameters"] if q["name"] in have]
+  path = os.path.join(sdir, "inverse_problem.yaml")
+  with open(path, "w") as f:
+    yaml.safe_dump(spec, f, sort_keys=False, allow_unicode=True)
+  return path, dropped
+
+
+# Derivative-free check of C1 along one direction: every Table 1.3 extension ratio shifted by
+# the same s × its bound (the strain readings are s = ±1; the Sobol' indices rank the strains
+# first for the lift-off). It needs only `kneedyn run` (the hybrid simulator crosses a medial
+# re-contact, which the sensitivities do not: RunSensitivity stops at a plastic impact), so it
+# also runs on the readings the Ceres fit cannot start from. ||x|| = |s| sqrt(12).
+STRAIN_SCAN_S = [0.0, -0.5, 0.5, -1.0, 1.0, -2.0, 2.0, -4.0, 4.0, -8.0, 8.0, -16.0, 16.0]
+LIFTOFF_TARGET_DEG, LIFTOFF_REACH_DEG = 66.0, 1.0  # C1 in inverse_problem.yaml: reach 0.2 × 5°
+
+
+def liftoff_at(args, scene, normalized, bounds, rdir):
+  """Lateral lift-off (deg) of the reference member at the normalized change, by `kneedyn run`;
+  None when the run fails or the condyle does not lift off."""
+  os.makedirs(os.path.join(rdir, "scenes"), exist_ok=True)
+  s = fitted_scene(scene, {n: x * bounds[n] for n, x in normalized.items() if x != 0.0},
+                   os.path.join(rdir, "knee.yaml"))
+  s["name"] = "reference"
+  s["pulse"]["amplitude_N"] = run_families.BASE_AMPLITUDE_N
+  s["pulse"]["duration_s"] = run_families.BASE_DURATION_S
+  path = os.path.join(rdir, "scenes", "reference.yaml")
+  with open(path, "w") as f:
+    yaml.safe_dump(s, f, sort_keys=False)
+  r = run_families.run_one(args.kneedyn, path, os.path.join(rdir, "run"))
+  if not r["ok"]:
+    return None
+  return run_families.event_summary(os.path.join(rdir, "run"))["liftoff_lateral_deg"]
+
+
+def strain_scan(args, scene, bounds, rdir):
+  """The smallest |s| on STRAIN_SCAN_S (either sign) whose segment from the previous same-sign
+  point brackets 66°, refined by bisection to within 0.1°; an upper bound on the smallest
+  change from this scene along the direction. Returns the scan record."""
+  names = [n for n in bounds if n.endswith(".extension_ratio")]
+  norm = lambda s_: {n: s_ for n in names}  # noqa: E731
+  values = {}
+  for k, s_ in enumerate(STRAIN_SCAN_S):
+    values[s_] = liftoff_at(args, scene, norm(s_), bounds, os.path.join(rdir, f"s{k}"))
+  out = {"direction": "every extension ratio e + s x bound (0.0005)", "parameters": names,
+         "scan": [{"s": s_, "liftoff_deg": values[s_]} for s_ in STRAIN_SCAN_S], "reached": False}
+  v0 = values[0.0]
+  if v0 is not None and abs(v0 - LIFTOFF_TARGET_DEG) <= LIFTOFF_REACH_DEG:
+    out.update(reached=True, s=0.0, liftoff_deg=v0, normalized_change=0.0)
+    return out
+  best = None
+  for sign in (-1.0, 1.0):
+    prev = 0.0
+    for s_ in [x for x in STRAIN_SCAN_S if x * sign > 0]:
+      a, b = values[prev], values[s_]
+      if a is not None and b is not None and (a - LIFTOFF_TARGET_DEG) * (b - LIFTOFF_TARGET_DEG) <= 0:
+        lo, hi, flo = prev, s_, a
+        for k in range(12):
+          mid = 0.5 * (lo + hi)
+          fm = liftoff_at(args, scene, norm(mid), bounds, os.path.join(rdir, f"bisect_{sign:+.0f}_{k}"))
+          if fm is None:
+            break
+          if abs(fm - LIFTOFF_TARGET_DEG) <= 0.1:
+            lo = hi = mid
+            flo = fm
+            break
+          if (flo - LIFTOFF_TARGET_DEG) * (fm - LIFTOFF_TARGET_DEG) <= 0:
+            hi = mid
+          else:
+            lo, flo = mid, fm
+        # the end of the final bracket nearer 66° (the two agree within 0.1° or 2^-12 of the step)
+        cand = lo if abs(flo - LIFTOFF_TARGET_DEG) <= LIFTOFF_REACH_DEG else hi
+        fc = flo if cand == lo else liftoff_at(args, scene, norm(cand), bounds, os.path.join(rdir, f"final_{sign:+.0f}"))
+        if fc is not None and abs(fc - LIFTOFF_TARGET_DEG) <= LIFTOFF_REACH_DEG and (best is None or abs(cand) < abs(best[0])):
+          best = (cand, fc)
+        break
+      prev = s_
+  if best is not None:
+    out.update(reached=True, s=best[0], liftoff_deg=best[1], normalized_change=abs(best[0]) * len(names) ** 0.5,
+               max_normalized_change=abs(best[0]), beyond_precision=abs(best[0]) > 1.0,
+               change_each_extension_ratio=best[0] * bounds[names[0]])
+  return out
+
+
 def split_list(text, everything):
   """'' -> everything, 'none' -> [], else the comma-separated items."""
   if text == "none":
@@ -191,7 +287,7 @@ def split_list(text, everything):
   return [t for t in text.split(",") if t] if text else list(everything)
 
 
-def run_fits(args, scene_path, sdir, fit_path, targets, folds):
+def run_fits(args, scene_path, sdir, fit_path, targets, folds, spec_path=SPEC):
   """kneedyn_inverse once per target and once per leave-some-out fold, --parallel at a time
   (independent fits: the same result as one process doing them in turn); merged into
   fit_path. With neither a target nor a fold, one run for the statements at x = 0 only.
@@ -200,7 +296,7 @@ def run_fits(args, scene_path, sdir, fit_path, targets, folds):
   jobs += [("fold_" + h, ["--targets", "none", "--folds", h]) for h in folds]
   if not jobs:
     jobs = [("baseline", ["--targets", "none", "--folds", "none"])]
-  base = [args.inverse, "--scene", os.path.abspath(scene_path), "--spec", SPEC,
+  base = [args.inverse, "--scene", os.path.abspath(scene_path), "--spec", spec_path,
           "--max-iterations", str(args.max_iterations)]
 
   def one(job):
@@ -295,14 +391,32 @@ def fit_scene(args, key, scene_path, outdir, targets, folds, bounds, project_bef
   sdir = os.path.join(outdir, key.replace("/", "__"))
   os.makedirs(sdir, exist_ok=True)
   t0 = time.monotonic()
-  fit, err = run_fits(args, scene_path, sdir, os.path.join(sdir, "fit.json"), targets, folds)
+  spec_path, dropped = scene_spec(args.kneedyn, scene_path, sdir)
+  fit, err = run_fits(args, scene_path, sdir, os.path.join(sdir, "fit.json"), targets, folds, spec_path)
   fit_s = time.monotonic() - t0
+  scan = None
+  if args.strain_scan and "C1" in targets:
+    t1 = time.monotonic()
+    scan = strain_scan(args, load_scene(scene_path), bounds, os.path.join(sdir, "strain_scan"))
+    if scan.get("reached"):
+      before_scan = project_before
+      if before_scan is None:
+        before_scan, _ = run_claims(args.kneedyn, load_scene(scene_path), os.path.join(sdir, "unchanged"),
+                                    args.quick, args.jobs)
+      at = claims_at_fit(args, load_scene(scene_path), {n: scan["s"] for n in scan["parameters"]}, bounds,
+                         os.path.join(sdir, "strain_scan", "claims"), before_scan)
+      scan.update({"claims_at_fit": at["claims_at_fit"], "reproduced_at_fit": at["reproduced_at_fit"],
+                   "fixes_vs_project": at["fixes"], "breaks_vs_project": at["breaks"],
+                   "liftoff_lateral_deg_by_kneedyn_run": at.get("liftoff_lateral_deg_by_kneedyn_run")})
+    scan["runtime_s"] = time.monotonic() - t1
+    print(f"inverse_problem: {key}: strain scan: reached {scan['reached']}, s {scan.get('s')}, "
+          f"|x| {scan.get('normalized_change')}", flush=True)
   failed = bool(err)
   if err:
     print(f"inverse_problem: {key}: kneedyn_inverse failed: {err[-800:]}", file=sys.stderr)
   rel_scene = os.path.relpath(os.path.abspath(scene_path), ROOT)
   if fit is None:
-    return {"scene": rel_scene, "error": err[-2000:], "fit_wall_s": fit_s}, True
+    return {"scene": rel_scene, "error": err[-2000:], "fit_wall_s": fit_s, "strain_scan": scan}, True
   scene = load_scene(scene_path)
   t0 = time.monotonic()
   before, bad = run_claims(args.kneedyn, scene, os.path.join(sdir, "unchanged"), args.quick, args.jobs)
@@ -334,7 +448,9 @@ def fit_scene(args, key, scene_path, outdir, targets, folds, bounds, project_bef
            "fit_errors": err or None, "baseline_statements": fit.get("baseline"), "leave_some_out": lso,
            "fit_wall_s": fit_s, "reused_fit_s": fit.get("reused_runtime_s", 0.0),
            "fit_commands": fit.get("commands"), "claims_runtime_s": time.monotonic() - t0,
-           "sensitivity_runs": fit.get("runs"), "settings": fit.get("settings")}
+           "sensitivity_runs": fit.get("runs"), "settings": fit.get("settings"), "strain_scan": scan,
+           "spec": os.path.relpath(spec_path, ROOT) if spec_path.startswith(ROOT) else spec_path,
+           "parameters_not_in_scene": dropped}
   if project_before is not None:
     entry["fixes_vs_project"], entry["breaks_vs_project"] = compare(project_before, before)
   return entry, failed
@@ -359,22 +475,40 @@ def merge_recorded(readings, old):
 
 
 def readings_table(readings, first):
-  """One row per reading: the lift-off at x = 0 and the C1 fit's size and cost."""
+  """One row per reading: the lift-off unchanged, and the smallest change found that reaches 66°
+  from it (the Ceres fit or the strain scan, whichever is smaller) with its cost in claims."""
   rows = []
   for key, r in readings.items():
     base = (r.get("baseline_statements") or {}).get("C1", {})
     c1 = (r.get("targets") or {}).get("C1", {})
-    rows.append({"reading": key, "label": r.get("label"), "liftoff_deg_unchanged": base.get("value"),
-                 "reproduced_unchanged": r.get("reproduced_unchanged"),
-                 "C1_reached": c1.get("reached"), "C1_normalized_change": c1.get("normalized_change"),
-                 "C1_max_normalized_change": c1.get("max_normalized_change"),
-                 "C1_within_precision_liftoff_deg":
-                     ((c1.get("within_precision") or {}).get("fitted_statements") or {}).get("C1", {}).get("value"),
-                 "liftoff_deg_at_fit": (c1.get("fitted_statements") or {}).get("C1", {}).get("value"),
-                 "reproduced_at_fit": c1.get("reproduced_at_fit"),
-                 "fixes_vs_project": c1.get("fixes_vs_project", c1.get("fixes") if key == first else None),
-                 "breaks_vs_project": c1.get("breaks_vs_project", c1.get("breaks") if key == first else None),
-                 "error": r.get("error")})
+    scan = r.get("strain_scan") or {}
+    lo0 = base.get("value")
+    if lo0 is None and scan.get("scan"):
+      lo0 = scan["scan"][0]["liftoff_deg"]
+    row = {"reading": key, "label": r.get("label"), "liftoff_deg_unchanged": lo0,
+           "reproduced_unchanged": r.get("reproduced_unchanged"),
+           "C1_fit_reached": c1.get("reached"), "C1_fit_normalized_change": c1.get("normalized_change"),
+           "C1_fit_error": c1.get("error") or (base.get("error") if not c1 else None),
+           "C1_within_precision_liftoff_deg":
+               ((c1.get("within_precision") or {}).get("fitted_statements") or {}).get("C1", {}).get("value"),
+           "strain_scan_reached": scan.get("reached"), "strain_scan_s": scan.get("s"),
+           "strain_scan_normalized_change": scan.get("normalized_change"), "error": r.get("error")}
+    options = []
+    if c1.get("reached") and c1.get("normalized_change") is not None:
+      options.append(("fit", c1["normalized_change"], c1.get("max_normalized_change"),
+                      (c1.get("fitted_statements") or {}).get("C1", {}).get("value"), c1))
+    if scan.get("reached"):
+      options.append(("strain_scan", scan["normalized_change"], scan.get("max_normalized_change", 0.0),
+                      scan.get("liftoff_deg"), scan))
+    if options:
+      how, n, mx, lo, src = min(options, key=lambda o: o[1])
+      row.update({"reached": True, "method": how, "normalized_change": n, "max_normalized_change": mx,
+                  "liftoff_deg_at_change": lo, "reproduced_at_change": src.get("reproduced_at_fit"),
+                  "fixes_vs_project": src.get("fixes_vs_project", src.get("fixes") if key == first else None),
+                  "breaks_vs_project": src.get("breaks_vs_project", src.get("breaks") if key == first else None)})
+    else:
+      row["reached"] = False
+    rows.append(row)
   return rows
 
 
@@ -382,27 +516,30 @@ def headline(rows, first):
   """Which reading, or reading + smallest change, brings lift-off to 66° (C1), at what cost in
   claims against the project's reading (the first scene unchanged)."""
   def cost(r):
-    return f"fixes {', '.join(r.get('fixes_vs_project') or []) or 'none'}, breaks {', '.join(r.get('breaks_vs_project') or []) or 'none'}"
+    return (f"{r.get('reproduced_at_change')} claims reproduced; fixes {', '.join(r.get('fixes_vs_project') or []) or 'none'}, "
+            f"breaks {', '.join(r.get('breaks_vs_project') or []) or 'none'}")
+
+  def change(r):
+    return (f"||x|| = {r['normalized_change']:.2f} (largest |x_i| {r['max_normalized_change']:.2f}, "
+            f"{'beyond' if r['max_normalized_change'] > 1.0 else 'within'} the printed precision; {r['method']})")
   by = {r["reading"]: r for r in rows}
   out = []
   p = by.get(first)
-  if p and p.get("C1_normalized_change") is not None:
-    out.append(f"From the project's reading (lift-off {p['liftoff_deg_unchanged']:.1f}°) 66° "
-               f"{'is reached' if p['C1_reached'] else 'is not reached'} with ||x|| = {p['C1_normalized_change']:.1f} "
-               f"(largest |x_i| {p['C1_max_normalized_change']:.1f}); {cost(p)}.")
-  reached = [r for r in rows if r["reading"] != first and r.get("C1_reached") and r.get("C1_normalized_change") is not None]
+  if p and p.get("liftoff_deg_unchanged") is not None:
+    out.append(f"Project's reading: lift-off {p['liftoff_deg_unchanged']:.1f}°; "
+               + (f"66° needs {change(p)}, {cost(p)}." if p.get("reached") else "66° not reached."))
+  others = [r for r in rows if r["reading"] != first]
+  reached = [r for r in others if r.get("reached")]
   if reached:
-    best = min(reached, key=lambda r: r["C1_normalized_change"])
+    best = min(reached, key=lambda r: r["normalized_change"])
     out.append(f"Smallest change from a reading: {best['reading']} (lift-off {best['liftoff_deg_unchanged']:.1f}° "
-               f"unchanged) + ||x|| = {best['C1_normalized_change']:.1f} (largest |x_i| "
-               f"{best['C1_max_normalized_change']:.1f}), {best.get('reproduced_at_fit')} claims reproduced; {cost(best)}.")
-    cheap = min(reached, key=lambda r: (len(r.get("breaks_vs_project") or []), r["C1_normalized_change"]))
+               f"unchanged) + {change(best)} gives {best['liftoff_deg_at_change']:.1f}°; {cost(best)}.")
+    cheap = min(reached, key=lambda r: (len(r.get("breaks_vs_project") or []), r["normalized_change"]))
     if cheap is not best:
-      out.append(f"Fewest claims broken: {cheap['reading']} + ||x|| = {cheap['C1_normalized_change']:.1f}; {cost(cheap)}.")
-  tried = [r["reading"] for r in rows if r["reading"] != first]
-  failed = [r["reading"] for r in rows if r["reading"] != first and r.get("error")]
-  if tried:
-    out.append(f"{len(tried)} readings tried, {len(reached)} reach 66° with a fit"
+      out.append(f"Fewest claims broken: {cheap['reading']} + {change(cheap)}; {cost(cheap)}.")
+  failed = [r["reading"] for r in others if r.get("liftoff_deg_unchanged") is None]
+  if others:
+    out.append(f"{len(others)} readings tried, {len(reached)} reach 66°"
                + (f"; {len(failed)} do not run ({', '.join(failed)})" if failed else "") + ".")
   return " ".join(out)
 
@@ -424,6 +561,8 @@ def main(argv=None):
                        "the unchanged model misses (C1, K6, K7, V2, V4)")
   ap.add_argument("--folds", default="A,B", help="leave-some-out folds of the scenes ('none': no fold)")
   ap.add_argument("--max-iterations", type=int, default=8)
+  ap.add_argument("--no-strain-scan", dest="strain_scan", action="store_false",
+                  help="skip the derivative-free C1 check along the uniform extension-ratio shift")
   ap.add_argument("--quick", action="store_true", help="reduced pulse families for the claims check")
   ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="family runs at a time (claims check)")
   ap.add_argument("--parallel", type=int, default=3, help="kneedyn_inverse processes at a time")

@@ -15,6 +15,8 @@ Validates:
   against the project's reading for a discrete reading (outer choice);
 - the leave-some-out bookkeeping (fold split, closer/further counts) and the claims check at
   each fold's fit;
+- the strain scan (the derivative-free C1 check along the uniform extension-ratio shift) on a
+  planted linear lift-off: the root it finds and its ||x||;
 - the reading loop (--readings), --merge-recorded provenance, the commit rule shared with
   benchmarks/record_sweep.py, and exit 2 with nothing written on a bad --readings key.
 Does not validate: the fit itself (inverse/tests: a planted change recovered by Ceres) or
@@ -135,7 +137,7 @@ def test_driver(tmp):
                             "old/reading": {"targets": {}}}}, f)
   rc = inverse_problem.main(["--inverse", fake, "--kneedyn", sys.executable, "--out", out, "--scenes", SCENE,
                              "--targets", "C1", "--readings", "model/strains_down", "--parallel", "1",
-                             "--merge-recorded", earlier])
+                             "--merge-recorded", earlier, "--no-strain-scan"])
   check(rc == 0, f"driver exit {rc}")
   with open(os.path.join(out, "inverse_problem.json")) as f:
     res = json.load(f)
@@ -191,10 +193,51 @@ def test_driver(tmp):
   check(rc == 2 and not os.path.exists(bad_out), f"bad --readings: exit {rc}, wrote {os.path.exists(bad_out)}")
 
 
+def test_strain_scan(tmp):
+  """A planted lift-off, linear in the uniform strain shift s: 62.1° − 8.2° s (the stiffness
+  reading's 62.1° at s = 0 and 70.3° at s = −1). 66° at s* = −3.9/8.2; the scan must bracket
+  it on the negative side, bisect to within 0.1°, and report ||x|| = |s| sqrt(12) over the 12
+  extension ratios, each moved by s × 0.0005."""
+  seen = []
+
+  def planted(args, scene, normalized, bounds, rdir):
+    es = {n: x for n, x in normalized.items()}
+    check(sorted(es) == sorted(n for n in bounds if n.endswith(".extension_ratio")) or not es,
+          f"scan moved {sorted(es)}")
+    s_ = next(iter(es.values())) if es else 0.0
+    check(all(v == s_ for v in es.values()), "scan direction not uniform")
+    seen.append(s_)
+    return 62.1 - 8.2 * s_
+
+  saved = inverse_problem.liftoff_at
+  inverse_problem.liftoff_at = planted
+  try:
+    bounds = {p["name"]: p["bound"] for p in yaml.safe_load(open(inverse_problem.SPEC))["parameters"]}
+    scan = inverse_problem.strain_scan(None, {}, bounds, tmp)
+  finally:
+    inverse_problem.liftoff_at = saved
+  s_star = -3.9 / 8.2
+  check(scan["reached"], f"strain scan did not reach 66 deg: {scan}")
+  if scan["reached"]:
+    check(abs(scan["liftoff_deg"] - 66.0) <= 0.1, f"scan lift-off {scan['liftoff_deg']}, want 66 within 0.1")
+    check(abs(scan["s"] - s_star) <= 0.1 / 8.2 + 1e-12, f"scan s {scan['s']}, planted {s_star}")
+    check(abs(scan["normalized_change"] - abs(scan["s"]) * 12 ** 0.5) < 1e-12, "||x|| is not |s| sqrt(12)")
+    check(abs(scan["change_each_extension_ratio"] - scan["s"] * 0.0005) < 1e-15, "change per e is not s x 0.0005")
+    check(scan["beyond_precision"] is False, "|s| < 1 reported beyond the printed precision")
+  # Never reaching 66° (flat at 52.6°): not reached, and no bisection.
+  inverse_problem.liftoff_at = lambda *a: 52.6
+  try:
+    flat = inverse_problem.strain_scan(None, {}, bounds, tmp)
+  finally:
+    inverse_problem.liftoff_at = saved
+  check(not flat["reached"] and len(flat["scan"]) == len(inverse_problem.STRAIN_SCAN_S), f"flat scan {flat}")
+
+
 def main():
   tmp = tempfile.mkdtemp(prefix="inverse_driver_test_")
   try:
     test_fitted_scene_normalization(tmp)
+    test_strain_scan(tmp)
     test_driver(tmp)
   finally:
     shutil.rmtree(tmp, ignore_errors=True)
