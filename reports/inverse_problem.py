@@ -269,6 +269,13 @@ def strain_scan(args, scene, bounds, rdir):
         # the end of the final bracket nearer 66° (the two agree within 0.1° or 2^-12 of the step)
         cand = lo if abs(flo - LIFTOFF_TARGET_DEG) <= LIFTOFF_REACH_DEG else hi
         fc = flo if cand == lo else liftoff_at(args, scene, norm(cand), bounds, os.path.join(rdir, f"final_{sign:+.0f}"))
+        fhi = fc if cand == hi else (flo if hi == lo else
+                                     liftoff_at(args, scene, norm(hi), bounds, os.path.join(rdir, f"final_hi_{sign:+.0f}")))
+        # A bracket narrower than 1e-3 whose ends differ by more than 1°: the lift-off jumps there
+        # (a branch of the motion switches), so 66° may be stepped over rather than reached.
+        out.setdefault("brackets", []).append({"s_lo": lo, "liftoff_lo_deg": flo, "s_hi": hi, "liftoff_hi_deg": fhi,
+                                               "jump": abs(hi - lo) < 1e-3 and fhi is not None
+                                               and abs(fhi - flo) > LIFTOFF_REACH_DEG})
         if fc is not None and abs(fc - LIFTOFF_TARGET_DEG) <= LIFTOFF_REACH_DEG and (best is None or abs(cand) < abs(best[0])):
           best = (cand, fc)
         break

@@ -224,6 +224,16 @@ def test_strain_scan(tmp):
     check(abs(scan["normalized_change"] - abs(scan["s"]) * 12 ** 0.5) < 1e-12, "||x|| is not |s| sqrt(12)")
     check(abs(scan["change_each_extension_ratio"] - scan["s"] * 0.0005) < 1e-15, "change per e is not s x 0.0005")
     check(scan["beyond_precision"] is False, "|s| < 1 reported beyond the printed precision")
+    check(not any(b["jump"] for b in scan.get("brackets", [])), f"a linear lift-off reported as a jump: {scan}")
+  # A step from 62° to 70° at s = −0.3: 66° is stepped over, not reached, and the bracket says so.
+  inverse_problem.liftoff_at = lambda a, sc, normalized, b, r: 70.0 if next(iter(normalized.values()), 0.0) <= -0.3 else 62.0
+  try:
+    step = inverse_problem.strain_scan(None, {}, bounds, tmp)
+  finally:
+    inverse_problem.liftoff_at = saved
+  br = step.get("brackets", [{}])[0]
+  check(not step["reached"] and br.get("jump") and abs(br.get("s_lo", 0) + 0.3) < 1e-3,
+        f"step lift-off: reached {step['reached']}, bracket {br}")
   # Never reaching 66° (flat at 52.6°): not reached, and no bisection.
   inverse_problem.liftoff_at = lambda *a: 52.6
   try:
