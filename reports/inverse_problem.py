@@ -231,6 +231,16 @@ def liftoff_at(args, scene, normalized, bounds, rdir):
   return run_families.event_summary(os.path.join(rdir, "run"))["liftoff_lateral_deg"]
 
 
+def mark_jumps(scan):
+  """A final bracket whose ends still differ by more than 1° after the bisection (4096 times
+  narrower than the scan step, unless it met 66° within 0.1°): the lift-off jumps there (a
+  branch of the motion switches), so 66° may be stepped over rather than passed through."""
+  for b in scan.get("brackets", []):
+    b["jump"] = (b["s_hi"] != b["s_lo"] and b.get("liftoff_hi_deg") is not None
+                 and abs(b["liftoff_hi_deg"] - b["liftoff_lo_deg"]) > LIFTOFF_REACH_DEG)
+  return scan
+
+
 def strain_scan(args, scene, bounds, rdir):
   """The smallest |s| on STRAIN_SCAN_S (either sign) whose segment from the previous same-sign
   point brackets 66°, refined by bisection to within 0.1°; an upper bound on the smallest
@@ -271,11 +281,8 @@ def strain_scan(args, scene, bounds, rdir):
         fc = flo if cand == lo else liftoff_at(args, scene, norm(cand), bounds, os.path.join(rdir, f"final_{sign:+.0f}"))
         fhi = fc if cand == hi else (flo if hi == lo else
                                      liftoff_at(args, scene, norm(hi), bounds, os.path.join(rdir, f"final_hi_{sign:+.0f}")))
-        # A bracket narrower than 1e-3 whose ends differ by more than 1°: the lift-off jumps there
-        # (a branch of the motion switches), so 66° may be stepped over rather than reached.
-        out.setdefault("brackets", []).append({"s_lo": lo, "liftoff_lo_deg": flo, "s_hi": hi, "liftoff_hi_deg": fhi,
-                                               "jump": abs(hi - lo) < 1e-3 and fhi is not None
-                                               and abs(fhi - flo) > LIFTOFF_REACH_DEG})
+        out.setdefault("brackets", []).append({"s_lo": lo, "liftoff_lo_deg": flo, "s_hi": hi, "liftoff_hi_deg": fhi})
+        mark_jumps(out)
         if fc is not None and abs(fc - LIFTOFF_TARGET_DEG) <= LIFTOFF_REACH_DEG and (best is None or abs(cand) < abs(best[0])):
           best = (cand, fc)
         break
@@ -414,7 +421,7 @@ def fit_scene(args, key, scene_path, outdir, targets, folds, bounds, project_bef
   scan_file = os.path.join(sdir, "strain_scan", "scan.json")
   if args.strain_scan and (args.reuse or args.reuse_only) and os.path.exists(scan_file):
     with open(scan_file) as f:
-      scan = json.load(f)  # an earlier run's scan of this scene (--reuse); its claims are re-run below
+      scan = mark_jumps(json.load(f))  # an earlier run's scan of this scene (--reuse); claims re-run below
     scan["reused"] = True
   elif args.strain_scan:
     t1 = time.monotonic()
