@@ -513,7 +513,8 @@ def readings_table(readings, first):
            "C1_within_precision_liftoff_deg":
                ((c1.get("within_precision") or {}).get("fitted_statements") or {}).get("C1", {}).get("value"),
            "strain_scan_reached": scan.get("reached"), "strain_scan_s": scan.get("s"),
-           "strain_scan_normalized_change": scan.get("normalized_change"), "error": r.get("error")}
+           "strain_scan_normalized_change": scan.get("normalized_change"),
+           "strain_scan_jumps": [b for b in scan.get("brackets", []) if b.get("jump")], "error": r.get("error")}
     options = []
     if c1.get("reached") and c1.get("normalized_change") is not None:
       options.append(("fit", c1["normalized_change"], c1.get("max_normalized_change"),
@@ -524,7 +525,11 @@ def readings_table(readings, first):
     if options:
       how, n, mx, lo, src = min(options, key=lambda o: o[1])
       row.update({"reached": True, "method": how, "normalized_change": n, "max_normalized_change": mx,
-                  "liftoff_deg_at_change": lo, "reproduced_at_change": src.get("reproduced_at_fit"),
+                  "liftoff_deg_at_change": lo,
+                  "reproduced_at_change": src.get("reproduced_at_fit",
+                                                  sum(v == claims.REPRODUCED for v in src["claims_at_fit"].values())
+                                                  if src.get("claims_at_fit") else None),
+                  "recorded_earlier": src.get("recorded_earlier"),
                   "fixes_vs_project": src.get("fixes_vs_project", src.get("fixes") if key == first else None),
                   "breaks_vs_project": src.get("breaks_vs_project", src.get("breaks") if key == first else None)})
     else:
@@ -541,8 +546,11 @@ def headline(rows, first):
             f"breaks {', '.join(r.get('breaks_vs_project') or []) or 'none'}")
 
   def change(r):
+    jumps = r.get("strain_scan_jumps") if r.get("method") == "strain_scan" else None
+    jump = (f"; on a jump of the lift-off: {jumps[0]['liftoff_lo_deg']:.1f}° at s = {jumps[0]['s_lo']:.5f}, "
+            f"{jumps[0]['liftoff_hi_deg']:.1f}° at s = {jumps[0]['s_hi']:.5f}" if jumps else "")
     return (f"||x|| = {r['normalized_change']:.2f} (largest |x_i| {r['max_normalized_change']:.2f}, "
-            f"{'beyond' if r['max_normalized_change'] > 1.0 else 'within'} the printed precision; {r['method']})")
+            f"{'beyond' if r['max_normalized_change'] > 1.0 else 'within'} the printed precision; {r['method']}{jump})")
   by = {r["reading"]: r for r in rows}
   out = []
   p = by.get(first)
@@ -555,9 +563,11 @@ def headline(rows, first):
     best = min(reached, key=lambda r: r["normalized_change"])
     out.append(f"Smallest change from a reading: {best['reading']} (lift-off {best['liftoff_deg_unchanged']:.1f}° "
                f"unchanged) + {change(best)} gives {best['liftoff_deg_at_change']:.1f}°; {cost(best)}.")
-    cheap = min(reached, key=lambda r: (len(r.get("breaks_vs_project") or []), r["normalized_change"]))
+    cheap = min(reached + ([p] if p and p.get("reached") else []),
+                key=lambda r: (len(r.get("breaks_vs_project") or []), r["normalized_change"]))
     if cheap is not best:
-      out.append(f"Fewest claims broken: {cheap['reading']} + {change(cheap)}; {cost(cheap)}.")
+      out.append(f"Fewest claims broken: {'the project' + chr(39) + 's reading' if cheap is p else cheap['reading']} "
+                 f"+ {change(cheap)}; {cost(cheap)}.")
   failed = [r["reading"] for r in others if r.get("liftoff_deg_unchanged") is None]
   if others:
     out.append(f"{len(others)} readings tried, {len(reached)} reach 66°"
