@@ -210,6 +210,8 @@ def inverse_section(path=RECORDED_INVERSE):
         return f"{r['C1_fit_normalized_change']:.1f}"
       if r.get("C1_fit_normalized_change") is not None:
         return f"not reached ({r['C1_fit_normalized_change']:.1f})"
+      if "not run" in str(r.get("error") or ""):
+        return "not run (no fit recorded)"
       return "does not run" + (f": {str(r.get('C1_fit_error'))[:90]}" if r.get("C1_fit_error") else "")
     parts.append(table(["reading", "lift-off unchanged (°)", "Ceres fit ‖x‖", "strain scan s", "smallest ‖x‖",
                         "max |x_i|", "lift-off there (°)", "claims reproduced", "fixes vs project",
