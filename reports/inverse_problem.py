@@ -3,8 +3,9 @@
 claims check at each fit.
 
   inverse_problem.py --inverse BIN --kneedyn BIN --out DIR --scenes S1 [S2 ...]
-                     [--record FILE] [--targets C1,K6] [--max-iterations N] [--quick] [--jobs N]
-                     [--parallel N] [--reuse] [--reuse-only]
+                     [--readings KEY,...|model] [--reading-targets C1] [--merge-recorded FILE]
+                     [--record FILE] [--targets C1,K6|none] [--folds A,B|none] [--max-iterations N]
+                     [--quick] [--jobs N] [--parallel N] [--reuse] [--reuse-only]
 
 Per scene: `kneedyn_inverse` (inverse/inverse_problem.hpp; one process per target and per
 fold, --parallel at a time, merged into DIR/<scene>/fit.json) fits each target claim's
@@ -13,7 +14,17 @@ quantities, normalized by their printed precision, and runs the leave-some-out f
 the chapter's pulse families are run at the unchanged parameters and at each target's fit
 (the fitted Tables 1.1-1.3 written as a parameter set beside the scene), and
 reports/claims.py judges every claim on both: `fixes` are claims not reproduced before and
-reproduced at the fit, `breaks` the reverse. S1/S2 (the sensitivity studies) are not re-run.
+reproduced at the fit, `breaks` the reverse. The same claims check runs at each leave-some-out
+fold's fit. S1/S2 (the sensitivity studies) are not re-run.
+
+The discrete readings are the outer choices (--readings): each reading of the reconstruction
+study (reports/reconstruction.py READINGS, docs/model.md) becomes one scene, its reference
+member A = 100 N, t0 = 0.1 s, and is fitted like a scene file, for --reading-targets only (C1,
+lift-off 66°, by default; no folds). `model` = every model reading and the combinations the
+Sobol' indices rank first. Per reading the record also compares the claims at the fit with
+the project's reading (the first scene unchanged): `fixes_vs_project`, `breaks_vs_project`.
+--merge-recorded keeps what an earlier record has and this run does not redo (readings,
+targets), each entry marked with the earlier record's commit and date.
 
 Writes DIR/<scene>/fit.json (kneedyn_inverse's file), DIR/<scene>/<run>/ (families, claims)
 and DIR/inverse_problem.json; with --record the same JSON also there (the first scene's
@@ -35,8 +46,11 @@ sys.dont_write_bytecode = True  # keep the source tree clean
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 import claims  # noqa: E402
+import reconstruction  # noqa: E402
 import run_families  # noqa: E402
+from record_sweep import git_commit  # noqa: E402  the recorded files' commit rule (+dirty), one copy
 
 SPEC = os.path.join(ROOT, "inverse", "inverse_problem.yaml")
 SENSITIVITY_IDS = {"S1", "S2"}
@@ -59,23 +73,55 @@ def load_scene(path):
   return scene
 
 
-def write_parameter_set(scene, changes, path):
-  """The scene's parameter set with `changes` ({sensitivity name: change in its units}) added."""
+def fitted_scene(scene, changes, path):
+  """`scene` (a dict) with `changes` ({sensitivity name: change in its units}) added: the
+  parameter set is written to `path` with the changes; where the scene overrides a ligament's
+  stiffness or extension ratio (ligament_parameters, e.g. the reading of Table 1.2 as
+  labelled) the override carries the change instead, since it wins over the parameter set
+  (scene/ligaments.cpp). Returns the new scene dict."""
   with open(scene["parameter_set"]) as f:
     pset = yaml.safe_load(f)
+  out = json.loads(json.dumps(scene))
+  overrides = out.get("ligament_parameters") or {}
   by_name = {l["name"].replace(" ", "_"): l for l in pset["ligaments"]}
   for name, change in changes.items():
     element, prop = name.rsplit(".", 1)
+    if element not in by_name or prop not in PROPERTY_KEYS:
+      raise ValueError(f"fitted_scene: parameter '{name}': not a ligament property of {scene['parameter_set']}")
     key, idx = PROPERTY_KEYS[prop]
     lig = by_name[element]
-    if idx is None:
+    over = overrides.get(lig["name"], {})
+    if idx is None and key in over:
+      over[key] = float(over[key]) + change
+    elif idx is None:
       lig[key] = float(lig[key]) + change
     else:
       lig[key] = [float(v) for v in lig[key]]
       lig[key][idx] += change
   with open(path, "w") as f:
     yaml.safe_dump(pset, f, sort_keys=False)
-  return path
+  out["parameter_set"] = path
+  return out
+
+
+def reading_scene(key, outdir):
+  """The reference member (A = 100 N, t0 = 0.1 s) of reconstruction reading `key` written as a
+  scene file under outdir (its parameter-set variant beside it). Returns (path, label)."""
+  by = {k: (label, patch) for k, label, patch in reconstruction.READINGS}
+  if key not in by:
+    raise KeyError(key)
+  rdir = os.path.join(outdir, "reading_scenes", key.replace("/", "__"))
+  os.makedirs(os.path.join(rdir, "scenes"), exist_ok=True)
+  label, patch = by[key]
+  path = run_families.write_scene(rdir, "reference", run_families.BASE_AMPLITUDE_N, run_families.BASE_DURATION_S,
+                                  patch=reconstruction.resolve_patch(patch, rdir))
+  return path, label
+
+
+def model_readings():
+  """Every model reading alone, then the combinations the Sobol' indices rank first."""
+  return ([f"model/{k}" for k, _, _, _ in reconstruction.MODEL_READINGS]
+          + [reconstruction.combination(c)[0] for c in reconstruction.COMBINATIONS])
 
 
 def run_claims(kneedyn, scene, rdir, quick, jobs):
@@ -138,17 +184,133 @@ def leave_some_out_summary(fit, fold):
   return out
 
 
-def run_fits(args, scene_path, sdir, fit_path):
-  """kneedyn_inverse once per target and once per leave-some-out fold, --parallel at a time
-  (independent fits: the same result as one process doing them in turn); merged into
-  fit_path. Returns (merged JSON or None, error text)."""
+def scene_spec(kneedyn, scene_path, sdir):
+  """The spec for one scene: inverse/inverse_problem.yaml, less the parameters the scene does
+  not have (`kneedyn sensitivity --list`; e.g. k_parabolic under the C¹ law, which derives
+  it). Returns (spec path, [names dropped])."""
+  p = subprocess.run([kneedyn, "sensitivity", "--list", scene_path], capture_output=True, text=True)
+  if p.returncode != 0:
+    return SPEC, []  # the fit itself reports why the scene does not run
+  have = {line.strip() for line in p.stdout.splitlines()}
   with open(SPEC) as f:
     spec = yaml.safe_load(f)
-  claim_ids = list(dict.fromkeys(st["claim"] for st in spec["statements"]))
-  targets = [t for t in args.targets.split(",") if t] if args.targets else claim_ids
+  dropped = [q["name"] for q in spec["parameters"] if q["name"] not in have]
+  if not dropped:
+    return SPEC, []
+  spec["parameters"] = [q for q in spec["parameters"] if q["name"] in have]
+  path = os.path.join(sdir, "inverse_problem.yaml")
+  with open(path, "w") as f:
+    yaml.safe_dump(spec, f, sort_keys=False, allow_unicode=True)
+  return path, dropped
+
+
+# Derivative-free check of C1 along one direction: every Table 1.3 extension ratio shifted by
+# the same s × its bound (the strain readings are s = ±1; the Sobol' indices rank the strains
+# first for the lift-off). It needs only `kneedyn run` (the hybrid simulator crosses a medial
+# re-contact, which the sensitivities do not: RunSensitivity stops at a plastic impact), so it
+# also runs on the readings the Ceres fit cannot start from. ||x|| = |s| sqrt(12).
+STRAIN_SCAN_S = [0.0, -0.5, 0.5, -1.0, 1.0, -2.0, 2.0, -4.0, 4.0, -8.0, 8.0, -16.0, 16.0]
+LIFTOFF_TARGET_DEG, LIFTOFF_REACH_DEG = 66.0, 1.0  # C1 in inverse_problem.yaml: reach 0.2 × 5°
+
+
+def liftoff_at(args, scene, normalized, bounds, rdir):
+  """Lateral lift-off (deg) of the reference member at the normalized change, by `kneedyn run`;
+  None when the run fails or the condyle does not lift off."""
+  os.makedirs(os.path.join(rdir, "scenes"), exist_ok=True)
+  s = fitted_scene(scene, {n: x * bounds[n] for n, x in normalized.items() if x != 0.0},
+                   os.path.join(rdir, "knee.yaml"))
+  s["name"] = "reference"
+  s["pulse"]["amplitude_N"] = run_families.BASE_AMPLITUDE_N
+  s["pulse"]["duration_s"] = run_families.BASE_DURATION_S
+  path = os.path.join(rdir, "scenes", "reference.yaml")
+  with open(path, "w") as f:
+    yaml.safe_dump(s, f, sort_keys=False)
+  r = run_families.run_one(args.kneedyn, path, os.path.join(rdir, "run"))
+  if not r["ok"]:
+    return None
+  return run_families.event_summary(os.path.join(rdir, "run"))["liftoff_lateral_deg"]
+
+
+def mark_jumps(scan):
+  """A final bracket whose ends still differ by more than 1° after the bisection (4096 times
+  narrower than the scan step, unless it met 66° within 0.1°): the lift-off jumps there (a
+  branch of the motion switches), so 66° may be stepped over rather than passed through."""
+  for b in scan.get("brackets", []):
+    b["jump"] = (b["s_hi"] != b["s_lo"] and b.get("liftoff_hi_deg") is not None
+                 and abs(b["liftoff_hi_deg"] - b["liftoff_lo_deg"]) > LIFTOFF_REACH_DEG)
+  return scan
+
+
+def strain_scan(args, scene, bounds, rdir):
+  """The smallest |s| on STRAIN_SCAN_S (either sign) whose segment from the previous same-sign
+  point brackets 66°, refined by bisection to within 0.1°; an upper bound on the smallest
+  change from this scene along the direction. Returns the scan record."""
+  names = [n for n in bounds if n.endswith(".extension_ratio")]
+  norm = lambda s_: {n: s_ for n in names}  # noqa: E731
+  values = {}
+  for k, s_ in enumerate(STRAIN_SCAN_S):
+    values[s_] = liftoff_at(args, scene, norm(s_), bounds, os.path.join(rdir, f"s{k}"))
+  out = {"direction": "every extension ratio e + s x bound (0.0005)", "parameters": names,
+         "scan": [{"s": s_, "liftoff_deg": values[s_]} for s_ in STRAIN_SCAN_S], "reached": False}
+  v0 = values[0.0]
+  if v0 is not None and abs(v0 - LIFTOFF_TARGET_DEG) <= LIFTOFF_REACH_DEG:
+    out.update(reached=True, s=0.0, liftoff_deg=v0, normalized_change=0.0)
+    return out
+  best = None
+  for sign in (-1.0, 1.0):
+    prev = 0.0
+    for s_ in [x for x in STRAIN_SCAN_S if x * sign > 0]:
+      a, b = values[prev], values[s_]
+      if a is not None and b is not None and (a - LIFTOFF_TARGET_DEG) * (b - LIFTOFF_TARGET_DEG) <= 0:
+        lo, hi, flo = prev, s_, a
+        for k in range(12):
+          mid = 0.5 * (lo + hi)
+          fm = liftoff_at(args, scene, norm(mid), bounds, os.path.join(rdir, f"bisect_{sign:+.0f}_{k}"))
+          if fm is None:
+            break
+          if abs(fm - LIFTOFF_TARGET_DEG) <= 0.1:
+            lo = hi = mid
+            flo = fm
+            break
+          if (flo - LIFTOFF_TARGET_DEG) * (fm - LIFTOFF_TARGET_DEG) <= 0:
+            hi = mid
+          else:
+            lo, flo = mid, fm
+        # the end of the final bracket nearer 66° (the two agree within 0.1° or 2^-12 of the step)
+        cand = lo if abs(flo - LIFTOFF_TARGET_DEG) <= LIFTOFF_REACH_DEG else hi
+        fc = flo if cand == lo else liftoff_at(args, scene, norm(cand), bounds, os.path.join(rdir, f"final_{sign:+.0f}"))
+        fhi = fc if cand == hi else (flo if hi == lo else
+                                     liftoff_at(args, scene, norm(hi), bounds, os.path.join(rdir, f"final_hi_{sign:+.0f}")))
+        out.setdefault("brackets", []).append({"s_lo": lo, "liftoff_lo_deg": flo, "s_hi": hi, "liftoff_hi_deg": fhi})
+        mark_jumps(out)
+        if fc is not None and abs(fc - LIFTOFF_TARGET_DEG) <= LIFTOFF_REACH_DEG and (best is None or abs(cand) < abs(best[0])):
+          best = (cand, fc)
+        break
+      prev = s_
+  if best is not None:
+    out.update(reached=True, s=best[0], liftoff_deg=best[1], normalized_change=abs(best[0]) * len(names) ** 0.5,
+               max_normalized_change=abs(best[0]), beyond_precision=abs(best[0]) > 1.0,
+               change_each_extension_ratio=best[0] * bounds[names[0]])
+  return out
+
+
+def split_list(text, everything):
+  """'' -> everything, 'none' -> [], else the comma-separated items."""
+  if text == "none":
+    return []
+  return [t for t in text.split(",") if t] if text else list(everything)
+
+
+def run_fits(args, scene_path, sdir, fit_path, targets, folds, spec_path=SPEC):
+  """kneedyn_inverse once per target and once per leave-some-out fold, --parallel at a time
+  (independent fits: the same result as one process doing them in turn); merged into
+  fit_path. With neither a target nor a fold, one run for the statements at x = 0 only.
+  Returns (merged JSON or None, error text)."""
   jobs = [("target_" + t, ["--targets", t, "--folds", "none"]) for t in targets]
-  jobs += [("fold_" + h, ["--targets", "none", "--folds", h]) for h in ("A", "B")]
-  base = [args.inverse, "--scene", os.path.abspath(scene_path), "--spec", SPEC,
+  jobs += [("fold_" + h, ["--targets", "none", "--folds", h]) for h in folds]
+  if not jobs:
+    jobs = [("baseline", ["--targets", "none", "--folds", "none"])]
+  base = [args.inverse, "--scene", os.path.abspath(scene_path), "--spec", spec_path,
           "--max-iterations", str(args.max_iterations)]
 
   def one(job):
@@ -202,12 +364,215 @@ def run_fits(args, scene_path, sdir, fit_path):
   return merged, errors
 
 
-def git_commit():
-  try:
-    return subprocess.run(["git", "-C", ROOT, "rev-parse", "HEAD"], capture_output=True, text=True,
-                          check=True).stdout.strip()
-  except (OSError, subprocess.CalledProcessError):
-    return None
+
+def claims_at_fit(args, scene, normalized, bounds, rdir, before):
+  """Runs the pulse families at the normalized change `normalized` ({name: x_i}) of `scene`
+  and judges the claims. Returns {claims_at_fit, fixes, breaks, liftoff by kneedyn run,
+  failed_family_runs} (fixes/breaks against `before`)."""
+  changes = {n: x * bounds[n] for n, x in normalized.items() if x != 0.0}
+  os.makedirs(rdir, exist_ok=True)
+  s = fitted_scene(scene, changes, os.path.join(rdir, "fitted_knee.yaml"))
+  after, bad = run_claims(args.kneedyn, s, rdir, args.quick, args.jobs)
+  fixes, breaks = compare(before, after)
+  out = {"claims_at_fit": after, "fixes": fixes, "breaks": breaks, "failed_family_runs": bad,
+         "reproduced_at_fit": sum(v == claims.REPRODUCED for v in after.values())}
+  # The reference member (A = 100 N, t0 = 0.1 s) by `kneedyn run` at the fit: an
+  # independent check of the lift-off the sensitivity driver fitted.
+  ref_run = os.path.join(rdir, "runs", run_families.member_name("amplitude", run_families.BASE_AMPLITUDE_N))
+  if os.path.exists(os.path.join(ref_run, "summary.json")):
+    out["liftoff_lateral_deg_by_kneedyn_run"] = run_families.event_summary(ref_run)["liftoff_lateral_deg"]
+  return out
+
+
+def target_entry(t):
+  """The recorded fields of one target's fit (kneedyn_inverse's JSON)."""
+  entry = {"reached": bool(t.get("reached")), "normalized_change": t.get("normalized_change"),
+           "max_normalized_change": t.get("max_normalized_change"),
+           "beyond_precision": t.get("beyond_precision"), "parameters": t.get("parameters", {}),
+           "moved": t.get("moved"), "linearized": t.get("linearized"),
+           "fitted_statements": t.get("fitted_statements"), "statements_at_fit": t.get("statements_at_fit"),
+           "within_precision": {k: (t.get("within_precision") or {}).get(k)
+                                for k in ("reached", "normalized_change", "max_normalized_change",
+                                          "fitted_statements")},
+           "fixes": [], "breaks": []}
+  if "error" in t:
+    entry["error"] = t["error"]
+  return entry
+
+
+def fit_scene(args, key, scene_path, outdir, targets, folds, bounds, project_before):
+  """Fits, the claims check unchanged and at each fit, and the strain scan, of one scene.
+  Returns (entry, failed): failed when a fit or a family run failed."""
+  sdir = os.path.join(outdir, key.replace("/", "__"))
+  os.makedirs(sdir, exist_ok=True)
+  t0 = time.monotonic()
+  spec_path, dropped = scene_spec(args.kneedyn, scene_path, sdir)
+  fit, err = run_fits(args, scene_path, sdir, os.path.join(sdir, "fit.json"), targets, folds, spec_path)
+  fit_s = time.monotonic() - t0
+  failed = bool(err)
+  if err:
+    print(f"inverse_problem: {key}: kneedyn_inverse failed: {err[-800:]}", file=sys.stderr)
+  scene = load_scene(scene_path)
+  t0 = time.monotonic()
+  before, bad = run_claims(args.kneedyn, scene, os.path.join(sdir, "unchanged"), args.quick, args.jobs)
+  failed |= bool(bad)
+  ref = project_before if project_before is not None else before
+  scan = None
+  scan_file = os.path.join(sdir, "strain_scan", "scan.json")
+  if args.strain_scan and (args.reuse or args.reuse_only) and os.path.exists(scan_file):
+    with open(scan_file) as f:
+      scan = mark_jumps(json.load(f))  # an earlier run's scan of this scene (--reuse); claims re-run below
+    scan["reused"] = True
+  elif args.strain_scan:
+    t1 = time.monotonic()
+    scan = strain_scan(args, scene, bounds, os.path.join(sdir, "strain_scan"))
+    scan["runtime_s"] = time.monotonic() - t1
+    with open(scan_file, "w") as f:
+      json.dump(scan, f, indent=1)
+  if scan is not None:
+    t1 = time.monotonic()
+    if scan.get("reached"):
+      at = claims_at_fit(args, scene, {n: scan["s"] for n in scan["parameters"]}, bounds,
+                         os.path.join(sdir, "strain_scan", "claims"), ref)
+      scan.update({"claims_at_fit": at["claims_at_fit"], "reproduced_at_fit": at["reproduced_at_fit"],
+                   "fixes_vs_project": at["fixes"], "breaks_vs_project": at["breaks"],
+                   "liftoff_lateral_deg_by_kneedyn_run": at.get("liftoff_lateral_deg_by_kneedyn_run")})
+    scan["claims_runtime_s"] = time.monotonic() - t1
+    print(f"inverse_problem: {key}: strain scan: reached {scan['reached']}, s {scan.get('s')}, "
+          f"|x| {scan.get('normalized_change')}", flush=True)
+  rel_scene = os.path.relpath(os.path.abspath(scene_path), ROOT)
+  common = {"scene": rel_scene, "claims_unchanged": before,
+            "reproduced_unchanged": sum(v == claims.REPRODUCED for v in before.values()),
+            "failed_family_runs_unchanged": bad, "strain_scan": scan, "fit_wall_s": fit_s,
+            "spec": os.path.relpath(spec_path, ROOT) if spec_path.startswith(ROOT) else spec_path,
+            "parameters_not_in_scene": dropped}
+  if project_before is not None:
+    common["fixes_vs_project"], common["breaks_vs_project"] = compare(project_before, before)
+  if fit is None:
+    return dict(common, error=err[-2000:]), True
+  out_targets = {}
+  for cid, t in fit.get("targets", {}).items():
+    entry = target_entry(t)
+    if t.get("all_parameters_normalized"):
+      entry.update(claims_at_fit(args, scene, t["all_parameters_normalized"], bounds,
+                                 os.path.join(sdir, "fit_" + cid), before))
+      entry["fixes_vs_project"], entry["breaks_vs_project"] = compare(ref, entry["claims_at_fit"])
+      failed |= bool(entry["failed_family_runs"])
+    out_targets[cid] = entry
+    print(f"inverse_problem: {key}: {cid}: reached {entry['reached']}, |x| {entry['normalized_change']}, "
+          f"fixes {entry['fixes']}, breaks {entry['breaks']}", flush=True)
+  lso = {}
+  for fold, f in fit.get("leave_some_out", {}).items():
+    lso[fold] = leave_some_out_summary(fit, fold)
+    if f.get("all_parameters_normalized"):
+      # The claims check at the fold's fit: the whole claims table, not only the judged half.
+      lso[fold].update(claims_at_fit(args, scene, f["all_parameters_normalized"], bounds,
+                                     os.path.join(sdir, fold), before))
+      failed |= bool(lso[fold]["failed_family_runs"])
+      print(f"inverse_problem: {key}: {fold}: claims fixed {lso[fold]['fixes']}, broken {lso[fold]['breaks']}",
+            flush=True)
+  entry = dict(common, targets=out_targets, fit_errors=err or None, baseline_statements=fit.get("baseline"),
+               leave_some_out=lso, reused_fit_s=fit.get("reused_runtime_s", 0.0), fit_commands=fit.get("commands"),
+               claims_runtime_s=time.monotonic() - t0, sensitivity_runs=fit.get("runs"), settings=fit.get("settings"))
+  return entry, failed
+
+
+def merge_recorded(readings, old):
+  """Readings and targets of an earlier record that this run did not redo, each marked with
+  the earlier record's provenance."""
+  prov = {k: old.get(k) for k in ("command", "commit", "date")}
+  for key, r in old.get("readings", {}).items():
+    if key not in readings:
+      readings[key] = dict(r, recorded_earlier=r.get("recorded_earlier", prov))
+      continue
+    new = readings[key]
+    for cid, t in r.get("targets", {}).items():
+      if cid not in new.get("targets", {}):
+        new.setdefault("targets", {})[cid] = dict(t, recorded_earlier=t.get("recorded_earlier", prov))
+    for fold, f in r.get("leave_some_out", {}).items():
+      if fold not in new.get("leave_some_out", {}):
+        new.setdefault("leave_some_out", {})[fold] = dict(f, recorded_earlier=f.get("recorded_earlier", prov))
+  return readings
+
+
+def readings_table(readings, first):
+  """One row per reading: the lift-off unchanged, and the smallest change found that reaches 66°
+  from it (the Ceres fit or the strain scan, whichever is smaller) with its cost in claims."""
+  rows = []
+  for key, r in readings.items():
+    base = (r.get("baseline_statements") or {}).get("C1", {})
+    c1 = (r.get("targets") or {}).get("C1", {})
+    scan = r.get("strain_scan") or {}
+    lo0 = base.get("value")
+    if lo0 is None and scan.get("scan"):
+      lo0 = scan["scan"][0]["liftoff_deg"]
+    row = {"reading": key, "label": r.get("label"), "liftoff_deg_unchanged": lo0,
+           "reproduced_unchanged": r.get("reproduced_unchanged"),
+           "C1_fit_reached": c1.get("reached"), "C1_fit_normalized_change": c1.get("normalized_change"),
+           "C1_fit_error": c1.get("error") or (base.get("error") if not c1 else None),
+           "C1_within_precision_liftoff_deg":
+               ((c1.get("within_precision") or {}).get("fitted_statements") or {}).get("C1", {}).get("value"),
+           "strain_scan_reached": scan.get("reached"), "strain_scan_s": scan.get("s"),
+           "strain_scan_normalized_change": scan.get("normalized_change"),
+           "strain_scan_jumps": [b for b in scan.get("brackets", []) if b.get("jump")], "error": r.get("error")}
+    options = []
+    if c1.get("reached") and c1.get("normalized_change") is not None:
+      options.append(("fit", c1["normalized_change"], c1.get("max_normalized_change"),
+                      (c1.get("fitted_statements") or {}).get("C1", {}).get("value"), c1))
+    if scan.get("reached"):
+      options.append(("strain_scan", scan["normalized_change"], scan.get("max_normalized_change", 0.0),
+                      scan.get("liftoff_deg"), scan))
+    if options:
+      how, n, mx, lo, src = min(options, key=lambda o: o[1])
+      row.update({"reached": True, "method": how, "normalized_change": n, "max_normalized_change": mx,
+                  "liftoff_deg_at_change": lo,
+                  "reproduced_at_change": src.get("reproduced_at_fit",
+                                                  sum(v == claims.REPRODUCED for v in src["claims_at_fit"].values())
+                                                  if src.get("claims_at_fit") else None),
+                  "recorded_earlier": src.get("recorded_earlier"),
+                  "fixes_vs_project": src.get("fixes_vs_project", src.get("fixes") if key == first else None),
+                  "breaks_vs_project": src.get("breaks_vs_project", src.get("breaks") if key == first else None)})
+    else:
+      row["reached"] = False
+    rows.append(row)
+  return rows
+
+
+def headline(rows, first):
+  """Which reading, or reading + smallest change, brings lift-off to 66° (C1), at what cost in
+  claims against the project's reading (the first scene unchanged)."""
+  def cost(r):
+    return (f"{r.get('reproduced_at_change')} claims reproduced; fixes {', '.join(r.get('fixes_vs_project') or []) or 'none'}, "
+            f"breaks {', '.join(r.get('breaks_vs_project') or []) or 'none'}")
+
+  def change(r):
+    jumps = r.get("strain_scan_jumps") if r.get("method") == "strain_scan" else None
+    jump = (f"; on a jump of the lift-off: {jumps[0]['liftoff_lo_deg']:.1f}° at s = {jumps[0]['s_lo']:.5f}, "
+            f"{jumps[0]['liftoff_hi_deg']:.1f}° at s = {jumps[0]['s_hi']:.5f}" if jumps else "")
+    return (f"||x|| = {r['normalized_change']:.2f} (largest |x_i| {r['max_normalized_change']:.2f}, "
+            f"{'beyond' if r['max_normalized_change'] > 1.0 else 'within'} the printed precision; {r['method']}{jump})")
+  by = {r["reading"]: r for r in rows}
+  out = []
+  p = by.get(first)
+  if p and p.get("liftoff_deg_unchanged") is not None:
+    out.append(f"Project's reading: lift-off {p['liftoff_deg_unchanged']:.1f}°; "
+               + (f"66° needs {change(p)}, {cost(p)}." if p.get("reached") else "66° not reached."))
+  others = [r for r in rows if r["reading"] != first]
+  reached = [r for r in others if r.get("reached")]
+  if reached:
+    best = min(reached, key=lambda r: r["normalized_change"])
+    out.append(f"Smallest change from a reading: {best['reading']} (lift-off {best['liftoff_deg_unchanged']:.1f}° "
+               f"unchanged) + {change(best)} gives {best['liftoff_deg_at_change']:.1f}°; {cost(best)}.")
+    cheap = min(reached + ([p] if p and p.get("reached") else []),
+                key=lambda r: (len(r.get("breaks_vs_project") or []), r["normalized_change"]))
+    if cheap is not best:
+      out.append(f"Fewest claims broken: {'the project' + chr(39) + 's reading' if cheap is p else cheap['reading']} "
+                 f"+ {change(cheap)}; {cost(cheap)}.")
+  failed = [r["reading"] for r in others if r.get("liftoff_deg_unchanged") is None]
+  if others:
+    out.append(f"{len(others)} readings tried, {len(reached)} reach 66°"
+               + (f"; {len(failed)} do not run ({', '.join(failed)})" if failed else "") + ".")
+  return " ".join(out)
 
 
 def main(argv=None):
@@ -216,11 +581,19 @@ def main(argv=None):
   ap.add_argument("--kneedyn", required=True)
   ap.add_argument("--out", required=True)
   ap.add_argument("--scenes", nargs="+", required=True, help="scene files; the first is the headline")
+  ap.add_argument("--readings", default="",
+                  help="reconstruction readings to fit as outer choices (comma-separated keys of "
+                       "reports/reconstruction.py READINGS, 'model': every model reading and the combinations, 'none')")
+  ap.add_argument("--reading-targets", default="C1", help="targets fitted per reading ('none': the statements at x = 0 only)")
   ap.add_argument("--record", help="also write the result JSON here (reports/recorded/inverse_problem.json)")
+  ap.add_argument("--merge-recorded", help="an earlier record: keep its readings, targets and folds not redone here")
   ap.add_argument("--targets", default="C1,K6,K7,V2,V4",
-                  help="claim ids ('' = every claim with a statement); default: the statements the "
-                       "unchanged model misses (C1, K6, K7, V2, V4)")
+                  help="claim ids ('' = every claim with a statement, 'none' = no target); default: the statements "
+                       "the unchanged model misses (C1, K6, K7, V2, V4)")
+  ap.add_argument("--folds", default="A,B", help="leave-some-out folds of the scenes ('none': no fold)")
   ap.add_argument("--max-iterations", type=int, default=8)
+  ap.add_argument("--no-strain-scan", dest="strain_scan", action="store_false",
+                  help="skip the derivative-free C1 check along the uniform extension-ratio shift")
   ap.add_argument("--quick", action="store_true", help="reduced pulse families for the claims check")
   ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="family runs at a time (claims check)")
   ap.add_argument("--parallel", type=int, default=3, help="kneedyn_inverse processes at a time")
@@ -236,74 +609,60 @@ def main(argv=None):
     if not os.path.isfile(s):
       print(f"inverse_problem: --scenes: '{s}': no such file", file=sys.stderr)
       return 2
+  with open(SPEC) as f:
+    spec = yaml.safe_load(f)
+  claim_ids = list(dict.fromkeys(st["claim"] for st in spec["statements"]))
+  bounds = {p["name"]: p["bound"] for p in spec["parameters"]}
+  reading_keys = (model_readings() if args.readings == "model"
+                  else [] if args.readings == "none" else [k for k in args.readings.split(",") if k])
+  known = {k for k, _, _ in reconstruction.READINGS}
+  for flag, value, allowed in (("--targets", args.targets, claim_ids), ("--reading-targets", args.reading_targets, claim_ids),
+                               ("--folds", args.folds, ["A", "B"]), ("--readings", ",".join(reading_keys), known)):
+    bad = [v for v in split_list(value, allowed) if v not in allowed]
+    if bad:
+      print(f"inverse_problem: {flag}: '{bad[0]}' is none of {', '.join(sorted(allowed))}", file=sys.stderr)
+      return 2
+  old = None
+  if args.merge_recorded:
+    try:
+      with open(args.merge_recorded) as f:
+        old = json.load(f)
+    except (OSError, ValueError) as e:
+      print(f"inverse_problem: --merge-recorded = '{args.merge_recorded}': {e}", file=sys.stderr)
+      return 2
   t_start = time.monotonic()
   outdir = os.path.abspath(args.out)
   os.makedirs(outdir, exist_ok=True)
   failed = False
   readings = {}
-  for scene_path in args.scenes:
+  first = scene_key(args.scenes[0])
+  project_before = None
+  for n, scene_path in enumerate(args.scenes):
     key = scene_key(scene_path)
-    sdir = os.path.join(outdir, key)
-    os.makedirs(sdir, exist_ok=True)
-    fit_path = os.path.join(sdir, "fit.json")
-    t0 = time.monotonic()
-    fit, err = run_fits(args, scene_path, sdir, fit_path)
-    fit_s = time.monotonic() - t0
-    if err:
-      print(f"inverse_problem: {key}: kneedyn_inverse failed: {err[-800:]}", file=sys.stderr)
-      failed = True
-    if fit is None:
-      readings[key] = {"scene": scene_path, "error": err[-2000:]}
-      continue
-    scene = load_scene(scene_path)
-    t0 = time.monotonic()
-    before, bad = run_claims(args.kneedyn, scene, os.path.join(sdir, "unchanged"), args.quick, args.jobs)
-    failed |= bool(bad)
-    targets = {}
-    for cid, t in fit.get("targets", {}).items():
-      entry = {"reached": bool(t.get("reached")), "normalized_change": t.get("normalized_change"),
-               "max_normalized_change": t.get("max_normalized_change"),
-               "beyond_precision": t.get("beyond_precision"), "parameters": t.get("parameters", {}),
-               "moved": t.get("moved"), "linearized": t.get("linearized"),
-               "fitted_statements": t.get("fitted_statements"), "statements_at_fit": t.get("statements_at_fit"),
-               "within_precision": {k: t.get("within_precision", {}).get(k)
-                                    for k in ("reached", "normalized_change", "max_normalized_change",
-                                              "fitted_statements")},
-               "fixes": [], "breaks": []}
-      if "error" in t:
-        entry["error"] = t["error"]
-      if t.get("all_parameters_normalized"):
-        spec_bounds = {p["name"]: p["bound"] for p in yaml.safe_load(open(SPEC))["parameters"]}
-        changes = {n: x * spec_bounds[n] for n, x in t["all_parameters_normalized"].items() if x != 0.0}
-        rdir = os.path.join(sdir, "fit_" + cid)
-        os.makedirs(rdir, exist_ok=True)
-        s = json.loads(json.dumps(scene))
-        s["parameter_set"] = write_parameter_set(scene, changes, os.path.join(rdir, "fitted_knee.yaml"))
-        after, bad = run_claims(args.kneedyn, s, rdir, args.quick, args.jobs)
-        failed |= bool(bad)
-        entry["fixes"], entry["breaks"] = compare(before, after)
-        entry["claims_at_fit"] = after
-        # The reference member (A = 100 N, t0 = 0.1 s) by `kneedyn run` at the fit: an
-        # independent check of the lift-off the sensitivity driver fitted.
-        ref_run = os.path.join(rdir, "runs", run_families.member_name("amplitude", run_families.BASE_AMPLITUDE_N))
-        if os.path.exists(os.path.join(ref_run, "summary.json")):
-          entry["liftoff_lateral_deg_by_kneedyn_run"] = run_families.event_summary(ref_run)["liftoff_lateral_deg"]
-        entry["failed_family_runs"] = bad
-      targets[cid] = entry
-      print(f"inverse_problem: {key}: {cid}: reached {entry['reached']}, |x| {entry['normalized_change']}, "
-            f"fixes {entry['fixes']}, breaks {entry['breaks']}", flush=True)
-    readings[key] = {"scene": os.path.relpath(os.path.abspath(scene_path), ROOT), "targets": targets,
-                     "claims_unchanged": before, "fit_errors": err or None,
-                     "baseline_statements": fit.get("baseline"),
-                     "leave_some_out": {fold: leave_some_out_summary(fit, fold)
-                                        for fold in fit.get("leave_some_out", {})},
-                     "fit_wall_s": fit_s, "reused_fit_s": fit.get("reused_runtime_s", 0.0),
-                     "fit_commands": fit.get("commands"), "claims_runtime_s": time.monotonic() - t0,
-                     "sensitivity_runs": fit.get("runs"), "settings": fit.get("settings")}
-  first = readings.get(scene_key(args.scenes[0]), {})
-  result = {"targets": first.get("targets", {}),
-            "leave_some_out": first.get("leave_some_out", {}),
+    entry, bad = fit_scene(args, key, scene_path, outdir, split_list(args.targets, claim_ids),
+                           split_list(args.folds, ["A", "B"]), bounds, project_before)
+    readings[key] = entry
+    failed |= bad
+    if n == 0:
+      project_before = entry.get("claims_unchanged")
+  for key in reading_keys:
+    path, label = reading_scene(key, outdir)
+    entry, bad = fit_scene(args, key, path, outdir, split_list(args.reading_targets, claim_ids), [], bounds,
+                           project_before)
+    entry["label"] = label
+    entry["docs_model_md"] = reconstruction.READING_DOCS.get(key)
+    readings[key] = entry
+    # A reading that does not run (the printed ω′y sign, the printed slope) or whose motion the
+    # sensitivities cannot follow is a result, recorded in its entry, not a failure of the study.
+    del bad
+  if old is not None:
+    readings = merge_recorded(readings, old)
+  head = readings.get(first, {})
+  result = {"targets": head.get("targets", {}),
+            "leave_some_out": head.get("leave_some_out", {}),
             "readings": readings,
+            "readings_table": readings_table(readings, first),
+            "headline": headline(readings_table(readings, first), first),
             "spec": os.path.relpath(SPEC, ROOT),
             "normalization": "x_i = change_i / bound_i (inverse/inverse_problem.yaml: half a unit of the last printed "
                              "digit); normalized_change = ||x||_2; beyond_precision: max |x_i| > 1",
@@ -314,9 +673,11 @@ def main(argv=None):
             "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
             # This run's wall time plus the wall times of the fits it reused (--reuse), i.e. the
             # study's time with the fit processes counted one after the other.
-            "runtime_s": time.monotonic() - t_start + sum(r.get("reused_fit_s", 0.0) for r in readings.values()),
+            "runtime_s": time.monotonic() - t_start + sum(r.get("reused_fit_s", 0.0) for r in readings.values()
+                                                          if "recorded_earlier" not in r),
             "runtime_note": "fits: one kneedyn_inverse process per target and per fold, run concurrently "
-                            "(--parallel); runtime_s sums their wall times and adds the claims runs",
+                            "(--parallel); runtime_s sums their wall times and adds the claims runs; entries with "
+                            "recorded_earlier come from an earlier record (--merge-recorded) and are not in it",
             "quick": args.quick}
   for path in [os.path.join(outdir, "inverse_problem.json")] + ([args.record] if args.record else []):
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)

@@ -152,6 +152,84 @@ def explanation_cell(v):
   return Raw(f"<b>unexplained</b><div class='why'>{esc(ev.get('why', ''))}</div>")
 
 
+RECORDED_INVERSE = os.path.join(HERE, "recorded", "inverse_problem.json")
+
+
+def fmt_num(x, f="{:.1f}"):
+  return "–" if x is None else f.format(x)
+
+
+def inverse_section(path=RECORDED_INVERSE):
+  """The bounded inverse problem (reports/recorded/inverse_problem.json, reports/inverse_problem.py):
+  per target the smallest normalized change and its cost in claims, the claims at each
+  leave-some-out fold's fit, and the readings as outer choices of the lift-off fit."""
+  if not os.path.exists(path):
+    return ""
+  with open(path, encoding="utf-8") as f:
+    inv = json.load(f)
+  parts = ["<h3 id='inverse'>Inverse problem: what it would take</h3>",
+           "<p>The smallest change of Tables 1.1–1.3 (108 numbers, each normalized by half a unit of its last "
+           "printed digit: ‖x‖ = 1 is one printed precision; bounds and reasons in "
+           "<code>inverse/inverse_problem.yaml</code>) that reaches a statement of the chapter, fitted with Ceres "
+           "and the IDAS sensitivities, and the claims judged at the fitted parameters (<b>fixes</b>/<b>breaks</b> "
+           "against the unchanged model). Recorded in <code>reports/recorded/inverse_problem.json</code> at commit "
+           f"{esc(inv.get('commit'))}, {esc(inv.get('date'))} (command: <code>{esc(inv.get('command'))}</code>; "
+           f"{fmt_num(inv.get('runtime_s'), '{:.0f}')} s). The fits are upper bounds on the smallest change "
+           "(rough statements, few iterations), not certified minima.</p>"]
+  rows = []
+  for cid, t in inv.get("targets", {}).items():
+    wp = (t.get("within_precision") or {}).get("fitted_statements") or {}
+    rows.append([cid, "yes" if t.get("reached") else "no", fmt_num(t.get("normalized_change")),
+                 fmt_num(t.get("max_normalized_change")),
+                 "; ".join(f"{k} {fmt_num(v.get('value'))}" for k, v in wp.items() if v.get("value") is not None) or "–",
+                 ", ".join(t.get("fixes") or []) or "–", ", ".join(t.get("breaks") or []) or "–"])
+  if rows:
+    parts.append(table(["target", "reached", "‖x‖", "max |x_i|", "closest within the precision (|x_i| ≤ 1)",
+                        "fixes", "breaks"], rows))
+  lso = inv.get("leave_some_out", {})
+  if lso:
+    parts.append("<p><b>Leave-some-out.</b> The statements of one half fitted together, the other half judged at "
+                 "that fit, and every claim checked there; a fit that moves the judged half away from the chapter "
+                 "is not a validation.</p>")
+    parts.append(table(["fold", "fitted", "‖x‖", "judged closer / further", "claims fixed", "claims broken"],
+                       [[fold, ", ".join(f.get("fitted") or []), fmt_num(f.get("normalized_change")),
+                         f"{f.get('judged_closer')} / {f.get('judged_further')}",
+                         ", ".join(f.get("fixes") or []) if "claims_at_fit" in f else "not run",
+                         ", ".join(f.get("breaks") or []) if "claims_at_fit" in f else "not run"]
+                        for fold, f in lso.items()]))
+  rt = inv.get("readings_table", [])
+  if rt:
+    parts.append("<p><b>The readings as outer choices.</b> Lift-off 66° (C1) from each reading of docs/model.md "
+                 "instead of the project's (first row): the Ceres fit where the IDAS sensitivities run (they stop at "
+                 "a medial re-contact, which every reading with Table 1.2 as labelled has), and a derivative-free "
+                 "scan that shifts every extension ratio by s × its bound (‖x‖ = |s|√12). Claims at the smaller "
+                 "change, against the project's reading.</p>")
+
+    def fit_cell(r):
+      if r.get("C1_fit_reached"):
+        return f"{r['C1_fit_normalized_change']:.1f}"
+      if r.get("C1_fit_normalized_change") is not None:
+        return f"not reached ({r['C1_fit_normalized_change']:.1f})"
+      if "not run" in str(r.get("error") or ""):
+        return "not run (no fit recorded)"
+      return "does not run" + (f": {str(r.get('C1_fit_error'))[:90]}" if r.get("C1_fit_error") else "")
+    parts.append(table(["reading", "lift-off unchanged (°)", "Ceres fit ‖x‖", "strain scan s", "smallest ‖x‖",
+                        "max |x_i|", "lift-off there (°)", "claims reproduced", "fixes vs project",
+                        "breaks vs project"],
+                       [[r["reading"], fmt_num(r.get("liftoff_deg_unchanged")), fit_cell(r),
+                         fmt_num(r.get("strain_scan_s"), "{:+.3f}") if r.get("strain_scan_reached") else "not reached",
+                         fmt_num(r.get("normalized_change"), "{:.2f}") if r.get("reached") else "–",
+                         fmt_num(r.get("max_normalized_change"), "{:.2f}") if r.get("reached") else "–",
+                         fmt_num(r.get("liftoff_deg_at_change")),
+                         "–" if r.get("reproduced_at_change") is None else str(r["reproduced_at_change"]),
+                         ", ".join(r.get("fixes_vs_project") or []) or "–",
+                         ", ".join(r.get("breaks_vs_project") or []) or "–"]
+                        for r in rt]))
+  if inv.get("headline"):
+    parts.append(f"<p><b>Headline.</b> {esc(inv['headline'])}</p>")
+  return "\n".join(parts)
+
+
 def claims_section(rows, recorded=None):
   n = {v: sum(r["verdict"] == v for r in rows) for v in ("reproduced", "not reproduced", "not checkable")}
   parts = ["<h2 id='claims'>Chapter claims</h2>",
@@ -192,6 +270,7 @@ def claims_section(rows, recorded=None):
                    f"{best['liftoff_deg']:.1f}° ({best['towards_66_deg']:+.1f}° towards 66°), losing "
                    f"{esc(', '.join(best['loses']) or 'no claim')} and gaining {esc(', '.join(best['gains']) or 'none')}."
                    "</p>")
+  parts.append(inverse_section())
   return "\n".join(parts)
 
 
