@@ -30,6 +30,8 @@ const std::vector<FormulationInfo>& RegisteredFormulations() {
       FormulationInfo("mde", "minimal ODE: closed-form elimination of the contact translations, projected Newton-Euler", KNEEDYN_FACTORY(ConfigureMde)).Integrators(kOdeIntegrators),
       FormulationInfo("ede", "excess ODE in (q, qdot) with the hidden constraint; --stabilization none|baumgarte|projection|cvode-projection", KNEEDYN_FACTORY(ConfigureEde)).Integrators(kOdeIntegrators).Stabilizations({Stabilization::kNone, Stabilization::kBaumgarte, Stabilization::kProjection, Stabilization::kCvodeProjection}).Sensitivity(SensitivityForm::kOde),
       FormulationInfo("staggered", "the chapter's staggered tibia-patella procedure (section 1.7): the tendon force lagged one step --step, dopri5 inside a step", KNEEDYN_FACTORY(ConfigureStaggered)).FixedStep().NeedsPatella(),
+      FormulationInfo("monolithic", "the chapter's monolithic tibia-patella DAE (section 1.7): dae's index-2 DAE plus the patella's 17 equilibrium unknowns as algebraic variables, IDA", KNEEDYN_FACTORY(ConfigureMonolithic)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).NeedsPatella(),
+      FormulationInfo("monolithic-ggl", "the monolithic tibia-patella DAE with the tibia in the Gear-Gupta-Leimkuhler stabilized form (dae-ggl), IDA", KNEEDYN_FACTORY(ConfigureMonolithicGgl)).AlgebraicForces().Jacobians(kIdaJacobians).NeedsPatella(),
   };
   return kRegistry;
 }
