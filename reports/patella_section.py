@@ -246,10 +246,10 @@ def score_with_kneedyn(kneedyn, scene, table, rec, reference_path):
     raise RuntimeError(f"kneedyn score: exit {p.returncode}: {p.stderr.strip()[-300:]}")
   with open(out, encoding="utf-8") as f:
     j = json.load(f)
-  scd = j.get("scd", (j.get("metrics") or {}).get("scd"))
-  if not isinstance(scd, (int, float)):
+  m = ((j.get("results") or [{}])[0]).get("metrics") or {}
+  if not isinstance(m.get("scd"), (int, float)):
     raise RuntimeError(f"kneedyn score: no scd in {out}")
-  return scd
+  return m["scd"], m.get("scd_ceiling"), bool(m.get("scd_above_ceiling"))
 
 
 def finite(x):
@@ -407,7 +407,8 @@ def study(kneedyn, out, quick):
       if use_stored:
         try:
           rec["scd_python"] = rec["scd"]
-          rec["scd"] = score_with_kneedyn(kneedyn, scenes[IMPACT], table, rec, stored)
+          rec["scd"], rec["scd_ceiling"], rec["scd_above_ceiling"] = score_with_kneedyn(
+              kneedyn, scenes[IMPACT], table, rec, stored)
         except RuntimeError as e:
           rec["score_error"] = str(e)
     record(rec)
