@@ -391,11 +391,11 @@ def study(kneedyn, out, quick):
   points = []
   refused_step = set()
   for name, args, setting in settings:
-    if name in refused_step:  # an adaptive formulation needing a patella: tolerances instead of Δt
+    if name in refused_step and "step_s" in setting:  # adaptive, needing a patella: tolerances instead
       continue
     tag = name + "_" + "_".join(f"{k}{v:g}" for k, v in setting.items())
     rec, table = run(kneedyn, scenes[IMPACT], os.path.join(pdir, "wp", tag), name, args, out)
-    if rec["exit"] == 2 and "step" in setting and "--step" in rec.get("reason", ""):
+    if rec["exit"] == 2 and "step_s" in setting and "--step" in rec.get("reason", ""):
       refused_step.add(name)
       for r in RTOLS[plan]:
         settings.append((name, ["--rtol", repr(r), "--atol", repr(r * 1e-2)], {"rtol": r}))
