@@ -10,9 +10,12 @@ both patella scenes cut to about 0.1 s, three Δt of `staggered`, two tolerances
   * every formulation `kneedyn formulations` marks as needing a patella is in the
     work-precision study, each run completed, with a score;
   * the staggered coupling error has an observed order in 0.8–1.3 (the one-step lag is a
-    first-order splitting: docs/model.md §12, form (ii)).
+    first-order splitting: docs/model.md §12, form (ii));
+  * with --make-reference: the section's own scd (metrics.hpp's formula, used until a stored
+    reference exists) equals `kneedyn score`'s (the C++ metric) on a reference made for the
+    cut scene, for two runs.
 
-  patella_section_test.py --kneedyn PATH [--keep DIR]
+  patella_section_test.py --kneedyn PATH [--make-reference PATH] [--keep DIR]
 """
 import argparse
 import csv
@@ -51,6 +54,8 @@ def main():
   ap = argparse.ArgumentParser()
   ap.add_argument("--kneedyn", required=True)
   ap.add_argument("--keep", help="write into this directory instead of a temporary one")
+  ap.add_argument("--make-reference", help="make_reference binary: also check the section's scd against "
+                  "kneedyn score on a reference it makes for the cut scene")
   args = ap.parse_args()
   errors = []
   with tempfile.TemporaryDirectory(prefix="kneedyn_patella_") as tmp:
@@ -132,6 +137,27 @@ def main():
       for w in pts:
         if not w.get("ok") or not isinstance(w.get("scd"), (int, float)) or not w.get("cpu_s", 0) > 0:
           errors.append(f"{n} {w.get('setting')}: not a scored run ({w.get('reason')})")
+    # The section's scd (metrics.hpp's formula in Python, used until a stored reference
+    # exists) against kneedyn score's C++ metric on a reference made by make_reference.
+    if args.make_reference:
+      scene = result["scenes"][patella_section.IMPACT]
+      scene = scene if os.path.isabs(scene) else os.path.join(ROOT, scene)
+      ref = os.path.join(out, "patella", "made_reference.json")
+      m = subprocess.run([args.make_reference, "--scene", scene, "--out", ref, "--method", "formulations",
+                          "--formulation", "ede", "--integrator", "dopri5", "--rtol", "1e-12", "--atol", "1e-14",
+                          "--check", "ede", "--check-integrator", "verner65", "--check-rtol", "1e-11",
+                          "--check-atol", "1e-13"], capture_output=True, text=True, timeout=120)
+      if m.returncode != 0:
+        errors.append(f"make_reference failed ({m.returncode}): {m.stderr[-300:]}")
+      else:
+        for w in [w for w in result["work_precision"] if w.get("ok")][:2]:
+          run_dir = w["run_dir"]
+          with open(os.path.join(run_dir, "trajectory.csv"), newline="", encoding="utf-8") as f:
+            table = [{k: patella_section.number(v) for k, v in r.items()} for r in csv.DictReader(f)]
+          ours = patella_section.compare(patella_section.reference_from_stored(ref), table, [])["scd"]
+          theirs, _, _ = patella_section.score_with_kneedyn(args.kneedyn, scene, table, w, ref)
+          if not abs(ours - theirs) <= 1e-9:
+            errors.append(f"{w['formulation']} {w['setting']}: scd {ours} here, {theirs} by kneedyn score")
     order = result["staggered_order"]["fitted_order"]
     if order is None or not 0.8 <= order <= 1.3:
       errors.append(f"staggered coupling order {order}, expected 0.8-1.3")
