@@ -350,7 +350,7 @@ def study(kneedyn, out, quick):
 
   # The reference: stored, or ede at rtol 1e-12; either way this run is the impact scene's
   # kinematics run (at rtol 1e-10 when the stored reference scores).
-  ref_rec, ref_table = run(kneedyn, scenes[IMPACT], os.path.join(pdir, "impact_reference_ede"), "ede",
+  ref_rec, ref_table = run(kneedyn, scenes[IMPACT], os.path.join(pdir, "impact_ede"), "ede",
                            KINEMATICS_SETTING if use_stored else REFERENCE_SETTING, out)
   ref_rec["role"] = "reference" if not use_stored else "kinematics"
   record(ref_rec)
