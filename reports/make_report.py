@@ -17,6 +17,7 @@ import bench_data  # noqa: E402  (the sweep JSON and its fairness manifest)
 import figures  # noqa: E402
 import global_sensitivity  # noqa: E402  (Sobol' indices section)
 import methods_comparison  # noqa: E402  (dae / dae-ggl / newmark / generalized-alpha)
+import patella_section  # noqa: E402  (the patello-femoral joint, docs/model.md §12)
 from family_data import load_families  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -681,13 +682,15 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, 
           "<a href='#sensitivity'>Sensitivity</a><a href='#reconstruction'>Reconstruction</a>"
           "<a href='#work-precision'>Work-precision</a>"
           "<a href='#methods'>Methods</a>"
+          "<a href='#patella'>Patella</a>"
           "<a href='#hard-cases'>Hard cases</a>"
           "<a href='#reproduce'>Reproduction</a></nav>",
           summary_section(fam, members), claims_section(rows, recorded), figures_section(outdir),
           sensitivity_section(outdir), reconstruction_section(outdir), global_sensitivity.section(outdir), bench_section(outdir, bench, include=include), \
           methods_comparison.section(outdir, kneedyn, bench), \
           *([bench_section(outdir, peer_bench, "peer_", "kneedyn and Simbody, same run", "peer-work-precision",
-                           PEER_INTRO)] if peer_bench else []), hard_cases_section(hard_cases),
+                           PEER_INTRO)] if peer_bench else []), patella_section.section(outdir),
+          hard_cases_section(hard_cases),
           commands_section(outdir, kneedyn, quick, bench, fam, include)]
   page = ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
           "<title>kneedyn chapter report</title><style>" + CSS + "</style></head><body>\n"

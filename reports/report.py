@@ -4,8 +4,9 @@
   report.py --kneedyn PATH --out DIR [--quick] [--bench JSON] [--include DIR]... [--hard-cases CSV]
             [--reconstruction [--calibrate BIN]]
 
-Exit status: 0 when every family and sensitivity run completed (possibly with a documented
-fallback tolerance) and the report was written; 1 when one of them failed (the report is
+Exit status: 0 when every family, sensitivity and patella run (reports/patella_section.py)
+completed (possibly with a documented fallback tolerance) and the report was written; 1 when
+one of them failed (the report is
 still written); 2 on bad input. Runs that fail under a reading of the reconstruction study
 are results shown in its table, not failures of the report.
 """
@@ -20,6 +21,7 @@ import bench_data  # noqa: E402
 import claims  # noqa: E402
 import figures  # noqa: E402
 import make_report  # noqa: E402
+import patella_section  # noqa: E402
 import reconstruction  # noqa: E402
 import run_families  # noqa: E402
 
@@ -66,12 +68,17 @@ def main(argv=None):
     # which the knee never reaches 90°); only bad input stops the report.
     if rec == 2:
       return 2
+  # The patello-femoral joint (docs/model.md §12): its runs, figures and coupling study; a
+  # failed run is shown in its section and makes the exit status 1.
+  pat = patella_section.main(["--kneedyn", args.kneedyn, "--out", args.out] + (["--quick"] if args.quick else []))
+  if pat == 2:
+    return 2
   figures.main(["--out", args.out])
   claims.build_claims(args.out)
   path = make_report.make_report(args.out, args.bench, os.path.abspath(args.kneedyn), args.quick,
                                  args.hard_cases, args.peer_bench, args.include)
   print(f"report: {path}")
-  return 1 if rc else 0
+  return 1 if rc or pat else 0
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.join(ROOT, "reports"))
 import claims  # noqa: E402
 import figures  # noqa: E402
+import patella_section  # noqa: E402
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -155,6 +156,12 @@ def main():
         errors.append("index.html lacks the reconstruction matrix or the calibration")
       if not os.path.exists(os.path.join(out, "reconstruction", "calibration.json")):
         errors.append("calibration.json not written")
+    # The patello-femoral section (reports/patella_section.py; its own test: patella_section).
+    if "id='patella'" not in page:
+      errors.append("index.html has no patella section (reports/patella_section.py)")
+    for fname, _ in patella_section.FIGURES:
+      if f"figures/{fname}" not in page or not os.path.exists(os.path.join(out, "figures", fname)):
+        errors.append(f"patella section: figures/{fname} missing or not referenced")
     for extra in ("claims.md", "sensitivity.json"):
       if not os.path.exists(os.path.join(out, extra)):
         errors.append(f"missing {extra}")
