@@ -12,6 +12,7 @@
 #include "formulations/simulator.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/error.hpp"
+#include "solver/surface_wide.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
@@ -25,7 +26,7 @@ constexpr double kTimeMatch = 1e-9;  // s, as ExtractSolution
 template <typename T>
 void AppendRowTpl(const Model& model, const Vector6<T>& q, const Vector6<T>& qd, const std::vector<int>& active,
                   const std::vector<T>& normal_force, const std::vector<signed char>* branch, double t,
-                  Solution* s) {
+                  PatellaGuess* patella_guess, Solution* s) {
   const T mm = T(kMmPerM), deg = T(kDegPerRad);
   auto d = [](const T& v) { return static_cast<double>(v); };
   s->values["positions"].push_back({d(q(kX0) * mm), d(q(kY0) * mm), d(q(kZ0) * mm), d(q(kAlpha) * deg),
@@ -49,7 +50,9 @@ void AppendRowTpl(const Model& model, const Vector6<T>& q, const Vector6<T>& qd,
   }
   DataTpl<T> data(model);
   data.ligament_branch = branch;
+  data.patella_guess = *patella_guess;  // the patella's equilibrium warm-started from the last row's
   ComputeAppliedWrench(model, t, pose, &data);
+  *patella_guess = data.patella_guess;
   for (const T& f : data.ligament_tension) tensions.push_back(d(f));
   s->values["contact_points"].push_back(points);
   s->values["contact_forces"].push_back(forces);
@@ -69,13 +72,6 @@ class ExtendedStepper final : public FormulationBase {
 
   ExtendedStepper(const Scene& scene, const ExtendedReferenceSettings& settings)
       : FormulationBase(scene), settings_(settings), method_(settings.stages), workspace_(model_) {
-    for (const ContactPair& pair : model_.contacts) {
-      SphereOnPlane sop;
-      if (!std::is_same_v<T, double> && !SphereOnPlaneForm(pair, &sop)) {
-        Throw<InputError>("ExtendedReference", "the ", CompartmentName(pair.compartment),
-                          " contact is not sphere on plane: extended-precision references need the closed form");
-      }
-    }
     rhs_ = [this](const T& t, const Vector& y, Vector* ydot) { Rhs(t, y, ydot); };
   }
 
@@ -306,6 +302,7 @@ ExtendedReferenceRun RunExtendedReference(const Scene& scene, const ExtendedRefe
   Solution rows;
   T energy0 = 0;
   bool have_energy0 = false;
+  PatellaGuess row_patella_guess;
   sim.sample = [&](const MechanicalState& st, bool) {
     Vector6<T> q, qd;
     std::vector<T> normal;
@@ -323,7 +320,7 @@ ExtendedReferenceRun RunExtendedReference(const Scene& scene, const ExtendedRefe
       for (int i : st.active) normal.push_back(T(st.contact[i].normal_force));
     }
     // Tensions by length (no locked branch), as ComputeObservables reports them.
-    AppendRowTpl(model, q, qd, active, normal, nullptr, st.t, &rows);
+    AppendRowTpl(model, q, qd, active, normal, nullptr, st.t, &row_patella_guess, &rows);
     rows.times.push_back(st.t);
     // Constraint residuals and energy in T.
     const EulerAngleTrig<T> trig = EulerAngleTrigOf(q);

@@ -24,7 +24,9 @@
 // The Solution's values are computed from the long double state and rounded once (the
 // conversions of metrics.hpp: mm, deg, valgus = β − 90°); the double observables would lose
 // digits to cancellation (valgus near β = 90°, ligament elongation L − L0).
-// T wider than double: sphere-on-plane contacts only (the general contact solve runs in double).
+// T wider than double: sphere-on-plane tibio-femoral contacts only (the general contact solve
+// runs in double); the patella's equilibrium is the double solve refined in T
+// (solver/patella_extended.hpp) on surfaces evaluated in T (solver/surface_wide.hpp).
 #pragma once
 
 #include <string>

@@ -27,6 +27,8 @@
 #pragma once
 
 #include <Eigen/LU>
+#include <cmath>
+#include <limits>
 #include <type_traits>
 
 #include "solver/contact.hpp"
@@ -76,6 +78,34 @@ bool ContactPointResiduals(const ContactPair& pair, const PoseTpl<T>& pose, cons
   return true;
 }
 
+// The general solve for a wide scalar (long double, quadruple: neither double nor Jet): the
+// double solution refined in T, z ← z − J⁻¹ F_T(z) with F evaluated in T on the surfaces'
+// charts in T (surface_wide.hpp) and J the double solve's Jacobian (iterative refinement:
+// each iteration gains ~16 digits), to max |Δz_i| ≤ 8 ε_T (1 + |z_i|). False when F leaves
+// a chart or 12 iterations do not get there.
+template <typename T>
+bool RefineContactPointsWide(const ContactPair& pair, const PoseTpl<T>& pose, const ContactSolution& solution,
+                             T z[4]) {
+  for (int i = 0; i < 4; ++i) z[i] = T(solution.z(i));
+  const Eigen::PartialPivLU<Eigen::Matrix4d> lu(solution.jacobian);
+  const double eps = static_cast<double>(std::numeric_limits<T>::epsilon());
+  Vector3<T> pf, pt, n_T;
+  T F[4];
+  for (int iteration = 0; iteration < 12; ++iteration) {
+    if (!ContactPointResiduals(pair, pose, z, &pf, &pt, &n_T, F)) return false;
+    Eigen::Vector4d F_d;
+    for (int i = 0; i < 4; ++i) F_d(i) = static_cast<double>(F[i]);
+    const Eigen::Vector4d dz = lu.solve(F_d);
+    bool converged = true;
+    for (int i = 0; i < 4; ++i) {
+      z[i] -= T(dz(i));
+      if (!(std::abs(dz(i)) <= 8.0 * eps * (1.0 + std::abs(static_cast<double>(z[i]))))) converged = false;
+    }
+    if (converged) return true;
+  }
+  return false;
+}
+
 // Contact geometry of a pair at a pose: gap, contact points in both frames, unit tibial
 // normal (geometry.normal_T; n_F = R n_T). `chart` (optional) receives the regular chart
 // coordinates (uf, vf, ut, vt) of the contact points. Returns false when the general solve
@@ -102,9 +132,19 @@ bool ContactKinematics(const ContactPair& pair, const PoseTpl<T>& pose,
   if (chart != nullptr) {
     for (int i = 0; i < 4; ++i) chart[i] = sol.z(i);
   }
-  // Lift: z = z* − J⁻¹ F(z*, pose) with only the derivative part kept (F(z*) ≈ 0).
   Vector3<T> pf, pt, n_T;
   T F[4];
+  if constexpr (!IsDoubleOrJet<T>::value) {
+    T z[4];
+    if (!RefineContactPointsWide(pair, pose, sol, z)) return false;
+    ContactPointResiduals(pair, pose, z, &pf, &pt, &n_T, F);
+    geometry->point_F = pf;
+    geometry->point_T = pt;
+    geometry->normal_T = n_T;
+    geometry->gap = (pf - pose.PointInF(pt)).dot(pose.R_FT * n_T);
+    return true;
+  }
+  // Lift: z = z* − J⁻¹ F(z*, pose) with only the derivative part kept (F(z*) ≈ 0).
   const double* z0 = sol.z.data();
   if (!ContactPointResiduals(pair, pose, z0, &pf, &pt, &n_T, F)) return false;
   const Eigen::Matrix4d Jinv = sol.jacobian.inverse();
@@ -150,20 +190,22 @@ T SphereOnPlaneRateTerm(const SphereOnPlane& sop, const PoseTpl<T>& pose, const 
   return w_F.cross(wxn).dot(sop.centre_F.template cast<T>() - pose.p_FoTo_F) - T(2.0) * wxn.dot(v_F);
 }
 
-// RequireContactKinematics for any scalar type. Beyond double (long double) only sphere on
-// plane: the general solve runs in double, so another pair is a SolverError there.
+// RequireContactKinematics for any scalar type (a wide scalar: the closed form, or the double
+// solve refined in T, RefineContactPointsWide).
 template <typename T>
 ContactGeometryTpl<T> RequireContactKinematicsTpl(const ContactPair& pair, const PoseTpl<T>& pose,
                                                   const char* caller) {
   if constexpr (std::is_same_v<T, double>) {
     return RequireContactKinematics(pair, pose, caller);
   } else {
-    SphereOnPlane sop;
-    if (!SphereOnPlaneForm(pair, &sop)) {
-      Throw<SolverError>(caller, "the ", CompartmentName(pair.compartment),
-                         " pair is not sphere on plane: only that closed form is evaluated beyond double precision");
+    ContactGeometryTpl<T> geometry;
+    if (!ContactKinematics(pair, pose, &geometry)) {
+      Throw<SolverError>(caller, "no contact point found for the ", CompartmentName(pair.compartment),
+                         " pair (femoral ", pair.femoral_surface->Describe(), ", tibial ",
+                         pair.tibial_surface->Describe(), ") in extended precision (rule: the normals must be "
+                         "parallel inside both surfaces' domains, and the refinement converge)");
     }
-    return SphereOnPlaneContact(sop, pose);
+    return geometry;
   }
 }
 
@@ -195,8 +237,12 @@ double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6
 // solve computes them once for all contacts).
 double ContactRateTerm(const ContactPair& pair, const Vector6d& q, const Vector6d& qd, const Pose& pose,
                        const Vector6d& nu);
-// κ for a wider scalar (long double): sphere on plane only; SolverError for other pairs
-// (their contact points are solved in double).
+// κ for a wider scalar (long double, quadruple): sphere on plane in closed form; another pair
+// as κ = (dG/ds) ν along q(s) = q + s q̇ by the fourth-order central difference
+// (−G(2δ) + 8 G(δ) − 8 G(−δ) + G(−2δ)) / (12 δ), δ = 1e-7 s, each G from the contact points
+// refined in T: truncation ~δ⁴ G⁽⁵⁾ ≈ 1e-28 and round-off ~ε_T/δ ≈ 1e-27 in quadruple
+// precision, far below double's 1e-16 (the double path's Jet over double would carry
+// double round-off). Throws SolverError like RequireContactKinematicsTpl.
 template <typename T>
 T ContactRateTermTpl(const ContactPair& pair, const Vector6<T>& q, const Vector6<T>& qd, const PoseTpl<T>& pose,
                      const Vector6<T>& nu) {
@@ -204,11 +250,14 @@ T ContactRateTermTpl(const ContactPair& pair, const Vector6<T>& q, const Vector6
     return ContactRateTerm(pair, q, qd, pose, nu);
   } else {
     SphereOnPlane sop;
-    if (!SphereOnPlaneForm(pair, &sop)) {
-      Throw<SolverError>("ContactRateTerm", "the ", CompartmentName(pair.compartment),
-                         " pair is not sphere on plane: only that closed form is evaluated beyond double precision");
-    }
-    return SphereOnPlaneRateTerm(sop, pose, nu);
+    if (SphereOnPlaneForm(pair, &sop)) return SphereOnPlaneRateTerm(sop, pose, nu);
+    const T delta = T(1e-7);  // s
+    auto row = [&](int k) {
+      const PoseTpl<T> shifted = PoseFromCoordinates(Vector6<T>(q + (T(k) * delta) * qd));
+      return ContactConstraintRow(shifted, RequireContactKinematicsTpl(pair, shifted, "ContactRateTerm"));
+    };
+    const Eigen::Matrix<T, 1, 6> dG = (row(-2) - T(8) * row(-1) + T(8) * row(1) - row(2)) / (T(12) * delta);
+    return dG.dot(nu);
   }
 }
 

@@ -15,6 +15,7 @@
 #include "solver/ligament.hpp"
 #include "solver/loads.hpp"
 #include "solver/patella.hpp"
+#include "solver/patella_extended.hpp"
 
 namespace kneedyn {
 
@@ -82,9 +83,8 @@ void ComputeAppliedWrench(const Model& model, double t, const PoseTpl<T>& pose,
       f_F = data->tendon_tension * span_F / span_F.norm();
     } else if constexpr (IsDoubleOrJet<T>::value) {
       PatellarTendonForce(*model.patella, t, pose, &data->patella_guess, &data->tendon_tension, &f_F);
-    } else {
-      Throw<SolverError>("ComputeAppliedWrench", "the patella's equilibrium is solved in double only, not in the "
-                         "extended-precision scalar (docs/model.md §12)");
+    } else {  // wide scalar: the double solve refined in T (patella_extended.hpp)
+      PatellarTendonForceExtended(*model.patella, t, pose, &data->patella_guess, &data->tendon_tension, &f_F);
     }
     force += f_F;
     moment += model.patella->tuberosity_T.template cast<T>().cross(R_TF * f_F);

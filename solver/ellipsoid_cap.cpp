@@ -51,16 +51,7 @@ bool EllipsoidCap::Evaluate(double x, double y, HeightSample* s) const {
   return true;
 }
 
-bool EllipsoidCap::EvaluateChart(double u, double v, ChartSample* s) const {
-  if (!UnitSphereChart(u, v, s)) return false;
-  s->p = centre_ + A_ * s->p;
-  s->p_u = A_ * s->p_u;
-  s->p_v = A_ * s->p_v;
-  s->p_uu = A_ * s->p_uu;
-  s->p_uv = A_ * s->p_uv;
-  s->p_vv = A_ * s->p_vv;
-  return true;
-}
+bool EllipsoidCap::EvaluateChart(double u, double v, ChartSample* s) const { return ChartTpl(u, v, s); }
 
 void EllipsoidCap::ChartCoordinates(const Vector3d& p, double uv[2]) const {
   UnitSphereChartCoordinates(A_inv_ * (p - centre_), uv);

@@ -23,6 +23,19 @@ class EllipsoidCap final : public HeightField {
   bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
   void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
   bool PointWithNormal(const Vector3d& n_up, double uv[2]) const override;
+  // The regular chart in any scalar (EvaluateChart is its double instance).
+  template <typename T>
+  bool ChartTpl(const T& u, const T& v, ChartSampleTpl<T>* s) const {
+    if (!UnitSphereChart(u, v, s)) return false;
+    const Matrix3<T> A = A_.template cast<T>();
+    s->p = centre_.template cast<T>() + A * s->p;
+    s->p_u = A * s->p_u;
+    s->p_v = A * s->p_v;
+    s->p_uu = A * s->p_uu;
+    s->p_uv = A * s->p_uv;
+    s->p_vv = A * s->p_vv;
+    return true;
+  }
 
  private:
   Vector3d centre_, semi_axes_;

@@ -11,12 +11,7 @@ namespace kneedyn {
 bool HeightField::EvaluateChart(double u, double v, ChartSample* s) const {
   HeightSample h;
   if (!Evaluate(u, v, &h)) return false;
-  s->p = Vector3d(u, v, h.value);
-  s->p_u = Vector3d(1.0, 0.0, h.gradient[0]);
-  s->p_v = Vector3d(0.0, 1.0, h.gradient[1]);
-  s->p_uu = Vector3d(0.0, 0.0, h.hessian[0]);
-  s->p_uv = Vector3d(0.0, 0.0, h.hessian[1]);
-  s->p_vv = Vector3d(0.0, 0.0, h.hessian[2]);
+  HeightFieldChart(u, v, h, s);
   return true;
 }
 
@@ -28,25 +23,6 @@ void HeightField::ChartCoordinates(const Vector3d& p, double uv[2]) const {
 bool HeightField::PointWithNormal(const Vector3d&, double*) const { return false; }
 bool HeightField::SphereForm(Vector3d*, double*) const { return false; }
 bool HeightField::PlaneForm(Vector3d*, double*) const { return false; }
-
-namespace {
-// Domain of the angle charts (sphere_cap, ellipsoid_cap): away from the ±x poles.
-constexpr double kMaxLatitude = 80.0 * 3.14159265358979323846 / 180.0;    // |u|
-constexpr double kMaxLongitude = 170.0 * 3.14159265358979323846 / 180.0;  // |v|
-}  // namespace
-
-// s(u, v) = (sin u, cos u sin v, −cos u cos v) and its derivatives (unit sphere).
-bool UnitSphereChart(double u, double v, ChartSample* s) {
-  if (!(std::abs(u) < kMaxLatitude) || !(std::abs(v) < kMaxLongitude)) return false;
-  const double su = std::sin(u), cu = std::cos(u), sv = std::sin(v), cv = std::cos(v);
-  s->p = Vector3d(su, cu * sv, -cu * cv);
-  s->p_u = Vector3d(cu, -su * sv, su * cv);
-  s->p_v = Vector3d(0.0, cu * cv, cu * sv);
-  s->p_uu = -s->p;
-  s->p_uv = Vector3d(0.0, -su * cv, -su * sv);
-  s->p_vv = Vector3d(0.0, -cu * sv, cu * cv);
-  return true;
-}
 
 void UnitSphereChartCoordinates(const Vector3d& s, double uv[2]) {
   const Vector3d d = s.normalized();
@@ -77,16 +53,7 @@ bool SphereCap::Evaluate(double x, double y, HeightSample* s) const {
   return true;
 }
 
-bool SphereCap::EvaluateChart(double u, double v, ChartSample* s) const {
-  if (!UnitSphereChart(u, v, s)) return false;
-  s->p = centre_ + radius_ * s->p;
-  s->p_u *= radius_;
-  s->p_v *= radius_;
-  s->p_uu *= radius_;
-  s->p_uv *= radius_;
-  s->p_vv *= radius_;
-  return true;
-}
+bool SphereCap::EvaluateChart(double u, double v, ChartSample* s) const { return ChartTpl(u, v, s); }
 
 void SphereCap::ChartCoordinates(const Vector3d& p, double uv[2]) const {
   UnitSphereChartCoordinates(p - centre_, uv);
@@ -123,13 +90,7 @@ PlaneSurface::PlaneSurface(double slope_x, double slope_y, double offset)
   }
 }
 
-bool PlaneSurface::Evaluate(double x, double y, HeightSample* s) const {
-  s->value = slope_x_ * x + slope_y_ * y + offset_;
-  s->gradient[0] = slope_x_;
-  s->gradient[1] = slope_y_;
-  s->hessian[0] = s->hessian[1] = s->hessian[2] = 0.0;
-  return true;
-}
+bool PlaneSurface::Evaluate(double x, double y, HeightSample* s) const { return HeightTpl(x, y, s); }
 
 std::string PlaneSurface::Describe() const {
   return StrCat("plane(slope_x=", slope_x_, ", slope_y=", slope_y_, ", offset=", MToMm(offset_),

@@ -15,25 +15,33 @@
 // the scene loader's surface factory (scene/surfaces.cpp, ParseSurface).
 #pragma once
 
+#include <cmath>
 #include <memory>
 #include <string>
+#include <type_traits>
 
 #include "solver/scalar.hpp"
 
 namespace kneedyn {
 
-struct HeightSample {
-  double value = 0.0;               // h, m
-  double gradient[2] = {0.0, 0.0};  // ∂h/∂x, ∂h/∂y (dimensionless)
-  double hessian[3] = {0.0, 0.0, 0.0};  // h_xx, h_xy, h_yy (1/m)
+// Samples in a scalar T: double for the surfaces' virtual interface, a wide scalar (long
+// double, quadruple) for the extended-precision references (EvaluateChart below).
+template <typename T>
+struct HeightSampleTpl {
+  T value = T(0.0);                       // h, m
+  T gradient[2] = {T(0.0), T(0.0)};       // ∂h/∂x, ∂h/∂y (dimensionless)
+  T hessian[3] = {T(0.0), T(0.0), T(0.0)};  // h_xx, h_xy, h_yy (1/m)
 };
+using HeightSample = HeightSampleTpl<double>;
 
 // One sample of a regular chart P(u, v).
-struct ChartSample {
-  Vector3d p = Vector3d::Zero();                       // P, m
-  Vector3d p_u = Vector3d::Zero(), p_v = Vector3d::Zero();  // ∂P/∂u, ∂P/∂v
-  Vector3d p_uu = Vector3d::Zero(), p_uv = Vector3d::Zero(), p_vv = Vector3d::Zero();
+template <typename T>
+struct ChartSampleTpl {
+  Vector3<T> p = Vector3<T>::Zero();                          // P, m
+  Vector3<T> p_u = Vector3<T>::Zero(), p_v = Vector3<T>::Zero();  // ∂P/∂u, ∂P/∂v
+  Vector3<T> p_uu = Vector3<T>::Zero(), p_uv = Vector3<T>::Zero(), p_vv = Vector3<T>::Zero();
 };
+using ChartSample = ChartSampleTpl<double>;
 
 // Third derivatives of a regular chart, for the second-order lift below (the derivative of
 // the contact rate term: surface_third_derivatives.cpp).
@@ -68,6 +76,18 @@ class HeightField {
   virtual bool PlaneForm(Vector3d* unit_normal, double* offset) const;
 };
 
+// The default regular chart (u, v) = (x, y) of a height field, in any scalar, from its
+// height sample (HeightField::EvaluateChart is the double instance's equivalent).
+template <typename T>
+void HeightFieldChart(const T& u, const T& v, const HeightSampleTpl<T>& h, ChartSampleTpl<T>* s) {
+  s->p = Vector3<T>(u, v, h.value);
+  s->p_u = Vector3<T>(T(1.0), T(0.0), h.gradient[0]);
+  s->p_v = Vector3<T>(T(0.0), T(1.0), h.gradient[1]);
+  s->p_uu = Vector3<T>(T(0.0), T(0.0), h.hessian[0]);
+  s->p_uv = Vector3<T>(T(0.0), T(0.0), h.hessian[1]);
+  s->p_vv = Vector3<T>(T(0.0), T(0.0), h.hessian[2]);
+}
+
 // Chart choice for the chapter-form contact coordinates (contact.hpp).
 enum class ContactChart {
   kRegular,      // the surface's regular chart (default)
@@ -78,29 +98,44 @@ enum class ContactChart {
 // rule from one double sample: δ = u − ScalarPart(u) carries only derivatives. A scalar with
 // mixed second derivatives (TimeDual over a Jet, time_dual.hpp; kOrder = 2) gets the
 // second-order Taylor terms, exact there since third-order products vanish.
+// A wide scalar (neither double nor a derivative over double: long double, quadruple) is not
+// lifted from a double sample, whose round-off (1e-16 of P) would be its error: the surface
+// evaluates its chart in T (EvaluateChartWide, surface_wide.hpp).
+template <typename T>
+bool EvaluateChartWide(const HeightField& surface, const T& u, const T& v, ChartSampleTpl<T>* sample);
+
 template <typename T, int kOrder = DerivativeOrder<T>::value>
 bool EvaluateChart(const HeightField& surface, const T& u, const T& v, Vector3<T>* p,
                    Vector3<T>* p_u, Vector3<T>* p_v) {
-  ChartSample s;
-  if (!surface.EvaluateChart(ScalarPart(u), ScalarPart(v), &s)) return false;
-  const T du = u - T(ScalarPart(u)), dv = v - T(ScalarPart(v));
-  for (int i = 0; i < 3; ++i) {
-    (*p)(i) = T(s.p(i)) + s.p_u(i) * du + s.p_v(i) * dv;
-    (*p_u)(i) = T(s.p_u(i)) + s.p_uu(i) * du + s.p_uv(i) * dv;
-    (*p_v)(i) = T(s.p_v(i)) + s.p_uv(i) * du + s.p_vv(i) * dv;
-  }
-  if constexpr (kOrder >= 2) {
-    static_assert(kOrder == 2, "EvaluateChart: at most second derivatives");
-    ChartThirdSample s3;
-    if (!surface.EvaluateChartThird(ScalarPart(u), ScalarPart(v), &s3)) return false;
-    const T duu = 0.5 * du * du, duv = du * dv, dvv = 0.5 * dv * dv;
+  if constexpr (!IsDoubleOrJet<T>::value) {
+    ChartSampleTpl<T> wide;
+    if (!EvaluateChartWide(surface, u, v, &wide)) return false;
+    *p = wide.p;
+    *p_u = wide.p_u;
+    *p_v = wide.p_v;
+    return true;
+  } else {
+    ChartSample s;
+    if (!surface.EvaluateChart(ScalarPart(u), ScalarPart(v), &s)) return false;
+    const T du = u - T(ScalarPart(u)), dv = v - T(ScalarPart(v));
     for (int i = 0; i < 3; ++i) {
-      (*p)(i) += s.p_uu(i) * duu + s.p_uv(i) * duv + s.p_vv(i) * dvv;
-      (*p_u)(i) += s3.p_uuu(i) * duu + s3.p_uuv(i) * duv + s3.p_uvv(i) * dvv;
-      (*p_v)(i) += s3.p_uuv(i) * duu + s3.p_uvv(i) * duv + s3.p_vvv(i) * dvv;
+      (*p)(i) = T(s.p(i)) + s.p_u(i) * du + s.p_v(i) * dv;
+      (*p_u)(i) = T(s.p_u(i)) + s.p_uu(i) * du + s.p_uv(i) * dv;
+      (*p_v)(i) = T(s.p_v(i)) + s.p_uv(i) * du + s.p_vv(i) * dv;
     }
+    if constexpr (kOrder >= 2) {
+      static_assert(kOrder == 2, "EvaluateChart: at most second derivatives");
+      ChartThirdSample s3;
+      if (!surface.EvaluateChartThird(ScalarPart(u), ScalarPart(v), &s3)) return false;
+      const T duu = 0.5 * du * du, duv = du * dv, dvv = 0.5 * dv * dv;
+      for (int i = 0; i < 3; ++i) {
+        (*p)(i) += s.p_uu(i) * duu + s.p_uv(i) * duv + s.p_vv(i) * dvv;
+        (*p_u)(i) += s3.p_uuu(i) * duu + s3.p_uuv(i) * duv + s3.p_uvv(i) * dvv;
+        (*p_v)(i) += s3.p_uuv(i) * duu + s3.p_uvv(i) * duv + s3.p_vvv(i) * dvv;
+      }
+    }
+    return true;
   }
-  return true;
 }
 
 inline bool EvaluateHeight(const HeightField& surface, double x, double y, double* value,
@@ -129,11 +164,41 @@ bool EvaluateHeight(const HeightField& surface, const ceres::Jet<double, N>& x,
   return true;
 }
 
+// The height-field chart in a wide scalar (neither double nor Jet), evaluated in T by the
+// surface's own template (EvaluateHeightWide, surface_wide.hpp).
+template <typename T>
+bool EvaluateHeightWide(const HeightField& surface, const T& x, const T& y, HeightSampleTpl<T>* sample);
+template <typename T, typename = std::enable_if_t<!IsDoubleOrJet<T>::value>>
+bool EvaluateHeight(const HeightField& surface, const T& x, const T& y, T* value, T gradient[2]) {
+  HeightSampleTpl<T> s;
+  if (!EvaluateHeightWide(surface, x, y, &s)) return false;
+  *value = s.value;
+  gradient[0] = s.gradient[0];
+  gradient[1] = s.gradient[1];
+  return true;
+}
+
 // Lower half of a sphere, z = l − sqrt(r² − (x − h)² − (y − k)²) (chapter Eq. 1.4).
 // Centre (h, k, l), radius r, all in metres. Domain: strictly inside the footprint circle.
 // The unit-sphere angle chart shared by sphere_cap and ellipsoid_cap (height_field.cpp):
 // s(u, v) = (sin u, cos u sin v, −cos u cos v); false outside |u| < 80°, |v| < 170°.
-bool UnitSphereChart(double u, double v, ChartSample* s);
+constexpr double kUnitSphereChartMaxLatitude = 80.0 * 3.14159265358979323846 / 180.0;    // |u|, rad
+constexpr double kUnitSphereChartMaxLongitude = 170.0 * 3.14159265358979323846 / 180.0;  // |v|, rad
+template <typename T>
+bool UnitSphereChart(const T& u, const T& v, ChartSampleTpl<T>* s) {
+  using std::abs;
+  using std::cos;
+  using std::sin;
+  if (!(abs(u) < kUnitSphereChartMaxLatitude) || !(abs(v) < kUnitSphereChartMaxLongitude)) return false;
+  const T su = sin(u), cu = cos(u), sv = sin(v), cv = cos(v);
+  s->p = Vector3<T>(su, cu * sv, -cu * cv);
+  s->p_u = Vector3<T>(cu, -su * sv, su * cv);
+  s->p_v = Vector3<T>(T(0.0), cu * cv, cu * sv);
+  s->p_uu = -s->p;
+  s->p_uv = Vector3<T>(T(0.0), -su * cv, -su * sv);
+  s->p_vv = Vector3<T>(T(0.0), -cu * sv, cu * cv);
+  return true;
+}
 void UnitSphereChartCoordinates(const Vector3d& s, double uv[2]);  // inverse, s ≠ 0
 
 // Regular chart: spherical angles with the poles on the ±x axis (medial–lateral), so the
@@ -149,6 +214,19 @@ class SphereCap final : public HeightField {
   void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
   bool PointWithNormal(const Vector3d& n_up, double uv[2]) const override;
   bool SphereForm(Vector3d* centre, double* radius) const override;
+  // The regular chart in any scalar (EvaluateChart is its double instance).
+  template <typename T>
+  bool ChartTpl(const T& u, const T& v, ChartSampleTpl<T>* s) const {
+    if (!UnitSphereChart(u, v, s)) return false;
+    const T radius = T(radius_);
+    s->p = centre_.template cast<T>() + radius * s->p;
+    s->p_u *= radius;
+    s->p_v *= radius;
+    s->p_uu *= radius;
+    s->p_uv *= radius;
+    s->p_vv *= radius;
+    return true;
+  }
   const Vector3d& centre() const { return centre_; }
   double radius() const { return radius_; }
 
@@ -165,6 +243,15 @@ class PlaneSurface final : public HeightField {
   std::string Describe() const override;
   bool PlaneForm(Vector3d* unit_normal, double* offset) const override;
   bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
+  // The height in any scalar (Evaluate is its double instance).
+  template <typename T>
+  bool HeightTpl(const T& x, const T& y, HeightSampleTpl<T>* s) const {
+    s->value = slope_x_ * x + slope_y_ * y + offset_;
+    s->gradient[0] = T(slope_x_);
+    s->gradient[1] = T(slope_y_);
+    s->hessian[0] = s->hessian[1] = s->hessian[2] = T(0.0);
+    return true;
+  }
   // Unit normal (−h_x, −h_y, 1)/norm, pointing to +z (towards the femur for a tibial
   // plateau), and offset d with normal·p = d for points p on the plane.
   Vector3d UnitNormal() const;

@@ -34,13 +34,7 @@ bool OrientedPlane::Evaluate(double x, double y, HeightSample* s) const {
   return true;
 }
 
-bool OrientedPlane::EvaluateChart(double u, double v, ChartSample* s) const {
-  s->p = offset_ * normal_ + u * e1_ + v * e2_;
-  s->p_u = e1_;
-  s->p_v = e2_;
-  s->p_uu = s->p_uv = s->p_vv = Vector3d::Zero();
-  return true;
-}
+bool OrientedPlane::EvaluateChart(double u, double v, ChartSample* s) const { return ChartTpl(u, v, s); }
 
 void OrientedPlane::ChartCoordinates(const Vector3d& p, double uv[2]) const {
   uv[0] = p.dot(e1_);

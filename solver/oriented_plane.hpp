@@ -22,6 +22,15 @@ class OrientedPlane final : public HeightField {
   bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
   void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
   bool PlaneForm(Vector3d* unit_normal, double* offset) const override;
+  // The regular chart in any scalar (EvaluateChart is its double instance).
+  template <typename T>
+  bool ChartTpl(const T& u, const T& v, ChartSampleTpl<T>* s) const {
+    s->p = T(offset_) * normal_.template cast<T>() + u * e1_.template cast<T>() + v * e2_.template cast<T>();
+    s->p_u = e1_.template cast<T>();
+    s->p_v = e2_.template cast<T>();
+    s->p_uu = s->p_uv = s->p_vv = Vector3<T>::Zero();
+    return true;
+  }
   const Vector3d& normal() const { return normal_; }
   double offset() const { return offset_; }
 

@@ -24,39 +24,7 @@ PolynomialSurface::PolynomialSurface(const Vector3d& origin, double rotation_z,
   }
 }
 
-bool PolynomialSurface::Evaluate(double x, double y, HeightSample* s) const {
-  const double dx = x - origin_.x(), dy = y - origin_.y();
-  const double xi = cos_ * dx + sin_ * dy, eta = -sin_ * dx + cos_ * dy;
-  // Powers and their derivatives: p[i] = ξ^i, dp[i] = i ξ^(i−1), ddp[i] = i(i−1) ξ^(i−2).
-  double px[kMaxDegree + 1], py[kMaxDegree + 1];
-  px[0] = py[0] = 1.0;
-  for (int i = 1; i <= kMaxDegree; ++i) {
-    px[i] = px[i - 1] * xi;
-    py[i] = py[i - 1] * eta;
-  }
-  double h = 0, h_x = 0, h_y = 0, h_xx = 0, h_xy = 0, h_yy = 0;  // in (ξ, η)
-  for (int i = 0; i <= kMaxDegree; ++i) {
-    for (int j = 0; i + j <= kMaxDegree; ++j) {
-      const double c = c_[i][j];
-      if (c == 0.0) continue;
-      h += c * px[i] * py[j];
-      if (i >= 1) h_x += c * i * px[i - 1] * py[j];
-      if (j >= 1) h_y += c * j * px[i] * py[j - 1];
-      if (i >= 2) h_xx += c * i * (i - 1) * px[i - 2] * py[j];
-      if (i >= 1 && j >= 1) h_xy += c * i * j * px[i - 1] * py[j - 1];
-      if (j >= 2) h_yy += c * j * (j - 1) * px[i] * py[j - 2];
-    }
-  }
-  // Back to the bone's (x, y): ∇_x = Rz ∇_ξ, H_x = Rz H_ξ Rzᵀ.
-  const double C = cos_, S = sin_;
-  s->value = origin_.z() + h;
-  s->gradient[0] = C * h_x - S * h_y;
-  s->gradient[1] = S * h_x + C * h_y;
-  s->hessian[0] = C * C * h_xx - 2 * C * S * h_xy + S * S * h_yy;
-  s->hessian[1] = C * S * (h_xx - h_yy) + (C * C - S * S) * h_xy;
-  s->hessian[2] = S * S * h_xx + 2 * C * S * h_xy + C * C * h_yy;
-  return true;
-}
+bool PolynomialSurface::Evaluate(double x, double y, HeightSample* s) const { return HeightTpl(x, y, s); }
 
 std::string PolynomialSurface::Describe() const {
   std::string terms;

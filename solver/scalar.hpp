@@ -30,9 +30,10 @@ double ScalarPart(const ceres::Jet<T, N>& x) {
   return ScalarPart(x.a);
 }
 
-// double or a Jet over double: the scalars of the general contact solve (height fields) and
-// of the patella's Newton solve; wider scalars (the extended-precision references) have the
-// sphere-on-plane closed forms only.
+// double or a derivative over double (a Jet; TimeDual, time_dual.hpp): the scalars whose
+// contact points and patella come from the double solve lifted by the implicit-function
+// theorem; wider scalars (the extended-precision references) are refined in their own type
+// (surface_wide.hpp, patella_extended.hpp).
 /// \cond INTERNAL
 template <typename T>
 struct IsDoubleOrJet : std::is_same<T, double> {};

@@ -140,6 +140,10 @@ const T& TimeDerivativeRef(const ceres::Jet<T, 1>& x) {
 // and the surface charts are exact to this order (contact_kinematics.hpp, height_field.hpp).
 template <typename S>
 struct DerivativeOrder<TimeDual<S>> : std::integral_constant<int, 1 + DerivativeOrder<S>::value> {};
+// A derivative over double is a double-based scalar: the charts and contact points are lifted
+// from the double solve, not evaluated in a wide type (height_field.hpp: EvaluateChart).
+template <typename S>
+struct IsDoubleOrJet<TimeDual<S>> : IsDoubleOrJet<S> {};
 
 }  // namespace kneedyn
 
