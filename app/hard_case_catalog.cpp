@@ -45,6 +45,7 @@ namespace {
 enum class Expect {
   kComplete,     // reach its end condition
   kClearError,   // be refused or stop with an error naming the cause (message contains `needle`)
+  kCompleteWithEvent,  // reach its end condition, and record the event named `needle`
   kAny,          // exploratory: any outcome is recorded, none is asserted
 };
 
@@ -54,7 +55,8 @@ struct CaseSpec {
   bool dae_only = false;         // the option only exists for the dae formulations
   bool conservative = false;     // report energy drift
   Expect expect = Expect::kAny;
-  std::string needle;            // for kClearError
+  std::string needle;            // for kClearError, kCompleteWithEvent
+  bool patella = false;          // has a patella: section (also runs the formulations that need one)
 };
 
 const std::vector<CaseSpec>& Cases() {
@@ -79,6 +81,8 @@ const std::vector<CaseSpec>& Cases() {
       {"jcs_singular_pose", "", false, false, Expect::kClearError, "JCS singularity"},
       {"jcs_crossing", "", false, true, Expect::kAny, ""},
       {"jcs_near_pass", "", false, true, Expect::kAny, ""},
+      {"patella_quadriceps_2000N", "", false, false, Expect::kClearError, "no patellar equilibrium", true},
+      {"patella_medial_liftoff", "", false, false, Expect::kCompleteWithEvent, "liftoff_patellar_medial", true},
   };
   return kCases;
 }
@@ -239,6 +243,10 @@ Row RunOne(const CaseSpec& c, const Scene* scene, const std::string& load_error,
       row.expectation = "complete";
       row.met = row.status == "ok";
       break;
+    case Expect::kCompleteWithEvent:
+      row.expectation = "complete with " + c.needle;
+      row.met = row.status == "ok" && (" " + row.events).find(" " + c.needle + "@") != std::string::npos;
+      break;
     case Expect::kClearError:
       row.expectation = "clear error";
       row.met = row.status != "ok" && row.reason.find(c.needle) != std::string::npos;
@@ -295,7 +303,7 @@ int main(int argc, char** argv) {
     for (const CaseSpec& c : Cases()) {
       if (!selected_case(c)) continue;
       for (const FormulationInfo& info : RegisteredFormulations()) {
-        total_runs += !info.needs_patella && selected_formulation(c, info.name);  // no case has a patella
+        total_runs += (c.patella || !info.needs_patella) && selected_formulation(c, info.name);
       }
     }
     ProgressCounter progress(total_runs);
@@ -350,7 +358,7 @@ int main(int argc, char** argv) {
           continue;
         }
         if (c.dae_only && info.name.rfind("dae", 0) != 0) continue;
-        if (info.needs_patella) continue;  // no case has a patella
+        if (info.needs_patella && !c.patella) continue;  // e.g. staggered: only the patella cases
         Row row = RunOne(c, scene ? &*scene : nullptr, load_error, info.name,
                          reference ? &*reference : nullptr);
         if (scene) row.ref_status = reference_name;

@@ -10,8 +10,10 @@
 
 #include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
+#include "solver/height_field.hpp"
 #include "solver/ligament.hpp"
 #include "solver/model_builder.hpp"
+#include "solver/oriented_plane.hpp"
 #include "solver/patella.hpp"
 #include "solver/pose.hpp"
 #include "solver/units.hpp"
@@ -74,6 +76,76 @@ std::uint64_t Fnv1a(const std::string& bytes) {
   return h;
 }
 
+// The patella's parameters (docs/model.md §12; names in ensembles/README.md): the quadriceps
+// force's magnitude, baseline and duration, the tendon length, per facet the trochlear
+// sphere's radius and centre and the patellar plane's offset. Values in mm, N, s.
+template <class Where>
+void ResolvePatellaParameter(const Where& where, const Model& m, ParameterSpec* p) {
+  static const char* const kExpected =
+      "expected quadriceps.magnitude|baseline|duration, patella.tendon_length, "
+      "patella.trochlea_medial|lateral.radius, patella.trochlea_medial|lateral.centre_x|y|z or "
+      "patella.facet_medial|lateral.offset";
+  if (!m.patella) where.Fail("names the patella; the base scene has no patella: section");
+  const Patella& patella = *m.patella;
+  const std::string& n = p->name;
+  if (n == "quadriceps.magnitude") {
+    p->kind = ParameterKind::kQuadricepsMagnitude;
+    p->nominal = patella.quadriceps.magnitude;
+    p->column = "quadriceps.magnitude_N";
+    return;
+  }
+  if (n == "quadriceps.baseline" || n == "quadriceps.duration") {
+    if (patella.quadriceps.shape == QuadricepsShape::kConstant) {
+      where.Fail("the scene's quadriceps force is constant; baseline and duration belong to the ramp and "
+                 "half_sine shapes (vary quadriceps.magnitude)");
+    }
+    const bool baseline = n == "quadriceps.baseline";
+    p->kind = baseline ? ParameterKind::kQuadricepsBaseline : ParameterKind::kQuadricepsDuration;
+    p->nominal = baseline ? patella.quadriceps.baseline : patella.quadriceps.duration;
+    p->column = baseline ? "quadriceps.baseline_N" : "quadriceps.duration_s";
+    return;
+  }
+  if (n == "patella.tendon_length") {
+    p->kind = ParameterKind::kTendonLength;
+    p->nominal = MToMm(patella.tendon_length);
+    p->column = "patella.tendon_length_mm";
+    return;
+  }
+  const char* const facets[2] = {"medial", "lateral"};
+  for (int i = 0; i < 2; ++i) {
+    const std::string trochlea = StrCat("patella.trochlea_", facets[i], ".");
+    const std::string facet = StrCat("patella.facet_", facets[i], ".");
+    Vector3d centre, normal;
+    double radius = 0.0, offset = 0.0;
+    if (!patella.facet[i].femoral_surface->SphereForm(&centre, &radius) ||
+        !patella.facet[i].tibial_surface->PlaneForm(&normal, &offset)) {
+      where.Fail("the patella's facets are not a trochlear sphere on a patellar plane");
+    }
+    p->facet = i;
+    if (n == trochlea + "radius") {
+      p->kind = ParameterKind::kTrochlearRadius;
+      p->nominal = MToMm(radius);
+      p->column = n + "_mm";
+      return;
+    }
+    if (n.size() == trochlea.size() + 8 && n.rfind(trochlea + "centre_", 0) == 0 && n.back() >= 'x' &&
+        n.back() <= 'z') {
+      p->kind = ParameterKind::kTrochlearCentre;
+      p->axis = n.back() - 'x';
+      p->nominal = MToMm(centre(p->axis));
+      p->column = n + "_mm";
+      return;
+    }
+    if (n == facet + "offset") {
+      p->kind = ParameterKind::kPatellarFacetOffset;
+      p->nominal = MToMm(offset);
+      p->column = n + "_mm";
+      return;
+    }
+  }
+  where.Fail(StrCat("unknown patella parameter; ", kExpected));
+}
+
 // Resolves the name of one parameter against the base scene; sets kind, ligament, axis,
 // nominal and column. `where` reports a failure ([[noreturn]] Fail(rule)): a spec Node, or
 // a batch file's column (ResolveParameterName).
@@ -113,12 +185,8 @@ void ResolveParameter(const Where& where, AnalyticModel analytic, const Model& m
     p->column = p->name + "_kg_m2";
     return;
   }
-  if (p->name == "quadriceps.magnitude" || p->name == "patella.tendon_length") {
-    if (!m.patella) where.Fail("names the patella; the base scene has no patella: section");
-    const bool quadriceps = p->name == "quadriceps.magnitude";
-    p->kind = quadriceps ? ParameterKind::kQuadricepsMagnitude : ParameterKind::kTendonLength;
-    p->nominal = quadriceps ? m.patella->quadriceps.magnitude : MToMm(m.patella->tendon_length);
-    p->column = quadriceps ? "quadriceps.magnitude_N" : "patella.tendon_length_mm";
+  if (p->name.rfind("quadriceps.", 0) == 0 || p->name.rfind("patella.", 0) == 0) {
+    ResolvePatellaParameter(where, m, p);
     return;
   }
   const size_t dot = p->name.rfind('.');
@@ -186,7 +254,10 @@ bool MustBePositive(ParameterKind k) {
     case ParameterKind::kLigamentExtensionRatio:
     case ParameterKind::kPulseDuration:
     case ParameterKind::kQuadricepsMagnitude:
+    case ParameterKind::kQuadricepsBaseline:
+    case ParameterKind::kQuadricepsDuration:
     case ParameterKind::kTendonLength:
+    case ParameterKind::kTrochlearRadius:
     case ParameterKind::kMass:
     case ParameterKind::kPrincipalInertia: return true;
     default: return false;
@@ -445,6 +516,7 @@ Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values) {
   Model& m = scene.model;
   const Pose reference = PoseFromCoordinates(scene.reference_q);
   std::vector<bool> geometry_changed(m.ligaments.size(), false);
+  bool patella_geometry_changed = false;
   // Attachments and stiffnesses first; slack lengths (which depend on L_ref) after.
   for (size_t k = 0; k < spec.parameters.size(); ++k) {
     const ParameterSpec& p = spec.parameters[k];
@@ -471,7 +543,35 @@ Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values) {
       case ParameterKind::kMass: m.mass = v; break;
       case ParameterKind::kPrincipalInertia: m.inertia_T(p.axis) = v; break;
       case ParameterKind::kQuadricepsMagnitude: m.patella->quadriceps.magnitude = v; break;
-      case ParameterKind::kTendonLength: m.patella->tendon_length = MmToM(v); break;
+      case ParameterKind::kQuadricepsBaseline: m.patella->quadriceps.baseline = v; break;
+      case ParameterKind::kQuadricepsDuration: m.patella->quadriceps.duration = v; break;
+      case ParameterKind::kTendonLength:
+        m.patella->tendon_length = MmToM(v);
+        patella_geometry_changed = true;
+        break;
+      case ParameterKind::kTrochlearRadius:
+      case ParameterKind::kTrochlearCentre: {
+        // New surfaces: the base scene's are shared with every copy of it.
+        Vector3d centre;
+        double radius = 0.0;
+        m.patella->facet[p.facet].femoral_surface->SphereForm(&centre, &radius);
+        if (p.kind == ParameterKind::kTrochlearRadius) {
+          radius = MmToM(v);
+        } else {
+          centre(p.axis) = MmToM(v);
+        }
+        m.patella->facet[p.facet].femoral_surface = std::make_shared<SphereCap>(centre, radius);
+        patella_geometry_changed = true;
+        break;
+      }
+      case ParameterKind::kPatellarFacetOffset: {
+        Vector3d normal;
+        double offset = 0.0;
+        m.patella->facet[p.facet].tibial_surface->PlaneForm(&normal, &offset);
+        m.patella->facet[p.facet].tibial_surface = std::make_shared<OrientedPlane>(normal, MmToM(v));
+        patella_geometry_changed = true;
+        break;
+      }
       case ParameterKind::kLigamentSlackLength:
       case ParameterKind::kAnalytic: break;
     }
@@ -486,13 +586,9 @@ Scene SceneForRun(const SweepSpec& spec, const std::vector<double>& values) {
     if (p.kind == ParameterKind::kLigamentSlackLength) SetSlackLength(MmToM(values[k]), &m.ligaments[p.ligament]);
   }
   for (Ligament& l : m.ligaments) SetLigamentLaw(m.ligament_law, &l);
-  // A new tendon length moves the patella's equilibrium: the builder's start solve again.
-  for (const ParameterSpec& p : spec.parameters) {
-    if (p.kind == ParameterKind::kTendonLength) {
-      SolvePatellaStart(scene.reference_q, scene.initial.q, &*m.patella);
-      break;
-    }
-  }
+  // A new tendon length or facet moves the patella's equilibrium: the builder's start solve
+  // again (the quadriceps magnitude does not: the equilibrium is divided by it, patella.hpp).
+  if (patella_geometry_changed) SolvePatellaStart(scene.reference_q, scene.initial.q, &*m.patella);
   return scene;
 }
 

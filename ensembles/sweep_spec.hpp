@@ -31,7 +31,12 @@ enum class ParameterKind {
   kMass,                        // mass, kg
   kPrincipalInertia,            // inertia_x|y|z, kg m² (principal moments about the COM, in T)
   kQuadricepsMagnitude,         // quadriceps.magnitude, N (scenes with a patella)
+  kQuadricepsBaseline,          // quadriceps.baseline, N (ramp and half_sine)
+  kQuadricepsDuration,          // quadriceps.duration, s (ramp and half_sine)
   kTendonLength,                // patella.tendon_length, mm (scenes with a patella)
+  kTrochlearRadius,             // patella.trochlea_<facet>.radius, mm
+  kTrochlearCentre,             // patella.trochlea_<facet>.centre_x|y|z, mm in F
+  kPatellarFacetOffset,         // patella.facet_<facet>.offset, mm (plane n·p = d in P)
   kAnalytic,                    // x1, x2, x3 of an analytic test function
 };
 
@@ -42,7 +47,8 @@ struct ParameterSpec {
   std::string column;  // result column: spaces → '_', unit suffix ("PCL_anterior.k_linear_N_mm")
   ParameterKind kind = ParameterKind::kMass;
   int ligament = -1;   // index into the base scene's model.ligaments
-  int axis = 0;        // attachments: 0, 1, 2 = x, y, z
+  int axis = 0;        // attachments, trochlear centres: 0, 1, 2 = x, y, z
+  int facet = -1;      // patellar facet: 0 medial, 1 lateral
   double nominal = 0.0;  // value in the base scene (spec units)
   Distribution distribution = Distribution::kUniform;
   double a = 0.0, b = 0.0;  // uniform: [a, b]; normal: mean a, standard deviation b

@@ -79,6 +79,9 @@ TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpe
       case EventKind::kLigamentKink:
         ++out.ligament_kink_crossings;
         break;
+      case EventKind::kPatellarLiftoff:  // the massless patella: no impact, no mode of the tibia
+      case EventKind::kPatellarRecontact:
+        break;
     }
   }
   if (out.ended) return out;
@@ -172,6 +175,27 @@ void Simulator::Run() {
       });
       if (only_kinks) {
         ++record_->ligament_kink_crossings;
+        break;
+      }
+      // A patellar facet's lift-off or re-contact (with kinks or not) is recorded with its
+      // sample and restarts the stepper: the tibia's contacts do not change.
+      const bool only_restarts = std::all_of(adv.events.begin(), adv.events.end(), [&](int k) {
+        return specs[k].kind == EventKind::kLigamentKink || specs[k].kind == EventKind::kPatellarLiftoff ||
+               specs[k].kind == EventKind::kPatellarRecontact;
+      });
+      if (only_restarts) {
+        if (std::abs(state_.t - next_index * dt) < 1e-12) ++next_index;
+        pass_extra(state_.t);
+        Record(true);
+        bool kink = false;
+        for (int k : adv.events) {
+          if (specs[k].kind == EventKind::kLigamentKink) {
+            kink = true;
+          } else {
+            record_->events.push_back({specs[k].name, state_.t, state_.q(kAlpha)});
+          }
+        }
+        if (kink) ++record_->ligament_kink_crossings;
         break;
       }
       // Events: record them, then switch mode.

@@ -31,6 +31,7 @@
 #include "formulations/version.hpp"
 #include "solver/error.hpp"
 #include "solver/loads.hpp"
+#include "solver/patella.hpp"
 #include "scene/scene.hpp"
 #include "scene/internal/yaml_field.hpp"
 #include "solver/units.hpp"
@@ -231,6 +232,42 @@ PYBIND11_MODULE(_kneedyn, m) {
         d["shape"] = PulseShapeName(s.model.pulse.shape);
         d["amplitude_N"] = s.model.pulse.amplitude;
         d["duration_s"] = s.model.pulse.duration;
+        return d;
+      })
+      .def_property_readonly("patella", [](const Scene& s) -> py::object {
+        // The patella as the model holds it (docs/model.md §12; mm, N, s), None without one;
+        // `start` is the builder's equilibrium at the initial pose (PatellaUnknownName).
+        if (!s.model.patella) return py::none();
+        const Patella& p = *s.model.patella;
+        py::dict d;
+        const char* const facets[2] = {"medial", "lateral"};
+        for (int i = 0; i < 2; ++i) {
+          Vector3d centre, normal;
+          double radius = 0.0, offset = 0.0;
+          py::dict trochlea, facet;
+          if (p.facet[i].femoral_surface->SphereForm(&centre, &radius)) {
+            trochlea["centre_mm"] = std::vector<double>{MToMm(centre.x()), MToMm(centre.y()), MToMm(centre.z())};
+            trochlea["radius_mm"] = MToMm(radius);
+          }
+          if (p.facet[i].tibial_surface->PlaneForm(&normal, &offset)) {
+            facet["normal_P"] = std::vector<double>{normal.x(), normal.y(), normal.z()};
+            facet["offset_mm"] = MToMm(offset);
+          }
+          d[py::str(std::string("trochlea_") + facets[i])] = trochlea;
+          d[py::str(std::string("facet_") + facets[i])] = facet;
+        }
+        d["tendon_length_mm"] = MToMm(p.tendon_length);
+        py::dict q;
+        q["shape"] = QuadricepsShapeName(p.quadriceps.shape);
+        q["magnitude_N"] = p.quadriceps.magnitude;
+        q["baseline_N"] = p.quadriceps.baseline;
+        q["duration_s"] = p.quadriceps.duration;
+        const Vector3d& u = p.quadriceps.direction_F;
+        q["direction_F"] = std::vector<double>{u.x(), u.y(), u.z()};
+        d["quadriceps"] = q;
+        py::dict start;
+        for (int i = 0; i < kPatellaUnknowns; ++i) start[PatellaUnknownName(i)] = p.start_unknowns[i];
+        d["start"] = start;
         return d;
       })
       .def_property_readonly("end", [](const Scene& s) {

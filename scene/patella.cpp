@@ -34,6 +34,7 @@ void ParsePatella(const Field& top, ModelDescription* model) {
   patella.base_P = f.Required("base_P_mm").Vec3() * kMPerMm;
   patella.tuberosity_T = f.Required("tuberosity_T_mm").Vec3() * kMPerMm;
   patella.tendon_length = MmToM(f.Required("tendon_length_mm").Positive(kMaxLengthMm));
+  if (f.Has("facet_liftoff")) patella.facet_liftoff = f.Required("facet_liftoff").Bool();
   const Field q = f.Required("quadriceps");
   q.Keys(KeysOf("scene.patella.quadriceps"));
   QuadricepsForce& quadriceps = patella.quadriceps;

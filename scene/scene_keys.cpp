@@ -27,7 +27,7 @@ const std::vector<SceneKeyTable>& SceneMappingKeys() {
       {"scene.pulse", {"shape", "amplitude_N", "duration_s", "direction_T"}},
       {"scene.constant_load", {"force_F_N", "torque_T_N_m"}},
       {"scene.patella", {"trochlea_medial", "trochlea_lateral", "facet_medial", "facet_lateral", "apex_P_mm",
-                         "base_P_mm", "tuberosity_T_mm", "tendon_length_mm", "quadriceps"}},
+                         "base_P_mm", "tuberosity_T_mm", "tendon_length_mm", "quadriceps", "facet_liftoff"}},
       {"scene.patella.trochlea", {"centre_mm", "radius_mm"}},
       {"scene.patella.facet", {"normal_P", "offset_mm"}},
       {"scene.patella.quadriceps", {"shape", "magnitude_N", "baseline_N", "duration_s", "direction_F"}},

@@ -483,6 +483,19 @@ std::vector<std::string> ParameterNames(const Scene& scene) {
     names.push_back(e + "extension_ratio");
     for (const char* a : {"femoral_x", "femoral_y", "femoral_z", "tibial_x", "tibial_y", "tibial_z"}) names.push_back(e + a);
   }
+  if (scene.model.patella) {  // the patella's (ensembles/README.md)
+    names.push_back("quadriceps.magnitude");
+    if (scene.model.patella->quadriceps.shape != QuadricepsShape::kConstant) {
+      names.push_back("quadriceps.baseline");
+      names.push_back("quadriceps.duration");
+    }
+    names.push_back("patella.tendon_length");
+    for (const char* f : {"medial", "lateral"}) {
+      const std::string t = StrCat("patella.trochlea_", f, ".");
+      for (const char* a : {"radius", "centre_x", "centre_y", "centre_z"}) names.push_back(t + a);
+      names.push_back(StrCat("patella.facet_", f, ".offset"));
+    }
+  }
   return names;
 }
 

@@ -340,6 +340,8 @@ inline bool RecordEvent(const Mode& mode, const std::vector<int>& fired, double 
         next_active->erase(std::remove(next_active->begin(), next_active->end(), e.contact), next_active->end());
         break;
       case EventKind::kLigamentKink:
+      case EventKind::kPatellarLiftoff:  // the tendon force is continuous there: no jump
+      case EventKind::kPatellarRecontact:
         break;
     }
   }

@@ -30,24 +30,44 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) {
     const std::string comp = CompartmentName(model.contacts[i].compartment);
     if (state.IsActive(i)) {
-      specs.push_back({EventKind::kLiftoff, i, -1, -1, 0.0, "liftoff_" + comp});
+      specs.push_back({EventKind::kLiftoff, i, -1, -1, 0.0, "liftoff_" + comp, nullptr});
     } else {
       const double gap = RequireContactKinematics(model.contacts[i], pose, "EventsForPhase").gap;
       specs.push_back({EventKind::kRecontact, i, -1, -1,
-                       std::min(gap, 0.0) - std::max(gap_tolerance, kMinRecontactHysteresis), "recontact_" + comp});
+                       std::min(gap, 0.0) - std::max(gap_tolerance, kMinRecontactHysteresis), "recontact_" + comp, nullptr});
     }
   }
   if (end.flexion) {
-    specs.push_back({EventKind::kFlexionEnd, -1, -1, +1, *end.flexion, FlexionEventName(*end.flexion)});
+    specs.push_back({EventKind::kFlexionEnd, -1, -1, +1, *end.flexion, FlexionEventName(*end.flexion), nullptr});
   }
   if (model.ligament_law == LigamentLaw::kPublished) {
     for (int j = 0; j < static_cast<int>(model.ligaments.size()); ++j) {
       const Ligament& lig = model.ligaments[j];
       specs.push_back({EventKind::kLigamentKink, -1, j, 0,
-                       LigamentKinkLength(lig), "kink_" + lig.name});
+                       LigamentKinkLength(lig), "kink_" + lig.name, nullptr});
+    }
+  }
+  if (model.patella && model.patella->facet_liftoff) {  // after the tibio-femoral events: their indices stay
+    // One warm start for the phase's patellar events, from the equilibrium at the start.
+    auto guess = std::make_shared<PatellaGuess>();
+    for (int i = 0; i < 2; ++i) {
+      const std::string facet = CompartmentName(static_cast<Compartment>(i));
+      const double c = PatellarContactFunctionAt(model, state.q, guess.get(), i);
+      if (c > 0.5 * kPatellarRecontactRatio) {
+        specs.push_back({EventKind::kPatellarLiftoff, i, -1, -1, 0.0, "liftoff_patellar_" + facet, guess});
+      } else {
+        specs.push_back({EventKind::kPatellarRecontact, i, -1, -1, -kPatellarRecontactRatio,
+                         "recontact_patellar_" + facet, guess});
+      }
     }
   }
   return specs;
+}
+
+double PatellarContactFunctionAt(const Model& model, const Vector6d& q, PatellaGuess* guess, int facet) {
+  const Patella& patella = *model.patella;
+  SolvePatella(patella, TuberosityInF(patella, PoseFromCoordinates(q)), "EvaluateEvents", guess);
+  return PatellarContactFunction(patella, *guess, facet);
 }
 
 void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,

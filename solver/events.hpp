@@ -2,31 +2,45 @@
 // decreasing), re-contact of a separated compartment (gap φ_i crosses zero decreasing) and
 // the end condition (α reaches the scene's flexion), plus the internal events where the
 // published ligament law jumps (ε_j = 2ε1, docs/model.md §5): a solver must not step across a
-// discontinuity, so the driver restarts the formulation there. Each formulation locates their roots
+// discontinuity, so the driver restarts the formulation there. With a patella (docs/model.md §12),
+// the lift-off and re-contact of each patellar facet: the patella is massless, so neither
+// is an impact; they restart the formulation where the tendon force's derivative jumps.
+// Each formulation locates their roots
 // with its own machinery (IDA/CVODE/ARKODE root finding, Newmark step bisection); the
 // definitions live here so that every formulation stops at the same events.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "solver/contact_kinematics.hpp"
 #include "solver/ligament.hpp"
+#include "solver/patella.hpp"
 #include "solver/pose.hpp"
 #include "solver/state.hpp"
 
 namespace kneedyn {
 
-enum class EventKind { kLiftoff, kRecontact, kFlexionEnd, kLigamentKink };
+enum class EventKind { kLiftoff, kRecontact, kFlexionEnd, kLigamentKink, kPatellarLiftoff, kPatellarRecontact };
 
 struct EventSpec {
   EventKind kind;
-  int contact = -1;   // index into model.contacts (lift-off / re-contact)
+  int contact = -1;   // index into model.contacts (lift-off / re-contact); patellar: the facet (0 medial, 1 lateral)
   int ligament = -1;  // index into model.ligaments (kink)
   int direction = 0;  // −1: root only while decreasing; +1: increasing (SUNDIALS convention)
   double offset = 0.0;  // g = value − offset (re-contact hysteresis, α_end, kink length)
-  std::string name;   // "liftoff_lateral", "recontact_medial", "flexion_90"
+  std::string name;   // "liftoff_lateral", "recontact_medial", "flexion_90", "liftoff_patellar_medial"
+  // Patellar events: the warm start of the patella's equilibrium solve, shared by the copies
+  // of the phase's specs (the evaluations of one run follow each other on one thread).
+  std::shared_ptr<PatellaGuess> patella_guess;
 };
+
+// A separated patellar facet re-contacts when its force ratio λ_i reaches this (−, so
+// 1e-9 F_Q): the lift-off root leaves λ_i within round-off of zero, and the phase after it
+// must not see a re-contact there. A phase starts with a facet pressing when λ_i exceeds
+// half of it.
+constexpr double kPatellarRecontactRatio = 1.0e-9;
 
 // A separated compartment re-contacts when its gap falls `gap_tolerance` below its value
 // at separation (or below zero): keeps integration error from re-closing a contact that
@@ -39,7 +53,10 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
                                       double gap_tolerance = kMinRecontactHysteresis);
 
 // g_k(state) for each spec, in order: N_i (lift-off), φ_i − offset (re-contact), α − offset
-// (flexion; offset = α_end), L_j − offset (kink; offset = (1 + 2ε1) L0_j). `normal_force` is indexed like model.contacts.
+// (flexion; offset = α_end), L_j − offset (kink; offset = (1 + 2ε1) L0_j), c_i (patellar
+// lift-off) and −c_i − offset (patellar re-contact; offset = −kPatellarRecontactRatio) with c_i
+// the facet's contact function (PatellarContactFunction, patella.hpp) of the patella's
+// equilibrium at q. `normal_force` is indexed like model.contacts.
 // Throws SolverError when a gap has no contact point (contact_kinematics.hpp).
 void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const std::vector<double>& normal_force, double* g);
@@ -53,6 +70,10 @@ void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, con
 void EvaluateEvents(const Model& model, const std::vector<EventSpec>& specs, const Vector6d& q,
                     const Pose& pose, const std::vector<double>& normal_force,
                     const std::vector<double>& ligament_length, double* g);
+
+// The patellar facet's contact function c_i at tibial coordinates q (patella.hpp), the
+// patella's equilibrium solved from *guess (updated).
+double PatellarContactFunctionAt(const Model& model, const Vector6d& q, PatellaGuess* guess, int facet);
 
 // EvaluateEvents in any scalar type (the double overloads above call it); T = long double:
 // sphere-on-plane gaps only (RequireContactKinematicsTpl).
@@ -77,6 +98,15 @@ void EvaluateEventsTpl(const Model& model, const std::vector<EventSpec>& specs, 
         const T length = ligament_length ? (*ligament_length)[s.ligament]
                                          : T(LigamentSpan_F(model.ligaments[s.ligament], pose).norm());
         g[k] = length - s.offset;
+        break;
+      }
+      case EventKind::kPatellarLiftoff:
+      case EventKind::kPatellarRecontact: {
+        // The patella's solve is in double (patella.hpp).
+        Vector6d q_d;
+        for (int i = 0; i < 6; ++i) q_d(i) = ScalarPart(q(i));
+        const double c = PatellarContactFunctionAt(model, q_d, s.patella_guess.get(), s.contact);
+        g[k] = T(s.kind == EventKind::kPatellarLiftoff ? c : -c - s.offset);
         break;
       }
     }

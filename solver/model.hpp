@@ -101,6 +101,9 @@ struct Patella {
   Vector3d tuberosity_T = Vector3d::Zero();  // tibial tuberosity (tendon insertion), m
   double tendon_length = 0.0;                // rigid patellar tendon, apex to tuberosity, m
   QuadricepsForce quadriceps;
+  // A facet may lift off and re-contact (docs/model.md §12, scene key facet_liftoff); false:
+  // both facets always press (λ_i of either sign), the chapter's two-contact model.
+  bool facet_liftoff = false;
   // Starting guess of the equilibrium solve (PatellaUnknowns, patella.hpp) and the tibial
   // coordinates q it solves at: the model builder's solution at the initial pose.
   std::array<double, 17> start_unknowns{};

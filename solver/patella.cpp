@@ -17,10 +17,10 @@ constexpr double kNewtonStepTolerance = 1.0e-10;
 
 // r(x) and ∂r/∂x at x; false outside a chart.
 bool Linearize(const Patella& patella, const Vector3d& tuberosity_F, const std::array<double, kPatellaUnknowns>& x,
-               Eigen::Matrix<double, kPatellaUnknowns, 1>* r, PatellaJacobian* J) {
+               const PatellaFacets& pressing, Eigen::Matrix<double, kPatellaUnknowns, 1>* r, PatellaJacobian* J) {
   PatellaJet xj[kPatellaUnknowns], rj[kPatellaUnknowns];
   for (int i = 0; i < kPatellaUnknowns; ++i) xj[i] = PatellaJet(x[i], i);
-  if (!PatellaResiduals(patella, Vector3<PatellaJet>(tuberosity_F.cast<PatellaJet>()), xj, rj)) return false;
+  if (!PatellaResiduals(patella, Vector3<PatellaJet>(tuberosity_F.cast<PatellaJet>()), xj, rj, pressing)) return false;
   for (int i = 0; i < kPatellaUnknowns; ++i) {
     (*r)(i) = rj[i].a;
     J->row(i) = rj[i].v.transpose();
@@ -30,18 +30,22 @@ bool Linearize(const Patella& patella, const Vector3d& tuberosity_F, const std::
 }
 
 // Newton from *x at R_a; true on convergence (then *x is the solution).
-bool Newton(const Patella& patella, const Vector3d& tuberosity_F, std::array<double, kPatellaUnknowns>* x,
-            Eigen::PartialPivLU<PatellaJacobian>* lu_out) {
+bool Newton(const Patella& patella, const Vector3d& tuberosity_F, const PatellaFacets& pressing,
+            std::array<double, kPatellaUnknowns>* x, Eigen::PartialPivLU<PatellaJacobian>* lu_out) {
   Eigen::Matrix<double, kPatellaUnknowns, 1> r;
   PatellaJacobian J;
   bool last = false;
   for (int iteration = 0; iteration < kMaxNewtonIterations; ++iteration) {
-    if (!Linearize(patella, tuberosity_F, *x, &r, &J)) return false;
+    if (!Linearize(patella, tuberosity_F, *x, pressing, &r, &J)) return false;
     Eigen::PartialPivLU<PatellaJacobian> lu(J);
     const Eigen::Matrix<double, kPatellaUnknowns, 1> dx = -lu.solve(r);
     if (!dx.allFinite()) return false;
     for (int i = 0; i < kPatellaUnknowns; ++i) (*x)[i] += dx(i);
     if (last) {
+      // A separated facet's λ_i is exactly zero (its row is linear in it).
+      for (int i = 0; i < 2; ++i) {
+        if (!pressing[i]) (*x)[kPatellaFacetRatio + i] = 0.0;
+      }
       if (lu_out != nullptr) *lu_out = lu;
       return true;
     }
@@ -122,46 +126,119 @@ const char* QuadricepsShapeName(QuadricepsShape shape) {
   return "?";
 }
 
+namespace {
+
+// Newton at R_a from *x with the facets *pressing, then the complementarity (patella.hpp): a
+// pressing facet that pulls is separated, a separated one that penetrates presses, and
+// Newton again. The switched solution is taken when it holds (the separated facet does not
+// penetrate, the pressing one does not pull); otherwise the first stands: past a fold of
+// the one-facet branch there is no one-facet equilibrium (the patella would snap, which a
+// massless model cannot follow), and the facet keeps pressing with λ_i < 0, the two-contact
+// model's answer (docs/model.md §12). True with *x, *pressing the solution.
+bool SolveComplementarity(const Patella& patella, const Vector3d& tuberosity_F, std::array<double, kPatellaUnknowns>* x,
+                          PatellaFacets* pressing, Eigen::PartialPivLU<PatellaJacobian>* jacobian_lu,
+                          const char** failure) {
+  const std::array<double, kPatellaUnknowns> start = *x;
+  if (!Newton(patella, tuberosity_F, *pressing, x, jacobian_lu)) {
+    *failure = "Newton from the last solution and 256-step continuation both failed";
+    return false;
+  }
+  auto switched = [&](const std::array<double, kPatellaUnknowns>& y, const PatellaFacets& mode) {
+    const std::array<double, 2> gap = PatellaFacetGaps(patella, y);
+    PatellaFacets next = mode;
+    for (int i = 0; i < 2; ++i) {
+      if (mode[i] && y[kPatellaFacetRatio + i] < 0.0) next[i] = false;  // it would pull: lift-off
+      if (!mode[i] && gap[i] < 0.0) next[i] = true;                    // it penetrates: re-contact
+    }
+    return next;
+  };
+  if (!patella.facet_liftoff) return true;  // both facets press, λ_i of either sign
+  const PatellaFacets next = switched(*x, *pressing);
+  if (next == *pressing) return true;
+  if (!next[0] && !next[1]) {
+    *failure = "both patellar facets would separate (λ < 0 on each): a massless patella has no equilibrium "
+               "without a contact";
+    return false;
+  }
+  std::array<double, kPatellaUnknowns> y = start;
+  if (Newton(patella, tuberosity_F, next, &y, nullptr) && switched(y, next) == next) {
+    *x = y;
+    *pressing = next;
+  }
+  // The LU of the solution taken (the switched solve's, or the first's again).
+  if (jacobian_lu != nullptr) {
+    std::array<double, kPatellaUnknowns> z = *x;
+    if (!Newton(patella, tuberosity_F, *pressing, &z, jacobian_lu)) {
+      *failure = "Newton from the last solution and 256-step continuation both failed";
+      return false;
+    }
+    *x = z;
+  }
+  return true;
+}
+
+}  // namespace
+
 void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const char* caller, PatellaGuess* guess,
                   Eigen::PartialPivLU<PatellaJacobian>* jacobian_lu) {
   if (!guess->valid) {
     guess->x = patella.start_unknowns;
     guess->tuberosity_F = PoseFromCoordinates(patella.start_q).PointInF(patella.tuberosity_T);
+    // The builder's solution: a separated facet carries exactly λ_i = 0 there.
+    for (int i = 0; i < 2; ++i) guess->pressing[i] = patella.start_unknowns[kPatellaFacetRatio + i] != 0.0;
     guess->valid = true;
   }
+  const char* failure = "";
   std::array<double, kPatellaUnknowns> x = guess->x;
-  if (Newton(patella, tuberosity_F, &x, jacobian_lu)) {
-    guess->x = x;
-    guess->tuberosity_F = tuberosity_F;
-    return;
-  }
-  for (int steps = 2; steps <= 256; steps *= 2) {
+  if (!patella.facet_liftoff) guess->pressing = kBothFacetsPress;
+  PatellaFacets pressing = guess->pressing;
+  bool ok = SolveComplementarity(patella, tuberosity_F, &x, &pressing, jacobian_lu, &failure);
+  // Continuation: R_a moved from the guess's to the target in 2, 4, ..., 256 equal steps, the
+  // facets chosen again at each.
+  for (int steps = 2; !ok && steps <= 256; steps *= 2) {
     x = guess->x;
-    bool ok = true;
+    pressing = guess->pressing;
+    ok = true;
     for (int k = 1; k <= steps && ok; ++k) {
       const double s = static_cast<double>(k) / steps;
       const Vector3d target = (1.0 - s) * guess->tuberosity_F + s * tuberosity_F;
-      ok = Newton(patella, target, &x, k == steps ? jacobian_lu : nullptr);
-    }
-    if (ok) {
-      guess->x = x;
-      guess->tuberosity_F = tuberosity_F;
-      return;
+      ok = SolveComplementarity(patella, target, &x, &pressing, k == steps ? jacobian_lu : nullptr, &failure);
     }
   }
+  if (ok) {
+    guess->x = x;
+    guess->tuberosity_F = tuberosity_F;
+    guess->pressing = pressing;
+    return;
+  }
   Throw<SolverError>(caller, "no patellar equilibrium found at the tuberosity position (", MToMm(tuberosity_F.x()), ", ",
-                     MToMm(tuberosity_F.y()), ", ", MToMm(tuberosity_F.z()), ") mm in F (Newton from the last solution at (",
+                     MToMm(tuberosity_F.y()), ", ", MToMm(tuberosity_F.z()), ") mm in F (from the last solution at (",
                      MToMm(guess->tuberosity_F.x()), ", ", MToMm(guess->tuberosity_F.y()), ", ",
-                     MToMm(guess->tuberosity_F.z()), ") mm and 256-step continuation both failed; docs/model.md §12)");
+                     MToMm(guess->tuberosity_F.z()), ") mm: ", failure, "; docs/model.md §12)");
 }
 
 double PatellaResidualNorm(const Patella& patella, const Vector3d& tuberosity_F,
-                           const std::array<double, kPatellaUnknowns>& x) {
+                           const std::array<double, kPatellaUnknowns>& x, const PatellaFacets& pressing) {
   double r[kPatellaUnknowns];
-  if (!PatellaResiduals(patella, tuberosity_F, x.data(), r)) return std::numeric_limits<double>::infinity();
+  if (!PatellaResiduals(patella, tuberosity_F, x.data(), r, pressing)) return std::numeric_limits<double>::infinity();
   double norm = 0.0;
   for (double v : r) norm = std::max(norm, std::abs(v));
   return norm;
+}
+
+std::array<double, 2> PatellaFacetGaps(const Patella& patella, const std::array<double, kPatellaUnknowns>& x) {
+  // The gap rows do not depend on the tuberosity or on which facets press.
+  double r[kPatellaUnknowns];
+  std::array<double, 2> gap{{0.0, 0.0}};
+  if (!PatellaResiduals(patella, Vector3d(Vector3d::Zero()), x.data(), r, kBothFacetsPress, gap.data())) {
+    Throw<SolverError>("PatellaFacetGaps", "a patellar contact coordinate left its chart (docs/model.md §12)");
+  }
+  return gap;
+}
+
+double PatellarContactFunction(const Patella& patella, const PatellaGuess& solution, int facet) {
+  const double gap = PatellaFacetGaps(patella, solution.x)[facet];
+  return solution.pressing[facet] ? solution.x[kPatellaFacetRatio + facet] : -gap;
 }
 
 void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, Patella* patella) {

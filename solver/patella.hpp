@@ -17,6 +17,14 @@
 // the contact force −N n_F on the patella (n_F its facet normal towards the femur).
 // Dividing by F_Q leaves the pose independent of the quadriceps magnitude: the solution is
 // a function of the tuberosity's position in F alone, and F_t = τ_t F_Q(t).
+//
+// Facet lift-off (docs/model.md §12; Patella::facet_liftoff, else both always press): a facet presses (λ_i ≥ 0) or is separated (gap_i ≥ 0),
+// never both (λ_i gap_i = 0). A separated facet keeps the layout: its row r[5i+2], the gap
+// e·n of Eq. 1.8, becomes λ_i = 0, and its four chart coordinates still solve the other
+// four rows, so they stay the closest pair of points of the two surfaces and e·n is the
+// separated facet's gap. SolvePatella chooses which facets press (PatellaFacets): the
+// solution is continuous in the tuberosity's position; its derivative jumps where a facet
+// lifts off or re-contacts, and the events (solver/events.hpp) stop the integrators there.
 #pragma once
 
 #include <array>
@@ -61,10 +69,21 @@ PoseTpl<T> PatellaPose(const T* x) {
   return PoseFromCoordinates(q);
 }
 
-// The 17 residuals at the tuberosity position R_a (F, m). False when a contact coordinate
-// leaves its surface's chart.
+// Which facets press on the femur (medial = [0], lateral = [1]); a massless patella needs
+// one at least (with none, the quadriceps and the tendon alone cannot balance).
+using PatellaFacets = std::array<bool, 2>;
+constexpr PatellaFacets kBothFacetsPress = {{true, true}};
+
+// The 17 residuals at the tuberosity position R_a (F, m), both facets pressing. False when
+// a contact coordinate leaves its surface's chart.
 template <typename T>
-bool PatellaResiduals(const Patella& patella, const Vector3<T>& tuberosity_F, const T* x, T* r) {
+bool PatellaResiduals(const Patella& patella, const Vector3<T>& tuberosity_F, const T* x, T* r);
+
+// The same with the facets `pressing`: a separated facet's row r[5i+2] is λ_i (= 0 at a
+// solution) instead of its gap; the gap is then *gap_F (m, optional: both facets' e·n).
+template <typename T>
+bool PatellaResiduals(const Patella& patella, const Vector3<T>& tuberosity_F, const T* x, T* r,
+                      const PatellaFacets& pressing, T* gap = nullptr) {
   const PoseTpl<T> pose = PatellaPose(x);
   ContactGeometryTpl<T> geometry[2];
   for (int i = 0; i < 2; ++i) {
@@ -72,6 +91,8 @@ bool PatellaResiduals(const Patella& patella, const Vector3<T>& tuberosity_F, co
                                  ContactChart::kRegular)) {
       return false;
     }
+    if (gap != nullptr) gap[i] = geometry[i].gap;
+    if (!pressing[i]) r[5 * i + 2] = x[kPatellaFacetRatio + i];
   }
   const Vector3<T> apex_F = pose.PointInF(patella.apex_P.template cast<T>());
   const Vector3<T> base_F = pose.PointInF(patella.base_P.template cast<T>());
@@ -94,25 +115,44 @@ bool PatellaResiduals(const Patella& patella, const Vector3<T>& tuberosity_F, co
   return true;
 }
 
-// Warm start of the solve: the last solution and the tuberosity position it solves at.
+template <typename T>
+bool PatellaResiduals(const Patella& patella, const Vector3<T>& tuberosity_F, const T* x, T* r) {
+  return PatellaResiduals(patella, tuberosity_F, x, r, kBothFacetsPress);
+}
+
+// Warm start of the solve: the last solution, the tuberosity position it solves at and the
+// facets that press there.
 struct PatellaGuess {
   std::array<double, kPatellaUnknowns> x{};
   Vector3d tuberosity_F = Vector3d::Zero();
+  PatellaFacets pressing = kBothFacetsPress;
   bool valid = false;  // false: start from the model's start_unknowns
 };
 
 // Newton on the 17 equations at R_a = tuberosity_F (m), from *guess, to round-off
 // (Jacobian by ceres::Jet). When Newton from the guess fails, continuation: R_a moved from
-// the guess's to the target in 2, 4, ..., 256 equal steps. On return *guess holds the
-// solution, `jacobian_lu` (optional) the LU of ∂r/∂x there. Throws SolverError naming
-// `caller` and R_a when no solution is found.
+// the guess's to the target in 2, 4, ..., 256 equal steps. The facets pressing are first
+// the guess's; a pressing facet that would pull (λ_i < 0) is separated, a separated one
+// whose gap has closed (gap_i < 0) presses again, and the solve repeats (the complementarity
+// λ_i ≥ 0, gap_i ≥ 0, λ_i gap_i = 0). On return *guess holds the solution and its facets,
+// `jacobian_lu` (optional) the LU of ∂r/∂x there. Throws SolverError naming `caller` and R_a
+// when no solution is found or both facets would separate.
 using PatellaJacobian = Eigen::Matrix<double, kPatellaUnknowns, kPatellaUnknowns>;
 void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const char* caller, PatellaGuess* guess,
                   Eigen::PartialPivLU<PatellaJacobian>* jacobian_lu = nullptr);
 
 // Max |r_i| at a solution (m for positions, dimensionless for forces / F_Q).
 double PatellaResidualNorm(const Patella& patella, const Vector3d& tuberosity_F,
-                           const std::array<double, kPatellaUnknowns>& x);
+                           const std::array<double, kPatellaUnknowns>& x,
+                           const PatellaFacets& pressing = kBothFacetsPress);
+
+// Gaps e·n of both facets (m) at unknowns x: 0 for a pressing facet at a solution.
+std::array<double, 2> PatellaFacetGaps(const Patella& patella, const std::array<double, kPatellaUnknowns>& x);
+
+// The facet's contact function at a solution: λ_i − gap_i / (1 m), i.e. λ_i (−) while it
+// presses and −gap_i (m) while it is separated. Continuous through the switch and zero
+// there: positive in contact, negative when separated (the events' g, solver/events.hpp).
+double PatellarContactFunction(const Patella& patella, const PatellaGuess& solution, int facet);
 
 // Tuberosity R_a in F at the tibial pose (Eq. 1.63).
 template <typename T>
@@ -143,7 +183,7 @@ void PatellarTendonForce(const Patella& patella, double t, const PoseTpl<T>& tib
     SolvePatella(patella, tuberosity_d, "PatellarTendonForce", guess, &lu);
     T x[kPatellaUnknowns], r[kPatellaUnknowns];
     for (int i = 0; i < kPatellaUnknowns; ++i) x[i] = T(guess->x[i]);
-    PatellaResiduals(patella, tuberosity_F, x, r);
+    PatellaResiduals(patella, tuberosity_F, x, r, guess->pressing);
     // Only the derivative parts: r(x*) is zero to round-off.
     Eigen::Matrix<T, kPatellaUnknowns, 1> rhs;
     for (int i = 0; i < kPatellaUnknowns; ++i) rhs(i) = r[i] - T(ScalarPart(r[i]));

@@ -232,5 +232,95 @@ TEST(PatellaRuns, StaggeredCouplingErrorShrinksAtFirstOrder) {
   EXPECT_LE(order, 1.3);
 }
 
+// A larger Q-angle: the quadriceps pulls more laterally (direction (0.14, −0.2, 1) in F, 8°
+// lateral instead of 3°) and presses the patella into the lateral facet; at extension the
+// medial facet then separates (docs/model.md §12, facet lift-off).
+Patella WithLateralPull(const Patella& base) {
+  Patella patella = base;
+  patella.quadriceps.direction_F = Vector3d(0.14, -0.2, 1.0).normalized();
+  patella.facet_liftoff = true;
+  return patella;
+}
+
+// The separated facet by a second description: the closed-form sphere-on-plane contact
+// (contact.hpp) at the solved pose gives the medial facet a positive gap (the chart
+// coordinates' e·n equals it) and closes the lateral one, and the patella balances in N on
+// the lateral facet alone.
+TEST(PatellaLiftoff, SeparatedFacetSolvesTheComplementarityByASecondContactDescription) {
+  const Scene scene = ImpactScene();
+  const Patella patella = WithLateralPull(*scene.model.patella);
+  const Vector6d q = ChapterPoses({0.0}).at(0);
+  const Vector3d tuberosity_F = TuberosityInF(patella, PoseFromCoordinates(q));
+  PatellaGuess guess;  // from the scene's start, where both facets press
+  SolvePatella(patella, tuberosity_F, "test", &guess);
+  EXPECT_FALSE(guess.pressing[0]);
+  EXPECT_TRUE(guess.pressing[1]);
+  EXPECT_EQ(guess.x[kPatellaFacetRatio], 0.0);
+  EXPECT_LT(PatellaResidualNorm(patella, tuberosity_F, guess.x, guess.pressing), 1e-13);
+  const Pose pose = PatellaPose(guess.x.data());
+  ContactGeometry g[2];
+  for (int i = 0; i < 2; ++i) {
+    SphereOnPlane sop;
+    ASSERT_TRUE(SphereOnPlaneForm(patella.facet[i], &sop));
+    g[i] = SphereOnPlaneContact(sop, pose);
+  }
+  EXPECT_GT(g[0].gap, 1e-6);  // m: separated by more than round-off
+  EXPECT_NEAR(PatellaFacetGaps(patella, guess.x)[0], g[0].gap, 1e-14);
+  EXPECT_NEAR(g[1].gap, 0.0, 1e-14);
+  EXPECT_LT(PatellarContactFunction(patella, guess, 0), 0.0);
+  const double F_Q = 50.0;
+  const Vector3d base_F = pose.PointInF(patella.base_P), apex_F = pose.PointInF(patella.apex_P);
+  Vector3d force = F_Q * patella.quadriceps.direction_F;
+  Vector3d moment = base_F.cross(force);
+  const Vector3d tendon = guess.x[kPatellaTendonRatio] * F_Q * (tuberosity_F - apex_F).normalized();
+  force += tendon;
+  moment += apex_F.cross(tendon);
+  const double N = guess.x[kPatellaFacetRatio + 1] * F_Q;
+  EXPECT_GT(N, 0.0);
+  const Vector3d contact_force = -N * (pose.R_FT * g[1].normal_T);
+  force += contact_force;
+  moment += g[1].point_F.cross(contact_force);
+  EXPECT_LT(force.norm(), 1e-11 * F_Q);
+  EXPECT_LT(moment.norm(), 1e-12 * F_Q);
+  // Back to the scene's quadriceps line from this warm start: the medial facet presses again.
+  PatellaGuess back = guess;
+  Patella scene_line = *scene.model.patella;
+  scene_line.facet_liftoff = true;
+  SolvePatella(scene_line, tuberosity_F, "test", &back);
+  EXPECT_TRUE(back.pressing[0] && back.pressing[1]);
+  EXPECT_GT(back.x[kPatellaFacetRatio], 0.0);
+}
+
+// The hard case patella_medial_liftoff (extension under the larger Q-angle): the medial
+// facet lifts off as the knee extends. The ODE check (ede) and the DAE (dae) locate the event
+// at the same time, and there the facet's force ratio is zero.
+TEST(PatellaLiftoff, ExtensionUnderLateralPullLiftsTheMedialFacetOffInEdeAndDae) {
+  const Scene scene = LoadScene("reference-data/scenes/hard/patella_medial_liftoff.yaml");
+  const RunResult ode = RunWith(scene, "ede", 1e-10, 1e-12);
+  const RunResult dae = RunWith(scene, "dae", 1e-10, 1e-12);
+  auto find = [](const RunResult& r, const std::string& name) {
+    for (const EventRecord& e : r.events) {
+      if (e.name == name) return e.time;
+    }
+    return -1.0;
+  };
+  const double t_ode = find(ode, "liftoff_patellar_medial"), t_dae = find(dae, "liftoff_patellar_medial");
+  ASSERT_GT(t_ode, 0.0);
+  ASSERT_GT(t_dae, 0.0);
+  // Measured: 1.8e-6 s apart at rtol 1e-10 (the same at the default tolerances); the
+  // impact scene's events agree to 1e-8 relative. Not yet explained: recorded, not hidden.
+  EXPECT_NEAR(t_ode, t_dae, 1e-5);
+  const Patella& patella = *scene.model.patella;
+  for (size_t i = 0; i < ode.samples.size(); ++i) {
+    if (!ode.sample_is_event[i] || ode.samples[i].t != t_ode) continue;
+    PatellaGuess guess;
+    SolvePatella(patella, TuberosityInF(patella, PoseFromCoordinates(ode.samples[i].q)), "test", &guess);
+    EXPECT_NEAR(guess.x[kPatellaFacetRatio], 0.0, 1e-8);
+    EXPECT_NEAR(PatellaFacetGaps(patella, guess.x)[0], 0.0, 1e-9);  // m
+  }
+  // After it the medial facet stays separated to the end (no re-contact event).
+  for (const EventRecord& e : ode.events) EXPECT_NE(e.name, "recontact_patellar_medial");
+}
+
 }  // namespace
 }  // namespace kneedyn

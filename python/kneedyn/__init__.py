@@ -116,6 +116,14 @@ class Scene:
     def end(self):
         return self._compiled.end
 
+    @property
+    def patella(self):
+        """The patella as the model holds it (docs/model.md §12), None without a patella:
+        section: trochlea_medial|lateral (centre_mm, radius_mm), facet_medial|lateral
+        (normal_P, offset_mm), tendon_length_mm, quadriceps (shape, magnitude_N, baseline_N,
+        duration_s, direction_F) and start, the equilibrium at the initial pose."""
+        return self._compiled.patella
+
     def to_dict(self):
         """A copy of the scene document."""
         return _copy.deepcopy(self._doc)
@@ -174,6 +182,22 @@ class Scene:
         """Pulse fields: shape (reconstructed|half_sine|none), amplitude_N, duration_s,
         direction_T."""
         return self.update({"pulse": fields})
+
+    def set_patella(self, **fields):
+        """Patella fields (scene key patella; docs/model.md §12): tendon_length_mm,
+        trochlea_medial|lateral={centre_mm, radius_mm}, facet_medial|lateral={normal_P,
+        offset_mm}, apex_P_mm, base_P_mm, tuberosity_T_mm, quadriceps={...}. Nested dicts are
+        merged; the patella's start equilibrium is solved again by the loader. A scene
+        without a patella: section raises InputError."""
+        if self._compiled.patella is None:
+            raise InputError("Scene.set_patella(): scene '%s' has no patella: section; start from a scene "
+                             "with one, e.g. patellofemoral_impact.yaml" % self.name)
+        return self.update({"patella": fields})
+
+    def set_quadriceps(self, **fields):
+        """Quadriceps force fields (scene key patella.quadriceps): shape (constant|ramp|
+        half_sine), magnitude_N, baseline_N, duration_s, direction_F."""
+        return self.set_patella(quadriceps=fields)
 
     def set_end(self, **fields):
         """End condition fields: flexion_deg, time_s (None removes one)."""

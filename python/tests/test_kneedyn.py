@@ -442,3 +442,43 @@ def test_sensitivity_formulation_dae_matches_the_cli():
     assert math.isclose(float(rows[0]["derivative"]), r["derivatives"][0][0], rel_tol=1e-11)
     with pytest.raises(kneedyn.InputError, match="--formulation = 'newmark'"):
         kneedyn.sensitivity(CHAPTER, ["mass"], ["liftoff_time_s"], formulation="newmark")
+
+
+PATELLA = os.path.join("reference-data", "scenes", "patellofemoral_impact.yaml")
+
+
+def test_patella_parameters_set_in_python_equal_the_same_edits_in_a_file():
+    # Quadriceps magnitude, tendon length and facet geometry set from Python: the loader
+    # builds the model (and the patella's start equilibrium) from the edited document, and
+    # the run equals the CLI's on the same document written to a file.
+    scene = kneedyn.load_scene(PATELLA)
+    assert scene.patella["quadriceps"]["magnitude_N"] == 50.0
+    assert scene.patella["tendon_length_mm"] == pytest.approx(42.0)
+    start = scene.patella["start"]["patella_proximal"]
+    scene.set_quadriceps(magnitude_N=80.0)
+    scene.set_patella(tendon_length_mm=43.0, trochlea_lateral={"radius_mm": 29.0},
+                      facet_medial={"offset_mm": 0.5})
+    p = scene.patella
+    assert p["quadriceps"]["magnitude_N"] == 80.0 and p["quadriceps"]["shape"] == "constant"
+    assert p["tendon_length_mm"] == pytest.approx(43.0)
+    assert p["trochlea_lateral"]["radius_mm"] == pytest.approx(29.0)
+    assert p["trochlea_lateral"]["centre_mm"] == pytest.approx([22.0, -8.0, 14.0])  # merged, kept
+    assert p["facet_medial"]["offset_mm"] == pytest.approx(0.5)
+    assert p["start"]["patella_proximal"] != start  # the equilibrium moved with the tendon
+    path = os.path.join(OUT, "edited_patella_scene.yaml")
+    os.makedirs(OUT, exist_ok=True)
+    scene.write(path)
+    header, rows, summary = run_cli(path, "ede", dict(rtol=1e-7, atol=1e-9), "cli_patella_edited")
+    result = kneedyn.run(scene, "ede", rtol=1e-7, atol=1e-9)
+    assert_same_as_cli(result, header, rows, summary, ignore_path=True)
+
+
+def test_patella_setters_refuse_a_scene_without_patella():
+    scene = kneedyn.load_scene(CHAPTER)
+    assert scene.patella is None
+    with pytest.raises(kneedyn.InputError, match="no patella"):
+        scene.set_quadriceps(magnitude_N=80.0)
+    patella = kneedyn.load_scene(PATELLA)
+    with pytest.raises(kneedyn.InputError, match="magnitude_N"):
+        patella.set_quadriceps(magnitude_N=-5.0)
+    assert patella.patella["quadriceps"]["magnitude_N"] == 50.0  # unchanged
