@@ -38,8 +38,9 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
  public:
   EdeFormulation(const Scene& scene, const OdeOptions& options)
       : FormulationBase(scene), options_(options), integrator_(options, "ede"),
-        workspace_(model_) {
+        workspace_(model_), output_workspace_(model_) {
     acc_.normal_force.reserve(kMaxConstrainedContacts);
+    output_acc_.normal_force.reserve(kMaxConstrainedContacts);
     normal_.assign(model_.contacts.size(), 0.0);
     const Stabilization stabilization = options.stabilization;
     if (stabilization == Stabilization::kBaumgarte) {
@@ -77,9 +78,13 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
       }
     }
     Vector6d q = y_.head<6>(), qd = y_.tail<6>();
-    const ConstrainedAcceleration acc =
-        SolveConstrainedAcceleration(model_, t_, q, qd, active_, gains_, &ligament_branch_);
-    WriteBack(t_, q, qd, acc.qdd, acc.normal_force.data(), nullptr, 0, state);
+    // The patella's equilibrium is not unique (docs/model.md §12): the sample's solve starts
+    // from the right-hand side's last solution, so that it reports the branch the motion
+    // follows (a fresh solve from the start pose may land on another).
+    output_workspace_.data.patella_guess = workspace_.data.patella_guess;
+    SolveConstrainedAcceleration(model_, t_, q, qd, active_, gains_, &ligament_branch_, &output_workspace_,
+                                 &output_acc_);
+    WriteBack(t_, q, qd, output_acc_.qdd, output_acc_.normal_force.data(), nullptr, 0, state);
     return root ? EventResult(found) : AdvanceResult{};
   }
 
@@ -172,6 +177,9 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
   // Workspaces of the right-hand side and root functions (sized once; no allocation there).
   ConstrainedDynamicsWorkspace workspace_;
   ConstrainedAcceleration acc_;
+  // The output samples' solve (Advance), apart from the right-hand side's cache.
+  ConstrainedDynamicsWorkspace output_workspace_;
+  ConstrainedAcceleration output_acc_;
   bool cache_valid_ = false;  // acc_ belongs to (cache_t_, cache_y_)
   double cache_t_ = 0.0;
   double cache_y_[12] = {};
