@@ -44,10 +44,12 @@ struct IsDoubleOrJet<ceres::Jet<double, N>> : std::true_type {};
 // Order of the derivatives a scalar carries: 0 (double, long double), 1 (ceres::Jet over
 // double); TimeDual adds one (time_dual.hpp). The surface charts' lift is exact to this
 // order (height_field.hpp: EvaluateChart).
+/// \cond INTERNAL
 template <typename T>
 struct DerivativeOrder : std::integral_constant<int, 0> {};
 template <typename T, int N>
 struct DerivativeOrder<ceres::Jet<T, N>> : std::integral_constant<int, 1 + DerivativeOrder<T>::value> {};
+/// \endcond
 
 template <typename T>
 using Vector3 = Eigen::Matrix<T, 3, 1>;

@@ -14,6 +14,7 @@
 
 #include "solver/scalar.hpp"
 
+/// \cond INTERNAL
 namespace kneedyn {
 // Its own namespace, found by argument-dependent lookup: an unqualified sqrt(double) in
 // kneedyn must not see these templates (they would hide ::sqrt there).
@@ -178,3 +179,4 @@ struct ScalarBinaryOpTraits<double, kneedyn::time_dual::TimeDual<S>, BinaryOp> {
   using ReturnType = kneedyn::time_dual::TimeDual<S>;
 };
 }  // namespace Eigen
+/// \endcond
