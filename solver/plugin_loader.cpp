@@ -1,0 +1,56 @@
+#include "solver/plugin_loader.hpp"
+
+#include <dlfcn.h>
+
+#ifndef KNEEDYN_PLUGIN_LIBDIR
+#define KNEEDYN_PLUGIN_LIBDIR "lib"
+#endif
+
+namespace kneedyn {
+
+namespace fs = std::filesystem;
+
+std::vector<fs::path> PluginCandidates(const char* file_name, const void* anchor,
+                                       const std::vector<std::string>& extra_paths) {
+  std::vector<fs::path> start_dirs;
+  std::error_code ec;
+  const fs::path exe = fs::weakly_canonical(fs::read_symlink("/proc/self/exe", ec), ec);
+  Dl_info info{};
+  if (anchor && dladdr(anchor, &info) != 0 && info.dli_fname && info.dli_fname[0] == '/') {
+    std::error_code ec2;
+    const fs::path object = fs::weakly_canonical(fs::path(info.dli_fname), ec2);
+    if (!ec2 && object != exe) start_dirs.push_back(object.parent_path());
+  }
+  if (!exe.empty()) start_dirs.push_back(exe.parent_path());
+  std::vector<fs::path> out;
+  for (fs::path dir : start_dirs) {
+    for (int up = 0; up < 5 && !dir.empty(); ++up, dir = dir.parent_path()) {
+      out.push_back(dir / KNEEDYN_PLUGIN_LIBDIR / "kneedyn" / file_name);
+      if (dir == dir.root_path()) break;
+    }
+  }
+  for (const std::string& path : extra_paths) out.emplace_back(path);
+  return out;
+}
+
+OpenedPlugin OpenPlugin(const char* file_name, const void* anchor, int dlopen_flags,
+                        const std::vector<std::string>& extra_paths) {
+  OpenedPlugin opened;
+  for (const fs::path& candidate : PluginCandidates(file_name, anchor, extra_paths)) {
+    std::error_code ec;
+    if (!fs::is_regular_file(candidate, ec)) {
+      opened.tried += (opened.tried.empty() ? "'" : ", '") + candidate.string() + "'";
+      continue;
+    }
+    opened.path = candidate;
+    opened.handle = dlopen(candidate.c_str(), dlopen_flags);
+    if (!opened.handle) {
+      const char* why = dlerror();
+      opened.dlopen_error = why ? why : "unknown dlopen error";
+    }
+    return opened;
+  }
+  return opened;
+}
+
+}  // namespace kneedyn
