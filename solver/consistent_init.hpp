@@ -1,8 +1,8 @@
 // Consistent initialization, shared by all formulations. Takes a partial or
 // inconsistent state and returns one that satisfies, in order:
-//   1. position level: the contact conditions of the active contacts — chapter form
-//      (Eqs. 1.8, 1.13: five residuals per contact, contact coordinates free) or closed form
-//      (gap φ_i = 0) — over the coordinates not held;
+//   1. position level: the contact conditions of the active contacts — chapter form (Eqs.
+//      1.8, 1.13: five residuals per contact) or closed form (gap φ_i = 0) — over the coordinates
+//      not held (more of those than contacts: both take the closed form's pose, docs/model.md §6);
 //   2. velocity level: φ̇_i = G_i ν = 0 over the velocities not held (minimum-norm
 //      correction);
 //   3. the hidden constraint: N_i and ν̇ from the Newton–Euler equations and φ̈_i = 0

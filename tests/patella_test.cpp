@@ -4,10 +4,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "formulations/formulation.hpp"
 #include "formulations/run.hpp"
 #include "scene/scene.hpp"
+#include "solver/consistent_init.hpp"
+#include "solver/constraint_residuals.hpp"
 #include "solver/contact_kinematics.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/patella.hpp"
@@ -294,24 +297,58 @@ TEST(PatellaLiftoff, SeparatedFacetSolvesTheComplementarityByASecondContactDescr
 }
 
 // The hard case patella_medial_liftoff (extension under the larger Q-angle): the medial
-// facet lifts off as the knee extends. The ODE check (ede) and the DAE (dae) locate the event
-// at the same time, and there the facet's force ratio is zero.
-TEST(PatellaLiftoff, ExtensionUnderLateralPullLiftsTheMedialFacetOffInEdeAndDae) {
+// facet lifts off as the knee extends. The ODE check (ede), the minimal ODE (mde) and the DAE
+// (dae) locate the event at the same time, and there the facet's force ratio is zero.
+//
+// This scene holds α, β, γ, y0 with one contact active, so x0 and z0 have one consistency
+// condition between them: the consistent start is a curve, and the chapter-form position
+// level (dae's) used to land on another point of it than the gap form's (ede's, mde's):
+// x0 9e-4 mm and z0 2.1e-3 mm apart, and dae's lift-off came 1.8e-6 s after ede's and
+// mde's. Every form now starts from the gap form's point (solver/consistent_init.cpp).
+TEST(PatellaLiftoff, EveryContactFormStartsTheUnderdeterminedSceneFromTheSamePose) {
+  const Scene scene = LoadScene("reference-data/scenes/hard/patella_medial_liftoff.yaml");
+  InitReport chapter_report, gap_report;
+  ConsistentInitOptions chapter, gap;
+  chapter.form = ContactForm::kChapter;
+  gap.form = ContactForm::kClosedForm;
+  const MechanicalState a = ConsistentInitialize(scene.model, scene.initial, {0}, chapter, &chapter_report);
+  const MechanicalState b = ConsistentInitialize(scene.model, scene.initial, {0}, gap, &gap_report);
+  EXPECT_EQ(a.q, b.q) << a.q.transpose() << "\n" << b.q.transpose();
+  // Held coordinates unchanged; the start moved off the scene's pose (it is not consistent).
+  for (int i : {kAlpha, kBeta, kGamma, kY0}) EXPECT_EQ(a.q(i), scene.initial.q(i)) << i;
+  EXPECT_GT((a.q - scene.initial.q).head<3>().norm(), 1e-7);  // m
+  // The chapter form's own residuals (Eqs. 1.8, 1.13) hold there with its contact coordinates.
+  std::vector<double> gap_value, rate;
+  ConstraintResiduals(scene.model, a, &gap_value, &rate);
+  EXPECT_NEAR(gap_value[0], 0.0, 1e-12);  // m
+  EXPECT_LE(chapter_report.position.residual_after, 1e-11);
+}
+
+TEST(PatellaLiftoff, ExtensionUnderLateralPullLiftsTheMedialFacetOffInEdeMdeAndDae) {
   const Scene scene = LoadScene("reference-data/scenes/hard/patella_medial_liftoff.yaml");
   const RunResult ode = RunWith(scene, "ede", 1e-10, 1e-12);
   const RunResult dae = RunWith(scene, "dae", 1e-10, 1e-12);
+  const RunResult mde = RunWith(scene, "mde", 1e-10, 1e-12);
   auto find = [](const RunResult& r, const std::string& name) {
     for (const EventRecord& e : r.events) {
       if (e.name == name) return e.time;
     }
     return -1.0;
   };
-  const double t_ode = find(ode, "liftoff_patellar_medial"), t_dae = find(dae, "liftoff_patellar_medial");
+  const double t_ode = find(ode, "liftoff_patellar_medial"), t_dae = find(dae, "liftoff_patellar_medial"),
+               t_mde = find(mde, "liftoff_patellar_medial");
   ASSERT_GT(t_ode, 0.0);
   ASSERT_GT(t_dae, 0.0);
-  // Measured: 1.8e-6 s apart at rtol 1e-10 (the same at the default tolerances); the
-  // impact scene's events agree to 1e-8 relative. Not yet explained: recorded, not hidden.
-  EXPECT_NEAR(t_ode, t_dae, 1e-5);
+  ASSERT_GT(t_mde, 0.0);
+  std::printf("liftoff_patellar_medial: ede %.12f s, mde %.12f s, dae %.12f s\n", t_ode, t_mde, t_dae);
+  // 8 digits, as the impact scene's events (OdeAndDaeAgreeOnEventTimesAndPatellarPose).
+  // Measured 1.2e-10 s apart at these tolerances; 1.8e-6 s (dae late) before every form
+  // started from the same pose.
+  EXPECT_NEAR(t_dae, t_ode, 1e-8 * t_ode);
+  EXPECT_NEAR(t_mde, t_ode, 1e-8 * t_ode);
+  for (const RunResult* r : {&mde, &dae}) {
+    for (const EventRecord& e : r->events) EXPECT_NE(e.name, "recontact_patellar_medial");
+  }
   const Patella& patella = *scene.model.patella;
   for (size_t i = 0; i < ode.samples.size(); ++i) {
     if (!ode.sample_is_event[i] || ode.samples[i].t != t_ode) continue;
