@@ -6,6 +6,7 @@
 //                  --integrator cvode-adams --rtol 1e-14 --atol 1e-16 --check ede
 //                  --check-integrator dopri5 --check-rtol 1e-13 --check-atol 1e-15]
 //   make_reference --scene FILE --verify STORED.json
+//   make_reference --scene FILE --compare STORED.json --with OTHER.json
 // --method extended (default): the knee in quadruple precision (--scalar float128; or
 // long-double, or double for comparison) through the templated physics,
 // integrated by s-stage Gauss–Legendre collocation (extended_reference.hpp) at step h
@@ -25,6 +26,11 @@
 // --verify regenerates the primary and exits 1 if it differs from the stored solution by
 // more than the stated accuracy (scd below accuracy_scd, or a class's digits below the
 // stored agreement digits, or an event time further than the stored event agreement).
+// --compare checks two stored references of the scene against each other without running
+// anything (e.g. the quadruple-precision reference against an earlier double one, an
+// independent computation): OTHER's values at STORED's comparison times, digits per class as
+// the stated accuracy counts them; exit 1 if a class (or an event time) agrees to fewer
+// digits than the lesser of the two files' stated accuracy for it.
 // Exit codes: 0 ok, 1 drift or solver failure, 2 bad input (nothing written).
 #include <CLI/CLI.hpp>
 
@@ -194,6 +200,44 @@ int Verify(const Scene& scene, const std::string& stored_path) {
   return ok ? 0 : 1;
 }
 
+// The stated accuracy of `ref` for class `cls` (accuracy_scd_per_class; an older file
+// without it: its one accuracy_scd for every class), or +inf when it states none.
+double StatedAccuracy(const Reference& ref, const std::string& cls) {
+  const nlohmann::json per_class = ref.json.value("accuracy_scd_per_class", nlohmann::json::object());
+  if (per_class.contains(cls)) return per_class.at(cls).get<double>();
+  return std::isnan(ref.accuracy_scd) ? INFINITY : ref.accuracy_scd;
+}
+
+int CompareStored(const Scene& scene, const std::string& stored_path, const std::string& other_path) {
+  const Reference stored = LoadReference(stored_path);
+  const Reference other = LoadReference(other_path);
+  if (stored.json.value("scene", "") != scene.name || other.json.value("scene", "") != scene.name) {
+    Throw<InputError>("make_reference", "--compare '", stored_path, "' and --with '", other_path,
+                      "' must both be references of the scene '", scene.name, "' (their scene fields: '",
+                      stored.json.value("scene", ""), "', '", other.json.value("scene", ""), "')");
+  }
+  const Metrics m = Compare(other.solution, stored.solution);
+  if (m.missing_times > 0) {
+    std::printf("DISAGREE: %s lacks %d of %s's comparison times\n", other_path.c_str(), m.missing_times,
+                stored_path.c_str());
+    return 1;
+  }
+  const nlohmann::json digits = AccuracyPerClass(m, stored.solution);
+  bool ok = true;
+  std::printf("%s: %s vs %s at %d comparison times\n", scene.name.c_str(), other_path.c_str(), stored_path.c_str(),
+              m.compared_times);
+  std::printf("  %-16s %-8s %-8s %-8s %s\n", "class", "digits", "stored", "other", "(stated accuracies)");
+  for (const auto& [cls, v] : digits.items()) {
+    const double need = std::min(StatedAccuracy(stored, cls), StatedAccuracy(other, cls));
+    const bool pass = v.get<double>() >= need;
+    std::printf("  %-16s %-8.1f %-8.1f %-8.1f %s\n", cls.c_str(), v.get<double>(), StatedAccuracy(stored, cls),
+                StatedAccuracy(other, cls), pass ? "ok" : "BELOW the lesser stated accuracy");
+    ok = ok && pass;
+  }
+  std::printf("%s\n", ok ? "references agree to their stated accuracy" : "DISAGREE: references differ beyond their stated accuracy");
+  return ok ? 0 : 1;
+}
+
 int Generate(const Scene& scene, const std::string& scene_path, const std::string& out_path,
              const BenchConfig& primary, const BenchConfig& check, double interval,
              bool conservative, const std::string& command_line) {
@@ -336,7 +380,7 @@ int GenerateExtended(const Scene& scene, const std::string& scene_path, const st
 
 int main(int argc, char** argv) {
   CLI::App app{"kneedyn reference solutions"};
-  std::string scene_path, out_path, verify_path;
+  std::string scene_path, out_path, verify_path, compare_path, with_path;
   BenchConfig primary, check;
   primary.formulation = "mde";
   primary.integrator = "cvode-adams";
@@ -348,7 +392,11 @@ int main(int argc, char** argv) {
   bool conservative = false;
   app.add_option("--scene", scene_path, "scene file")->required();
   auto* out_opt = app.add_option("--out", out_path, "reference JSON to write");
-  app.add_option("--verify", verify_path, "stored reference to reproduce")->excludes(out_opt);
+  auto* verify_opt = app.add_option("--verify", verify_path, "stored reference to reproduce")->excludes(out_opt);
+  auto* compare_opt = app.add_option("--compare", compare_path, "stored reference to check against --with's")
+                          ->excludes(out_opt)
+                          ->excludes(verify_opt);
+  app.add_option("--with", with_path, "the other stored reference of the scene (with --compare)")->needs(compare_opt);
   app.add_option("--formulation", primary.formulation, "primary formulation")->capture_default_str();
   app.add_option("--check", check.formulation, "independent second formulation")->capture_default_str();
   app.add_option("--integrator", primary.integrator, "primary's integrator (mde, ede)")->capture_default_str();
@@ -380,10 +428,14 @@ int main(int argc, char** argv) {
   std::string command_line;
   for (int i = 0; i < argc; ++i) command_line += (i ? " " : "") + std::string(i ? argv[i] : "make_reference");
   try {
-    if (out_path.empty() && verify_path.empty()) {
-      Throw<InputError>("make_reference", "one of --out or --verify is required");
+    if (out_path.empty() && verify_path.empty() && compare_path.empty()) {
+      Throw<InputError>("make_reference", "one of --out, --verify or --compare is required");
+    }
+    if (!compare_path.empty() && with_path.empty()) {
+      Throw<InputError>("make_reference", "--compare '", compare_path, "' needs --with (the other reference)");
     }
     const Scene scene = LoadScene(scene_path);
+    if (!compare_path.empty()) return CompareStored(scene, compare_path, with_path);
     if (!verify_path.empty()) return Verify(scene, verify_path);
     if (method == "extended") {
       extended.output_interval = interval;
