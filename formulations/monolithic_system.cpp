@@ -55,7 +55,8 @@ std::string MonolithicSystem::UnknownName(int i) const {
   return i < tibia_.size() ? tibia_.UnknownName(i) : std::string(PatellaUnknownName(i - tibia_.size()));
 }
 
-void MonolithicSystem::InitialValues(const MechanicalState& state, PatellaGuess* guess, double* y, double* yp) {
+void MonolithicSystem::InitialValues(const MechanicalState& state, double* y, double* yp) {
+  PatellaGuess* guess = &guess_;
   const int nt = tibia_.size();
   tibia_.InitialValues(state, y, yp);
   const Patella& patella = *model_->patella;

@@ -87,8 +87,7 @@ Perturbed PerturbedState(MonolithicSystem* system, unsigned seed) {
   const int n = system->size();
   p.y.assign(n, 0.0);
   p.yp.assign(n, 0.0);
-  PatellaGuess guess;
-  system->InitialValues(s, &guess, p.y.data(), p.yp.data());
+  system->InitialValues(s, p.y.data(), p.yp.data());
   for (int i = 12; i < system->tibia().NormalIndex(0); ++i) p.y[i] += 2e-4 * u(rng);
   for (int k = 0; k < 2; ++k) p.y[system->tibia().NormalIndex(k)] += 10.0 * u(rng);
   if (system->tibia().ggl()) {
@@ -166,8 +165,7 @@ TEST(MonolithicSystem, ResidualVanishesAtAStateOfTheEliminatedForm) {
       system.SetPhase(s.active, s.contact, s.ligament_branch);
       const int n = system.size(), nt = system.tibia_size();
       std::vector<double> y(n), yp(n), F(n);
-      PatellaGuess guess;
-      system.InitialValues(s, &guess, y.data(), yp.data());
+      system.InitialValues(s, y.data(), yp.data());
       ASSERT_TRUE(system.Residual(s.t, y.data(), yp.data(), F.data()));
       for (int r = 0; r < 6; ++r) EXPECT_EQ(F[r], 0.0) << "kinematic row " << r;
       for (int r = 6; r < 12; ++r) EXPECT_NEAR(F[r], 0.0, 1e-9) << "Newton-Euler row " << r << " (N, N m)";

@@ -56,6 +56,8 @@ class MonolithicSystem {
   MonolithicSystem(const MonolithicSystem&) = delete;
   MonolithicSystem& operator=(const MonolithicSystem&) = delete;
 
+  // The interface of DaeSystem (formulations/internal/dae_system.hpp), which the IDA driver
+  // (IdaDriver, dae_on_ida.hpp) runs.
   // The tibia's phase (DaeSystem::SetPhase).
   void SetPhase(const std::vector<int>& active, const std::vector<ContactGuess>& contact,
                 const std::vector<signed char>& ligament_branch);
@@ -64,13 +66,15 @@ class MonolithicSystem {
   int tibia_size() const { return tibia_.size(); }
   int size() const { return tibia_.size() + kPatellaUnknowns; }
   int PatellaIndex(int i) const { return tibia_.size() + i; }  // i: PatellaUnknown
+  int NormalIndex(int c) const { return tibia_.NormalIndex(c); }
+  int per_contact() const { return tibia_.per_contact(); }
   bool IsDifferential(int i) const { return i < 12; }          // q, u; all else algebraic
   std::string UnknownName(int i) const;                        // DaeSystem's, then "patella_shift", ...
 
   // y, ẏ of a consistent state: the tibia's (DaeSystem::InitialValues), x the patella's
-  // equilibrium at the state's tibial pose (SolvePatella from *guess, which it updates), ẋ
+  // equilibrium at the state's tibial pose (SolvePatella from the last phase's solution), ẋ
   // from the time derivative of the patella rows, ∂r/∂x ẋ = −∂r/∂q q̇.
-  void InitialValues(const MechanicalState& state, PatellaGuess* guess, double* y, double* yp);
+  void InitialValues(const MechanicalState& state, double* y, double* yp);
 
   // F(t, y, ẏ) for T = double or JetD with the matching workspace (DataTpl over the tibia's
   // model, without the patella). False outside a surface's domain.
@@ -96,6 +100,7 @@ class MonolithicSystem {
   mutable DataTpl<JetD> data_jet_;
   mutable std::vector<JetD> yj_, ypj_, Fj_;
   mutable std::vector<double> tibia_jacobian_;  // n_t × n_t
+  PatellaGuess guess_;  // the patella's last equilibrium: warm start of the next phase's x
 };
 
 template <typename T>
@@ -114,6 +119,10 @@ bool MonolithicSystem::Residual(double t, const T* y, const T* yp, T* F, DataTpl
   for (int i = 0; i < 6; ++i) F[6 + i] += tendon(i);
   return true;
 }
+
+// IDA's absolute tolerance of unknown i (IdaDriver, dae_on_ida.hpp; defined in monolithic.cpp):
+// the tibia's DaeUnknownAtol, `atol` for the patella's x.
+double DaeUnknownAtol(bool ggl, const MonolithicSystem& system, int i, double atol);
 
 // Test hooks (tests/monolithic_test.cpp). The patella unknowns x of a `monolithic` /
 // `monolithic-ggl` formulation at the end of its last Advance (the state it wrote back);
