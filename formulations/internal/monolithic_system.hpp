@@ -33,18 +33,18 @@ namespace kneedyn {
 // quadriceps magnitude F_Q (N) and patella unknowns x: `patella_rows` (17) the equations of
 // solver/patella.hpp at R_a = TuberosityInF(tibia), `tendon_wrench` the generalized force of
 // the tendon on the tibia in ν-coordinates (force τ_t F_Q (R_t − R_a)/|R_t − R_a| in F at the
-// tuberosity, Eq. 1.63; its moment about the COM in T), as solver/dynamics.hpp applies it.
+// tuberosity, Eq. 1.63; its moment about the COM in T): solver/patella.hpp's
+// TendonForceOnTibia_F and TendonMomentOnTibia_T, as PatellarTendonForce applies it.
 // False outside a facet's chart.
 template <typename T>
 bool PatellaCouplingRows(const Patella& patella, double quadriceps, const PoseTpl<T>& tibia, const T* x,
                          T* patella_rows, Vector6<T>* tendon_wrench) {
   const Vector3<T> tuberosity_F = TuberosityInF(patella, tibia);
   if (!PatellaResiduals(patella, tuberosity_F, x, patella_rows)) return false;
-  const Vector3<T> apex_F = PatellaPose(x).PointInF(patella.apex_P.template cast<T>());
-  const Vector3<T> span_F = apex_F - tuberosity_F;
-  const Vector3<T> force_F = (x[kPatellaTendonRatio] * quadriceps) * span_F / span_F.norm();
+  T tension;
+  const Vector3<T> force_F = TendonForceOnTibia_F(patella, tuberosity_F, x, quadriceps, &tension);
   tendon_wrench->template head<3>() = force_F;
-  tendon_wrench->template tail<3>() = patella.tuberosity_T.template cast<T>().cross(tibia.R_FT.transpose() * force_F);
+  tendon_wrench->template tail<3>() = TendonMomentOnTibia_T(patella, tibia, force_F);
   return true;
 }
 
