@@ -20,9 +20,17 @@
 // simulator's consistent tibial state (its tendon force from SolvePatella) and x from
 // SolvePatella at the same tibial pose, so the residual vanishes at t0 to round-off.
 //
-// Events: those of dae (lift-off, re-contact, 90°, ligament branches), plus one root
-// function per patellar facet, g = λ_i: a facet force that changes sign means the facet
-// lifts off, which this model does not handle: SolverError naming the facet and the time.
+// Events: those of dae (lift-off, re-contact, 90°, ligament branches). Without the scene's
+// patella.facet_liftoff, plus one root function per patellar facet, g = λ_i (the unknown):
+// a facet force that changes sign means the facet would pull, which both-facet contact
+// does not allow: SolverError naming the facet and the time. With facet_liftoff, the
+// patellar events of every formulation (solver/events.hpp: liftoff_patellar_*,
+// recontact_patellar_*, the contact function of SolvePatella's complementarity at the
+// tibial pose, so that all stop at the same events), which restart IDA; each phase's facets
+// are those SolvePatella's complementarity chooses at its start (MonolithicSystem::
+// InitialValues), a separated facet's gap row replaced by λ_i = 0 (the same 17 unknowns,
+// solver/patella.hpp). Where the one-facet equilibrium does not hold (past its fold), the
+// complementarity keeps both facets with λ_i < 0, as in the ODE forms' right-hand side.
 #include <algorithm>
 #include <array>
 #include <memory>
@@ -50,7 +58,8 @@ class MonolithicOnIda final : public IdaDriver<MonolithicSystem> {
  public:
   MonolithicOnIda(const Scene& scene, const IdaOptions& options, const DaeOnIdaVariant& variant)
       : IdaDriver(scene, options, ContactForm::kChapter, variant, RequirePatella(scene, variant.name),
-                  options.constraint_level, variant.ggl) {}
+                  options.constraint_level, variant.ggl),
+        facet_liftoff_(scene.model.patella->facet_liftoff) {}
 
   // The patella's unknowns at the end of the last Advance (monolithic_system.hpp test hook).
   bool PatellaUnknowns(std::array<double, kPatellaUnknowns>* x) const {
@@ -61,10 +70,13 @@ class MonolithicOnIda final : public IdaDriver<MonolithicSystem> {
   }
 
  protected:
-  std::vector<int> ExtraRootDirections() const override { return kFacetRootDirections; }
+  std::vector<int> ExtraRootDirections() const override {
+    return facet_liftoff_ ? std::vector<int>() : kFacetRootDirections;
+  }
 
-  // The phase's events (solver/events.hpp), then λ_medial, λ_lateral.
+  // The phase's events (solver/events.hpp), then λ_medial, λ_lateral without facet_liftoff.
   void EvaluateRoots(const double* y, double* g) override {
+    if (facet_liftoff_) return IdaDriver::EvaluateRoots(y, g);
     const Vector6d q = Eigen::Map<const Vector6d>(y);
     std::fill(normal_.begin(), normal_.end(), 0.0);
     for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = y[system_.NormalIndex(static_cast<int>(c))];
@@ -75,6 +87,7 @@ class MonolithicOnIda final : public IdaDriver<MonolithicSystem> {
   }
 
   AdvanceResult RootResult(double t) override {
+    if (facet_liftoff_) return IdaDriver::RootResult(t);
     for (size_t i = 0; i < kFacetRootDirections.size(); ++i) {
       if (root_flags_[events_.size() + i] == 0) continue;
       Throw<SolverError>(variant_.name, "the ", i == 0 ? "medial" : "lateral",
@@ -97,6 +110,8 @@ class MonolithicOnIda final : public IdaDriver<MonolithicSystem> {
     }
     return scene.model;
   }
+
+  bool facet_liftoff_;  // the scene's patella.facet_liftoff: a facet may separate (solver/patella.hpp)
 };
 
 constexpr DaeOnIdaVariant kMonolithic = {"monolithic", false};

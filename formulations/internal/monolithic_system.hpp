@@ -31,16 +31,17 @@ namespace kneedyn {
 
 // The patella's residual rows and the tendon's pull on the tibia at the tibial pose, time's
 // quadriceps magnitude F_Q (N) and patella unknowns x: `patella_rows` (17) the equations of
-// solver/patella.hpp at R_a = TuberosityInF(tibia), `tendon_wrench` the generalized force of
+// solver/patella.hpp at R_a = TuberosityInF(tibia) with the facets `pressing` (a separated
+// facet's gap row is λ_i = 0), `tendon_wrench` the generalized force of
 // the tendon on the tibia in ν-coordinates (force τ_t F_Q (R_t − R_a)/|R_t − R_a| in F at the
 // tuberosity, Eq. 1.63; its moment about the COM in T): solver/patella.hpp's
 // TendonForceOnTibia_F and TendonMomentOnTibia_T, as PatellarTendonForce applies it.
 // False outside a facet's chart.
 template <typename T>
-bool PatellaCouplingRows(const Patella& patella, double quadriceps, const PoseTpl<T>& tibia, const T* x,
-                         T* patella_rows, Vector6<T>* tendon_wrench) {
+bool PatellaCouplingRows(const Patella& patella, const PatellaFacets& pressing, double quadriceps,
+                         const PoseTpl<T>& tibia, const T* x, T* patella_rows, Vector6<T>* tendon_wrench) {
   const Vector3<T> tuberosity_F = TuberosityInF(patella, tibia);
-  if (!PatellaResiduals(patella, tuberosity_F, x, patella_rows)) return false;
+  if (!PatellaResiduals(patella, tuberosity_F, x, patella_rows, pressing)) return false;
   T tension;
   const Vector3<T> force_F = TendonForceOnTibia_F(patella, tuberosity_F, x, quadriceps, &tension);
   tendon_wrench->template head<3>() = force_F;
@@ -58,6 +59,10 @@ class MonolithicSystem {
 
   // The interface of DaeSystem (formulations/internal/dae_system.hpp), which the IDA driver
   // (IdaDriver, dae_on_ida.hpp) runs.
+  // The patellar facets that press in this phase (InitialValues; both unless the scene's
+  // patella.facet_liftoff lets one separate); a separated facet's gap row is λ_i = 0
+  // (solver/patella.hpp), the same 17 unknowns.
+  const PatellaFacets& facets() const { return pressing_; }
   // The tibia's phase (DaeSystem::SetPhase).
   void SetPhase(const std::vector<int>& active, const std::vector<ContactGuess>& contact,
                 const std::vector<signed char>& ligament_branch);
@@ -72,7 +77,8 @@ class MonolithicSystem {
   std::string UnknownName(int i) const;                        // DaeSystem's, then "patella_shift", ...
 
   // y, ẏ of a consistent state: the tibia's (DaeSystem::InitialValues), x the patella's
-  // equilibrium at the state's tibial pose (SolvePatella from the last phase's solution), ẋ
+  // equilibrium at the state's tibial pose (SolvePatella from the last phase's solution; its
+  // complementarity fixes the phase's facets, facets()), ẋ
   // from the time derivative of the patella rows, ∂r/∂x ẋ = −∂r/∂q q̇.
   void InitialValues(const MechanicalState& state, double* y, double* yp);
 
@@ -101,6 +107,7 @@ class MonolithicSystem {
   mutable std::vector<JetD> yj_, ypj_, Fj_;
   mutable std::vector<double> tibia_jacobian_;  // n_t × n_t
   PatellaGuess guess_;  // the patella's last equilibrium: warm start of the next phase's x
+  PatellaFacets pressing_ = kBothFacetsPress;  // the facets that press in this phase
 };
 
 template <typename T>
@@ -111,8 +118,8 @@ bool MonolithicSystem::Residual(double t, const T* y, const T* yp, T* F, DataTpl
   for (int i = 0; i < 6; ++i) q(i) = y[i];
   Vector6<T> tendon;
   const Patella& patella = *model_->patella;
-  if (!PatellaCouplingRows(patella, QuadricepsMagnitude(patella.quadriceps, t), PoseFromCoordinates(q), y + nt,
-                           F + nt, &tendon)) {
+  if (!PatellaCouplingRows(patella, pressing_, QuadricepsMagnitude(patella.quadriceps, t), PoseFromCoordinates(q),
+                           y + nt, F + nt, &tendon)) {
     return false;
   }
   // F7–F12 = Q + Σ N_i G_iᵀ − M ν̇ (dae_system.hpp): the tendon belongs to Q.
