@@ -14,12 +14,13 @@ constexpr int kCouplingJetSize = 6 + kPatellaUnknowns;
 using CouplingJet = ceres::Jet<double, kCouplingJetSize>;
 
 // The coupling rows as Jets over (q, x) at (q, x) = (y[0, 6), y[n_t, n_t + 17)).
-bool LinearizeCoupling(const Patella& patella, double t, const double* y, int nt, CouplingJet* patella_rows,
-                       Vector6<CouplingJet>* tendon) {
+bool LinearizeCoupling(const Patella& patella, const PatellaFacets& pressing, double t, const double* y, int nt,
+                       CouplingJet* patella_rows, Vector6<CouplingJet>* tendon) {
   const PoseTpl<CouplingJet> pose = PoseWithCoordinateDerivatives<kCouplingJetSize>(Eigen::Map<const Vector6d>(y));
   CouplingJet x[kPatellaUnknowns];
   for (int i = 0; i < kPatellaUnknowns; ++i) x[i] = CouplingJet(y[nt + i], 6 + i);
-  return PatellaCouplingRows(patella, QuadricepsMagnitude(patella.quadriceps, t), pose, x, patella_rows, tendon);
+  return PatellaCouplingRows(patella, pressing, QuadricepsMagnitude(patella.quadriceps, t), pose, x, patella_rows,
+                             tendon);
 }
 
 }  // namespace
@@ -55,11 +56,16 @@ std::string MonolithicSystem::UnknownName(int i) const {
   return i < tibia_.size() ? tibia_.UnknownName(i) : std::string(PatellaUnknownName(i - tibia_.size()));
 }
 
-void MonolithicSystem::InitialValues(const MechanicalState& state, PatellaGuess* guess, double* y, double* yp) {
+void MonolithicSystem::InitialValues(const MechanicalState& state, double* y, double* yp) {
+  PatellaGuess* guess = &guess_;
   const int nt = tibia_.size();
   tibia_.InitialValues(state, y, yp);
   const Patella& patella = *model_->patella;
-  SolvePatella(patella, TuberosityInF(patella, PoseFromCoordinates(state.q)), "MonolithicSystem::InitialValues", guess);
+  const Vector3d tuberosity_F = TuberosityInF(patella, PoseFromCoordinates(state.q));
+  SolvePatella(patella, tuberosity_F, "MonolithicSystem::InitialValues", guess);
+  // The phase's facets: those of SolvePatella's complementarity at the start (the ODE forms'
+  // choice in their right-hand side; both unless patella.facet_liftoff).
+  pressing_ = guess->pressing;
   for (int i = 0; i < kPatellaUnknowns; ++i) {
     y[nt + i] = guess->x[i];
     yp[nt + i] = 0.0;
@@ -67,7 +73,7 @@ void MonolithicSystem::InitialValues(const MechanicalState& state, PatellaGuess*
   // ẋ = −(∂r/∂x)⁻¹ ∂r/∂q q̇ (r does not depend on t: the quadriceps magnitude divides out).
   CouplingJet r[kPatellaUnknowns];
   Vector6<CouplingJet> tendon;
-  if (!LinearizeCoupling(patella, state.t, y, nt, r, &tendon)) return;
+  if (!LinearizeCoupling(patella, pressing_, state.t, y, nt, r, &tendon)) return;
   PatellaJacobian A;
   Eigen::Matrix<double, kPatellaUnknowns, 1> b;
   for (int i = 0; i < kPatellaUnknowns; ++i) {
@@ -87,7 +93,7 @@ bool MonolithicSystem::Jacobian(double t, double cj, const double* y, const doub
   J.topLeftCorner(nt, nt) = Eigen::Map<const MatrixXd>(tibia_jacobian_.data(), nt, nt);
   CouplingJet r[kPatellaUnknowns];
   Vector6<CouplingJet> tendon;
-  if (!LinearizeCoupling(*model_->patella, t, y, nt, r, &tendon)) return false;
+  if (!LinearizeCoupling(*model_->patella, pressing_, t, y, nt, r, &tendon)) return false;
   for (int i = 0; i < kPatellaUnknowns; ++i) {
     for (int j = 0; j < 6; ++j) J(nt + i, j) = r[i].v[j];
     for (int j = 0; j < kPatellaUnknowns; ++j) J(nt + i, nt + j) = r[i].v[6 + j];

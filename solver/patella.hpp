@@ -141,6 +141,13 @@ using PatellaJacobian = Eigen::Matrix<double, kPatellaUnknowns, kPatellaUnknowns
 void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const char* caller, PatellaGuess* guess,
                   Eigen::PartialPivLU<PatellaJacobian>* jacobian_lu = nullptr);
 
+// Newton on the 17 equations at R_a = tuberosity_F (m) with the facets `pressing` fixed (no
+// complementarity switch), from *x, to round-off: the monolithic DAE's consistent x for a
+// phase whose facets the events fixed (formulations/monolithic.cpp). True with *x the
+// solution; false (*x unspecified) when Newton does not converge or leaves a chart.
+bool SolvePatellaWithFacets(const Patella& patella, const Vector3d& tuberosity_F, const PatellaFacets& pressing,
+                            std::array<double, kPatellaUnknowns>* x);
+
 // Max |r_i| at a solution (m for positions, dimensionless for forces / F_Q).
 double PatellaResidualNorm(const Patella& patella, const Vector3d& tuberosity_F,
                            const std::array<double, kPatellaUnknowns>& x,
@@ -160,6 +167,26 @@ Vector3<T> TuberosityInF(const Patella& patella, const PoseTpl<T>& tibia) {
   return tibia.PointInF(patella.tuberosity_T.template cast<T>());
 }
 
+// The patellar tendon's force on the tibia at the tuberosity R_a = tuberosity_F (m) from the
+// patella's unknowns x and the quadriceps magnitude F_Q (N): F_t (R_t − R_a)/|R_t − R_a|
+// (F components, N; the reaction of Eq. 1.63, R_t the apex), with *tension = F_t = τ_t F_Q (N).
+// PatellarTendonForce (the solved patella) and the monolithic DAE (x as unknowns) both use it.
+template <typename T>
+Vector3<T> TendonForceOnTibia_F(const Patella& patella, const Vector3<T>& tuberosity_F, const T* x,
+                                double quadriceps, T* tension) {
+  const Vector3<T> apex_F = PatellaPose(x).PointInF(patella.apex_P.template cast<T>());
+  const Vector3<T> span_F = apex_F - tuberosity_F;
+  *tension = x[kPatellaTendonRatio] * quadriceps;
+  return *tension * (span_F / span_F.norm());
+}
+
+// The moment (N m, T components) of the tendon force force_F (F components, N) about the
+// tibia's centre of mass: it acts at the tuberosity (Eq. 1.63; as ComputeAppliedWrench adds it).
+template <typename T>
+Vector3<T> TendonMomentOnTibia_T(const Patella& patella, const PoseTpl<T>& tibia, const Vector3<T>& force_F) {
+  return patella.tuberosity_T.template cast<T>().cross(tibia.R_FT.transpose() * force_F);
+}
+
 // The patellar tendon's pull on the tibia at a tibial pose and time: tension F_t (N) and
 // its force on the tibia at the tuberosity, F_t (R_t − R_a)/|R_t − R_a| (F components; the
 // reaction of Eq. 1.63). For T = ceres::Jet the double solution is lifted by the implicit
@@ -174,10 +201,7 @@ void PatellarTendonForce(const Patella& patella, double t, const PoseTpl<T>& tib
   const double quadriceps = QuadricepsMagnitude(patella.quadriceps, t);
   if constexpr (std::is_same_v<T, double>) {
     SolvePatella(patella, tuberosity_d, "PatellarTendonForce", guess);
-    const Pose pose = PatellaPose(guess->x.data());
-    const Vector3d apex_F = pose.PointInF(patella.apex_P);
-    *tension = guess->x[kPatellaTendonRatio] * quadriceps;
-    *force_F = *tension * (apex_F - tuberosity_F).normalized();
+    *force_F = TendonForceOnTibia_F(patella, tuberosity_F, guess->x.data(), quadriceps, tension);
   } else {
     Eigen::PartialPivLU<PatellaJacobian> lu;
     SolvePatella(patella, tuberosity_d, "PatellarTendonForce", guess, &lu);
@@ -193,6 +217,8 @@ void PatellarTendonForce(const Patella& patella, double t, const PoseTpl<T>& tib
       for (int j = 0; j < kPatellaUnknowns; ++j) dx -= inverse(i, j) * rhs(j);
       x[i] += dx;
     }
+    // F_t (R_t − R_a)/|R_t − R_a| as TendonForceOnTibia_F, rounded as (F_t span)/|span|: the
+    // Jacobians of dae and ede are built on this order.
     const PoseTpl<T> pose = PatellaPose(x);
     const Vector3<T> apex_F = pose.PointInF(patella.apex_P.template cast<T>());
     *tension = x[kPatellaTendonRatio] * quadriceps;

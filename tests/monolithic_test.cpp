@@ -18,6 +18,8 @@
 //    crosses zero near extension: both stop there with the facet's SolverError, at the time
 //    where λ_medial of SolvePatella along the `ede` solution crosses zero (to 1e-8
 //    relative), with the patellar pose there to 1e-8 of its scale;
+//  - on patella_medial_liftoff (facet_liftoff on) both follow ede through the medial facet's
+//    lift-off: the same events, times to 1e-8 relative, the patellar pose at them;
 //  - a scene without a patella is refused.
 #include <gtest/gtest.h>
 
@@ -87,8 +89,7 @@ Perturbed PerturbedState(MonolithicSystem* system, unsigned seed) {
   const int n = system->size();
   p.y.assign(n, 0.0);
   p.yp.assign(n, 0.0);
-  PatellaGuess guess;
-  system->InitialValues(s, &guess, p.y.data(), p.yp.data());
+  system->InitialValues(s, p.y.data(), p.yp.data());
   for (int i = 12; i < system->tibia().NormalIndex(0); ++i) p.y[i] += 2e-4 * u(rng);
   for (int k = 0; k < 2; ++k) p.y[system->tibia().NormalIndex(k)] += 10.0 * u(rng);
   if (system->tibia().ggl()) {
@@ -166,8 +167,7 @@ TEST(MonolithicSystem, ResidualVanishesAtAStateOfTheEliminatedForm) {
       system.SetPhase(s.active, s.contact, s.ligament_branch);
       const int n = system.size(), nt = system.tibia_size();
       std::vector<double> y(n), yp(n), F(n);
-      PatellaGuess guess;
-      system.InitialValues(s, &guess, y.data(), yp.data());
+      system.InitialValues(s, y.data(), yp.data());
       ASSERT_TRUE(system.Residual(s.t, y.data(), yp.data(), F.data()));
       for (int r = 0; r < 6; ++r) EXPECT_EQ(F[r], 0.0) << "kinematic row " << r;
       for (int r = 6; r < 12; ++r) EXPECT_NEAR(F[r], 0.0, 1e-9) << "Newton-Euler row " << r << " (N, N m)";
@@ -177,8 +177,8 @@ TEST(MonolithicSystem, ResidualVanishesAtAStateOfTheEliminatedForm) {
       Vector6d tendon;
       double rows[kPatellaUnknowns];
       const Patella& patella = *scene.model.patella;
-      ASSERT_TRUE(PatellaCouplingRows(patella, QuadricepsMagnitude(patella.quadriceps, s.t), PoseFromCoordinates(s.q),
-                                      y.data() + nt, rows, &tendon));
+      ASSERT_TRUE(PatellaCouplingRows(patella, kBothFacetsPress, QuadricepsMagnitude(patella.quadriceps, s.t),
+                                      PoseFromCoordinates(s.q), y.data() + nt, rows, &tendon));
       EXPECT_GT(tendon.head<3>().norm(), 10.0);
       ++checked;
     }
@@ -343,6 +343,57 @@ TEST(MonolithicRuns, StopsWhereTheOdeFormsMedialFacetForceCrossesZeroOnTheExtens
       EXPECT_LE(d, 1e-8) << PatellaUnknownName(k);
     }
     std::printf("%s: patellar pose difference there %.2e of the scale\n", c.name, worst);
+  }
+}
+
+// patella_medial_liftoff (reference-data/scenes/hard/): with the scene's facet_liftoff the
+// medial facet lifts off as the knee extends (docs/model.md §12); the monolithic DAE then
+// replaces that facet's gap row by λ_medial = 0 and runs on to the end. Against `ede` at
+// rtol 1e-12 from the same start (the scene holds four coordinates, so the start depends on
+// the contact description: see the extension test above): the same events, the lift-off
+// among them, their times to 1e-8 relative and the patellar pose at them (the DAE's own x)
+// to 1e-8 of the scale. After the lift-off both follow the same branch of SolvePatella's
+// complementarity (here past the one-facet branch's fold: both facets kept, λ_medial < 0,
+// docs/model.md §12): at the end the DAE's own x and SolvePatella at ede's last pose agree
+// to 1e-7 (pose of its scale, λ).
+TEST(MonolithicRuns, FollowsTheOdeFormThroughTheMedialFacetLiftoff) {
+  const Scene scene = LoadScene("reference-data/scenes/hard/patella_medial_liftoff.yaml");
+  ASSERT_TRUE(scene.model.patella && scene.model.patella->facet_liftoff);
+  struct Case {
+    const char* name;
+    double rtol;
+  };
+  EventsAndPatella reference;
+  for (const Case& c : {Case{"monolithic", kPlainRtol}, Case{"monolithic-ggl", 1e-12}}) {
+    SCOPED_TRACE(c.name);
+    const EventsAndPatella run = RunMonolithic(scene, c.name, c.rtol, 1e-2 * c.rtol);
+    ASSERT_TRUE(run.run.completed) << run.run.failure;
+    if (reference.run.samples.empty()) {
+      Scene same_start = scene;
+      same_start.initial.q = run.run.samples.at(0).q;
+      reference = EliminatedReference(same_start);
+    }
+    EXPECT_EQ(reference.run.samples.at(0).q, run.run.samples.at(0).q);
+    bool lifted = false;
+    for (const EventRecord& e : reference.run.events) lifted = lifted || e.name == "liftoff_patellar_medial";
+    ASSERT_TRUE(lifted) << "the ODE form records no medial facet lift-off";
+    ExpectAgreement(reference, run, c.name);
+    const Patella& p = *scene.model.patella;
+    PatellaGuess at_end;  // warm start: the DAE's own solution at its last pose
+    at_end.x = run.x_last;
+    at_end.tuberosity_F = TuberosityInF(p, PoseFromCoordinates(run.run.samples.back().q));
+    at_end.pressing = kBothFacetsPress;
+    at_end.valid = true;
+    SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(reference.run.samples.back().q)), "test", &at_end);
+    for (int k = 0; k < 6; ++k) {
+      EXPECT_NEAR(run.x_last[k], at_end.x[k], 1e-7 * PatellaScale(k)) << PatellaUnknownName(k);
+    }
+    for (int i = 0; i < 2; ++i) {
+      EXPECT_NEAR(run.x_last[kPatellaFacetRatio + i], at_end.x[kPatellaFacetRatio + i], 1e-7);
+    }
+    std::printf("%s: at the end λ_medial %.9f (ede's pose: %.9f), λ_lateral %.9f (%.9f)\n", c.name,
+                run.x_last[kPatellaFacetRatio], at_end.x[kPatellaFacetRatio], run.x_last[kPatellaFacetRatio + 1],
+                at_end.x[kPatellaFacetRatio + 1]);
   }
 }
 

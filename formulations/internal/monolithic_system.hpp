@@ -31,20 +31,21 @@ namespace kneedyn {
 
 // The patella's residual rows and the tendon's pull on the tibia at the tibial pose, time's
 // quadriceps magnitude F_Q (N) and patella unknowns x: `patella_rows` (17) the equations of
-// solver/patella.hpp at R_a = TuberosityInF(tibia), `tendon_wrench` the generalized force of
+// solver/patella.hpp at R_a = TuberosityInF(tibia) with the facets `pressing` (a separated
+// facet's gap row is λ_i = 0), `tendon_wrench` the generalized force of
 // the tendon on the tibia in ν-coordinates (force τ_t F_Q (R_t − R_a)/|R_t − R_a| in F at the
-// tuberosity, Eq. 1.63; its moment about the COM in T), as solver/dynamics.hpp applies it.
+// tuberosity, Eq. 1.63; its moment about the COM in T): solver/patella.hpp's
+// TendonForceOnTibia_F and TendonMomentOnTibia_T, as PatellarTendonForce applies it.
 // False outside a facet's chart.
 template <typename T>
-bool PatellaCouplingRows(const Patella& patella, double quadriceps, const PoseTpl<T>& tibia, const T* x,
-                         T* patella_rows, Vector6<T>* tendon_wrench) {
+bool PatellaCouplingRows(const Patella& patella, const PatellaFacets& pressing, double quadriceps,
+                         const PoseTpl<T>& tibia, const T* x, T* patella_rows, Vector6<T>* tendon_wrench) {
   const Vector3<T> tuberosity_F = TuberosityInF(patella, tibia);
-  if (!PatellaResiduals(patella, tuberosity_F, x, patella_rows)) return false;
-  const Vector3<T> apex_F = PatellaPose(x).PointInF(patella.apex_P.template cast<T>());
-  const Vector3<T> span_F = apex_F - tuberosity_F;
-  const Vector3<T> force_F = (x[kPatellaTendonRatio] * quadriceps) * span_F / span_F.norm();
+  if (!PatellaResiduals(patella, tuberosity_F, x, patella_rows, pressing)) return false;
+  T tension;
+  const Vector3<T> force_F = TendonForceOnTibia_F(patella, tuberosity_F, x, quadriceps, &tension);
   tendon_wrench->template head<3>() = force_F;
-  tendon_wrench->template tail<3>() = patella.tuberosity_T.template cast<T>().cross(tibia.R_FT.transpose() * force_F);
+  tendon_wrench->template tail<3>() = TendonMomentOnTibia_T(patella, tibia, force_F);
   return true;
 }
 
@@ -56,6 +57,12 @@ class MonolithicSystem {
   MonolithicSystem(const MonolithicSystem&) = delete;
   MonolithicSystem& operator=(const MonolithicSystem&) = delete;
 
+  // The interface of DaeSystem (formulations/internal/dae_system.hpp), which the IDA driver
+  // (IdaDriver, dae_on_ida.hpp) runs.
+  // The patellar facets that press in this phase (InitialValues; both unless the scene's
+  // patella.facet_liftoff lets one separate); a separated facet's gap row is λ_i = 0
+  // (solver/patella.hpp), the same 17 unknowns.
+  const PatellaFacets& facets() const { return pressing_; }
   // The tibia's phase (DaeSystem::SetPhase).
   void SetPhase(const std::vector<int>& active, const std::vector<ContactGuess>& contact,
                 const std::vector<signed char>& ligament_branch);
@@ -64,13 +71,16 @@ class MonolithicSystem {
   int tibia_size() const { return tibia_.size(); }
   int size() const { return tibia_.size() + kPatellaUnknowns; }
   int PatellaIndex(int i) const { return tibia_.size() + i; }  // i: PatellaUnknown
+  int NormalIndex(int c) const { return tibia_.NormalIndex(c); }
+  int per_contact() const { return tibia_.per_contact(); }
   bool IsDifferential(int i) const { return i < 12; }          // q, u; all else algebraic
   std::string UnknownName(int i) const;                        // DaeSystem's, then "patella_shift", ...
 
   // y, ẏ of a consistent state: the tibia's (DaeSystem::InitialValues), x the patella's
-  // equilibrium at the state's tibial pose (SolvePatella from *guess, which it updates), ẋ
+  // equilibrium at the state's tibial pose (SolvePatella from the last phase's solution; its
+  // complementarity fixes the phase's facets, facets()), ẋ
   // from the time derivative of the patella rows, ∂r/∂x ẋ = −∂r/∂q q̇.
-  void InitialValues(const MechanicalState& state, PatellaGuess* guess, double* y, double* yp);
+  void InitialValues(const MechanicalState& state, double* y, double* yp);
 
   // F(t, y, ẏ) for T = double or JetD with the matching workspace (DataTpl over the tibia's
   // model, without the patella). False outside a surface's domain.
@@ -96,6 +106,8 @@ class MonolithicSystem {
   mutable DataTpl<JetD> data_jet_;
   mutable std::vector<JetD> yj_, ypj_, Fj_;
   mutable std::vector<double> tibia_jacobian_;  // n_t × n_t
+  PatellaGuess guess_;  // the patella's last equilibrium: warm start of the next phase's x
+  PatellaFacets pressing_ = kBothFacetsPress;  // the facets that press in this phase
 };
 
 template <typename T>
@@ -106,14 +118,18 @@ bool MonolithicSystem::Residual(double t, const T* y, const T* yp, T* F, DataTpl
   for (int i = 0; i < 6; ++i) q(i) = y[i];
   Vector6<T> tendon;
   const Patella& patella = *model_->patella;
-  if (!PatellaCouplingRows(patella, QuadricepsMagnitude(patella.quadriceps, t), PoseFromCoordinates(q), y + nt,
-                           F + nt, &tendon)) {
+  if (!PatellaCouplingRows(patella, pressing_, QuadricepsMagnitude(patella.quadriceps, t), PoseFromCoordinates(q),
+                           y + nt, F + nt, &tendon)) {
     return false;
   }
   // F7–F12 = Q + Σ N_i G_iᵀ − M ν̇ (dae_system.hpp): the tendon belongs to Q.
   for (int i = 0; i < 6; ++i) F[6 + i] += tendon(i);
   return true;
 }
+
+// IDA's absolute tolerance of unknown i (IdaDriver, dae_on_ida.hpp; defined in monolithic.cpp):
+// the tibia's DaeUnknownAtol, `atol` for the patella's x.
+double DaeUnknownAtol(bool ggl, const MonolithicSystem& system, int i, double atol);
 
 // Test hooks (tests/monolithic_test.cpp). The patella unknowns x of a `monolithic` /
 // `monolithic-ggl` formulation at the end of its last Advance (the state it wrote back);
