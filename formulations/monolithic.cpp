@@ -92,8 +92,9 @@ class MonolithicOnIda final : public IdaDriver<MonolithicSystem> {
       if (root_flags_[events_.size() + i] == 0) continue;
       Throw<SolverError>(variant_.name, "the ", i == 0 ? "medial" : "lateral",
                          " patellar facet's force ratio lambda changes sign at t = ", t,
-                         " s: the facet lifts off, which the monolithic DAE does not model (both facets stay in "
-                         "contact; docs/model.md §12)");
+                         " s: past it the two-contact model has no patellar equilibrium with both facets pressing "
+                         "(the facet would pull). The monolithic DAE stops there; the scene key "
+                         "patella.facet_liftoff lets the facet separate (docs/model.md §12)");
     }
     return EventResult(std::vector<int>(root_flags_.begin(), root_flags_.begin() + events_.size()));
   }
