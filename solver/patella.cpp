@@ -217,11 +217,6 @@ void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const ch
                      MToMm(guess->tuberosity_F.z()), ") mm: ", failure, "; docs/model.md §12)");
 }
 
-bool SolvePatellaWithFacets(const Patella& patella, const Vector3d& tuberosity_F, const PatellaFacets& pressing,
-                            std::array<double, kPatellaUnknowns>* x) {
-  return Newton(patella, tuberosity_F, pressing, x, nullptr);
-}
-
 double PatellaResidualNorm(const Patella& patella, const Vector3d& tuberosity_F,
                            const std::array<double, kPatellaUnknowns>& x, const PatellaFacets& pressing) {
   double r[kPatellaUnknowns];

@@ -141,13 +141,6 @@ using PatellaJacobian = Eigen::Matrix<double, kPatellaUnknowns, kPatellaUnknowns
 void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const char* caller, PatellaGuess* guess,
                   Eigen::PartialPivLU<PatellaJacobian>* jacobian_lu = nullptr);
 
-// Newton on the 17 equations at R_a = tuberosity_F (m) with the facets `pressing` fixed (no
-// complementarity switch), from *x, to round-off: the monolithic DAE's consistent x for a
-// phase whose facets the events fixed (formulations/monolithic.cpp). True with *x the
-// solution; false (*x unspecified) when Newton does not converge or leaves a chart.
-bool SolvePatellaWithFacets(const Patella& patella, const Vector3d& tuberosity_F, const PatellaFacets& pressing,
-                            std::array<double, kPatellaUnknowns>* x);
-
 // Max |r_i| at a solution (m for positions, dimensionless for forces / F_Q).
 double PatellaResidualNorm(const Patella& patella, const Vector3d& tuberosity_F,
                            const std::array<double, kPatellaUnknowns>& x,
