@@ -1,5 +1,6 @@
 #include "formulations/run_output.hpp"
 
+#include <dirent.h>
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/stat.h>
@@ -17,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <vector>
 
 #include <ceres/version.h>
 #include <sundials/sundials_config.h>
@@ -304,17 +306,23 @@ std::string TempPrefix(const fs::path& out) { return "." + out.filename().string
 // Removes temporaries of earlier runs into `out` whose process no longer exists.
 void RemoveStaleTemporaries(const fs::path& out) {
   const std::string prefix = TempPrefix(out);
-  std::error_code ec;
   const fs::path parent = out.parent_path().empty() ? fs::path(".") : out.parent_path();
-  for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    if (name.compare(0, prefix.size(), prefix) != 0) continue;
-    const long pid = std::strtol(name.c_str() + prefix.size(), nullptr, 10);
+  // readdir and a prefix compare on the raw name: a std::filesystem::directory_iterator costs
+  // ~2.6 k instructions an entry (path objects), which in a busy parent such as /tmp was a
+  // sizeable share of a short run (callgrind).
+  DIR* dir = ::opendir(parent.c_str());
+  if (dir == nullptr) return;
+  std::vector<std::string> stale;
+  while (const dirent* entry = ::readdir(dir)) {
+    if (std::strncmp(entry->d_name, prefix.c_str(), prefix.size()) != 0) continue;
+    const long pid = std::strtol(entry->d_name + prefix.size(), nullptr, 10);
     if (pid <= 0 || pid == ::getpid()) continue;
-    if (::kill(static_cast<pid_t>(pid), 0) == -1 && errno == ESRCH) {
-      std::error_code ignored;
-      fs::remove_all(it->path(), ignored);
-    }
+    if (::kill(static_cast<pid_t>(pid), 0) == -1 && errno == ESRCH) stale.emplace_back(entry->d_name);
+  }
+  ::closedir(dir);
+  for (const std::string& name : stale) {
+    std::error_code ignored;
+    fs::remove_all(parent / name, ignored);
   }
 }
 

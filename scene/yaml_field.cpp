@@ -502,7 +502,8 @@ Field Field::Required(std::string_view key) const {
 Field Field::Item(size_t i) const {
   const yaml_node_t* item = nullptr;
   if (kind_ == YamlKind::kSequence && i < Count()) item = doc_->Node(node_->data.sequence.items.start[i]);
-  return Field(doc_, item, StrCat(path_, "[", i, "]"));
+  // Plain concatenation: StrCat's ostringstream costs ~3 k instructions a path (callgrind).
+  return Field(doc_, item, path_ + "[" + std::to_string(i) + "]");
 }
 
 size_t Field::Size() const {
@@ -588,7 +589,9 @@ std::array<double, 2> Field::Vec2(double limit) const {
 }
 
 std::string Field::Where(std::string_view key) const {
-  return path_.empty() ? std::string(key) : StrCat(path_, ".", key);
+  std::string where = path_;
+  if (!where.empty()) where += '.';
+  return where.append(key);
 }
 
 size_t Field::Count() const {

@@ -13,6 +13,7 @@
 //   (G M⁻¹ Gᵀ) N = rhs − G M⁻¹ Q,   ν̇ = M⁻¹ (Q + Gᵀ N).
 #pragma once
 
+#include <type_traits>
 #include <vector>
 
 #include <Eigen/LU>
@@ -47,8 +48,24 @@ struct ConstrainedDynamicsWorkspaceTpl {
   using Matrix = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxConstrainedContacts, kMaxConstrainedContacts>;
   using Vector = Eigen::Matrix<T, Eigen::Dynamic, 1, 0, kMaxConstrainedContacts, 1>;
   using Rows = Eigen::Matrix<T, Eigen::Dynamic, 6, 0, kMaxConstrainedContacts, 6>;
-  explicit ConstrainedDynamicsWorkspaceTpl(const Model& model) : data(model) {}
+  explicit ConstrainedDynamicsWorkspaceTpl(const Model& model) : data(model), forms_of(&model) {
+    sphere_on_plane.resize(model.contacts.size());
+    is_sphere_on_plane.resize(model.contacts.size());
+    for (size_t i = 0; i < model.contacts.size(); ++i) {
+      is_sphere_on_plane[i] = SphereOnPlaneForm(model.contacts[i], &sphere_on_plane[i]);
+    }
+  }
   DataTpl<T> data;
+  // The closed forms of the model's sphere-on-plane pairs (constant data, found once here
+  // instead of per contact and solve: SphereOnPlaneForm asks both surfaces through virtual
+  // calls, ~190 instructions per contact per solve). Used only with the model they came from.
+  const Model* forms_of;
+  std::vector<SphereOnPlane> sphere_on_plane;
+  std::vector<char> is_sphere_on_plane;
+  // The closed form of contact i of `model`, or nullptr (general pair or another model).
+  const SphereOnPlane* SphereOnPlaneOf(const Model& model, int i) const {
+    return &model == forms_of && is_sphere_on_plane[i] ? &sphere_on_plane[i] : nullptr;
+  }
   PoseTpl<T> pose;  // of the last solve's q (for callers evaluating more at the same point)
   Rows G;    // constraint rows G_i (k×6)
   Matrix S;  // G M⁻¹ Gᵀ (k×k, symmetric positive definite for independent rows)
@@ -57,6 +74,17 @@ struct ConstrainedDynamicsWorkspaceTpl {
   Eigen::FullPivLU<Matrix> lu;  // of S: rank-revealing, for dependent rows
 };
 using ConstrainedDynamicsWorkspace = ConstrainedDynamicsWorkspaceTpl<double>;
+
+// x = S⁻¹ b for the k×k Schur complement S (column-major, k ≤ kMaxConstrainedContacts) by
+// full-pivoting LU with the operations of Eigen 3.4's FullPivLU in its order: the pivot is
+// the first largest |s_ij| of the remaining corner in column-major order, the column below
+// it is divided by it, the corner takes the rank-1 update; then the unit-lower and the upper
+// triangular solves column by column, each skipping a zero entry (TriangularSolverVector.h,
+// one panel for k ≤ 8). So the same bits as ws->lu.solve, without FullPivLU's dynamic-size
+// bookkeeping: ~1.1 k instructions per 2×2 solve there (callgrind, chapter scene), ~0.1 k
+// here. Returns the rank by FullPivLU's rule (|u_ii| > max pivot · k ε); x is written only
+// when the rank is k.
+int SolveSmallFullPivLu(int k, const double* S, const double* b, double* x);
 
 // SolveConstrainedAcceleration below in any scalar type T with a double time (the pulse is
 // evaluated at t; double and long double, the extended-precision references of
@@ -89,22 +117,33 @@ void SolveConstrainedAccelerationTpl(const Model& model, double t, const Vector6
   ws->b.resize(k);
   for (int r = 0; r < k; ++r) {
     const ContactPair& pair = model.contacts[active[r]];
-    const ContactGeometryTpl<T> geo = RequireContactKinematicsTpl(pair, pose, "SolveConstrainedAcceleration");
+    // A sphere-on-plane pair's closed form: what RequireContactKinematicsTpl and
+    // ContactRateTermTpl compute for it (the same calls), without looking the form up again.
+    const SphereOnPlane* sop = ws->SphereOnPlaneOf(model, active[r]);
+    const ContactGeometryTpl<T> geo = sop ? SphereOnPlaneContact(*sop, pose)
+                                          : RequireContactKinematicsTpl(pair, pose, "SolveConstrainedAcceleration");
+    const T kappa = sop ? SphereOnPlaneRateTerm(*sop, pose, nu) : ContactRateTermTpl(pair, q, qd, pose, nu);
     const Eigen::Matrix<T, 1, 6> G = ContactConstraintRow(pose, geo);
     ws->G.row(r) = G;
-    ws->b(r) = -ContactRateTermTpl(pair, q, qd, pose, nu) - 2.0 * gains.alpha * G.dot(nu) -
-               gains.beta * gains.beta * geo.gap - G.dot(a_free);
+    ws->b(r) = -kappa - 2.0 * gains.alpha * G.dot(nu) - gains.beta * gains.beta * geo.gap - G.dot(a_free);
   }
   Vector6<T> nu_dot = a_free;
   out->normal_force.resize(k);
   if (k > 0) {
     ws->S.noalias() = ws->G * M_inverse.asDiagonal() * ws->G.transpose();
-    ws->lu.compute(ws->S);
-    if (!ws->lu.isInvertible()) {
-      Throw<SolverError>("SolveConstrainedAcceleration", "the contact constraint rows are dependent (rank ",
-                         6 + ws->lu.rank(), " of ", 6 + k, ") at t = ", t, " s");
+    int rank = 0;
+    if constexpr (std::is_same_v<T, double>) {
+      ws->N.resize(k);
+      rank = SolveSmallFullPivLu(k, ws->S.data(), ws->b.data(), ws->N.data());
+    } else {
+      ws->lu.compute(ws->S);
+      rank = static_cast<int>(ws->lu.rank());
+      if (rank == k) ws->N = ws->lu.solve(ws->b);
     }
-    ws->N = ws->lu.solve(ws->b);
+    if (rank != k) {
+      Throw<SolverError>("SolveConstrainedAcceleration", "the contact constraint rows are dependent (rank ",
+                         6 + rank, " of ", 6 + k, ") at t = ", t, " s");
+    }
     nu_dot += M_inverse.cwiseProduct(ws->G.transpose() * ws->N);
     for (int r = 0; r < k; ++r) out->normal_force[r] = ws->N(r);
   }

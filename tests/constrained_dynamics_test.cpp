@@ -13,6 +13,8 @@
 // sizes, forces of another active set) would show.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstring>
 #include <random>
 #include <vector>
 
@@ -95,6 +97,53 @@ TEST(SolveConstrainedAcceleration, RefusesDependentContactRows) {
   scene.model.contacts[1] = scene.model.contacts[0];  // the same pair twice: equal rows
   EXPECT_THROW(SolveConstrainedAcceleration(scene.model, 0.0, scene.initial.q, scene.initial.qd, {0, 1}),
                SolverError);
+}
+
+// SolveSmallFullPivLu replaces Eigen's FullPivLU in the Schur-complement solve and claims
+// its operations in its order: the solution must equal FullPivLU's bit for bit (the second
+// engine), and the rank by the same rule, for every size the solve allows, on symmetric
+// positive definite (the Schur complement's case), general, ill-conditioned, with zero
+// entries (the triangular solves' skips) and singular matrices.
+TEST(SolveSmallFullPivLu, EqualsEigenFullPivLuBitwise) {
+  using Matrix = ConstrainedDynamicsWorkspace::Matrix;
+  using Vector = ConstrainedDynamicsWorkspace::Vector;
+  std::mt19937 rng(20261202);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int compared = 0, singular = 0;
+  for (int k = 1; k <= kMaxConstrainedContacts; ++k) {
+    for (int trial = 0; trial < 200; ++trial) {
+      Matrix S(k, k);
+      for (int i = 0; i < k * k; ++i) S.data()[i] = u(rng) * std::pow(10.0, 6.0 * u(rng));
+      const int kind = trial % 5;
+      if (kind == 0) S = (S * S.transpose()).eval();  // SPD
+      if (kind == 1) S(k - 1, 0) = S(0, k - 1) = 0.0;
+      if (kind == 2 && k > 1) S.col(k - 1) = S.col(0) * 3.0;  // rank k − 1
+      if (kind == 3 && k > 1) S.col(k - 1) = S.col(0) * (1.0 + 1e-15);  // nearly dependent
+      Vector b(k);
+      for (int i = 0; i < k; ++i) b(i) = trial % 7 == 0 && i == 0 ? 0.0 : u(rng);
+      const Eigen::FullPivLU<Matrix> lu(S);
+      Vector x = Vector::Constant(k, -7.0);
+      const int rank = SolveSmallFullPivLu(k, S.data(), b.data(), x.data());
+      ASSERT_EQ(rank, lu.rank()) << "k = " << k << ", trial " << trial;
+      if (rank < k) {
+        ++singular;
+        continue;
+      }
+      const Vector expected = lu.solve(b);
+      for (int i = 0; i < k; ++i) {
+        ASSERT_EQ(std::memcmp(&x(i), &expected(i), sizeof(double)), 0)
+            << "k = " << k << ", trial " << trial << ", x(" << i << ") = " << x(i) << " vs " << expected(i);
+      }
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 800);
+  EXPECT_GT(singular, 100);
+  const Matrix zero = Matrix::Zero(2, 2);
+  const double b[2] = {1.0, 2.0};
+  double x[2];
+  EXPECT_EQ(SolveSmallFullPivLu(2, zero.data(), b, x), 0);
+  EXPECT_THROW(SolveSmallFullPivLu(kMaxConstrainedContacts + 1, zero.data(), b, x), SolverError);
 }
 
 }  // namespace

@@ -1,0 +1,98 @@
+// In-process run targets (benchmarks/README.md, "Performance targets: measured"): the whole
+// RunScene of the chapter scene (consistent initialization, every phase and restart, the
+// output samples; no scene loading, no files), timed by Google Benchmark, at two
+// configurations taken from the recorded work-precision sweep:
+//   target/dae_scd6   dae at its cheapest setting with scd >= 6 (rtol 3.16e-9, atol rtol/100)
+//                     — target <= 3 ms;
+//   target/best_scd8  the cheapest configuration of any formulation with scd >= 8 (ede
+//                     dopri5, rtol 3.16e-9, atol rtol/100) — target <= 1 ms;
+//   target/ede_cvode_adams_scd8  ede cvode-adams rtol 1.78e-11 (scd 8.2 recorded), the other
+//                     scd >= 8 configuration within a few percent of the best.
+// Each configuration's accuracy is measured first against the stored reference
+// (reference-data/references/chapter_impact.json, bench::Evaluate): below its scd the
+// benchmark is skipped with an error rather than timed. Counters: scd, steps, right-hand
+// side / residual evaluations.
+//   cmake --build build --target run_targets && build/benchmarks/run_targets
+#include <benchmark/benchmark.h>
+
+#include <cstdio>
+#include <string>
+
+#include "benchmarks/bench_run.hpp"
+#include "formulations/run.hpp"
+#include "scene/scene.hpp"
+
+namespace kneedyn {
+namespace {
+
+struct Target {
+  const char* name;
+  bench::BenchConfig config;
+  double min_scd;
+};
+
+const Scene& Chapter() {
+  static const Scene scene = LoadScene(ReferenceDataDir() + "/scenes/chapter_impact.yaml");
+  return scene;
+}
+
+const bench::Reference& ChapterReference() {
+  static const bench::Reference reference = bench::LoadReference(ReferenceDataDir() + "/references/chapter_impact.json");
+  return reference;
+}
+
+bench::BenchConfig Config(const char* formulation, const char* integrator, double rtol) {
+  bench::BenchConfig c;
+  c.formulation = formulation;
+  c.integrator = integrator;
+  c.rtol = rtol;
+  c.atol = rtol / 100.0;  // the sweep's atol (work_precision)
+  return c;
+}
+
+void BM_RunTarget(benchmark::State& st, const Target* target) {
+  const Scene& scene = Chapter();
+  const bench::Reference& reference = ChapterReference();
+  const bench::Outcome outcome = bench::RunConfig(scene, target->config, reference.comparison_interval);
+  const double scd = outcome.status == "ok" ? bench::Evaluate(scene, outcome, reference).scd : 0.0;
+  if (!(scd >= target->min_scd)) {
+    st.SkipWithError(("scd " + std::to_string(scd) + " below " + std::to_string(target->min_scd) + " (" +
+                      target->config.Name() + "; " + outcome.reason + "): not timed")
+                         .c_str());
+    for (auto _ : st) {
+    }
+    return;
+  }
+  RunSettings settings;
+  settings.formulation = target->config.formulation;
+  settings.options = target->config.Options();
+  RunResult result;
+  for (auto _ : st) {
+    result = RunScene(scene, settings);
+    benchmark::DoNotOptimize(result.samples.data());
+  }
+  st.counters["scd"] = scd;
+  st.counters["steps"] = static_cast<double>(result.stats.steps);
+  st.counters["rhs_or_residual_evaluations"] = static_cast<double>(result.stats.residual_evaluations);
+  st.counters["root_evaluations"] = static_cast<double>(result.stats.root_evaluations);
+}
+
+const Target kTargets[] = {
+    {"target/dae_scd6", Config("dae", "", 3.1622776601683795e-09), 6.0},
+    {"target/best_scd8", Config("ede", "dopri5", 3.1622776601683795e-09), 8.0},
+    {"target/ede_cvode_adams_scd8", Config("ede", "cvode-adams", 1.7782794100389227e-11), 8.0},
+};
+
+}  // namespace
+}  // namespace kneedyn
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 2;
+  for (const kneedyn::Target& t : kneedyn::kTargets) {
+    benchmark::RegisterBenchmark(t.name, kneedyn::BM_RunTarget, &t)->Unit(benchmark::kMillisecond);
+  }
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
