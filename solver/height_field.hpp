@@ -104,6 +104,11 @@ enum class ContactChart {
 template <typename T>
 bool EvaluateChartWide(const HeightField& surface, const T& u, const T& v, ChartSampleTpl<T>* sample);
 
+template <typename T>
+struct IsJetOverDouble : std::false_type {};
+template <int N>
+struct IsJetOverDouble<ceres::Jet<double, N>> : std::true_type {};
+
 template <typename T, int kOrder = DerivativeOrder<T>::value>
 bool EvaluateChart(const HeightField& surface, const T& u, const T& v, Vector3<T>* p,
                    Vector3<T>* p_u, Vector3<T>* p_v) {
@@ -117,6 +122,25 @@ bool EvaluateChart(const HeightField& surface, const T& u, const T& v, Vector3<T
   } else {
     ChartSample s;
     if (!surface.EvaluateChart(ScalarPart(u), ScalarPart(v), &s)) return false;
+    if constexpr (std::is_same_v<T, double>) {  // δ = 0: the sample itself
+      *p = s.p;
+      *p_u = s.p_u;
+      *p_v = s.p_v;
+      return true;
+    } else if constexpr (IsJetOverDouble<T>::value && kOrder == 1) {
+      // A Jet: the values are the sample's and the derivative parts the chain rule's, as the
+      // general lines below give them, without their Jet temporaries (the exact Jacobian
+      // evaluates four charts per contact; ~4× fewer instructions per call).
+      for (int i = 0; i < 3; ++i) {
+        (*p)(i).a = s.p(i);
+        (*p)(i).v = s.p_u(i) * u.v + s.p_v(i) * v.v;
+        (*p_u)(i).a = s.p_u(i);
+        (*p_u)(i).v = s.p_uu(i) * u.v + s.p_uv(i) * v.v;
+        (*p_v)(i).a = s.p_v(i);
+        (*p_v)(i).v = s.p_uv(i) * u.v + s.p_vv(i) * v.v;
+      }
+      return true;
+    }
     const T du = u - T(ScalarPart(u)), dv = v - T(ScalarPart(v));
     for (int i = 0; i < 3; ++i) {
       (*p)(i) = T(s.p(i)) + s.p_u(i) * du + s.p_v(i) * dv;
