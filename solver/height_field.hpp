@@ -104,10 +104,13 @@ enum class ContactChart {
 template <typename T>
 bool EvaluateChartWide(const HeightField& surface, const T& u, const T& v, ChartSampleTpl<T>* sample);
 
+// A ceres::Jet over double (EvaluateChart's direct lift).
+/// \cond INTERNAL
 template <typename T>
 struct IsJetOverDouble : std::false_type {};
 template <int N>
 struct IsJetOverDouble<ceres::Jet<double, N>> : std::true_type {};
+/// \endcond
 
 template <typename T, int kOrder = DerivativeOrder<T>::value>
 bool EvaluateChart(const HeightField& surface, const T& u, const T& v, Vector3<T>* p,
