@@ -2,8 +2,6 @@
 
 #include <Eigen/LU>
 #include <cmath>
-#include <limits>
-#include <utility>
 
 #include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
@@ -52,66 +50,16 @@ void ProjectOntoContacts(const Model& model, const std::vector<int>& contacts, d
 
 namespace {
 
-// SolveSmallFullPivLu for a size K known at compile time (the loops unroll: ~60 instructions
-// for K = 2 instead of ~390 with a run-time size).
+// SolveSmallFullPivLu for a size K known at compile time: Eigen's FullPivLU on a fixed-size
+// matrix (unrolled, no heap), the same algorithm as the dynamic-size one it replaces.
 template <int K>
 int SolveFullPivLuFixed(const double* S, const double* b, double* x) {
-  double lu[K][K];  // lu[column][row], column-major like S
-  for (int c = 0; c < K; ++c) {
-    for (int r = 0; r < K; ++r) lu[c][r] = S[c * K + r];
+  const Eigen::FullPivLU<Eigen::Matrix<double, K, K>> lu{Eigen::Map<const Eigen::Matrix<double, K, K>>(S)};
+  const int rank = static_cast<int>(lu.rank());
+  if (rank == K) {
+    Eigen::Map<Eigen::Matrix<double, K, 1>> solution(x);
+    solution = lu.solve(Eigen::Map<const Eigen::Matrix<double, K, 1>>(b));
   }
-  int row_swap[K], col_swap[K];
-  int nonzero_pivots = K;
-  double max_pivot = 0.0;
-  for (int p = 0; p < K; ++p) {
-    // First largest |lu| of the corner [p, K)², column by column (Eigen's maxCoeff visitor).
-    int best_r = p, best_c = p;
-    double best = std::abs(lu[p][p]);
-    for (int c = p; c < K; ++c) {
-      for (int r = c == p ? p + 1 : p; r < K; ++r) {
-        const double v = std::abs(lu[c][r]);
-        if (v > best) best = v, best_r = r, best_c = c;
-      }
-    }
-    if (best == 0.0) {
-      nonzero_pivots = p;
-      break;
-    }
-    if (best > max_pivot) max_pivot = best;
-    row_swap[p] = best_r;
-    col_swap[p] = best_c;
-    if (best_r != p) {
-      for (int c = 0; c < K; ++c) std::swap(lu[c][p], lu[c][best_r]);
-    }
-    if (best_c != p) {
-      for (int r = 0; r < K; ++r) std::swap(lu[p][r], lu[best_c][r]);
-    }
-    for (int r = p + 1; r < K; ++r) lu[p][r] /= lu[p][p];
-    for (int c = p + 1; c < K; ++c) {
-      for (int r = p + 1; r < K; ++r) lu[c][r] -= lu[p][r] * lu[c][p];
-    }
-  }
-  // FullPivLU::rank: pivots above max pivot · (K ε).
-  const double threshold = std::abs(max_pivot) * (std::numeric_limits<double>::epsilon() * K);
-  int rank = 0;
-  for (int i = 0; i < nonzero_pivots; ++i) rank += std::abs(lu[i][i]) > threshold;
-  if (rank != K) return rank;
-  double c[K];
-  for (int i = 0; i < K; ++i) c[i] = b[i];
-  for (int p = 0; p < K; ++p) std::swap(c[p], c[row_swap[p]]);  // c = P b
-  for (int i = 0; i < K; ++i) {  // L c' = c, unit diagonal
-    if (c[i] != 0.0) {
-      for (int r = i + 1; r < K; ++r) c[r] -= c[i] * lu[i][r];
-    }
-  }
-  for (int i = K - 1; i >= 0; --i) {  // U c'' = c'
-    if (c[i] != 0.0) {
-      c[i] /= lu[i][i];
-      for (int r = 0; r < i; ++r) c[r] -= c[i] * lu[i][r];
-    }
-  }
-  for (int p = K - 1; p >= 0; --p) std::swap(c[p], c[col_swap[p]]);  // x = Q c''
-  for (int i = 0; i < K; ++i) x[i] = c[i];
   return rank;
 }
 

@@ -76,14 +76,11 @@ struct ConstrainedDynamicsWorkspaceTpl {
 using ConstrainedDynamicsWorkspace = ConstrainedDynamicsWorkspaceTpl<double>;
 
 // x = S⁻¹ b for the k×k Schur complement S (column-major, k ≤ kMaxConstrainedContacts) by
-// full-pivoting LU with the operations of Eigen 3.4's FullPivLU in its order: the pivot is
-// the first largest |s_ij| of the remaining corner in column-major order, the column below
-// it is divided by it, the corner takes the rank-1 update; then the unit-lower and the upper
-// triangular solves column by column, each skipping a zero entry (TriangularSolverVector.h,
-// one panel for k ≤ 8). So the same bits as ws->lu.solve, without FullPivLU's dynamic-size
-// bookkeeping: ~1.1 k instructions per 2×2 solve there (callgrind, chapter scene), ~0.1 k
-// here. Returns the rank by FullPivLU's rule (|u_ii| > max pivot · k ε); x is written only
-// when the rank is k.
+// Eigen's FullPivLU on a matrix of fixed size k (one instantiation per size): the same bits
+// as the dynamic-size ws->lu.solve (tests/constrained_dynamics_test.cpp), without its
+// dynamic-size bookkeeping, ~1.1 k instructions per 2×2 solve (callgrind, chapter scene).
+// Returns the rank by FullPivLU's rule (|u_ii| > max pivot · k ε); x is written only when
+// the rank is k.
 int SolveSmallFullPivLu(int k, const double* S, const double* b, double* x);
 
 // SolveConstrainedAcceleration below in any scalar type T with a double time (the pulse is
