@@ -238,6 +238,21 @@ int CompareStored(const Scene& scene, const std::string& stored_path, const std:
   return ok ? 0 : 1;
 }
 
+// Writes the reference JSON atomically: to OUT.tmp, then renamed, so a failed run leaves no partial file.
+int WriteReference(const nlohmann::json& j, const std::string& out_path) {
+  const std::filesystem::path out(out_path);
+  if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
+  const std::string tmp = out_path + ".tmp";
+  {
+    std::ofstream f(tmp);
+    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
+    f << j.dump(1) << "\n";
+    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
+  }
+  std::filesystem::rename(tmp, out);
+  return 0;
+}
+
 int Generate(const Scene& scene, const std::string& scene_path, const std::string& out_path,
              const BenchConfig& primary, const BenchConfig& check, double interval,
              bool conservative, const std::string& command_line) {
@@ -281,35 +296,11 @@ int Generate(const Scene& scene, const std::string& scene_path, const std::strin
                 "errors)",
                 p.solution, &j);
 
-  const std::filesystem::path out(out_path);
-  if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
-  const std::string tmp = out_path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
-    f << j.dump(1) << "\n";
-    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
-  }
-  std::filesystem::rename(tmp, out);
+  WriteReference(j, out_path);
   std::printf("%s: %s vs %s agree to scd %.2f; events:", scene.name.c_str(), primary.Name().c_str(),
               check.Name().c_str(), agreement.scd);
   for (const EventRecord& e : p.solution.events) std::printf(" %s t=%.9f s", e.name.c_str(), e.time);
   std::printf("\nwrote %s\n", out_path.c_str());
-  return 0;
-}
-
-// Writes the reference JSON (atomically) and prints the agreement table.
-int WriteReference(const nlohmann::json& j, const std::string& out_path) {
-  const std::filesystem::path out(out_path);
-  if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
-  const std::string tmp = out_path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
-    f << j.dump(1) << "\n";
-    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
-  }
-  std::filesystem::rename(tmp, out);
   return 0;
 }
 
