@@ -21,6 +21,9 @@
 //  - on patella_fold (facet_liftoff on) both follow ede to the medial facet's
 //    lift-off and stop after it with the fold's error: the same events, times to 1e-8
 //    relative, the patellar pose at them;
+//  - on patella_medial_liftoff (a genuine one-facet branch) both follow ede through the
+//    medial facet's re-contact, lift-off and re-contact, with λ_medial = 0 and a positive
+//    gap in between, and the Jacobian with that facet separated is exact;
 //  - a scene without a patella is refused.
 #include <gtest/gtest.h>
 
@@ -193,6 +196,7 @@ struct EventsAndPatella {
   RunResult run;
   std::vector<std::array<double, kPatellaUnknowns>> x_at_events;
   std::array<double, kPatellaUnknowns> x_last{};  // at the end of the last Advance
+  std::vector<std::array<double, kPatellaUnknowns>> x_at_rows;  // every recorded row, as run.samples
 };
 
 EventsAndPatella RunMonolithic(const Scene& scene, const std::string& formulation, double rtol, double atol) {
@@ -207,9 +211,11 @@ EventsAndPatella RunMonolithic(const Scene& scene, const std::string& formulatio
   sim.rtol = rtol;
   sim.atol = atol;
   sim.sample = [&](const MechanicalState&, bool is_event) {
+    std::array<double, kPatellaUnknowns> x{};  // none at the first row, before the first Advance
+    const bool have = MonolithicPatellaUnknownsForTesting(*stepper, &x);
+    out.x_at_rows.push_back(x);
     if (!is_event) return;
-    std::array<double, kPatellaUnknowns> x{};
-    EXPECT_TRUE(MonolithicPatellaUnknownsForTesting(*stepper, &x));
+    EXPECT_TRUE(have);
     out.x_at_events.push_back(x);
   };
   Simulator simulator(scene, stepper.get(), sim, &out.run);
@@ -240,8 +246,10 @@ EventsAndPatella EliminatedReference(const Scene& scene, bool expect_completed =
   PatellaGuess guess;
   for (size_t i = 0; i < out.run.samples.size(); ++i) {  // every row: the warm start follows the motion
     SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(out.run.samples[i].q)), "test", &guess);
+    out.x_at_rows.push_back(guess.x);
     if (out.run.sample_is_event[i]) out.x_at_events.push_back(guess.x);
   }
+  out.x_last = guess.x;
   return out;
 }
 
@@ -392,6 +400,129 @@ TEST(MonolithicRuns, StopsAtTheFoldAfterTheMedialFacetLiftoffAsTheOdeFormDoes) {
     ExpectAgreement(reference, run, c.name, /*expect_completed=*/false);
   }
 }
+
+// patella_medial_liftoff (reference-data/scenes/hard/): a genuine one-facet branch. The
+// medial facet starts separated, re-contacts, lifts off and re-contacts (docs/model.md §12);
+// the monolithic DAE replaces the separated facet's gap row by λ_medial = 0. Against `ede` at
+// rtol 1e-12 from the same start: the same events, their times to 1e-8 relative, the
+// patellar pose at them and at the end (the DAE's own x) to 1e-8 of the scale; between the
+// lift-off and the re-contact the DAE's λ_medial is exactly 0, its medial gap (e·n at its
+// own chart coordinates) > 0 and its λ_lateral > 0.
+TEST(MonolithicRuns, FollowsTheOdeFormThroughTheGenuineMedialFacetLiftoff) {
+  const Scene scene = LoadScene("reference-data/scenes/hard/patella_medial_liftoff.yaml");
+  ASSERT_TRUE(scene.model.patella && scene.model.patella->facet_liftoff);
+  const Patella& p = *scene.model.patella;
+  struct Case {
+    const char* name;
+    double rtol;
+  };
+  EventsAndPatella reference;
+  for (const Case& c : {Case{"monolithic", kPlainRtol}, Case{"monolithic-ggl", 1e-12}}) {
+    SCOPED_TRACE(c.name);
+    const EventsAndPatella run = RunMonolithic(scene, c.name, c.rtol, 1e-2 * c.rtol);
+    ASSERT_TRUE(run.run.completed) << run.run.failure;
+    if (reference.run.samples.empty()) {
+      Scene same_start = scene;
+      same_start.initial.q = run.run.samples.at(0).q;
+      reference = EliminatedReference(same_start);
+    }
+    ExpectAgreement(reference, run, c.name);
+    std::vector<std::string> names;
+    for (const EventRecord& e : run.run.events) names.push_back(e.name);
+    const std::vector<std::string> expected = {"recontact_patellar_medial", "liftoff_patellar_medial",
+                                               "recontact_patellar_medial"};
+    ASSERT_EQ(names, expected);
+    const double t_liftoff = run.run.events[1].time, t_recontact = run.run.events[2].time;
+    int separated_rows = 0;
+    for (size_t i = 0; i < run.run.samples.size(); ++i) {
+      const double t = run.run.samples[i].t;
+      if (run.run.sample_is_event[i] || t <= t_liftoff || t >= t_recontact) continue;
+      const std::array<double, kPatellaUnknowns>& x = run.x_at_rows.at(i);
+      EXPECT_EQ(x[kPatellaFacetRatio], 0.0) << "t = " << t;
+      EXPECT_GT(PatellaFacetGaps(p, x)[0], 1e-9) << "t = " << t;  // m
+      EXPECT_GT(x[kPatellaFacetRatio + 1], 0.1) << "t = " << t;
+      ++separated_rows;
+    }
+    EXPECT_GE(separated_rows, 3);
+    double worst = 0.0;
+    for (int k = 0; k < 6; ++k) {
+      const double d = std::abs(run.x_last[k] - reference.x_last[k]) / PatellaScale(k);
+      worst = std::max(worst, d);
+      EXPECT_LE(d, 1e-8) << PatellaUnknownName(k);
+    }
+    std::printf("%s: patellar pose at the end %.2e of the scale from ede's\n", c.name, worst);
+  }
+}
+
+// The monolithic Jacobian with the medial facet separated (its row λ_medial = 0): at a state
+// of patella_medial_liftoff between the lift-off and the re-contact, moved off the solution,
+// the exact Jacobian equals the JetD derivative and central differences, plain and GGL.
+class MonolithicSeparatedFacetJacobian : public ::testing::TestWithParam<bool> {};
+
+TEST_P(MonolithicSeparatedFacetJacobian, ExactEqualsJetDerivativeAndCentralDifferences) {
+  const bool ggl = GetParam();
+  const Scene scene = LoadScene("reference-data/scenes/hard/patella_medial_liftoff.yaml");
+  const RunResult ede = RunWith(scene, "ede", 1e-10, 1e-12);
+  ASSERT_GE(ede.events.size(), 2u);
+  ASSERT_EQ(ede.events[1].name, "liftoff_patellar_medial");
+  const double t_mid = ede.events[1].time + 0.005;  // s: the medial facet separated (re-contact 0.0758 s)
+  MechanicalState s;
+  for (const MechanicalState& row : ede.samples) {
+    if (row.t >= t_mid) {
+      s = row;
+      break;
+    }
+  }
+  ASSERT_GE(s.t, t_mid);
+  MonolithicSystem system(scene.model, ConstraintLevel::kVelocity, ggl);
+  system.SetPhase(s.active, s.contact, s.ligament_branch);
+  const int n = system.size();
+  std::vector<double> y0(n), yp0(n);
+  system.InitialValues(s, y0.data(), yp0.data());
+  ASSERT_FALSE(system.facets()[0]) << "the medial facet presses at t = " << s.t;
+  ASSERT_TRUE(system.facets()[1]);
+  ASSERT_EQ(y0[system.PatellaIndex(kPatellaFacetRatio)], 0.0);
+  std::mt19937 rng(2027);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<double> y = y0, yp = yp0;
+  for (int i = 0; i < kPatellaUnknowns; ++i) {
+    y[system.PatellaIndex(i)] += (i < kPatellaFacetRatio ? 1e-4 : 0.01) * u(rng);
+    yp[system.PatellaIndex(i)] += 1e-2 * u(rng);
+  }
+  const double t = s.t, cj = 850.0;
+  std::vector<double> exact(n * n), jet(n * n), F(n);
+  ASSERT_TRUE(system.Jacobian(t, cj, y.data(), yp.data(), exact.data()));
+  ASSERT_TRUE(system.JacobianByJets(t, cj, y.data(), yp.data(), jet.data()));
+  ASSERT_TRUE(system.Residual(t, y.data(), yp.data(), F.data()));
+  // The separated facet's row is λ_medial itself: ∂/∂λ_medial = 1, nothing else.
+  const int row = system.PatellaIndex(5 * 0 + 2), col = system.PatellaIndex(kPatellaFacetRatio);
+  EXPECT_EQ(F[row], y[col]);
+  for (int j = 0; j < n; ++j) EXPECT_EQ(exact[row + n * j], j == col ? 1.0 : 0.0) << system.UnknownName(j);
+  double largest = 0.0;
+  for (double v : jet) largest = std::max(largest, std::abs(v));
+  std::vector<double> Fp(n), Fm(n);
+  for (int c = 0; c < n; ++c) {
+    for (int r = 0; r < n; ++r) {
+      EXPECT_NEAR(exact[r + n * c], jet[r + n * c], 1e-12 * largest + 1e-10 * std::abs(jet[r + n * c]))
+          << "dF[" << r << "]/d " << system.UnknownName(c);
+    }
+    const double h = 1e-6 * std::max(1.0, std::abs(y[c])) * (c < 3 || c >= 12 ? 0.1 : 1.0);
+    std::vector<double> yh = y, yph = yp;
+    yh[c] = y[c] + h;
+    yph[c] = yp[c] + cj * h;
+    ASSERT_TRUE(system.Residual(t, yh.data(), yph.data(), Fp.data()));
+    yh[c] = y[c] - h;
+    yph[c] = yp[c] - cj * h;
+    ASSERT_TRUE(system.Residual(t, yh.data(), yph.data(), Fm.data()));
+    for (int r = 0; r < n; ++r) {
+      const double fd = (Fp[r] - Fm[r]) / (2 * h), a = exact[r + n * c];
+      EXPECT_NEAR(a, fd, 1e-6 * (largest * 1e-3 + std::abs(a)) + 1e-5) << "dF[" << r << "]/d " << system.UnknownName(c);
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(PlainAndGgl, MonolithicSeparatedFacetJacobian, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& info) { return info.param ? "ggl" : "plain"; });
 
 TEST(MonolithicRuns, ASceneWithoutPatellaIsRefused) {
   const Scene chapter = LoadScene("reference-data/scenes/chapter_impact.yaml");

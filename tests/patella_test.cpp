@@ -363,6 +363,59 @@ TEST(PatellaLiftoff, ExtensionUnderLateralPullStopsAtTheFoldAfterTheMedialLiftof
   EXPECT_EQ(found, 1);
 }
 
+// The hard case patella_medial_liftoff (the impact with a lateral quadriceps line and 200 N):
+// a genuine one-facet branch. The medial facet starts separated, re-contacts, lifts off and
+// re-contacts; ede, mde and dae record the same switches at times 1e-8 apart, each switch
+// with a positive compliance (CheckPatellarFacetSwitch), and between the lift-off and the
+// re-contact the medial facet is separated by a second contact description (the closed-form
+// sphere-on-plane gap at the solved pose > 0) while the lateral one presses.
+TEST(PatellaLiftoff, GenuineLiftoffSeparatesTheMedialFacetBetweenItsSwitchesInEdeMdeAndDae) {
+  const Scene scene = LoadScene("reference-data/scenes/hard/patella_medial_liftoff.yaml");
+  const RunResult ode = RunWith(scene, "ede", 1e-10, 1e-12);
+  const RunResult dae = RunWith(scene, "dae", 1e-10, 1e-12);
+  const RunResult mde = RunWith(scene, "mde", 1e-10, 1e-12);
+  const std::vector<std::string> expected = {"recontact_patellar_medial", "liftoff_patellar_medial",
+                                             "recontact_patellar_medial"};
+  for (const RunResult* r : {&ode, &dae, &mde}) {
+    std::vector<std::string> names;
+    for (const EventRecord& e : r->events) names.push_back(e.name);
+    ASSERT_EQ(names, expected);
+  }
+  for (size_t k = 0; k < expected.size(); ++k) {
+    const double t = ode.events[k].time;
+    EXPECT_NEAR(dae.events[k].time, t, 1e-8 * t) << expected[k];
+    EXPECT_NEAR(mde.events[k].time, t, 1e-8 * t) << expected[k];
+    std::printf("%s: ede %.12f s, mde %.12f s, dae %.12f s\n", expected[k].c_str(), t, mde.events[k].time,
+                dae.events[k].time);
+  }
+  const Patella& patella = *scene.model.patella;
+  SphereOnPlane sop[2];
+  for (int i = 0; i < 2; ++i) ASSERT_TRUE(SphereOnPlaneForm(patella.facet[i], &sop[i]));
+  PatellaGuess guess;  // warm-started along the run, as its right-hand side is
+  int separated_rows = 0;
+  for (size_t i = 0; i < ode.samples.size(); ++i) {
+    const Vector3d tuberosity_F = TuberosityInF(patella, PoseFromCoordinates(ode.samples[i].q));
+    SolvePatella(patella, tuberosity_F, "test", &guess);
+    const double t = ode.samples[i].t;
+    if (ode.sample_is_event[i]) {
+      const int facet = 0;
+      const double compliance = PatellarFacetCompliance(patella, tuberosity_F, guess.x, facet);
+      std::printf("switch at t = %.6f s: d gap/d lambda_medial = %.3f mm\n", t, MToMm(compliance));
+      EXPECT_GT(compliance, 0.0) << "t = " << t;
+      continue;
+    }
+    if (t <= ode.events[1].time || t >= ode.events[2].time) continue;
+    const Pose pose = PatellaPose(guess.x.data());
+    EXPECT_FALSE(guess.pressing[0]) << "t = " << t;
+    EXPECT_EQ(guess.x[kPatellaFacetRatio], 0.0);
+    EXPECT_GT(SphereOnPlaneContact(sop[0], pose).gap, 1e-9) << "t = " << t;  // m
+    EXPECT_NEAR(SphereOnPlaneContact(sop[1], pose).gap, 0.0, 1e-13);
+    EXPECT_GT(guess.x[kPatellaFacetRatio + 1], 0.1);
+    ++separated_rows;
+  }
+  EXPECT_GE(separated_rows, 3);
+}
+
 // The fold by two nonlinear solves, against the linearization CheckPatellarFacetSwitch
 // judges by: at the medial lift-off of patella_fold, the tuberosity moved on past
 // it (along its path over the last output interval), the two-facet equilibrium pulls
