@@ -29,8 +29,9 @@
 // tibial pose, so that all stop at the same events), which restart IDA; each phase's facets
 // are those SolvePatella's complementarity chooses at its start (MonolithicSystem::
 // InitialValues), a separated facet's gap row replaced by λ_i = 0 (the same 17 unknowns,
-// solver/patella.hpp). Where the one-facet equilibrium does not hold (past its fold), the
-// complementarity keeps both facets with λ_i < 0, as in the ODE forms' right-hand side.
+// solver/patella.hpp). Where the one-facet equilibrium does not hold past a switch (the
+// branch's fold), the next phase's start stops the run with the fold's SolverError, as for
+// every formulation (CheckPatellarFacetSwitch, solver/patella.hpp).
 #include <algorithm>
 #include <array>
 #include <memory>

@@ -4,6 +4,7 @@
 
 #include <Eigen/LU>
 
+#include "solver/events.hpp"
 #include "solver/newton_euler_jacobian.hpp"
 
 namespace kneedyn {
@@ -64,7 +65,23 @@ void MonolithicSystem::InitialValues(const MechanicalState& state, double* y, do
   const Vector3d tuberosity_F = TuberosityInF(patella, PoseFromCoordinates(state.q));
   SolvePatella(patella, tuberosity_F, "MonolithicSystem::InitialValues", guess);
   // The phase's facets: those of SolvePatella's complementarity at the start (the ODE forms'
-  // choice in their right-hand side; both unless patella.facet_liftoff).
+  // choice in their right-hand side; both unless patella.facet_liftoff). At a lift-off's root
+  // λ_i is zero to round-off and the complementarity may keep the facet: the phase's events
+  // (solver/events.cpp) treat it as separated from λ_i ≤ kPatellarRecontactRatio / 2, and so
+  // does the DAE, whose facets stay fixed over the phase (the ODE forms' right-hand side
+  // separates it at its first λ_i < 0).
+  if (patella.facet_liftoff) {
+    for (int i = 0; i < 2; ++i) {
+      if (!guess->pressing[i] || guess->x[kPatellaFacetRatio + i] > 0.5 * kPatellarRecontactRatio) continue;
+      PatellaFacets separated = guess->pressing;
+      separated[i] = false;
+      std::array<double, kPatellaUnknowns> x = guess->x;
+      if (SolvePatellaWithFacets(patella, tuberosity_F, separated, &x)) {
+        guess->x = x;
+        guess->pressing = separated;
+      }
+    }
+  }
   pressing_ = guess->pressing;
   for (int i = 0; i < kPatellaUnknowns; ++i) {
     y[nt + i] = guess->x[i];

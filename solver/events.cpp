@@ -48,11 +48,16 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
     }
   }
   if (model.patella && model.patella->facet_liftoff) {  // after the tibio-femoral events: their indices stay
-    // One warm start for the phase's patellar events, from the equilibrium at the start.
+    // One warm start for the phase's patellar events: the equilibrium at the phase's start,
+    // followed from the scene's start along the tibial path (the run's branch: a solve from
+    // the start straight at this pose could land on another, docs/model.md §12).
+    const Patella& patella = *model.patella;
     auto guess = std::make_shared<PatellaGuess>();
+    SolvePatella(patella, TuberosityInF(patella, PoseFromCoordinates(patella.start_q)), "EventsForPhase", guess.get());
+    SolvePatellaAlongTibialPath(patella, patella.start_q, state.q, "EventsForPhase", guess.get());
     for (int i = 0; i < 2; ++i) {
       const std::string facet = CompartmentName(static_cast<Compartment>(i));
-      const double c = PatellarContactFunctionAt(model, state.q, guess.get(), i);
+      const double c = PatellarContactFunction(patella, *guess, i);
       if (c > 0.5 * kPatellarRecontactRatio) {
         specs.push_back({EventKind::kPatellarLiftoff, i, -1, -1, 0.0, "liftoff_patellar_" + facet, guess});
       } else {
@@ -60,6 +65,11 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
                          "recontact_patellar_" + facet, guess});
       }
     }
+    // A phase that starts at a facet's switch has to continue past it: the one-facet branch
+    // must hold there (a positive compliance), else the fold's SolverError. Here, not in
+    // SolvePatella: the integrators evaluate past the switch while they locate it, where
+    // SolvePatella keeps the facet pressing with λ_i < 0 until the event stops them.
+    CheckPatellarFacetSwitch(patella, TuberosityInF(patella, pose), *guess, state.t, "EventsForPhase");
   }
   return specs;
 }

@@ -133,8 +133,10 @@ namespace {
 // Newton again. The switched solution is taken when it holds (the separated facet does not
 // penetrate, the pressing one does not pull); otherwise the first stands: past a fold of
 // the one-facet branch there is no one-facet equilibrium (the patella would snap, which a
-// massless model cannot follow), and the facet keeps pressing with λ_i < 0, the two-contact
-// model's answer (docs/model.md §12). True with *x, *pressing the solution.
+// massless model cannot follow). That answer (a facet pressing with λ_i < 0) is what the
+// integrators see while they locate the switch's event; a run never goes on with it: the
+// phase that starts at the switch stops with the fold's SolverError (CheckPatellarFacetSwitch,
+// docs/model.md §12). True with *x, *pressing the solution.
 bool SolveComplementarity(const Patella& patella, const Vector3d& tuberosity_F, std::array<double, kPatellaUnknowns>* x,
                           PatellaFacets* pressing, Eigen::PartialPivLU<PatellaJacobian>* jacobian_lu,
                           const char** failure) {
@@ -217,6 +219,11 @@ void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const ch
                      MToMm(guess->tuberosity_F.z()), ") mm: ", failure, "; docs/model.md §12)");
 }
 
+bool SolvePatellaWithFacets(const Patella& patella, const Vector3d& tuberosity_F, const PatellaFacets& pressing,
+                            std::array<double, kPatellaUnknowns>* x) {
+  return Newton(patella, tuberosity_F, pressing, x, nullptr);
+}
+
 double PatellaResidualNorm(const Patella& patella, const Vector3d& tuberosity_F,
                            const std::array<double, kPatellaUnknowns>& x, const PatellaFacets& pressing) {
   double r[kPatellaUnknowns];
@@ -239,6 +246,64 @@ std::array<double, 2> PatellaFacetGaps(const Patella& patella, const std::array<
 double PatellarContactFunction(const Patella& patella, const PatellaGuess& solution, int facet) {
   const double gap = PatellaFacetGaps(patella, solution.x)[facet];
   return solution.pressing[facet] ? solution.x[kPatellaFacetRatio + facet] : -gap;
+}
+
+double PatellarFacetCompliance(const Patella& patella, const Vector3d& tuberosity_F,
+                               const std::array<double, kPatellaUnknowns>& x, int facet) {
+  PatellaFacets separated = kBothFacetsPress;
+  separated[facet] = false;
+  Eigen::Matrix<double, kPatellaUnknowns, 1> r;
+  PatellaJacobian J;
+  PatellaJet xj[kPatellaUnknowns], rj[kPatellaUnknowns], gap[2];
+  for (int i = 0; i < kPatellaUnknowns; ++i) xj[i] = PatellaJet(x[i], i);
+  if (!Linearize(patella, tuberosity_F, x, separated, &r, &J) ||
+      !PatellaResiduals(patella, Vector3<PatellaJet>(tuberosity_F.cast<PatellaJet>()), xj, rj, separated, gap)) {
+    Throw<SolverError>("PatellarFacetCompliance", "a patellar contact coordinate left its chart (docs/model.md §12)");
+  }
+  // J dx = e_k dμ: the separated facet's row λ_i = μ moved, the other 16 held.
+  Eigen::Matrix<double, kPatellaUnknowns, 1> e = Eigen::Matrix<double, kPatellaUnknowns, 1>::Zero();
+  e(5 * facet + 2) = 1.0;
+  const Eigen::Matrix<double, kPatellaUnknowns, 1> dx = J.fullPivLu().solve(e);
+  return gap[facet].v.dot(dx);
+}
+
+void CheckPatellarFacetSwitch(const Patella& patella, const Vector3d& tuberosity_F, const PatellaGuess& solution,
+                              double t, const char* caller) {
+  const std::array<double, 2> gap = PatellaFacetGaps(patella, solution.x);
+  for (int i = 0; i < 2; ++i) {
+    if (std::abs(PatellarContactFunction(patella, solution, i)) > kPatellarSwitchBand) continue;
+    const double compliance = PatellarFacetCompliance(patella, tuberosity_F, solution.x, i);
+    if (compliance > 0.0) continue;
+    Throw<SolverError>(caller, "the patella's ", CompartmentName(static_cast<Compartment>(i)),
+                       " facet switches at t = ", t, " s (lambda = ", solution.x[kPatellaFacetRatio + i], ", gap ",
+                       MToMm(gap[i]), " mm, tuberosity at (", MToMm(tuberosity_F.x()), ", ", MToMm(tuberosity_F.y()),
+                       ", ", MToMm(tuberosity_F.z()), ") mm in F), but d gap/d lambda = ", MToMm(compliance),
+                       " mm per unit lambda (lambda = N / F_Q) <= 0 along the equilibrium: past the switch the facet "
+                       "would pull while pressing (lambda < 0) and penetrate the trochlea while separated (gap = -(d gap/d lambda) x "
+                       "lambda < 0). "
+                       "The one-facet branch has folded back: the massless patella has no equilibrium here "
+                       "(it would snap), docs/model.md §12");
+  }
+}
+
+void SolvePatellaAlongTibialPath(const Patella& patella, const Vector6d& from_q, const Vector6d& to_q,
+                                 const char* caller, PatellaGuess* guess) {
+  // 1° or less per step: the angles interpolated linearly and the tibial point that sits at
+  // F's origin at from_q (the knee's centre) moved on the straight line between its
+  // positions, so that the tibia turns about the knee, as it does, and not about its centre
+  // of mass.
+  const Pose from = PoseFromCoordinates(from_q), to = PoseFromCoordinates(to_q);
+  const Vector3d knee_T = from.PointInT(Vector3d::Zero());
+  const Vector3d knee_start_F = Vector3d::Zero(), knee_end_F = to.PointInF(knee_T);
+  const double angle = (to_q - from_q).tail<3>().cwiseAbs().maxCoeff();
+  const int steps = std::max(1, static_cast<int>(std::ceil(angle / DegToRad(1.0))));
+  for (int k = 1; k <= steps; ++k) {
+    const double s = static_cast<double>(k) / steps;
+    Vector6d q = from_q + (to_q - from_q) * s;
+    const Pose rotated = PoseFromCoordinates(q);
+    q.head<3>() = (1.0 - s) * knee_start_F + s * knee_end_F - rotated.R_FT * knee_T;
+    SolvePatella(patella, PoseFromCoordinates(q).PointInF(patella.tuberosity_T), caller, guess);
+  }
 }
 
 void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, Patella* patella) {
@@ -298,22 +363,7 @@ void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, P
   guess.valid = true;
   try {
     SolvePatella(*patella, tuberosity_F, "SolvePatellaStart", &guess);
-    // To the initial pose, 1° or less per step: the angles interpolated linearly and the
-    // tibial point that sits at F's origin in the reference pose (the knee's centre)
-    // moved on the straight line between its positions, so that the tibia turns about
-    // the knee, as it does, and not about its centre of mass.
-    const Pose reference = PoseFromCoordinates(reference_q), initial = PoseFromCoordinates(initial_q);
-    const Vector3d knee_T = reference.PointInT(Vector3d::Zero());
-    const Vector3d knee_start_F = Vector3d::Zero(), knee_end_F = initial.PointInF(knee_T);
-    const double angle = (initial_q - reference_q).tail<3>().cwiseAbs().maxCoeff();
-    const int steps = std::max(1, static_cast<int>(std::ceil(angle / DegToRad(1.0))));
-    for (int k = 1; k <= steps; ++k) {
-      const double s = static_cast<double>(k) / steps;
-      Vector6d q = reference_q + (initial_q - reference_q) * s;
-      const Pose rotated = PoseFromCoordinates(q);
-      q.head<3>() = (1.0 - s) * knee_start_F + s * knee_end_F - rotated.R_FT * knee_T;
-      SolvePatella(*patella, PoseFromCoordinates(q).PointInF(patella->tuberosity_T), "SolvePatellaStart", &guess);
-    }
+    SolvePatellaAlongTibialPath(*patella, reference_q, initial_q, "SolvePatellaStart", &guess);
   } catch (const SolverError& e) {
     Throw<InputError>("SolvePatellaStart", "no patellar equilibrium at the scene's start: ", e.what());
   }

@@ -141,6 +141,11 @@ using PatellaJacobian = Eigen::Matrix<double, kPatellaUnknowns, kPatellaUnknowns
 void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const char* caller, PatellaGuess* guess,
                   Eigen::PartialPivLU<PatellaJacobian>* jacobian_lu = nullptr);
 
+// Newton on the 17 equations at R_a with the facets `pressing` fixed (no complementarity),
+// from *x; true on convergence with *x the solution (a separated facet's λ_i exactly 0).
+bool SolvePatellaWithFacets(const Patella& patella, const Vector3d& tuberosity_F, const PatellaFacets& pressing,
+                            std::array<double, kPatellaUnknowns>* x);
+
 // Max |r_i| at a solution (m for positions, dimensionless for forces / F_Q).
 double PatellaResidualNorm(const Patella& patella, const Vector3d& tuberosity_F,
                            const std::array<double, kPatellaUnknowns>& x,
@@ -153,6 +158,30 @@ std::array<double, 2> PatellaFacetGaps(const Patella& patella, const std::array<
 // presses and −gap_i (m) while it is separated. Continuous through the switch and zero
 // there: positive in contact, negative when separated (the events' g, solver/events.hpp).
 double PatellarContactFunction(const Patella& patella, const PatellaGuess& solution, int facet);
+
+// ∂gap_i/∂λ_i (m per unit λ_i) along the equilibrium with the other 16 equations held,
+// at the solution x (facet i's row read as λ_i = μ, the others as in `x`'s facets): the
+// facet's complementarity compliance. At a facet's switch (λ_i = gap_i = 0) the one-facet
+// branch continues past a lift-off or re-contact only when it is positive: with the
+// two-facet λ_i(R_a) crossing zero, the one-facet gap is −(∂gap_i/∂λ_i) λ_i to first order,
+// so a negative compliance means the separated facet penetrates where the pressing one pulls
+// (the branch folds back, docs/model.md §12).
+double PatellarFacetCompliance(const Patella& patella, const Vector3d& tuberosity_F,
+                               const std::array<double, kPatellaUnknowns>& x, int facet);
+
+// A facet's contact function this close to zero (|c_i| ≤ this: λ_i ≤ 1e-6, i.e. 1e-6 F_Q,
+// or a gap ≤ 1 µm) marks a switch at a phase start: the events' roots leave it ~1e-12 and
+// the re-contact hysteresis 1e-9 (solver/events.hpp).
+constexpr double kPatellarSwitchBand = 1.0e-6;
+
+// At a phase start at tibial time t (s), the patella's equilibrium `solution` at R_a: each
+// facet at its switch (|c_i| ≤ kPatellarSwitchBand) must have a positive compliance, else
+// SolverError naming the facet, t, R_a (mm), λ_i, gap_i (mm) and ∂gap_i/∂λ_i (mm): the
+// one-facet branch has folded back and the massless patella has no equilibrium past the
+// switch (it would snap). The check runs where a run has to continue past the switch, not in
+// the integrators' evaluations while they locate it (docs/model.md §12).
+void CheckPatellarFacetSwitch(const Patella& patella, const Vector3d& tuberosity_F, const PatellaGuess& solution,
+                              double t, const char* caller);
 
 // Tuberosity R_a in F at the tibial pose (Eq. 1.63).
 template <typename T>
@@ -236,6 +265,14 @@ inline LaggedTendon SolvedTendon(const Patella& patella, double t, const Pose& t
   out.tension = guess->x[kPatellaTendonRatio] * QuadricepsMagnitude(patella.quadriceps, t);
   return out;
 }
+
+// The equilibrium followed along a tibial path from from_q to to_q (≤ 1° per step, the
+// tibia turning about the knee's centre), from *guess (a solution at from_q; an invalid one
+// is the builder's start): the branch a run between the two poses follows, where a straight
+// solve could land on another (e.g. a dislocated one-facet equilibrium). *guess holds the
+// solution at to_q. Throws SolverError as SolvePatella.
+void SolvePatellaAlongTibialPath(const Patella& patella, const Vector6d& from_q, const Vector6d& to_q,
+                                 const char* caller, PatellaGuess* guess);
 
 // The start of the solve for a scene (the model builder): from a geometric guess at the
 // reference tibial pose (zero patellar angles, both facets touching, the tendon at its
