@@ -129,8 +129,25 @@ bool DaeSystem::Jacobian(double t, double cj, const double* y, const double* yp,
   J.block<6, 6>(6, 6) = -free.d_qd - cj * free.d_qdd;
   if (k_ == 0) return true;
 
-  // Contacts: the pose, ν and E as Jets over (q, c_i) (slots 0–5 q, 6–9 c_i).
-  const PoseTpl<ContactJet> pose = PoseWithCoordinateDerivatives<kContactJetSize>(q);
+  // Contacts: ν and E as Jets over (q, c_i) (slots 0–5 q, 6–9 c_i). The chapter form in the
+  // regular chart takes its residuals' and G's derivatives in closed form
+  // (RegularChartContactPartials: a fifth of the Jet's cost) from the double pose and ∂R/∂q;
+  // the other forms differentiate the contact geometry on the pose as Jets. The GGL form
+  // keeps the Jets: its trajectories would move at round-off and its position-constraint
+  // margin at rtol 1e-10 (tests/dae_ggl_test.cpp) is within that scatter (benchmarks/README.md,
+  // "Fourth round").
+  bool all_closed_form_partials = form_ == ContactForm::kChapter && !ggl_;
+  for (int c = 0; c < k_; ++c) all_closed_form_partials &= chart_[c] == ContactChart::kRegular;
+  PoseTpl<ContactJet> pose;
+  Pose pose_value;
+  Matrix3d dR[3];
+  if (all_closed_form_partials) {
+    const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
+    pose_value = PoseFromCoordinates(q, trig);
+    RotationPartials(trig, dR);
+  } else {
+    pose = PoseWithCoordinateDerivatives<kContactJetSize>(q);
+  }
   const Matrix3<ContactJet> E =
       AngularVelocityMap(ContactJet(q(kBeta), kBeta), ContactJet(q(kGamma), kGamma));
   Vector6<ContactJet> nu;
@@ -148,17 +165,22 @@ bool DaeSystem::Jacobian(double t, double cj, const double* y, const double* yp,
       for (int j = 0; j < 6; ++j) J(row, j) += scale * x.v[j];
       for (int j = 0; j < per_contact_; ++j) J(row, col_c + j) += scale * x.v[6 + j];
     };
-    ContactGeometryTpl<ContactJet> geo;
     ContactJet r[5];
-    if (form_ == ContactForm::kChapter) {
-      ContactJet coords[4];
-      for (int j = 0; j < 4; ++j) coords[j] = ContactJet(y[col_c + j], 6 + j);
-      if (!ChapterContactResiduals(pair, pose, coords, r, &geo, chart_[c])) return false;
+    Eigen::Matrix<ContactJet, 1, 6> G;
+    if (all_closed_form_partials) {
+      if (!RegularChartContactPartials(pair, pose_value, dR, y + col_c, r, &G)) return false;
     } else {
-      if (!ContactKinematics(pair, pose, &geo)) return false;
-      r[2] = geo.gap;
+      ContactGeometryTpl<ContactJet> geo;
+      if (form_ == ContactForm::kChapter) {
+        ContactJet coords[4];
+        for (int j = 0; j < 4; ++j) coords[j] = ContactJet(y[col_c + j], 6 + j);
+        if (!ChapterContactResiduals(pair, pose, coords, r, &geo, chart_[c])) return false;
+      } else {
+        if (!ContactKinematics(pair, pose, &geo)) return false;
+        r[2] = geo.gap;
+      }
+      G = ContactConstraintRow(pose, geo);
     }
-    const Eigen::Matrix<ContactJet, 1, 6> G = ContactConstraintRow(pose, geo);
     const ContactJet approach = G.dot(nu);  // G ν
     Eigen::Matrix<double, 1, 6> G_value, dapproach_du;
     for (int j = 0; j < 6; ++j) G_value(j) = G(j).a;
