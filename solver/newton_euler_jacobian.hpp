@@ -9,8 +9,8 @@
 //  - the applied loads (gravity, pulse, ligaments: most of the flops) analytically,
 //    ∂(F_applied_F, M_applied_T)/∂q from ∂R/∂q (RotationPartials) and the ligament law's
 //    slope (LigamentStiffness);
-//  - the kinematic part M ν̇ + (0, w × I w) with a Jet over the 8 values it reads
-//    (β, γ, q̇_ang, q̈_ang);
+//  - the kinematic part M ν̇ + (0, w × I w): its q̈ block M (diag(I) E for the angles) in
+//    closed form, the rest with a Jet over the 5 values it reads (β, γ, q̇_ang);
 //  - the contact terms from the contact geometry as a Jet over (q, c_i) (ContactJet: 10
 //    slots), which callers form with PoseWithCoordinateDerivatives; ∂r/∂N_i = −G_iᵀ.
 // Tests (tests/dae_system_test.cpp) compare every block with the Jet<24>

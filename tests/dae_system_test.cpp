@@ -2,7 +2,7 @@
 // solver/newton_euler_jacobian.hpp).
 //
 // Validates: DaeSystem::Jacobian (blocks differentiated at their own size: applied loads
-// analytically, kinematic part with Jet<8>, contacts in closed form in the regular chart or
+// analytically, kinematic part with Jet<5>, contacts in closed form in the regular chart or
 // with Jet<10>) equals the Jet<24>
 // derivative of the whole residual (JacobianByJets, itself checked against central
 // differences in dae_test.cpp) to round-off, for every system the IDA formulations build:
