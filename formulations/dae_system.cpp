@@ -148,14 +148,27 @@ bool DaeSystem::Jacobian(double t, double cj, const double* y, const double* yp,
   } else {
     pose = PoseWithCoordinateDerivatives<kContactJetSize>(q);
   }
-  const Matrix3<ContactJet> E =
-      AngularVelocityMap(ContactJet(q(kBeta), kBeta), ContactJet(q(kGamma), kGamma));
+  // E(β, γ) and w = E u_ang depend on β, γ only: a Jet of 2 (the same numbers as in the
+  // ContactJet, whose other slots stay zero), lifted into the β, γ slots.
+  using BetaGammaJet = ceres::Jet<double, 2>;
+  const Matrix3<BetaGammaJet> E2 = AngularVelocityMap(BetaGammaJet(q(kBeta), 0), BetaGammaJet(q(kGamma), 1));
+  const Vector3<BetaGammaJet> w2 = E2 * u.tail<3>().cast<BetaGammaJet>();
+  auto lift = [](const BetaGammaJet& x) {
+    ContactJet out(x.a);
+    out.v[kBeta] = x.v[0];
+    out.v[kGamma] = x.v[1];
+    return out;
+  };
+  Matrix3<ContactJet> E;
   Vector6<ContactJet> nu;
-  for (int i = 0; i < 3; ++i) nu(i) = ContactJet(u(i));
-  nu.tail<3>() = E * u.tail<3>().cast<ContactJet>();
   Matrix3d E_value;
   for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) E_value(i, j) = E(i, j).a;
+    nu(i) = ContactJet(u(i));
+    nu(3 + i) = lift(w2(i));
+    for (int j = 0; j < 3; ++j) {
+      E(i, j) = lift(E2(i, j));
+      E_value(i, j) = E2(i, j).a;
+    }
   }
   for (int c = 0; c < k_; ++c) {
     const ContactPair& pair = model_->contacts[active_[c]];
