@@ -64,16 +64,29 @@ void DaeSystem::InitialValues(const MechanicalState& state, double* y, double* y
   }
   if (per_contact_ == 0) return;
   // ċ: ∂g/∂c ċ = −∂g/∂q q̇ for the four contact-coordinate rows g of each contact (x, y of
-  // Eqs. 1.8 and 1.13), differentiated alone (a Jet of 10 over (q, c_i)).
+  // Eqs. 1.8 and 1.13), differentiated alone over (q, c_i): in closed form in the regular
+  // chart (RegularChartContactPartials), else (and in the GGL form, as its Jacobian) as a Jet
+  // of 10.
   const Vector6d q = Eigen::Map<const Vector6d>(y);
+  const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
+  const Pose pose_value = PoseFromCoordinates(q, trig);
+  Matrix3d dR[3];
+  RotationPartials(trig, dR);
   const PoseTpl<ContactJet> pose = PoseWithCoordinateDerivatives<kContactJetSize>(q);
   for (int c = 0; c < k_; ++c) {
     const int col0 = CoordinateIndex(c);
-    ContactJet coords[4], r[5];
-    for (int j = 0; j < 4; ++j) coords[j] = ContactJet(y[col0 + j], 6 + j);
-    if (!ChapterContactResiduals(model_->contacts[active_[c]], pose, coords, r,
-                                 static_cast<ContactGeometryTpl<ContactJet>*>(nullptr), chart_[c])) {
-      return;
+    const ContactPair& pair = model_->contacts[active_[c]];
+    ContactJet r[5];
+    if (chart_[c] == ContactChart::kRegular && !ggl_) {
+      Eigen::Matrix<ContactJet, 1, 6> G;
+      if (!RegularChartContactPartials(pair, pose_value, dR, y + col0, r, &G)) return;
+    } else {
+      ContactJet coords[4];
+      for (int j = 0; j < 4; ++j) coords[j] = ContactJet(y[col0 + j], 6 + j);
+      if (!ChapterContactResiduals(pair, pose, coords, r, static_cast<ContactGeometryTpl<ContactJet>*>(nullptr),
+                                   chart_[c])) {
+        return;
+      }
     }
     const int rows[4] = {0, 1, 3, 4};  // residual entries: x, y of Eq. 1.8; x, y of Eq. 1.13
     Eigen::Matrix4d A;
