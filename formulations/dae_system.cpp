@@ -64,16 +64,29 @@ void DaeSystem::InitialValues(const MechanicalState& state, double* y, double* y
   }
   if (per_contact_ == 0) return;
   // ċ: ∂g/∂c ċ = −∂g/∂q q̇ for the four contact-coordinate rows g of each contact (x, y of
-  // Eqs. 1.8 and 1.13), differentiated alone (a Jet of 10 over (q, c_i)).
+  // Eqs. 1.8 and 1.13), differentiated alone over (q, c_i): in closed form in the regular
+  // chart (RegularChartContactPartials), else (and in the GGL form, as its Jacobian) as a Jet
+  // of 10.
   const Vector6d q = Eigen::Map<const Vector6d>(y);
+  const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
+  const Pose pose_value = PoseFromCoordinates(q, trig);
+  Matrix3d dR[3];
+  RotationPartials(trig, dR);
   const PoseTpl<ContactJet> pose = PoseWithCoordinateDerivatives<kContactJetSize>(q);
   for (int c = 0; c < k_; ++c) {
     const int col0 = CoordinateIndex(c);
-    ContactJet coords[4], r[5];
-    for (int j = 0; j < 4; ++j) coords[j] = ContactJet(y[col0 + j], 6 + j);
-    if (!ChapterContactResiduals(model_->contacts[active_[c]], pose, coords, r,
-                                 static_cast<ContactGeometryTpl<ContactJet>*>(nullptr), chart_[c])) {
-      return;
+    const ContactPair& pair = model_->contacts[active_[c]];
+    ContactJet r[5];
+    if (chart_[c] == ContactChart::kRegular && !ggl_) {
+      Eigen::Matrix<ContactJet, 1, 6> G;
+      if (!RegularChartContactPartials(pair, pose_value, dR, y + col0, r, &G)) return;
+    } else {
+      ContactJet coords[4];
+      for (int j = 0; j < 4; ++j) coords[j] = ContactJet(y[col0 + j], 6 + j);
+      if (!ChapterContactResiduals(pair, pose, coords, r, static_cast<ContactGeometryTpl<ContactJet>*>(nullptr),
+                                   chart_[c])) {
+        return;
+      }
     }
     const int rows[4] = {0, 1, 3, 4};  // residual entries: x, y of Eq. 1.8; x, y of Eq. 1.13
     Eigen::Matrix4d A;
@@ -129,16 +142,46 @@ bool DaeSystem::Jacobian(double t, double cj, const double* y, const double* yp,
   J.block<6, 6>(6, 6) = -free.d_qd - cj * free.d_qdd;
   if (k_ == 0) return true;
 
-  // Contacts: the pose, ν and E as Jets over (q, c_i) (slots 0–5 q, 6–9 c_i).
-  const PoseTpl<ContactJet> pose = PoseWithCoordinateDerivatives<kContactJetSize>(q);
-  const Matrix3<ContactJet> E =
-      AngularVelocityMap(ContactJet(q(kBeta), kBeta), ContactJet(q(kGamma), kGamma));
+  // Contacts: ν and E as Jets over (q, c_i) (slots 0–5 q, 6–9 c_i). The chapter form in the
+  // regular chart takes its residuals' and G's derivatives in closed form
+  // (RegularChartContactPartials: a fifth of the Jet's cost) from the double pose and ∂R/∂q;
+  // the other forms differentiate the contact geometry on the pose as Jets. The GGL form
+  // keeps the Jets: its trajectories would move at round-off and its position-constraint
+  // margin at rtol 1e-10 (tests/dae_ggl_test.cpp) is within that scatter (benchmarks/README.md,
+  // "Fourth round").
+  bool all_closed_form_partials = form_ == ContactForm::kChapter && !ggl_;
+  for (int c = 0; c < k_; ++c) all_closed_form_partials &= chart_[c] == ContactChart::kRegular;
+  PoseTpl<ContactJet> pose;
+  Pose pose_value;
+  Matrix3d dR[3];
+  if (all_closed_form_partials) {
+    const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
+    pose_value = PoseFromCoordinates(q, trig);
+    RotationPartials(trig, dR);
+  } else {
+    pose = PoseWithCoordinateDerivatives<kContactJetSize>(q);
+  }
+  // E(β, γ) and w = E u_ang depend on β, γ only: a Jet of 2 (the same numbers as in the
+  // ContactJet, whose other slots stay zero), lifted into the β, γ slots.
+  using BetaGammaJet = ceres::Jet<double, 2>;
+  const Matrix3<BetaGammaJet> E2 = AngularVelocityMap(BetaGammaJet(q(kBeta), 0), BetaGammaJet(q(kGamma), 1));
+  const Vector3<BetaGammaJet> w2 = E2 * u.tail<3>().cast<BetaGammaJet>();
+  auto lift = [](const BetaGammaJet& x) {
+    ContactJet out(x.a);
+    out.v[kBeta] = x.v[0];
+    out.v[kGamma] = x.v[1];
+    return out;
+  };
+  Matrix3<ContactJet> E;
   Vector6<ContactJet> nu;
-  for (int i = 0; i < 3; ++i) nu(i) = ContactJet(u(i));
-  nu.tail<3>() = E * u.tail<3>().cast<ContactJet>();
   Matrix3d E_value;
   for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) E_value(i, j) = E(i, j).a;
+    nu(i) = ContactJet(u(i));
+    nu(3 + i) = lift(w2(i));
+    for (int j = 0; j < 3; ++j) {
+      E(i, j) = lift(E2(i, j));
+      E_value(i, j) = E2(i, j).a;
+    }
   }
   for (int c = 0; c < k_; ++c) {
     const ContactPair& pair = model_->contacts[active_[c]];
@@ -148,17 +191,22 @@ bool DaeSystem::Jacobian(double t, double cj, const double* y, const double* yp,
       for (int j = 0; j < 6; ++j) J(row, j) += scale * x.v[j];
       for (int j = 0; j < per_contact_; ++j) J(row, col_c + j) += scale * x.v[6 + j];
     };
-    ContactGeometryTpl<ContactJet> geo;
     ContactJet r[5];
-    if (form_ == ContactForm::kChapter) {
-      ContactJet coords[4];
-      for (int j = 0; j < 4; ++j) coords[j] = ContactJet(y[col_c + j], 6 + j);
-      if (!ChapterContactResiduals(pair, pose, coords, r, &geo, chart_[c])) return false;
+    Eigen::Matrix<ContactJet, 1, 6> G;
+    if (all_closed_form_partials) {
+      if (!RegularChartContactPartials(pair, pose_value, dR, y + col_c, r, &G)) return false;
     } else {
-      if (!ContactKinematics(pair, pose, &geo)) return false;
-      r[2] = geo.gap;
+      ContactGeometryTpl<ContactJet> geo;
+      if (form_ == ContactForm::kChapter) {
+        ContactJet coords[4];
+        for (int j = 0; j < 4; ++j) coords[j] = ContactJet(y[col_c + j], 6 + j);
+        if (!ChapterContactResiduals(pair, pose, coords, r, &geo, chart_[c])) return false;
+      } else {
+        if (!ContactKinematics(pair, pose, &geo)) return false;
+        r[2] = geo.gap;
+      }
+      G = ContactConstraintRow(pose, geo);
     }
-    const Eigen::Matrix<ContactJet, 1, 6> G = ContactConstraintRow(pose, geo);
     const ContactJet approach = G.dot(nu);  // G ν
     Eigen::Matrix<double, 1, 6> G_value, dapproach_du;
     for (int j = 0; j < 6; ++j) G_value(j) = G(j).a;

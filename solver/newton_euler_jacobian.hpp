@@ -9,11 +9,11 @@
 //  - the applied loads (gravity, pulse, ligaments: most of the flops) analytically,
 //    ∂(F_applied_F, M_applied_T)/∂q from ∂R/∂q (RotationPartials) and the ligament law's
 //    slope (LigamentStiffness);
-//  - the kinematic part M ν̇ + (0, w × I w) with a Jet over the 8 values it reads
-//    (β, γ, q̇_ang, q̈_ang);
+//  - the kinematic part M ν̇ + (0, w × I w): its q̈ block M (diag(I) E for the angles) in
+//    closed form, the rest with a Jet over the 5 values it reads (β, γ, q̇_ang);
 //  - the contact terms from the contact geometry as a Jet over (q, c_i) (ContactJet: 10
 //    slots), which callers form with PoseWithCoordinateDerivatives; ∂r/∂N_i = −G_iᵀ.
-// Tests (tests/newton_euler_jacobian_test.cpp) compare every block with the Jet<24>
+// Tests (tests/dae_system_test.cpp) compare every block with the Jet<24>
 // derivative of the same residual and with central differences.
 #pragma once
 
@@ -47,6 +47,21 @@ PoseTpl<ceres::Jet<double, N>> PoseWithCoordinateDerivatives(const Vector6d& q) 
   }
   return out;
 }
+
+// One contact's chapter-form residuals in the regular chart (ChapterContactResiduals with
+// ContactChart::kRegular: r[0..4], Eq. 1.8 tangential and normal components, Eq. 1.13) and its
+// velocity-constraint row G = [−n_Fᵀ, (n′ × X′t)ᵀ] (ContactConstraintRow), as ContactJets
+// whose slots hold the exact first derivatives over (q, c_i) — the numbers those functions
+// give on PoseWithCoordinateDerivatives' Jet pose, to round-off — differentiated in closed
+// form from the charts' second derivatives (ChartSample) and ∂R/∂q (dR, RotationPartials at
+// the pose). With e = Pf − (R0 + R P′t), ε = Rᵀ e (T) and x̂ = x/|x|, d(x̂) = (dx − x̂ (x̂·dx))/|x|:
+//   ∂r_0/∂R0 = −R P̂′t_u,  ∂r_0/∂q_a = −(∂_a R P′t)·(R P̂′t_u) + e·(∂_a R P̂′t_u)  (a: α, β, γ)
+//   ∂r_0/∂uf = Pf_u·(R P̂′t_u),  ∂r_0/∂ut = −P′t_u·P̂′t_u + ε·∂(P̂′t_u)/∂ut      (likewise r_1, r_2)
+//   ∂r_3/∂q_a = (∂_a R n′)·P̂f_u,  ∂r_3/∂uf = n_F·∂(P̂f_u)/∂uf,  ∂r_3/∂ut = (R ∂n′/∂ut)·P̂f_u
+// with ∂n′/∂ut from ∂(P′t_u × P′t_v)/∂ut = P′t_uu × P′t_v + P′t_u × P′t_uv. False outside a
+// chart's domain. Tested against the Jet evaluation (tests/dae_system_test.cpp).
+bool RegularChartContactPartials(const ContactPair& pair, const Pose& pose, const Matrix3d dR[3],
+                                 const double c[4], ContactJet r[5], Eigen::Matrix<ContactJet, 1, 6>* G);
 
 // ∂r_free/∂q, ∂r_free/∂q̇, ∂r_free/∂q̈ (6×6 each, ν-rows, q-columns).
 struct NewtonEulerPartials {

@@ -2,7 +2,8 @@
 // solver/newton_euler_jacobian.hpp).
 //
 // Validates: DaeSystem::Jacobian (blocks differentiated at their own size: applied loads
-// analytically, kinematic part with Jet<8>, contacts with Jet<10>) equals the Jet<24>
+// analytically, kinematic part with Jet<5>, contacts in closed form in the regular chart or
+// with Jet<10>) equals the Jet<24>
 // derivative of the whole residual (JacobianByJets, itself checked against central
 // differences in dae_test.cpp) to round-off, for every system the IDA formulations build:
 // chapter and closed form, velocity and position level, plain and GGL (with μ ≠ 0, so the
@@ -148,6 +149,55 @@ TEST(DaeSystem, InitialContactCoordinateRatesKeepTheRowsStationary) {
           EXPECT_LE(std::abs(rate), 1e-12 * (1.0 + scale)) << "row " << r << (ggl ? " (GGL)" : "");
           EXPECT_GT(scale, 1e-6) << "the state does not move the row: the check would be empty";
         }
+      }
+    }
+  }
+}
+
+// RegularChartContactPartials (closed-form derivatives over (q, c_i) of one contact's
+// regular-chart residuals and G) against the second engine, ChapterContactResiduals and
+// ContactConstraintRow evaluated on PoseWithCoordinateDerivatives' Jet pose with Jet
+// coordinates: values and all ten derivative slots agree to round-off, on both scenes'
+// surfaces (sphere caps on planes; the anatomical general surfaces), at poses and contact
+// coordinates moved away from the consistent start so no term vanishes by symmetry.
+TEST(RegularChartContactPartials, EqualTheJetDerivative) {
+  std::mt19937 rng(25);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const Scene* sc : {&ChapterScene(), &AnatomicalScene()}) {
+    const MechanicalState s0 = ConsistentInitialize(sc->model, sc->initial, {0, 1}, ConsistentInitOptions{}, nullptr);
+    for (int trial = 0; trial < 8; ++trial) {
+      Vector6d q = s0.q;
+      for (int i = 0; i < 3; ++i) q(i) += MmToM(0.5) * u(rng);
+      for (int i = 3; i < 6; ++i) q(i) += DegToRad(trial == 0 ? 0.0 : 15.0) * u(rng);
+      const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
+      const Pose pose = PoseFromCoordinates(q, trig);
+      Matrix3d dR[3];
+      RotationPartials(trig, dR);
+      const PoseTpl<ContactJet> pose_jet = PoseWithCoordinateDerivatives<kContactJetSize>(q);
+      for (int c : s0.active) {
+        const ContactPair& pair = sc->model.contacts[c];
+        ASSERT_EQ(s0.contact[c].chart, ContactChart::kRegular);
+        double coords[4];
+        ContactJet coords_jet[4];
+        for (int j = 0; j < 4; ++j) {
+          coords[j] = s0.contact[c].coordinates[j] + 0.02 * MmToM(1.0) * u(rng) * (trial > 0);
+          coords_jet[j] = ContactJet(coords[j], 6 + j);
+        }
+        ContactJet r[5], r_jet[5];
+        Eigen::Matrix<ContactJet, 1, 6> G;
+        ContactGeometryTpl<ContactJet> geo;
+        ASSERT_TRUE(RegularChartContactPartials(pair, pose, dR, coords, r, &G));
+        ASSERT_TRUE(ChapterContactResiduals(pair, pose_jet, coords_jet, r_jet, &geo, ContactChart::kRegular));
+        const Eigen::Matrix<ContactJet, 1, 6> G_jet = ContactConstraintRow(pose_jet, geo);
+        auto expect_equal = [&](const ContactJet& a, const ContactJet& b, const std::string& what) {
+          const double scale = std::max(std::abs(b.a), b.v.cwiseAbs().maxCoeff());
+          EXPECT_NEAR(a.a, b.a, 1e-13 * (1.0 + scale)) << what << " value";
+          for (int j = 0; j < kContactJetSize; ++j) {
+            EXPECT_NEAR(a.v[j], b.v[j], 1e-12 * (1.0 + scale)) << what << " slot " << j << " (trial " << trial << ")";
+          }
+        };
+        for (int i = 0; i < 5; ++i) expect_equal(r[i], r_jet[i], "r[" + std::to_string(i) + "]");
+        for (int i = 0; i < 6; ++i) expect_equal(G(i), G_jet(i), "G[" + std::to_string(i) + "]");
       }
     }
   }

@@ -19,7 +19,8 @@
 //
 // Jacobian dF/dy + cj dF/dẏ: exact, assembled from blocks differentiated
 // at their own size (solver/newton_euler_jacobian.hpp: the applied loads analytically, the
-// kinematic part with a Jet of 8, each contact with a Jet of 10 over (q, c_i)); the Jet<24>
+// kinematic part with a Jet of 5, each contact over (q, c_i): in closed form for the chapter
+// form in the regular chart (RegularChartContactPartials), else with a Jet of 10); the Jet<24>
 // derivative of the whole residual (JacobianByJets) is the reference it is tested against
 // (tests/dae_system_test.cpp) and the `--jacobian jet` choice.
 #pragma once
