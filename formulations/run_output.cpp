@@ -97,8 +97,9 @@ size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
     const int s = 11 - exponent;
     if (s < 0 || s > 19) return FormatGeneral12(v, out);
     const Uint128 product = static_cast<Uint128>(m) * kPow10[s];
-    const Uint128 quotient = product >> shift;
-    if (quotient >= kPow10[12]) {
+    const Uint128 twice = product >> (shift - 1);  // 2 N and the first bit of the fraction
+    const uint64_t quotient = static_cast<uint64_t>(twice >> 1);
+    if ((twice >> 1) >= kPow10[12]) {
       ++exponent;
       continue;
     }
@@ -106,10 +107,11 @@ size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
       --exponent;
       continue;
     }
-    const Uint128 remainder = product - (quotient << shift);
-    const Uint128 half = static_cast<Uint128>(1) << (shift - 1);
-    if (remainder == half) return FormatGeneral12(v, out);
-    digits12 = static_cast<uint64_t>(quotient) + (remainder > half ? 1 : 0);
+    digits12 = quotient;
+    if (static_cast<uint64_t>(twice) & 1) {  // fraction ≥ 1/2: up, but an exact tie goes to FormatGeneral12
+      if ((product & ((static_cast<Uint128>(1) << (shift - 1)) - 1)) == 0) return FormatGeneral12(v, out);
+      ++digits12;
+    }
     if (digits12 == kPow10[12]) {  // 9.99…95 → 10: one digit more before the point
       digits12 = kPow10[11];
       ++exponent;
@@ -124,8 +126,13 @@ size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
       "8081828384858687888990919293949596979899";
   char digits[24];
   const auto high = static_cast<uint32_t>(digits12 / 1000000), low = static_cast<uint32_t>(digits12 % 1000000);
-  const uint32_t pairs[6] = {high / 10000, high / 100 % 100, high % 100, low / 10000, low / 100 % 100, low % 100};
-  for (int i = 0; i < 6; ++i) std::memcpy(digits + 2 * i, kPairs + 2 * pairs[i], 2);
+  const uint32_t high_last4 = high % 10000, low_last4 = low % 10000;
+  std::memcpy(digits, kPairs + 2 * (high / 10000), 2);
+  std::memcpy(digits + 2, kPairs + 2 * (high_last4 / 100), 2);
+  std::memcpy(digits + 4, kPairs + 2 * (high_last4 % 100), 2);
+  std::memcpy(digits + 6, kPairs + 2 * (low / 10000), 2);
+  std::memcpy(digits + 8, kPairs + 2 * (low_last4 / 100), 2);
+  std::memcpy(digits + 10, kPairs + 2 * (low_last4 % 100), 2);
   std::memset(digits + 12, '0', 12);
   int n = 12;
   while (n > 1 && digits[n - 1] == '0') --n;
