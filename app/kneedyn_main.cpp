@@ -196,16 +196,19 @@ int Main(int argc, char** argv) {
   run->add_option("--out", out_dir, "output directory")->capture_default_str();
   run->add_flag("--quiet", quiet, "no progress on stderr");
 
-  std::string info_scene;
-  CLI::App* info = app.add_subcommand("info", "print the scene's reference pose, slack lengths and forces");
-  info->add_option("scene", info_scene, "scene file (YAML)")->required();
-
-  CLI::App* list = app.add_subcommand("formulations", "list the registered formulations");
-
   // The other subcommands' option sets are built only when the command line is not a `run`
   // (top-level --help lists them): building them cost ~0.6 M instructions, ~1.5 % of a
-  // default run (callgrind), and `kneedyn run ...` never parses them.
+  // default run (callgrind), and `kneedyn run ...` never parses them; info and formulations
+  // another ~45 k.
   const bool run_command = argc > 1 && std::string(argv[1]) == "run";
+  std::string info_scene;
+  CLI::App* info = nullptr;
+  CLI::App* list = nullptr;
+  if (!run_command) {
+    info = app.add_subcommand("info", "print the scene's reference pose, slack lengths and forces");
+    info->add_option("scene", info_scene, "scene file (YAML)")->required();
+    list = app.add_subcommand("formulations", "list the registered formulations");
+  }
   std::optional<ensembles::SweepCommand> sweep;  // kneedyn sweep (ensembles/sweep_cli.hpp)
   std::optional<ensembles::BatchCommand> batch;  // kneedyn batch (ensembles/batch_cli.hpp)
   std::optional<sensitivity::SensitivityCommand> sensitivity;  // sensitivity/sensitivity_cli.hpp
@@ -234,8 +237,8 @@ int Main(int argc, char** argv) {
     }
   }
   try {
-    if (*info) return Info(info_scene);
-    if (*list) {
+    if (info && *info) return Info(info_scene);
+    if (list && *list) {
       for (const FormulationInfo& f : RegisteredFormulations()) {
         std::printf("%-16s %s", f.name.c_str(), f.summary.c_str());
         if (!f.integrators.empty()) {
