@@ -199,11 +199,11 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
     const Vector6d& q = st.q;
     const Vector6d& qd = st.qd;
     const JointObservables& j = obs.joint;
-    std::vector<double> row;
-    row.reserve(cols.size());  // one allocation a row
-    row.insert(row.end(), {obs.t, j.flexion_deg, j.valgus_deg, j.external_rotation_deg, MToMm(q(kX0)),
-                           MToMm(q(kY0)), MToMm(q(kZ0)), MToMm(qd(kX0)), MToMm(qd(kY0)), MToMm(qd(kZ0)),
-                           j.flexion_rate_deg_s, j.valgus_rate_deg_s, j.external_rotation_rate_deg_s});
+    std::vector<double> row = {obs.t, j.flexion_deg, j.valgus_deg, j.external_rotation_deg,
+                               MToMm(q(kX0)), MToMm(q(kY0)), MToMm(q(kZ0)), MToMm(qd(kX0)), MToMm(qd(kY0)),
+                               MToMm(qd(kZ0)), j.flexion_rate_deg_s, j.valgus_rate_deg_s,
+                               j.external_rotation_rate_deg_s};
+    row.reserve(cols.size());
     for (int i = 0; i < 3; ++i) row.push_back(RadToDeg(j.omega_T(i)));
     row.push_back(obs.pulse);
     row.push_back(static_cast<double>(obs.contacts_active));
