@@ -236,19 +236,25 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
   return table;
 }
 
+// The JSON objects below are filled member by member: a braced list of {key, value} pairs
+// builds a two-element array per member first (an allocation or three more a member;
+// SummaryJson 0.20 -> 0.11 M instructions, callgrind). Keys are sorted by nlohmann::json
+// either way, so the bytes are the same.
 nlohmann::json StatsJson(const SolverStats& s) {
-  return {{"steps", s.steps},
-          {"residual_evaluations", s.residual_evaluations},
-          {"jacobian_evaluations", s.jacobian_evaluations},
-          {"linear_solver_setups", s.linear_solver_setups},
-          {"nonlinear_iterations", s.nonlinear_iterations},
-          {"error_test_failures", s.error_test_failures},
-          {"convergence_failures", s.convergence_failures},
-          {"step_halvings", s.step_halvings},
-          {"rejected_steps", s.rejected_steps()},
-          {"root_evaluations", s.root_evaluations},
-          {"projections", s.projections},
-          {"restarts", s.restarts}};
+  nlohmann::json j = nlohmann::json::object();
+  j["steps"] = s.steps;
+  j["residual_evaluations"] = s.residual_evaluations;
+  j["jacobian_evaluations"] = s.jacobian_evaluations;
+  j["linear_solver_setups"] = s.linear_solver_setups;
+  j["nonlinear_iterations"] = s.nonlinear_iterations;
+  j["error_test_failures"] = s.error_test_failures;
+  j["convergence_failures"] = s.convergence_failures;
+  j["step_halvings"] = s.step_halvings;
+  j["rejected_steps"] = s.rejected_steps();
+  j["root_evaluations"] = s.root_evaluations;
+  j["projections"] = s.projections;
+  j["restarts"] = s.restarts;
+  return j;
 }
 
 namespace {
@@ -264,8 +270,12 @@ nlohmann::json JacobianSetting(const RunSettings& settings) {
 
 nlohmann::json LevelJson(const InitLevelReport& r) {
   const char* method = r.method == InitMethod::kNewton ? "newton" : r.method == InitMethod::kCeres ? "ceres" : "none";
-  return {{"residual_before", r.residual_before}, {"residual_after", r.residual_after},
-          {"iterations", r.iterations}, {"method", method}};
+  nlohmann::json j = nlohmann::json::object();
+  j["residual_before"] = r.residual_before;
+  j["residual_after"] = r.residual_after;
+  j["iterations"] = r.iterations;
+  j["method"] = method;
+  return j;
 }
 
 nlohmann::json StateJson(const Scene& scene, const MechanicalState& st) {
@@ -280,10 +290,11 @@ nlohmann::json StateJson(const Scene& scene, const MechanicalState& st) {
   nlohmann::json contacts = nlohmann::json::object();
   for (size_t i = 0; i < scene.model.contacts.size(); ++i) {
     const std::string name = CompartmentName(scene.model.contacts[i].compartment);
-    contacts[name] = {{"active", st.IsActive(static_cast<int>(i))},
-                      {"normal_force_N", st.IsActive(static_cast<int>(i)) ? st.contact[i].normal_force : 0.0}};
+    nlohmann::json& c = contacts[name];
+    c["active"] = st.IsActive(static_cast<int>(i));
+    c["normal_force_N"] = st.IsActive(static_cast<int>(i)) ? st.contact[i].normal_force : 0.0;
   }
-  j["contacts"] = contacts;
+  j["contacts"] = std::move(contacts);
   return j;
 }
 
@@ -434,13 +445,17 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
   j["status"] = result.completed ? "completed" : "partial";
   if (!result.completed) j["failure"] = result.failure;
   j["end_reason"] = result.end_reason;
-  j["scene"] = {{"name", scene.name}, {"path", scene.path}, {"parameter_set", scene.parameter_set},
-                {"ligaments", scene.model.ligaments.size()},
-                {"contacts", scene.model.contacts.size()},
-                {"pulse", {{"shape", PulseShapeName(scene.model.pulse.shape)},
-                           {"amplitude_N", scene.model.pulse.amplitude},
-                           {"duration_s", scene.model.pulse.duration}}},
-                {"ligament_law", scene.model.ligament_law == LigamentLaw::kPublished ? "published" : "c1_continuous"}};
+  nlohmann::json& scene_json = j["scene"];
+  scene_json["name"] = scene.name;
+  scene_json["path"] = scene.path;
+  scene_json["parameter_set"] = scene.parameter_set;
+  scene_json["ligaments"] = scene.model.ligaments.size();
+  scene_json["contacts"] = scene.model.contacts.size();
+  nlohmann::json& pulse = scene_json["pulse"];
+  pulse["shape"] = PulseShapeName(scene.model.pulse.shape);
+  pulse["amplitude_N"] = scene.model.pulse.amplitude;
+  pulse["duration_s"] = scene.model.pulse.duration;
+  scene_json["ligament_law"] = scene.model.ligament_law == LigamentLaw::kPublished ? "published" : "c1_continuous";
   // Named only when it is not the default, so that default runs keep their summary.
   if (scene.model.angular_velocity_map == AngularVelocityMapReading::kPrintedEq1_20b) {
     j["scene"]["angular_velocity_map"] = "printed_eq_1_20b";
@@ -449,17 +464,23 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
   j["formulation"] = settings.formulation;
   // What ran: the integrator and step actually used; adaptive runs record their mean step.
   const double span = result.samples.size() > 1 ? result.samples.back().t - result.samples.front().t : 0.0;
-  j["settings"] = {{"rtol", o.rtol}, {"atol", o.atol}, {"integrator", result.integrator},
-                   {"step_mode", result.fixed_step > 0.0 ? "fixed" : "adaptive"},
-                   {"step_s", result.fixed_step > 0.0 ? nlohmann::json(result.fixed_step) : nlohmann::json(nullptr)},
-                   {"mean_step_s", result.stats.steps > 0 && span > 0.0
-                                       ? nlohmann::json(span / static_cast<double>(result.stats.steps))
-                                       : nlohmann::json(nullptr)},
-                   {"requested", {{"integrator", o.integrator ? OptionName(*o.integrator) : ""}, {"step_s", o.step}}},
-                   {"max_step_s", o.max_step},
-                   {"stabilization", OptionName(o.stabilization)}, {"constraint_level", OptionName(o.constraint_level)},
-                   {"jacobian", JacobianSetting(settings)},
-                   {"output_interval_s", settings.output_interval > 0 ? settings.output_interval : scene.output_interval}};
+  nlohmann::json& settings_json = j["settings"];
+  settings_json["rtol"] = o.rtol;
+  settings_json["atol"] = o.atol;
+  settings_json["integrator"] = result.integrator;
+  settings_json["step_mode"] = result.fixed_step > 0.0 ? "fixed" : "adaptive";
+  settings_json["step_s"] = result.fixed_step > 0.0 ? nlohmann::json(result.fixed_step) : nlohmann::json(nullptr);
+  settings_json["mean_step_s"] = result.stats.steps > 0 && span > 0.0
+                                     ? nlohmann::json(span / static_cast<double>(result.stats.steps))
+                                     : nlohmann::json(nullptr);
+  nlohmann::json& requested = settings_json["requested"];
+  requested["integrator"] = o.integrator ? OptionName(*o.integrator) : "";
+  requested["step_s"] = o.step;
+  settings_json["max_step_s"] = o.max_step;
+  settings_json["stabilization"] = OptionName(o.stabilization);
+  settings_json["constraint_level"] = OptionName(o.constraint_level);
+  settings_json["jacobian"] = JacobianSetting(settings);
+  settings_json["output_interval_s"] = settings.output_interval > 0 ? settings.output_interval : scene.output_interval;
   const InitReport& ir = result.init;
   nlohmann::json forces_guess = nlohmann::json::object(), forces = nlohmann::json::object();
   for (size_t i = 0; i < scene.model.contacts.size() && i < ir.normal_force.size(); ++i) {
@@ -467,25 +488,33 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
     forces_guess[name] = ir.normal_force_guess[i];
     forces[name] = ir.normal_force[i];
   }
-  j["initialization"] = {{"form", ir.form}, {"held", ir.held},
-                         {"position", LevelJson(ir.position)},
-                         {"velocity", LevelJson(ir.velocity)},
-                         {"hidden_constraint", LevelJson(ir.hidden)},
-                         {"normal_force_guess_N", forces_guess},
-                         {"normal_force_N", forces}};
+  nlohmann::json& init = j["initialization"];
+  init["form"] = ir.form;
+  init["held"] = ir.held;
+  init["position"] = LevelJson(ir.position);
+  init["velocity"] = LevelJson(ir.velocity);
+  init["hidden_constraint"] = LevelJson(ir.hidden);
+  init["normal_force_guess_N"] = std::move(forces_guess);
+  init["normal_force_N"] = std::move(forces);
   nlohmann::json events = nlohmann::json::array();
   for (const EventRecord& e : result.events) {
-    events.push_back({{"name", e.name}, {"time", e.time}, {"flexion_deg", RadToDeg(e.flexion)}});
+    nlohmann::json event = nlohmann::json::object();
+    event["name"] = e.name;
+    event["time"] = e.time;
+    event["flexion_deg"] = RadToDeg(e.flexion);
+    events.push_back(std::move(event));
   }
-  j["events"] = events;
+  j["events"] = std::move(events);
   if (!result.samples.empty()) j["final_state"] = StateJson(scene, result.samples.back());
   j["statistics"] = StatsJson(result.stats);
   j["statistics"]["ligament_kink_crossings"] = result.ligament_kink_crossings;
-  j["constraint_residuals"] = {{"max_gap_mm", MToMm(result.max_position_residual)},
-                               {"max_gap_rate_mm_s", MToMm(result.max_velocity_residual)}};
+  j["constraint_residuals"]["max_gap_mm"] = MToMm(result.max_position_residual);
+  j["constraint_residuals"]["max_gap_rate_mm_s"] = MToMm(result.max_velocity_residual);
   j["wall_time_s"] = result.wall_time_s;
-  j["versions"] = {{"sundials", SUNDIALS_VERSION}, {"ceres", CERES_VERSION_STRING},
-                   {"eigen", StrCat(EIGEN_WORLD_VERSION, ".", EIGEN_MAJOR_VERSION, ".", EIGEN_MINOR_VERSION)}};
+  nlohmann::json& versions = j["versions"];
+  versions["sundials"] = SUNDIALS_VERSION;
+  versions["ceres"] = CERES_VERSION_STRING;
+  versions["eigen"] = StrCat(EIGEN_WORLD_VERSION, ".", EIGEN_MAJOR_VERSION, ".", EIGEN_MINOR_VERSION);
   return j;
 }
 
