@@ -18,6 +18,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "ensembles/batch_cli.hpp"
@@ -161,9 +162,11 @@ int Main(int argc, char** argv) {
   // so that every message echoes the text given.
   OptionText typed;
   const bool describe = AsksForHelp(argc, argv);  // else the help texts below stay empty
+  std::vector<std::pair<const char*, const CLI::Option*>> text_options;  // each flag of `typed`, its option
   auto text_option = [&](const char* flag, const std::string& help, const std::string& default_text = "") {
     CLI::Option* o = run->add_option(flag, typed[flag], help);
     if (!default_text.empty()) o->default_str(default_text);
+    text_options.emplace_back(flag, o);
   };
   const auto accepted = [describe](auto field) { return describe ? AcceptedBy(field) : std::string(); };
   const auto shown = [describe](auto value) { return describe ? StrCat(value) : std::string(); };
@@ -225,8 +228,10 @@ int Main(int argc, char** argv) {
   if (batch && batch->parsed()) return batch->Run();
   if (sensitivity && sensitivity->parsed()) return sensitivity->Run(argc, argv);
   if (score && score->parsed()) return score->Run(argc, argv);
-  for (auto it = typed.begin(); it != typed.end();) {  // keep only the options given
-    it = run->count(it->first) ? std::next(it) : typed.erase(it);
+  // Keep only the options given; asked of each option itself (run->count(flag) looks the flag
+  // up among all of run's options by name: ~80 k instructions for the 17, callgrind).
+  for (const auto& [flag, option] : text_options) {
+    if (option->count() == 0) typed.erase(flag);
   }
   std::vector<const std::string*> texts = {&scene_path, &info_scene, &out_dir, &settings.formulation};
   for (const auto& [flag, text] : typed) texts.push_back(&text);
