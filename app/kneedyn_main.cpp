@@ -17,6 +17,8 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include "ensembles/batch_cli.hpp"
@@ -108,6 +110,19 @@ std::string FixedStepMethods() {
   return out;
 }
 
+// Whether CLI11 may print help for this command line (-h or --help, also inside a cluster
+// of short flags such as -qh): the help texts that list the registry's accepted values are
+// built only then (~0.07 M instructions of a default run otherwise; callgrind).
+bool AsksForHelp(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view a = argv[i];
+    if (a == "--") break;  // positionals after it
+    if (a.rfind("--help", 0) == 0) return true;
+    if (a.size() > 1 && a[0] == '-' && a[1] != '-' && a.find('h') != std::string_view::npos) return true;
+  }
+  return false;
+}
+
 // The options of `kneedyn run` as typed (flag -> text) into `settings` (ReadOptionText, and
 // --output-interval). Returns the first refusal, naming the flag and the text, or "".
 std::string ReadRunOptions(const OptionText& typed, RunSettings* settings) {
@@ -146,30 +161,35 @@ int Main(int argc, char** argv) {
   // Numbers and names are kept as typed and converted once, after parsing (ReadRunOptions),
   // so that every message echoes the text given.
   OptionText typed;
+  const bool describe = AsksForHelp(argc, argv);  // else the help texts below stay empty
+  std::vector<std::pair<const char*, const CLI::Option*>> text_options;  // each flag of `typed`, its option
   auto text_option = [&](const char* flag, const std::string& help, const std::string& default_text = "") {
     CLI::Option* o = run->add_option(flag, typed[flag], help);
     if (!default_text.empty()) o->default_str(default_text);
+    text_options.emplace_back(flag, o);
   };
+  const auto accepted = [describe](auto field) { return describe ? AcceptedBy(field) : std::string(); };
+  const auto shown = [describe](auto value) { return describe ? StrCat(value) : std::string(); };
   const FormulationOptions defaults;
-  text_option("--rtol", "relative tolerance", StrCat(defaults.rtol));
-  text_option("--atol", "absolute tolerance (SI)", StrCat(defaults.atol));
-  text_option("--integrator", "integrator (" + AcceptedBy(&FormulationInfo::integrators) + ")");
-  text_option("--step", "fixed step in s (" + FixedStepMethods() + ")");
+  text_option("--rtol", "relative tolerance", shown(defaults.rtol));
+  text_option("--atol", "absolute tolerance (SI)", shown(defaults.atol));
+  text_option("--integrator", "integrator (" + accepted(&FormulationInfo::integrators) + ")");
+  text_option("--step", "fixed step in s (" + (describe ? FixedStepMethods() : std::string()) + ")");
   text_option("--max-step", "largest adaptive step in s (0: none)");
-  text_option("--max-steps", "step budget per phase", StrCat(defaults.max_steps));
-  text_option("--stabilization", "stabilization (" + AcceptedBy(&FormulationInfo::stabilizations) + ")",
-              OptionName(defaults.stabilization));
+  text_option("--max-steps", "step budget per phase", shown(defaults.max_steps));
+  text_option("--stabilization", "stabilization (" + accepted(&FormulationInfo::stabilizations) + ")",
+              shown(OptionName(defaults.stabilization)));
   text_option("--constraint-level", "constraint level: velocity (index 2) | position (index-3 variant) (" +
-                                        AcceptedBy(&FormulationInfo::constraint_levels) + ")",
-              OptionName(defaults.constraint_level));
-  const std::string scheme = FormulationsWith(&FormulationInfo::scheme_parameters);
-  text_option("--rho-inf", scheme + ": spectral radius at infinity in [0, 1]", StrCat(defaults.rho_inf));
+                                        accepted(&FormulationInfo::constraint_levels) + ")",
+              shown(OptionName(defaults.constraint_level)));
+  const std::string scheme = describe ? FormulationsWith(&FormulationInfo::scheme_parameters) : std::string();
+  text_option("--rho-inf", scheme + ": spectral radius at infinity in [0, 1]", shown(defaults.rho_inf));
   text_option("--alpha-m", scheme + ": alpha_m (with --alpha-f, --beta, --gamma)");
   text_option("--alpha-f", scheme + ": alpha_f");
   text_option("--beta", scheme + ": beta");
   text_option("--gamma", scheme + ": gamma");
   text_option("--jacobian", "Newton matrix: exact (default) | jet (the Jet<24> reference) | difference-quotient "
-                            "(IDA's own) (" + AcceptedBy(&FormulationInfo::jacobians) + ")");
+                            "(IDA's own) (" + accepted(&FormulationInfo::jacobians) + ")");
   run->add_option("--contact-chart", options.contact_chart,
                   "chart of the contact coordinates of the chapter-form formulations: regular | height-field "
                   "(the chapter's, singular at the condyle rim)")
@@ -179,16 +199,19 @@ int Main(int argc, char** argv) {
   run->add_option("--out", out_dir, "output directory")->capture_default_str();
   run->add_flag("--quiet", quiet, "no progress on stderr");
 
-  std::string info_scene;
-  CLI::App* info = app.add_subcommand("info", "print the scene's reference pose, slack lengths and forces");
-  info->add_option("scene", info_scene, "scene file (YAML)")->required();
-
-  CLI::App* list = app.add_subcommand("formulations", "list the registered formulations");
-
   // The other subcommands' option sets are built only when the command line is not a `run`
   // (top-level --help lists them): building them cost ~0.6 M instructions, ~1.5 % of a
-  // default run (callgrind), and `kneedyn run ...` never parses them.
+  // default run (callgrind), and `kneedyn run ...` never parses them; info and formulations
+  // another ~45 k.
   const bool run_command = argc > 1 && std::string(argv[1]) == "run";
+  std::string info_scene;
+  CLI::App* info = nullptr;
+  CLI::App* list = nullptr;
+  if (!run_command) {
+    info = app.add_subcommand("info", "print the scene's reference pose, slack lengths and forces");
+    info->add_option("scene", info_scene, "scene file (YAML)")->required();
+    list = app.add_subcommand("formulations", "list the registered formulations");
+  }
   std::optional<ensembles::SweepCommand> sweep;  // kneedyn sweep (ensembles/sweep_cli.hpp)
   std::optional<ensembles::BatchCommand> batch;  // kneedyn batch (ensembles/batch_cli.hpp)
   std::optional<sensitivity::SensitivityCommand> sensitivity;  // sensitivity/sensitivity_cli.hpp
@@ -205,8 +228,10 @@ int Main(int argc, char** argv) {
   if (batch && batch->parsed()) return batch->Run();
   if (sensitivity && sensitivity->parsed()) return sensitivity->Run(argc, argv);
   if (score && score->parsed()) return score->Run(argc, argv);
-  for (auto it = typed.begin(); it != typed.end();) {  // keep only the options given
-    it = run->count(it->first) ? std::next(it) : typed.erase(it);
+  // Keep only the options given; asked of each option itself (run->count(flag) looks the flag
+  // up among all of run's options by name: ~80 k instructions for the 17, callgrind).
+  for (const auto& [flag, option] : text_options) {
+    if (option->count() == 0) typed.erase(flag);
   }
   std::vector<const std::string*> texts = {&scene_path, &info_scene, &out_dir, &settings.formulation};
   for (const auto& [flag, text] : typed) texts.push_back(&text);
@@ -217,8 +242,8 @@ int Main(int argc, char** argv) {
     }
   }
   try {
-    if (*info) return Info(info_scene);
-    if (*list) {
+    if (info && *info) return Info(info_scene);
+    if (list && *list) {
       for (const FormulationInfo& f : RegisteredFormulations()) {
         std::printf("%-16s %s", f.name.c_str(), f.summary.c_str());
         if (!f.integrators.empty()) {

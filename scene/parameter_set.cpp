@@ -17,9 +17,11 @@ std::string ColumnName(std::string name) {
 }
 
 void ParseLigamentTable(const Field& ligs, ParameterSet* ps) {
+  const std::vector<const char*>& keys = KeysOf("parameter_set.ligaments[]");
+  std::vector<std::string> columns;  // ColumnName of each ligament read so far
   for (size_t i = 0; i < ligs.Size(); ++i) {
     const Field f = ligs.Item(i);
-    f.Keys(KeysOf("parameter_set.ligaments[]"));
+    f.Keys(keys);
     Ligament lig;
     lig.name = f.Required("name").Name(/*element=*/true);
     lig.p_FoA_F = f.Required("femoral_mm").Vec3() * kMPerMm;
@@ -28,14 +30,17 @@ void ParseLigamentTable(const Field& ligs, ParameterSet* ps) {
     lig.k_parabolic_published =
         f.Required("k_parabolic_N_mm2").Positive() * kMmPerM * kMmPerM;  // N/mm² -> N/m²
     lig.extension_ratio = f.Required("extension_ratio").Range(0.5, 2.0);
-    for (const Ligament& other : ps->ligaments) {
+    const std::string column = ColumnName(lig.name);
+    for (size_t j = 0; j < ps->ligaments.size(); ++j) {
+      const Ligament& other = ps->ligaments[j];
       if (other.name == lig.name) f.Required("name").Fail("duplicate ligament name");
-      if (ColumnName(other.name) == ColumnName(lig.name)) {
+      if (columns[j] == column) {
         f.Required("name").Fail("gives the same output column as element '" + other.name + "'");
       }
     }
     if (ps->ligaments.size() >= 64) ligs.Fail("at most 64 elements");
     ps->ligaments.push_back(lig);
+    columns.push_back(column);
   }
 }
 

@@ -5,11 +5,11 @@
 namespace kneedyn {
 namespace {
 
-const std::vector<const char*>& Find(const std::vector<SceneKeyTable>& table, const std::string& name) {
+const std::vector<const char*>& Find(const std::vector<SceneKeyTable>& table, std::string_view name) {
   for (const SceneKeyTable& t : table) {
     if (name == t.mapping) return t.entries;
   }
-  throw std::logic_error("scene key table: no entry '" + name + "'");
+  throw std::logic_error("scene key table: no entry '" + std::string(name) + "'");
 }
 
 }  // namespace
@@ -82,7 +82,7 @@ const std::vector<SceneKeyTable>& SceneFieldValues() {
   return table;
 }
 
-const std::vector<const char*>& KeysOf(const std::string& mapping) { return Find(SceneMappingKeys(), mapping); }
-const std::vector<const char*>& ValuesOf(const std::string& field) { return Find(SceneFieldValues(), field); }
+const std::vector<const char*>& KeysOf(std::string_view mapping) { return Find(SceneMappingKeys(), mapping); }
+const std::vector<const char*>& ValuesOf(std::string_view field) { return Find(SceneFieldValues(), field); }
 
 }  // namespace kneedyn

@@ -197,3 +197,34 @@ TEST(TrajectoryFiles, ByteIdenticalToTheSnprintfWriter) {
   EXPECT_EQ(partial, 1);
   fs::remove_all(work);
 }
+
+// The integer path's every layout (1e-8 ≤ |v| < 1e12: d.ddde-0X for X ≤ −5, 0.000ddd for
+// −4 ≤ X < 0, fixed for 0 ≤ X < 12), its decimal-exponent correction (values one ulp either
+// side of each power of ten) and its trailing-zero trim (integers and short decimals), decade
+// by decade, against printf. Fails if a branch drops a digit, misplaces the point or rounds.
+TEST(TrajectoryNumber, EveryDecadeOfTheIntegerPathAsPrintf) {
+  std::mt19937_64 rng(20261203);
+  std::uniform_real_distribution<double> unit(1.0, 10.0);
+  long mismatches = 0, checked = 0;
+  auto check = [&](double v) {
+    for (double w : {v, -v}) {
+      ++checked;
+      if (ToChars12g(w) != Printf12g(w) && ++mismatches <= 5) {
+        ADD_FAILURE() << std::hexfloat << w << ": formatter " << ToChars12g(w) << ", printf " << Printf12g(w);
+      }
+    }
+  };
+  for (int x = -9; x <= 12; ++x) {
+    const double p = std::pow(10.0, x);
+    for (double v : {p, std::nextafter(p, 0.0), std::nextafter(p, INFINITY)}) check(v);
+    for (int i = 0; i < 5000; ++i) {
+      const double m = unit(rng);
+      check(m * p);
+      check(std::round(m * 1e3) / 1e3 * p);  // 4 significant digits: trimmed zeros
+      check(std::round(m) * p);              // one digit
+    }
+  }
+  for (long k = 1; k < 2000000; k += 997) check(static_cast<double>(k));  // integers: no point
+  EXPECT_EQ(mismatches, 0);
+  EXPECT_GT(checked, 600000);
+}

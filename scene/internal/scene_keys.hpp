@@ -6,6 +6,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace kneedyn {
@@ -22,7 +23,8 @@ const std::vector<SceneKeyTable>& SceneMappingKeys();
 const std::vector<SceneKeyTable>& SceneFieldValues();
 
 // The keys of one mapping, the values of one field (std::logic_error if not in the table).
-const std::vector<const char*>& KeysOf(const std::string& mapping);
-const std::vector<const char*>& ValuesOf(const std::string& field);
+// By string_view: a literal name costs no std::string (a heap one past 15 characters).
+const std::vector<const char*>& KeysOf(std::string_view mapping);
+const std::vector<const char*>& ValuesOf(std::string_view field);
 
 }  // namespace kneedyn

@@ -84,6 +84,7 @@ class Field {
  private:
   std::string Where(std::string_view key) const;
   size_t Count() const;
+  double ItemInRange(size_t i, double limit) const;  // a sequence's item i, |v| <= limit
   const yaml_node_s* Find(std::string_view key) const;
   std::shared_ptr<const YamlDocument> doc_;
   const yaml_node_s* node_;
