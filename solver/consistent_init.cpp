@@ -401,7 +401,7 @@ MechanicalState ConsistentInitialize(const Model& model, const InitialState& ini
   };
   if (k > 0) {
     if (options.form == ContactForm::kChapter) {
-      // More free coordinates than active contacts (patella_medial_liftoff: x0, z0 free, one
+      // More free coordinates than active contacts (patella_fold: x0, z0 free, one
       // contact): the consistent positions are a curve, and the chapter form's least-squares
       // solve (5 residuals per contact in its 4 contact coordinates and the free coordinates)
       // lands on another point of it than the gap form's: 2e-3 mm apart there, and dae met the
