@@ -134,6 +134,9 @@ def shown(cmd, out):
 def run(kneedyn, scene, run_dir, formulation, args, out):
   """One `kneedyn run`; its record (command, exit, CPU s, counters, events) and its table."""
   cmd = [kneedyn, "run", scene, "--formulation", formulation, *args, "--out", run_dir, "--quiet"]
+  for legacy in ("sampled.csv", "sampled.score.json"):  # written into run directories before 2026-12-03
+    if os.path.isfile(os.path.join(run_dir, legacy)):
+      os.remove(os.path.join(run_dir, legacy))
   before = resource.getrusage(resource.RUSAGE_CHILDREN)
   p = subprocess.run(cmd, capture_output=True, text=True)
   after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -230,16 +233,17 @@ def compare(ref, table, events):
 def score_with_kneedyn(kneedyn, scene, table, rec, reference_path):
   """scd by `kneedyn score` against the stored reference: the run's rows at the reference's
   sampling times and its end-event row (no off-grid rows: those would make kneedyn score
-  rerun the reference's configuration)."""
+  rerun the reference's configuration). Both files go beside the run directory, not into it:
+  kneedyn refuses to overwrite a directory holding files that are not its own outputs."""
   grid, end = samples(table)
   rows = [grid[t] for t in sorted(grid)] + ([end] if end else [])
-  csv_path = os.path.join(rec["run_dir"], "sampled.csv")
+  csv_path = rec["run_dir"] + ".sampled.csv"
   with open(csv_path, "w", newline="", encoding="utf-8") as f:
     w = csv.writer(f)
     w.writerow(["time_s", "is_event"] + POSITION_COLUMNS)
     for r in rows:
       w.writerow([repr(r["time_s"]), int(r.get("is_event") == 1.0)] + [repr(r[c]) for c in POSITION_COLUMNS])
-  out = os.path.join(rec["run_dir"], "sampled.score.json")
+  out = rec["run_dir"] + ".sampled.score.json"
   summary = os.path.join(rec["run_dir"], "summary.json")
   p = subprocess.run([kneedyn, "score", csv_path, "--scene", scene, "--reference", reference_path,
                       "--events", summary, "--counters", summary, "--cpu-time", repr(rec["cpu_s"]),

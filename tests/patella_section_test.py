@@ -158,6 +158,12 @@ def main():
           theirs, _, _ = patella_section.score_with_kneedyn(args.kneedyn, scene, table, w, ref)
           if not abs(ours - theirs) <= 1e-9:
             errors.append(f"{w['formulation']} {w['setting']}: scd {ours} here, {theirs} by kneedyn score")
+          # Scoring leaves the run directory as kneedyn wrote it, so the next main job can
+          # run into it again (kneedyn refuses a directory holding files that are not its outputs).
+          again, _ = patella_section.run(args.kneedyn, scene, run_dir, w["formulation"], w["args"], out)
+          if not again.get("ok", True) or again["exit"] != 0:
+            errors.append(f"{w['formulation']} {w['setting']}: a second run into {run_dir} after scoring "
+                          f"failed: {again.get('reason')}")
     order = result["staggered_order"]["fitted_order"]
     if order is None or not 0.8 <= order <= 1.3:
       errors.append(f"staggered coupling order {order}, expected 0.8-1.3")
