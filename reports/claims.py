@@ -111,6 +111,11 @@ class Curve:
     i = int(np.argmin(y))
     return a[i], y[i]
 
+  def first_at_or_below(self, threshold):
+    """The first flexion angle (deg) with y ≤ threshold; None if there is none."""
+    below = self.a[self.y <= threshold]
+    return float(below[0]) if len(below) else None
+
   def at(self, alpha):
     # Flexion increases monotonically in these runs; np.maximum.accumulate guards round-off.
     return float(np.interp(alpha, np.maximum.accumulate(self.a), self.y, left=np.nan, right=np.nan))
@@ -299,52 +304,61 @@ def both_frames(fn):
 
 
 def check_all(ck):
+  def claim(cid):
+    """Registers fn(s) as the check of claim cid: fn fills the sub-checks s (a fresh Subs)."""
+    def register(fn):
+      def run():
+        s = Subs()
+        fn(s)
+        return s
+      ck.add(cid, run)
+      return fn
+    return register
+
   def rho_str(r):
     return f"ρ = {r:+.2f}"
 
+  def first_crossing(s, name, c, direction, lo, hi, band_lo, band_hi):
+    """Sub-check: c's first sign change (Curve.crossings) in [lo, hi] lies in the band ±tol
+    (deg); returns the crossings."""
+    x = c.crossings(direction, lo, hi)
+    s.req(name, bool(x) and in_band(x[0], band_lo, band_hi), f"{fmt(x)}°")
+    return x
+
   # ---------------- Kinematics
   def k12(family):
-    def fn():
-      s = Subs()
+    def fn(s):
       vals, t90 = ck.family_values(family, lambda m: m.time_to_90_s)
       if any(t is None for t in t90):
         raise NotCheckable("a member did not reach 90 deg")
       s.req(f"t(90°) over {family} {fmt(vals)}:", monotone(t90, -1), f"{fmt(t90, 4)} s")
-      return s
     return fn
-  ck.add("K1", k12("amplitude"))
-  ck.add("K2", k12("duration"))
+  claim("K1")(k12("amplitude"))
+  claim("K2")(k12("duration"))
 
-  def k3():
-    s = Subs()
+  @claim("K3")
+  def k3(s):
     c = ck.curve("valgus_deg")
     a_pk, v_pk = c.argmax(0, 20)
     s.req("early valgus peak value", v_pk > 0, f"{v_pk:.3f}°")
     s.req("peak location (0–10° ±tol)", in_band(a_pk, 0, 10), f"{a_pk:.1f}°")
     r = c.rank_correlation(0, a_pk)
     s.req("rising before the peak (over flexion)", r >= RHO_MIN, rho_str(r))
-    return s
-  ck.add("K3", k3)
 
-  def k4():
-    s = Subs()
-    x = ck.curve("valgus_deg").crossings(-1, 1, 90)
-    s.req("first valgus→varus crossing (25–45° ±tol)", bool(x) and in_band(x[0], 25, 45), f"{fmt(x)}°")
-    return s
-  ck.add("K4", k4)
+  @claim("K4")
+  def k4(s):
+    first_crossing(s, "first valgus→varus crossing (25–45° ±tol)", ck.curve("valgus_deg"), -1, 1, 90, 25, 45)
 
-  def k5():
-    s = Subs()
+  @claim("K5")
+  def k5(s):
     c = ck.curve("valgus_deg")
     a_m, v_m = c.argmin(0, 90)
     end = c.y[-1]
     s.req("max varus location (45–70° ±tol)", in_band(a_m, 45, 70), f"{-v_m:.2f}° at {a_m:.1f}°")
     s.req("varus at 90° below the max", end > v_m, f"{-end:.2f}°")
-    return s
-  ck.add("K5", k5)
 
-  def k6():
-    s = Subs()
+  @claim("K6")
+  def k6(s):
     ms = ck.family("duration")
     zc = [Curve(m, "valgus_deg").crossings(-1, 1, 90) for m in ms]
     if any(not z for z in zc):
@@ -354,90 +368,72 @@ def check_all(ck):
     s.info("t0", f"{fmt([m.value for m in ms])} s")
     s.req("zero crossing increasing", monotone(zc, +1), f"{fmt(zc, 4)}°")
     s.req("max varus decreasing", monotone(mv, -1), f"{fmt(mv, 4)}°")
-    return s
-  ck.add("K6", k6)
 
-  def k7():
-    s = Subs()
+  @claim("K7")
+  def k7(s):
     a_pk, g_pk = ck.curve("external_rotation_deg").argmax(0, 90)
     s.req("peak external rotation > 0", g_pk > 0, f"{g_pk:.2f}°")
     s.req("peak location (15–20° ±tol)", in_band(a_pk, 15, 20), f"{a_pk:.1f}°")
-    return s
-  ck.add("K7", k7)
 
-  def k8():
-    s = Subs()
+  @claim("K8")
+  def k8(s):
     c = ck.curve("external_rotation_deg")
     a_pk, _ = c.argmax(0, 90)
     r = c.rank_correlation(a_pk, 90)
     s.req(f"γ falling from the peak ({a_pk:.1f}°) to 90°", r <= -RHO_MIN, rho_str(r))
     a_min, g_min = c.argmin(0, 90)
     s.req("largest internal rotation at 90° (−tol)", a_min >= 90 - ANGLE_TOL_DEG, f"{-g_min:.2f}° at {a_min:.1f}°")
-    return s
-  ck.add("K8", k8)
 
-  def k9():
-    s = Subs()
+  @claim("K9")
+  def k9(s):
     for family in ("amplitude", "duration"):
       ms = ck.family(family)
       pk = [Curve(m, "external_rotation_deg").argmax(0, 90)[1] for m in ms]
       fin = [-Curve(m, "external_rotation_deg").argmin(0, 90)[1] for m in ms]
       s.req(f"{family} {fmt([m.value for m in ms])}: peak external increasing", monotone(pk, +1), f"{fmt(pk, 3)}°")
       s.req(f"{family}: max internal increasing", monotone(fin, +1), f"{fmt(fin, 3)}°")
-    return s
-  ck.add("K9", k9)
 
   # ---------------- Contact
-  def c1():
-    s = Subs()
+  @claim("C1")
+  def c1(s):
     lo = ck.need_ref().liftoff_deg
     s.req("lateral lift-off (66° ±tol)", lo is not None and abs(lo - LIFTOFF_CHAPTER_DEG) <= ANGLE_TOL_DEG,
           f"{fmt(lo, 4)}°")
-    return s
-  ck.add("C1", c1)
 
-  def c2():
-    s = Subs()
+  @claim("C2")
+  def c2(s):
     vals = [m.liftoff_deg for m in ck.ok_members if m.liftoff_deg is not None]
     if len(vals) < 2:
       raise NotCheckable("fewer than two lift-off events")
     spread = max(vals) - min(vals)
     s.req(f"spread over {len(vals)} members ({min(vals):.2f}–{max(vals):.2f}°)", spread <= LIFTOFF_SPREAD_DEG,
           f"{spread:.2f}°")
-    return s
-  ck.add("C2", c2)
 
-  def c3():
-    s = Subs()
+  @claim("C3")
+  def c3(s):
     for comp in ("medial", "lateral"):
       cy, cz = ck.curve(f"femoral_{comp}_y_mm"), ck.curve(f"femoral_{comp}_z_mm")
       hi = min(90.0, float(cy.a[-1]))
       ry, rz = cy.rank_correlation(0, hi), cz.rank_correlation(0, hi)
       s.req(f"{comp} y_F falling (posterior) over 0–{hi:.0f}°", ry <= -RHO_MIN, rho_str(ry))
       s.req(f"{comp} z_F rising (proximal)", rz >= RHO_MIN, rho_str(rz))
-    return s
-  ck.add("C3", c3)
 
-  def c4():
-    s = Subs()
+  @claim("C4")
+  def c4(s):
     for comp in ("medial", "lateral"):
       rx, ry = np.ptp(ck.curve(f"femoral_{comp}_x_mm").y), np.ptp(ck.curve(f"femoral_{comp}_y_mm").y)
       s.req(f"{comp} range x / range y ≤ 0.25", rx <= 0.25 * ry, f"{rx:.2f} / {ry:.2f} mm")
-    return s
-  ck.add("C4", c4)
 
-  def c5():
-    s = Subs()
+  @claim("C5")
+  def c5(s):
     for comp, sign, word in (("medial", +1, "rising (anterior)"), ("lateral", -1, "falling (posterior)")):
       c = ck.curve(f"tibial_{comp}_y_mm")
       hi = min(90.0, float(c.a[-1]))
       r = c.rank_correlation(15, hi)
       s.req(f"{comp} y′_T {word} over 15–{hi:.0f}°", sign * r >= RHO_MIN, rho_str(r))
-    return s
-  ck.add("C5", c5)
 
-  def c6():
-    s = Subs()
+  @claim("C6")
+  def c6(s):
     ref_m = ck.need_ref()
     worst, where = 0.0, ""
     for m in ck.ok_members:
@@ -451,11 +447,9 @@ def check_all(ck):
               if np.isfinite(d) and d > worst:
                 worst, where = d, f"{m.name} {col} at {g:g}°"
     s.req(f"max deviation from the reference pathway ({where})", worst <= PATHWAY_OVERLAP_MM, f"{worst:.3f} mm")
-    return s
-  ck.add("C6", c6)
 
-  def c7():
-    s = Subs()
+  @claim("C7")
+  def c7(s):
     c = ck.curve("N_medial_N")
     a_min, n_min = c.argmin(0, 30)
     a_max, n_max = c.argmax(30, 90)
@@ -464,11 +458,9 @@ def check_all(ck):
     s.req("early minimum location (0–15° ±tol)", in_band(a_min, 0, 15), f"{a_min:.1f}°")
     s.req("maximum location (60°: 45–70° ±10°)", in_band(a_max, 45, 70, 10.0), f"{n_max:.1f} N at {a_max:.1f}°")
     s.req("N_m(90) below the maximum", n90 < n_max, f"{n90:.1f} N")
-    return s
-  ck.add("C7", c7)
 
-  def c8():
-    s = Subs()
+  @claim("C8")
+  def c8(s):
     c = ck.curve("N_lateral_N")
     a_max, n_max = c.argmax(0, 90)
     s.req("maximum at extension (≤ tol)", a_max <= ANGLE_TOL_DEG, f"{n_max:.1f} N at {a_max:.1f}°")
@@ -477,33 +469,26 @@ def check_all(ck):
     hi = lo if lo is not None else float(c.a[-1])
     r = c.rank_correlation(0, hi)
     s.req(f"falling over 0–{hi:.1f}° (over flexion)", r <= -RHO_MIN, rho_str(r))
-    return s
-  ck.add("C8", c8)
 
-  def c9():
-    s = Subs()
+  @claim("C9")
+  def c9(s):
     for family in ("amplitude", "duration"):
       for comp in ("medial", "lateral"):
         f = ck.ordered_on_grid(family, f"N_{comp}_N", -1, hi=90 if comp == "medial" else 50)
         s.req(f"{family}/{comp}: grid fraction with N falling in the parameter", f >= ORDER_FRACTION, f"{f:.2f}")
-    return s
-  ck.add("C9", c9)
 
-  def c10():
-    s = Subs()
+  @claim("C10")
+  def c10(s):
     nm = np.nanmax(ck.need_ref().col("N_medial_N"))
     nl = np.nanmax(ck.need_ref().col("N_lateral_N"))
     s.req("max N_medial > max N_lateral", nm > nl, f"{nm:.1f} N vs {nl:.1f} N")
-    return s
-  ck.add("C10", c10)
 
   # ---------------- Velocities (both frames)
   def v1(suffix, s):
     c = ck.curve(frame_col("vx_mm_s", suffix))
     a_pk, v_pk = c.argmax(0, 40)
     s.req("lateral peak (15° ±tol)", v_pk > 0 and in_band(a_pk, 15, 15), f"{v_pk:.1f} mm/s at {a_pk:.1f}°")
-    x = c.crossings(-1, 5, 90)
-    s.req("first + → − crossing (30° ±tol)", bool(x) and in_band(x[0], 30, 30), f"{fmt(x)}°")
+    x = first_crossing(s, "first + → − crossing (30° ±tol)", c, -1, 5, 90, 30, 30)
     a_end, _ = c.argmin(x[0] if x else 0, 90)
     s.req("largest medial velocity at 90° (−tol)", a_end >= 90 - ANGLE_TOL_DEG, f"at {a_end:.1f}°")
   ck.add("V1", both_frames(v1))
@@ -528,12 +513,10 @@ def check_all(ck):
     c = ck.curve(frame_col("valgus_rate_deg_s", suffix))
     a_vp, v_vp = c.argmax(0, 20)
     s.req("valgus-velocity peak (5° ±tol)", v_vp > 0 and in_band(a_vp, 5, 5), f"{v_vp:.1f}°/s at {a_vp:.1f}°")
-    z1 = c.crossings(-1, 0.5, 30)
-    s.req("zero (10° ±tol)", bool(z1) and in_band(z1[0], 10, 10), f"{fmt(z1)}°")
+    first_crossing(s, "zero (10° ±tol)", c, -1, 0.5, 30, 10, 10)
     a_rp, v_rp = c.argmin(20, 70)
     s.req("varus-velocity peak (40–50° ±tol)", v_rp < 0 and in_band(a_rp, 40, 50), f"{-v_rp:.1f}°/s at {a_rp:.1f}°")
-    z2 = c.crossings(+1, 40, 85)
-    s.req("zero (60–65° ±tol)", bool(z2) and in_band(z2[0], 60, 65), f"{fmt(z2)}°")
+    first_crossing(s, "zero (60–65° ±tol)", c, +1, 40, 85, 60, 65)
     s.req("valgus velocity at 90°", c.y[-1] > 0, f"{c.y[-1]:.1f}°/s")
   ck.add("V4", both_frames(v4))
 
@@ -543,8 +526,7 @@ def check_all(ck):
     s.req("early internal peak (2° ±tol)", v_i1 < 0 and in_band(a_i1, 2, 2), f"{-v_i1:.1f}°/s at {a_i1:.2f}°")
     a_e, v_e = c.argmax(0, 20)
     s.req("external peak (8° ±tol)", v_e > 0 and in_band(a_e, 8, 8), f"{v_e:.1f}°/s at {a_e:.1f}°")
-    z = c.crossings(-1, a_e, 60)
-    s.req("zero (20° ±tol)", bool(z) and in_band(z[0], 20, 20), f"{fmt(z)}°")
+    first_crossing(s, "zero (20° ±tol)", c, -1, a_e, 60, 20, 20)
     a_i2, v_i2 = c.argmin(25, 90)
     s.req("internal max (45–60° ±tol)", in_band(a_i2, 45, 60), f"{-v_i2:.1f}°/s at {a_i2:.1f}°")
   ck.add("V5", both_frames(v5))
@@ -564,73 +546,63 @@ def check_all(ck):
   def zero_tol(c):
     return max(ZERO_ABS_N, ZERO_FRACTION * float(np.max(c.y)))
 
-  def l1():
-    s = Subs()
+  def max_at_extension(s, c, newtons):
+    """Sub-checks "maximum at extension" and "maximum ≈ newtons N"; returns (angle °, force N)."""
+    a_pk, f_pk = c.argmax()
+    s.req("maximum at extension (≤ tol)", a_pk <= ANGLE_TOL_DEG, f"at {a_pk:.1f}°")
+    s.req(f"maximum ≈ {newtons} N (±50 %)", mag_ok(f_pk, newtons), f"{f_pk:.1f} N")
+    return a_pk, f_pk
+
+  @claim("L1")
+  def l1(s):
     c = F("ACL anterior")
     a_pk, f_pk = c.argmax()
     s.req("slack at extension (F1(0) ≤ zero_abs)", c.y[0] <= ZERO_ABS_N, f"{c.y[0]:.2f} N")
     s.req("late maximum (≥ 70°)", a_pk >= 70, f"at {a_pk:.1f}°")
     s.req("maximum ≈ 70 N (±50 %)", mag_ok(f_pk, 70), f"{f_pk:.1f} N")
-    return s
-  ck.add("L1", l1)
 
-  def l2():
-    s = Subs()
+  @claim("L2")
+  def l2(s):
     c = F("ACL posterior")
-    a_pk, f_pk = c.argmax()
     nz = c.a[c.y > ZERO_ABS_N]
     a_zero = float(nz[-1]) if len(nz) else 0.0
-    s.req("maximum at extension (≤ tol)", a_pk <= ANGLE_TOL_DEG, f"at {a_pk:.1f}°")
-    s.req("maximum ≈ 50 N (±50 %)", mag_ok(f_pk, 50), f"{f_pk:.1f} N")
+    max_at_extension(s, c, 50)
     s.req("slack from ≈ 75° (±10°)", in_band(a_zero, 75, 75, 10.0), f"last > {ZERO_ABS_N:g} N at {a_zero:.1f}°")
-    return s
-  ck.add("L2", l2)
 
-  def l3():
-    s = Subs()
+  @claim("L3")
+  def l3(s):
     c1_, c2_ = F("ACL anterior"), F("ACL posterior")
     g = np.arange(0.0, 20.0, 0.25)
     frac = float(np.mean([c2_.at(x) > c1_.at(x) for x in g]))
     s.req("F2 > F1 over 0–20° (fraction of the range)", frac == 1.0, f"{frac:.0%}")
-    return s
-  ck.add("L3", l3)
 
-  def l4():
-    s = Subs()
+  @claim("L4")
+  def l4(s):
     c = F("PCL anterior")
     a_pk, f_pk = c.argmax()
     s.req("≈ 0 at extension (≤ 10 % of max)", c.y[0] <= zero_tol(c), f"{c.y[0]:.2f} N")
     s.req("maximum location (60° ±10°)", in_band(a_pk, 60, 60, 10.0), f"at {a_pk:.1f}°")
     s.req("maximum ≈ 150 N (±50 %)", mag_ok(f_pk, 150), f"{f_pk:.1f} N")
     s.req("F3(90) below the maximum", c.y[-1] < f_pk, f"{c.y[-1]:.1f} N")
-    return s
-  ck.add("L4", l4)
 
-  def l5():
-    s = Subs()
+  @claim("L5")
+  def l5(s):
     c = F("PCL posterior")
-    a_pk, f_pk = c.argmax()
-    first_zero = c.a[c.y <= ZERO_ABS_N]
-    a_zero = float(first_zero[0]) if len(first_zero) else None
-    s.req("maximum at extension (≤ tol)", a_pk <= ANGLE_TOL_DEG, f"at {a_pk:.1f}°")
-    s.req("maximum ≈ 50 N (±50 %)", mag_ok(f_pk, 50), f"{f_pk:.1f} N")
+    a_zero = c.first_at_or_below(ZERO_ABS_N)
+    max_at_extension(s, c, 50)
     s.req("slack from ≈ 10° (±tol)", in_band(a_zero, 10, 10), f"first ≤ {ZERO_ABS_N:g} N at {fmt(a_zero)}°")
-    return s
-  ck.add("L5", l5)
 
-  def l6():
-    s = Subs()
+  @claim("L6")
+  def l6(s):
     c = F("MCL oblique")
     a_pk, f_pk = c.argmax()
     late = float(np.max(c.window(20, 90)[1]))
     s.req("maximum near extension (≈ 5°, ≤ 10°)", a_pk <= 10, f"at {a_pk:.1f}°")
     s.req("maximum ≈ 30 N (±50 %)", mag_ok(f_pk, 30), f"{f_pk:.1f} N")
     s.req("very small beyond 20° (≤ 10 % of max)", late <= zero_tol(c), f"max {late:.2f} N")
-    return s
-  ck.add("L6", l6)
 
-  def l7():
-    s = Subs()
+  @claim("L7")
+  def l7(s):
     c = F("MCL anterior")
     early = float(np.max(c.window(0, 20)[1]))
     a_pk, f_pk = c.argmax()
@@ -638,45 +610,34 @@ def check_all(ck):
     s.req("maximum location (50° ±10°)", in_band(a_pk, 50, 50, 10.0), f"at {a_pk:.1f}°")
     s.req("maximum ≈ 100 N (±50 %)", mag_ok(f_pk, 100), f"{f_pk:.1f} N")
     s.req("≈ 0 at 90°", c.y[-1] <= zero_tol(c), f"{c.y[-1]:.1f} N")
-    return s
-  ck.add("L7", l7)
 
-  def l8():
-    s = Subs()
+  @claim("L8")
+  def l8(s):
     c = F("MCL deep")
     f45 = c.at(45.0)
     _, late = c.window(45, 90)
     ratio = float(np.max(late) / max(np.min(late), 1e-9))
     s.req("F7(45°) ≈ 90 N (±50 %)", mag_ok(f45, 90), f"{f45:.1f} N")
     s.req("roughly level over 45–90° (max/min ≤ 1.5)", ratio <= 1.5, f"{ratio:.2f}")
-    return s
-  ck.add("L8", l8)
 
   def integral(name, lo=0.0, hi=90.0):
     a, y = F(name).window(lo, hi)
     return float(np.trapz(y, a))
 
-  def l9():
-    s = Subs()
+  @claim("L9")
+  def l9(s):
     d, a, o = integral("MCL deep"), integral("MCL anterior"), integral("MCL oblique")
     s.req("∫F dα deep > anterior > oblique", d > a > o, f"{d:.0f} > {a:.0f} > {o:.0f} N·deg")
-    return s
-  ck.add("L9", l9)
 
-  def l10():
-    s = Subs()
+  @claim("L10")
+  def l10(s):
     c = F("LCL")
-    a_pk, f_pk = c.argmax()
-    small = c.a[c.y <= ZERO_FRACTION * f_pk]
-    a_small = float(small[0]) if len(small) else None
-    s.req("maximum at extension (≤ tol)", a_pk <= ANGLE_TOL_DEG, f"at {a_pk:.1f}°")
-    s.req("maximum ≈ 90 N (±50 %)", mag_ok(f_pk, 90), f"{f_pk:.1f} N")
+    _, f_pk = max_at_extension(s, c, 90)
+    a_small = c.first_at_or_below(ZERO_FRACTION * f_pk)
     s.req("force only up to 45–60° (±tol): first ≤ 10 % of max", in_band(a_small, 45, 60), f"at {fmt(a_small)}°")
-    return s
-  ck.add("L10", l10)
 
-  def l11():
-    s = Subs()
+  @claim("L11")
+  def l11(s):
     ref_m = ck.need_ref()
     if len(ck.ok_members) < 2:
       raise NotCheckable("fewer than two completed members")
@@ -695,21 +656,17 @@ def check_all(ck):
         j, g = np.unravel_index(np.nanargmax(d), d.shape)
         where = f"{m.name}, {LIGAMENTS[j]} at {GRID_DEG[g]:g}°"
     s.req(f"max change of a share ({where})", worst <= SHARE_OVERLAP, f"{worst:.3f}")
-    return s
-  ck.add("L11", l11)
 
-  def l12():
-    s = Subs()
+  @claim("L12")
+  def l12(s):
     ints = {n: integral(n, 20, 90) for n in LIGAMENTS}
     top = sorted(ints, key=ints.get, reverse=True)[:3]
     s.req("top three ∫F dα over 20–90°", set(top) == {"PCL anterior", "MCL anterior", "MCL deep"},
           ", ".join(f"{n} ({ints[n]:.0f})" for n in top))
-    return s
-  ck.add("L12", l12)
 
   # ---------------- Sensitivity statements
-  def s1():
-    s = Subs()
+  @claim("S1")
+  def s1(s):
     if not ck.sens or not ck.sens.get("force_guess"):
       raise NotCheckable("no sensitivity.json force-guess runs")
     rows = ck.sens["force_guess"]
@@ -722,11 +679,9 @@ def check_all(ck):
       s.info("guesses (medial, lateral) N", ", ".join(f"({r['medial_N']:g}, {r['lateral_N']:g})" for r in rows))
       s.req("max |Δflexion|", worst < INSENSITIVE_DEG, f"{worst:.3g}°")
       s.info("max |ΔN|", f"{wn:.3g} N")
-    return s
-  ck.add("S1", s1)
 
-  def s2():
-    s = Subs()
+  @claim("S2")
+  def s2(s):
     if not ck.sens or not ck.sens.get("contact_offset"):
       raise NotCheckable("no sensitivity.json contact-offset runs")
     rows = ck.sens["contact_offset"]
@@ -735,8 +690,6 @@ def check_all(ck):
              for r in rows]
     sensitive = bool(failed) or any(r.get("max_abs_diff_flexion_deg", 0) > SENSITIVE_DEG for r in rows)
     s.req("|Δflexion| per offset (some > sensitive_deg, or a failure)", sensitive, "; ".join(parts))
-    return s
-  ck.add("S2", s2)
 
 
 def write_tables(outdir, rows):
