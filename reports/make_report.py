@@ -122,12 +122,22 @@ def summary_section(fam, members):
 RECORDED_VERDICTS = os.path.join(HERE, "recorded", "claims.json")
 
 
-def load_recorded_verdicts(path=RECORDED_VERDICTS):
-  """reports/recorded/claims.json (reports/claim_verdicts.py), or None."""
+def load_json(path):
+  """The JSON document at path, or None where there is none (a study not run)."""
   if not os.path.exists(path):
     return None
   with open(path, encoding="utf-8") as f:
     return json.load(f)
+
+
+def not_run(parts, command):
+  """A study's section when its output is missing: its parts so far and the command that runs it."""
+  return "\n".join(parts + [f"<p>Not run (<code>{command}</code>).</p>"])
+
+
+def load_recorded_verdicts(path=RECORDED_VERDICTS):
+  """reports/recorded/claims.json (reports/claim_verdicts.py), or None."""
+  return load_json(path)
 
 
 def explanation_cell(v):
@@ -164,10 +174,9 @@ def inverse_section(path=RECORDED_INVERSE):
   """The bounded inverse problem (reports/recorded/inverse_problem.json, reports/inverse_problem.py):
   per target the smallest normalized change and its cost in claims, the claims at each
   leave-some-out fold's fit, and the readings as outer choices of the lift-off fit."""
-  if not os.path.exists(path):
+  inv = load_json(path)
+  if inv is None:
     return ""
-  with open(path, encoding="utf-8") as f:
-    inv = json.load(f)
   parts = ["<h3 id='inverse'>Inverse problem: what it would take</h3>",
            "<p>The smallest change of Tables 1.1–1.3 (108 numbers, each normalized by half a unit of its last "
            "printed digit: ‖x‖ = 1 is one printed precision; bounds and reasons in "
@@ -297,12 +306,10 @@ def figures_section(outdir):
 
 
 def sensitivity_section(outdir):
-  path = os.path.join(outdir, "sensitivity.json")
+  s = load_json(os.path.join(outdir, "sensitivity.json"))
   parts = ["<h2 id='sensitivity'>Sensitivity studies</h2>"]
-  if not os.path.exists(path):
+  if s is None:
     return "\n".join(parts + ["<p class='warn'>sensitivity.json missing</p>"])
-  with open(path) as f:
-    s = json.load(f)
   parts.append("<p>Each perturbed run is compared with the unperturbed reference run (A = 100 N, t0 = 0.1 s) "
                "on the reference's output times: maximum absolute differences over the run. "
                "Differences of order 1e-6° are at the level of the integration tolerance.</p>")
@@ -344,15 +351,11 @@ VERDICT_MARK = {"reproduced": "✓", "not reproduced": "✗", "not checkable": "
 
 
 def reconstruction_section(outdir):
-  path = os.path.join(outdir, "reconstruction", "reconstruction.json")
   parts = ["<h2 id='reconstruction'>Reconstruction study</h2>"]
-  if not os.path.exists(path):
-    parts.append("<p>Not run (<code>report.py --reconstruction</code>).</p>")
-    return "\n".join(parts)
-  with open(path, encoding="utf-8") as f:
-    rec = json.load(f)
-  rd = rec["readings"]
-  ids = rec["claims"]
+  rec = load_json(os.path.join(outdir, "reconstruction", "reconstruction.json"))
+  if rec is None:
+    return not_run(parts, "report.py --reconstruction")
+  rd, ids = rec["readings"], rec["claims"]
   parts.append(
       "<p>The printed chapter leaves parts of the model uncertain: Eq. 1.62 (the pulse) is garbled, the "
       "direction of the weight is not stated, and the published ligament law has a force jump the chapter does "
@@ -422,14 +425,10 @@ def reconstruction_section(outdir):
 
 
 def calibration_part(outdir):
-  path = os.path.join(outdir, "reconstruction", "calibration.json")
   parts = ["<h3>Calibration (Ceres)</h3>"]
-  if not os.path.exists(path):
-    parts.append("<p>Not run (<code>report.py --reconstruction --calibrate build/reports/calibrate_reconstruction"
-                 "</code>).</p>")
-    return "\n".join(parts)
-  with open(path, encoding="utf-8") as f:
-    cal = json.load(f)
+  cal = load_json(os.path.join(outdir, "reconstruction", "calibration.json"))
+  if cal is None:
+    return not_run(parts, "report.py --reconstruction --calibrate build/reports/calibrate_reconstruction")
   best = cal["best"]
   res = best["result"]
   parts.append(
