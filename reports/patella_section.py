@@ -458,6 +458,20 @@ def make_figures(result, out):
   kin = result.get("kinematics", {})
   written = []
 
+  def finish(a, xlabel, ylabel, **grid):
+    """Axis labels, a light grid (matplotlib grid keywords) and the legend."""
+    a.set_xlabel(xlabel)
+    a.set_ylabel(ylabel)
+    a.grid(alpha=0.3, **grid)
+    a.legend(fontsize=7)
+
+  def save(fig, name):
+    """Writes fig as figures/name (110 dpi) and closes it."""
+    fig.tight_layout()
+    fig.savefig(os.path.join(fdir, name), dpi=110)
+    plt.close(fig)
+    written.append(name)
+
   fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
   for name, k in kin.items():
     c = k["curves"]
@@ -465,16 +479,9 @@ def make_figures(result, out):
                              ("patella_rotation_deg", "rotation", "C2")):
       ax[0].plot(c["flexion_deg"], c[col], STYLE[name], color=colour, label=f"{lab} ({name.split('_')[1]})")
     ax[1].plot(c["flexion_deg"], c["patella_shift_mm"], STYLE[name], color="C3", label=name.split("_")[1])
-  ax[0].set_ylabel("patellar angle (deg)")
-  ax[1].set_ylabel("patellar medial–lateral shift x_P (mm)")
-  for a in ax:
-    a.set_xlabel("knee flexion (deg)")
-    a.grid(alpha=0.3)
-    a.legend(fontsize=7)
-  fig.tight_layout()
-  fig.savefig(os.path.join(fdir, "patella_kinematics.png"), dpi=110)
-  plt.close(fig)
-  written.append("patella_kinematics.png")
+  finish(ax[0], "knee flexion (deg)", "patellar angle (deg)")
+  finish(ax[1], "knee flexion (deg)", "patellar medial–lateral shift x_P (mm)")
+  save(fig, "patella_kinematics.png")
 
   fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
   for i, (name, k) in enumerate(kin.items()):
@@ -484,14 +491,8 @@ def make_figures(result, out):
       ax[i].plot(c["flexion_deg"], c[col], "-", color=colour, label=lab)
     ax[i].axhline(0.0, color="0.6", lw=0.8)
     ax[i].set_title(name, fontsize=9)
-    ax[i].set_xlabel("knee flexion (deg)")
-    ax[i].set_ylabel("force (N)")
-    ax[i].grid(alpha=0.3)
-    ax[i].legend(fontsize=7)
-  fig.tight_layout()
-  fig.savefig(os.path.join(fdir, "patella_forces.png"), dpi=110)
-  plt.close(fig)
-  written.append("patella_forces.png")
+    finish(ax[i], "knee flexion (deg)", "force (N)")
+  save(fig, "patella_forces.png")
 
   fig, ax = plt.subplots(figsize=(6.5, 4))
   for name, k in kin.items():
@@ -501,14 +502,8 @@ def make_figures(result, out):
     xs, ys = zip(*L["points"])
     ax.plot(xs, ys, marker, color="C3", linestyle="none", label="cadaver, J Biomech 1988 (abstract)")
   ax.axhline(1.0, color="0.6", lw=0.8)
-  ax.set_xlabel("knee flexion (deg)")
-  ax.set_ylabel("F_t / F_Q")
-  ax.grid(alpha=0.3)
-  ax.legend(fontsize=7)
-  fig.tight_layout()
-  fig.savefig(os.path.join(fdir, "patella_ratio.png"), dpi=110)
-  plt.close(fig)
-  written.append("patella_ratio.png")
+  finish(ax, "knee flexion (deg)", "F_t / F_Q")
+  save(fig, "patella_ratio.png")
 
   pts = [r for r in result.get("work_precision", []) if r.get("ok") and isinstance(r.get("scd"), (int, float))]
   fig, ax = plt.subplots(1, 2, figsize=(10.5, 4))
@@ -519,10 +514,7 @@ def make_figures(result, out):
       s = r["setting"]
       ax[0].annotate(f"Δt {s['step_s'] * 1e3:g} ms" if "step_s" in s else f"rtol {s['rtol']:.0e}",
                      (r["scd"], r["cpu_s"]), fontsize=6, xytext=(5, -3), textcoords="offset points")
-  ax[0].set_xlabel("accuracy: scd of the positions (digits)")
-  ax[0].set_ylabel("CPU time of the kneedyn run (s)")
-  ax[0].grid(alpha=0.3, which="both")
-  ax[0].legend(fontsize=7)
+  finish(ax[0], "accuracy: scd of the positions (digits)", "CPU time of the kneedyn run (s)", which="both")
   stag = [r for r in pts if r["formulation"] == "staggered" and "step_s" in r["setting"]]
   if stag:
     dts = [r["setting"]["step_s"] for r in stag]
@@ -535,14 +527,8 @@ def make_figures(result, out):
     ax[1].xaxis.set_major_locator(matplotlib.ticker.FixedLocator([h * 1e3 for h in dts]))
     ax[1].xaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
     ax[1].xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
-  ax[1].set_xlabel("Δt (ms)")
-  ax[1].set_ylabel("coupling error: max |Δflexion| (deg)")
-  ax[1].grid(alpha=0.3, which="both")
-  ax[1].legend(fontsize=7)
-  fig.tight_layout()
-  fig.savefig(os.path.join(fdir, "patella_work_precision.png"), dpi=110)
-  plt.close(fig)
-  written.append("patella_work_precision.png")
+  finish(ax[1], "Δt (ms)", "coupling error: max |Δflexion| (deg)", which="both")
+  save(fig, "patella_work_precision.png")
   return written
 
 
