@@ -20,6 +20,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.dont_write_bytecode = True
 sys.path.insert(0, os.path.join(ROOT, "reports"))
+from py_test_support import finish  # noqa: E402
 import claims  # noqa: E402
 from family_data import add_tibial_frame_columns  # noqa: E402
 
@@ -84,11 +85,8 @@ def main():
   if abs(ref["vx_T_mm_s"][0] - 1.0) + abs(ref["vy_T_mm_s"][0] - 2.0) + abs(ref["vz_T_mm_s"][0] - 3.0) > 1e-12:
     errors.append("tibial-frame velocity differs from the femoral one at the reference pose")
 
-  for e in errors:
-    print("claims_checks_test: FAIL:", e, file=sys.stderr)
-  print(f"claims_checks_test: {'ok' if not errors else 'FAILED'} (rho {rho:.3f}, "
-        f"output steps decreasing {steps_down:.2f})")
-  return 1 if errors else 0
+  return finish(errors, "claims_checks_test: FAIL:", f"claims_checks_test: {'ok' if not errors else 'FAILED'} "
+                f"(rho {rho:.3f}, output steps decreasing {steps_down:.2f})")
 
 
 if __name__ == "__main__":

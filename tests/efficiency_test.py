@@ -15,6 +15,7 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.dont_write_bytecode = True
 sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+from py_test_support import finish  # noqa: E402
 import efficiency  # noqa: E402
 
 LISTING = """--------------------------------------------------------------------------------
@@ -86,10 +87,7 @@ def main():
                               "--efficiency", os.path.join(tmp, "none.json")], capture_output=True, text=True)
     check(missing.returncode == 2 and "none.json" in missing.stderr, f"missing file: {missing.returncode} {missing.stderr}")
 
-  for f in failures:
-    print("FAIL:", f)
-  print("efficiency_test:", "FAILED" if failures else "ok")
-  return 1 if failures else 0
+  return finish(failures, "FAIL:", "efficiency_test: " + ("FAILED" if failures else "ok"), sys.stdout)
 
 
 if __name__ == "__main__":

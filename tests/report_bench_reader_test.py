@@ -12,6 +12,7 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.dont_write_bytecode = True
 sys.path.insert(0, os.path.join(ROOT, "reports"))
+from py_test_support import finish  # noqa: E402
 import figures  # noqa: E402
 
 RESULTS = {
@@ -111,10 +112,8 @@ def main():
     if got["results"] != expected:
       errors.append(f"results layout: {got['results']} != {expected}")
     errors += ceiling_errors(tmp)
-  for e in errors:
-    print("report_bench_reader_test: FAIL:", e, file=sys.stderr)
-  print("report_bench_reader_test:", "ok" if not errors else f"{len(errors)} failures")
-  return 1 if errors else 0
+  return finish(errors, "report_bench_reader_test: FAIL:",
+                "report_bench_reader_test: " + ("ok" if not errors else f"{len(errors)} failures"))
 
 
 if __name__ == "__main__":

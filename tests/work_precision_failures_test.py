@@ -23,6 +23,7 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.dont_write_bytecode = True
 sys.path.insert(0, os.path.join(ROOT, "reports"))
+from py_test_support import finish  # noqa: E402
 TABLE = os.path.join(ROOT, "benchmarks", "work_precision_table.py")
 
 EVENTS_OK = {"liftoff_lateral": 2e-7, "flexion_90": 1e-7}
@@ -193,10 +194,8 @@ def main():
       errors.append("report without context.components does not say 'Components: not recorded'")
     if "2 runs drawn as failures" not in html:
       errors.append("report: the list of runs drawn as failures does not count 2")
-  for e in errors:
-    print("work_precision_failures_test: FAIL:", e, file=sys.stderr)
-  print("work_precision_failures_test:", "ok" if not errors else f"{len(errors)} failures")
-  return 1 if errors else 0
+  return finish(errors, "work_precision_failures_test: FAIL:",
+                "work_precision_failures_test: " + ("ok" if not errors else f"{len(errors)} failures"))
 
 
 if __name__ == "__main__":

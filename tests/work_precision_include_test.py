@@ -29,6 +29,7 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.dont_write_bytecode = True
 sys.path.insert(0, os.path.join(ROOT, "reports"))
+from py_test_support import finish  # noqa: E402
 SCENE = os.path.join(ROOT, "reference-data", "scenes", "chapter_impact.yaml")
 SOLVER = "c-example"
 FAILURE = "planted: the outside driver gave up"
@@ -143,10 +144,7 @@ def main():
         if words not in str(e):
           errors.append(f"load_included({d}): {e}")
 
-  for e in errors:
-    print("FAIL:", e)
-  print("work_precision_include:", "FAILED" if errors else "passed")
-  return 1 if errors else 0
+  return finish(errors, "FAIL:", "work_precision_include: " + ("FAILED" if errors else "passed"), sys.stdout)
 
 
 if __name__ == "__main__":
