@@ -51,8 +51,6 @@ bool EllipsoidCap::Evaluate(double x, double y, HeightSample* s) const {
   return true;
 }
 
-bool EllipsoidCap::EvaluateChart(double u, double v, ChartSample* s) const { return ChartTpl(u, v, s); }
-
 void EllipsoidCap::ChartCoordinates(const Vector3d& p, double uv[2]) const {
   UnitSphereChartCoordinates(A_inv_ * (p - centre_), uv);
 }

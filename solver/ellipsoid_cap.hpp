@@ -12,29 +12,22 @@
 
 namespace kneedyn {
 
-class EllipsoidCap final : public HeightField {
+class EllipsoidCap final : public ChartTplSurface<EllipsoidCap> {
  public:
   // semi_axes (a, b, c) > 0 in m; orientation: rotation from the ellipsoid's axes to the
   // bone's frame.
   EllipsoidCap(const Vector3d& centre, const Vector3d& semi_axes, const Matrix3d& orientation);
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   std::string Describe() const override;
-  bool EvaluateChart(double u, double v, ChartSample* sample) const override;
   bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
   void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
   bool PointWithNormal(const Vector3d& n_up, double uv[2]) const override;
   // The regular chart in any scalar (EvaluateChart is its double instance).
   template <typename T>
   bool ChartTpl(const T& u, const T& v, ChartSampleTpl<T>* s) const {
-    if (!UnitSphereChart(u, v, s)) return false;
     const Matrix3<T> A = A_.template cast<T>();
-    s->p = centre_.template cast<T>() + A * s->p;
-    s->p_u = A * s->p_u;
-    s->p_v = A * s->p_v;
-    s->p_uu = A * s->p_uu;
-    s->p_uv = A * s->p_uv;
-    s->p_vv = A * s->p_vv;
-    return true;
+    const auto map = [&A](const Vector3<T>& x) -> Vector3<T> { return A * x; };
+    return MappedUnitSphereChart(u, v, Vector3<T>(centre_.template cast<T>()), map, s);
   }
 
  private:

@@ -53,8 +53,6 @@ bool SphereCap::Evaluate(double x, double y, HeightSample* s) const {
   return true;
 }
 
-bool SphereCap::EvaluateChart(double u, double v, ChartSample* s) const { return ChartTpl(u, v, s); }
-
 void SphereCap::ChartCoordinates(const Vector3d& p, double uv[2]) const {
   UnitSphereChartCoordinates(p - centre_, uv);
 }

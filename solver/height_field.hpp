@@ -76,6 +76,17 @@ class HeightField {
   virtual bool PlaneForm(Vector3d* unit_normal, double* offset) const;
 };
 
+// A surface whose regular chart is one template, Surface::ChartTpl(u, v, sample) in any
+// scalar (wide scalars: EvaluateChartWide, surface_wide.hpp); EvaluateChart is its double
+// instance, so the chart has one formula per surface type.
+template <typename Surface>
+class ChartTplSurface : public HeightField {
+ public:
+  bool EvaluateChart(double u, double v, ChartSample* sample) const override {
+    return static_cast<const Surface&>(*this).ChartTpl(u, v, sample);
+  }
+};
+
 // The default regular chart (u, v) = (x, y) of a height field, in any scalar, from its
 // height sample (HeightField::EvaluateChart is the double instance's equivalent).
 template <typename T>
@@ -227,16 +238,29 @@ bool UnitSphereChart(const T& u, const T& v, ChartSampleTpl<T>* s) {
   return true;
 }
 void UnitSphereChartCoordinates(const Vector3d& s, double uv[2]);  // inverse, s ≠ 0
+// A cap P = C + L s of the unit-sphere chart under a linear map L (r I for sphere_cap, A for
+// ellipsoid_cap): P and its derivatives, each derivative mapped by L. False outside the domain.
+template <typename T, typename LinearMap>
+bool MappedUnitSphereChart(const T& u, const T& v, const Vector3<T>& centre, const LinearMap& map,
+                           ChartSampleTpl<T>* s) {
+  if (!UnitSphereChart(u, v, s)) return false;
+  s->p = centre + map(s->p);
+  s->p_u = map(s->p_u);
+  s->p_v = map(s->p_v);
+  s->p_uu = map(s->p_uu);
+  s->p_uv = map(s->p_uv);
+  s->p_vv = map(s->p_vv);
+  return true;
+}
 
 // Regular chart: spherical angles with the poles on the ±x axis (medial–lateral), so the
 // chart is regular across the sagittal rim where flexion moves the contact:
 //   P(u, v) = C + r (sin u, cos u sin v, −cos u cos v),  |u| < 80°, |v| < 170°.
-class SphereCap final : public HeightField {
+class SphereCap final : public ChartTplSurface<SphereCap> {
  public:
   SphereCap(const Vector3d& centre, double radius);
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   std::string Describe() const override;
-  bool EvaluateChart(double u, double v, ChartSample* sample) const override;
   bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
   void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
   bool PointWithNormal(const Vector3d& n_up, double uv[2]) const override;
@@ -244,15 +268,9 @@ class SphereCap final : public HeightField {
   // The regular chart in any scalar (EvaluateChart is its double instance).
   template <typename T>
   bool ChartTpl(const T& u, const T& v, ChartSampleTpl<T>* s) const {
-    if (!UnitSphereChart(u, v, s)) return false;
     const T radius = T(radius_);
-    s->p = centre_.template cast<T>() + radius * s->p;
-    s->p_u *= radius;
-    s->p_v *= radius;
-    s->p_uu *= radius;
-    s->p_uv *= radius;
-    s->p_vv *= radius;
-    return true;
+    const auto scale = [&radius](const Vector3<T>& x) -> Vector3<T> { return radius * x; };
+    return MappedUnitSphereChart(u, v, Vector3<T>(centre_.template cast<T>()), scale, s);
   }
   const Vector3d& centre() const { return centre_; }
   double radius() const { return radius_; }

@@ -34,8 +34,6 @@ bool OrientedPlane::Evaluate(double x, double y, HeightSample* s) const {
   return true;
 }
 
-bool OrientedPlane::EvaluateChart(double u, double v, ChartSample* s) const { return ChartTpl(u, v, s); }
-
 void OrientedPlane::ChartCoordinates(const Vector3d& p, double uv[2]) const {
   uv[0] = p.dot(e1_);
   uv[1] = p.dot(e2_);

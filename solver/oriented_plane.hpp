@@ -10,7 +10,7 @@
 
 namespace kneedyn {
 
-class OrientedPlane final : public HeightField {
+class OrientedPlane final : public ChartTplSurface<OrientedPlane> {
  public:
   // Throws InputError for a zero or non-finite normal or a non-finite offset (m).
   OrientedPlane(const Vector3d& normal, double offset);
@@ -18,7 +18,6 @@ class OrientedPlane final : public HeightField {
   // 1e-6 of vertical (n_z ≈ 0).
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   std::string Describe() const override;
-  bool EvaluateChart(double u, double v, ChartSample* sample) const override;
   bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
   void ChartCoordinates(const Vector3d& p, double uv[2]) const override;
   bool PlaneForm(Vector3d* unit_normal, double* offset) const override;

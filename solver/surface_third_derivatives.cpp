@@ -24,6 +24,17 @@ bool UnitSphereChartThird(double u, double v, ChartThirdSample* s) {
   return true;
 }
 
+// The third derivatives of the cap P = C + L s (MappedUnitSphereChart, height_field.hpp).
+template <typename LinearMap>
+bool MappedUnitSphereChartThird(double u, double v, const LinearMap& map, ChartThirdSample* s) {
+  if (!UnitSphereChartThird(u, v, s)) return false;
+  s->p_uuu = map(s->p_uuu);
+  s->p_uuv = map(s->p_uuv);
+  s->p_uvv = map(s->p_uvv);
+  s->p_vvv = map(s->p_vvv);
+  return true;
+}
+
 }  // namespace
 
 bool HeightField::EvaluateChartThird(double, double, ChartThirdSample*) const {
@@ -33,21 +44,13 @@ bool HeightField::EvaluateChartThird(double, double, ChartThirdSample*) const {
 }
 
 bool SphereCap::EvaluateChartThird(double u, double v, ChartThirdSample* s) const {
-  if (!UnitSphereChartThird(u, v, s)) return false;
-  s->p_uuu *= radius_;
-  s->p_uuv *= radius_;
-  s->p_uvv *= radius_;
-  s->p_vvv *= radius_;
-  return true;
+  const auto scale = [this](const Vector3d& x) -> Vector3d { return radius_ * x; };
+  return MappedUnitSphereChartThird(u, v, scale, s);
 }
 
 bool EllipsoidCap::EvaluateChartThird(double u, double v, ChartThirdSample* s) const {
-  if (!UnitSphereChartThird(u, v, s)) return false;
-  s->p_uuu = A_ * s->p_uuu;
-  s->p_uuv = A_ * s->p_uuv;
-  s->p_uvv = A_ * s->p_uvv;
-  s->p_vvv = A_ * s->p_vvv;
-  return true;
+  const auto map = [this](const Vector3d& x) -> Vector3d { return A_ * x; };
+  return MappedUnitSphereChartThird(u, v, map, s);
 }
 
 // Height-field chart (x, y, h) of a plane: linear.
