@@ -25,12 +25,14 @@
 #include "solver/consistent_init.hpp"
 #include "solver/newton_euler_jacobian.hpp"
 #include "solver/units.hpp"
+#include "tests/off_rest_state.hpp"
 #include "tests/test_support.hpp"
 
 namespace kneedyn {
 namespace {
 
 using test_support::ChapterScene;
+using test_support::MoveOffRest;
 using test_support::ScenesDir;
 
 const Scene& AnatomicalScene() {
@@ -65,12 +67,7 @@ TEST_P(DaeSystemJacobian, ExactBlocksEqualTheJetDerivative) {
   MechanicalState s = ConsistentInitialize(scene.model, scene.initial, {0, 1}, init, nullptr);
   std::mt19937 rng(2026);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  s.t = 0.03;  // inside the pulse
-  for (int i = 0; i < 3; ++i) s.qd(i) = 0.05 * u(rng);
-  for (int i = 3; i < 6; ++i) s.qd(i) = 1.0 * u(rng);
-  for (int i = 0; i < 6; ++i) s.qdd(i) = 5.0 * u(rng);
-  s.q(kAlpha) += DegToRad(20.0);
-  s.ligament_branch = LigamentBranchesAt(scene.model, s.q, s.qd);
+  MoveOffRest(scene.model, &rng, &s);
   if (c.flip_branches) {
     for (signed char& b : s.ligament_branch) b = b == kBranchToe ? kBranchLinear : kBranchToe;
   }

@@ -41,6 +41,7 @@
 #include "solver/consistent_init.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/patella.hpp"
+#include "tests/off_rest_state.hpp"
 
 namespace kneedyn {
 namespace {
@@ -81,14 +82,7 @@ Perturbed PerturbedState(MonolithicSystem* system, unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   MechanicalState& s = p.state;
-  s.t = 0.03;  // inside the pulse
-  for (int i = 0; i < 3; ++i) s.qd(i) = 0.05 * u(rng);
-  for (int i = 3; i < 6; ++i) s.qd(i) = 1.0 * u(rng);
-  for (int i = 0; i < 6; ++i) s.qdd(i) = 5.0 * u(rng);
-  // Off the reference pose, where ligaments sit at their slack length (a kink of the law
-  // that central differences would straddle).
-  s.q(kAlpha) += DegToRad(20.0);
-  s.ligament_branch = LigamentBranchesAt(scene.model, s.q, s.qd);
+  test_support::MoveOffRest(scene.model, &rng, &s);
   system->SetPhase(s.active, s.contact, s.ligament_branch);
   const int n = system->size();
   p.y.assign(n, 0.0);
@@ -283,6 +277,13 @@ void ExpectAgreement(const EventsAndPatella& reference, const EventsAndPatella& 
 // lifts, not of the patella's rows.
 constexpr double kPlainRtol = 1e-10;
 
+// The monolithic forms and the rtol each runs at (atol 1e-2 rtol): GGL at 1e-12.
+struct MonolithicForm {
+  const char* name;
+  double rtol;
+};
+constexpr MonolithicForm kMonolithicForms[] = {{"monolithic", kPlainRtol}, {"monolithic-ggl", 1e-12}};
+
 TEST(MonolithicRuns, AgreesWithTheOdeFormOnTheImpactScene) {
   const Scene& scene = ImpactScene();
   const EventsAndPatella reference = EliminatedReference(scene);
@@ -302,11 +303,7 @@ TEST(MonolithicRuns, StopsWhereTheOdeFormsMedialFacetForceCrossesZeroOnTheExtens
   Scene scene = ExtensionScene();
   ASSERT_LT(scene.end.time, 0.3613);  // the scene itself ends before the crossing
   scene.end.time = 0.38;              // s: past it
-  struct Case {
-    const char* name;
-    double rtol;
-  };
-  for (const Case& c : {Case{"monolithic", kPlainRtol}, Case{"monolithic-ggl", 1e-12}}) {
+  for (const MonolithicForm& c : kMonolithicForms) {
     SCOPED_TRACE(c.name);
     const EventsAndPatella run = RunMonolithic(scene, c.name, c.rtol, 1e-2 * c.rtol);
     ASSERT_FALSE(run.run.completed);
@@ -375,12 +372,8 @@ TEST(MonolithicRuns, StopsWhereTheOdeFormsMedialFacetForceCrossesZeroOnTheExtens
 TEST(MonolithicRuns, StopsAtTheFoldAfterTheMedialFacetLiftoffAsTheOdeFormDoes) {
   const Scene scene = LoadScene("reference-data/scenes/hard/patella_fold.yaml");
   ASSERT_TRUE(scene.model.patella && scene.model.patella->facet_liftoff);
-  struct Case {
-    const char* name;
-    double rtol;
-  };
   EventsAndPatella reference;
-  for (const Case& c : {Case{"monolithic", kPlainRtol}, Case{"monolithic-ggl", 1e-12}}) {
+  for (const MonolithicForm& c : kMonolithicForms) {
     SCOPED_TRACE(c.name);
     const EventsAndPatella run = RunMonolithic(scene, c.name, c.rtol, 1e-2 * c.rtol);
     ASSERT_FALSE(run.run.completed);
@@ -412,12 +405,8 @@ TEST(MonolithicRuns, FollowsTheOdeFormThroughTheGenuineMedialFacetLiftoff) {
   const Scene scene = LoadScene("reference-data/scenes/hard/patella_medial_liftoff.yaml");
   ASSERT_TRUE(scene.model.patella && scene.model.patella->facet_liftoff);
   const Patella& p = *scene.model.patella;
-  struct Case {
-    const char* name;
-    double rtol;
-  };
   EventsAndPatella reference;
-  for (const Case& c : {Case{"monolithic", kPlainRtol}, Case{"monolithic-ggl", 1e-12}}) {
+  for (const MonolithicForm& c : kMonolithicForms) {
     SCOPED_TRACE(c.name);
     const EventsAndPatella run = RunMonolithic(scene, c.name, c.rtol, 1e-2 * c.rtol);
     ASSERT_TRUE(run.run.completed) << run.run.failure;

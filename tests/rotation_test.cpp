@@ -49,6 +49,18 @@ Vector6d RandomVector6(std::mt19937& rng, double scale) {
   return v;
 }
 
+// Calls check(q, q̇, rng) at kSamples random states of a generator seeded with `seed`:
+// coordinates as RandomCoordinates, rates ±2 (m/s, rad/s); check may draw more from rng.
+template <typename Check>
+void ForRandomStates(unsigned seed, Check&& check) {
+  std::mt19937 rng(seed);
+  for (int s = 0; s < kSamples; ++s) {
+    const Vector6d q = RandomCoordinates(rng);
+    const Vector6d qd = RandomVector6(rng, 2.0);
+    check(q, qd, rng);
+  }
+}
+
 Matrix3d R(const Vector6d& q) { return RotationFT(q(kAlpha), q(kBeta), q(kGamma)); }
 
 // (S(2,1), S(0,2), S(1,0)) of a (nearly) skew-symmetric matrix.
@@ -129,11 +141,8 @@ TEST(Rotation, PartialsMatchCentralDifferences) {
 }
 
 TEST(AngularVelocityMap, EqualsVeeOfRtRdotAlongRandomTrajectories) {
-  std::mt19937 rng(4);
   const double h = 1e-6;
-  for (int s = 0; s < kSamples; ++s) {
-    const Vector6d q = RandomCoordinates(rng);
-    const Vector6d qd = RandomVector6(rng, 2.0);
+  ForRandomStates(4, [&](const Vector6d& q, const Vector6d& qd, std::mt19937&) {
     // Ṙ at t = 0 along q(t) = q + t q̇, by central differences.
     const Matrix3d Rdot = (R(q + h * qd) - R(q - h * qd)) / (2 * h);
     const Matrix3d S = R(q).transpose() * Rdot;
@@ -145,7 +154,7 @@ TEST(AngularVelocityMap, EqualsVeeOfRtRdotAlongRandomTrajectories) {
                                        << "\nfd = " << w_fd.transpose();
     // pose.hpp's ν uses the same map.
     EXPECT_LT((AngularVelocityT(q, qd) - w_fd).norm(), 1e-8);
-  }
+  });
 }
 
 TEST(AngularVelocityMap, ColumnsAreMinusJcsAxesAndDeterminantIsMinusSinBeta) {
@@ -166,11 +175,8 @@ TEST(AngularVelocityMap, ColumnsAreMinusJcsAxesAndDeterminantIsMinusSinBeta) {
 }
 
 TEST(AngularVelocityMap, RateTimesRateMatchesDifferenceOfMapAlongTrajectory) {
-  std::mt19937 rng(6);
   const double h = 1e-6;
-  for (int s = 0; s < kSamples; ++s) {
-    const Vector6d q = RandomCoordinates(rng);
-    const Vector6d qd = RandomVector6(rng, 2.0);
+  ForRandomStates(6, [&](const Vector6d& q, const Vector6d& qd, std::mt19937&) {
     const Vector6d qp = q + h * qd, qm = q - h * qd;
     const Vector3d qd_ang = qd.tail<3>();
     const Vector3d fd = (AngularVelocityMap(qp(kBeta), qp(kGamma)) -
@@ -179,7 +185,7 @@ TEST(AngularVelocityMap, RateTimesRateMatchesDifferenceOfMapAlongTrajectory) {
     const Vector3d analytic = AngularVelocityMapRateTimesRate(q(kBeta), q(kGamma), qd_ang);
     EXPECT_LT((analytic - fd).norm(), 1e-8) << "analytic = " << analytic.transpose()
                                             << "\nfd = " << fd.transpose();
-  }
+  });
 }
 
 TEST(AngularVelocityMap, ThrowsSolverErrorAtJcsSingularity) {
@@ -197,37 +203,28 @@ TEST(AngularVelocityMap, ThrowsSolverErrorAtJcsSingularity) {
 }
 
 TEST(GeneralizedVelocity, CoordinateVelocityRoundTrip) {
-  std::mt19937 rng(7);
-  for (int s = 0; s < kSamples; ++s) {
-    const Vector6d q = RandomCoordinates(rng);
-    const Vector6d qd = RandomVector6(rng, 2.0);
+  ForRandomStates(7, [&](const Vector6d& q, const Vector6d& qd, std::mt19937&) {
     const Vector6d nu = GeneralizedVelocity(q, qd);
     EXPECT_TRUE((nu.head<3>().array() == qd.head<3>().array()).all());
     EXPECT_LT((CoordinateVelocity(q, nu) - qd).norm(), 1e-12);
-  }
+  });
 }
 
 TEST(GeneralizedAcceleration, CoordinateAccelerationRoundTrip) {
-  std::mt19937 rng(8);
-  for (int s = 0; s < kSamples; ++s) {
-    const Vector6d q = RandomCoordinates(rng);
-    const Vector6d qd = RandomVector6(rng, 2.0);
+  ForRandomStates(8, [&](const Vector6d& q, const Vector6d& qd, std::mt19937& rng) {
     const Vector6d qdd = RandomVector6(rng, 20.0);
     const Vector6d nud = GeneralizedAcceleration(q, qd, qdd);
     EXPECT_LT((CoordinateAcceleration(q, qd, nud) - qdd).norm(), 1e-11);
     const Vector6d nud2 = RandomVector6(rng, 20.0);
     EXPECT_LT((GeneralizedAcceleration(q, qd, CoordinateAcceleration(q, qd, nud2)) - nud2).norm(),
               1e-11);
-  }
+  });
 }
 
 TEST(GeneralizedAcceleration, EqualsTimeDerivativeOfGeneralizedVelocity) {
   // Along q(t) = q + t q̇ + t²/2 q̈, q̇(t) = q̇ + t q̈: ν̇(0) = d/dt GeneralizedVelocity.
-  std::mt19937 rng(9);
   const double h = 1e-6;
-  for (int s = 0; s < kSamples; ++s) {
-    const Vector6d q = RandomCoordinates(rng);
-    const Vector6d qd = RandomVector6(rng, 2.0);
+  ForRandomStates(9, [&](const Vector6d& q, const Vector6d& qd, std::mt19937& rng) {
     const Vector6d qdd = RandomVector6(rng, 20.0);
     auto nu_at = [&](double t) {
       return GeneralizedVelocity(Vector6d(q + t * qd + 0.5 * t * t * qdd),
@@ -235,16 +232,13 @@ TEST(GeneralizedAcceleration, EqualsTimeDerivativeOfGeneralizedVelocity) {
     };
     const Vector6d fd = (nu_at(h) - nu_at(-h)) / (2 * h);
     EXPECT_LT((GeneralizedAcceleration(q, qd, qdd) - fd).norm(), 1e-7);
-  }
+  });
 }
 
 // The overloads that take a pose's sines and cosines (computed once per pose) must give
 // exactly what the angle overloads give: the formulations' outputs are compared byte for byte.
 TEST(EulerAngleTrig, OverloadsEqualTheAngleOverloadsBitwise) {
-  std::mt19937 rng(10);
-  for (int s = 0; s < kSamples; ++s) {
-    const Vector6d q = RandomCoordinates(rng);
-    const Vector6d qd = RandomVector6(rng, 2.0);
+  ForRandomStates(10, [&](const Vector6d& q, const Vector6d& qd, std::mt19937& rng) {
     const Vector6d qdd = RandomVector6(rng, 20.0);
     const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
     EXPECT_EQ(trig.sa, std::sin(q(kAlpha)));
@@ -261,7 +255,7 @@ TEST(EulerAngleTrig, OverloadsEqualTheAngleOverloadsBitwise) {
     RotationPartials(trig, dR);
     RotationPartials(q(kAlpha), q(kBeta), q(kGamma), dR_angles);
     for (int a = 0; a < 3; ++a) EXPECT_TRUE(dR[a] == dR_angles[a]);
-  }
+  });
   // The singularity check reads the pose's sin β.
   for (double beta : {0.0, kPi, 1e-5}) {
     const EulerAngleTrig<double> trig = EulerAngleTrigOf(0.2, beta, 0.3);
@@ -274,13 +268,10 @@ TEST(EulerAngleTrig, OverloadsEqualTheAngleOverloadsBitwise) {
 // w_printed − w_exact = (0, 2 β̇ cos γ, 0), and nothing else changes; its rate term is
 // checked by central differences of the printed map itself; ν ↔ q̇ still round-trips.
 TEST(AngularVelocityMapPrintedEq1_20b, DiffersFromTheExactMapByTwiceTheBetaDotCosGammaTermInYOnly) {
-  std::mt19937 rng(11);
   const double h = 1e-6;
   int compared = 0;
-  for (int s = 0; s < kSamples; ++s) {
-    const Vector6d q = RandomCoordinates(rng);
-    const Vector6d qd = RandomVector6(rng, 2.0);
-    if (std::abs(std::cos(2.0 * q(kGamma)) * std::sin(q(kBeta))) < 0.05) continue;  // printed map singular there
+  ForRandomStates(11, [&](const Vector6d& q, const Vector6d& qd, std::mt19937&) {
+    if (std::abs(std::cos(2.0 * q(kGamma)) * std::sin(q(kBeta))) < 0.05) return;  // printed map singular there
     const Vector3d qd_ang = qd.tail<3>();
     const Vector3d w_exact = AngularVelocityT(q, qd);
     const Vector3d rate_exact = AngularVelocityMapRateTimesRate(q(kBeta), q(kGamma), qd_ang);
@@ -305,7 +296,7 @@ TEST(AngularVelocityMapPrintedEq1_20b, DiffersFromTheExactMapByTwiceTheBetaDotCo
     EXPECT_LT((rate_printed - fd).norm(), 1e-8);
     EXPECT_LT((qd_back - qd).norm(), 1e-10);
     ++compared;
-  }
+  });
   EXPECT_GT(compared, kSamples / 2);
   // The reading ends with its scope: the exact map again.
   const Vector6d q = Vector6d::Zero().eval() + (Vector6d() << 0, 0, 0, 0.3, 1.4, 0.2).finished();

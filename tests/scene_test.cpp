@@ -80,6 +80,14 @@ void ExpectRefused(const SceneFields& fields, const std::string& label,
   ExpectRefused(Text(fields), label, needles);
 }
 
+// ValidFields() with the top-level `key` set to the YAML `value` is refused (ExpectRefused).
+void ExpectRefusedWith(const std::string& key, const std::string& value, const std::string& label,
+                       const std::vector<std::string>& needles) {
+  SceneFields fields = ValidFields();
+  fields[key] = value;
+  ExpectRefused(fields, label, needles);
+}
+
 
 // The key table against the format document and the fuzz dictionary (read from the source
 // tree: the tests run there).
@@ -206,84 +214,71 @@ TEST(Scene, RefusesMissingRequiredField) {
   f = ValidFields();
   f.erase("contacts");
   ExpectRefused(f, "missing_contacts.yaml", {"'contacts'", "missing"});
-  f = ValidFields();
-  f["pulse"] = "{shape: half_sine, duration_s: 0.1}";
-  ExpectRefused(f, "missing_amplitude.yaml", {"pulse", "'amplitude_N'", "missing"});
+  ExpectRefusedWith("pulse", "{shape: half_sine, duration_s: 0.1}", "missing_amplitude.yaml",
+                    {"pulse", "'amplitude_N'", "missing"});
 }
 
 TEST(Scene, RefusesWrongType) {
-  SceneFields f = ValidFields();
-  f["pulse"] = "{shape: reconstructed, amplitude_N: \"abc\", duration_s: 0.1}";
-  ExpectRefused(f, "wrong_type.yaml", {"pulse.amplitude_N", "abc", "number"});
-  f = ValidFields();
-  f["gravity"] = "{enabled: sometimes}";
-  ExpectRefused(f, "wrong_bool.yaml", {"gravity.enabled", "sometimes"});
+  ExpectRefusedWith("pulse", "{shape: reconstructed, amplitude_N: \"abc\", duration_s: 0.1}",
+                    "wrong_type.yaml", {"pulse.amplitude_N", "abc", "number"});
+  ExpectRefusedWith("gravity", "{enabled: sometimes}",
+                    "wrong_bool.yaml", {"gravity.enabled", "sometimes"});
 }
 
 TEST(Scene, RefusesUnknownLigamentName) {
-  SceneFields f = ValidFields();
-  f["ligaments"] = "[LCL, ACL middle]";
-  ExpectRefused(f, "unknown_ligament.yaml", {"ligaments[1]", "ACL middle"});
+  ExpectRefusedWith("ligaments", "[LCL, ACL middle]",
+                    "unknown_ligament.yaml", {"ligaments[1]", "ACL middle"});
 }
 
 TEST(Scene, RefusesDuplicateLigament) {
-  SceneFields f = ValidFields();
-  f["ligaments"] = "[LCL, ACL anterior, LCL]";
-  ExpectRefused(f, "duplicate_ligament.yaml", {"ligaments[2]", "LCL"});
+  ExpectRefusedWith("ligaments", "[LCL, ACL anterior, LCL]",
+                    "duplicate_ligament.yaml", {"ligaments[2]", "LCL"});
 }
 
 TEST(Scene, RefusesNegativeMass) {
-  SceneFields f = ValidFields();
-  f["body"] = "{mass_kg: -4}";
-  ExpectRefused(f, "negative_mass.yaml", {"body.mass_kg", "-4"});
-  f["body"] = "{mass_kg: 0}";
-  ExpectRefused(f, "zero_mass.yaml", {"body.mass_kg", "0"});
-  f["body"] = "{principal_inertia_kg_m2: [0.0672, -0.0672, 0.005334]}";
-  ExpectRefused(f, "negative_inertia.yaml", {"body.principal_inertia_kg_m2[1]", "-0.0672"});
+  ExpectRefusedWith("body", "{mass_kg: -4}",
+                    "negative_mass.yaml", {"body.mass_kg", "-4"});
+  ExpectRefusedWith("body", "{mass_kg: 0}",
+                    "zero_mass.yaml", {"body.mass_kg", "0"});
+  ExpectRefusedWith("body", "{principal_inertia_kg_m2: [0.0672, -0.0672, 0.005334]}",
+                    "negative_inertia.yaml", {"body.principal_inertia_kg_m2[1]", "-0.0672"});
 }
 
 TEST(Scene, RefusesNonPositiveStiffnessScale) {
-  SceneFields f = ValidFields();
-  f["ligament_stiffness_scale"] = "-1";
-  ExpectRefused(f, "negative_scale.yaml", {"ligament_stiffness_scale", "-1"});
-  f["ligament_stiffness_scale"] = "0";
-  ExpectRefused(f, "zero_scale.yaml", {"ligament_stiffness_scale", "'0'"});
+  ExpectRefusedWith("ligament_stiffness_scale", "-1",
+                    "negative_scale.yaml", {"ligament_stiffness_scale", "-1"});
+  ExpectRefusedWith("ligament_stiffness_scale", "0",
+                    "zero_scale.yaml", {"ligament_stiffness_scale", "'0'"});
 }
 
 TEST(Scene, RefusesNonFiniteValues) {
-  SceneFields f = ValidFields();
-  f["pulse"] = "{shape: reconstructed, amplitude_N: .nan, duration_s: 0.1}";
-  ExpectRefused(f, "nan.yaml", {"pulse.amplitude_N", ".nan", "finite"});
-  f["pulse"] = "{shape: reconstructed, amplitude_N: 100, duration_s: .inf}";
-  ExpectRefused(f, "inf.yaml", {"pulse.duration_s", ".inf", "finite"});
-  f = ValidFields();
-  f["body"] = "{mass_kg: -.inf}";
-  ExpectRefused(f, "minus_inf.yaml", {"body.mass_kg", "-.inf"});
-  f = ValidFields();
-  f["initial_state"] = "{pose: reference, coordinates: {gamma_deg: .NaN}}";
-  ExpectRefused(f, "nan_coordinate.yaml", {"initial_state.coordinates.gamma_deg", ".NaN"});
+  ExpectRefusedWith("pulse", "{shape: reconstructed, amplitude_N: .nan, duration_s: 0.1}",
+                    "nan.yaml", {"pulse.amplitude_N", ".nan", "finite"});
+  ExpectRefusedWith("pulse", "{shape: reconstructed, amplitude_N: 100, duration_s: .inf}",
+                    "inf.yaml", {"pulse.duration_s", ".inf", "finite"});
+  ExpectRefusedWith("body", "{mass_kg: -.inf}",
+                    "minus_inf.yaml", {"body.mass_kg", "-.inf"});
+  ExpectRefusedWith("initial_state", "{pose: reference, coordinates: {gamma_deg: .NaN}}",
+                    "nan_coordinate.yaml", {"initial_state.coordinates.gamma_deg", ".NaN"});
 }
 
 TEST(Scene, RefusesUnknownPulseShape) {
-  SceneFields f = ValidFields();
-  f["pulse"] = "{shape: square, amplitude_N: 100.0, duration_s: 0.1}";
-  ExpectRefused(f, "pulse_shape.yaml", {"pulse.shape", "square"});
+  ExpectRefusedWith("pulse", "{shape: square, amplitude_N: 100.0, duration_s: 0.1}",
+                    "pulse_shape.yaml", {"pulse.shape", "square"});
 }
 
 TEST(Scene, RefusesUnknownSurfaceType) {
-  SceneFields f = ValidFields();
-  f["surfaces"] =
-      "{medial: {femoral_surface: {type: ellipsoid, radius_mm: 21.0, centre_mm: [-23.75, "
-      "-18.0, 12.0]}, tibial_surface: {type: plane, slope_x: 0.358, offset_mm: 213.0}}}";
-  ExpectRefused(f, "surface_type.yaml", {"surfaces.medial.femoral_surface.type", "ellipsoid"});
+  ExpectRefusedWith("surfaces",
+                    "{medial: {femoral_surface: {type: ellipsoid, radius_mm: 21.0, centre_mm: [-23.75, "
+                    "-18.0, 12.0]}, tibial_surface: {type: plane, slope_x: 0.358, offset_mm: 213.0}}}",
+                    "surface_type.yaml", {"surfaces.medial.femoral_surface.type", "ellipsoid"});
 }
 
 TEST(Scene, RefusesSurfacePairWithOneSurface) {
-  SceneFields f = ValidFields();
-  f["surfaces"] =
-      "{lateral: {femoral_surface: {type: sphere_cap, radius_mm: 20.0, centre_mm: [23.0, "
-      "-16.0, 11.5]}}}";
-  ExpectRefused(f, "one_surface.yaml", {"surfaces.lateral", "tibial_surface"});
+  ExpectRefusedWith("surfaces",
+                    "{lateral: {femoral_surface: {type: sphere_cap, radius_mm: 20.0, centre_mm: [23.0, "
+                    "-16.0, 11.5]}}}",
+                    "one_surface.yaml", {"surfaces.lateral", "tibial_surface"});
 }
 
 TEST(Scene, RefusesContactWhoseSurfacesAreFarApartAtTheInitialPose) {
