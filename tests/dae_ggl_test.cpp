@@ -26,13 +26,10 @@ namespace kneedyn {
 namespace {
 
 using test_support::ChapterScene;
+using test_support::SettingsAt;
 
 RunResult RunAt(const std::string& name, double rtol) {
-  RunSettings settings;
-  settings.formulation = name;
-  settings.options.rtol = rtol;
-  settings.options.atol = 1e-2 * rtol;  // the work-precision sweep's choice
-  return RunScene(ChapterScene(), settings);
+  return RunScene(ChapterScene(), SettingsAt(name, rtol, 1e-2 * rtol));  // atol: the work-precision sweep's choice
 }
 
 TEST(DaeGgl, PositionConstraintHeldWithoutProjectionWhereDaeDrifts) {

@@ -255,6 +255,16 @@ void ManufacturedRates(const Model& model, double t, Vector6d* qd, Vector6d* qdd
   *qdd = (-p2 + 16.0 * p1 - 30.0 * c + 16.0 * m1 - m2) / (12.0 * h * h);
 }
 
+// The manufactured-solution scenes' knee: all ligaments (C¹ law), both contacts, gravity, no
+// pulse.
+constexpr const char* kManufacturedKnee = R"(parameter_set: ../chapter_knee.yaml
+ligaments: all
+ligament_law: c1_continuous
+contacts: [medial, lateral]
+gravity: {enabled: true}
+pulse: {shape: none}
+)";
+
 struct ManufacturedScene {
   Scene scene;
   double min_normal_force = 1e300;  // N, over a fine time grid
@@ -264,28 +274,12 @@ struct ManufacturedScene {
 ManufacturedScene MakeManufacturedScene(double t_end) {
   // Velocities: the rates of the held quantities at t = 0; x0_dot, z0_dot follow from the
   // velocity level of the consistent initialization.
-  Scene probe = Parse(R"(
-name: probe
-parameter_set: ../chapter_knee.yaml
-ligaments: all
-ligament_law: c1_continuous
-contacts: [medial, lateral]
-gravity: {enabled: true}
-pulse: {shape: none}
-initial_state: {pose: reference}
-end: {time_s: 1.0}
-)", "probe.yaml");
+  Scene probe = Parse(StrCat("name: probe\n", kManufacturedKnee, "initial_state: {pose: reference}\nend: {time_s: 1.0}\n"),
+                      "probe.yaml");
   Vector6d qd0, qdd0;
   ManufacturedRates(probe.model, 0.0, &qd0, &qdd0);
   ManufacturedScene ms;
-  ms.scene = Parse(StrCat(R"(
-name: manufactured_knee
-parameter_set: ../chapter_knee.yaml
-ligaments: all
-ligament_law: c1_continuous
-contacts: [medial, lateral]
-gravity: {enabled: true}
-pulse: {shape: none}
+  ms.scene = Parse(StrCat("name: manufactured_knee\n", kManufacturedKnee, R"(
 initial_state:
   pose: reference
   velocities: {x0_mm_s: )", Num(MToMm(qd0(kX0))), ", y0_mm_s: ", Num(MToMm(qd0(kY0))),

@@ -62,11 +62,8 @@ namespace {
 using test_support::ChapterScene;
 
 RunSettings FixedStep(const std::string& name, double h) {
-  RunSettings s;
-  s.formulation = name;
+  RunSettings s = test_support::SettingsAt(name, 1e-10, 1e-12);  // Newton tolerances
   s.options.step = h;
-  s.options.rtol = 1e-10;  // Newton tolerances
-  s.options.atol = 1e-12;
   return s;
 }
 

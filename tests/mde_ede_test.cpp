@@ -35,6 +35,14 @@ FormulationOptions Tight() {
   return o;
 }
 
+// Explicit Euler at the fixed step h (s).
+FormulationOptions Euler(double h) {
+  FormulationOptions o;
+  o.integrator = IntegratorKind::kEuler;
+  o.step = h;
+  return o;
+}
+
 const EventRecord* FindEvent(const RunResult& r, const std::string& name) {
   for (const EventRecord& e : r.events) {
     if (e.name == name) return &e;
@@ -269,10 +277,7 @@ TEST(MdeEde, EulerCompletesAndHitsOutputTimesExactly) {
   scene.end.time = 0.05;
   for (const char* name : {"mde", "ede"}) {
     for (double h : {4e-3, 2e-3, 1e-3}) {
-      FormulationOptions o;
-      o.integrator = IntegratorKind::kEuler;
-      o.step = h;
-      const RunResult r = RunWith(scene, name, o);
+      const RunResult r = RunWith(scene, name, Euler(h));
       const std::string what = std::string(name) + " h = " + std::to_string(h);
       ASSERT_TRUE(r.completed) << what;
       EXPECT_EQ(r.end_reason, "end_time") << what;
@@ -291,10 +296,7 @@ TEST(MdeEde, EulerChapterSceneConvergesToDae90DegreeTime) {
   const double t90_dae = dae_90->time;
   for (const char* name : {"mde", "ede"}) {
     for (const auto& [h, tol] : {std::pair<double, double>{2.5e-4, 3e-3}, {1e-4, 1e-3}}) {
-      FormulationOptions o;
-      o.integrator = IntegratorKind::kEuler;
-      o.step = h;
-      const RunResult r = RunWith(scene, name, o);
+      const RunResult r = RunWith(scene, name, Euler(h));
       const std::string what = std::string(name) + " h = " + std::to_string(h);
       ASSERT_TRUE(r.completed) << what;
       const EventRecord* e = FindEvent(r, "flexion_90");

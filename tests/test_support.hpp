@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "formulations/formulation.hpp"
+#include "formulations/run.hpp"
 #include "solver/contact_kinematics.hpp"
 #include "scene/scene.hpp"
 
@@ -28,6 +29,15 @@ inline std::string ScenesDir() { return ReferenceDataDir() + "/scenes"; }
 inline const Scene& ChapterScene() {
   static const Scene scene = LoadScene(ScenesDir() + "/chapter_impact.yaml");
   return scene;
+}
+
+// Run settings for `formulation` at the tolerances rtol, atol (defaults otherwise).
+inline RunSettings SettingsAt(const std::string& formulation, double rtol, double atol) {
+  RunSettings settings;
+  settings.formulation = formulation;
+  settings.options.rtol = rtol;
+  settings.options.atol = atol;
+  return settings;
 }
 
 // Those that run the tibio-femoral scenes (not the ones that need a patella).

@@ -19,18 +19,15 @@
 #include "formulations/run.hpp"
 #include "sensitivity/forward_sensitivity.hpp"
 #include "sensitivity/sensitivity_cli.hpp"
+#include "sensitivity/tests/sensitivity_test_support.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn::sensitivity {
 namespace {
 
-Scene Chapter() { return LoadScene(std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes/chapter_impact.yaml"); }
-
-std::vector<double> Nominal(const std::vector<ensembles::ParameterSpec>& params) {
-  std::vector<double> v;
-  for (const auto& p : params) v.push_back(p.nominal);
-  return v;
-}
+using test_support::Chapter;
+using test_support::Nominal;
+using test_support::RunCentralDifference;
 
 TEST(ForwardSensitivity, AgreesWithCentralDifferencesOnTheChapterScene) {
   const Scene scene = Chapter();
@@ -123,14 +120,8 @@ TEST(ForwardSensitivity, TrajectoryDerivativesAgreeWithCentralDifferences) {
   const std::vector<double> p = Nominal(params);
   const SensitivityResult r = RunSensitivity(scene, params, p, outcomes, options);
   ASSERT_EQ(r.trajectory.size(), 6u);  // t = 0, 0.05, ..., 0.25 (90° at 0.299 s)
-  SensitivityOptions plain = options;
-  plain.derivatives = false;
   for (size_t j = 0; j < params.size(); ++j) {
-    const double h = 1e-4 * std::abs(p[j]);
-    std::vector<double> up = p, down = p;
-    up[j] += h, down[j] -= h;
-    const SensitivityResult a = RunSensitivity(scene, params, up, outcomes, plain);
-    const SensitivityResult b = RunSensitivity(scene, params, down, outcomes, plain);
+    const auto [h, a, b] = RunCentralDifference(scene, params, p, j, outcomes, options);
     for (size_t n : {3u, 5u}) {  // 0.15 s (both contacts), 0.25 s (after lift-off, kinks)
       ASSERT_NEAR(a.trajectory[n].t, r.trajectory[n].t, 1e-15);
       for (int i : {kY0, kAlpha}) {
