@@ -25,6 +25,9 @@ import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
+sys.dont_write_bytecode = True  # keep the source tree clean
+from py_test_support import finish  # noqa: E402
+
 SOURCE_RULES = [
     ("includes the loader", re.compile(r'#\s*include\s*[<"]scene/')),
     ("includes a formulation", re.compile(r'#\s*include\s*[<"]formulations/')),
@@ -150,11 +153,8 @@ def main():
   run = subprocess.run([args.probe], capture_output=True, text=True)
   if run.returncode != 0:
     hits.append(f"{args.probe} exit {run.returncode}: {run.stdout.strip()} {run.stderr.strip()}")
-  for h in hits:
-    print("layering:", h)
-  print(f"layering: {len(hits)} violation(s); self-check caught "
-        f"{len(planted) + len(planted_cmake) + len(planted_upward)} planted lines")
-  return 1 if hits else 0
+  return finish(hits, "layering:", f"layering: {len(hits)} violation(s); self-check caught "
+                f"{len(planted) + len(planted_cmake) + len(planted_upward)} planted lines", sys.stdout)
 
 
 if __name__ == "__main__":

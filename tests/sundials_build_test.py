@@ -16,6 +16,9 @@ import re
 import subprocess
 import sys
 
+sys.dont_write_bytecode = True  # keep the source tree clean
+from py_test_support import finish  # noqa: E402
+
 # SUNDIALS' public and internal C prefixes (IDAS, CVODES, ARKODE, vectors, matrices,
 # linear and nonlinear solvers, the context).
 SUNDIALS_FUNCTION = re.compile(
@@ -93,11 +96,8 @@ def main(argv):
         print(__doc__, file=sys.stderr)
         return 2
     errors = [e for path in argv[1:] for e in check(path)]
-    for e in errors:
-        print("FAIL:", e)
-    print(f"{len(argv) - 1 - len({e.split(':')[0] for e in errors})} passed, "
-          f"{len({e.split(':')[0] for e in errors})} failed")
-    return 1 if errors else 0
+    failed = len({e.split(':')[0] for e in errors})
+    return finish(errors, "FAIL:", f"{len(argv) - 1 - failed} passed, {failed} failed", sys.stdout)
 
 
 if __name__ == "__main__":
