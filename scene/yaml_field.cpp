@@ -117,6 +117,12 @@ class EventPath {
       ++f.index;
     }
   }
+  // The path of the innermost open collection's key `key` (for a mapping's messages).
+  std::string KeyPath(std::string_view key) const {
+    std::string path = PathOf(frames_.empty() ? 0 : frames_.size() - 1);
+    if (!path.empty()) path += '.';
+    return path.append(key);
+  }
   void Push(bool map) { frames_.push_back(Frame{map, true, {}, 0}); }
   void Pop() { frames_.pop_back(); }
   int depth() const { return static_cast<int>(frames_.size()); }
@@ -166,6 +172,9 @@ struct YamlNodes {
   std::vector<yaml_node_item_t> items;
   std::vector<yaml_node_pair_t> pairs;
 
+  std::string_view ScalarText(int node) const {
+    return {text.data() + text_at[node - 1], nodes[node - 1].data.scalar.length};
+  }
   int Add(yaml_node_type_t type, const yaml_mark_t& mark) {
     yaml_node_t n{};
     n.type = type;
@@ -214,6 +223,29 @@ struct YamlNodes {
     }
   }
 };
+
+// The second of two keys of one mapping (`children`: keys and values in turn) that are the
+// same scalar, else 0. Keys are compared as Field::Find looks them up (the text of a scalar
+// that is not null), so that no value of a mapping can hide behind another: YAML wants a
+// mapping's keys unique, and a repeated key would otherwise be read as its first value
+// (polynomial coefficients, ligament parameters, a section given twice).
+int RepeatedKey(const YamlNodes& doc, const int* children, size_t count) {
+  const auto comparable = [&](int node) {
+    const yaml_node_t& n = doc.nodes[node - 1];
+    if (n.type != YAML_SCALAR_NODE) return false;
+    if (n.data.scalar.style != YAML_PLAIN_SCALAR_STYLE) return true;
+    const std::string_view v = doc.ScalarText(node);
+    return !(v.empty() || v == "~" || v == "null" || v == "Null" || v == "NULL");
+  };
+  for (size_t i = 2; i < count; i += 2) {
+    if (!comparable(children[i])) continue;
+    const std::string_view key = doc.ScalarText(children[i]);
+    for (size_t j = 0; j < i; j += 2) {
+      if (comparable(children[j]) && doc.ScalarText(children[j]) == key) return children[i];
+    }
+  }
+  return 0;
+}
 
 // Builds `doc` from libyaml's events in one pass (the work of yaml_parser_load, which it
 // replaces), refusing on the way, as soon as they are met: nesting deeper than
@@ -297,6 +329,14 @@ std::string Compose(yaml_parser_t* parser, const std::string& text, YamlNodes* d
       if (!open_anchor.back().empty()) anchors[open_anchor.back()] = node;
       const size_t begin = open_children.back();
       const size_t count = children.size() - begin;
+      if (type == YAML_MAPPING_END_EVENT) {
+        const int key = RepeatedKey(*doc, children.data() + begin, count);
+        if (key > 0) {
+          const yaml_node_t& k = doc->nodes[key - 1];
+          problem = StrCat(":", k.start_mark.line + 1, ": key '", Echo(path.KeyPath(doc->ScalarText(key)), 128),
+                           "' given twice (a key may appear once per mapping)");
+        }
+      }
       doc->Close(node, children.data() + begin, count);
       counts.resize(doc->nodes.size(), 0);
       counts[node - 1] = type == YAML_SEQUENCE_END_EVENT ? count : count / 2;
@@ -473,14 +513,7 @@ const Field& Field::Keys(const std::vector<const char*>& keys) const {
   const yaml_node_pair_t* const end = node_->data.mapping.pairs.top;
   for (const yaml_node_pair_t* pair = begin; pair != end; ++pair) {
     const yaml_node_t* key = doc_->Node(pair->key);
-    const std::string_view k = KeyText(key, "(non-scalar key)");
-    for (const yaml_node_pair_t* earlier = begin; earlier != pair; ++earlier) {
-      const yaml_node_t* e = doc_->Node(earlier->key);
-      if (KeyText(e, "(non-scalar key)") == k) {
-        Throw<InputError>(doc_->reader(), Echo(doc_->label(), 256), Line(key), ": key '", Echo(Where(k)),
-                          "' given twice (a key may appear once per mapping)");
-      }
-    }
+    const std::string_view k = KeyText(key, "(non-scalar key)");  // each once: checked by Compose
     if (std::any_of(keys.begin(), keys.end(), [&](const char* valid) { return k == valid; })) continue;
     // Unknown: the nearest valid key (edit distance) for the message.
     const char* nearest = nullptr;

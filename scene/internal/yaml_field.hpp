@@ -10,7 +10,9 @@
 //    square of the depth, so a deeper file is refused as soon as the limit is passed;
 //  - no tags (`!!int 3.5`, `!custom 5`): a tag would be ignored, so it is refused, naming
 //    the field and the tag;
-//  - an alias names a finished node (no cycles); anchors are found through a hash map.
+//  - an alias names a finished node (no cycles); anchors are found through a hash map;
+//  - each key of a mapping once (two scalar keys of the same text are refused, naming the
+//    second's line and path), so that no value hides behind an earlier one of its key.
 // Values keep yaml-cpp's meaning (the library scenes were first read with):
 //  - a plain scalar ~, null, Null, NULL or empty is null: not a string, number or boolean;
 //  - a number is the whole scalar read as by an istream in the "C" locale (yaml-cpp's
@@ -51,7 +53,7 @@ class Field {
 
   // Throws InputError "LoadScene(): FILE:LINE: field 'PATH' = 'VALUE': RULE".
   [[noreturn]] void Fail(const std::string& rule) const;
-  // This node must be a mapping whose keys are all in `keys`, each once. An unknown key is
+  // This node must be a mapping whose keys are all in `keys` (each once: see above). An unknown key is
   // refused with its line and the nearest valid key.
   const Field& Keys(const std::vector<const char*>& keys) const;
   bool Has(std::string_view key) const;
