@@ -195,7 +195,7 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
   PatellaGuess patella_guess;
   for (size_t s = 0; s < result.samples.size(); ++s) {
     const MechanicalState& st = result.samples[s];
-    ComputeObservables(model, st, ContactPointSource::kStateCoordinates, &obs);
+    ComputeObservables(model, st, ContactPointSource::kStateCoordinates, &obs, kObserveNothingMore);
     const Vector6d& q = st.q;
     const Vector6d& qd = st.qd;
     const JointObservables& j = obs.joint;

@@ -28,7 +28,7 @@ EnergyObservables ComputeEnergies(const Model& model, const Vector6d& q, const V
 }
 
 void ComputeObservables(const Model& model, const MechanicalState& st, ContactPointSource source,
-                        Observables* out) {
+                        Observables* out, unsigned extras) {
   const Vector6d& q = st.q;
   const Vector6d& qd = st.qd;
   out->t = st.t;
@@ -42,7 +42,7 @@ void ComputeObservables(const Model& model, const MechanicalState& st, ContactPo
   j.valgus_rate_deg_s = RadToDeg(qd(kBeta));
   j.external_rotation_rate_deg_s = RadToDeg(qd(kGamma));
   j.omega_T = AngularVelocityT(q, qd);
-  out->energy = ComputeEnergies(model, q, qd);
+  out->energy = extras & kObserveEnergies ? ComputeEnergies(model, q, qd) : EnergyObservables();
 
   const Pose pose = PoseFromCoordinates(q);
   std::vector<double> gap, rate;
@@ -69,7 +69,7 @@ void ComputeObservables(const Model& model, const MechanicalState& st, ContactPo
       c.point_T = geo.point_T;
     }
     ContactGeometry at_q;
-    if (ContactKinematics(pair, pose, &at_q)) {
+    if ((extras & kObserveFemoralSlope) && ContactKinematics(pair, pose, &at_q)) {
       HeightSample hs;
       c.femoral_slope = pair.femoral_surface->Evaluate(at_q.point_F.x(), at_q.point_F.y(), &hs)
                             ? std::hypot(hs.gradient[0], hs.gradient[1])
