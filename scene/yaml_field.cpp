@@ -6,6 +6,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -23,6 +24,18 @@ namespace {
 // outside YAML's printable set (libyaml's reader: tab, LF, CR, 0x20-0x7E, 0x85,
 // 0xA0-0xD7FF, 0xE000-0xFFFD, 0x10000-0x10FFFF), replaced by U+FFFD. A UTF-16 stream (byte
 // order mark) is left to libyaml.
+// Whether all eight bytes of `w` are printable ASCII (0x20-0x7E) or LF, tested at once:
+// each step below is exact per byte (the additions never carry out of a byte).
+bool PrintableAsciiWord(uint64_t w) {
+  constexpr uint64_t kLow7 = 0x7F7F7F7F7F7F7F7FULL, kHigh = 0x8080808080808080ULL, kOnes = 0x0101010101010101ULL;
+  const uint64_t low = w & kLow7;
+  const uint64_t is_7f = (low + kOnes) & kHigh;                  // low 7 bits all set: 0x7F
+  const uint64_t at_least_20 = (low + 0x60 * kOnes) & kHigh;     // low 7 bits >= 0x20
+  const uint64_t lf_xor = w ^ (0x0A * kOnes);
+  const uint64_t not_lf = (((lf_xor & kLow7) + kLow7) | lf_xor) & kHigh;
+  return ((w & kHigh) | is_7f | (~at_least_20 & not_lf & kHigh)) == 0;
+}
+
 std::string AllowedUtf8(const std::string& text) {
   if (text.size() >= 2 && ((text[0] == '\xFF' && text[1] == '\xFE') || (text[0] == '\xFE' && text[1] == '\xFF'))) {
     return text;
@@ -32,8 +45,16 @@ std::string AllowedUtf8(const std::string& text) {
   const auto* p = reinterpret_cast<const unsigned char*>(text.data());
   const size_t n = text.size();
   for (size_t i = 0; i < n;) {
+    if (!changed && i + 8 <= n) {  // the usual text: eight bytes a test (~25 k instructions a scene)
+      uint64_t w;
+      std::memcpy(&w, p + i, sizeof w);
+      if (PrintableAsciiWord(w)) {
+        i += 8;
+        continue;
+      }
+    }
     const unsigned char c = p[i];
-    if ((c >= 0x20 && c <= 0x7E) || c == 0x0A) {  // the usual printable ASCII: one test a byte
+    if ((c >= 0x20 && c <= 0x7E) || c == 0x0A) {  // printable ASCII: one test a byte
       if (changed) out += static_cast<char>(c);
       ++i;
       continue;

@@ -5,6 +5,7 @@
 #include "solver/constraint_residuals.hpp"
 #include "solver/contact_kinematics.hpp"
 #include "solver/dynamics.hpp"
+#include "solver/ligament.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
@@ -77,13 +78,16 @@ void ComputeObservables(const Model& model, const MechanicalState& st, ContactPo
     }
   }
 
-  Data data(model);
-  ComputeAppliedWrench(model, st.t, pose, &data);
+  // Each element's length and tension as ComputeAppliedWrench finds them (dynamics.hpp: the
+  // span's norm, the law by length, Eq. 1.14), without its wrench sums, its workspace or a
+  // patella's equilibrium solve.
   out->ligaments.resize(model.ligaments.size());
   for (size_t k = 0; k < model.ligaments.size(); ++k) {
-    out->ligaments[k].length = data.ligament_length[k];
-    out->ligaments[k].strain = LigamentStrain(model.ligaments[k], data.ligament_length[k]);
-    out->ligaments[k].tension = data.ligament_tension[k];
+    const Ligament& lig = model.ligaments[k];
+    const double length = LigamentSpan_F(lig, pose).norm();
+    out->ligaments[k].length = length;
+    out->ligaments[k].strain = LigamentStrain(lig, length);
+    out->ligaments[k].tension = LigamentTension(lig, length);
   }
 }
 
