@@ -258,11 +258,15 @@ int RepeatedKey(const YamlNodes& doc, const int* children, size_t count) {
     const std::string_view v = doc.ScalarText(node);
     return !(v.empty() || v == "~" || v == "null" || v == "Null" || v == "NULL");
   };
+  // Texts first (the length decides most pairs), then whether the equal ones count.
   for (size_t i = 2; i < count; i += 2) {
-    if (!comparable(children[i])) continue;
+    if (doc.nodes[children[i] - 1].type != YAML_SCALAR_NODE) continue;
     const std::string_view key = doc.ScalarText(children[i]);
     for (size_t j = 0; j < i; j += 2) {
-      if (comparable(children[j]) && doc.ScalarText(children[j]) == key) return children[i];
+      if (doc.nodes[children[j] - 1].type == YAML_SCALAR_NODE && doc.ScalarText(children[j]) == key &&
+          comparable(children[i]) && comparable(children[j])) {
+        return children[i];
+      }
     }
   }
   return 0;
