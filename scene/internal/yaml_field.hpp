@@ -68,7 +68,7 @@ class Field {
   bool IsPlainScalar() const;  // written without quotes
   bool IsNull() const { return kind_ == YamlKind::kNull; }
   std::vector<std::string> Keys() const;  // of a mapping, in file order
-  const std::string& path() const { return path_; }
+  const std::string& path() const;
 
   double Double() const;
   double Range(double lo, double hi) const;  // a number in [lo, hi]
@@ -87,11 +87,17 @@ class Field {
   std::string Where(std::string_view key) const;
   size_t Count() const;
   double ItemInRange(size_t i, double limit) const;  // a sequence's item i, |v| <= limit
-  const yaml_node_s* Find(std::string_view key) const;
+  // The value of `key`, and in *key_node its key node; null when absent.
+  const yaml_node_s* Find(std::string_view key, const yaml_node_s** key_node = nullptr) const;
   std::shared_ptr<const YamlDocument> doc_;
   const yaml_node_s* node_;
   YamlKind kind_;
-  std::string path_;
+  // The path is completed only when asked for (a message, a child's path): a child found by
+  // its key keeps its parent's path and the key's text in the document (alive with doc_),
+  // so reading a value costs no path string.
+  mutable std::string path_;      // the whole path, or the parent's while last_key_ is pending
+  mutable std::string_view last_key_;
+  mutable bool key_pending_ = false;
 };
 
 // A scene or parameter set's top level, which must be a mapping. `label` names the file in
