@@ -195,7 +195,7 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
   PatellaGuess patella_guess;
   for (size_t s = 0; s < result.samples.size(); ++s) {
     const MechanicalState& st = result.samples[s];
-    ComputeObservables(model, st, ContactPointSource::kStateCoordinates, &obs);
+    ComputeObservables(model, st, ContactPointSource::kStateCoordinates, &obs, kObserveNothingMore);
     const Vector6d& q = st.q;
     const Vector6d& qd = st.qd;
     const JointObservables& j = obs.joint;
@@ -340,7 +340,8 @@ void RemoveStaleTemporaries(const fs::path& out) {
   if (dir == nullptr) return;
   std::vector<std::string> stale;
   while (const dirent* entry = ::readdir(dir)) {
-    if (std::strncmp(entry->d_name, prefix.c_str(), prefix.size()) != 0) continue;
+    // The prefix starts with '.': most names fail on their first byte, without a call.
+    if (entry->d_name[0] != '.' || std::strncmp(entry->d_name, prefix.c_str(), prefix.size()) != 0) continue;
     const long pid = std::strtol(entry->d_name + prefix.size(), nullptr, 10);
     if (pid <= 0 || pid == ::getpid()) continue;
     if (::kill(static_cast<pid_t>(pid), 0) == -1 && errno == ESRCH) stale.emplace_back(entry->d_name);

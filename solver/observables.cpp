@@ -5,6 +5,7 @@
 #include "solver/constraint_residuals.hpp"
 #include "solver/contact_kinematics.hpp"
 #include "solver/dynamics.hpp"
+#include "solver/ligament.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
@@ -28,7 +29,7 @@ EnergyObservables ComputeEnergies(const Model& model, const Vector6d& q, const V
 }
 
 void ComputeObservables(const Model& model, const MechanicalState& st, ContactPointSource source,
-                        Observables* out) {
+                        Observables* out, unsigned extras) {
   const Vector6d& q = st.q;
   const Vector6d& qd = st.qd;
   out->t = st.t;
@@ -42,7 +43,7 @@ void ComputeObservables(const Model& model, const MechanicalState& st, ContactPo
   j.valgus_rate_deg_s = RadToDeg(qd(kBeta));
   j.external_rotation_rate_deg_s = RadToDeg(qd(kGamma));
   j.omega_T = AngularVelocityT(q, qd);
-  out->energy = ComputeEnergies(model, q, qd);
+  out->energy = extras & kObserveEnergies ? ComputeEnergies(model, q, qd) : EnergyObservables();
 
   const Pose pose = PoseFromCoordinates(q);
   std::vector<double> gap, rate;
@@ -69,7 +70,7 @@ void ComputeObservables(const Model& model, const MechanicalState& st, ContactPo
       c.point_T = geo.point_T;
     }
     ContactGeometry at_q;
-    if (ContactKinematics(pair, pose, &at_q)) {
+    if ((extras & kObserveFemoralSlope) && ContactKinematics(pair, pose, &at_q)) {
       HeightSample hs;
       c.femoral_slope = pair.femoral_surface->Evaluate(at_q.point_F.x(), at_q.point_F.y(), &hs)
                             ? std::hypot(hs.gradient[0], hs.gradient[1])
@@ -77,13 +78,16 @@ void ComputeObservables(const Model& model, const MechanicalState& st, ContactPo
     }
   }
 
-  Data data(model);
-  ComputeAppliedWrench(model, st.t, pose, &data);
+  // Each element's length and tension as ComputeAppliedWrench finds them (dynamics.hpp: the
+  // span's norm, the law by length, Eq. 1.14), without its wrench sums, its workspace or a
+  // patella's equilibrium solve.
   out->ligaments.resize(model.ligaments.size());
   for (size_t k = 0; k < model.ligaments.size(); ++k) {
-    out->ligaments[k].length = data.ligament_length[k];
-    out->ligaments[k].strain = LigamentStrain(model.ligaments[k], data.ligament_length[k]);
-    out->ligaments[k].tension = data.ligament_tension[k];
+    const Ligament& lig = model.ligaments[k];
+    const double length = LigamentSpan_F(lig, pose).norm();
+    out->ligaments[k].length = length;
+    out->ligaments[k].strain = LigamentStrain(lig, length);
+    out->ligaments[k].tension = LigamentTension(lig, length);
   }
 }
 

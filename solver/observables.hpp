@@ -78,9 +78,21 @@ struct Observables {
   std::vector<LigamentObservables> ligaments;  // per model.ligaments
 };
 
+// What ComputeObservables fills besides t, the pulse, the joint, the contacts (points,
+// force, gap, gap rate) and the ligaments. Each is a second pass over the pose (the energies
+// every ligament's length again, the slope a second contact kinematics), and the trajectory
+// table prints neither (formulations/run_output.cpp asks for kObserveNothingMore).
+enum ObservableExtras : unsigned {
+  kObserveNothingMore = 0,
+  kObserveEnergies = 1u << 0,      // else `energy` is all 0
+  kObserveFemoralSlope = 1u << 1,  // else every contact's femoral_slope is NaN
+  kObserveEverything = kObserveEnergies | kObserveFemoralSlope,
+};
+
 // Fills `out` (vectors resized to the model's counts).
 void ComputeObservables(const Model& model, const MechanicalState& state,
-                        ContactPointSource source, Observables* out);
+                        ContactPointSource source, Observables* out,
+                        unsigned extras = kObserveEverything);
 
 // Energies alone (no contact kinematics), for drift measurements over many samples.
 EnergyObservables ComputeEnergies(const Model& model, const Vector6d& q, const Vector6d& qd);

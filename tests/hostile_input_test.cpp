@@ -276,6 +276,33 @@ TEST_F(HostileInput, DuplicatedKeyIsRefusedWithItsLine) {
   ExpectRefused(RunArgs(scene), {"scene.yaml:" + std::to_string(line), "'ligaments' given twice"});
 }
 
+// A polynomial surface's coefficient given twice was read as its first value (the second
+// ignored): refused, naming the line, the field path and the key.
+TEST_F(HostileInput, PolynomialCoefficientGivenTwiceIsRefused) {
+  const std::string text = std::regex_replace(ReadText(ReferenceDataDir() + "/scenes/anatomical_surfaces.yaml"),
+                                              std::regex("parameter_set: [^\n]*"),
+                                              "parameter_set: " + ChapterParameterSetPath());
+  const std::string scene = Input("scene.yaml", Replaced(text, "c20: 0.008333,", "c20: 0.008333, c20: 0.5,"));
+  const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + text.find("c20: 0.008333,"), '\n'));
+  ExpectRefused(RunArgs(scene), {"scene.yaml:" + std::to_string(line),
+                                 "key 'surfaces.medial.tibial_surface.coefficients_mm.c20' given twice"});
+}
+
+// The other mappings read by their keys alone (no table of valid keys) refuse a repeated key
+// alike: a ligament's parameters, the ligament_parameters section, a parameter-set section.
+TEST_F(HostileInput, RepeatedKeyOfAnyMappingIsRefused) {
+  const std::string scene = Input(
+      "scene.yaml", ChapterSceneText() + "ligament_parameters:\n  LCL: {k_linear_N_mm: 70.0, k_linear_N_mm: 90.0}\n");
+  ExpectRefused(RunArgs(scene), {"key 'ligament_parameters.LCL.k_linear_N_mm' given twice"});
+  const std::string twice = Input(
+      "twice.yaml", ChapterSceneText() + "ligament_parameters:\n  LCL: {k_linear_N_mm: 70.0}\n  LCL: {k_linear_N_mm: 90.0}\n");
+  ExpectRefused(RunArgs(twice), {"key 'ligament_parameters.LCL' given twice"});
+  const std::string ps_scene = SceneWithParameterSet(
+      *this, Replaced(ReadText(ChapterParameterSetPath()), "  y0_mm: -5.740280082863\n",
+                      "  y0_mm: -5.740280082863\n  alpha_deg: 1.0\n"));
+  ExpectRefused(RunArgs(ps_scene), {"params.yaml:", "key 'reference_pose.alpha_deg' given twice"});
+}
+
 TEST_F(HostileInput, OptionalMappingGivenAsListIsRefused) {
   const std::string scene = Input("scene.yaml", Replaced(ChapterSceneText(), "output: {interval_s: 0.005}", "output: [0.005]"));
   ExpectRefused(RunArgs(scene), {"field 'output'", "must be a mapping"});

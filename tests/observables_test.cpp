@@ -150,6 +150,52 @@ TEST(Observables, ContactPointsAtConsistentPoseFromBothSources) {
   }
 }
 
+// Without the extras (what the trajectory table asks for) every other field is the same
+// bits as with them, the energies stay 0 and the slopes NaN; with each extra alone, that
+// extra is the full call's.
+TEST(Observables, ExtrasLeaveTheOtherFieldsAlone) {
+  const Scene& scene = ChapterScene();
+  ConsistentInitOptions o;
+  InitReport report;
+  MechanicalState s = ConsistentInitialize(scene.model, scene.initial, {0, 1}, o, &report);
+  s.qd << 0.01, -0.02, 0.005, 1.5, 0.1, -0.2;
+  s.t = 0.03;
+  for (ContactPointSource source : {ContactPointSource::kStateCoordinates, ContactPointSource::kPose}) {
+    Observables all, none, energies, slope;
+    ComputeObservables(scene.model, s, source, &all);
+    ComputeObservables(scene.model, s, source, &none, kObserveNothingMore);
+    ComputeObservables(scene.model, s, source, &energies, kObserveEnergies);
+    ComputeObservables(scene.model, s, source, &slope, kObserveFemoralSlope);
+    EXPECT_NE(all.energy.kinetic, 0.0);
+    EXPECT_NE(all.energy.mechanical, 0.0);
+    EXPECT_EQ(none.energy.kinetic, 0.0);
+    EXPECT_EQ(none.energy.mechanical, 0.0);
+    EXPECT_EQ(energies.energy.mechanical, all.energy.mechanical);
+    EXPECT_EQ(energies.energy.ligament_potential, all.energy.ligament_potential);
+    EXPECT_EQ(slope.energy.mechanical, 0.0);
+    EXPECT_EQ(none.t, all.t);
+    EXPECT_EQ(none.pulse, all.pulse);
+    EXPECT_EQ(none.joint.omega_T, all.joint.omega_T);
+    ASSERT_EQ(none.contacts.size(), all.contacts.size());
+    for (size_t c = 0; c < all.contacts.size(); ++c) {
+      EXPECT_TRUE(std::isfinite(all.contacts[c].femoral_slope)) << c;
+      EXPECT_EQ(slope.contacts[c].femoral_slope, all.contacts[c].femoral_slope) << c;
+      EXPECT_TRUE(std::isnan(none.contacts[c].femoral_slope)) << c;
+      EXPECT_TRUE(std::isnan(energies.contacts[c].femoral_slope)) << c;
+      EXPECT_EQ(none.contacts[c].point_F, all.contacts[c].point_F) << c;
+      EXPECT_EQ(none.contacts[c].point_T, all.contacts[c].point_T) << c;
+      EXPECT_EQ(none.contacts[c].normal_force, all.contacts[c].normal_force) << c;
+      EXPECT_EQ(none.contacts[c].gap, all.contacts[c].gap) << c;
+      EXPECT_EQ(none.contacts[c].gap_rate, all.contacts[c].gap_rate) << c;
+    }
+    ASSERT_EQ(none.ligaments.size(), all.ligaments.size());
+    for (size_t k = 0; k < all.ligaments.size(); ++k) {
+      EXPECT_EQ(none.ligaments[k].length, all.ligaments[k].length) << k;
+      EXPECT_EQ(none.ligaments[k].tension, all.ligaments[k].tension) << k;
+    }
+  }
+}
+
 TEST(TrajectoryTable, ColumnsFollowTheModelsCounts) {
   const Scene& chapter = ChapterScene();
   Scene scene = chapter;

@@ -23,6 +23,7 @@
 
 #include "scene/scene.hpp"
 #include "scene/internal/scene_keys.hpp"
+#include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
 #include "solver/loads.hpp"
 #include "solver/units.hpp"
@@ -393,6 +394,28 @@ TEST(Scene, AllShippedScenesLoad) {
 
 TEST(Scene, LoadSceneRefusesMissingFile) {
   EXPECT_THROW((void)LoadScene(ScenesDir() + "/does_not_exist.yaml"), InputError);
+}
+
+}  // namespace
+}  // namespace kneedyn
+
+namespace kneedyn {
+namespace {
+
+// The reader's character check (scene/yaml_field.cpp AllowedUtf8) tests eight bytes at a
+// time: every byte value at every offset of a word is kept exactly when YAML allows it alone
+// (tab, LF, CR, 0x20-0x7E) and becomes U+FFFD otherwise (control characters, DEL, a lone
+// byte >= 0x80).
+TEST(YamlReader, EachByteAtEachWordOffsetIsKeptOrReplacedByTheRule) {
+  for (int offset = 0; offset < 8; ++offset) {
+    for (int b = 0; b < 256; ++b) {
+      if (b == '\'') continue;  // would end the quoted scalar
+      const std::string doc = "k: '" + std::string(offset, 'a') + static_cast<char>(b) + std::string(16, 'a') + "'\n";
+      const bool allowed = b == 0x09 || b == 0x0A || b == 0x0D || (b >= 0x20 && b <= 0x7E);
+      const std::string v = scene_detail::ParseYamlDocument(doc, "doc", "Test").Required("k").String();
+      EXPECT_EQ(v.find("\xEF\xBF\xBD") != std::string::npos, !allowed) << "byte " << b << " at offset " << offset;
+    }
+  }
 }
 
 }  // namespace

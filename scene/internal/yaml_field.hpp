@@ -10,7 +10,9 @@
 //    square of the depth, so a deeper file is refused as soon as the limit is passed;
 //  - no tags (`!!int 3.5`, `!custom 5`): a tag would be ignored, so it is refused, naming
 //    the field and the tag;
-//  - an alias names a finished node (no cycles); anchors are found through a hash map.
+//  - an alias names a finished node (no cycles); anchors are found through a hash map;
+//  - each key of a mapping once (two scalar keys of the same text are refused, naming the
+//    second's line and path), so that no value hides behind an earlier one of its key.
 // Values keep yaml-cpp's meaning (the library scenes were first read with):
 //  - a plain scalar ~, null, Null, NULL or empty is null: not a string, number or boolean;
 //  - a number is the whole scalar read as by an istream in the "C" locale (yaml-cpp's
@@ -51,7 +53,7 @@ class Field {
 
   // Throws InputError "LoadScene(): FILE:LINE: field 'PATH' = 'VALUE': RULE".
   [[noreturn]] void Fail(const std::string& rule) const;
-  // This node must be a mapping whose keys are all in `keys`, each once. An unknown key is
+  // This node must be a mapping whose keys are all in `keys` (each once: see above). An unknown key is
   // refused with its line and the nearest valid key.
   const Field& Keys(const std::vector<const char*>& keys) const;
   bool Has(std::string_view key) const;
@@ -66,7 +68,7 @@ class Field {
   bool IsPlainScalar() const;  // written without quotes
   bool IsNull() const { return kind_ == YamlKind::kNull; }
   std::vector<std::string> Keys() const;  // of a mapping, in file order
-  const std::string& path() const { return path_; }
+  const std::string& path() const;
 
   double Double() const;
   double Range(double lo, double hi) const;  // a number in [lo, hi]
@@ -85,11 +87,17 @@ class Field {
   std::string Where(std::string_view key) const;
   size_t Count() const;
   double ItemInRange(size_t i, double limit) const;  // a sequence's item i, |v| <= limit
-  const yaml_node_s* Find(std::string_view key) const;
+  // The value of `key`, and in *key_node its key node; null when absent.
+  const yaml_node_s* Find(std::string_view key, const yaml_node_s** key_node = nullptr) const;
   std::shared_ptr<const YamlDocument> doc_;
   const yaml_node_s* node_;
   YamlKind kind_;
-  std::string path_;
+  // The path is completed only when asked for (a message, a child's path): a child found by
+  // its key keeps its parent's path and the key's text in the document (alive with doc_),
+  // so reading a value costs no path string.
+  mutable std::string path_;      // the whole path, or the parent's while last_key_ is pending
+  mutable std::string_view last_key_;
+  mutable bool key_pending_ = false;
 };
 
 // A scene or parameter set's top level, which must be a mapping. `label` names the file in
