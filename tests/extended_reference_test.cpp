@@ -60,7 +60,9 @@ void ExpectFloat128AgreesWithDouble(Scene scene, double min_digits) {
   EXPECT_EQ(m.compared_times, 5);
   EXPECT_GT(m.scd, min_digits) << scene.name;
   for (const auto& [cls, mixed] : m.mixed) {
-    if (!std::isnan(mixed)) EXPECT_LT(mixed, std::pow(10.0, -min_digits)) << scene.name << " " << cls;
+    if (!std::isnan(mixed)) {
+      EXPECT_LT(mixed, std::pow(10.0, -min_digits)) << scene.name << " " << cls;
+    }
   }
   // The t = 0 row is the double consistent initialization's state (its projection's round-off).
   EXPECT_LT(quad.max_gap_m, 1e-16) << scene.name;

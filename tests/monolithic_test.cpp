@@ -249,7 +249,9 @@ EventsAndPatella EliminatedReference(const Scene& scene, bool expect_completed =
 
 void ExpectAgreement(const EventsAndPatella& reference, const EventsAndPatella& run, const std::string& name,
                      bool expect_completed = true) {
-  if (expect_completed) ASSERT_TRUE(run.run.completed) << run.run.failure;
+  if (expect_completed) {
+    ASSERT_TRUE(run.run.completed) << run.run.failure;
+  }
   ASSERT_EQ(reference.run.events.size(), run.run.events.size()) << name;
   ASSERT_GE(reference.run.events.size(), 1u);
   for (size_t i = 0; i < reference.run.events.size(); ++i) {
@@ -331,7 +333,7 @@ TEST(MonolithicRuns, StopsWhereTheOdeFormsMedialFacetForceCrossesZeroOnTheExtens
     ASSERT_TRUE(ede.completed) << ede.failure;
     EXPECT_EQ(ede.samples.at(0).q, run.run.samples.at(0).q);
     const Patella& p = *scene.model.patella;
-    double lambda[3], t[3];
+    double lambda[3] = {}, t[3] = {};
     std::array<double, kPatellaUnknowns> x_at_root{};
     int found = 0;
     PatellaGuess guess;
