@@ -120,9 +120,10 @@ bool DaeSystem::JacobianByJets(double t, double cj, const double* y, const doubl
   return true;
 }
 
-bool DaeSystem::Jacobian(double t, double cj, const double* y, const double* yp, double* Jdata) const {
+bool DaeSystem::Jacobian(double t, double cj, const double* y, const double* yp, double* Jdata,
+                         bool J_is_zero) const {
   Eigen::Map<MatrixXd> J(Jdata, n_, n_);
-  J.setZero();
+  if (!J_is_zero) J.setZero();
   Vector6d q, u, udot;
   for (int i = 0; i < 6; ++i) {
     q(i) = y[i];

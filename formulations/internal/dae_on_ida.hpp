@@ -148,6 +148,7 @@ class IdaDriver : public FormulationBase {
     if (ida_.mem == nullptr) return false;
     for (int i = 0; i < n; ++i) {
       if (Residual(t_, ida_.y, ida_.yp, hot_path_r_, this) != 0) return false;
+      SUNMatZero(ida_.A);  // as idaLsSetup does before the Jacobian callback
       if (Jacobian(t_, 1.0e4, ida_.y, ida_.yp, hot_path_r_, ida_.A, this, nullptr, nullptr, nullptr) != 0) return false;
       if (watches_roots_ && Roots(t_, ida_.y, ida_.yp, hot_path_g_.data(), this) != 0) return false;
     }
@@ -224,7 +225,8 @@ class IdaDriver : public FormulationBase {
     }
   }
 
-  // dF/dy + cj dF/dẏ straight into IDA's column-major dense matrix.
+  // dF/dy + cj dF/dẏ straight into IDA's column-major dense matrix, which idaLsSetup has
+  // just zeroed (SUNMatZero before every call with a direct linear solver).
   static int Jacobian(double t, double cj, N_Vector yy, N_Vector yp, N_Vector, SUNMatrix JJ, void* user, N_Vector,
                       N_Vector, N_Vector) {
     auto* self = static_cast<IdaDriver*>(user);
@@ -232,7 +234,7 @@ class IdaDriver : public FormulationBase {
       double* J = SUNDenseMatrix_Data(JJ);
       const bool ok = self->options_.jacobian == JacobianKind::kJet
                           ? self->system_.JacobianByJets(t, cj, NvData(yy), NvData(yp), J)
-                          : self->system_.Jacobian(t, cj, NvData(yy), NvData(yp), J);
+                          : self->system_.Jacobian(t, cj, NvData(yy), NvData(yp), J, /*J_is_zero=*/true);
       return ok ? 0 : 1;
     } catch (const std::exception& e) {
       self->failure_ = e.what();
