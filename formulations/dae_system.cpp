@@ -65,8 +65,7 @@ void DaeSystem::InitialValues(const MechanicalState& state, double* y, double* y
   if (per_contact_ == 0) return;
   // ċ: ∂g/∂c ċ = −∂g/∂q q̇ for the four contact-coordinate rows g of each contact (x, y of
   // Eqs. 1.8 and 1.13), differentiated alone over (q, c_i): in closed form in the regular
-  // chart (RegularChartContactPartials), else (and in the GGL form, as its Jacobian) as a Jet
-  // of 10.
+  // chart (RegularChartContactPartials), else as a Jet of 10.
   const Vector6d q = Eigen::Map<const Vector6d>(y);
   const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
   const Pose pose_value = PoseFromCoordinates(q, trig);
@@ -77,7 +76,7 @@ void DaeSystem::InitialValues(const MechanicalState& state, double* y, double* y
     const int col0 = CoordinateIndex(c);
     const ContactPair& pair = model_->contacts[active_[c]];
     ContactJet r[5];
-    if (chart_[c] == ContactChart::kRegular && !ggl_) {
+    if (chart_[c] == ContactChart::kRegular) {
       Eigen::Matrix<ContactJet, 1, 6> G;
       if (!RegularChartContactPartials(pair, pose_value, dR, y + col0, r, &G)) return;
     } else {
@@ -120,9 +119,10 @@ bool DaeSystem::JacobianByJets(double t, double cj, const double* y, const doubl
   return true;
 }
 
-bool DaeSystem::Jacobian(double t, double cj, const double* y, const double* yp, double* Jdata) const {
+bool DaeSystem::Jacobian(double t, double cj, const double* y, const double* yp, double* Jdata,
+                         bool J_is_zero) const {
   Eigen::Map<MatrixXd> J(Jdata, n_, n_);
-  J.setZero();
+  if (!J_is_zero) J.setZero();
   Vector6d q, u, udot;
   for (int i = 0; i < 6; ++i) {
     q(i) = y[i];
@@ -145,11 +145,11 @@ bool DaeSystem::Jacobian(double t, double cj, const double* y, const double* yp,
   // Contacts: ν and E as Jets over (q, c_i) (slots 0–5 q, 6–9 c_i). The chapter form in the
   // regular chart takes its residuals' and G's derivatives in closed form
   // (RegularChartContactPartials: a fifth of the Jet's cost) from the double pose and ∂R/∂q;
-  // the other forms differentiate the contact geometry on the pose as Jets. The GGL form
-  // keeps the Jets: its trajectories would move at round-off and its position-constraint
-  // margin at rtol 1e-10 (tests/dae_ggl_test.cpp) is within that scatter (benchmarks/README.md,
-  // "Fourth round").
-  bool all_closed_form_partials = form_ == ContactForm::kChapter && !ggl_;
+  // the other forms differentiate the contact geometry on the pose as Jets. GGL included:
+  // its blocks equal the Jet derivative (tests/dae_system_test.cpp, chapter_chapter_ggl); its
+  // max gap at rtol 1e-10 scatters over an order of magnitude between neighbouring
+  // tolerances with either (benchmarks/README.md, "Fourth round").
+  bool all_closed_form_partials = form_ == ContactForm::kChapter;
   for (int c = 0; c < k_; ++c) all_closed_form_partials &= chart_[c] == ContactChart::kRegular;
   PoseTpl<ContactJet> pose;
   Pose pose_value;

@@ -102,11 +102,12 @@ void MonolithicSystem::InitialValues(const MechanicalState& state, double* y, do
   for (int i = 0; i < kPatellaUnknowns; ++i) yp[nt + i] = xd(i);
 }
 
-bool MonolithicSystem::Jacobian(double t, double cj, const double* y, const double* yp, double* Jdata) const {
+bool MonolithicSystem::Jacobian(double t, double cj, const double* y, const double* yp, double* Jdata,
+                                bool J_is_zero) const {
   const int nt = tibia_.size(), n = size();
   if (!tibia_.Jacobian(t, cj, y, yp, tibia_jacobian_.data())) return false;
   Eigen::Map<MatrixXd> J(Jdata, n, n);
-  J.setZero();
+  if (!J_is_zero) J.setZero();
   J.topLeftCorner(nt, nt) = Eigen::Map<const MatrixXd>(tibia_jacobian_.data(), nt, nt);
   CouplingJet r[kPatellaUnknowns];
   Vector6<CouplingJet> tendon;

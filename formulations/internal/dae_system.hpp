@@ -73,8 +73,9 @@ class DaeSystem {
     return Residual(t, y, yp, F, &data_);
   }
   // dF/dy + cj dF/dẏ into the column-major n×n array J. Exact, structured (header). No
-  // allocation.
-  bool Jacobian(double t, double cj, const double* y, const double* yp, double* J) const;
+  // allocation. `J_is_zero`: J already holds zeros (IDA's matrix: idaLsSetup zeroes it
+  // before every call), so it is not cleared a second time.
+  bool Jacobian(double t, double cj, const double* y, const double* yp, double* J, bool J_is_zero = false) const;
   // The same by forward AD of the whole residual (ceres::Jet<24>, two passes): the reference.
   bool JacobianByJets(double t, double cj, const double* y, const double* yp, double* J) const;
 

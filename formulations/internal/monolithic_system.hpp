@@ -91,7 +91,7 @@ class MonolithicSystem {
   }
   // dF/dy + cj dF/dẏ (column-major n × n): the tibia's exact blocks (DaeSystem::Jacobian)
   // plus the coupling blocks as a Jet over (q, x) (6 + 17 slots). No allocation.
-  bool Jacobian(double t, double cj, const double* y, const double* yp, double* J) const;
+  bool Jacobian(double t, double cj, const double* y, const double* yp, double* J, bool J_is_zero = false) const;
   // The same by forward AD of the whole residual (JetD, 24 columns of (y, ẏ) per pass):
   // the reference (tests/monolithic_test.cpp) and --jacobian jet.
   bool JacobianByJets(double t, double cj, const double* y, const double* yp, double* J) const;
