@@ -128,7 +128,7 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
       EvaluateEvents(scene_.model, events_, q, normal_, g);
       return;
     }
-    AccelerationAt(t, y);
+    ContactForcesAt(t, y);
     for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = acc_.normal_force[c];
     // The solve's pose and ligament lengths at q (the constrained solve at this (t, y) is
     // new: CVODE's Adams corrector never evaluates f at the accepted y_n).
@@ -139,15 +139,27 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
   // acc_ at (t, y): the hidden-constraint solve, or its last result when (t, y) are bitwise
   // those of the previous call (the root functions at a step's end and the right-hand side
   // that follows, e.g. FSAL of the Dormand–Prince pair, ask for the same point).
-  void AccelerationAt(double t, const double* y) {
-    if (cache_valid_ && t == cache_t_ && std::memcmp(y, cache_y_, sizeof cache_y_) == 0) return;
+  void AccelerationAt(double t, const double* y) { SolveAt(t, y, true); }
+  // acc_.normal_force (and the workspace's pose and ligament lengths) at (t, y): for the root
+  // functions, without ν̇ and q̈ (SolveContactNormalForces) unless the cache has them.
+  void ContactForcesAt(double t, const double* y) { SolveAt(t, y, false); }
+  void SolveAt(double t, const double* y, bool accelerations) {
+    if (cache_valid_ && (cache_has_accelerations_ || !accelerations) && t == cache_t_ &&
+        std::memcmp(y, cache_y_, sizeof cache_y_) == 0) {
+      return;
+    }
     const Vector6d q = Eigen::Map<const Vector6d>(y);
     const Vector6d qd = Eigen::Map<const Vector6d>(y + 6);
     cache_valid_ = false;  // a throwing solve leaves no stale entry
-    SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_, &workspace_, &acc_);
+    if (accelerations) {
+      SolveConstrainedAcceleration(model_, t, q, qd, active_, gains_, &ligament_branch_, &workspace_, &acc_);
+    } else {
+      SolveContactNormalForces(model_, t, q, qd, active_, gains_, &ligament_branch_, &workspace_, &acc_);
+    }
     cache_t_ = t;
     std::memcpy(cache_y_, y, sizeof cache_y_);
     cache_valid_ = true;
+    cache_has_accelerations_ = accelerations;
   }
 
   // φ (k) and J = ∂φ/∂q = G B(q) (k×6) of the active contacts.
@@ -181,6 +193,7 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
   ConstrainedDynamicsWorkspace output_workspace_;
   ConstrainedAcceleration output_acc_;
   bool cache_valid_ = false;  // acc_ belongs to (cache_t_, cache_y_)
+  bool cache_has_accelerations_ = false;  // and holds q̈, not only the normal forces
   double cache_t_ = 0.0;
   double cache_y_[12] = {};
   std::vector<double> normal_;  // N per model contact, for the root functions

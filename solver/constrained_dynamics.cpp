@@ -2,6 +2,7 @@
 
 #include <Eigen/LU>
 #include <cmath>
+#include <limits>
 
 #include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
@@ -82,11 +83,40 @@ int SolveSmallFullPivLu(int k, const double* S, const double* b, double* x) {
   Throw<SolverError>("SolveSmallFullPivLu", "size ", k, "; must be in [0, ", kMaxConstrainedContacts, "]");
 }
 
+int SolveSchurComplement(int k, const double* S, const double* b, double* x) {
+  constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
+  if (k == 1) {  // FullPivLU's rule for 1×1: rank 1 iff S ≠ 0
+    if (S[0] == 0.0) return 0;
+    x[0] = b[0] / S[0];
+    return 1;
+  }
+  if (k == 2) {
+    const Eigen::Map<const Eigen::Matrix2d> s(S);
+    const double pivot = s.cwiseAbs().maxCoeff();  // FullPivLU's first pivot
+    Eigen::Matrix2d inverse;
+    double determinant = 0.0;
+    bool invertible = false;
+    s.computeInverseAndDetWithCheck(inverse, determinant, invertible, 2.0 * kEpsilon * pivot * pivot);
+    if (!invertible) return pivot > 0.0 ? 1 : 0;
+    Eigen::Map<Eigen::Vector2d> solution(x);
+    solution = inverse * Eigen::Map<const Eigen::Vector2d>(b);
+    return 2;
+  }
+  return SolveSmallFullPivLu(k, S, b, x);
+}
+
 void SolveConstrainedAcceleration(const Model& model, double t, const Vector6d& q, const Vector6d& qd,
                                   const std::vector<int>& active, BaumgarteGains gains,
                                   const std::vector<signed char>* ligament_branch,
                                   ConstrainedDynamicsWorkspace* ws, ConstrainedAcceleration* out) {
   SolveConstrainedAccelerationTpl(model, t, q, qd, active, gains, ligament_branch, ws, out);
+}
+
+void SolveContactNormalForces(const Model& model, double t, const Vector6d& q, const Vector6d& qd,
+                              const std::vector<int>& active, BaumgarteGains gains,
+                              const std::vector<signed char>* ligament_branch,
+                              ConstrainedDynamicsWorkspace* ws, ConstrainedAcceleration* out) {
+  SolveConstrainedAccelerationTpl(model, t, q, qd, active, gains, ligament_branch, ws, out, false);
 }
 
 ConstrainedAcceleration SolveConstrainedAcceleration(const Model& model, double t,

@@ -83,15 +83,27 @@ using ConstrainedDynamicsWorkspace = ConstrainedDynamicsWorkspaceTpl<double>;
 // the rank is k.
 int SolveSmallFullPivLu(int k, const double* S, const double* b, double* x);
 
+// x = S⁻¹ b for the Schur complement S = G M⁻¹ Gᵀ (k×k, column-major): k = 1 and 2 (one
+// and two condyles in contact) by Eigen's closed-form inverse (computeInverseAndDetWithCheck:
+// cofactors over the determinant, ~60 instructions against ~530 for the 2×2 FullPivLU),
+// with FullPivLU's rank rule for that size (2×2: |u_22| = |det| / p > 2 ε p, p = max |S_ij|,
+// the first full pivot); k ≥ 3 by SolveSmallFullPivLu. Agrees with FullPivLU to round-off
+// (not bitwise; tests/constrained_dynamics_test.cpp). Returns the rank; x is written only
+// when it is k.
+int SolveSchurComplement(int k, const double* S, const double* b, double* x);
+
 // SolveConstrainedAcceleration below in any scalar type T with a double time (the pulse is
 // evaluated at t; double and long double, the extended-precision references of
 // benchmarks/extended_reference.hpp). T = long double: sphere-on-plane contacts only
-// (RequireContactKinematicsTpl).
+// (RequireContactKinematicsTpl). `accelerations` false: the normal forces only (the lift-off
+// root functions): out->nu_dot and out->qdd are left as they were (saves ν̇ = M⁻¹(Q + Gᵀ N)
+// and the coordinate accelerations, ~220 of ~3.7 k instructions per solve).
 template <typename T>
 void SolveConstrainedAccelerationTpl(const Model& model, double t, const Vector6<T>& q, const Vector6<T>& qd,
                                      const std::vector<int>& active, BaumgarteGains gains,
                                      const std::vector<signed char>* ligament_branch,
-                                     ConstrainedDynamicsWorkspaceTpl<T>* ws, ConstrainedAccelerationTpl<T>* out) {
+                                     ConstrainedDynamicsWorkspaceTpl<T>* ws, ConstrainedAccelerationTpl<T>* out,
+                                     bool accelerations = true) {
   const int k = static_cast<int>(active.size());
   if (k > kMaxConstrainedContacts) {
     Throw<SolverError>("SolveConstrainedAcceleration", k, " active contacts exceed ",
@@ -131,7 +143,7 @@ void SolveConstrainedAccelerationTpl(const Model& model, double t, const Vector6
     int rank = 0;
     if constexpr (std::is_same_v<T, double>) {
       ws->N.resize(k);
-      rank = SolveSmallFullPivLu(k, ws->S.data(), ws->b.data(), ws->N.data());
+      rank = SolveSchurComplement(k, ws->S.data(), ws->b.data(), ws->N.data());
     } else {
       ws->lu.compute(ws->S);
       rank = static_cast<int>(ws->lu.rank());
@@ -141,9 +153,11 @@ void SolveConstrainedAccelerationTpl(const Model& model, double t, const Vector6
       Throw<SolverError>("SolveConstrainedAcceleration", "the contact constraint rows are dependent (rank ",
                          6 + rank, " of ", 6 + k, ") at t = ", t, " s");
     }
-    nu_dot += M_inverse.cwiseProduct(ws->G.transpose() * ws->N);
     for (int r = 0; r < k; ++r) out->normal_force[r] = ws->N(r);
+    if (!accelerations) return;
+    nu_dot += M_inverse.cwiseProduct(ws->G.transpose() * ws->N);
   }
+  if (!accelerations) return;
   out->nu_dot = nu_dot;
   out->qdd = CoordinateAccelerationTpl(q, trig, qd, out->nu_dot);
 }
@@ -155,6 +169,12 @@ void SolveConstrainedAcceleration(const Model& model, double t, const Vector6d& 
                                   const std::vector<int>& active, BaumgarteGains gains,
                                   const std::vector<signed char>* ligament_branch,
                                   ConstrainedDynamicsWorkspace* workspace, ConstrainedAcceleration* out);
+// The same for the normal forces only (out->normal_force; nu_dot and qdd untouched): what the
+// lift-off root functions need.
+void SolveContactNormalForces(const Model& model, double t, const Vector6d& q, const Vector6d& qd,
+                              const std::vector<int>& active, BaumgarteGains gains,
+                              const std::vector<signed char>* ligament_branch,
+                              ConstrainedDynamicsWorkspace* workspace, ConstrainedAcceleration* out);
 
 // `active` lists indices into model.contacts.
 // Throws SolverError when the constraint rows are dependent.

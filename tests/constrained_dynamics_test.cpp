@@ -146,5 +146,47 @@ TEST(SolveSmallFullPivLu, EqualsEigenFullPivLuBitwise) {
   EXPECT_THROW(SolveSmallFullPivLu(kMaxConstrainedContacts + 1, zero.data(), b, x), SolverError);
 }
 
+// SolveSchurComplement (closed-form inverse for k ≤ 2) against Eigen's FullPivLU, the second
+// engine: on well-conditioned symmetric positive definite matrices (the Schur complement's
+// case) the solutions agree to round-off (1e-13 relative); on exactly dependent columns and on
+// zero matrices both report the same rank < k.
+TEST(SolveSchurComplement, AgreesWithFullPivLu) {
+  using Matrix = ConstrainedDynamicsWorkspace::Matrix;
+  using Vector = ConstrainedDynamicsWorkspace::Vector;
+  std::mt19937 rng(20261203);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int compared = 0, singular = 0;
+  for (int k = 1; k <= kMaxConstrainedContacts; ++k) {
+    for (int trial = 0; trial < 200; ++trial) {
+      Matrix A(k, k);
+      for (int i = 0; i < k * k; ++i) A.data()[i] = u(rng);
+      const double scale = std::pow(10.0, 6.0 * u(rng));  // N⁻¹ m⁻¹ ... of any magnitude
+      Matrix S = scale * (A * A.transpose() + Matrix::Identity(k, k));
+      const bool dependent = trial % 4 == 0;
+      if (dependent) S = Matrix::Zero(k, k);
+      if (dependent && k > 1) {
+        S.col(0).setConstant(scale);
+        S.col(k - 1) = S.col(0) * 3.0;  // rank 1 (k = 2) or ≤ k − 1
+      }
+      Vector b(k);
+      for (int i = 0; i < k; ++i) b(i) = u(rng);
+      const Eigen::FullPivLU<Matrix> lu(S);
+      Vector x = Vector::Constant(k, -7.0);
+      const int rank = SolveSchurComplement(k, S.data(), b.data(), x.data());
+      ASSERT_EQ(rank, lu.rank()) << "k = " << k << ", trial " << trial;
+      if (rank < k) {
+        ASSERT_TRUE(dependent) << "k = " << k << ", trial " << trial;
+        ++singular;
+        continue;
+      }
+      const Vector expected = lu.solve(b);
+      EXPECT_LE((x - expected).norm(), 1e-13 * expected.norm()) << "k = " << k << ", trial " << trial;
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 1000);
+  EXPECT_GT(singular, 300);
+}
+
 }  // namespace
 }  // namespace kneedyn
