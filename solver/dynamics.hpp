@@ -59,13 +59,9 @@ void ComputeAppliedWrench(const Model& model, double t, const PoseTpl<T>& pose,
     moment += extra_torque_T.template cast<T>();
   }
   const Matrix3<T> R_TF = pose.R_FT.transpose();
-  // The ligaments' moment about the COM summed in F and rotated to T once:
-  // Σ p_T × (R_TF f_F) = R_TF Σ (R_FT p_T) × f_F (one 3×3 product instead of one per element).
-  Vector3<T> ligament_moment_F = Vector3<T>::Zero();
   for (size_t j = 0; j < model.ligaments.size(); ++j) {
     const Ligament& lig = model.ligaments[j];
-    Vector3<T> p_ToB_F;  // COM → tibial attachment, in F
-    const Vector3<T> span_F = LigamentSpan_F(lig, pose, &p_ToB_F);
+    const Vector3<T> span_F = LigamentSpan_F(lig, pose);
     const T length = span_F.norm();
     const LigamentBranch branch =
         data->ligament_branch && !data->ligament_branch->empty()
@@ -77,9 +73,8 @@ void ComputeAppliedWrench(const Model& model, double t, const PoseTpl<T>& pose,
     if (ScalarPart(tension) == 0.0) continue;
     const Vector3<T> f_F = tension * span_F / length;  // towards the femoral attachment
     force += f_F;
-    ligament_moment_F += p_ToB_F.cross(f_F);
+    moment += lig.p_ToB_T.template cast<T>().cross(R_TF * f_F);
   }
-  moment += R_TF * ligament_moment_F;
   if (model.patella) {  // the patellar tendon at the tuberosity (docs/model.md §12, Eq. 1.63)
     Vector3<T> f_F;
     if (data->lagged_tendon != nullptr) {

@@ -86,12 +86,4 @@ Vector3<T> LigamentSpan_F(const Ligament& lig, const PoseTpl<T>& pose) {
   return lig.p_FoA_F.template cast<T>() - pose.PointInF(lig.p_ToB_T.template cast<T>());
 }
 
-// The same span (the same bits) and the tibial attachment's offset from the COM in F,
-// R_FT p_ToB_T (m), which the moment of the element's force needs.
-template <typename T>
-inline Vector3<T> LigamentSpan_F(const Ligament& lig, const PoseTpl<T>& pose, Vector3<T>* p_ToB_F) {
-  *p_ToB_F = pose.R_FT * lig.p_ToB_T.template cast<T>();
-  return lig.p_FoA_F.template cast<T>() - (pose.p_FoTo_F + *p_ToB_F);
-}
-
 }  // namespace kneedyn
