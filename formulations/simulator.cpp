@@ -49,6 +49,7 @@ std::vector<EventSpec> StartPhase(const Model& model, const EndCondition& end, d
   if (model.ligament_law == LigamentLaw::kPublished) {
     state->ligament_branch = LigamentBranchesAt(model, state->q, state->qd);
     if (complete) CompleteRestartState(model, restart, state);  // forces on the locked branches
+    MeasureKinkRootsFromPhaseStart(model, *state, &specs);           // one restart per crossing
   }
   return specs;
 }

@@ -74,6 +74,19 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
   return specs;
 }
 
+void MeasureKinkRootsFromPhaseStart(const Model& model, const MechanicalState& state, std::vector<EventSpec>* specs) {
+  if (state.ligament_branch.empty()) return;
+  const Pose pose = PoseFromCoordinates(state.q);
+  for (EventSpec& spec : *specs) {
+    if (spec.kind != EventKind::kLigamentKink) continue;
+    const double length = LigamentSpan_F(model.ligaments[spec.ligament], pose).norm();  // m
+    const double g = length - spec.offset;
+    const bool linear = state.ligament_branch[spec.ligament] == kBranchLinear;  // entering L > L_kink
+    const bool left_side = linear ? g <= 0.0 : g >= 0.0;
+    if (left_side && std::abs(g) > kKinkRoundOffFloor && std::abs(g) <= kKinkRoundOff) spec.offset = linear ? length - kKinkStartMargin : length + kKinkStartMargin;
+  }
+}
+
 double PatellarContactFunctionAt(const Model& model, const Vector6d& q, PatellaGuess* guess, int facet) {
   const Patella& patella = *model.patella;
   SolvePatella(patella, TuberosityInF(patella, PoseFromCoordinates(q)), "EvaluateEvents", guess);

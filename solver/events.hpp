@@ -52,6 +52,30 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
                                       const MechanicalState& state,
                                       double gap_tolerance = kMinRecontactHysteresis);
 
+// m: how far on the side its locked branch has left (LigamentBranchesAt) a ligament's length
+// may start a phase and count as round-off of the restart (a millionth of the kink lengths'
+// tens of mm); beyond it the branch and the pose disagree and the root stays as it is.
+constexpr double kKinkRoundOff = 1.0e-9;
+// m: below it the start length is the kink's to the last bits of a double (~1e-17 m: a
+// located root, or the extended-precision reference's state rounded to double for the hand-
+// over) and the root is left alone; moving it would displace the law's jump by more than the
+// rounding (the conservative scene's energy, conserved to 1e-15 in long double, drifts to
+// 1.6e-13 when its kinks move by 1e-14 m).
+constexpr double kKinkRoundOffFloor = 1.0e-15;
+// m: where such a root is moved to, past the start length on the branch's side; far above
+// the last-bit differences of L_j between the code paths that evaluate it (~1e-17 m).
+constexpr double kKinkStartMargin = 1.0e-14;
+
+// A phase starts with each ligament locked on the branch its motion is entering, but the
+// root that ended the last phase leaves L_j within round-off of the kink, on either side,
+// and the restart's projection moves it by ~1e-12 m (−8.5e-13 m on chapter_impact at
+// t = 23.4 ms). A kink root that starts on the side the branch has left would cross zero
+// again within the first step, a second restart for one crossing from a tiny step. Such a
+// root (kKinkRoundOffFloor < |g| ≤ kKinkRoundOff) is measured from the phase's start length instead: offset =
+// L_j(q0) ∓ kKinkStartMargin, so g(t0) lies on the branch's side and the root watches the
+// next genuine crossing. `state`: the phase's start, its ligament_branch locked.
+void MeasureKinkRootsFromPhaseStart(const Model& model, const MechanicalState& state, std::vector<EventSpec>* specs);
+
 // g_k(state) for each spec, in order: N_i (lift-off), φ_i − offset (re-contact), α − offset
 // (flexion; offset = α_end), L_j − offset (kink; offset = (1 + 2ε1) L0_j), c_i (patellar
 // lift-off) and −c_i − offset (patellar re-contact; offset = −kPatellarRecontactRatio) with c_i

@@ -341,34 +341,6 @@ TEST(DaeKink, GravityOnlyAtTightToleranceCompletesAndAgreesWithClosedForm) {
   EXPECT_NEAR(a.events.back().time, b.events.back().time, 1e-6);
 }
 
-// A crossing of a ligament's kink length (1 + 2ε1) L0 (docs/model.md §4, the published law's
-// jump) restarts IDA once. The restart's projection used to move the pose back across the
-// kink by ~1e-12 m, so the same crossing fired again within ~1 µs: 18 kink restarts for 11
-// crossings on this scene at rtol 1e-8. Independent count: the sign changes of L_j − L_kink
-// over the trajectory sampled every 0.1 ms (the genuine crossings here are milliseconds apart).
-TEST(DaeKink, EachKinkCrossingRestartsOnce) {
-  RunSettings settings;
-  settings.formulation = "dae";
-  settings.options.rtol = 1e-8;
-  settings.options.atol = 1e-10;
-  settings.output_interval = 1e-4;
-  const Scene& scene = ChapterScene();
-  const RunResult r = RunScene(scene, settings);
-  ASSERT_TRUE(r.completed) << r.failure;
-  long sign_changes = 0;
-  for (const Ligament& lig : scene.model.ligaments) {
-    int previous = 0;
-    for (const MechanicalState& s : r.samples) {
-      const double g = LigamentSpan_F(lig, PoseFromCoordinates(s.q)).norm() - LigamentKinkLength(lig);
-      const int side = g > 0.0 ? 1 : -1;
-      if (previous != 0 && side != previous) ++sign_changes;
-      previous = side;
-    }
-  }
-  EXPECT_GT(sign_changes, 0);
-  EXPECT_EQ(r.ligament_kink_crossings, sign_changes);
-}
-
 // ---------------------------------------------------------------- failure
 
 TEST(DaeFailure, StepBudgetExhaustionIsReturnedWithIdaReasonAndTime) {

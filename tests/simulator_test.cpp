@@ -8,8 +8,11 @@
 #include <algorithm>
 #include <cmath>
 
+#include "formulations/run.hpp"
 #include "solver/constraint_residuals.hpp"
 #include "solver/error.hpp"
+#include "solver/ligament.hpp"
+#include "solver/pose.hpp"
 #include "spy_stepper.hpp"
 #include "test_support.hpp"
 
@@ -117,6 +120,43 @@ TEST(Simulator, RecontactGapTolerance) {
   q.head<3>() << 3e-3, 0.0, 4e-3;  // |x0| = 5 mm
   EXPECT_DOUBLE_EQ(RecontactGapTolerance(0.0, q, 1e-6, 1e-8), 10.0 * (1e-6 * 5e-3 + 1e-8));
   EXPECT_DOUBLE_EQ(RecontactGapTolerance(1e-6, q, 1e-6, 1e-8), 1e-5);
+}
+
+// Each crossing of a ligament's kink length (1 + 2ε1) L0 (docs/model.md §5 and §9, the
+// published law's jump) restarts the run once, in every formulation. Independent count: the
+// sign changes of L_j − L_kink over the trajectory sampled every 0.1 ms (the chapter scene's
+// 11 crossings are milliseconds apart). Without MeasureKinkRootsFromPhaseStart the restart's
+// round-off left some roots on the side the locked branch had left, and ede (CVODE, ARKODE)
+// and the IDA forms restarted twice for them (18 restarts for 11 crossings).
+TEST(PhaseStart, EachKinkCrossingRestartsOnce) {
+  struct Case {
+    const char* formulation;
+    IntegratorKind integrator;  // of the ODE forms (ede, mde)
+    double rtol;
+  };
+  const Scene& scene = ChapterScene();
+  for (const Case& c : {Case{"dae", IntegratorKind::kDopri5, 1e-8}, Case{"dae-reduced", IntegratorKind::kDopri5, 1e-8},
+                        Case{"ede", IntegratorKind::kCvodeAdams, 1e-9}, Case{"ede", IntegratorKind::kDopri5, 1e-8},
+                        Case{"mde", IntegratorKind::kDopri5, 1e-8}}) {
+    SCOPED_TRACE(std::string(c.formulation) + " rtol " + std::to_string(c.rtol));
+    RunSettings settings = test_support::SettingsAt(c.formulation, c.rtol, 1e-2 * c.rtol);
+    if (std::string(c.formulation) == "ede" || std::string(c.formulation) == "mde") settings.options.integrator = c.integrator;
+    settings.output_interval = 1e-4;            // s
+    const RunResult r = RunScene(scene, settings);
+    ASSERT_TRUE(r.completed) << r.failure;
+    long sign_changes = 0;
+    for (const Ligament& lig : scene.model.ligaments) {
+      int previous = 0;
+      for (const MechanicalState& s : r.samples) {
+        const double g = LigamentSpan_F(lig, PoseFromCoordinates(s.q)).norm() - LigamentKinkLength(lig);
+        const int side = g > 0.0 ? 1 : -1;
+        if (previous != 0 && side != previous) ++sign_changes;
+        previous = side;
+      }
+    }
+    EXPECT_GT(sign_changes, 0);
+    EXPECT_EQ(r.ligament_kink_crossings, sign_changes);
+  }
 }
 
 }  // namespace

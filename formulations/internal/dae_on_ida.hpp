@@ -20,7 +20,6 @@
 #include "formulations/internal/ida_phase.hpp"
 #include "formulations/internal/sundials_util.hpp"
 #include "solver/events.hpp"
-#include "solver/ligament.hpp"
 
 namespace kneedyn {
 
@@ -108,7 +107,6 @@ class IdaDriver : public FormulationBase {
                &sundials_messages_, extra_root_directions_);
     N_VDestroy(id);
     N_VDestroy(atol);
-    SetKinkRootShifts();
     ++finished_phases_.restarts;
     advanced_ = false;
   }
@@ -248,7 +246,6 @@ class IdaDriver : public FormulationBase {
     auto* self = static_cast<IdaDriver*>(user);
     try {
       self->EvaluateRoots(NvData(yy), g);
-      for (const auto& [k, shift] : self->kink_root_shifts_) g[k] -= shift;
       return 0;
     } catch (const std::exception& e) {
       self->failure_ = e.what();
@@ -256,37 +253,11 @@ class IdaDriver : public FormulationBase {
     }
   }
 
-  // A restart at a ligament's kink starts the phase on the new branch (LigamentBranchesAt),
-  // but the restart's projection (CompleteRestartState) can move the pose back across the
-  // kink by round-off (−8.5e-13 m on chapter_impact at t = 23.4 ms): g = L − L_kink then starts
-  // on the old side, crosses zero again within the first step and costs a second restart for
-  // the same crossing, from a step of 1e-6 s. Such a root is measured from its value at t0
-  // for the phase: g(t0) = 0, which IDA does not report (IDARcheck1), so it watches the next
-  // genuine crossing, displaced by the round-off only.
-  void SetKinkRootShifts() {
-    kink_root_shifts_.clear();
-    if (!watches_roots_ || ligament_branch_.empty()) return;
-    std::vector<double> g(root_flags_.size());
-    EvaluateRoots(NvData(ida_.y), g.data());
-    for (size_t k = 0; k < events_.size(); ++k) {
-      const EventSpec& spec = events_[k];
-      if (spec.kind != EventKind::kLigamentKink) continue;
-      const bool linear = ligament_branch_[spec.ligament] == kBranchLinear;
-      const bool old_side = linear ? g[k] < 0.0 : g[k] > 0.0;
-      if (old_side && std::abs(g[k]) <= kKinkRoundOff) kink_root_shifts_.emplace_back(static_cast<int>(k), g[k]);
-    }
-  }
-  // m: the largest distance across its kink a ligament's length counts as round-off of the
-  // restart (1e-9 m, a millionth of the kink lengths' tens of mm); beyond it the branch and
-  // the pose disagree and the root stays as it is.
-  static constexpr double kKinkRoundOff = 1e-9;
-
   void Free() {
     ida_.Free(&finished_phases_, watches_roots_);
     if (hot_path_r_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
   }
 
-  std::vector<std::pair<int, double>> kink_root_shifts_;  // (event index, g(t0) in m): SetKinkRootShifts
   std::vector<int> extra_root_directions_;
   bool watches_roots_ = false;      // IDARootInit was called for the phase
   N_Vector hot_path_r_ = nullptr;   // residual of EvaluateHotPathForTesting

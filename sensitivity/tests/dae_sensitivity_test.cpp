@@ -61,7 +61,7 @@ TEST(DaeSensitivity, AgreesWithCentralDifferencesAndWithEde) {
   // Consistent initial sensitivities at every phase start: |F_y s + F_ẏ ṡ + F_p| relative to
   // its terms (measured 6e-10).
   EXPECT_LT(r.initial_sensitivity_residual, 1e-7);
-  EXPECT_GT(r.stats.restarts, 13);  // kinks (some twice) and the lift-off
+  EXPECT_GE(r.stats.restarts, 12);  // the 11 kink crossings, one restart each, and the lift-off
   const SensitivityResult ede = RunSensitivity(scene, params, p, outcomes, Tight("ede"));
   const double steps[] = {1e-4, 1e-4, 1e-3};
   for (size_t j = 0; j < params.size(); ++j) {
