@@ -83,7 +83,8 @@ void MeasureKinkRootsFromPhaseStart(const Model& model, const MechanicalState& s
     const double g = length - spec.offset;
     const bool linear = state.ligament_branch[spec.ligament] == kBranchLinear;  // entering L > L_kink
     const bool left_side = linear ? g <= 0.0 : g >= 0.0;
-    if (left_side && std::abs(g) > kKinkRoundOffFloor && std::abs(g) <= kKinkRoundOff) spec.offset = linear ? length - kKinkStartMargin : length + kKinkStartMargin;
+    if (!left_side || std::abs(g) <= kKinkRoundOffFloor || std::abs(g) > kKinkRoundOff) continue;
+    spec.offset = linear ? length - kKinkStartMargin : length + kKinkStartMargin;
   }
 }
 

@@ -71,10 +71,12 @@ constexpr double kKinkStartMargin = 1.0e-14;
 // and the restart's projection moves it by ~1e-12 m (−8.5e-13 m on chapter_impact at
 // t = 23.4 ms). A kink root that starts on the side the branch has left would cross zero
 // again within the first step, a second restart for one crossing from a tiny step. Such a
-// root (kKinkRoundOffFloor < |g| ≤ kKinkRoundOff) is measured from the phase's start length instead: offset =
-// L_j(q0) ∓ kKinkStartMargin, so g(t0) lies on the branch's side and the root watches the
-// next genuine crossing. `state`: the phase's start, its ligament_branch locked.
-void MeasureKinkRootsFromPhaseStart(const Model& model, const MechanicalState& state, std::vector<EventSpec>* specs);
+// root (kKinkRoundOffFloor < |g| ≤ kKinkRoundOff) is measured from the phase's start length
+// instead: offset = L_j(q0) ∓ kKinkStartMargin, so g(t0) lies on the branch's side and the
+// root watches the next genuine crossing. `state`: the phase's start, its ligament_branch
+// locked.
+void MeasureKinkRootsFromPhaseStart(const Model& model, const MechanicalState& state,
+                                    std::vector<EventSpec>* specs);
 
 // g_k(state) for each spec, in order: N_i (lift-off), φ_i − offset (re-contact), α − offset
 // (flexion; offset = α_end), L_j − offset (kink; offset = (1 + 2ε1) L0_j), c_i (patellar
