@@ -30,6 +30,7 @@ struct DataTpl {
   Vector3<T> applied_force_F;       // gravity + pulse + ligaments + constant load, N
   Vector3<T> applied_moment_T;      // ligaments + constant torque, about the COM, N m
   double pulse_magnitude = 0.0;     // Fe(t), N
+  PulseMagnitudeCache pulse_cache;  // Fe at the last t (loads.hpp)
   // Optional branch per ligament (ligament.hpp, discontinuity locking); null = by length.
   const std::vector<signed char>* ligament_branch = nullptr;
   // Patella (model.patella only): the warm start of its equilibrium solve, and the tendon
@@ -48,7 +49,7 @@ using Data = DataTpl<double>;
 template <typename T>
 void ComputeAppliedWrench(const Model& model, double t, const PoseTpl<T>& pose,
                           DataTpl<T>* data) {
-  data->pulse_magnitude = PulseMagnitude(model.pulse, t);
+  data->pulse_magnitude = data->pulse_cache.At(model.pulse, t);
   Vector3<T> force = (model.mass * model.gravity_F + model.constant_load.force_F).template cast<T>();
   force += pose.R_FT * (data->pulse_magnitude * model.pulse.direction_T).template cast<T>();
   Vector3<T> moment = model.constant_load.torque_T.template cast<T>();
@@ -59,14 +60,14 @@ void ComputeAppliedWrench(const Model& model, double t, const PoseTpl<T>& pose,
     moment += extra_torque_T.template cast<T>();
   }
   const Matrix3<T> R_TF = pose.R_FT.transpose();
+  // The locked branches (ligament.hpp), looked up once rather than per element; null: by length.
+  const signed char* branches =
+      data->ligament_branch && !data->ligament_branch->empty() ? data->ligament_branch->data() : nullptr;
   for (size_t j = 0; j < model.ligaments.size(); ++j) {
     const Ligament& lig = model.ligaments[j];
     const Vector3<T> span_F = LigamentSpan_F(lig, pose);
     const T length = span_F.norm();
-    const LigamentBranch branch =
-        data->ligament_branch && !data->ligament_branch->empty()
-            ? static_cast<LigamentBranch>((*data->ligament_branch)[j])
-            : kBranchAuto;
+    const LigamentBranch branch = branches ? static_cast<LigamentBranch>(branches[j]) : kBranchAuto;
     const T tension = LigamentTension(lig, length, branch);
     data->ligament_length[j] = length;
     data->ligament_tension[j] = tension;

@@ -2,6 +2,7 @@
 // are applied in dynamics.hpp.
 #pragma once
 
+#include <limits>
 #include <string>
 
 #include "solver/model.hpp"
@@ -20,6 +21,28 @@ namespace kneedyn {
 // used by the reconstruction study (reports/reconstruction.py).
 // Zero for t < 0.
 double PulseMagnitude(const Pulse& pulse, double t);
+
+// PulseMagnitude with its last value kept: an integrator evaluates the model several times at
+// one t (IDA's Newton iterations, CVODE's corrector iterations and the root functions at the
+// step's end), and Fe(t) costs a sin and an exp (~180 instructions). Keyed on t and on the
+// fields Fe depends on, so a pulse changed in place is recomputed. Same bits as PulseMagnitude.
+struct PulseMagnitudeCache {
+  double At(const Pulse& pulse, double t) {
+    if (!(t == t_ && pulse.shape == shape_ && pulse.amplitude == amplitude_ && pulse.duration == duration_)) {
+      value_ = PulseMagnitude(pulse, t);
+      t_ = t;
+      shape_ = pulse.shape;
+      amplitude_ = pulse.amplitude;
+      duration_ = pulse.duration;
+    }
+    return value_;
+  }
+
+ private:
+  double t_ = std::numeric_limits<double>::quiet_NaN();  // s; NaN: nothing kept yet
+  PulseShape shape_ = PulseShape::kNone;
+  double amplitude_ = 0.0, duration_ = 0.0, value_ = 0.0;
+};
 
 // max over s ≥ 0 of s sin(2π s) exp(−4.73 s), at s = 0.23706557 (checked in loads_test).
 constexpr double kReconstructedPeakValue = 0.0769927007935922;

@@ -21,10 +21,12 @@ namespace kneedyn {
 // `geometry[i]` and `normal_force[i]` (N) for the k active contacts, in the formulation's
 // order. `data` is the caller's workspace (its ligament_branch is read; the applied loads
 // plus contact wrenches are left in applied_force_F / applied_moment_T). No allocation.
-// `trig`: the sines and cosines of q's Euler angles (pose.hpp), those `pose` was made from.
+// `trig`: the sines and cosines of q's Euler angles (pose.hpp), those `pose` was made from;
+// `E` = AngularVelocityMap(β, trig) and `nu` = (q̇_lin, E q̇_ang) at that pose, for a caller
+// that has them already (the overloads below build them: E once for ν and ν̇).
 template <typename T>
-Vector6<T> NewtonEulerResidual(const Model& model, double t, const Vector6<T>& q,
-                               const EulerAngleTrig<T>& trig, const Vector6<T>& qd, const Vector6<T>& qdd,
+Vector6<T> NewtonEulerResidual(const Model& model, double t, const EulerAngleTrig<T>& trig, const Matrix3<T>& E,
+                               const Vector6<T>& nu, const Vector6<T>& qd, const Vector6<T>& qdd,
                                const PoseTpl<T>& pose, int k, const ContactGeometryTpl<T>* geometry,
                                const T* normal_force, DataTpl<T>* data) {
   ComputeAppliedWrench(model, t, pose, data);
@@ -32,9 +34,25 @@ Vector6<T> NewtonEulerResidual(const Model& model, double t, const Vector6<T>& q
     AddContactWrench(pose, geometry[c], normal_force[c], &data->applied_force_F,
                      &data->applied_moment_T);
   }
-  const Vector6<T> nu = GeneralizedVelocity(q, trig, qd);
   const Vector6<T> Q = GeneralizedForce(model, *data, Vector3<T>(nu.template tail<3>()));
-  return MassTimes(model, GeneralizedAcceleration(q, trig, qd, qdd)) - Q;
+  // ν̇ = (a_F, E q̈_ang + Ė q̇_ang), as GeneralizedAcceleration (pose.hpp) with this E.
+  Vector6<T> nu_dot;
+  nu_dot.template head<3>() = qdd.template head<3>();
+  const Vector3<T> qd_ang = qd.template tail<3>();
+  nu_dot.template tail<3>() = E * qdd.template tail<3>() + AngularVelocityMapRateTimesRate(trig, qd_ang);
+  return MassTimes(model, nu_dot) - Q;
+}
+
+template <typename T>
+Vector6<T> NewtonEulerResidual(const Model& model, double t, const Vector6<T>& q,
+                               const EulerAngleTrig<T>& trig, const Vector6<T>& qd, const Vector6<T>& qdd,
+                               const PoseTpl<T>& pose, int k, const ContactGeometryTpl<T>* geometry,
+                               const T* normal_force, DataTpl<T>* data) {
+  const Matrix3<T> E = AngularVelocityMap(q(kBeta), trig);
+  Vector6<T> nu;  // as GeneralizedVelocity (pose.hpp) with this E
+  nu.template head<3>() = qd.template head<3>();
+  nu.template tail<3>() = E * qd.template tail<3>();
+  return NewtonEulerResidual(model, t, trig, E, nu, qd, qdd, pose, k, geometry, normal_force, data);
 }
 
 template <typename T>

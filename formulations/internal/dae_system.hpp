@@ -106,9 +106,12 @@ bool DaeSystem::Residual(double t, const T* y, const T* yp, T* F, DataTpl<T>* da
   for (int i = 0; i < 6; ++i) F[i] = u(i) - qdot(i);  // F1–F6 (before the GGL terms)
   const EulerAngleTrig<T> trig = EulerAngleTrigOf(q);  // once per pose (rotation.hpp)
   const PoseTpl<T> pose = PoseFromCoordinates(q, trig);
-  const Vector6<T> nu = GeneralizedVelocity(q, trig, u);
+  // E once per pose, for ν, the GGL terms and the Newton–Euler residual (rotation.hpp).
+  const Matrix3<T> E = AngularVelocityMap(q(kBeta), trig);
+  Vector6<T> nu;  // GeneralizedVelocity (pose.hpp) with this E
+  nu.template head<3>() = u.template head<3>();
+  nu.template tail<3>() = E * u.template tail<3>();
   ContactGeometryTpl<T> geo[kMaxActiveContacts];
-  const Matrix3<T> E = ggl_ ? AngularVelocityMap(q(kBeta), trig) : Matrix3<T>::Zero().eval();
   for (int c = 0; c < k_; ++c) {
     const ContactPair& pair = model_->contacts[active_[c]];
     T* Fc = F + FirstContactRow(c);
@@ -146,7 +149,7 @@ bool DaeSystem::Residual(double t, const T* y, const T* yp, T* F, DataTpl<T>* da
   }
   // F7–F12: Q + Σ N_i G_iᵀ − M ν̇ (Eqs. 1.48–1.57; solver/newton_euler.hpp).
   data->ligament_branch = &ligament_branch_;
-  const Vector6<T> residual = NewtonEulerResidual(*model_, t, q, trig, u, udot, pose, k_, geo, y + NormalIndex(0), data);
+  const Vector6<T> residual = NewtonEulerResidual(*model_, t, trig, E, nu, u, udot, pose, k_, geo, y + NormalIndex(0), data);
   for (int i = 0; i < 6; ++i) F[6 + i] = -residual(i);
   return true;
 }
