@@ -47,8 +47,9 @@ void WriteRunOutputs(const std::string& dir, const Scene& scene, const RunSettin
                      const RunResult& result);
 
 // The bytes of printf("%.12g", v) for the numbers of trajectory.csv/.sto, written into
-// `out` (no terminating NUL); returns their count. By exact integer arithmetic for
-// 1e-8 ≤ |v| < 1e12, through std::to_chars(general, 12) otherwise.
+// `out` (no terminating NUL); returns their count. By one or two double products for
+// 1e-30 ≤ |v| < 1e12 (but within 5e-4 of a 12-digit tie), through std::to_chars(general,
+// 12) otherwise.
 constexpr size_t kTrajectoryNumberChars = 32;  // "-1.23456789012e-308": 19
 size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]);
 
