@@ -8,7 +8,7 @@
 //   S = D − C A⁻¹ B  (the Schur complement, (n−6)×(n−6)), factored with partial pivoting
 //   (its N columns have zero diagonal blocks: the contact rows do not involve N);
 //   S x_r = b_r − C A⁻¹ b_q,  x_q = A⁻¹ (b_q − B x_r).
-// In the plain forms A = −cj I and B = [I 0] (docs/model.md §8), so A⁻¹ B is a diagonal
+// In the plain forms A = −cj I and B = [I 0] (F1–F6 = u − q̇), so A⁻¹ B is a diagonal
 // 6×6 block and the solve costs ~(n−6)² + 12 (n−6) multiply-adds instead of n²; the
 // matrix is tested for that pattern at every factorization (exact zeros, as the Jacobian
 // callback writes them), the GGL forms and difference quotients take the general 6×6
