@@ -202,6 +202,9 @@ int Main(int argc, char** argv) {
   text_option("--gamma", scheme + ": gamma");
   text_option("--jacobian", "Newton matrix: exact (default) | jet (the Jet<24> reference) | difference-quotient "
                             "(IDA's own) (" + accepted(&FormulationInfo::jacobians) + ")");
+  text_option("--linear-solver", "IDA's Newton systems: structured (default; q eliminated through the rows "
+                                 "u - q' = 0 first) | dense (SUNDIALS' LU of the whole matrix) (" +
+                                     accepted(&FormulationInfo::linear_solvers) + ")");
   run->add_option("--contact-chart", options.contact_chart,
                   "chart of the contact coordinates of the chapter-form formulations: regular | height-field "
                   "(the chapter's, singular at the condyle rim)")

@@ -28,7 +28,9 @@
 // IDA settings: IDASetId (q, u differential; c, N algebraic) with IDASetSuppressAlg, so
 // the index-2 algebraic variables are excluded from the error test; dense Jacobian
 // dF/dy + cj dF/dẏ exact from the system's blocks (--jacobian jet: the Jet<24> reference;
-// difference-quotient: IDA's own); root functions from solver/events.hpp.
+// difference-quotient: IDA's own), solved with q eliminated through F1–F6 before an LU of
+// the other n − 6 unknowns (--linear-solver structured, kinematic_block_solver.hpp; dense:
+// SUNDIALS' LU of the whole matrix); root functions from solver/events.hpp.
 // A contact-mode switch rebuilds IDA at the new size from the driver's consistent state
 // (IDAReInit cannot change the size). IDACalcIC is not used (it is only valid for index 1);
 // the initial y, ẏ come from the consistent initialization.
@@ -61,6 +63,7 @@ bool ReadIdaOptions(const OptionRequest& request, IdaOptions* options) {
   options->control = o.step_control();
   options->constraint_level = o.constraint_level;
   options->jacobian = o.jacobian.value_or(JacobianKind::kExact);
+  options->linear_solver = o.linear_solver.value_or(LinearSolverKind::kStructured);
   return true;
 }
 

@@ -49,6 +49,8 @@ constexpr Spelling<ConstraintLevel> kConstraintLevels[] = {
 constexpr Spelling<JacobianKind> kJacobians[] = {
     {"exact", JacobianKind::kExact}, {"jet", JacobianKind::kJet},
     {"difference-quotient", JacobianKind::kDifferenceQuotient}};
+constexpr Spelling<LinearSolverKind> kLinearSolvers[] = {
+    {"structured", LinearSolverKind::kStructured}, {"dense", LinearSolverKind::kDense}};
 
 template <typename Enum, size_t N>
 const char* NameIn(const Spelling<Enum> (&table)[N], Enum value) {
@@ -105,6 +107,7 @@ const char* OptionName(IntegratorKind value) { return NameIn(kIntegrators, value
 const char* OptionName(Stabilization value) { return NameIn(kStabilizations, value); }
 const char* OptionName(ConstraintLevel value) { return NameIn(kConstraintLevels, value); }
 const char* OptionName(JacobianKind value) { return NameIn(kJacobians, value); }
+const char* OptionName(LinearSolverKind value) { return NameIn(kLinearSolvers, value); }
 
 bool ParseOptionValue(const std::string& text, IntegratorKind* value, std::string* error) {
   return ParseIn(kIntegrators, "--integrator", " is not available", text, value, error);
@@ -117,6 +120,9 @@ bool ParseOptionValue(const std::string& text, ConstraintLevel* value, std::stri
 }
 bool ParseOptionValue(const std::string& text, JacobianKind* value, std::string* error) {
   return ParseIn(kJacobians, "--jacobian", "", text, value, error);
+}
+bool ParseOptionValue(const std::string& text, LinearSolverKind* value, std::string* error) {
+  return ParseIn(kLinearSolvers, "--linear-solver", "", text, value, error);
 }
 
 template <typename Enum>
@@ -139,6 +145,7 @@ std::string IntegratorOptionName(std::optional<IntegratorKind> integrator) {
 template Stabilization ParsedOptionValue<Stabilization>(const std::string&);
 template ConstraintLevel ParsedOptionValue<ConstraintLevel>(const std::string&);
 template JacobianKind ParsedOptionValue<JacobianKind>(const std::string&);
+template LinearSolverKind ParsedOptionValue<LinearSolverKind>(const std::string&);
 
 bool ParseReal(const std::string& text, double* value) {
   if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
@@ -207,6 +214,7 @@ std::string ReadOptionText(const OptionText& typed, FormulationOptions* options)
     else if (flag == "--stabilization") name(&o.stabilization);
     else if (flag == "--constraint-level") name(&o.constraint_level);
     else if (flag == "--jacobian") name(&o.jacobian);
+    else if (flag == "--linear-solver") name(&o.linear_solver);
     if (!why.empty()) return why;
   }
   return "";
@@ -278,6 +286,11 @@ bool CheckShared(const OptionRequest& r) {
   if (o.jacobian && !Accepts(info.jacobians, *o.jacobian)) {
     return r.Fail(StrCat("--jacobian = '", OptionName(*o.jacobian), "' is not available for formulation '", name,
                          "'; it accepts: ", Accepted(info.jacobians)));
+  }
+  if (o.linear_solver && !Accepts(info.linear_solvers, *o.linear_solver)) {
+    return r.Fail(StrCat("--linear-solver = '", OptionName(*o.linear_solver), "': formulation '", name,
+                         info.linear_solvers.empty() ? "' solves no IDA Newton system; the option does not apply"
+                                                     : "' does not take it"));
   }
   // Step control: a fixed-step method takes --step, an error-controlled one --max-step.
   if (IsFixedStep(info, o.integrator)) {

@@ -55,17 +55,24 @@ enum class ConstraintLevel { kVelocity, kPosition };  // dae: index 2 | index-3 
 // differentiated at their own size (default), the Jet<24> derivative of the whole residual
 // (the reference), or the integrator's own difference quotients (IDA).
 enum class JacobianKind { kExact, kJet, kDifferenceQuotient };
+// How an IDA formulation solves its Newton systems: q eliminated through the kinematic rows
+// F1–F6 before a partial-pivoting LU of the rest (default;
+// formulations/internal/kinematic_block_solver.hpp), or SUNDIALS' dense LU of the whole
+// matrix (for A/B measurements).
+enum class LinearSolverKind { kStructured, kDense };
 
 const char* OptionName(IntegratorKind value);   // "euler", ..., "cvode-adams"
 const char* OptionName(Stabilization value);    // "none", "baumgarte", ...
 const char* OptionName(ConstraintLevel value);  // "velocity", "position"
 const char* OptionName(JacobianKind value);     // "exact", "jet", "difference-quotient"
+const char* OptionName(LinearSolverKind value);  // "structured", "dense"
 // `text` as the value it spells; false, with a message naming the option (--integrator, ...),
 // the text and the accepted spellings, when it spells none.
 bool ParseOptionValue(const std::string& text, IntegratorKind* value, std::string* error);
 bool ParseOptionValue(const std::string& text, Stabilization* value, std::string* error);
 bool ParseOptionValue(const std::string& text, ConstraintLevel* value, std::string* error);
 bool ParseOptionValue(const std::string& text, JacobianKind* value, std::string* error);
+bool ParseOptionValue(const std::string& text, LinearSolverKind* value, std::string* error);
 // Throwing variant: InputError with that message.
 template <typename Enum>
 Enum ParsedOptionValue(const std::string& text);
@@ -110,6 +117,8 @@ struct FormulationOptions {
   // dae*, dae-ggl*, newmark*, generalized-alpha*; not given: exact (FormulationInfo::jacobians
   // lists what a formulation accepts; one that forms no Newton matrix accepts none).
   std::optional<JacobianKind> jacobian;
+  // dae*, dae-ggl*, monolithic*; not given: structured (FormulationInfo::linear_solvers).
+  std::optional<LinearSolverKind> linear_solver;
   // generalized-alpha (newmark_scheme.hpp): spectral radius at infinity ρ∞ ∈ [0, 1], or
   // the four parameters explicitly (all four or none; none: from ρ∞).
   double rho_inf = 0.9;
@@ -222,6 +231,7 @@ struct FormulationInfo {
   bool general_surfaces = true;  // any surface pair (contact_kinematics.hpp), not only sphere on plane
   bool event_location = true;    // locates event roots inside a step (root finder or event locator)
   std::vector<JacobianKind> jacobians;  // values --jacobian accepts; empty: the option does not apply
+  std::vector<LinearSolverKind> linear_solvers;  // values --linear-solver accepts; empty: does not apply
   // Takes the generalized-alpha parameters (--rho-inf, --alpha-m, --alpha-f, --beta, --gamma).
   bool scheme_parameters = false;
   // Which forward sensitivities `kneedyn sensitivity` runs for it (none: not available).
@@ -240,6 +250,7 @@ struct FormulationInfo {
   FormulationInfo& SphereOnPlaneOnly() { general_surfaces = false; return *this; }
   FormulationInfo& NoEventLocation() { event_location = false; return *this; }
   FormulationInfo& Jacobians(std::vector<JacobianKind> v) { jacobians = std::move(v); return *this; }
+  FormulationInfo& LinearSolvers(std::vector<LinearSolverKind> v) { linear_solvers = std::move(v); return *this; }
   FormulationInfo& SchemeParameters() { scheme_parameters = true; return *this; }
   FormulationInfo& Sensitivity(SensitivityForm form) { sensitivity = form; return *this; }
   FormulationInfo& NeedsPatella() { needs_patella = true; return *this; }

@@ -254,6 +254,14 @@ nlohmann::json JacobianSetting(const RunSettings& settings) {
   return OptionName(settings.options.jacobian.value_or(JacobianKind::kExact));
 }
 
+// The IDA Newton systems' solver (--linear-solver; structured when not given), or null for a
+// formulation without one (FormulationInfo::linear_solvers empty).
+nlohmann::json LinearSolverSetting(const RunSettings& settings) {
+  const FormulationInfo& info = FindFormulation(settings.formulation);
+  if (info.linear_solvers.empty()) return nullptr;
+  return OptionName(settings.options.linear_solver.value_or(LinearSolverKind::kStructured));
+}
+
 
 nlohmann::json LevelJson(const InitLevelReport& r) {
   const char* method = r.method == InitMethod::kNewton ? "newton" : r.method == InitMethod::kCeres ? "ceres" : "none";
@@ -468,6 +476,7 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
   settings_json["stabilization"] = OptionName(o.stabilization);
   settings_json["constraint_level"] = OptionName(o.constraint_level);
   settings_json["jacobian"] = JacobianSetting(settings);
+  settings_json["linear_solver"] = LinearSolverSetting(settings);
   settings_json["output_interval_s"] = settings.output_interval > 0 ? settings.output_interval : scene.output_interval;
   const InitReport& ir = result.init;
   nlohmann::json forces_guess = nlohmann::json::object(), forces = nlohmann::json::object();

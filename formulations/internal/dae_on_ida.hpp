@@ -47,6 +47,7 @@ struct IdaOptions {
   StepControl control;  // IDA's tolerances, step cap and step budget
   ConstraintLevel constraint_level = ConstraintLevel::kVelocity;  // dae: index 2 | index-3 variant
   JacobianKind jacobian = JacobianKind::kExact;                    // the iteration matrix
+  LinearSolverKind linear_solver = LinearSolverKind::kStructured;  // its factorization
 };
 // Reads them from a request (dae.cpp); the registry line's capabilities have been checked,
 // and these formulations have no rule of their own beyond them.
@@ -104,7 +105,7 @@ class IdaDriver : public FormulationBase {
     ida_.Start(ctx_, n_, &IdaDriver::Residual,
                options_.jacobian == JacobianKind::kDifferenceQuotient ? nullptr : &IdaDriver::Jacobian,
                &IdaDriver::Roots, this, state.t, atol, id, options_.control, scene_.end.time, events_, variant_.name,
-               &sundials_messages_, extra_root_directions_);
+               &sundials_messages_, extra_root_directions_, options_.linear_solver);
     N_VDestroy(id);
     N_VDestroy(atol);
     ++finished_phases_.restarts;

@@ -14,6 +14,7 @@
 
 #include "formulations/formulation.hpp"
 #include "formulations/internal/ida_statistics.hpp"
+#include "formulations/internal/kinematic_block_solver.hpp"
 #include "formulations/internal/sundials_util.hpp"
 
 namespace kneedyn {
@@ -61,11 +62,15 @@ struct IdaPhase {
   // 1e-10, is so small that the O(ε/h²) round-off of the index-2 forces defeats the Newton
   // test), which IDA's error test then adjusts. `owner` names the formulation in errors.
   // `extra_root_directions`: root functions `roots` evaluates after the events' (the IDAS
-  // sensitivities' peak conditions dv/dt = 0), with their directions.
+  // sensitivities' peak conditions dv/dt = 0), with their directions. `linear_solver`: the
+  // Newton systems' solver on the dense matrix the Jacobian callback fills (structured: q
+  // eliminated through the rows F1–F6 first, kinematic_block_solver.hpp; the unknowns must
+  // start with q, u and the rows with F1–F6).
   void Start(SUNContext ctx, int n, IDAResFn residual, IDALsJacFn jacobian, IDARootFn roots,
              void* user, double t0, N_Vector atol, N_Vector id, const StepControl& options,
              double end_time, const std::vector<EventSpec>& events, const char* owner,
-             SundialsMessages* messages, const std::vector<int>& extra_root_directions = {}) {
+             SundialsMessages* messages, const std::vector<int>& extra_root_directions = {},
+             LinearSolverKind linear_solver = LinearSolverKind::kStructured) {
     auto check = [&](int flag, const char* call) {
       CheckSundials(flag, call, owner, IDAGetReturnFlagName, messages);
     };
@@ -84,7 +89,8 @@ struct IdaPhase {
                                       : std::clamp(1e-4 * std::sqrt(options.rtol / 1e-6), 1e-8, 1e-3);
     check(IDASetInitStep(mem, h0), "IDASetInitStep");
     A = SUNDenseMatrix(n, n, ctx);
-    LS = SUNLinSol_Dense(y, A, ctx);
+    LS = linear_solver == LinearSolverKind::kStructured ? NewKinematicBlockSolver(n, ctx) : SUNLinSol_Dense(y, A, ctx);
+    if (A == nullptr || LS == nullptr) Throw<SolverError>(owner, "IDA's matrix or linear solver of size ", n, " not allocated");
     check(IDASetLinearSolver(mem, LS, A), "IDASetLinearSolver");
     check(IDASetJacFn(mem, jacobian), "IDASetJacFn");
     if (!events.empty() || !extra_root_directions.empty()) {
