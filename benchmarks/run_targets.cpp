@@ -8,7 +8,8 @@
 // scatter moves with every round-off change of the model, so the settings are re-chosen by
 // the rule after such a change (benchmarks/README.md, "Performance targets: measured").
 // Scores of 2026-12-03 (kneedyn score of each run's trajectory.csv):
-//   target/dae_scd6   dae, rtol 3.16e-9 (scd 6.27–6.82 down to 3.16e-10) — target <= 3 ms;
+//   target/dae_scd6   dae, rtol 3.16e-9 (scd 6.23–6.88 down to 3.16e-10 with the structured
+//                     linear solver) — target <= 3 ms;
 //   target/best_scd8  the cheapest configuration of any formulation with scd >= 8 by that
 //                     rule: ede cvode-adams, rtol 3.16e-11 (8.09–8.86 down to 3.16e-12)
 //                     — target <= 1 ms;

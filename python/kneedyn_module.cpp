@@ -345,6 +345,7 @@ PYBIND11_MODULE(_kneedyn, m) {
     d["stabilization"] = OptionName(o.stabilization);
     d["constraint_level"] = OptionName(o.constraint_level);
     d["jacobian"] = o.jacobian ? OptionName(*o.jacobian) : "";
+    d["linear_solver"] = o.linear_solver ? OptionName(*o.linear_solver) : "";
     d["default_fixed_step"] = kDefaultFixedStep;
     return d;
   });
@@ -352,7 +353,8 @@ PYBIND11_MODULE(_kneedyn, m) {
   m.def("run", [](std::shared_ptr<Scene> scene, const std::string& formulation, double rtol, double atol,
                   const std::string& integrator, double step, double max_step, long max_steps,
                   const std::string& stabilization, const std::string& constraint_level,
-                  const std::string& jacobian, double output_interval, const std::string& out_dir) {
+                  const std::string& jacobian, double output_interval, const std::string& out_dir,
+                  const std::string& linear_solver) {
     RunSettings settings;
     settings.formulation = formulation;
     settings.options.rtol = rtol;
@@ -365,6 +367,7 @@ PYBIND11_MODULE(_kneedyn, m) {
     settings.options.stabilization = ParsedOptionValue<Stabilization>(stabilization);
     settings.options.constraint_level = ParsedOptionValue<ConstraintLevel>(constraint_level);
     if (!jacobian.empty()) settings.options.jacobian = ParsedOptionValue<JacobianKind>(jacobian);
+    if (!linear_solver.empty()) settings.options.linear_solver = ParsedOptionValue<LinearSolverKind>(linear_solver);
     CheckOptions(FindFormulation(formulation), settings.options);
     settings.output_interval = output_interval;
     auto out = std::make_shared<RunOutput>();
@@ -391,6 +394,7 @@ PYBIND11_MODULE(_kneedyn, m) {
   }, py::arg("scene"), py::arg("formulation"), py::arg("rtol"), py::arg("atol"), py::arg("integrator"),
      py::arg("step"), py::arg("max_step"), py::arg("max_steps"), py::arg("stabilization"),
      py::arg("constraint_level"), py::arg("jacobian"), py::arg("output_interval"), py::arg("out_dir") = "",
+     py::arg("linear_solver") = "",
      "RunScene + MakeTrajectoryTable + SummaryJson (+ WriteRunOutputs into out_dir) without the GIL");
 
   // The sweep API of ensembles/: the same spec, design, runs and result files as

@@ -319,10 +319,10 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
         integrator=_DEFAULTS["integrator"], step=_DEFAULTS["step"], max_step=_DEFAULTS["max_step"],
         max_steps=_DEFAULTS["max_steps"], stabilization=_DEFAULTS["stabilization"],
         constraint_level=_DEFAULTS["constraint_level"], jacobian=_DEFAULTS["jacobian"],
-        output_interval=0.0, out=None):
+        output_interval=0.0, out=None, linear_solver=_DEFAULTS["linear_solver"]):
     """Runs a scene (a Scene, or a path to a scene file) like `kneedyn run` with the
-    options of the same names (output_interval 0: the scene's; jacobian '' : the
-    formulation's default). Bad options raise
+    options of the same names (output_interval 0: the scene's; jacobian and linear_solver
+    '' : the formulation's default). Bad options raise
     InputError before anything runs; a solver failure returns a Result with
     status 'partial' and the reason in `failure`, as the CLI does. With out=DIR the
     CLI's files (trajectory.csv, trajectory.sto, summary.json) are written there by the
@@ -332,7 +332,8 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
         scene = load_scene(scene)
     out = _kneedyn.run(scene.compiled, formulation, float(rtol), float(atol), integrator,
                        float(step), float(max_step), int(max_steps), stabilization,
-                       constraint_level, jacobian, float(output_interval), "" if out is None else str(out))
+                       constraint_level, jacobian, float(output_interval), "" if out is None else str(out),
+                       linear_solver)
     return Result(_json.loads(out["summary_json"]), Trajectory(out["columns"], out["data"]))
 
 

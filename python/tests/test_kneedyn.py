@@ -39,6 +39,7 @@ CASES = [
     ("mde", dict(integrator="dopri5", rtol=1e-7, atol=1e-9)),
     ("ede", dict(integrator="cvode-bdf", stabilization="projection")),
     ("dae-reduced", dict(rtol=1e-8, atol=1e-10, jacobian="jet")),
+    ("dae-ggl", dict(rtol=1e-8, atol=1e-10, linear_solver="dense")),
 ]
 
 
@@ -233,6 +234,8 @@ def test_bad_options_raise_before_running():
         kneedyn.run(scene, "nope")
     with pytest.raises(kneedyn.InputError, match="--integrator = 'rk9' is not available"):
         kneedyn.run(scene, "mde", integrator="rk9")
+    with pytest.raises(kneedyn.InputError, match="--linear-solver = 'lu'"):
+        kneedyn.run(scene, "dae", linear_solver="lu")
 
 
 def test_solver_failure_is_a_partial_result():
