@@ -12,10 +12,10 @@ cheapest counted run reaching scd >= --scd (the cell of work_precision_table.py'
 `kneedyn run <scene> ... --quiet --out TMP`) and reads the inclusive instruction counts of
 the callbacks the integrator calls (`callgrind_annotate --inclusive=yes`):
 
-  residual / right-hand side: DaeOnIda::Residual (IDA), OdeIntegrator::RhsCallback (CVODE,
+  residual / right-hand side: IdaDriver<…>::Residual (IDA), OdeIntegrator::RhsCallback (CVODE,
       ARKODE; includes mde's and ede's cache hits), StepResidual (newmark, generalized-alpha);
-  all model callbacks: the above plus the Jacobian (DaeOnIda::Jacobian, StepJacobian,
-      OdeIntegrator::JacCallback), the root functions (DaeOnIda::Roots,
+  all model callbacks: the above plus the Jacobian (IdaDriver<…>::Jacobian, StepJacobian,
+      CVODE's own difference quotients otherwise), the root functions (IdaDriver<…>::Roots,
       OdeIntegrator::RootCallback, the fixed-step schemes' Events) and the projection
       (OdeIntegrator::ProjCallback).
 
@@ -39,9 +39,11 @@ sys.path.insert(0, os.path.join(ROOT, "reports"))
 from bench_data import load_bench, method_of, split_runs  # noqa: E402
 
 # Function-name patterns (demangled, as callgrind_annotate prints them).
-RESIDUAL = (r"DaeOnIda::Residual\(", r"OdeIntegrator::RhsCallback\(", r"::StepResidual<double>\(")
-OTHER_CALLBACKS = (r"DaeOnIda::Jacobian\(", r"DaeOnIda::Roots\(", r"OdeIntegrator::RootCallback\(",
-                   r"OdeIntegrator::JacCallback\(", r"OdeIntegrator::ProjCallback\(",
+# A run whose residual matches none of them is an error (measure), not a 0 % share: the
+# names follow the code (tests/efficiency_test.py looks each one up in the kneedyn binary).
+RESIDUAL = (r"IdaDriver<[\w:]+>::Residual\(", r"OdeIntegrator::RhsCallback\(", r"::StepResidual<double>\(")
+OTHER_CALLBACKS = (r"IdaDriver<[\w:]+>::Jacobian\(", r"IdaDriver<[\w:]+>::Roots\(", r"OdeIntegrator::RootCallback\(",
+                   r"OdeIntegrator::ProjCallback\(",
                    r"::StepJacobian\(", r"NewmarkFormulation::Events\(")
 LINE = re.compile(r"^\s*([\d,]+)\s+\(\s*[\d.]+%\)\s+(.*)$")
 
@@ -97,6 +99,9 @@ def measure(run, kneedyn, scene, tmp):
   subprocess.run(cmd, check=True, capture_output=True)
   total, costs = inclusive_costs(cg)
   residual = share(costs, RESIDUAL)
+  if residual == 0:
+    raise SystemExit(f"efficiency.py: measure(): no function of {cmd[-5:]}'s profile matches the residual "
+                     f"patterns {RESIDUAL}; a callback was renamed (update RESIDUAL / OTHER_CALLBACKS)")
   callbacks = residual + share(costs, OTHER_CALLBACKS)
   return {"setting": run.get("setting"), "scd": run["scd"], "instructions": total,
           "residual_share": residual / total, "callback_share": callbacks / total,

@@ -4,10 +4,14 @@ valgrind): the callback shares read from a hand-written callgrind_annotate listi
 callbacks' [clone .cold] parts added, functions they call not counted twice, other functions
 not counted), the command line rebuilt from a sweep run's setting, and the table's
 efficiency column (a method without a measured run shows '—'). Expected values are typed in
-from the planted numbers.
+from the planted numbers. With the kneedyn binary as argument, also that the callback
+patterns of the integrators that reach scd 6 (IDA's driver, CVODE's and ARKODE's
+callbacks) name functions the binary defines (`nm -C`): a renamed callback would otherwise
+read as a 0 % share.
 """
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -27,11 +31,11 @@ Ir
 Ir                 file:function
 --------------------------------------------------------------------------------
   900,000 (90.00%)  ???:main [/x/kneedyn]
-  200,000 (20.00%)  ???:kneedyn::(anonymous namespace)::DaeOnIda::Residual(double, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*, void*) [/x/kneedyn]
-    1,000 ( 0.10%)  ???:kneedyn::(anonymous namespace)::DaeOnIda::Residual(double, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*, void*) [clone .cold] [/x/kneedyn]
+  200,000 (20.00%)  ???:kneedyn::IdaDriver<kneedyn::DaeSystem>::Residual(double, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*, void*) [/x/kneedyn]
+    1,000 ( 0.10%)  ???:kneedyn::IdaDriver<kneedyn::DaeSystem>::Residual(double, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*, void*) [clone .cold] [/x/kneedyn]
   190,000 (19.00%)  ???:kneedyn::DaeSystem::Residual(double, double const*, double const*, double*) const [/x/kneedyn]
-  150,000 (15.00%)  ???:kneedyn::(anonymous namespace)::DaeOnIda::Jacobian(double, double, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*, _generic_SUNMatrix*, void*, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*) [/x/kneedyn]
-   50,000 ( 5.00%)  ???:kneedyn::(anonymous namespace)::DaeOnIda::Roots(double, _generic_N_Vector*, _generic_N_Vector*, double*, void*) [/x/kneedyn]
+  150,000 (15.00%)  ???:kneedyn::IdaDriver<kneedyn::DaeSystem>::Jacobian(double, double, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*, _generic_SUNMatrix*, void*, _generic_N_Vector*, _generic_N_Vector*, _generic_N_Vector*) [/x/kneedyn]
+   50,000 ( 5.00%)  ???:kneedyn::IdaDriver<kneedyn::DaeSystem>::Roots(double, _generic_N_Vector*, _generic_N_Vector*, double*, void*) [/x/kneedyn]
    70,000 ( 7.00%)  ???:kneedyn::WriteRunOutputs(...) [/x/kneedyn]
 """
 
@@ -42,6 +46,15 @@ def main():
   def check(cond, what):
     if not cond:
       failures.append(what)
+
+  if len(sys.argv) > 1:
+    names = subprocess.run(["nm", "-C", "--defined-only", sys.argv[1]], capture_output=True, text=True,
+                           check=True).stdout.splitlines()
+    for p in (efficiency.RESIDUAL[:2] + efficiency.OTHER_CALLBACKS[:4]):
+      check(any(re.search(p, n) for n in names), f"pattern {p} names no function of {sys.argv[1]}")
+  # A profile whose residual matches no pattern is refused, not read as 0 %.
+  check(efficiency.share(efficiency.parse_annotate(LISTING.replace("Residual(", "Rsd("))[1], efficiency.RESIDUAL) == 0,
+        "renamed residual still matched")
 
   total, costs = efficiency.parse_annotate(LISTING)
   check(total == 1_000_000, f"total {total}")
