@@ -35,12 +35,7 @@ Vector6<T> NewtonEulerResidual(const Model& model, double t, const EulerAngleTri
                      &data->applied_moment_T);
   }
   const Vector6<T> Q = GeneralizedForce(model, *data, Vector3<T>(nu.template tail<3>()));
-  // ν̇ = (a_F, E q̈_ang + Ė q̇_ang), as GeneralizedAcceleration (pose.hpp) with this E.
-  Vector6<T> nu_dot;
-  nu_dot.template head<3>() = qdd.template head<3>();
-  const Vector3<T> qd_ang = qd.template tail<3>();
-  nu_dot.template tail<3>() = E * qdd.template tail<3>() + AngularVelocityMapRateTimesRate(trig, qd_ang);
-  return MassTimes(model, nu_dot) - Q;
+  return MassTimes(model, GeneralizedAcceleration(E, trig, qd, qdd)) - Q;
 }
 
 template <typename T>
@@ -49,10 +44,8 @@ Vector6<T> NewtonEulerResidual(const Model& model, double t, const Vector6<T>& q
                                const PoseTpl<T>& pose, int k, const ContactGeometryTpl<T>* geometry,
                                const T* normal_force, DataTpl<T>* data) {
   const Matrix3<T> E = AngularVelocityMap(q(kBeta), trig);
-  Vector6<T> nu;  // as GeneralizedVelocity (pose.hpp) with this E
-  nu.template head<3>() = qd.template head<3>();
-  nu.template tail<3>() = E * qd.template tail<3>();
-  return NewtonEulerResidual(model, t, trig, E, nu, qd, qdd, pose, k, geometry, normal_force, data);
+  return NewtonEulerResidual(model, t, trig, E, GeneralizedVelocity(E, qd), qd, qdd, pose, k, geometry, normal_force,
+                             data);
 }
 
 template <typename T>

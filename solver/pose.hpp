@@ -57,13 +57,20 @@ Vector3<T> AngularVelocityT(const Vector6<T>& q, const Vector6<T>& qd) {
   return AngularVelocityMap(q(kBeta), q(kGamma)) * qd.template tail<3>();
 }
 
+// ν = (v_F, w_T) from q̇ and E = AngularVelocityMap(β, trig) of q, for a caller that has E
+// already (the DAE residual: E once per pose for ν, ν̇ and the GGL terms).
+template <typename T>
+Vector6<T> GeneralizedVelocity(const Matrix3<T>& E, const Vector6<T>& qd) {
+  Vector6<T> nu;
+  nu.template head<3>() = qd.template head<3>();
+  nu.template tail<3>() = E * qd.template tail<3>();
+  return nu;
+}
+
 // ν = (v_F, w_T) from (q, q̇).
 template <typename T>
 Vector6<T> GeneralizedVelocity(const Vector6<T>& q, const EulerAngleTrig<T>& trig, const Vector6<T>& qd) {
-  Vector6<T> nu;
-  nu.template head<3>() = qd.template head<3>();
-  nu.template tail<3>() = AngularVelocityT(q, trig, qd);
-  return nu;
+  return GeneralizedVelocity(AngularVelocityMap(q(kBeta), trig), qd);
 }
 
 template <typename T>
@@ -74,16 +81,23 @@ Vector6<T> GeneralizedVelocity(const Vector6<T>& q, const Vector6<T>& qd) {
   return nu;
 }
 
-// ν̇ = (a_F, ẇ_T) from (q, q̇, q̈):  ẇ_T = E q̈_ang + Ė q̇_ang.
+// ν̇ = (a_F, ẇ_T) from (q̇, q̈) and E = AngularVelocityMap(β, trig) of q:
+// ẇ_T = E q̈_ang + Ė q̇_ang.
 template <typename T>
-Vector6<T> GeneralizedAcceleration(const Vector6<T>& q, const EulerAngleTrig<T>& trig, const Vector6<T>& qd,
+Vector6<T> GeneralizedAcceleration(const Matrix3<T>& E, const EulerAngleTrig<T>& trig, const Vector6<T>& qd,
                                    const Vector6<T>& qdd) {
   Vector6<T> nud;
   nud.template head<3>() = qdd.template head<3>();
   const Vector3<T> qd_ang = qd.template tail<3>();
-  nud.template tail<3>() = AngularVelocityMap(q(kBeta), trig) * qdd.template tail<3>() +
-                           AngularVelocityMapRateTimesRate(trig, qd_ang);
+  nud.template tail<3>() = E * qdd.template tail<3>() + AngularVelocityMapRateTimesRate(trig, qd_ang);
   return nud;
+}
+
+// ν̇ = (a_F, ẇ_T) from (q, q̇, q̈).
+template <typename T>
+Vector6<T> GeneralizedAcceleration(const Vector6<T>& q, const EulerAngleTrig<T>& trig, const Vector6<T>& qd,
+                                   const Vector6<T>& qdd) {
+  return GeneralizedAcceleration(AngularVelocityMap(q(kBeta), trig), trig, qd, qdd);
 }
 
 template <typename T>

@@ -108,9 +108,7 @@ bool DaeSystem::Residual(double t, const T* y, const T* yp, T* F, DataTpl<T>* da
   const PoseTpl<T> pose = PoseFromCoordinates(q, trig);
   // E once per pose, for ν, the GGL terms and the Newton–Euler residual (rotation.hpp).
   const Matrix3<T> E = AngularVelocityMap(q(kBeta), trig);
-  Vector6<T> nu;  // GeneralizedVelocity (pose.hpp) with this E
-  nu.template head<3>() = u.template head<3>();
-  nu.template tail<3>() = E * u.template tail<3>();
+  const Vector6<T> nu = GeneralizedVelocity(E, u);
   ContactGeometryTpl<T> geo[kMaxActiveContacts];
   for (int c = 0; c < k_; ++c) {
     const ContactPair& pair = model_->contacts[active_[c]];
