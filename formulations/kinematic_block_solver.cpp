@@ -1,5 +1,6 @@
 #include "formulations/internal/kinematic_block_solver.hpp"
 
+#include <sundials/sundials_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>
 
 #include <algorithm>
@@ -14,53 +15,25 @@ namespace kneedyn {
 namespace {
 
 constexpr int kQ = 6;  // q: the unknowns F1–F6 eliminate
-
-// LU with partial pivoting of the column-major m×m array a (leading dimension ld), in
-// place, in the dense solver's order (SUNDlsMat_denseGETRF: largest |a_ik| first found,
-// whole rows swapped, multipliers scaled by 1/pivot). piv[k]: the row swapped with row k.
-// False on a zero pivot.
-bool FactorInPlace(double* a, int ld, int m, int* piv) {
-  for (int k = 0; k < m; ++k) {
-    double* ak = a + static_cast<size_t>(k) * ld;
-    int p = k;
-    for (int i = k + 1; i < m; ++i) {
-      if (std::abs(ak[i]) > std::abs(ak[p])) p = i;
-    }
-    piv[k] = p;
-    if (ak[p] == 0.0) return false;
-    if (p != k) {
-      for (int j = 0; j < m; ++j) std::swap(a[k + static_cast<size_t>(j) * ld], a[p + static_cast<size_t>(j) * ld]);
-    }
-    const double inv = 1.0 / ak[k];
-    for (int i = k + 1; i < m; ++i) ak[i] *= inv;
-    for (int j = k + 1; j < m; ++j) {
-      double* __restrict__ aj = a + static_cast<size_t>(j) * ld;
-      const double s = aj[k];
-      if (s == 0.0) continue;
-      for (int i = k + 1; i < m; ++i) aj[i] -= ak[i] * s;
-    }
-  }
-  return true;
-}
-
-// b ← (LU)⁻¹ P b for FactorInPlace's result (the 6×6 block A of the GGL forms).
-void SolveInPlace(const double* a, int ld, int m, const int* piv, double* b) {
-  for (int k = 0; k < m; ++k) {
-    if (piv[k] != k) std::swap(b[k], b[piv[k]]);
-  }
-  for (int k = 0; k < m; ++k) {
-    const double* ak = a + static_cast<size_t>(k) * ld;
-    for (int i = k + 1; i < m; ++i) b[i] -= ak[i] * b[k];
-  }
-  for (int k = m - 1; k >= 0; --k) {
-    const double* ak = a + static_cast<size_t>(k) * ld;
-    b[k] /= ak[k];
-    for (int i = 0; i < k; ++i) b[i] -= ak[i] * b[k];
-  }
-}
-
 // The widest reduced system the solve keeps on the stack (monolithic-ggl: 12 + 6·2 + 17 − 6).
 constexpr int kMaxPairs = 32;
+
+// SUNDIALS' dense LU with partial pivoting (SUNDlsMat_denseGETRF / GETRS, the routines of
+// SUNLinSol_Dense) on the column-major m×m array a of leading dimension ld, in place:
+// the same factorization, bit for bit, as the dense solver's. The routines take column
+// pointers, made here per call.
+bool FactorInPlace(double* a, int ld, int m, sunindextype* piv) {
+  double* columns[2 * kMaxPairs];  // m ≤ 2·kMaxPairs (the constructor's check)
+  for (int j = 0; j < m; ++j) columns[j] = a + static_cast<size_t>(j) * ld;
+  return SUNDlsMat_denseGETRF(columns, m, m, piv) == 0;  // nonzero: a zero pivot
+}
+
+// b ← A⁻¹ b for FactorInPlace's result (the 6×6 block A of the GGL forms).
+void SolveInPlace(const double* a, int ld, int m, const sunindextype* piv, double* b) {
+  double* columns[kQ];
+  for (int j = 0; j < m; ++j) columns[j] = const_cast<double*>(a) + static_cast<size_t>(j) * ld;  // only read
+  SUNDlsMat_denseGETRS(columns, m, const_cast<sunindextype*>(piv), b);  // only read
+}
 
 }  // namespace
 
@@ -125,8 +98,8 @@ bool KinematicBlockLu::Factor(const double* J) {
   // The swaps as one permutation, applied to C's rows here and to b_r's at the solve.
   for (int i = 0; i < m_; ++i) perm_[i] = i;
   for (int k = 0; k < m_; ++k) std::swap(perm_[k], perm_[swaps_[k]]);
-  auto entry = [&](const std::vector<Pair>& v, int col, int row) -> double& {
-    return const_cast<double*>(reinterpret_cast<const double*>(&v[static_cast<size_t>(col) * pairs_]))[row];
+  auto entry = [&](std::vector<Pair>& v, int col, int row) -> double& {
+    return reinterpret_cast<double*>(&v[static_cast<size_t>(col) * pairs_])[row];
   };
   for (int j = 0; j < kQ; ++j) {
     pc_[static_cast<size_t>(j) * pairs_ + pairs_ - 1] = Pair{0.0, 0.0};

@@ -17,6 +17,7 @@
 
 #include <sundials/sundials_context.h>
 #include <sundials/sundials_linearsolver.h>
+#include <sundials/sundials_types.h>
 
 #include <vector>
 
@@ -48,7 +49,7 @@ class KinematicBlockLu {
   double a_inv_[6] = {}, w_[6] = {};
   // General pattern: A's LU with its pivots, W = A⁻¹ B (6 × m as 3 pairs per column).
   double a_lu_[36] = {};
-  int a_piv_[6] = {};
+  sunindextype a_piv_[6] = {};
   std::vector<Pair> w_full_;
   // S = P⁻¹ L U factored with partial pivoting; the solve runs on pairs of rows held in
   // registers, so the row swaps are applied beforehand: perm_ (x_r's row i is b_r's row
@@ -58,7 +59,7 @@ class KinematicBlockLu {
   std::vector<Pair> pc_, l_, u_;
   std::vector<double> d_inv_;
   std::vector<double> s_;  // S while it is factored (m × m, column-major)
-  std::vector<int> swaps_;  // its row swaps (LAPACK's order)
+  std::vector<sunindextype> swaps_;  // its row swaps (LAPACK's order)
 };
 
 // A SUNLinearSolver (SUNLINEARSOLVER_DIRECT) on KinematicBlockLu for IDA's dense n×n
