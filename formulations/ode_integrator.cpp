@@ -136,41 +136,60 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
                       ": CVODE projects only with BDF (cvode-bdf)");
   }
   const double previous_step = LastStep();
-  Free();
+  const int n = static_cast<int>(y0.size());
+  // CVODE: a phase as large as the last one re-initializes the solver (CVodeReInit sets the
+  // state CVodeInit sets; the options are kept), else the solver is built anew. ARKODE is
+  // always built anew: after ARKStepReInit it evaluates the right-hand side and the root
+  // functions more often than a new instance does (measured on the chapter scene, dopri5:
+  // 2,759 against 2,704 right-hand sides), so the runs would not be the same.
+  const bool reinitialize = is_cvode() && mem_ != nullptr && n == n_ && solver_projection == solver_projection_;
+  if (reinitialize) {
+    accumulated_ += Minus(CurrentCounters(), baseline_);
+  } else {
+    Free();
+    n_ = n;
+    y_ = NewSerialVector(n_, ctx_);
+    hot_path_y_ = NewSerialVector(n_, ctx_);
+    hot_path_ydot_ = NewSerialVector(n_, ctx_);
+  }
   problem_ = problem;
-  n_ = static_cast<int>(y0.size());
+  solver_projection_ = solver_projection;
   num_roots_ = static_cast<int>(root_directions.size());
-  y_ = NewSerialVector(n_, ctx_);
   for (int i = 0; i < n_; ++i) NvData(y_)[i] = y0(i);
-  hot_path_y_ = NewSerialVector(n_, ctx_);
-  hot_path_ydot_ = NewSerialVector(n_, ctx_);
   hot_path_g_.assign(num_roots_, 0.0);
   std::vector<int> dirs = root_directions;
   if (is_cvode()) {
-    mem_ = CVodeCreate(kind_ == IntegratorKind::kCvodeBdf ? CV_BDF : CV_ADAMS, ctx_);
-    if (mem_ == nullptr) Throw<SolverError>("OdeIntegrator::Start", "CVodeCreate failed");
-    Check(CVodeSetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "CVodeSetErrHandlerFn");
-    Check(CVodeInit(mem_, &OdeIntegrator::RhsCallback, t0, y_), "CVodeInit");
-    Check(CVodeSetUserData(mem_, this), "CVodeSetUserData");
-    Check(CVodeSStolerances(mem_, options_.rtol, options_.atol), "CVodeSStolerances");
-    Check(CVodeSetMaxNumSteps(mem_, options_.max_steps), "CVodeSetMaxNumSteps");
-    if (options_.max_step > 0.0) Check(CVodeSetMaxStep(mem_, options_.max_step), "CVodeSetMaxStep");
-    if (kind_ == IntegratorKind::kCvodeBdf) {
-      // Dense LU; no Jacobian function: CVODE's difference-quotient Jacobian.
-      A_ = SUNDenseMatrix(n_, n_, ctx_);
-      LS_ = SUNLinSol_Dense(y_, A_, ctx_);
-      Check(CVodeSetLinearSolver(mem_, LS_, A_), "CVodeSetLinearSolver");
-      if (solver_projection) Check(CVodeSetProjFn(mem_, &OdeIntegrator::ProjCallback), "CVodeSetProjFn");
+    if (reinitialize) {
+      Check(CVodeReInit(mem_, t0, y_), "CVodeReInit");
+      Check(CVodeRootInit(mem_, 0, nullptr), "CVodeRootInit");  // the root functions' state afresh
+      linear_counters_stale_ = true;
     } else {
-      NLS_ = SUNNonlinSol_FixedPoint(y_, 0, ctx_);
-      Check(CVodeSetNonlinearSolver(mem_, NLS_), "CVodeSetNonlinearSolver");
+      mem_ = CVodeCreate(kind_ == IntegratorKind::kCvodeBdf ? CV_BDF : CV_ADAMS, ctx_);
+      if (mem_ == nullptr) Throw<SolverError>("OdeIntegrator::Start", "CVodeCreate failed");
+      Check(CVodeSetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "CVodeSetErrHandlerFn");
+      Check(CVodeInit(mem_, &OdeIntegrator::RhsCallback, t0, y_), "CVodeInit");
+      Check(CVodeSetUserData(mem_, this), "CVodeSetUserData");
+      Check(CVodeSStolerances(mem_, options_.rtol, options_.atol), "CVodeSStolerances");
+      Check(CVodeSetMaxNumSteps(mem_, options_.max_steps), "CVodeSetMaxNumSteps");
+      if (options_.max_step > 0.0) Check(CVodeSetMaxStep(mem_, options_.max_step), "CVodeSetMaxStep");
+      if (kind_ == IntegratorKind::kCvodeBdf) {
+        // Dense LU; no Jacobian function: CVODE's difference-quotient Jacobian.
+        A_ = SUNDenseMatrix(n_, n_, ctx_);
+        LS_ = SUNLinSol_Dense(y_, A_, ctx_);
+        Check(CVodeSetLinearSolver(mem_, LS_, A_), "CVodeSetLinearSolver");
+        if (solver_projection) Check(CVodeSetProjFn(mem_, &OdeIntegrator::ProjCallback), "CVodeSetProjFn");
+      } else {
+        NLS_ = SUNNonlinSol_FixedPoint(y_, 0, ctx_);
+        Check(CVodeSetNonlinearSolver(mem_, NLS_), "CVodeSetNonlinearSolver");
+      }
     }
     if (num_roots_ > 0) {
       Check(CVodeRootInit(mem_, num_roots_, &OdeIntegrator::RootCallback), "CVodeRootInit");
       Check(CVodeSetRootDirection(mem_, dirs.data()), "CVodeSetRootDirection");
       Check(CVodeSetNoInactiveRootWarn(mem_), "CVodeSetNoInactiveRootWarn");
     }
-    if (previous_step > 0.0) Check(CVodeSetInitStep(mem_, 0.25 * previous_step), "CVodeSetInitStep");
+    // 0: CVODE's own estimate.
+    Check(CVodeSetInitStep(mem_, previous_step > 0.0 ? 0.25 * previous_step : 0.0), "CVodeSetInitStep");
   } else {
     mem_ = ARKStepCreate(&OdeIntegrator::RhsCallback, nullptr, t0, y_, ctx_);
     if (mem_ == nullptr) Throw<SolverError>("OdeIntegrator::Start", "ARKStepCreate failed");
@@ -235,6 +254,7 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
   if (is_cvode()) {
     Check(CVodeSetStopTime(mem_, t_out), "CVodeSetStopTime");
     flag = CVode(mem_, t_out, y_, &t_reached, one_step ? CV_ONE_STEP : CV_NORMAL);
+    linear_counters_stale_ = false;  // CVode's first call after a re-initialization zeroed them
     root = flag == CV_ROOT_RETURN;
   } else {
     Check(ARKStepSetStopTime(mem_, t_out), "ARKStepSetStopTime");
@@ -292,12 +312,13 @@ void OdeIntegrator::Reset(double t, const VectorXd& y) {
   accumulated_ += Minus(CurrentCounters(), baseline_);
   if (is_cvode()) {
     Check(CVodeReInit(mem_, t, y_), "CVodeReInit");
+    linear_counters_stale_ = true;
     if (h > 0.0) Check(CVodeSetInitStep(mem_, h), "CVodeSetInitStep");
   } else {
     Check(ARKStepReset(mem_, t, y_), "ARKStepReset");
     if (h > 0.0 && !fixed_step()) Check(ARKStepSetInitStep(mem_, h), "ARKStepSetInitStep");
   }
-  baseline_ = CurrentCounters();
+  baseline_ = CurrentCounters();  // CVODE: zero (CVodeReInit); ARKStepReset keeps the counters
 }
 
 double OdeIntegrator::LastStep() const {
@@ -322,9 +343,11 @@ SolverStats OdeIntegrator::CurrentCounters() const {
     CVodeGetNumNonlinSolvIters(mem_, &v); s.nonlinear_iterations = v;
     CVodeGetNumNonlinSolvConvFails(mem_, &v); s.convergence_failures = v;
     if (kind_ == IntegratorKind::kCvodeBdf) {
-      CVodeGetNumJacEvals(mem_, &v); s.jacobian_evaluations = v;
       CVodeGetNumLinSolvSetups(mem_, &v); s.linear_solver_setups = v;
-      CVodeGetNumLinRhsEvals(mem_, &v); s.residual_evaluations += v;  // difference quotients
+      if (!linear_counters_stale_) {
+        CVodeGetNumJacEvals(mem_, &v); s.jacobian_evaluations = v;
+        CVodeGetNumLinRhsEvals(mem_, &v); s.residual_evaluations += v;  // difference quotients
+      }
     }
     if (num_roots_ > 0) { CVodeGetNumGEvals(mem_, &v); s.root_evaluations = v; }
   } else {
@@ -380,6 +403,7 @@ void OdeIntegrator::Free() {
     }
     mem_ = nullptr;
   }
+  linear_counters_stale_ = false;
   if (NLS_) { SUNNonlinSolFree(NLS_); NLS_ = nullptr; }
   if (LS_) { SUNLinSolFree(LS_); LS_ = nullptr; }
   if (A_) { SUNMatDestroy(A_); A_ = nullptr; }

@@ -509,8 +509,7 @@ void DaeSensitivity::Start(const MechanicalState& state, const std::vector<Event
   have_partials_ = false;
 
   FreePhase();
-  ida_.y = NewSerialVector(n_, ctx_);
-  ida_.yp = NewSerialVector(n_, ctx_);
+  ida_.Reserve(ctx_, n_);
   double* y = NvData(ida_.y);
   double* yp = NvData(ida_.yp);
   system_.InitialValues(state, y, yp);

@@ -6,7 +6,8 @@
 // same settings); the events agree with `dae` at rtol 1e-10 (1e-6 s); CVODE keeps its
 // order and step history (accepted steps within 1.5× of the unstabilized run, whereas
 // restarting BDF at order 1 after every projection multiplies them by ~250, measured);
-// integrators without CVODE's projection are refused naming the option.
+// integrators without CVODE's projection are refused naming the option; the
+// project-and-restart loop counts the Jacobian of every restart.
 // Does not validate: which projection is cheaper at equal accuracy (work-precision sweep).
 #include <gtest/gtest.h>
 
@@ -53,6 +54,29 @@ TEST(EdeCvodeProjection, HoldsConstraintsKeepsStepHistoryAndFindsEvents) {
     EXPECT_EQ(proj.events[i].name, dae.events[i].name);
     EXPECT_NEAR(proj.events[i].time, dae.events[i].time, 1e-6) << dae.events[i].name;
   }
+}
+
+// kneedyn's project-and-restart loop (`projection`) re-initializes CVODE after each
+// projection (CVodeReInit). CVODE's linear solver interface evaluates the Jacobian afresh at
+// the first step after that (a new Jacobian at step 0), here by difference quotients over
+// the 12 EDE states: so every restart adds one Jacobian and at least 12 right-hand sides to
+// the totals. (They were once counted as 0: CVodeReInit zeroes the interface's counters only
+// at the next CVode call, after the driver had read its baseline.)
+TEST(EdeCvodeProjection, RestartLoopCountsTheJacobianOfEveryRestart) {
+  Scene scene = ChapterScene();
+  scene.end.time = 0.02;  // s: some hundred projections
+  RunSettings s;
+  s.formulation = "ede";
+  s.options.integrator = IntegratorKind::kCvodeBdf;
+  s.options.stabilization = Stabilization::kProjection;
+  const RunResult r = RunScene(scene, s);
+  ASSERT_TRUE(r.completed) << r.failure;
+  std::printf("ede cvode-bdf projection to 0.02 s: %ld projections, %ld steps, %ld Jacobians, %ld right-hand sides\n",
+              r.stats.projections, r.stats.steps, r.stats.jacobian_evaluations, r.stats.residual_evaluations);
+  ASSERT_GT(r.stats.projections, 50);
+  // Each projection but one at the end is followed by a restart (a Reset, or a new phase).
+  EXPECT_GE(r.stats.jacobian_evaluations, r.stats.projections - 1);
+  EXPECT_GE(r.stats.residual_evaluations, r.stats.steps + 12 * r.stats.jacobian_evaluations);
 }
 
 TEST(EdeCvodeProjection, RefusedWithoutCvodeBdf) {

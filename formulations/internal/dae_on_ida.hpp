@@ -60,9 +60,9 @@ bool ReadIdaOptions(const OptionRequest& request, IdaOptions* options);
 // Jacobian, JacobianByJets, UnknownName, NormalIndex, per_contact. The driver owns the IDA
 // phase (ida_phase.hpp), the callbacks, the failure message and the statistics; a system
 // with root functions of its own (the monolithic DAE's patellar facets) overrides the
-// virtual hooks below. A contact-mode switch rebuilds IDA at the new size from the
-// simulator's consistent state (IDAReInit cannot change the size); IDACalcIC is not used
-// (index 1 only).
+// virtual hooks below. A new phase starts IDA from the simulator's consistent state:
+// IDAReInit when the phase has as many unknowns as the last one, else IDA rebuilt at the
+// new size (IDAReInit cannot change it); IDACalcIC is not used (index 1 only).
 template <class System>
 class IdaDriver : public FormulationBase {
  public:
@@ -79,7 +79,9 @@ class IdaDriver : public FormulationBase {
   ContactForm contact_form() const override { return form_; }
 
   void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
-    Free();
+    // The last phase's counters are banked; its IDA objects are re-initialized when this
+    // phase has as many unknowns (ida_phase.hpp), else replaced.
+    ida_.EndPhase(&finished_phases_, watches_roots_);
     BeginPhase(state, events);
     system_.SetPhase(active_, state.contact, ligament_branch_);
     n_ = system_.size();
@@ -88,9 +90,9 @@ class IdaDriver : public FormulationBase {
     watches_roots_ = !events_.empty() || !extra_root_directions_.empty();
     root_flags_.assign(events_.size() + extra_root_directions_.size(), 0);
 
-    ida_.y = NewSerialVector(n_, ctx_);
-    ida_.yp = NewSerialVector(n_, ctx_);
-    hot_path_r_ = NewSerialVector(n_, ctx_);
+    ida_.Reserve(ctx_, n_);
+    if (hot_path_r_ != nullptr && N_VGetLength(hot_path_r_) != n_) { N_VDestroy(hot_path_r_); hot_path_r_ = nullptr; }
+    if (hot_path_r_ == nullptr) hot_path_r_ = NewSerialVector(n_, ctx_);
     hot_path_g_.assign(root_flags_.size(), 0.0);
     t_ = state.t;
     N_Vector id = NewSerialVector(n_, ctx_);
@@ -141,7 +143,7 @@ class IdaDriver : public FormulationBase {
   std::string integrator() const override { return "ida"; }  // variable-order BDF, adaptive
 
   SolverStats PhaseStats() const override {
-    return ida_.mem != nullptr ? IdaStatistics(ida_.mem, watches_roots_) : SolverStats();
+    return ida_.mem != nullptr && !ida_.counted ? IdaStatistics(ida_.mem, watches_roots_) : SolverStats();
   }
 
   // The residual, Jacobian (cj = 1e4 1/s) and root callbacks IDA calls, at the current y, ẏ.

@@ -75,7 +75,9 @@ class OdeIntegrator {
   bool fixed_step() const { return kind_ == IntegratorKind::kEuler || kind_ == IntegratorKind::kRk4; }
   double step() const { return fixed_step() ? step_ : 0.0; }  // s; 0: adaptive
 
-  // Builds the solver for a phase (sizes may change between phases). `solver_projection`:
+  // Sets the solver up for a phase: re-initialized when the phase has as many unknowns as
+  // the last one (and the same `solver_projection`), else built for the new size (sizes may
+  // change between phases). `solver_projection`:
   // use CVODE's projection after each step (CVodeSetProjFn; cvode-bdf only) instead of the
   // caller's own project-and-Reset loop (which restarts a multistep method at order 1).
   void Start(OdeProblem* problem, double t0, const VectorXd& y0, const std::vector<int>& root_directions,
@@ -123,6 +125,10 @@ class OdeIntegrator {
   SUNNonlinearSolver NLS_ = nullptr;
   int n_ = 0;
   int num_roots_ = 0;
+  bool solver_projection_ = false;  // CVodeSetProjFn is set on mem_
+  // CVodeReInit leaves the linear solver interface's counters (Jacobians, difference-quotient
+  // right-hand sides) to the next CVode call, which zeroes them: until then they count as 0.
+  bool linear_counters_stale_ = false;
   SolverStats accumulated_;  // finished solver instances and pre-reset segments
   SolverStats baseline_;     // counters of the live instance at its last reset
   std::string failure_;
