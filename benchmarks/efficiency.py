@@ -100,7 +100,8 @@ def measure(run, kneedyn, scene, tmp):
   total, costs = inclusive_costs(cg)
   residual = share(costs, RESIDUAL)
   if residual == 0:
-    raise SystemExit(f"efficiency.py: measure(): no function of {cmd[-5:]}'s profile matches the residual "
+    name = run["formulation"] + (f" {run['integrator']}" if run.get("integrator") else "")
+    raise SystemExit(f"efficiency.py: measure(): no function of the {name} run's profile matches the residual "
                      f"patterns {RESIDUAL}; a callback was renamed (update RESIDUAL / OTHER_CALLBACKS)")
   callbacks = residual + share(costs, OTHER_CALLBACKS)
   return {"setting": run.get("setting"), "scd": run["scd"], "instructions": total,
