@@ -99,9 +99,7 @@ size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
   }
   if (exponent >= 12) return FormatGeneral12(v, out);  // 1e12 reached by rounding up
   // The 12 digits as three groups of four, each two pairs from kPairs (g / 100 = g 5243 >> 19
-  // for g < 10^4), 16 bytes of '0' after them so that the layout copies fixed widths; the
-  // trailing zero digits counted a word at a time (little-endian: the last digits are the
-  // high bytes, zero once '0' is xored off).
+  // for g < 10^4), 16 bytes of '0' after them so that the layout copies fixed widths.
   static constexpr char kPairs[] =
       "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
       "40414243444546474849505152535455565758596061626364656667686970717273747576777879"
@@ -116,13 +114,8 @@ size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
     std::memcpy(digits + 4 * g + 2, kPairs + 2 * (groups[g] - hundreds * 100), 2);
   }
   std::memset(digits + 12, '0', 16);
-  uint64_t last8;
-  uint32_t first4;
-  std::memcpy(&last8, digits + 4, sizeof last8);
-  std::memcpy(&first4, digits, sizeof first4);
-  last8 ^= 0x3030303030303030ULL;
-  first4 ^= 0x30303030U;
-  const int n = last8 != 0 ? 12 - (__builtin_clzll(last8) >> 3) : 4 - (__builtin_clz(first4) >> 3);  // ≥ 1
+  int n = 12;  // significant digits without the trailing zeros (%g drops them)
+  while (n > 1 && digits[n - 1] == '0') --n;
   char* o = out;
   if (v < 0.0) *o++ = '-';
   if (exponent < -4) {  // here −31 ≤ X: d[.ddd]e−XX
