@@ -22,7 +22,7 @@
 // Instead of the above (benchmarks/README.md, "Instruction counts"): the whole-process
 // instruction count (valgrind --tool=cachegrind --cache-sim=no, total `I refs`) of `kneedyn
 // run` on each entry of the baseline's `instruction_counts.runs` (one per registered
-// formulation). Fails when a count exceeds its baseline by more than
+// formulation, and the runtime targets' configurations). Fails when a count exceeds its baseline by more than
 // `instruction_counts.threshold` (+5 %); a count below baseline × (1 − threshold) is reported
 // so the baseline can be tightened (--write). Without valgrind it prints why and exits 77
 // (ctest SKIP_RETURN_CODE).

@@ -128,21 +128,24 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
       EvaluateEvents(scene_.model, events_, q, normal_, g);
       return;
     }
-    ContactForcesAt(t, y);
+    // With ARKODE the next step's first stage asks for this same (t, y): solve for q̈ too, so
+    // that it finds it in the cache. Not with a patella: its equilibrium solve starts from the
+    // last one's, so a solve's result depends on the calls before it (at the solve's
+    // tolerance), and patella runs keep the order of solves they had.
+    SolveAt(t, y, integrator_.next_step_starts_at_step_end() && !model_.patella);
     for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = acc_.normal_force[c];
-    // The solve's pose and ligament lengths at q (the constrained solve at this (t, y) is
-    // new: CVODE's Adams corrector never evaluates f at the accepted y_n).
+    // The solve's pose and ligament lengths at q (with CVODE the constrained solve at this
+    // (t, y) is new: its Adams corrector never evaluates f at the accepted y_n).
     EvaluateEvents(scene_.model, events_, q, workspace_.pose, normal_, workspace_.data.ligament_length, g);
   }
 
  private:
   // acc_ at (t, y): the hidden-constraint solve, or its last result when (t, y) are bitwise
-  // those of the previous call (the root functions at a step's end and the right-hand side
-  // that follows, e.g. FSAL of the Dormand–Prince pair, ask for the same point).
+  // those of the previous call (the root functions at a step's end and the explicit
+  // Runge–Kutta stage that follows ask for the same point).
   void AccelerationAt(double t, const double* y) { SolveAt(t, y, true); }
-  // acc_.normal_force (and the workspace's pose and ligament lengths) at (t, y): for the root
-  // functions, without ν̇ and q̈ (SolveContactNormalForces) unless the cache has them.
-  void ContactForcesAt(double t, const double* y) { SolveAt(t, y, false); }
+  // `accelerations` false: acc_.normal_force (and the workspace's pose and ligament lengths)
+  // only, without ν̇ and q̈ (SolveContactNormalForces), unless the cache has them.
   void SolveAt(double t, const double* y, bool accelerations) {
     if (cache_valid_ && (cache_has_accelerations_ || !accelerations) && t == cache_t_ &&
         std::memcmp(y, cache_y_, sizeof cache_y_) == 0) {

@@ -83,6 +83,10 @@ class OdeIntegrator {
   void Start(OdeProblem* problem, double t0, const VectorXd& y0, const std::vector<int>& root_directions,
              bool solver_projection = false);
   bool supports_solver_projection() const { return kind_ == IntegratorKind::kCvodeBdf; }
+  // The next step's first right-hand side is at the point where the root functions were last
+  // evaluated, the step's end (tn, yn): true for ARKODE's explicit Runge–Kutta methods (their
+  // first stage), false for CVODE (its corrector starts from the predicted y).
+  bool next_step_starts_at_step_end() const { return !is_cvode(); }
   // Integrates towards t_out (stop time t_out): to t_out, or one step if `one_step`, or to a
   // root. On entry *t is the current time (of the last Start, Reset or Evolve). Writes t and
   // y reached; returns true when roots were found (`roots`: their flags). t_out equal to *t
