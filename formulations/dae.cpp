@@ -31,8 +31,10 @@
 // difference-quotient: IDA's own), solved with q eliminated through F1–F6 before an LU of
 // the other n − 6 unknowns (--linear-solver structured, kinematic_block_solver.hpp; dense:
 // SUNDIALS' LU of the whole matrix); root functions from solver/events.hpp.
-// A contact-mode switch rebuilds IDA at the new size from the driver's consistent state
-// (IDAReInit cannot change the size). IDACalcIC is not used (it is only valid for index 1);
+// Every phase starts IDA from the driver's consistent state: IDAReInit when the phase has as
+// many unknowns as the last (a kink crossing), IDA rebuilt at the new size after a
+// contact-mode switch (IDAReInit cannot change the size). IDACalcIC is not used (it is only
+// valid for index 1);
 // the initial y, ẏ come from the consistent initialization.
 #include <idas/idas.h>
 #include <sunlinsol/sunlinsol_dense.h>
