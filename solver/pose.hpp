@@ -73,12 +73,10 @@ Vector6<T> GeneralizedVelocity(const Vector6<T>& q, const EulerAngleTrig<T>& tri
   return GeneralizedVelocity(AngularVelocityMap(q(kBeta), trig), qd);
 }
 
+// The same without α's sine and cosine, which E does not use.
 template <typename T>
 Vector6<T> GeneralizedVelocity(const Vector6<T>& q, const Vector6<T>& qd) {
-  Vector6<T> nu;
-  nu.template head<3>() = qd.template head<3>();
-  nu.template tail<3>() = AngularVelocityT(q, qd);
-  return nu;
+  return GeneralizedVelocity(AngularVelocityMap(q(kBeta), q(kGamma)), qd);
 }
 
 // ν̇ = (a_F, ẇ_T) from (q̇, q̈) and E = AngularVelocityMap(β, trig) of q:
