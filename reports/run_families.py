@@ -29,7 +29,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 BASE_SCENE = os.path.join(ROOT, "reference-data", "scenes", "chapter_impact.yaml")
 
-# Reference solver settings (spec section 7).
+# The reference solver's settings, those of the main job (README).
 SOLVER_ARGS = ["--formulation", "dae", "--rtol", "1e-8", "--atol", "1e-10"]
 # If the reference settings fail (IDA error-test failures after lateral lift-off at some
 # amplitudes), the run is retried with these settings, in order; the report flags it.
