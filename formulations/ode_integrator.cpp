@@ -10,6 +10,7 @@
 #include <sunmatrix/sunmatrix_dense.h>
 #include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -153,6 +154,7 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
     hot_path_ydot_ = NewSerialVector(n_, ctx_);
   }
   problem_ = problem;
+  stepped_to_root_ = false;
   solver_projection_ = solver_projection;
   num_roots_ = static_cast<int>(root_directions.size());
   for (int i = 0; i < n_; ++i) NvData(y_)[i] = y0(i);
@@ -233,6 +235,7 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
 }
 
 bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, std::vector<int>* roots) {
+  if (stepped_to_root_) RefuseAfterSteppedRoot("OdeIntegrator::Evolve");
   failure_.clear();
   roots->assign(num_roots_, 0);
   // Already at t_out: a restart at a root that ARKODE located at the end of a step that
@@ -292,12 +295,93 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
       Check(CVodeGetRootInfo(mem_, roots->data()), "CVodeGetRootInfo");
     } else {
       Check(ARKStepGetRootInfo(mem_, roots->data()), "ARKStepGetRootInfo");
+      if (steps_to_roots()) StepToRoot(*roots, t, y);
     }
   }
   return root;
 }
 
+void OdeIntegrator::StepToRoot(const std::vector<int>& fired, double* t, VectorXd* y) {
+  const auto first = std::find_if(fired.begin(), fired.end(), [](int flag) { return flag != 0; });
+  if (first == fired.end()) return;
+  const int k = static_cast<int>(first - fired.begin());
+  // The step that crossed the root, [t_start, t_end], and its two states: the Hermite
+  // interpolant's ends, which are the step's own states (ycur is the root finding's scratch
+  // after a root return, arkode_root.c).
+  double t_end = 0.0, h = 0.0;
+  Check(ARKStepGetCurrentTime(mem_, &t_end), "ARKStepGetCurrentTime");
+  Check(ARKStepGetLastStep(mem_, &h), "ARKStepGetLastStep");
+  const double t_start = t_end - h;
+  N_Vector y_start = N_VClone(y_);
+  N_Vector y_hi = N_VClone(y_);
+  Check(ARKStepGetDky(mem_, t_start, 0, y_start), "ARKStepGetDky");
+  Check(ARKStepGetDky(mem_, t_end, 0, y_hi), "ARKStepGetDky");
+  std::vector<double> g(num_roots_);
+  const auto g_at = [&](double tt, N_Vector yy) {
+    problem_->Roots(tt, NvData(yy), g.data());
+    ++accumulated_.root_evaluations;
+    return g[k];
+  };
+  // One step of the method from (t_start, y_start) to about tt; returns the time reached,
+  // its state in y_.
+  const auto step_to = [&](double tt) {
+    Check(ARKStepReset(mem_, t_start, y_start), "ARKStepReset");
+    Check(ARKStepSetFixedStep(mem_, tt - t_start), "ARKStepSetFixedStep");
+    double reached = t_start;
+    const int flag = ARKStepEvolve(mem_, tt, y_, &reached, ARK_ONE_STEP);
+    if (flag < 0) {
+      char* name = ARKStepGetReturnFlagName(flag);
+      const std::string text = name ? name : "?";
+      free(name);
+      Throw<SolverError>("OdeIntegrator::StepToRoot", owner_, " (", name_, "): ", text, " in the step from t = ",
+                         t_start, " s to the root near t = ", tt, " s", failure_.empty() ? "" : " (" + failure_ + ")",
+                         sundials_messages_.Take());
+    }
+    return reached;
+  };
+  double lo = t_start, g_lo = g_at(t_start, y_start);
+  double hi = t_end, g_hi = g_at(t_end, y_hi);
+  const auto crossed = [&](double gc) { return gc == 0.0 || (gc > 0.0) != (g_lo > 0.0); };
+  if (g_lo != 0.0 && crossed(g_hi)) {
+    // The root functions stay quiet in these trial steps; ARKODE's stop time is t_end.
+    Check(ARKStepRootInit(mem_, 0, nullptr), "ARKStepRootInit");
+    Check(ARKStepSetStopTime(mem_, t_end), "ARKStepSetStopTime");
+    // Illinois regula falsi on [lo, hi], the first trial ARKODE's root; hi keeps the side
+    // past the root, as ARKODE's own root return does.
+    const double t_tol = 100.0 * std::numeric_limits<double>::epsilon() * (std::abs(t_end) + std::abs(h));
+    double trial = std::clamp(*t, lo, hi);
+    int last_side = 0;
+    for (int iteration = 0; iteration < 50 && hi - lo > t_tol && g_hi != 0.0; ++iteration) {
+      if (!(trial > lo && trial < hi)) trial = 0.5 * (lo + hi);
+      const double reached = step_to(trial);
+      const double g_trial = g_at(reached, y_);
+      if (crossed(g_trial)) {
+        hi = reached, g_hi = g_trial;
+        N_VScale(1.0, y_, y_hi);
+        if (last_side == 1) g_lo *= 0.5;
+        last_side = 1;
+      } else {
+        lo = reached, g_lo = g_trial;
+        if (last_side == -1) g_hi *= 0.5;
+        last_side = -1;
+      }
+      trial = hi - g_hi * (hi - lo) / (g_hi - g_lo);
+    }
+    stepped_to_root_ = true;
+    *t = hi;
+    for (int i = 0; i < n_; ++i) (*y)(i) = NvData(y_hi)[i];
+  }
+  N_VDestroy(y_start);
+  N_VDestroy(y_hi);
+}
+
+void OdeIntegrator::RefuseAfterSteppedRoot(const char* function) const {
+  Throw<SolverError>(function, owner_, " (", name_, "): called after a root without Start: the root's trial "
+                     "steps (StepToRoot) left the solver at a trial step; every root ends the phase");
+}
+
 void OdeIntegrator::Reset(double t, const VectorXd& y) {
+  if (stepped_to_root_) RefuseAfterSteppedRoot("OdeIntegrator::Reset");
   // The step the controller proposed next (not the last one taken, which may have been cut
   // by a stop time): restarting from it keeps the step-size history across projections.
   double h = 0.0;

@@ -14,7 +14,12 @@
 //   cvode-bdf          CVODE BDF, Newton with dense LU, difference-quotient Jacobian.
 //   cvode-adams        CVODE Adams–Moulton with fixed-point (functional) iteration.
 // Default (empty --integrator): dopri5. Roots located by ARKODE/CVODE root finding with the
-// EventSpec directions; a root's state is the solver's interpolant at the root.
+// EventSpec directions; a root's state is the solver's interpolant at the root, except with
+// verner65 and fehlberg78: there ARKODE's Hermite interpolant (degree <= 5, its degree-4 and
+// -5 forms built on lower-degree ones) is less accurate than these methods' long steps, so
+// the root's state is one step of the method itself from the step's start, and the root
+// time is refined on such steps (StepToRoot; measured: benchmarks/README.md, "Event states
+// of the high-order Runge–Kutta methods").
 #pragma once
 
 #include <nvector/nvector_serial.h>
@@ -87,6 +92,9 @@ class OdeIntegrator {
   // evaluated, the step's end (tn, yn): true for ARKODE's explicit Runge–Kutta methods (their
   // first stage), false for CVODE (its corrector starts from the predicted y).
   bool next_step_starts_at_step_end() const { return !is_cvode(); }
+  // A root's state and time come from the method's own steps (StepToRoot), not from ARKODE's
+  // interpolant: verner65, fehlberg78 (header comment).
+  bool steps_to_roots() const { return kind_ == IntegratorKind::kVerner65 || kind_ == IntegratorKind::kFehlberg78; }
   // Integrates towards t_out (stop time t_out): to t_out, or one step if `one_step`, or to a
   // root. On entry *t is the current time (of the last Start, Reset or Evolve). Writes t and
   // y reached; returns true when roots were found (`roots`: their flags). t_out equal to *t
@@ -104,6 +112,15 @@ class OdeIntegrator {
 
  private:
   static int RhsCallback(double t, N_Vector y, N_Vector ydot, void* user);
+  // After ARKODE's root return (steps_to_roots()): replaces its interpolated t, y by the
+  // discrete solution at the root of the first fired function, found by Illinois regula
+  // falsi on single steps of the method from the crossing step's start (ARKStepReset, then
+  // a fixed step to each trial time; the trial steps and root evaluations are counted).
+  // Keeps ARKODE's root when the exact steps show no sign change across the step. ARKODE is
+  // then left at a trial step: every root ends the phase, and Start builds it anew; Evolve
+  // and Reset refuse until then.
+  void StepToRoot(const std::vector<int>& fired, double* t, VectorXd* y);
+  [[noreturn]] void RefuseAfterSteppedRoot(const char* function) const;
   static int RootCallback(double t, N_Vector y, double* g, void* user);
   static int ProjCallback(double t, N_Vector y, N_Vector corr, double eps, N_Vector err, void* user);
   bool is_cvode() const { return kind_ == IntegratorKind::kCvodeBdf || kind_ == IntegratorKind::kCvodeAdams; }
@@ -130,6 +147,7 @@ class OdeIntegrator {
   int n_ = 0;
   int num_roots_ = 0;
   bool solver_projection_ = false;  // CVodeSetProjFn is set on mem_
+  bool stepped_to_root_ = false;     // StepToRoot moved ARKODE to a trial step (until Start)
   // CVodeReInit leaves the linear solver interface's counters (Jacobians, difference-quotient
   // right-hand sides) to the next CVode call, which zeroes them: until then they count as 0.
   bool linear_counters_stale_ = false;
