@@ -266,18 +266,16 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
   }
   if (flag < 0) {
     double h = 0.0, t_cur = 0.0;
-    char* name = nullptr;
+    std::string text;
     if (is_cvode()) {
       CVodeGetCurrentStep(mem_, &h);
       CVodeGetCurrentTime(mem_, &t_cur);
-      name = CVodeGetReturnFlagName(flag);
+      text = ReturnFlagText(CVodeGetReturnFlagName, flag);
     } else {
       ARKStepGetCurrentStep(mem_, &h);
       ARKStepGetCurrentTime(mem_, &t_cur);
-      name = ARKStepGetReturnFlagName(flag);
+      text = ReturnFlagText(ARKStepGetReturnFlagName, flag);
     }
-    const std::string text = name ? name : "?";
-    free(name);
     Throw<SolverError>("OdeIntegrator::Evolve", owner_, " (", name_, "): ", text, " at t = ", t_cur, " s with step h = ", h, " s",
                        LargestErrorComponent(), failure_.empty() ? "" : " (" + failure_ + ")", sundials_messages_.Take());
   }
@@ -330,10 +328,8 @@ void OdeIntegrator::StepToRoot(const std::vector<int>& fired, double* t, VectorX
     double reached = t_start;
     const int flag = ARKStepEvolve(mem_, tt, y_, &reached, ARK_ONE_STEP);
     if (flag < 0) {
-      char* name = ARKStepGetReturnFlagName(flag);
-      const std::string text = name ? name : "?";
-      free(name);
-      Throw<SolverError>("OdeIntegrator::StepToRoot", owner_, " (", name_, "): ", text, " in the step from t = ",
+      Throw<SolverError>("OdeIntegrator::StepToRoot", owner_, " (", name_, "): ",
+                         ReturnFlagText(ARKStepGetReturnFlagName, flag), " in the step from t = ",
                          t_start, " s to the root near t = ", tt, " s", failure_.empty() ? "" : " (" + failure_ + ")",
                          sundials_messages_.Take());
     }

@@ -60,10 +60,7 @@ struct IdaPhase {
     double h = 0.0, t_cur = 0.0;
     IDAGetCurrentStep(mem, &h);
     IDAGetCurrentTime(mem, &t_cur);
-    char* name = IDAGetReturnFlagName(flag);
-    const std::string text = name ? name : "?";
-    free(name);
-    return StrCat(text, " at t = ", t_cur, " s with step h = ", h, " s");
+    return StrCat(ReturnFlagText(IDAGetReturnFlagName, flag), " at t = ", t_cur, " s with step h = ", h, " s");
   }
 
   // After y, yp are filled: IDACreate … IDARootInit for the phase, or IDAReInit of the last

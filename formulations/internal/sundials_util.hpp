@@ -42,17 +42,25 @@ class SundialsMessages {
   long warnings_ = 0;
 };
 
-// Throws SolverError "caller(): call failed with flag NAME (code)". `name_of` converts the
-// flag to its name (IDAGetReturnFlagName, CVodeGetReturnFlagName, ARKStepGetReturnFlagName).
-// With `messages`, SUNDIALS' own message for the failure is appended.
+// A return flag's name ("IDA_CONV_FAIL"), or "?" for a flag the module does not know.
+// `name_of` is the module's converter (IDAGetReturnFlagName, CVodeGetReturnFlagName,
+// ARKStepGetReturnFlagName), which returns a string the caller must free.
+template <typename NameFn>
+std::string ReturnFlagText(NameFn name_of, int flag) {
+  char* name = name_of(flag);
+  std::string text = name ? name : "?";
+  free(name);
+  return text;
+}
+
+// Throws SolverError "caller(): call failed with flag NAME (code)", the name from
+// ReturnFlagText(name_of, flag). With `messages`, SUNDIALS' own message for the failure is
+// appended.
 template <typename NameFn>
 void CheckSundials(int flag, const char* call, const char* caller, NameFn name_of,
                    SundialsMessages* messages = nullptr) {
   if (flag >= 0) return;
-  char* name = name_of(flag);
-  const std::string text = name ? name : "unknown";
-  free(name);
-  Throw<SolverError>(caller, call, " failed with ", text, " (", flag, ")",
+  Throw<SolverError>(caller, call, " failed with ", ReturnFlagText(name_of, flag), " (", flag, ")",
                      messages ? messages->Take() : std::string());
 }
 
