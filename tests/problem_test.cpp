@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -92,7 +94,9 @@ void FormValues(const std::string& form, const Model& model, const MechanicalSta
 // The phase starts and transitions of Problem equal the simulator's, bitwise, along the
 // whole chapter run (lift-off, then the end flexion). For mde the phase start's ẏ is the
 // chart's (ṡ, s̈) where the simulator's start holds q̈ of the hidden-constraint solve: the
-// same physics by two formulations, compared to 1e-9 relative.
+// same physics by two formulations, compared to 1e-9 relative; and after a transition in a
+// phase where mde switched its chart (the simulator's mde does so after a step, which
+// Problem is not told of), its y0 to round-off.
 TEST(Problem, TransitionEqualsSimulator) {
   const Scene& scene = ChapterScene();
   for (const std::string form : {"ede", "mde", "dae", "dae-ggl"}) {
@@ -111,6 +115,7 @@ TEST(Problem, TransitionEqualsSimulator) {
     ExpectBitwise(problem.y0().data(), y.data(), problem.size(), "y0 of phase 0");
     EXPECT_EQ(PhaseEventNames(problem), Names(run.spy.start_events[0]));
     ASSERT_GE(run.spy.event_states.size(), 2u);
+    int bitwise_transitions = 0;
     for (size_t e = 0; e < run.spy.event_states.size(); ++e) {
       ASSERT_EQ(run.spy.event_phase[e], problem.phase());
       const MechanicalState& at = run.spy.event_states[e];
@@ -126,10 +131,24 @@ TEST(Problem, TransitionEqualsSimulator) {
       EXPECT_EQ(problem.phase_state().active, next.active);
       FormValues(form, scene.model, next, &y, &yp, problem.free_coordinates());
       ASSERT_EQ(problem.size(), static_cast<int>(y.size()));
-      ExpectBitwise(problem.y0().data(), y.data(), problem.size(), "y0 after the transition");
+      const std::vector<int>& switched = run.spy.chart_switch_phases;
+      if (std::find(switched.begin(), switched.end(), run.spy.event_phase[e]) == switched.end()) {
+        ExpectBitwise(problem.y0().data(), y.data(), problem.size(), "y0 after the transition");
+        ++bitwise_transitions;
+      } else {
+        // mde switched its chart inside this phase (after a step, no event: Problem is not
+        // told), so Problem rebuilds the event state from the free coordinates of the chart
+        // it still has: the same state through another elimination, equal to round-off
+        // (measured: 1 ulp), and so is the next phase's start.
+        for (int i = 0; i < problem.size(); ++i) {
+          EXPECT_NEAR(problem.y0()[i], y[i], 1e-14 * (1.0 + std::abs(y[i]))) << "y0 after the transition[" << i << "]";
+        }
+      }
       expect_yp0(yp, "yp0 after the transition");
       EXPECT_EQ(PhaseEventNames(problem), Names(run.spy.start_events[run.spy.event_phase[e] + 1]));
     }
+    // Most transitions follow no chart switch: the lift-off and the kinks before it.
+    EXPECT_GE(bitwise_transitions, 8);
     ASSERT_EQ(problem.events_recorded().size(), run.record.events.size());
     for (size_t k = 0; k < run.record.events.size(); ++k) {
       EXPECT_EQ(problem.events_recorded()[k].name, run.record.events[k].name);

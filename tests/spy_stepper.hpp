@@ -23,7 +23,10 @@ class SpyStepper : public Formulation {
     inner_->Start(state, events);
   }
   AdvanceResult Advance(double t_out, MechanicalState* state) override {
+    const long restarts_before = inner_->stats().restarts;
     const AdvanceResult r = inner_->Advance(t_out, state);
+    // A restart inside Advance is mde's switch to a better chart after a step.
+    if (inner_->stats().restarts > restarts_before) chart_switch_phases.push_back(static_cast<int>(starts.size()) - 1);
     if (r.status == AdvanceStatus::kEvent) {
       event_states.push_back(*state);
       fired.push_back(r.events);
@@ -37,6 +40,7 @@ class SpyStepper : public Formulation {
   std::vector<std::vector<EventSpec>> start_events;  // per start
   std::vector<std::vector<int>> fired;               // per event state: the roots
   std::vector<int> event_phase;                      // per event state: index into starts
+  std::vector<int> chart_switch_phases;              // per mde chart switch: its phase
 
  private:
   std::unique_ptr<Formulation> inner_;
