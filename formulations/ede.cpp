@@ -128,8 +128,8 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
       EvaluateEvents(scene_.model, events_, q, normal_, g);
       return;
     }
-    // With ARKODE the next step's first stage asks for this same (t, y): solve for q̈ too, so
-    // that it finds it in the cache. Not with a patella: its equilibrium solve starts from the
+    // With ARKStep the next step's first stage asks for this same (t, y): solve for q̈ too, so
+    // that it finds it in the cache (with dopri5 in ERKStep the step's last stage left it there). Not with a patella: its equilibrium solve starts from the
     // last one's, so a solve's result depends on the calls before it (at the solve's
     // tolerance), and patella runs keep the order of solves they had.
     SolveAt(t, y, integrator_.next_step_starts_at_step_end() && !model_.patella);

@@ -3,6 +3,7 @@
 #include "formulations/internal/sundials_util.hpp"
 
 #include <arkode/arkode_arkstep.h>
+#include <arkode/arkode_erkstep.h>
 #include <arkode/arkode_butcher_erk.h>
 #include <cvode/cvode.h>
 #include <cvode/cvode_proj.h>
@@ -18,7 +19,64 @@
 #include "solver/error.hpp"
 
 namespace kneedyn {
+
+// The ARKODE stepper an explicit Runge–Kutta method runs in, as a table of the calls
+// ARKStep and ERKStep share (same signatures; creation, the Butcher table, the
+// right-hand-side counter and the step's own state differ and are written out where used).
+// dopri5 runs in ERKStep: its first stage takes the last stage's right-hand side of the
+// previous step (first same as last: the last row of A is b and c = 1, so the last stage
+// is the step's solution), six right-hand sides a step where ARKStep 6.4 evaluates seven
+// (arkStep_TakeStep_Z calls f for the first stage every step). The other tables stay in
+// ARKStep: ERKStep 6.4 reuses the last stage whenever its c is 1 (erkStep_FullRHS), which
+// is right only for a first-same-as-last table (rk4, verner65 and fehlberg78 are not).
+struct ArkodeStepper {
+  const char* name;  // "ARKStep" or "ERKStep", for messages
+  int (*Evolve)(void*, double, N_Vector, double*, int);
+  int (*SetStopTime)(void*, double);
+  int (*GetDky)(void*, double, int, N_Vector);
+  int (*Reset)(void*, double, N_Vector);
+  int (*SetInitStep)(void*, double);
+  int (*SetFixedStep)(void*, double);
+  int (*SetMaxStep)(void*, double);
+  int (*SetMaxNumSteps)(void*, long);
+  int (*SStolerances)(void*, double, double);
+  int (*SetInterpolantType)(void*, int);
+  int (*SetUserData)(void*, void*);
+  int (*SetErrHandlerFn)(void*, ARKErrHandlerFn, void*);
+  int (*RootInit)(void*, int, ARKRootFn);
+  int (*SetRootDirection)(void*, int*);
+  int (*SetNoInactiveRootWarn)(void*);
+  int (*GetRootInfo)(void*, int*);
+  int (*GetCurrentStep)(void*, double*);
+  int (*GetCurrentTime)(void*, double*);
+  int (*GetLastStep)(void*, double*);
+  int (*GetNumSteps)(void*, long*);
+  int (*GetNumErrTestFails)(void*, long*);
+  int (*GetNumGEvals)(void*, long*);
+  int (*GetEstLocalErrors)(void*, N_Vector);
+  int (*GetErrWeights)(void*, N_Vector);
+  char* (*GetReturnFlagName)(long);
+  void (*Free)(void**);
+};
+
 namespace {
+
+const ArkodeStepper kArkStep = {
+    "ARKStep",           ARKStepEvolve,         ARKStepSetStopTime,      ARKStepGetDky,
+    ARKStepReset,        ARKStepSetInitStep,    ARKStepSetFixedStep,     ARKStepSetMaxStep,
+    ARKStepSetMaxNumSteps, ARKStepSStolerances, ARKStepSetInterpolantType, ARKStepSetUserData,
+    ARKStepSetErrHandlerFn, ARKStepRootInit,    ARKStepSetRootDirection, ARKStepSetNoInactiveRootWarn,
+    ARKStepGetRootInfo,  ARKStepGetCurrentStep, ARKStepGetCurrentTime,   ARKStepGetLastStep,
+    ARKStepGetNumSteps,  ARKStepGetNumErrTestFails, ARKStepGetNumGEvals, ARKStepGetEstLocalErrors,
+    ARKStepGetErrWeights, ARKStepGetReturnFlagName, ARKStepFree};
+const ArkodeStepper kErkStep = {
+    "ERKStep",           ERKStepEvolve,         ERKStepSetStopTime,      ERKStepGetDky,
+    ERKStepReset,        ERKStepSetInitStep,    ERKStepSetFixedStep,     ERKStepSetMaxStep,
+    ERKStepSetMaxNumSteps, ERKStepSStolerances, ERKStepSetInterpolantType, ERKStepSetUserData,
+    ERKStepSetErrHandlerFn, ERKStepRootInit,    ERKStepSetRootDirection, ERKStepSetNoInactiveRootWarn,
+    ERKStepGetRootInfo,  ERKStepGetCurrentStep, ERKStepGetCurrentTime,   ERKStepGetLastStep,
+    ERKStepGetNumSteps,  ERKStepGetNumErrTestFails, ERKStepGetNumGEvals, ERKStepGetEstLocalErrors,
+    ERKStepGetErrWeights, ERKStepGetReturnFlagName, ERKStepFree};
 
 SolverStats Minus(SolverStats a, const SolverStats& b) {
   a.steps -= b.steps;
@@ -84,17 +142,23 @@ OdeIntegrator::OdeIntegrator(const OdeOptions& options, std::string owner)
     : options_(options.control),
       owner_(std::move(owner)),
       kind_(options.integrator),
-      name_(OptionName(kind_)) {
+      name_(OptionName(kind_)),
+      ark_(kind_ == IntegratorKind::kDopri5 ? &kErkStep : &kArkStep) {
   if (fixed_step()) step_ = options.control.step > 0.0 ? options.control.step : kDefaultFixedStep;
 }
 
 OdeIntegrator::~OdeIntegrator() { Free(); }
 
+void OdeIntegrator::CheckArk(int flag, const char* call) {
+  if (flag >= 0) return;
+  Check(flag, StrCat(ark_->name, call).c_str());  // "ERKStepSetStopTime"
+}
+
 void OdeIntegrator::Check(int flag, const char* call) {
   if (is_cvode()) {
     CheckSundials(flag, call, "OdeIntegrator", CVodeGetReturnFlagName, &sundials_messages_);
   } else {
-    CheckSundials(flag, call, "OdeIntegrator", ARKStepGetReturnFlagName, &sundials_messages_);
+    CheckSundials(flag, call, "OdeIntegrator", ark_->GetReturnFlagName, &sundials_messages_);
   }
 }
 
@@ -193,24 +257,35 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
     // 0: CVODE's own estimate.
     Check(CVodeSetInitStep(mem_, previous_step > 0.0 ? 0.25 * previous_step : 0.0), "CVodeSetInitStep");
   } else {
-    mem_ = ARKStepCreate(&OdeIntegrator::RhsCallback, nullptr, t0, y_, ctx_);
-    if (mem_ == nullptr) Throw<SolverError>("OdeIntegrator::Start", "ARKStepCreate failed");
-    Check(ARKStepSetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "ARKStepSetErrHandlerFn");
-    Check(ARKStepSetUserData(mem_, this), "ARKStepSetUserData");
+    const bool erk = ark_ == &kErkStep;
+    mem_ = erk ? ERKStepCreate(&OdeIntegrator::RhsCallback, t0, y_, ctx_)
+               : ARKStepCreate(&OdeIntegrator::RhsCallback, nullptr, t0, y_, ctx_);
+    if (mem_ == nullptr) Throw<SolverError>("OdeIntegrator::Start", ark_->name, "Create failed");
+    if (erk) {
+      // ARKStep's step-size controller (arkSetDefaults: PID with its default gains, safety
+      // 0.96, bias 1.5, growth 20; arkode_adapt_impl.h), not ERKStep's PI one: the stepper
+      // changes the cost of a step, not the step sizes the method is compared at.
+      CheckArk(ERKStepSetAdaptivityMethod(mem_, ARK_ADAPT_PID, 1, 0, nullptr), "SetAdaptivityMethod");
+      CheckArk(ERKStepSetSafetyFactor(mem_, 0.96), "SetSafetyFactor");
+      CheckArk(ERKStepSetErrorBias(mem_, 1.5), "SetErrorBias");
+      CheckArk(ERKStepSetMaxGrowth(mem_, 20.0), "SetMaxGrowth");
+    }
+    CheckArk(ark_->SetErrHandlerFn(mem_, &SundialsMessages::Handler, &sundials_messages_), "SetErrHandlerFn");
+    CheckArk(ark_->SetUserData(mem_, this), "SetUserData");
     // Hermite interpolant (ARKODE's default), also for euler/rk4: it needs no step history,
     // so root states stay accurate right after a projection restart (the Lagrange one
     // drops to low degree there). Outputs do not use it: the stop time puts them on steps.
-    Check(ARKStepSetInterpolantType(mem_, ARK_INTERP_HERMITE), "ARKStepSetInterpolantType");
-    Check(ARKStepSetMaxNumSteps(mem_, options_.max_steps), "ARKStepSetMaxNumSteps");
+    CheckArk(ark_->SetInterpolantType(mem_, ARK_INTERP_HERMITE), "SetInterpolantType");
+    CheckArk(ark_->SetMaxNumSteps(mem_, options_.max_steps), "SetMaxNumSteps");
     ARKodeButcherTable table = nullptr;
     int q = 0, p = 0;
     if (fixed_step()) {
-      Check(ARKStepSetFixedStep(mem_, step_), "ARKStepSetFixedStep");
+      CheckArk(ark_->SetFixedStep(mem_, step_), "SetFixedStep");
       table = FixedStepTable(kind_);
       q = kind_ == IntegratorKind::kEuler ? 1 : 4;
     } else {
-      Check(ARKStepSStolerances(mem_, options_.rtol, options_.atol), "ARKStepSStolerances");
-      if (options_.max_step > 0.0) Check(ARKStepSetMaxStep(mem_, options_.max_step), "ARKStepSetMaxStep");
+      CheckArk(ark_->SStolerances(mem_, options_.rtol, options_.atol), "SStolerances");
+      if (options_.max_step > 0.0) CheckArk(ark_->SetMaxStep(mem_, options_.max_step), "SetMaxStep");
       if (kind_ == IntegratorKind::kDopri5) {
         table = ARKodeButcherTable_LoadERK(ARKODE_DORMAND_PRINCE_7_4_5), q = 5, p = 4;
       } else if (kind_ == IntegratorKind::kVerner65) {
@@ -218,16 +293,16 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
       } else {
         table = ARKodeButcherTable_LoadERK(ARKODE_FEHLBERG_13_7_8), q = 8, p = 7;
       }
-      if (previous_step > 0.0) Check(ARKStepSetInitStep(mem_, 0.25 * previous_step), "ARKStepSetInitStep");
+      if (previous_step > 0.0) CheckArk(ark_->SetInitStep(mem_, 0.25 * previous_step), "SetInitStep");
     }
     if (table == nullptr) Throw<SolverError>("OdeIntegrator::Start", "Butcher table for ", name_, " not created");
-    const int flag = ARKStepSetTables(mem_, q, p, nullptr, table);
+    const int flag = erk ? ERKStepSetTable(mem_, table) : ARKStepSetTables(mem_, q, p, nullptr, table);
     ARKodeButcherTable_Free(table);
-    Check(flag, "ARKStepSetTables");
+    CheckArk(flag, erk ? "SetTable" : "SetTables");
     if (num_roots_ > 0) {
-      Check(ARKStepRootInit(mem_, num_roots_, &OdeIntegrator::RootCallback), "ARKStepRootInit");
-      Check(ARKStepSetRootDirection(mem_, dirs.data()), "ARKStepSetRootDirection");
-      Check(ARKStepSetNoInactiveRootWarn(mem_), "ARKStepSetNoInactiveRootWarn");
+      CheckArk(ark_->RootInit(mem_, num_roots_, &OdeIntegrator::RootCallback), "RootInit");
+      CheckArk(ark_->SetRootDirection(mem_, dirs.data()), "SetRootDirection");
+      CheckArk(ark_->SetNoInactiveRootWarn(mem_), "SetNoInactiveRootWarn");
     }
   }
   baseline_ = SolverStats();
@@ -260,8 +335,8 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
     linear_counters_stale_ = false;  // CVode's first call after a re-initialization zeroed them
     root = flag == CV_ROOT_RETURN;
   } else {
-    Check(ARKStepSetStopTime(mem_, t_out), "ARKStepSetStopTime");
-    flag = ARKStepEvolve(mem_, t_out, y_, &t_reached, one_step ? ARK_ONE_STEP : ARK_NORMAL);
+    CheckArk(ark_->SetStopTime(mem_, t_out), "SetStopTime");
+    flag = ark_->Evolve(mem_, t_out, y_, &t_reached, one_step ? ARK_ONE_STEP : ARK_NORMAL);
     root = flag == ARK_ROOT_RETURN;
   }
   if (flag < 0) {
@@ -272,9 +347,9 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
       CVodeGetCurrentTime(mem_, &t_cur);
       text = ReturnFlagText(CVodeGetReturnFlagName, flag);
     } else {
-      ARKStepGetCurrentStep(mem_, &h);
-      ARKStepGetCurrentTime(mem_, &t_cur);
-      text = ReturnFlagText(ARKStepGetReturnFlagName, flag);
+      ark_->GetCurrentStep(mem_, &h);
+      ark_->GetCurrentTime(mem_, &t_cur);
+      text = ReturnFlagText(ark_->GetReturnFlagName, flag);
     }
     Throw<SolverError>("OdeIntegrator::Evolve", owner_, " (", name_, "): ", text, " at t = ", t_cur, " s with step h = ", h, " s",
                        LargestErrorComponent(), failure_.empty() ? "" : " (" + failure_ + ")", sundials_messages_.Take());
@@ -282,17 +357,19 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
   *t = t_reached;
   y->resize(n_);
   N_Vector y_out = y_;
-  if (!is_cvode() && !root) {
+  if (!is_cvode() && !root && ark_ == &kArkStep) {
     // ARKODE 6.4 returns the interpolant at a stop time; its own step state there (tcur
     // is snapped onto tstop) is the true discrete solution, also for the shortened step.
-    Check(ARKStepGetCurrentState(mem_, &y_out), "ARKStepGetCurrentState");
+    // (ERKStep 6.4 has no GetCurrentState; there the interpolant at the step's end, τ = 0,
+    // is that state: its weights are 1 on y_new and ±0 on the rest.)
+    CheckArk(ARKStepGetCurrentState(mem_, &y_out), "GetCurrentState");
   }
   for (int i = 0; i < n_; ++i) (*y)(i) = NvData(y_out)[i];
   if (root) {
     if (is_cvode()) {
       Check(CVodeGetRootInfo(mem_, roots->data()), "CVodeGetRootInfo");
     } else {
-      Check(ARKStepGetRootInfo(mem_, roots->data()), "ARKStepGetRootInfo");
+      CheckArk(ark_->GetRootInfo(mem_, roots->data()), "GetRootInfo");
       if (steps_to_roots()) StepToRoot(*roots, t, y);
     }
   }
@@ -307,13 +384,13 @@ void OdeIntegrator::StepToRoot(const std::vector<int>& fired, double* t, VectorX
   // interpolant's ends, which are the step's own states (ycur is the root finding's scratch
   // after a root return, arkode_root.c).
   double t_end = 0.0, h = 0.0;
-  Check(ARKStepGetCurrentTime(mem_, &t_end), "ARKStepGetCurrentTime");
-  Check(ARKStepGetLastStep(mem_, &h), "ARKStepGetLastStep");
+  CheckArk(ark_->GetCurrentTime(mem_, &t_end), "GetCurrentTime");
+  CheckArk(ark_->GetLastStep(mem_, &h), "GetLastStep");
   const double t_start = t_end - h;
   N_Vector y_start = N_VClone(y_);
   N_Vector y_hi = N_VClone(y_);
-  Check(ARKStepGetDky(mem_, t_start, 0, y_start), "ARKStepGetDky");
-  Check(ARKStepGetDky(mem_, t_end, 0, y_hi), "ARKStepGetDky");
+  CheckArk(ark_->GetDky(mem_, t_start, 0, y_start), "GetDky");
+  CheckArk(ark_->GetDky(mem_, t_end, 0, y_hi), "GetDky");
   std::vector<double> g(num_roots_);
   const auto g_at = [&](double tt, N_Vector yy) {
     problem_->Roots(tt, NvData(yy), g.data());
@@ -323,13 +400,13 @@ void OdeIntegrator::StepToRoot(const std::vector<int>& fired, double* t, VectorX
   // One step of the method from (t_start, y_start) to about tt; returns the time reached,
   // its state in y_.
   const auto step_to = [&](double tt) {
-    Check(ARKStepReset(mem_, t_start, y_start), "ARKStepReset");
-    Check(ARKStepSetFixedStep(mem_, tt - t_start), "ARKStepSetFixedStep");
+    CheckArk(ark_->Reset(mem_, t_start, y_start), "Reset");
+    CheckArk(ark_->SetFixedStep(mem_, tt - t_start), "SetFixedStep");
     double reached = t_start;
-    const int flag = ARKStepEvolve(mem_, tt, y_, &reached, ARK_ONE_STEP);
+    const int flag = ark_->Evolve(mem_, tt, y_, &reached, ARK_ONE_STEP);
     if (flag < 0) {
       Throw<SolverError>("OdeIntegrator::StepToRoot", owner_, " (", name_, "): ",
-                         ReturnFlagText(ARKStepGetReturnFlagName, flag), " in the step from t = ",
+                         ReturnFlagText(ark_->GetReturnFlagName, flag), " in the step from t = ",
                          t_start, " s to the root near t = ", tt, " s", failure_.empty() ? "" : " (" + failure_ + ")",
                          sundials_messages_.Take());
     }
@@ -340,8 +417,8 @@ void OdeIntegrator::StepToRoot(const std::vector<int>& fired, double* t, VectorX
   const auto crossed = [&](double gc) { return gc == 0.0 || (gc > 0.0) != (g_lo > 0.0); };
   if (g_lo != 0.0 && crossed(g_hi)) {
     // The root functions stay quiet in these trial steps; ARKODE's stop time is t_end.
-    Check(ARKStepRootInit(mem_, 0, nullptr), "ARKStepRootInit");
-    Check(ARKStepSetStopTime(mem_, t_end), "ARKStepSetStopTime");
+    CheckArk(ark_->RootInit(mem_, 0, nullptr), "RootInit");
+    CheckArk(ark_->SetStopTime(mem_, t_end), "SetStopTime");
     // Illinois regula falsi on [lo, hi], the first trial ARKODE's root; hi keeps the side
     // past the root, as ARKODE's own root return does.
     const double t_tol = 100.0 * std::numeric_limits<double>::epsilon() * (std::abs(t_end) + std::abs(h));
@@ -384,7 +461,7 @@ void OdeIntegrator::Reset(double t, const VectorXd& y) {
   if (is_cvode()) {
     CVodeGetCurrentStep(mem_, &h);
   } else {
-    ARKStepGetCurrentStep(mem_, &h);
+    ark_->GetCurrentStep(mem_, &h);
   }
   h = std::abs(h);
   for (int i = 0; i < n_; ++i) NvData(y_)[i] = y(i);
@@ -395,10 +472,10 @@ void OdeIntegrator::Reset(double t, const VectorXd& y) {
     linear_counters_stale_ = true;
     if (h > 0.0) Check(CVodeSetInitStep(mem_, h), "CVodeSetInitStep");
   } else {
-    Check(ARKStepReset(mem_, t, y_), "ARKStepReset");
-    if (h > 0.0 && !fixed_step()) Check(ARKStepSetInitStep(mem_, h), "ARKStepSetInitStep");
+    CheckArk(ark_->Reset(mem_, t, y_), "Reset");
+    if (h > 0.0 && !fixed_step()) CheckArk(ark_->SetInitStep(mem_, h), "SetInitStep");
   }
-  baseline_ = CurrentCounters();  // CVODE: zero (CVodeReInit); ARKStepReset keeps the counters
+  baseline_ = CurrentCounters();  // CVODE: zero (CVodeReInit); ARKODE's Reset keeps the counters
 }
 
 double OdeIntegrator::LastStep() const {
@@ -407,7 +484,7 @@ double OdeIntegrator::LastStep() const {
   if (is_cvode()) {
     CVodeGetLastStep(mem_, &h);
   } else {
-    ARKStepGetLastStep(mem_, &h);
+    ark_->GetLastStep(mem_, &h);
   }
   return std::abs(h);
 }
@@ -432,21 +509,26 @@ SolverStats OdeIntegrator::CurrentCounters() const {
     if (num_roots_ > 0) { CVodeGetNumGEvals(mem_, &v); s.root_evaluations = v; }
   } else {
     long nfe = 0, nfi = 0;
-    ARKStepGetNumSteps(mem_, &v); s.steps = v;
-    ARKStepGetNumRhsEvals(mem_, &nfe, &nfi); s.residual_evaluations = nfe + nfi;
-    ARKStepGetNumErrTestFails(mem_, &v); s.error_test_failures = v;
-    if (num_roots_ > 0) { ARKStepGetNumGEvals(mem_, &v); s.root_evaluations = v; }
+    ark_->GetNumSteps(mem_, &v); s.steps = v;
+    if (ark_ == &kErkStep) {
+      ERKStepGetNumRhsEvals(mem_, &nfe);
+    } else {
+      ARKStepGetNumRhsEvals(mem_, &nfe, &nfi);
+    }
+    s.residual_evaluations = nfe + nfi;
+    ark_->GetNumErrTestFails(mem_, &v); s.error_test_failures = v;
+    if (num_roots_ > 0) { ark_->GetNumGEvals(mem_, &v); s.root_evaluations = v; }
   }
   return s;
 }
 
 // Which state component a failure is about — the largest weighted local error
-// estimate |e_i| w_i of the last attempted step (CVodeGetEstLocalErrors/ARKStepGetEstLocalErrors
+// estimate |e_i| w_i of the last attempted step (CVodeGetEstLocalErrors/ARKODE's GetEstLocalErrors
 // with the error weights); empty when the solver has none (fixed steps: all zero).
 std::string OdeIntegrator::LargestErrorComponent() const {
   N_Vector e = N_VClone(y_), w = N_VClone(y_);
   const bool ok = is_cvode() ? CVodeGetEstLocalErrors(mem_, e) == CV_SUCCESS && CVodeGetErrWeights(mem_, w) == CV_SUCCESS
-                             : ARKStepGetEstLocalErrors(mem_, e) == ARK_SUCCESS && ARKStepGetErrWeights(mem_, w) == ARK_SUCCESS;
+                             : ark_->GetEstLocalErrors(mem_, e) == ARK_SUCCESS && ark_->GetErrWeights(mem_, w) == ARK_SUCCESS;
   std::string out;
   if (ok) {
     const double* ed = N_VGetArrayPointer(e);
@@ -479,7 +561,7 @@ void OdeIntegrator::Free() {
     if (is_cvode()) {
       CVodeFree(&mem_);
     } else {
-      ARKStepFree(&mem_);
+      ark_->Free(&mem_);
     }
     mem_ = nullptr;
   }

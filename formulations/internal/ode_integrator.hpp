@@ -11,6 +11,10 @@
 //                      right after an ede projection restart; Lagrange is not.)
 //   dopri5, verner65,  adaptive embedded ERK (ARKODE_DORMAND_PRINCE_7_4_5,
 //   fehlberg78         ARKODE_VERNER_8_5_6, ARKODE_FEHLBERG_13_7_8), --rtol/--atol.
+//                      dopri5 in ARKODE's ERKStep, which reuses the last stage's right-hand
+//                      side as the next step's first (first same as last: six per step),
+//                      with ARKStep's step-size controller; verner65 and fehlberg78 in
+//                      ARKStep (not first-same-as-last; ode_integrator.cpp, ArkodeStepper).
 //   cvode-bdf          CVODE BDF, Newton with dense LU, difference-quotient Jacobian.
 //   cvode-adams        CVODE Adams–Moulton with fixed-point (functional) iteration.
 // Default (empty --integrator): dopri5. Roots located by ARKODE/CVODE root finding with the
@@ -35,6 +39,8 @@
 #include "solver/scalar.hpp"
 
 namespace kneedyn {
+
+struct ArkodeStepper;  // ode_integrator.cpp
 
 // The problem an OdeIntegrator integrates.
 class OdeProblem {
@@ -89,9 +95,10 @@ class OdeIntegrator {
              bool solver_projection = false);
   bool supports_solver_projection() const { return kind_ == IntegratorKind::kCvodeBdf; }
   // The next step's first right-hand side is at the point where the root functions were last
-  // evaluated, the step's end (tn, yn): true for ARKODE's explicit Runge–Kutta methods (their
-  // first stage), false for CVODE (its corrector starts from the predicted y).
-  bool next_step_starts_at_step_end() const { return !is_cvode(); }
+  // evaluated, the step's end (tn, yn): true for the methods in ARKStep (their first stage),
+  // false for CVODE (its corrector starts from the predicted y) and for dopri5 in ERKStep
+  // (its first stage is the last stage's right-hand side, at the same point, not evaluated).
+  bool next_step_starts_at_step_end() const { return !is_cvode() && kind_ != IntegratorKind::kDopri5; }
   // A root's state and time come from the method's own steps (StepToRoot), not from ARKODE's
   // interpolant: verner65, fehlberg78 (header comment).
   bool steps_to_roots() const { return kind_ == IntegratorKind::kVerner65 || kind_ == IntegratorKind::kFehlberg78; }
@@ -125,6 +132,8 @@ class OdeIntegrator {
   static int ProjCallback(double t, N_Vector y, N_Vector corr, double eps, N_Vector err, void* user);
   bool is_cvode() const { return kind_ == IntegratorKind::kCvodeBdf || kind_ == IntegratorKind::kCvodeAdams; }
   void Check(int flag, const char* call);
+  // Check for a call of the ARKODE stepper in use, named "ARKStep" or "ERKStep" + call.
+  void CheckArk(int flag, const char* call);
   SolverStats CurrentCounters() const;
   double LastStep() const;
   void Free();
@@ -133,6 +142,7 @@ class OdeIntegrator {
   std::string owner_;
   IntegratorKind kind_ = IntegratorKind::kDopri5;
   std::string name_;  // OptionName(kind_)
+  const ArkodeStepper* ark_;  // the ARKODE stepper of the explicit methods (ode_integrator.cpp)
   double step_ = 0.0;  // s, fixed-step methods
   SundialsContext ctx_;
   OdeProblem* problem_ = nullptr;
