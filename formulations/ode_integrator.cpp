@@ -61,22 +61,21 @@ struct ArkodeStepper {
 
 namespace {
 
-const ArkodeStepper kArkStep = {
-    "ARKStep",           ARKStepEvolve,         ARKStepSetStopTime,      ARKStepGetDky,
-    ARKStepReset,        ARKStepSetInitStep,    ARKStepSetFixedStep,     ARKStepSetMaxStep,
-    ARKStepSetMaxNumSteps, ARKStepSStolerances, ARKStepSetInterpolantType, ARKStepSetUserData,
-    ARKStepSetErrHandlerFn, ARKStepRootInit,    ARKStepSetRootDirection, ARKStepSetNoInactiveRootWarn,
-    ARKStepGetRootInfo,  ARKStepGetCurrentStep, ARKStepGetCurrentTime,   ARKStepGetLastStep,
-    ARKStepGetNumSteps,  ARKStepGetNumErrTestFails, ARKStepGetNumGEvals, ARKStepGetEstLocalErrors,
-    ARKStepGetErrWeights, ARKStepGetReturnFlagName, ARKStepFree};
-const ArkodeStepper kErkStep = {
-    "ERKStep",           ERKStepEvolve,         ERKStepSetStopTime,      ERKStepGetDky,
-    ERKStepReset,        ERKStepSetInitStep,    ERKStepSetFixedStep,     ERKStepSetMaxStep,
-    ERKStepSetMaxNumSteps, ERKStepSStolerances, ERKStepSetInterpolantType, ERKStepSetUserData,
-    ERKStepSetErrHandlerFn, ERKStepRootInit,    ERKStepSetRootDirection, ERKStepSetNoInactiveRootWarn,
-    ERKStepGetRootInfo,  ERKStepGetCurrentStep, ERKStepGetCurrentTime,   ERKStepGetLastStep,
-    ERKStepGetNumSteps,  ERKStepGetNumErrTestFails, ERKStepGetNumGEvals, ERKStepGetEstLocalErrors,
-    ERKStepGetErrWeights, ERKStepGetReturnFlagName, ERKStepFree};
+// One table per stepper, the same calls in the same order (the fields of ArkodeStepper).
+#define KNEEDYN_ARKODE_STEPPER(Module)                                                         \
+  ArkodeStepper {                                                                              \
+    #Module, Module##Evolve, Module##SetStopTime, Module##GetDky, Module##Reset,               \
+        Module##SetInitStep, Module##SetFixedStep, Module##SetMaxStep, Module##SetMaxNumSteps, \
+        Module##SStolerances, Module##SetInterpolantType, Module##SetUserData,                 \
+        Module##SetErrHandlerFn, Module##RootInit, Module##SetRootDirection,                   \
+        Module##SetNoInactiveRootWarn, Module##GetRootInfo, Module##GetCurrentStep,            \
+        Module##GetCurrentTime, Module##GetLastStep, Module##GetNumSteps,                      \
+        Module##GetNumErrTestFails, Module##GetNumGEvals, Module##GetEstLocalErrors,           \
+        Module##GetErrWeights, Module##GetReturnFlagName, Module##Free                         \
+  }
+const ArkodeStepper kArkStep = KNEEDYN_ARKODE_STEPPER(ARKStep);
+const ArkodeStepper kErkStep = KNEEDYN_ARKODE_STEPPER(ERKStep);
+#undef KNEEDYN_ARKODE_STEPPER
 
 SolverStats Minus(SolverStats a, const SolverStats& b) {
   a.steps -= b.steps;
