@@ -129,9 +129,10 @@ class EdeFormulation final : public FormulationBase, public OdeProblem {
       return;
     }
     // With ARKStep the next step's first stage asks for this same (t, y): solve for q̈ too, so
-    // that it finds it in the cache (with dopri5 in ERKStep the step's last stage left it there). Not with a patella: its equilibrium solve starts from the
-    // last one's, so a solve's result depends on the calls before it (at the solve's
-    // tolerance), and patella runs keep the order of solves they had.
+    // that it finds it in the cache (with dopri5 in ERKStep the step's last stage left it
+    // there). Not with a patella: its equilibrium solve starts from the last one's, so a
+    // solve's result depends on the calls before it (at the solve's tolerance), and patella
+    // runs keep the order of solves they had.
     SolveAt(t, y, integrator_.next_step_starts_at_step_end() && !model_.patella);
     for (size_t c = 0; c < active_.size(); ++c) normal_[active_[c]] = acc_.normal_force[c];
     // The solve's pose and ligament lengths at q (with CVODE the constrained solve at this

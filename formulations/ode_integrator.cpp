@@ -142,7 +142,7 @@ OdeIntegrator::OdeIntegrator(const OdeOptions& options, std::string owner)
       owner_(std::move(owner)),
       kind_(options.integrator),
       name_(OptionName(kind_)),
-      ark_(kind_ == IntegratorKind::kDopri5 ? &kErkStep : &kArkStep) {
+      ark_(in_erkstep() ? &kErkStep : &kArkStep) {
   if (fixed_step()) step_ = options.control.step > 0.0 ? options.control.step : kDefaultFixedStep;
 }
 
@@ -256,7 +256,7 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
     // 0: CVODE's own estimate.
     Check(CVodeSetInitStep(mem_, previous_step > 0.0 ? 0.25 * previous_step : 0.0), "CVodeSetInitStep");
   } else {
-    const bool erk = ark_ == &kErkStep;
+    const bool erk = in_erkstep();
     mem_ = erk ? ERKStepCreate(&OdeIntegrator::RhsCallback, t0, y_, ctx_)
                : ARKStepCreate(&OdeIntegrator::RhsCallback, nullptr, t0, y_, ctx_);
     if (mem_ == nullptr) Throw<SolverError>("OdeIntegrator::Start", ark_->name, "Create failed");
@@ -356,7 +356,7 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
   *t = t_reached;
   y->resize(n_);
   N_Vector y_out = y_;
-  if (!is_cvode() && !root && ark_ == &kArkStep) {
+  if (!is_cvode() && !root && !in_erkstep()) {
     // ARKODE 6.4 returns the interpolant at a stop time; its own step state there (tcur
     // is snapped onto tstop) is the true discrete solution, also for the shortened step.
     // (ERKStep 6.4 has no GetCurrentState; there the interpolant at the step's end, τ = 0,
@@ -509,7 +509,7 @@ SolverStats OdeIntegrator::CurrentCounters() const {
   } else {
     long nfe = 0, nfi = 0;
     ark_->GetNumSteps(mem_, &v); s.steps = v;
-    if (ark_ == &kErkStep) {
+    if (in_erkstep()) {
       ERKStepGetNumRhsEvals(mem_, &nfe);
     } else {
       ARKStepGetNumRhsEvals(mem_, &nfe, &nfi);
@@ -526,8 +526,9 @@ SolverStats OdeIntegrator::CurrentCounters() const {
 // with the error weights); empty when the solver has none (fixed steps: all zero).
 std::string OdeIntegrator::LargestErrorComponent() const {
   N_Vector e = N_VClone(y_), w = N_VClone(y_);
-  const bool ok = is_cvode() ? CVodeGetEstLocalErrors(mem_, e) == CV_SUCCESS && CVodeGetErrWeights(mem_, w) == CV_SUCCESS
-                             : ark_->GetEstLocalErrors(mem_, e) == ARK_SUCCESS && ark_->GetErrWeights(mem_, w) == ARK_SUCCESS;
+  const bool ok = is_cvode()
+                      ? CVodeGetEstLocalErrors(mem_, e) == CV_SUCCESS && CVodeGetErrWeights(mem_, w) == CV_SUCCESS
+                      : ark_->GetEstLocalErrors(mem_, e) == ARK_SUCCESS && ark_->GetErrWeights(mem_, w) == ARK_SUCCESS;
   std::string out;
   if (ok) {
     const double* ed = N_VGetArrayPointer(e);

@@ -319,7 +319,8 @@ AdvanceResult OdeSensitivity::Advance(double t_out, MechanicalState* state) {
     if (flag < 0) {
       double h = 0.0;
       CVodeGetCurrentStep(cv_.mem, &h);
-      Throw<SolverError>("RunSensitivity", "CVODES ", ReturnFlagText(CVodeGetReturnFlagName, flag), " at t = ", t_reached, " s with step h = ", h, " s",
+      Throw<SolverError>("RunSensitivity", "CVODES ", ReturnFlagText(CVodeGetReturnFlagName, flag), " at t = ", t_reached,
+                         " s with step h = ", h, " s",
                          cv_.failure.empty() ? "" : " (" + cv_.failure + ")", cv_.messages.Take());
     }
     t_ = t_reached;

@@ -56,7 +56,8 @@ VectorXd Initial() {
 }
 
 // Integrates to t_end in one call (stop time t_end); returns y(t_end).
-VectorXd RunTo(OdeIntegrator* integrator, CountingOscillator* problem, double t_end, const std::vector<int>& directions) {
+VectorXd RunTo(OdeIntegrator* integrator, CountingOscillator* problem, double t_end,
+              const std::vector<int>& directions) {
   VectorXd y = Initial();
   double t = 0.0;
   std::vector<int> roots;

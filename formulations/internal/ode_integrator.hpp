@@ -98,7 +98,7 @@ class OdeIntegrator {
   // evaluated, the step's end (tn, yn): true for the methods in ARKStep (their first stage),
   // false for CVODE (its corrector starts from the predicted y) and for dopri5 in ERKStep
   // (its first stage is the last stage's right-hand side, at the same point, not evaluated).
-  bool next_step_starts_at_step_end() const { return !is_cvode() && kind_ != IntegratorKind::kDopri5; }
+  bool next_step_starts_at_step_end() const { return !is_cvode() && !in_erkstep(); }
   // A root's state and time come from the method's own steps (StepToRoot), not from ARKODE's
   // interpolant: verner65, fehlberg78 (header comment).
   bool steps_to_roots() const { return kind_ == IntegratorKind::kVerner65 || kind_ == IntegratorKind::kFehlberg78; }
@@ -131,6 +131,8 @@ class OdeIntegrator {
   static int RootCallback(double t, N_Vector y, double* g, void* user);
   static int ProjCallback(double t, N_Vector y, N_Vector corr, double eps, N_Vector err, void* user);
   bool is_cvode() const { return kind_ == IntegratorKind::kCvodeBdf || kind_ == IntegratorKind::kCvodeAdams; }
+  // dopri5 runs in ERKStep, the other explicit methods in ARKStep (ode_integrator.cpp, ArkodeStepper).
+  bool in_erkstep() const { return kind_ == IntegratorKind::kDopri5; }
   void Check(int flag, const char* call);
   // Check for a call of the ARKODE stepper in use, named "ARKStep" or "ERKStep" + call.
   void CheckArk(int flag, const char* call);
