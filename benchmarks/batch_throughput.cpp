@@ -9,7 +9,7 @@
 //
 // Variants: pulse amplitude and duration on a deterministic 2-D grid-free sequence,
 // A_i = 80 + 40 frac(i φ) N, t0_i = 0.08 + 0.04 frac(i φ²) s (φ golden ratio, i = 0…N−1).
-// Target (benchmarks/README.md, "Performance targets: measured"): 1,000 runs at scd ≥ 6 in ≤
+// Target (benchmarks/README.md, "Performance targets: where they stand"): 1,000 runs at scd ≥ 6 in ≤
 // 1 s on one core. Printed: runs/s of wall and of process CPU time, failed runs, accepted
 // steps, the time to format the results table (std::to_chars), and the scd measured.
 #include <CLI/CLI.hpp>

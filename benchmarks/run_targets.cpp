@@ -1,12 +1,12 @@
-// In-process run targets (benchmarks/README.md, "Performance targets: measured"): the whole
-// RunScene of the chapter scene (consistent initialization, every phase and restart, the
-// output samples; no scene loading, no files), timed by Google Benchmark, at three
+// In-process run targets (benchmarks/README.md, "Performance targets: where they stand"):
+// the whole RunScene of the chapter scene (consistent initialization, every phase and
+// restart, the output samples; no scene loading, no files), timed by Google Benchmark, at three
 // configurations chosen on the quarter-decade rtol grid of the work-precision sweep (atol
 // rtol/100) by one rule: the loosest rtol at which it and the four grid points below it (a
 // decade tighter) all reach the scd. ede's scd is not monotone in rtol: it scatters by
 // ±0.5 with round-off (dopri5: 7.27 at 3.16e-9, 7.67 at 1.78e-9, 8.18 at 1e-9), and the
 // scatter moves with every round-off change of the model, so the settings are re-chosen by
-// the rule after such a change (benchmarks/README.md, "Performance targets: measured").
+// the rule after such a change (benchmarks/performance-log.md, "Performance targets: measured").
 // Scores of the recorded sweep (in process, bench::Evaluate, as this program checks them):
 //   target/dae_scd6   dae, rtol 3.16e-9 (scd 6.23–6.88 down to 3.16e-10 with the structured
 //                     linear solver) — target <= 3 ms;

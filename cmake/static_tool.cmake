@@ -3,7 +3,7 @@
 # LAPACK/BLAS/ATLAS), SUNDIALS and libyaml — instead of the shared objects, so
 # that the dynamic loader maps and relocates 3 objects at start-up (libc, libm, the loader)
 # instead of 31
-# (benchmarks/README.md, "Start-up"). Everything else keeps the shared libraries: the
+# (benchmarks/performance-log.md, "Start-up"). Everything else keeps the shared libraries: the
 # libraries' consumers (the installed CMake package, kneedyn.pc), the tests, the Python
 # module (a shared object, which cannot take these archives) and the Simbody cross-check.
 #

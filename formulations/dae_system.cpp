@@ -148,7 +148,7 @@ bool DaeSystem::Jacobian(double t, double cj, const double* y, const double* yp,
   // the other forms differentiate the contact geometry on the pose as Jets. GGL included:
   // its blocks equal the Jet derivative (tests/dae_system_test.cpp, chapter_chapter_ggl); its
   // max gap at rtol 1e-10 scatters over an order of magnitude between neighbouring
-  // tolerances with either (benchmarks/README.md, "Fourth round").
+  // tolerances with either (benchmarks/performance-log.md, "Fourth round").
   bool all_closed_form_partials = form_ == ContactForm::kChapter;
   for (int c = 0; c < k_; ++c) all_closed_form_partials &= chart_[c] == ContactChart::kRegular;
   PoseTpl<ContactJet> pose;

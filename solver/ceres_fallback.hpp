@@ -4,7 +4,7 @@
 // Why a plugin: libceres brings glog, SuiteSparse, LAPACK/ATLAS, libgfortran, libgomp and
 // libmetis, which the dynamic loader would map and relocate in every process, while a run
 // of the chapter scenes takes the direct Newton path and never calls Ceres
-// (benchmarks/README.md, "Start-up, loading and output"). The plugin is loaded the first
+// (benchmarks/performance-log.md, "Start-up, loading and output"). The plugin is loaded the first
 // time a level falls back.
 #pragma once
 

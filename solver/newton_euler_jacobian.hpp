@@ -1,6 +1,6 @@
 // Exact first derivatives of the Newton–Euler residual (newton_euler.hpp; chapter Eqs.
 // 1.48–1.57) without a Jet over every unknown (the exact DAE Jacobian;
-// benchmarks/README.md, "Performance targets: measured"). The residual splits as
+// benchmarks/performance-log.md, "Performance targets: measured"). The residual splits as
 //
 //   r(t, q, q̇, q̈, c, N) = r_free(t, q, q̇, q̈) − Σ_i N_i G_i(q, c_i)ᵀ
 //   r_free = M ν̇(q, q̇, q̈) + (0, w_T × I w_T) − (F_applied_F(t, q), M_applied_T(t, q))

@@ -6,7 +6,7 @@
 // the same counters (its own, not the previous phase's: steps, residuals, Jacobians, setups,
 // Newton iterations, failures, root evaluations) and the same root located. On y' = −λ∘y
 // (λ = 1, 2, 3 1/s) with two root functions, one crossed in each phase. Does not validate:
-// the knee's phases (bytecmp of whole runs, benchmarks/README.md "Phases re-initialized").
+// the knee's phases (bytecmp of whole runs, benchmarks/performance-log.md "Phases re-initialized").
 #include <gtest/gtest.h>
 
 #include <cmath>

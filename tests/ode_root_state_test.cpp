@@ -12,7 +12,7 @@
 //     solution's, refined on its steps;
 //   - the root time is π/2 to the method's accuracy (independent check, 1e-5 s);
 //   - Evolve and Reset after such a root refuse (the solver is left at a trial step).
-// dopri5 keeps the interpolant's state (measured not to pay; benchmarks/README.md, "Event
+// dopri5 keeps the interpolant's state (measured not to pay; benchmarks/performance-log.md, "Event
 // states of the high-order Runge–Kutta methods"): its root state differs from its steps'.
 #include <gtest/gtest.h>
 

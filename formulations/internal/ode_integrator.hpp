@@ -22,7 +22,7 @@
 // verner65 and fehlberg78: there ARKODE's Hermite interpolant (degree <= 5, its degree-4 and
 // -5 forms built on lower-degree ones) is less accurate than these methods' long steps, so
 // the root's state is one step of the method itself from the step's start, and the root
-// time is refined on such steps (StepToRoot; measured: benchmarks/README.md, "Event states
+// time is refined on such steps (StepToRoot; measured: benchmarks/performance-log.md, "Event states
 // of the high-order Runge–Kutta methods").
 #pragma once
 
