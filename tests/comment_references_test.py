@@ -66,21 +66,30 @@ def self_check():
   return errors
 
 
-def main():
-  parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def root_argument(program, doc):
+  """The --root of a repository scan (default: this checkout), or None after printing why
+  it is not a folder (the caller exits 2)."""
+  parser = argparse.ArgumentParser(description=doc.splitlines()[0])
   parser.add_argument("--root", default=ROOT, help="repository root (default: this checkout)")
-  args = parser.parse_args()
-  if not os.path.isdir(args.root):
-    print(f"comment_references_test: --root = '{args.root}': not a directory", file=sys.stderr)
+  root = parser.parse_args().root
+  if not os.path.isdir(root):
+    print(f"{program}: --root = '{root}': not a directory", file=sys.stderr)
+    return None
+  return root
+
+
+def main():
+  root = root_argument("comment_references_test", __doc__)
+  if root is None:
     return 2
   errors = self_check()
   if errors:
     print("comment_references_test: the patterns are broken:\n  " + "\n  ".join(errors), file=sys.stderr)
     return 1
   hits = []
-  files = scanned_files(args.root)
+  files = scanned_files(root)
   for rel in files:
-    with open(os.path.join(args.root, rel), encoding="utf-8", errors="replace") as f:
+    with open(os.path.join(root, rel), encoding="utf-8", errors="replace") as f:
       for n, line in enumerate(f, 1):
         what = offences(line)
         if what:

@@ -17,13 +17,13 @@ unresolved citation as FILE:LINE: CITATION and a count; exit 0 when every one re
 citations and accept planted good ones against a planted document, so the test cannot
 pass by matching nothing.
 """
-import argparse
 import os
 import re
 import sys
+import tempfile
 
 sys.dont_write_bytecode = True  # keep the source tree clean
-from comment_references_test import ROOT, scanned_files  # noqa: E402
+from comment_references_test import ROOT, root_argument, scanned_files  # noqa: E402
 
 # `FILE.md` (optionally in backquotes), then optionally "," and/or "(", then a quoted name.
 QUOTED = re.compile(r"([\w./-]+\.md)`?,?\s*\(?\s*[\"\u201c]([^\"\u201d]{3,}?)(?:[\"\u201d]|$)")
@@ -106,25 +106,21 @@ def self_check(tmp_root):
 
 
 def main():
-  parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-  parser.add_argument("--root", default=ROOT, help="repository root (default: this checkout)")
-  args = parser.parse_args()
-  if not os.path.isdir(args.root):
-    print(f"doc_citations_test: --root = '{args.root}': not a directory", file=sys.stderr)
+  root = root_argument("doc_citations_test", __doc__)
+  if root is None:
     return 2
-  import tempfile
   with tempfile.TemporaryDirectory() as tmp:
     errors = self_check(tmp)
   if errors:
     print("doc_citations_test: the checks are broken:\n  " + "\n  ".join(errors), file=sys.stderr)
     return 1
   cache, hits, count = {}, [], 0
-  files = scanned_files(args.root)
+  files = scanned_files(root)
   for rel in files:
-    if rel == os.path.relpath(os.path.abspath(__file__), ROOT) and args.root == ROOT:
+    if rel == os.path.join("tests", os.path.basename(__file__)):
       continue  # this checker's own patterns and planted lines
-    with open(os.path.join(args.root, rel), encoding="utf-8", errors="replace") as f:
-      found, cited = scan(f.read().split("\n"), rel, args.root, cache)
+    with open(os.path.join(root, rel), encoding="utf-8", errors="replace") as f:
+      found, cited = scan(f.read().split("\n"), rel, root, cache)
     hits += found
     count += cited
   for h in sorted(set(hits)):
