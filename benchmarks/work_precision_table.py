@@ -4,6 +4,7 @@
 
     build/benchmarks/work_precision --rtol-min 1e-13 --json wp.json
     /usr/bin/python3 benchmarks/work_precision_table.py wp.json [MORE.json ...] [--efficiency EFF.json]
+    /usr/bin/python3 benchmarks/work_precision_table.py ISWEEP.json --cost instructions
 
 Reads the full sweep (benchmarks/recorded/), the short one (`work_precision --short`) and
 a short one with Simbody's methods merged in (`simbody_work_precision --merge`). A method is
@@ -13,7 +14,9 @@ within 1 ms); the others are counted in the column "failed / wrong event". Print
 markdown table per file: median CPU time (s) and the setting of the cheapest counted run
 reaching each threshold, '—' if none. --efficiency EFF.json (benchmarks/efficiency.py
 --json) adds the column "efficiency": the share of the instructions of the scd ≥ 6 run spent
-in the model's residual / right-hand side, and in all model callbacks.
+in the model's residual / right-hand side, and in all model callbacks. --cost instructions
+(files of benchmarks/instruction_sweep.py) picks and prints each cell by the instructions of
+RunScene instead of CPU time: a cost that does not drift between recordings.
 """
 import math
 import os
@@ -34,7 +37,17 @@ def setting_of(r):
   return "?"
 
 
-def rows(runs):
+def cost_of(r, cost):
+  """The run's cost by `cost` ("cpu": median CPU s; "instructions": of RunScene), None if absent."""
+  v = r.get("cpu_s") if cost == "cpu" else r.get("instructions")
+  return v if isinstance(v, (int, float)) else None
+
+
+def cell(r, cost):
+  return (f"{r['cpu_s']:.3f}" if cost == "cpu" else f"{r['instructions'] / 1e6:.1f} M") + f" ({setting_of(r)})"
+
+
+def rows(runs, cost="cpu"):
   """[method, runs, failed / wrong event, best scd, cell per threshold] in order of appearance."""
   ok, failed = split_runs(runs)
   methods = list(dict.fromkeys(method_of(r) for r in runs))
@@ -48,12 +61,11 @@ def rows(runs):
     best_flag = "*" if any(r.get("above_ceiling") and r["scd"] == best for r in mine) else ""
     cells = []
     for t in THRESHOLDS:
-      reach = [r for r in mine if r["scd"] >= t and isinstance(r.get("cpu_s"), (int, float))]
+      reach = [r for r in mine if r["scd"] >= t and cost_of(r, cost) is not None]
       if not reach:
         cells.append("—")
         continue
-      f = min(reach, key=lambda r: r["cpu_s"])
-      cells.append(f"{f['cpu_s']:.3f} ({setting_of(f)})")
+      cells.append(cell(min(reach, key=lambda r: cost_of(r, cost)), cost))
     out.append([m, str(len(mine) + n_failed), str(n_failed), "—" if math.isnan(best) else f"{best:.2f}{best_flag}"]
                + cells)
   return out
@@ -66,17 +78,22 @@ def efficiency_cell(eff, method):
   return f"{100 * e['residual_share']:.0f} % ({100 * e['callback_share']:.0f} %)"
 
 
-def table(path, eff=None):
+def table(path, eff=None, cost="cpu"):
   try:
     header, runs = load_bench(path)
   except (ValueError, UnicodeDecodeError) as e:  # json.JSONDecodeError is a ValueError
     print(f"work_precision_table: '{path}': not a JSON file ({e})", file=sys.stderr)
     sys.exit(2)
+  if cost == "instructions" and not any(isinstance(r.get("instructions"), int) for r in runs):
+    print(f"work_precision_table: --cost instructions: '{path}' has no instruction counts "
+          "(benchmarks/instruction_sweep.py writes them)", file=sys.stderr)
+    sys.exit(2)
+  unit = "CPU s" if cost == "cpu" else "instructions of RunScene"
   extra = " efficiency at scd ≥ 6: residual / rhs (all model callbacks) |" if eff else ""
   lines = ["| method | runs | failed / wrong event | best scd | "
-           + " | ".join(f"scd ≥ {t}: CPU s (setting)" for t in THRESHOLDS) + " |" + extra,
+           + " | ".join(f"scd ≥ {t}: {unit} (setting)" for t in THRESHOLDS) + " |" + extra,
            "|---|---|---|---|" + "---|" * len(THRESHOLDS) + ("---|" if eff else "")]
-  body = rows(runs)
+  body = rows(runs, cost)
   lines += ["| " + " | ".join(r + ([efficiency_cell(eff, r[0])] if eff else [])) + " |" for r in body]
   ceiling = scd_ceiling(header)
   if ceiling is not None:
@@ -87,24 +104,38 @@ def table(path, eff=None):
   return lines
 
 
-def main(paths, eff=None):
+def main(paths, eff=None, cost="cpu"):
   for i, path in enumerate(paths):
     if len(paths) > 1:
       print(("\n" if i else "") + f"{path}:\n")
-    print("\n".join(table(path, eff)))
+    print("\n".join(table(path, eff, cost)))
+
+
+USAGE = ("usage: work_precision_table.py WORK_PRECISION.json [MORE.json ...] [--efficiency EFF.json] "
+         "[--cost cpu|instructions]")
+
+
+def option(args, name):
+  """Removes `name VALUE` from args and returns VALUE (None when absent)."""
+  if name not in args:
+    return None
+  k = args.index(name)
+  if k + 1 >= len(args):
+    sys.exit(USAGE)
+  value = args[k + 1]
+  del args[k:k + 2]
+  return value
 
 
 if __name__ == "__main__":
   args = sys.argv[1:]
-  eff_path = None
-  if "--efficiency" in args:
-    k = args.index("--efficiency")
-    if k + 1 >= len(args):
-      sys.exit("usage: work_precision_table.py WORK_PRECISION.json [MORE.json ...] [--efficiency EFF.json]")
-    eff_path = args[k + 1]
-    del args[k:k + 2]
+  eff_path = option(args, "--efficiency")
+  cost = option(args, "--cost") or "cpu"
+  if cost not in ("cpu", "instructions"):
+    print(f"work_precision_table: --cost = '{cost}': expected cpu or instructions", file=sys.stderr)
+    sys.exit(2)
   if not args:
-    sys.exit("usage: work_precision_table.py WORK_PRECISION.json [MORE.json ...] [--efficiency EFF.json]")
+    sys.exit(USAGE)
   missing = [p for p in args + ([eff_path] if eff_path else []) if not os.path.exists(p)]
   if missing:
     print(f"work_precision_table: '{missing[0]}': file not found", file=sys.stderr)
@@ -114,4 +145,4 @@ if __name__ == "__main__":
     import json
     with open(eff_path, encoding="utf-8") as f:
       eff = json.load(f)
-  main(args, eff)
+  main(args, eff, cost)

@@ -102,7 +102,9 @@ def normalize_result(r):
           "event_time_error_s": m.get("event_time_error_s") or {},
           "cpu_s": cpu, "residual_evaluations": (r.get("counters") or {}).get("residual_evaluations"),
           "events": r.get("events"), "origin": r.get("origin") or "kneedyn", "source": r.get("source"),
-          "above_ceiling": bool(m.get("scd_above_ceiling"))}
+          "above_ceiling": bool(m.get("scd_above_ceiling")),
+          # benchmarks/instruction_sweep.py's cost: instructions of RunScene (None elsewhere).
+          "instructions": (r.get("instructions") or {}).get("run_scene")}
 
 
 def is_score_file(name):
