@@ -56,6 +56,10 @@ def command_of(run, kneedyn, scene, out):
   for key in ("rtol", "atol", "step"):
     if key in s:
       cmd += ["--" + key, repr(float(s[key]))]
+  # The fixed-step formulations' Newton tolerances, recorded apart from the step (bench_run.cpp).
+  for key, flag in (("newton_rtol", "--rtol"), ("newton_atol", "--atol")):
+    if key in s and flag.lstrip("-") not in s:
+      cmd += [flag, repr(float(s[key]))]
   if s.get("stabilization"):
     cmd += ["--stabilization", s["stabilization"]]
   return cmd + ["--quiet", "--out", out]

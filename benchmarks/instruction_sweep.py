@@ -113,7 +113,8 @@ def main():
     return 2
   name = os.path.splitext(os.path.basename(str(header.get("scene") or "chapter_impact")))[0]
   scene = os.path.abspath(a.scene or os.path.join(ROOT, "reference-data/scenes", name + ".yaml"))
-  todo = [r for r in runs if a.only in method_of(r)]
+  # Outside solvers' results (`work_precision --include`) are not kneedyn's to run.
+  todo = [r for r in runs if r.get("origin", "kneedyn") == "kneedyn" and a.only in method_of(r)]
   if not todo:
     print(f"instruction_sweep.py: --only = '{a.only}': no configuration of '{a.sweep}' matches", file=sys.stderr)
     return 2
@@ -133,6 +134,11 @@ def main():
             f"{'?' if n is None else f'{n / 1e6:.2f} M'}, {e['status']}"
             + (f", scd {scd:.2f}" if isinstance(scd, (int, float)) else "")
             + f" ({elapsed:.0f} s, about {elapsed / done * (len(todo) - done):.0f} s left)", file=sys.stderr)
+  # How many CLI runs took the very steps of the sweep's in-process run of the same setting
+  # (those that stop at output times may not: see the module's docstring).
+  same = sum(1 for e, r in zip(results, todo)
+             if (e.get("counters") or {}).get("steps") is not None
+             and (e.get("counters") or {}).get("steps") == r.get("steps"))
   score_header = next((e["_score_header"] for e in results if "_score_header" in e), {})
   for e in results:
     e.pop("_score_header", None)
@@ -142,13 +148,14 @@ def main():
                     "reference": score_header.get("reference_primary"),
                     "reference_accuracy_scd": score_header.get("reference_accuracy_scd"),
                     "sweep": os.path.relpath(os.path.abspath(a.sweep), ROOT), "kneedyn": commit,
+                    "same_steps_as_sweep": same,
                     "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                     "command": "benchmarks/instruction_sweep.py " + " ".join(sys.argv[1:])},
          "results": results}
   with open(a.json, "w", encoding="utf-8") as f:
     json.dump(out, f, indent=1)
-  print(f"instruction_sweep.py: {len(results)} configurations, {sum(e['status'] == 'ok' for e in results)} completed "
-        f"-> {a.json}", file=sys.stderr)
+  print(f"instruction_sweep.py: {len(results)} configurations, {sum(e['status'] == 'ok' for e in results)} completed, "
+        f"{same} with the steps of the sweep's in-process run -> {a.json}", file=sys.stderr)
   return 0
 
 

@@ -101,6 +101,7 @@ def normalize_result(r):
           "reason": r.get("reason") or "", "scd": m.get("scd"),
           "event_time_error_s": m.get("event_time_error_s") or {},
           "cpu_s": cpu, "residual_evaluations": (r.get("counters") or {}).get("residual_evaluations"),
+          "steps": (r.get("counters") or {}).get("steps"),
           "events": r.get("events"), "origin": r.get("origin") or "kneedyn", "source": r.get("source"),
           "above_ceiling": bool(m.get("scd_above_ceiling")),
           # benchmarks/instruction_sweep.py's cost: instructions of RunScene (None elsewhere).

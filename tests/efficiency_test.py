@@ -69,6 +69,12 @@ def main():
                 "--atol", "1e-09", "--stabilization", "projection", "--quiet", "--out", "OUT"], f"command {cmd}")
   cmd = efficiency.command_of({"formulation": "newmark", "integrator": "", "setting": {"step": 0.001}}, "K", "S", "O")
   check(cmd == ["K", "run", "S", "--formulation", "newmark", "--step", "0.001", "--quiet", "--out", "O"], f"command {cmd}")
+  # The sweep records a fixed-step formulation's Newton tolerances as newton_rtol / newton_atol
+  # (benchmarks/bench_run.cpp): the command must pass them, or the CLI runs its defaults.
+  cmd = efficiency.command_of({"formulation": "generalized-alpha", "integrator": "",
+                               "setting": {"step": 1e-4, "newton_rtol": 1e-9, "newton_atol": 1e-11}}, "K", "S", "O")
+  check(cmd == ["K", "run", "S", "--formulation", "generalized-alpha", "--step", "0.0001", "--rtol", "1e-09",
+                "--atol", "1e-11", "--quiet", "--out", "O"], f"command {cmd}")
 
   events = {"liftoff_lateral": 1e-7, "flexion_90": 1e-7}
   ref = [{"name": "liftoff_lateral", "time_s": 0.2163}, {"name": "flexion_90", "time_s": 0.2996}]
