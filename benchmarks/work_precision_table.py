@@ -98,7 +98,8 @@ def table(path, eff=None, cost="cpu"):
   ceiling = scd_ceiling(header)
   if ceiling is not None:
     lines.append("")
-    lines.append(f"Reference ceiling: scd {ceiling:.1f} (the reference's stated accuracy minus one digit); "
+    lines.append(f"Reference ceiling: scd {ceiling:.1f} (the highest scd the file's scores can measure: the "
+                 "reference's accuracy minus one digit); "
                  + ("* above it: the reference's error, not the method's."
                     if any(r[3].endswith("*") for r in body) else "no best scd above it."))
   return lines
