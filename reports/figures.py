@@ -247,23 +247,33 @@ def _save(fig, path, title, panel_titles, **savefig_args):
   plt.close(fig)
 
 
-def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark, outside):
+CPU_LABEL = "CPU time per run (median) [s]"
+INSTRUCTIONS_LABEL = "instructions of RunScene per run (callgrind)"
+INSTRUCTIONS_PARETO = ("work_precision_pareto_instructions.png",
+                       "The same Pareto fronts on instruction counts (benchmarks/instruction_sweep.py: each configuration "
+                       "run once under callgrind, RunScene's instructions, scored by kneedyn score): a cost that does not "
+                       "drift between recordings as CPU time does")
+
+
+def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark, outside, cost="cpu_s",
+                   ylabel=CPU_LABEL):
   """One axis, every formulation's front (SciMLBenchmarks' layout: error against time, both
   logarithmic; here the error falls to the right, as scd grows in the panels): the cheapest
   run reaching each accuracy, as a staircase (the minimal cost among runs reaching at least
-  that scd is constant between front points)."""
+  that scd is constant between front points). `cost`: the run's key drawn ("cpu_s",
+  "instructions"), labelled `ylabel`."""
   fig, ax = plt.subplots(figsize=(10.5, 6.2))
   titles = []
   nfail = failure_counts(runs)
   for f in forms:
-    front = pareto_front([r for r in ok_runs if r["formulation"] == f])
+    front = pareto_front([r for r in ok_runs if r["formulation"] == f], cost)
     titles.append(failure_title(f, nfail.get(f, 0), outside=f in outside))
     name = f + (OUTSIDE_MARK if f in outside else "")
     if not front:  # still in the legend, with its failures
       ax.plot([], [], color=fcol[f], lw=1.6, ls=":", label=f"{name} (none on a front, {nfail.get(f, 0)} failed / wrong event)")
       continue
     err = [10.0 ** -r["scd"] for r in front]
-    cpu = [r["cpu_s"] for r in front]
+    cpu = [r[cost] for r in front]
     # Staircase in order of growing error: between front points i and i+1 the cheapest run
     # reaching the accuracy is point i.
     ax.plot(err[::-1], cpu[::-1], drawstyle="steps-post", color=fcol[f], lw=1.6,
@@ -273,12 +283,12 @@ def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark, outs
   ceiling = scd_ceiling(header)
   if ceiling is not None:  # the reference cannot measure errors below this one
     ax.axvline(10.0 ** -ceiling, color="0.4", lw=1.2, ls="-.",
-               label=f"reference ceiling: scd {ceiling:.1f} (stated accuracy − 1 digit)")
+               label=f"reference ceiling: scd {ceiling:.1f} (the highest the scores can measure)")
   ax.set_xscale("log")
   ax.set_yscale("log")
   ax.invert_xaxis()
   ax.set_xlabel("max relative position error 10^(−scd)  (accuracy grows to the right)")
-  ax.set_ylabel("CPU time per run (median) [s]")
+  ax.set_ylabel(ylabel)
   ax.grid(alpha=0.3, which="both")
   legends = []
   if ax.get_legend_handles_labels()[0]:
@@ -291,12 +301,41 @@ def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark, outs
                        title="integrator (marker)", fontsize=7, title_fontsize=8, loc="lower left",
                        bbox_to_anchor=(1.01, 0.0))
     legends = [first, second]
-  title = (f"Pareto fronts, scene {header.get('scene', '?')}, {header.get('mode', '?')} sweep: "
+  title = (f"Pareto fronts{' on instructions' if cost == 'instructions' else ''}, scene "
+           f"{header.get('scene', '?')}, {header.get('mode', 'instruction' if cost == 'instructions' else '?')} sweep: "
            f"{len(ok_runs)} runs are results; {len(failed)} failed or wrong event (on no front)")
   ax.set_title(title, fontsize=10)
   fig.tight_layout()
   # The legends sit right of the axis; a tight box counts an add_artist legend only if named.
   _save(fig, path, title, titles, bbox_inches="tight", bbox_extra_artists=legends)
+
+
+def _styles(runs):
+  """(formulations, colour by formulation, marker by integrator) of the work-precision figures."""
+  forms = sorted({r["formulation"] for r in runs})
+  integs = sorted({r["integrator"] or "-" for r in runs})
+  # Ten formulations and Simbody's methods: eleven colours on the Pareto axis.
+  palette = plt.get_cmap("tab10").colors + ("k",) + plt.get_cmap("Dark2").colors
+  markers = "osD^v<>pP*Xh"
+  return (forms, {f: palette[i % len(palette)] for i, f in enumerate(forms)},
+          {g: markers[i % len(markers)] for i, g in enumerate(integs)})
+
+
+def make_instruction_pareto(outdir, path, prefix=""):
+  """The Pareto overlay of an instruction sweep file (benchmarks/instruction_sweep.py) as
+  figures/<prefix>work_precision_pareto_instructions.png; returns its file name, or None when
+  the file holds no instruction counts."""
+  header, runs = load_bench(path)
+  if not any(isinstance(r.get("instructions"), int) for r in runs):
+    return None
+  ok_runs, failed = split_runs(runs)
+  forms, fcol, imark = _styles(runs)
+  figdir = os.path.join(outdir, "figures")
+  os.makedirs(figdir, exist_ok=True)
+  name = prefix + INSTRUCTIONS_PARETO[0]
+  _pareto_figure(os.path.join(figdir, name), header, runs, ok_runs, failed, forms, fcol, imark, set(),
+                 cost="instructions", ylabel=INSTRUCTIONS_LABEL)
+  return name
 
 
 def make_work_precision(outdir, bench_path, prefix="", include=()):
@@ -314,13 +353,7 @@ def make_work_precision(outdir, bench_path, prefix="", include=()):
   outside = {r["formulation"] for r in runs if r.get("origin") == "outside"}
   header["included_runs"] = [r for r in runs if r.get("origin") == "outside"]
   ok_runs, failed = split_runs(runs)
-  forms = sorted({r["formulation"] for r in runs})
-  integs = sorted({r["integrator"] or "-" for r in runs})
-  # Ten formulations and Simbody's methods: eleven colours on the Pareto axis.
-  palette = plt.get_cmap("tab10").colors + ("k",) + plt.get_cmap("Dark2").colors
-  fcol = {f: palette[i % len(palette)] for i, f in enumerate(forms)}
-  markers = "osD^v<>pP*Xh"
-  imark = {g: markers[i % len(markers)] for i, g in enumerate(integs)}
+  forms, fcol, imark = _styles(runs)
   figdir = os.path.join(outdir, "figures")
   os.makedirs(figdir, exist_ok=True)
   files = [prefix + "work_precision_pareto.png"]

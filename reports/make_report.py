@@ -534,6 +534,19 @@ def bench_section(outdir, bench, prefix="", title="Work-precision", anchor="work
     if prefix + fname in files:
       parts.append(f"<figure><img src='figures/{esc(prefix + fname)}' alt='{esc(caption)}'>"
                    f"<figcaption>{esc(caption)}</figcaption></figure>")
+  # The same sweep on instruction counts, when one was recorded beside it
+  # (benchmarks/recorded/instructions_<scene>.json, benchmarks/instruction_sweep.py).
+  ipath = os.path.join(os.path.dirname(os.path.abspath(bench)), f"instructions_{header.get('scene', '?')}.json")
+  iname = figures.make_instruction_pareto(outdir, ipath, prefix) if os.path.exists(ipath) else None
+  if iname:
+    ihead = bench_data.load_bench(ipath)[0]
+    ceiling = ihead.get("scd_ceiling")
+    ceiling = f"{ceiling:.3g}" if isinstance(ceiling, (int, float)) else "not recorded"
+    parts.append(f"<figure><img src='figures/{esc(iname)}' alt='{esc(figures.INSTRUCTIONS_PARETO[1])}'>"
+                 f"<figcaption>{esc(figures.INSTRUCTIONS_PARETO[1])}. Source: {esc(os.path.basename(ipath))}, "
+                 f"{esc(ihead.get('kneedyn', '?'))}, {esc(ihead.get('date', '?'))}; the scd of each run is kneedyn "
+                 f"score's on its 12-digit CSV (ceiling {ceiling}). Command: "
+                 f"<code>{esc(ihead.get('command', '?'))}</code>.</figcaption></figure>")
   if header.get("included_runs"):
     parts.append(included_table(header["included_runs"]))
   if failed:

@@ -11,6 +11,9 @@ Validates:
     below the whole process's count of the same command under callgrind without the toggle;
   - a failing configuration (dae, rtol 1e-13: IDA_CONV_FAIL at t ≈ 0.023 s) is recorded as
     failed with the solver's reason, not scored;
+  - the report's Pareto overlay on instructions (reports/figures.py) takes the
+    instruction-cheapest runs as the front and counts a wrong-event run as a failure, and
+    draws nothing for a file without counts;
   - the table picks each cell by the cost asked for: planted runs whose CPU times and
     instruction counts order the other way round give the CPU-cheapest run under --cost cpu
     and the instruction-cheapest under --cost instructions (expected cells typed in from the
@@ -66,6 +69,42 @@ def check_table(tmp, errors):
     errors.append(f"a file without counts: exit {refused.returncode}, stderr {refused.stderr!r} (expected 2)")
 
 
+def check_figure(tmp, errors):
+  """The report's instruction Pareto overlay on planted runs: ede's front is the two
+  instruction-cheapest runs (CPU times order them the other way); a wrong-event run is
+  on no front and counted in the title."""
+  sys.path.insert(0, os.path.join(ROOT, "reports"))
+  import bench_data  # noqa: E402
+  import figures  # noqa: E402
+  from PIL import Image
+  late = planted_run("ede", "rk4", 1e-5, 0.0005, 5_000_000, scd=3.0)
+  late["metrics"]["event_time_error_s"] = {"liftoff_lateral": 0.01}  # 10 ms late: a wrong event
+  runs = [planted_run("ede", "dopri5", 1e-6, 0.002, 30_000_000, scd=6.5),
+          planted_run("ede", "dopri5", 1e-7, 0.003, 20_000_000, scd=6.8),
+          planted_run("ede", "dopri5", 1e-5, 0.001, 10_000_000, scd=4.0), late]
+  path = os.path.join(tmp, "planted_instructions.json")
+  with open(path, "w") as f:
+    json.dump({"header": {"scene": "chapter_impact", "scd_ceiling": 11.2}, "results": runs}, f)
+  _, loaded = bench_data.load_bench(path)
+  front = [(r["scd"], r["instructions"]) for r in bench_data.pareto_front(loaded, cost="instructions")]
+  if front != [(4.0, 10_000_000), (6.8, 20_000_000)]:
+    errors.append(f"Pareto front by instructions: {front} (expected scd 4.0 at 10 M, 6.8 at 20 M)")
+  name = figures.make_instruction_pareto(os.path.join(tmp, "report"), path)
+  if name != "work_precision_pareto_instructions.png":
+    errors.append(f"make_instruction_pareto wrote {name}")
+    return
+  with Image.open(os.path.join(tmp, "report", "figures", name)) as im:
+    title, panels = im.text.get("Title", ""), im.text.get("Description", "").splitlines()
+  if "on instructions" not in title or "3 runs are results; 1 failed or wrong event" not in title:
+    errors.append(f"instruction Pareto title: {title!r}")
+  if panels != ["ede  (1 failed / wrong event)"]:
+    errors.append(f"instruction Pareto legend titles: {panels}")
+  with open(path, "w") as f:
+    json.dump({"header": {}, "results": [planted_run("ede", "dopri5", 1e-6, 0.002)]}, f)
+  if figures.make_instruction_pareto(os.path.join(tmp, "report2"), path) is not None:
+    errors.append("make_instruction_pareto drew a file without instruction counts")
+
+
 def main():
   if len(sys.argv) != 2:
     print("usage: instruction_sweep_test.py KNEEDYN", file=sys.stderr)
@@ -74,6 +113,7 @@ def main():
   errors = []
   with tempfile.TemporaryDirectory() as tmp:
     check_table(tmp, errors)
+    check_figure(tmp, errors)
     if shutil.which("valgrind") is None:
       print("instruction_sweep_test: valgrind not found: the sweep part skipped")
       return 77
