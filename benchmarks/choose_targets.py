@@ -23,8 +23,8 @@ from one evening to the next.
 Prints each target's choice. --check reads kTargets of run_targets.cpp and exits 1, naming
 each target whose formulation, integrator or rtol differs from the choice (re-choose after
 every re-recording of the sweep: tests/run_targets_choice_test.py fails until then). Bad
-input (a missing file, a table it cannot read, a chosen run the instruction sweep lacks)
-exits 2.
+input (a missing file, a table it cannot read, a chosen run the instruction sweep lacks or
+ran with other steps than the sweep: an instruction sweep of another recording) exits 2.
 """
 import argparse
 import math
@@ -96,7 +96,7 @@ def choose(sweep_runs, instruction_runs, among, min_scd):
     if among not in series:
       raise InputError(f"choose: method {among!r} has no variable-step run in the sweep")
     series = {among: series[among]}
-  costs = {instruction_key(r): r.get("instructions") for r in instruction_runs}
+  counted = {instruction_key(r): r for r in instruction_runs}
   picks = []
   for m, runs in series.items():
     r = loosest_robust_run(runs, min_scd)
@@ -104,7 +104,14 @@ def choose(sweep_runs, instruction_runs, among, min_scd):
       continue
     i = runs.index(r)
     window = [x["scd"] for x in runs[i:i + WINDOW]]
-    picks.append((r, costs.get(instruction_key(r)), (min(window), max(window))))
+    twin = counted.get(instruction_key(r))
+    # The instruction sweep replays the sweep's configurations; a run that took other steps
+    # was recorded from another sweep or another binary, and its count says nothing here.
+    if twin is not None and twin.get("steps") != r.get("steps"):
+      raise InputError(f"choose: {m} rtol {r['setting']['rtol']:.3g} took {r.get('steps')} steps in the sweep and "
+                       f"{twin.get('steps')} in the instruction sweep: re-record the instruction sweep "
+                       f"(cmake --build build --target bench_record_instructions)")
+    picks.append((r, twin.get("instructions") if twin else None, (min(window), max(window))))
   if not picks:
     return None
   if len(picks) > 1:

@@ -1,14 +1,17 @@
 #!/usr/bin/python3
 """Efficiency: the share of a run's instructions spent in the model's own evaluations
-(benchmarks/README.md, "Work-precision sweep", column "efficiency").
+(benchmarks/README.md, "The same sweep on instruction counts", column "efficiency").
 
     /usr/bin/python3 benchmarks/efficiency.py --kneedyn build/formulations/kneedyn \
-        [--sweep benchmarks/recorded/work_precision_chapter_impact.json] [--scd 6] \
-        [--only SUBSTR] [--json OUT.json]
+        [--sweep benchmarks/recorded/instructions_chapter_impact.json] [--cost instructions|cpu] \
+        [--scd 6] [--only SUBSTR] [--json OUT.json]
 
 For each method of the sweep (formulation[:integrator][/stabilization]) it takes the
-cheapest counted run reaching scd >= --scd (the cell of work_precision_table.py's column
-"scd >= 6"), runs that configuration once under `valgrind --tool=callgrind` (whole process:
+cheapest counted run reaching scd >= --scd (the cell of `work_precision_table.py SWEEP --cost
+COST`'s column "scd >= 6"): by default the cheapest by RunScene's instructions in the
+instruction sweep (benchmarks/instruction_sweep.py), so that which run is measured does not
+depend on the evening's CPU times; `--cost cpu` takes the cheapest by CPU time of a sweep
+file. It runs that configuration once under `valgrind --tool=callgrind` (whole process:
 `kneedyn run <scene> ... --quiet --out TMP`) and reads the inclusive instruction counts of
 the callbacks the integrator calls (`callgrind_annotate --inclusive=yes`):
 
@@ -22,8 +25,9 @@ the callbacks the integrator calls (`callgrind_annotate --inclusive=yes`):
 Shares are of the whole process (start-up, loading and output included), so the column is
 what a user's run spends on the model. These callbacks do not call one another, so their
 inclusive counts add without overlap. Instruction counts are deterministic, unlike CPU time
-on a shared machine. Prints a markdown table; --json writes {method: {...}} for
-work_precision_table.py --efficiency.
+on a shared machine. Prints a markdown table; --json writes {scd, cost, sweep, methods:
+{method: {...}}} for `work_precision_table.py --efficiency`, which shows the column only in
+a table of the same cost (its cells are then the runs measured here).
 """
 import argparse
 import json
@@ -113,33 +117,53 @@ def measure(run, kneedyn, scene, tmp):
           "command": " ".join(command_of(run, "kneedyn", os.path.relpath(scene, ROOT), "TMP"))}
 
 
-def main():
+def pick_runs(runs, scd, cost, only=""):
+  """{method: its cheapest result with scd >= `scd`} by `cost` ("instructions": RunScene's
+  count of the instruction sweep; "cpu": the median CPU time), for the methods whose name
+  contains `only`; methods without such a run are left out."""
+  key = "instructions" if cost == "instructions" else "cpu_s"
+  ok, _ = split_runs(runs)
+  picks = {}
+  for m in dict.fromkeys(method_of(r) for r in runs):
+    if only not in m:
+      continue
+    reach = [r for r in ok if method_of(r) == m and r["scd"] >= scd and isinstance(r.get(key), (int, float))]
+    if reach:
+      picks[m] = min(reach, key=lambda r: r[key])
+  return picks
+
+
+def main(argv=None):
   ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
   ap.add_argument("--kneedyn", required=True)
-  ap.add_argument("--sweep", default=os.path.join(ROOT, "benchmarks/recorded/work_precision_chapter_impact.json"))
+  ap.add_argument("--sweep", default=os.path.join(ROOT, "benchmarks/recorded/instructions_chapter_impact.json"))
+  ap.add_argument("--cost", choices=("instructions", "cpu"), default="instructions",
+                  help="which cost picks each method's cheapest run (default: instructions)")
   ap.add_argument("--scene", default=None, help="default: the sweep header's scene")
   ap.add_argument("--scd", type=float, default=6.0)
   ap.add_argument("--only", default="")
   ap.add_argument("--json", default=None)
-  a = ap.parse_args()
-  header, runs = load_bench(a.sweep)
+  a = ap.parse_args(argv)
+  try:
+    header, runs = load_bench(a.sweep)
+  except (OSError, ValueError) as e:  # json.JSONDecodeError is a ValueError
+    print(f"efficiency.py: --sweep {a.sweep}: cannot read it ({e})", file=sys.stderr)
+    return 2
+  if a.cost == "instructions" and not any(isinstance(r.get("instructions"), int) for r in runs):
+    print(f"efficiency.py: --cost instructions: {a.sweep} has no instruction counts (benchmarks/instruction_sweep.py "
+          "writes them; --cost cpu picks by CPU time)", file=sys.stderr)
+    return 2
   name = os.path.splitext(os.path.basename(str(header.get("scene") or "chapter_impact")))[0]
   scene = a.scene or os.path.join(ROOT, "reference-data/scenes", name + ".yaml")
-  ok, _ = split_runs(runs)
   result = {}
-  for m in dict.fromkeys(method_of(r) for r in runs):
-    if a.only not in m:
-      continue
-    reach = [r for r in ok if method_of(r) == m and r["scd"] >= a.scd and isinstance(r.get("cpu_s"), (int, float))]
-    if not reach:
-      continue
-    best = min(reach, key=lambda r: r["cpu_s"])
+  for m, best in pick_runs(runs, a.scd, a.cost, a.only).items():
     with tempfile.TemporaryDirectory() as tmp:
       result[m] = measure(best, os.path.abspath(a.kneedyn), scene, tmp)
     e = result[m]
     print(f"{m}: {e['instructions'] / 1e6:.2f} M, residual/rhs {100 * e['residual_share']:.1f} %, "
           f"all callbacks {100 * e['callback_share']:.1f} %", file=sys.stderr)
-  print(f"| method | configuration (cheapest at scd ≥ {a.scd:g}) | instructions | residual / rhs | all model callbacks |")
+  print(f"| method | configuration (cheapest by {a.cost} at scd ≥ {a.scd:g}) | instructions | residual / rhs | "
+        "all model callbacks |")
   print("|---|---|---|---|---|")
   for m, e in result.items():
     setting = ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in (e["setting"] or {}).items())
@@ -147,8 +171,9 @@ def main():
           f"{100 * e['callback_share']:.1f} % |")
   if a.json:
     with open(a.json, "w") as f:
-      json.dump({"scd": a.scd, "sweep": os.path.relpath(a.sweep, ROOT), "methods": result}, f, indent=1)
+      json.dump({"scd": a.scd, "cost": a.cost, "sweep": os.path.relpath(a.sweep, ROOT), "methods": result}, f, indent=1)
+  return 0
 
 
 if __name__ == "__main__":
-  main()
+  sys.exit(main())

@@ -3,8 +3,8 @@
 (benchmarks/README.md, "Work-precision sweep").
 
     build/benchmarks/work_precision --rtol-min 1e-13 --json wp.json
-    /usr/bin/python3 benchmarks/work_precision_table.py wp.json [MORE.json ...] [--efficiency EFF.json]
-    /usr/bin/python3 benchmarks/work_precision_table.py ISWEEP.json --cost instructions
+    /usr/bin/python3 benchmarks/work_precision_table.py wp.json [MORE.json ...]
+    /usr/bin/python3 benchmarks/work_precision_table.py ISWEEP.json --cost instructions [--efficiency EFF.json]
 
 Reads the full sweep (benchmarks/recorded/), the short one (`work_precision --short`) and
 a short one with Simbody's methods merged in (`simbody_work_precision --merge`). A method is
@@ -14,7 +14,8 @@ within 1 ms); the others are counted in the column "failed / wrong event". Print
 markdown table per file: median CPU time (s) and the setting of the cheapest counted run
 reaching each threshold, '—' if none. --efficiency EFF.json (benchmarks/efficiency.py
 --json) adds the column "efficiency": the share of the instructions of the scd ≥ 6 run spent
-in the model's residual / right-hand side, and in all model callbacks. --cost instructions
+in the model's residual / right-hand side, and in all model callbacks; the file must have
+chosen its runs by the table's cost (its "cost"; exit 2 otherwise). --cost instructions
 (files of benchmarks/instruction_sweep.py) picks and prints each cell by the instructions of
 RunScene instead of CPU time: a cost that does not drift between recordings.
 """
@@ -146,4 +147,11 @@ if __name__ == "__main__":
     import json
     with open(eff_path, encoding="utf-8") as f:
       eff = json.load(f)
+    # The column is the efficiency of the runs in the scd ≥ 6 cells: efficiency.py picked
+    # them by its cost (files without the field: by CPU time), which must be the table's.
+    eff_cost = eff.get("cost", "cpu") if isinstance(eff, dict) else None
+    if eff_cost != cost:
+      print(f"work_precision_table: --efficiency {eff_path}: its runs were chosen by {eff_cost}, this table's "
+            f"cells by {cost} (use --cost {eff_cost}, or re-run efficiency.py --cost {cost})", file=sys.stderr)
+      sys.exit(2)
   main(args, eff, cost)

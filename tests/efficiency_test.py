@@ -19,8 +19,10 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.dont_write_bytecode = True
 sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+sys.path.insert(0, os.path.join(ROOT, "reports"))
 from py_test_support import finish  # noqa: E402
 import efficiency  # noqa: E402
+from bench_data import normalize_result  # noqa: E402
 
 LISTING = """--------------------------------------------------------------------------------
 Ir
@@ -105,6 +107,32 @@ def main():
     missing = subprocess.run([sys.executable, os.path.join(ROOT, "benchmarks", "work_precision_table.py"), sp,
                               "--efficiency", os.path.join(tmp, "none.json")], capture_output=True, text=True)
     check(missing.returncode == 2 and "none.json" in missing.stderr, f"missing file: {missing.returncode} {missing.stderr}")
+
+    # An efficiency file picked by instructions beside a CPU table: refused (its runs are not the
+    # table's cells); a file without "cost" was picked by CPU time.
+    json.dump(dict(eff, cost="instructions"), open(ep, "w"))
+    mixed = subprocess.run([sys.executable, os.path.join(ROOT, "benchmarks", "work_precision_table.py"), sp,
+                            "--efficiency", ep], capture_output=True, text=True)
+    check(mixed.returncode == 2 and "chosen by instructions" in mixed.stderr and not mixed.stdout,
+          f"instruction-picked efficiency beside a CPU table: {mixed.returncode} {mixed.stderr}")
+    # efficiency.py --cost instructions on a sweep without counts: exit 2 before any run.
+    code = subprocess.run([sys.executable, os.path.join(ROOT, "benchmarks", "efficiency.py"), "--kneedyn", "K",
+                           "--sweep", sp], capture_output=True, text=True)
+    check(code.returncode == 2 and "no instruction counts" in code.stderr, f"no counts: {code.returncode} {code.stderr}")
+
+  # Which run each method's cell is: dae at rtol 1e-8 is the cheaper by CPU time (0.010 s
+  # against 0.012 s), at 1e-9 the cheaper by instructions (40 M against 50 M); 1e-7 misses
+  # scd 6 and a failed run, though cheapest, is no result.
+  planted = [dict(result("dae", "", {"rtol": 1e-8, "atol": 1e-10}, 6.5, 0.010), instructions={"run_scene": 50_000_000}),
+             dict(result("dae", "", {"rtol": 1e-9, "atol": 1e-11}, 7.5, 0.012), instructions={"run_scene": 40_000_000}),
+             dict(result("dae", "", {"rtol": 1e-7, "atol": 1e-9}, 5.5, 0.001), instructions={"run_scene": 1_000_000}),
+             dict(result("dae", "", {"rtol": 1e-10, "atol": 1e-12}, 8.0, 0.001), instructions={"run_scene": 1_000_000},
+                  status="failed", reason="IDA_CONV_FAIL")]
+  runs = [normalize_result(r) for r in planted]
+  by_cpu, by_ins = efficiency.pick_runs(runs, 6.0, "cpu"), efficiency.pick_runs(runs, 6.0, "instructions")
+  check(by_cpu["dae"]["setting"]["rtol"] == 1e-8, f"cheapest by CPU: {by_cpu['dae']['setting']}")
+  check(by_ins["dae"]["setting"]["rtol"] == 1e-9, f"cheapest by instructions: {by_ins['dae']['setting']}")
+  check(efficiency.pick_runs(runs, 9.0, "instructions") == {}, "a method without a run at scd 9 has a pick")
 
   return finish(failures, "FAIL:", "efficiency_test: " + ("FAILED" if failures else "ok"), sys.stdout)
 

@@ -3,7 +3,8 @@
 states, on the recorded sweep and instruction sweep; and the rule itself on a planted sweep
 whose expected choices are worked out by hand below (a scatter dip and a failed run inside
 the five-rtol window, a method cheaper in CPU time but dearer in instructions, a stabilized
-and a fixed-step method that run_targets cannot express), with the check's exit codes.
+and a fixed-step method that run_targets cannot express), with the check's exit codes (a
+wrong table 1; bad input 2, among it an instruction sweep whose runs took other steps).
 """
 import contextlib
 import io
@@ -150,6 +151,12 @@ def main():
       f.write(cpp_table([("best_scd8", "ede", "adams", k37, 8.0, "")]))
     code, _, err = call(files)
     check(code == 2 and "ede:rk" in err, f"a competing run without an instruction count: exit {code}, {err.strip()!r}")
+    # An instruction sweep of another recording (one chosen run took other steps): refused.
+    stale = [dict(r, counters={"steps": 101}) if r["integrator"] == "adams" else r for r in instructions]
+    with open(paths["instructions"], "w") as f:
+      json.dump({"header": {}, "results": stale}, f)
+    code, _, err = call(files)
+    check(code == 2 and "re-record" in err and "101" in err, f"a stale instruction sweep: exit {code}, {err.strip()!r}")
     with open(paths["sweep"], "w") as f:
       f.write("{not json")
     code, _, err = call(files)
