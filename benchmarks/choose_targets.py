@@ -11,7 +11,7 @@ The rule, for one method (formulation[:integrator]) and a target scd: on the swe
 grid (quarter decades, atol = rtol/100), the loosest rtol at which the run and the four next
 tighter runs of the method are all results (reports/bench_data.py, classify_run) with
 scd >= the target. One run past the target is not enough: ede's scd scatters by ±0.5 with
-round-off (benchmarks/README.md, "Performance targets: where they stand").
+round-off (ede dopri5's figures in run_targets.cpp's header).
 
 A target of run_targets.cpp names the method it is chosen among (`among`): one method, or
 "" for every variable-step method without stabilization (what run_targets' Config can
