@@ -63,6 +63,26 @@ code, out, written = run([dict(ede, instructions=1)], ["--write"])
 n = written["instruction_counts"]["runs"][0]["instructions"]
 expect(code == 0 and 1_000_000 < n < 10**12, "--write records the measured count (got %s)" % n, out)
 
+# The outside-RunScene count (start-up, loading, output) of the default dae run, gated on
+# its own. Bounds with their reasons: above 5e5, since the run formats ~4,400 numbers and
+# scans 4.9 KB of YAML, each at over a hundred instructions a number and fifty a byte;
+# below half of the run, which takes ~1,600 steps of thousands of instructions each. With
+# the toggle naming no function, the inside count is 0 and compare_counters refuses.
+default_dae = {"formulation": "dae", "args": []}
+code, out, written = run([dict(default_dae, instructions=1, outside_run_scene=1)], ["--write"])
+w = written["instruction_counts"]["runs"][0]
+outside, whole = w.get("outside_run_scene", 0), w["instructions"]
+expect(code == 0 and 500_000 < outside < whole / 2,
+       "--write records the outside count, 5e5 < %s < half of %s" % (outside, whole), out)
+expect("outside RunScene" in out and "% of" in out and "target <= 10 %" in out,
+       "the outside count is printed as a share beside the target", out)
+if code == 0:
+    code, out, _ = run([dict(w, outside_run_scene=outside // 2)])
+    expect(code == 1 and "REGRESSION: outside RunScene" in out,
+           "outside count above its baseline + 5 % (whole count unchanged): exit 1", out)
+    code, out, _ = run([dict(w, outside_run_scene=outside * 2)])
+    expect(code == 0 and "improved: outside RunScene" in out, "outside count far below baseline: improved", out)
+
 for f in failures:
     print("FAIL:", f)
 print("ok" if not failures else "%d failure(s)" % len(failures))
