@@ -1,7 +1,10 @@
 """What the packaging tests (tests/packaging/*_test.py) share: their arguments with a fresh
-work directory, and the verdict they print."""
+work directory, the check that the build tree is current, and the verdict they print."""
 import argparse
 import shutil
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 
 
@@ -13,14 +16,44 @@ def fresh_directory(path):
     return path
 
 
+def stale_build_reason(source, build):
+    """Why `build` is older than `source`'s git state, or None.
+
+    pip (setup.py with KNEEDYN_CMAKE_BUILD_DIR) and cpack (its preinstall target) build the
+    tree they are given. When the commit the tree was built at is not the source's now (a
+    commit, or the first edit, after the build), the generated commit header changes and they
+    relink kneedyn, the Python module and the test programs while the tests beside them run
+    those files: a test then fails on a half-written file, or on a module and a program of two
+    builds. cmake/git_commit.cmake writes that header; it is run here into a scratch file and
+    compared with the tree's.
+    """
+    built = build / "generated" / "kneedyn_git_commit.h"
+    if not built.is_file():
+        return None  # no commit header to compare (an unconfigured tree fails later, by name)
+    with tempfile.TemporaryDirectory() as d:
+        now = Path(d) / "kneedyn_git_commit.h"
+        subprocess.run(["cmake", "-DSOURCE=%s" % source, "-DOUT=%s" % now, "-P",
+                        str(source / "cmake" / "git_commit.cmake")], check=True)
+        if now.read_text() == built.read_text():
+            return None
+        return "built at %s, the source is now at %s" % (built.read_text().split()[-1], now.read_text().split()[-1])
+
+
 def source_build_work():
-    """--source, --build-dir, --work, resolved; the work directory fresh."""
+    """--source, --build-dir, --work, resolved; the work directory fresh. Exits 1 before
+    touching anything when the build tree is stale (stale_build_reason)."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--source", required=True, type=Path)
     ap.add_argument("--build-dir", required=True, type=Path)
     ap.add_argument("--work", required=True, type=Path)
     args = ap.parse_args()
-    return args.source.resolve(), args.build_dir.resolve(), fresh_directory(args.work)
+    source, build = args.source.resolve(), args.build_dir.resolve()
+    reason = stale_build_reason(source, build)
+    if reason:
+        print("FAIL: the build tree %s is stale (%s); this test would relink the programs under the "
+              "tests running beside it. Build first: cmake --build %s" % (build, reason, build))
+        sys.exit(1)
+    return source, build, fresh_directory(args.work)
 
 
 def verdict(problems, ok="OK"):
