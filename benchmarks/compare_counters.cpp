@@ -207,7 +207,12 @@ int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, co
   }
   nlohmann::json& ic = base.at("instruction_counts");
   const double threshold = ic.at("threshold").get<double>();
-  const double target_share = ic.value("outside_target_share", 0.10);
+  const nlohmann::json share_field = ic.value("outside_target_share", nlohmann::json(0.10));
+  const double target_share = share_field.is_number() ? share_field.get<double>() : -1.0;
+  if (!(target_share > 0.0 && target_share < 1.0)) {
+    Throw<InputError>("compare_counters", "--baseline '", baseline_path, "': instruction_counts.outside_target_share = ",
+                      share_field.dump(), " (a share of the run: a number, 0 < share < 1)");
+  }
   const std::string scene = ScenePath(ic.at("scene").get<std::string>());
   const std::filesystem::path tmp =
       std::filesystem::temp_directory_path() / ("kneedyn_icount_" + std::to_string(getpid()));

@@ -27,9 +27,9 @@ ede = [r for r in ic["runs"] if r["formulation"] == "ede"][0]
 failures = []
 
 
-def run(baseline_runs, extra=()):
+def run(baseline_runs, extra=(), **instruction_counts):
     b = dict(base)
-    b["instruction_counts"] = dict(ic, runs=baseline_runs)
+    b["instruction_counts"] = dict(ic, runs=baseline_runs, **instruction_counts)
     with tempfile.TemporaryDirectory() as d:
         path = os.path.join(d, "baseline.json")
         json.dump(b, open(path, "w"))
@@ -48,6 +48,11 @@ expect(code == 77 and "SKIPPED: valgrind" in out, "no valgrind: exit 77 with SKI
 
 code, out, _ = run([ede], ["--kneedyn", "/nonexistent/kneedyn"])
 expect(code == 2 and "--kneedyn" in out, "bad --kneedyn: exit 2 naming it", out)
+
+for share in (10, 0, -0.1, "ten"):
+    code, out, _ = run([ede], outside_target_share=share)
+    expect(code == 2 and "outside_target_share" in out,
+           "outside_target_share = %r: exit 2 naming the field" % (share,), out)
 
 if shutil.which("valgrind") is None:
     print("SKIPPED: valgrind not found on PATH (Debian package valgrind)")
