@@ -194,6 +194,18 @@ long long CountOutsideRunScene(const std::string& valgrind, const std::string& k
   return *whole - inside;
 }
 
+// A baseline run's count `field` (instructions, outside_run_scene): a positive number, else
+// InputError naming the run, the field and its value. Checked for every run before any runs.
+double BaselineCount(const nlohmann::json& run, const char* field, const std::string& baseline_path) {
+  const nlohmann::json value = run.contains(field) ? run.at(field) : nlohmann::json();
+  if (!value.is_number() || !(value.get<double>() > 0.0)) {
+    Throw<InputError>("compare_counters", "--baseline '", baseline_path, "': instruction_counts.runs entry ",
+                      run.value("formulation", nlohmann::json()).dump(), ": ", field, " = ", value.dump(),
+                      " (an instruction count: a number > 0)");
+  }
+  return value.get<double>();
+}
+
 int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, const std::string& valgrind_name,
                       const std::string& kneedyn, bool write) {
   const std::string valgrind = FindOnPath(valgrind_name);
@@ -212,6 +224,12 @@ int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, co
   if (!(target_share > 0.0 && target_share < 1.0)) {
     Throw<InputError>("compare_counters", "--baseline '", baseline_path, "': instruction_counts.outside_target_share = ",
                       share_field.dump(), " (a share of the run: a number, 0 < share < 1)");
+  }
+  if (!write) {
+    for (const nlohmann::json& r : ic.at("runs")) {
+      BaselineCount(r, "instructions", baseline_path);
+      if (r.contains("outside_run_scene")) BaselineCount(r, "outside_run_scene", baseline_path);
+    }
   }
   const std::string scene = ScenePath(ic.at("scene").get<std::string>());
   const std::filesystem::path tmp =
@@ -234,7 +252,7 @@ int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, co
       r["instructions"] = n;
       std::printf("\n");
     } else {
-      ok = WithinBaseline("instructions", n, r.at("instructions").get<double>(), threshold) && ok;
+      ok = WithinBaseline("instructions", n, BaselineCount(r, "instructions", baseline_path), threshold) && ok;
     }
     if (!r.contains("outside_run_scene")) continue;
     long long whole = 0;
@@ -252,7 +270,9 @@ int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, co
       r["outside_run_scene"] = outside;
       std::printf("\n");
     } else {
-      ok = WithinBaseline("outside RunScene", outside, r.at("outside_run_scene").get<double>(), threshold) && ok;
+      ok = WithinBaseline("outside RunScene", outside, BaselineCount(r, "outside_run_scene", baseline_path),
+                          threshold) &&
+           ok;
     }
   }
   if (ok) std::filesystem::remove_all(tmp);

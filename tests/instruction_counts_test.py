@@ -10,6 +10,7 @@ libyaml alone) executes far more than 1e6 instructions and far fewer than 1e12.
 import argparse
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -48,6 +49,13 @@ expect(code == 77 and "SKIPPED: valgrind" in out, "no valgrind: exit 77 with SKI
 
 code, out, _ = run([ede], ["--kneedyn", "/nonexistent/kneedyn"])
 expect(code == 2 and "--kneedyn" in out, "bad --kneedyn: exit 2 naming it", out)
+
+for field, value in (("instructions", "many"), ("instructions", 0), ("outside_run_scene", -1),
+                     ("outside_run_scene", None)):
+    code, out, _ = run([dict(ede, **{field: value})])
+    counted = re.search(r"\d{6,} (instructions|outside)", out)  # a run was made first
+    expect(code == 2 and field in out and json.dumps(value) in out and not counted,
+           "%s = %r: exit 2 naming the field and value, before any run" % (field, value), out)
 
 for share in (10, 0, -0.1, "ten"):
     code, out, _ = run([ede], outside_target_share=share)
