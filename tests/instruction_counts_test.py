@@ -76,6 +76,12 @@ code, out, written = run([dict(ede, instructions=1)], ["--write"])
 n = written["instruction_counts"]["runs"][0]["instructions"]
 expect(code == 0 and 1_000_000 < n < 10**12, "--write records the measured count (got %s)" % n, out)
 
+# The same run twice in one baseline counts the same, to path lengths and dates (a few
+# hundred): the second may not pay for replacing the first one's output files (~30 k).
+code, out, written = run([dict(ede, instructions=1), dict(ede, instructions=1)], ["--write"])
+n1, n2 = (r["instructions"] for r in written["instruction_counts"]["runs"])
+expect(code == 0 and abs(n1 - n2) < 2_000, "the same run twice: %s and %s instructions" % (n1, n2), out)
+
 # The outside-RunScene count (start-up, loading, output) of the default dae run, gated on
 # its own. Bounds with their reasons: above 5e5, since the run formats ~4,400 numbers and
 # scans 4.9 KB of YAML, each at over a hundred instructions a number and fifty a byte;
