@@ -16,6 +16,13 @@ def fresh_directory(path):
     return path
 
 
+def write_commit_header(source, out):
+    """Writes to `out` the commit header a build of `source` would get now
+    (cmake/git_commit.cmake, the script the build runs)."""
+    subprocess.run(["cmake", "-DSOURCE=%s" % source, "-DOUT=%s" % out, "-P",
+                    str(source / "cmake" / "git_commit.cmake")], check=True)
+
+
 def stale_build_reason(source, build):
     """Why `build` is older than `source`'s git state, or None.
 
@@ -24,19 +31,19 @@ def stale_build_reason(source, build):
     commit, or the first edit, after the build), the generated commit header changes and they
     relink kneedyn, the Python module and the test programs while the tests beside them run
     those files: a test then fails on a half-written file, or on a module and a program of two
-    builds. cmake/git_commit.cmake writes that header; it is run here into a scratch file and
-    compared with the tree's.
+    builds. The header the build would write now is compared with the tree's.
     """
     built = build / "generated" / "kneedyn_git_commit.h"
     if not built.is_file():
         return None  # no commit header to compare (an unconfigured tree fails later, by name)
+    built_text = built.read_text()
     with tempfile.TemporaryDirectory() as d:
         now = Path(d) / "kneedyn_git_commit.h"
-        subprocess.run(["cmake", "-DSOURCE=%s" % source, "-DOUT=%s" % now, "-P",
-                        str(source / "cmake" / "git_commit.cmake")], check=True)
-        if now.read_text() == built.read_text():
-            return None
-        return "built at %s, the source is now at %s" % (built.read_text().split()[-1], now.read_text().split()[-1])
+        write_commit_header(source, now)
+        now_text = now.read_text()
+    if now_text == built_text:
+        return None
+    return "built at %s, the source is now at %s" % (built_text.split()[-1], now_text.split()[-1])
 
 
 def source_build_work():

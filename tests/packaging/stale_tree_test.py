@@ -14,7 +14,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from packaging_common import stale_build_reason  # noqa: E402
+from packaging_common import stale_build_reason, write_commit_header  # noqa: E402
 
 ap = argparse.ArgumentParser()
 ap.add_argument("--source", required=True, type=Path)
@@ -25,11 +25,10 @@ with tempfile.TemporaryDirectory() as d:
     build = Path(d) / "build"
     (build / "generated").mkdir(parents=True)
     header = build / "generated" / "kneedyn_git_commit.h"
-    subprocess.run(["cmake", "-DSOURCE=%s" % source, "-DOUT=%s" % header, "-P",
-                    str(source / "cmake" / "git_commit.cmake")], check=True)
-    if stale_build_reason(source, build) is not None:
-        failures.append("a tree with the source's own commit header is called stale: %s"
-                        % stale_build_reason(source, build))
+    write_commit_header(source, header)
+    reason = stale_build_reason(source, build)
+    if reason is not None:
+        failures.append("a tree with the source's own commit header is called stale: %s" % reason)
     header.write_text('#define KNEEDYN_GIT_COMMIT "0123456789ab"\n')
     for test in ("pip_install_test.py", "deb_package_test.py", "docs_site_test.py"):
         work = Path(d) / ("work_" + test)
