@@ -181,7 +181,8 @@ bool WithinBaseline(const char* what, long long n, double b, double threshold) {
 
 // Start-up, scene loading and output of `run`: callgrind's whole-process count minus its
 // count inside kneedyn::RunScene. -1 with *failure set when either count fails or the
-// difference is not in (0, whole).
+// difference is not in (0, whole). Both counts are callgrind's: cachegrind's whole count of
+// the same run (the entry's `instructions`) is ~60 k higher, which would bias the difference.
 long long CountOutsideRunScene(const std::string& valgrind, const std::string& kneedyn, const std::string& scene,
                                const nlohmann::json& run, const std::filesystem::path& tmp, long long* whole,
                                std::string* failure) {
