@@ -55,7 +55,7 @@ size_t FormatGeneral12(double v, char (&out)[kTrajectoryNumberChars]) {
 
 size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
   // Same bytes as printf's %.12g, ~5 times fewer instructions than std::to_chars(general, 12)
-  // for 1e-30 ≤ |v| < 1e12 (the columns' values, round-off-sized gaps and residuals
+  // for 2^−99 (1.58e-30) ≤ |v| < 1e12 (the columns' values, round-off-sized gaps and residuals
   // included): with X the decimal exponent of |v| and s = 11 − X, N = |v| 10^s is one double
   // product (10^s exact for s ≤ 22; for s > 19 two products, 10^19 then 10^(s−19)), within
   // 2 × 2^-53 N < 2.3e-4 of the exact one, so N rounded to nearest is printf's 12 digits
@@ -80,6 +80,9 @@ size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
   // log10(a) is in [(e2 − 1) log10 2, e2 log10 2): X is the floor of the lower end
   // (78913 / 2^18 = log10 2 to 6 digits; >> on a negative int rounds down) or one more.
   int exponent = ((e2 - 1) * 78913) >> 18;  // −31..11 here
+  // −31 (the binade [2^−100, 2^−99), i.e. 1e-30 ≤ |v| < 1.58e-30) would need 10^(42−19):
+  // past kPow10, whose last entry is the last exact power of ten; those take the exact path.
+  if (exponent < -30) return FormatGeneral12(v, out);
   const auto scale = [a](int s) { return s <= 19 ? a * kPow10[s] : a * kPow10[19] * kPow10[s - 19]; };
   int s = 11 - exponent;
   double scaled = scale(s);
