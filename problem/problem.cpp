@@ -293,8 +293,10 @@ void Problem::Events(double t, const double* y, int n, double* g) const {
 MechanicalState Problem::StateAt(double t, const double* y, const double* yp) const {
   MechanicalState s = state_;
   s.t = t;
-  s.q = Eigen::Map<const Vector6d>(y);
-  s.qd = Eigen::Map<const Vector6d>(y + 6);
+  if (!is_mde()) {  // mde's y is (s, ṡ) of the chart's free coordinates, 2m ≤ 12 values
+    s.q = Eigen::Map<const Vector6d>(y);
+    s.qd = Eigen::Map<const Vector6d>(y + 6);
+  }
   if (is_dae()) {
     // q̈ from ẏ when given (the transition recomputes it from q, q̇ in any case).
     s.qdd = yp != nullptr ? Vector6d(Eigen::Map<const Vector6d>(yp + 6)) : Vector6d::Zero();
