@@ -3,7 +3,8 @@
 # twice: as a CMake project with find_package(kneedyn) (target kneedyn::problem_c), and by
 # hand with `pkg-config --cflags --libs kneedyn-problem` and the C compiler alone. Also checks
 # that the installed library exports only kneedyn_* functions.
-#   cmake -DBUILD=<build dir> -DSOURCE=<source dir> -DWORK=<scratch dir> -DCC=<C compiler> -P install_problem_c.cmake
+#   cmake -DBUILD=<build dir> -DSOURCE=<source dir> -DWORK=<scratch dir> -DCC=<C compiler> [-DSANITIZE=ON]
+#         -P install_problem_c.cmake
 set(REQUIRED_VARIABLES BUILD SOURCE WORK CC)
 include(${CMAKE_CURRENT_LIST_DIR}/install_common.cmake)
 
@@ -17,10 +18,18 @@ if(NOT lib OR NOT pc)
   message(FATAL_ERROR "no libkneedyn_problem_c.so ('${lib}') or kneedyn-problem.pc ('${pc}') under ${prefix}")
 endif()
 set(scene ${prefix}/share/kneedyn/scenes/chapter_impact.yaml)
+# A sanitizer build installs an instrumented library: the consumer links the runtime first.
+set(consumer_flags)
+set(sanitizer_flags)
+if(SANITIZE)
+  set(sanitizer_flags -fsanitize=address,undefined)
+  set(consumer_flags "-DCMAKE_C_FLAGS=-fsanitize=address,undefined"
+                     "-DCMAKE_EXE_LINKER_FLAGS=-fsanitize=address,undefined")
+endif()
 
 # 1. find_package(kneedyn) in a C-only project.
 run(${CMAKE_COMMAND} -S ${SOURCE}/tests/consumer_c -B ${WORK}/find_package-build -DCMAKE_BUILD_TYPE=Release
-    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_C_COMPILER=${CC})
+    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_C_COMPILER=${CC} ${consumer_flags})
 run(${CMAKE_COMMAND} --build ${WORK}/find_package-build)
 run(${WORK}/find_package-build/c_consumer)
 message(STATUS "find_package: ${out}")
@@ -37,7 +46,7 @@ execute_process(COMMAND ${CMAKE_COMMAND} -E env PKG_CONFIG_PATH=${pcdir} ${PKG_C
                 OUTPUT_VARIABLE libdir OUTPUT_STRIP_TRAILING_WHITESPACE)
 separate_arguments(flags UNIX_COMMAND "${flags}")
 file(MAKE_DIRECTORY ${WORK}/pkg-config-build)
-run(${CC} -std=c90 -pedantic-errors -Wall -Werror ${SOURCE}/tests/consumer_c/c_consumer.c ${flags} -lm
+run(${CC} -std=c90 -pedantic-errors -Wall -Werror ${sanitizer_flags} ${SOURCE}/tests/consumer_c/c_consumer.c ${flags} -lm
     -Wl,-rpath,${libdir} -o ${WORK}/pkg-config-build/c_consumer)
 run(${WORK}/pkg-config-build/c_consumer ${scene})
 message(STATUS "pkg-config: ${out}")
