@@ -65,7 +65,9 @@ size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
   // run's 4,424 numbers: ~130 instructions a number against ~150 for the exact 128-bit
   // quotient this replaces and ~700 for to_chars.)
   const double a = std::abs(v);
-  if (!(a >= 1e-30 && a < 1e12)) {
+  // Below 2^−99 the exponent estimate reaches −31, i.e. s = 42, and the scaling would need
+  // 10^(42−19): past kPow10, whose last entry is the last exact power of ten.
+  if (!(a >= 0x1p-99 && a < 1e12)) {
     if (a != 0.0) return FormatGeneral12(v, out);
     char* o = out;
     if (std::signbit(v)) *o++ = '-';
@@ -79,10 +81,7 @@ size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
   const int e2 = static_cast<int>(bits >> 52) - 1022;  // a = f 2^e2, f in [0.5, 1)
   // log10(a) is in [(e2 − 1) log10 2, e2 log10 2): X is the floor of the lower end
   // (78913 / 2^18 = log10 2 to 6 digits; >> on a negative int rounds down) or one more.
-  int exponent = ((e2 - 1) * 78913) >> 18;  // −31..11 here
-  // −31 (the binade [2^−100, 2^−99), i.e. 1e-30 ≤ |v| < 1.58e-30) would need 10^(42−19):
-  // past kPow10, whose last entry is the last exact power of ten; those take the exact path.
-  if (exponent < -30) return FormatGeneral12(v, out);
+  int exponent = ((e2 - 1) * 78913) >> 18;  // −30..11 here
   const auto scale = [a](int s) { return s <= 19 ? a * kPow10[s] : a * kPow10[19] * kPow10[s - 19]; };
   int s = 11 - exponent;
   double scaled = scale(s);
