@@ -29,11 +29,9 @@ if(NOT config OR NOT pc)
   message(FATAL_ERROR "no kneedynConfig.cmake ('${config}') or kneedyn.pc ('${pc}') under ${prefix}")
 endif()
 
-# A sanitizer build installs instrumented static libraries: the consumer links the runtime.
 set(consumer_flags)
 if(SANITIZE)
-  set(consumer_flags "-DCMAKE_CXX_FLAGS=-fsanitize=address,undefined"
-                     "-DCMAKE_EXE_LINKER_FLAGS=-fsanitize=address,undefined")
+  set(consumer_flags "-DCMAKE_CXX_FLAGS=${sanitizer_flags}" "-DCMAKE_EXE_LINKER_FLAGS=${sanitizer_flags}")
 endif()
 run(${CMAKE_COMMAND} -S ${SOURCE}/tests/consumer -B ${WORK}/consumer-build
     -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH=${prefix} ${consumer_flags})

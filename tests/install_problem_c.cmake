@@ -18,13 +18,9 @@ if(NOT lib OR NOT pc)
   message(FATAL_ERROR "no libkneedyn_problem_c.so ('${lib}') or kneedyn-problem.pc ('${pc}') under ${prefix}")
 endif()
 set(scene ${prefix}/share/kneedyn/scenes/chapter_impact.yaml)
-# A sanitizer build installs an instrumented library: the consumer links the runtime first.
 set(consumer_flags)
-set(sanitizer_flags)
 if(SANITIZE)
-  set(sanitizer_flags -fsanitize=address,undefined)
-  set(consumer_flags "-DCMAKE_C_FLAGS=-fsanitize=address,undefined"
-                     "-DCMAKE_EXE_LINKER_FLAGS=-fsanitize=address,undefined")
+  set(consumer_flags "-DCMAKE_C_FLAGS=${sanitizer_flags}" "-DCMAKE_EXE_LINKER_FLAGS=${sanitizer_flags}")
 endif()
 
 # 1. find_package(kneedyn) in a C-only project.
