@@ -9,10 +9,13 @@ includes a layer above it:
      kneedyn_scene / kneedyn_formulations;
   2. `ldd BIN` of --probe (tests/solver_only_probe.cpp, linked with kneedyn_solver alone)
      lists no libyaml (-cpp or -0), and the probe runs (exit 0: its own exact check);
-  4. no library folder (solver, scene, formulations, ensembles, sensitivity) includes the
-     programs' folder app/, and formulations/ includes neither ensembles/ nor sensitivity/
-     (which build on it): the arrows point down only; the installed (public) headers of
-     formulations/ include nothing from formulations/internal/ (which is not installed);
+  4. the arrows of docs/architecture.md point down only: no folder of LAYERS includes a
+     folder of its own or a higher layer (ensembles/ and problem/ share a layer and use
+     neither the other), and the installed (public) headers of formulations/ include nothing
+     from formulations/internal/ (which is not installed);
+  5. docs/architecture.md is the map of the tree: its diagram names each folder of LAYERS
+     at the start of a line, and every folder the top-level CMakeLists.txt enters
+     (add_subdirectory) is a layer or is named in its paragraph "Beside them";
   3. so that the test can fail, before scanning: planted bad lines must each be flagged,
      and `ldd` of --yaml-user (a program linking the loader with the shared libyaml, e.g.
      scene_test) must list a libyaml, i.e. the ldd check sees the library when it is there.
@@ -41,14 +44,13 @@ CMAKE_RULES = [
     ("links the loader or the formulations",
      re.compile(r"target_link_libraries\([^)]*kneedyn_(scene|formulations)", re.S)),
 ]
-# Rule 4: what each library folder must not include (the layers above it).
-UPWARD = {
-    "solver": ["app"],
-    "scene": ["app"],
-    "formulations": ["app", "ensembles", "sensitivity"],
-    "ensembles": ["app"],
-    "sensitivity": ["app"],
-}
+# Rule 4: the layers of docs/architecture.md, lowest first; a folder may include only the
+# folders of lower layers (and its own). Folders beside the layers (benchmarks/, python/,
+# crosscheck/, tests/, examples/) are not checked.
+LAYERS = [["solver"], ["scene"], ["formulations"], ["ensembles", "problem"], ["sensitivity"], ["inverse"],
+          ["app"]]
+UPWARD = {folder: [other for higher in LAYERS[rank:] for other in higher if other != folder]
+          for rank, layer in enumerate(LAYERS) for folder in layer}
 
 
 INTERNAL = re.compile(r'#\s*include\s*[<"]formulations/internal/')
@@ -62,7 +64,7 @@ def scan_upward(folder, rel, text):
   for n, line in enumerate(text.splitlines(), 1):
     m = re.search(r'#\s*include\s*[<"]([A-Za-z_]+)/', line)
     if m and m.group(1) in UPWARD[folder]:
-      hits.append(f"{rel}:{n}: includes {m.group(1)}/, a layer above {folder}/: {line.strip()}")
+      hits.append(f"{rel}:{n}: includes {m.group(1)}/, which is not a layer below {folder}/: {line.strip()}")
   return hits
 
 
@@ -76,6 +78,24 @@ def scan_source(rel, text):
     for what, rx in SOURCE_RULES:
       if rx.search(line):
         hits.append(f"{rel}:{n}: {what}: {line.strip()}")
+  return hits
+
+
+def scan_architecture_doc(doc, top_cmake):
+  """Rule 5: folders of the build that docs/architecture.md does not place."""
+  hits = []
+  fence = re.search(r"## Layers.*?```\n(.*?)```", doc, re.S)
+  diagram = fence.group(1) if fence else ""
+  beside = re.search(r"^Beside them:(.*?)(?:\n\n|\Z)", doc, re.S | re.M)
+  beside = beside.group(1) if beside else ""
+  layered = [f for layer in LAYERS for f in layer]
+  for folder in layered:
+    if not re.search(rf"(^|\s){folder}/\s", diagram, re.M):
+      hits.append(f"docs/architecture.md: the layer diagram does not show {folder}/")
+  for folder in sorted(set(re.findall(r"^\s*add_subdirectory\(([\w-]+)", top_cmake, re.M))):
+    if folder not in layered and f"`{folder}/" not in beside:
+      hits.append(f"docs/architecture.md: {folder}/ (built by CMakeLists.txt) is neither a layer nor "
+                  "named under \"Beside them\"")
   return hits
 
 
@@ -111,7 +131,10 @@ def main():
   clean = '#include "solver/state.hpp"  // filled by the loader (scene/scene.hpp)'
   planted_upward = [("formulations", '#include "ensembles/sweep_cli.hpp"'),
                     ("formulations", '#include "sensitivity/sensitivity_cli.hpp"'),
-                    ("ensembles", '#include "app/cli.hpp"'), ("solver", '#include <app/cli.hpp>')]
+                    ("ensembles", '#include "app/cli.hpp"'), ("solver", '#include <app/cli.hpp>'),
+                    ("scene", '#include "formulations/run.hpp"'), ("problem", '#include "ensembles/sweep.hpp"'),
+                    ("ensembles", '#include "problem/problem.hpp"'),
+                    ("sensitivity", '#include "inverse/inverse_problem.hpp"')]
   missed += [p for folder, p in planted_upward if not scan_upward(folder, folder + "/planted.cpp", p)]
   planted_internal = '#include "formulations/internal/ida_phase.hpp"'
   if not scan_upward("formulations", "formulations/planted.hpp", planted_internal) or \
@@ -122,6 +145,17 @@ def main():
   if missed or scan_source("solver/x.hpp", clean) or \
      scan_cmake("solver/CMakeLists.txt", "# links no yaml-cpp\ntarget_link_libraries(kneedyn_solver PUBLIC Eigen3::Eigen)"):
     sys.exit(f"layering: self-check failed (missed planted lines {missed} or flagged a clean one)")
+  root = os.path.abspath(args.root)
+  with open(os.path.join(root, "docs", "architecture.md"), encoding="utf-8") as f:
+    doc = f.read()
+  with open(os.path.join(root, "CMakeLists.txt"), encoding="utf-8") as f:
+    top_cmake = f.read()
+  planted_doc = [doc.replace("\nproblem/ ", "\nproblems/ ").replace(" problem/ ", " problems/ "),
+                 doc.replace("`fuzz/`", "`fuzzing`")]
+  if any(not scan_architecture_doc(d, top_cmake) for d in planted_doc) or \
+     not scan_architecture_doc(doc, top_cmake + "\nadd_subdirectory(newfolder)\n"):
+    sys.exit("layering: self-check failed: a folder dropped from docs/architecture.md or added to the build "
+             "was not flagged")
   if not YAML_LIB.search(ldd(args.yaml_user)):
     sys.exit(f"layering: self-check failed: ldd {args.yaml_user} (links the loader) lists no libyaml, "
              "so the ldd check below could not see it either")
@@ -137,8 +171,9 @@ def main():
       hits += scan_cmake(rel, text)
     elif name.endswith((".hpp", ".cpp", ".h")):
       hits += scan_source(rel, text)
+  # 5. The map of the tree.
+  hits += scan_architecture_doc(doc, top_cmake)
   # 4. No include points up.
-  root = os.path.abspath(args.root)
   for folder in UPWARD:
     for dirpath, _, files in os.walk(os.path.join(root, folder)):
       for name in sorted(files):
