@@ -43,6 +43,19 @@ double ParseCell(const std::string& cell, const std::string& path, size_t line, 
 }
 
 
+// An event name as read: kneedyn's names are printable ASCII (docs/model.md §9), and a name
+// goes into the score's JSON, which holds only valid UTF-8.
+std::string EventName(const std::string& name, const std::string& path, size_t line) {
+  for (const char ch : name) {
+    const unsigned char c = static_cast<unsigned char>(ch);
+    if (c < 0x20 || c >= 0x7f) {
+      Throw<InputError>("kneedyn score", "--events = '", Echo(path), "' line ", line, ", column name: '", Echo(name),
+                        "' is not an event name (printable ASCII, e.g. liftoff_lateral, flexion_90)");
+    }
+  }
+  return name;
+}
+
 nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 }  // namespace
@@ -184,7 +197,7 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
     try {
       j = nlohmann::json::parse(body);
       for (const auto& e : j.at("events")) {
-        events.push_back({e.at("name").get<std::string>(), e.at("time").get<double>(),
+        events.push_back({EventName(e.at("name").get<std::string>(), path, 1), e.at("time").get<double>(),
                           DegToRad(e.at("flexion_deg").get<double>())});
       }
     } catch (const nlohmann::json::exception& e) {
@@ -210,7 +223,8 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
     if (cells.size() != header.size()) Throw<InputError>("kneedyn score", path, " line ", line_no, ": wrong number of cells");
     const double angle =
         angle_col < static_cast<long>(header.size()) ? ParseCell(cells[angle_col], path, line_no, "flexion_deg") : kNaN;
-    events.push_back({cells[name_col], ParseCell(cells[time_col], path, line_no, "time_s"), DegToRad(angle)});
+    events.push_back({EventName(cells[name_col], path, line_no), ParseCell(cells[time_col], path, line_no, "time_s"),
+                      DegToRad(angle)});
   }
   return events;
 }

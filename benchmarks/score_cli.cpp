@@ -149,10 +149,13 @@ int ScoreCommand::Run(int argc, char** argv) {
     const std::string out_path =
         out_path_.empty() ? fs::path(result_path_).replace_extension(".score.json").string() : out_path_;
     {
+      // Formatted before anything is written. A path or argument that is not UTF-8 is
+      // replaced (U+FFFD) in the JSON, never thrown on.
+      const std::string text = out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace);
       const std::string tmp = out_path + ".tmp";
       std::ofstream f(tmp);
       if (!f) Throw<InputError>("kneedyn score", "--out = '", Echo(out_path), "': cannot be written");
-      f << out.dump(2) << "\n";
+      f << text << "\n";
       f.close();
       if (!f) Throw<InputError>("kneedyn score", "--out = '", Echo(out_path), "': cannot be written");
       fs::rename(tmp, out_path);

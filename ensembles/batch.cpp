@@ -78,7 +78,7 @@ BatchVariants ParseBatchVariants(const std::string& text, const std::string& lab
         ParameterSpec p = ResolveParameterName(base, fields[c], label + ": line " + std::to_string(line_no));
         for (const ParameterSpec& q : v.parameters) {
           if (q.column == p.column) {
-            Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ": parameter '", fields[c],
+            Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ": parameter '", Echo(fields[c]),
                               "' listed twice");
           }
         }
@@ -96,11 +96,11 @@ BatchVariants ParseBatchVariants(const std::string& text, const std::string& lab
       const auto r = std::from_chars(f.data(), f.data() + f.size(), row[c]);
       if (f.empty() || r.ec != std::errc() || r.ptr != f.data() + f.size() || !std::isfinite(row[c])) {
         Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column '", v.parameters[c].name,
-                          "' = '", f, "': not a finite number");
+                          "' = '", Echo(f), "': not a finite number");
       }
       if (MustBePositive(v.parameters[c].kind) && !(row[c] > 0.0)) {
         Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column '", v.parameters[c].name,
-                          "' = '", f, "': must be > 0");
+                          "' = '", Echo(f), "': must be > 0");
       }
     }
     v.rows.push_back(std::move(row));
@@ -112,7 +112,7 @@ BatchVariants ParseBatchVariants(const std::string& text, const std::string& lab
 
 BatchVariants LoadBatchVariants(const std::string& path, const Model& base) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) Throw<InputError>("LoadBatchVariants", "cannot read the variants file '", path, "'");
+  if (!in) Throw<InputError>("LoadBatchVariants", "cannot read the variants file '", Echo(path), "'");
   std::ostringstream ss;
   ss << in.rdbuf();
   return ParseBatchVariants(ss.str(), path, base);

@@ -487,7 +487,7 @@ ParameterSpec ResolveParameterName(const Model& base, const std::string& name, c
     const std::string& where;
     const std::string& name;
     [[noreturn]] void Fail(const std::string& rule) const {
-      Throw<InputError>("ResolveParameterName", where, ": parameter '", name, "': ", rule);
+      Throw<InputError>("ResolveParameterName", where, ": parameter '", Echo(name), "': ", rule);
     }
   };
   ParameterSpec p;

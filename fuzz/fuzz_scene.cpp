@@ -9,33 +9,17 @@
 // exception is a finding.
 //
 // Build and run: bash .ci/bootstrap fuzz [SECONDS] (clang, -fsanitize=fuzzer,address,undefined).
-#include <unistd.h>
-
 #include <cstdint>
-#include <cstdio>
-#include <cstdlib>
-#include <filesystem>
 #include <fstream>
 #include <string>
 
+#include "fuzz/fuzz_work_dir.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/error.hpp"
 #include "scene/scene.hpp"
 
-namespace {
-
-const std::string& WorkDir() {
-  static const std::string dir = [] {
-    const std::filesystem::path p =
-        std::filesystem::temp_directory_path() / ("kneedyn_fuzz_" + std::to_string(::getpid()));
-    std::filesystem::create_directories(p);
-    return p.string();
-  }();
-  return dir;
-}
-
-}  // namespace
+using kneedyn_fuzz::WorkDir;
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string input(reinterpret_cast<const char*>(data), size);

@@ -473,5 +473,36 @@ TEST_F(HostileInput, ShippedParameterSetsPassTheStrictLoader) {
   EXPECT_GE(n, 2);  // chapter_knee.yaml, hanging_element_knee.yaml
 }
 
+// `kneedyn score` reads files written by outside solvers (docs/problem.md). A result of two
+// rows at the reference's first sampling times (their exact flexion: 0 deg at t = 0, and the
+// reference's value at 0.02 s is not needed for the contract, so both rows read 0).
+std::string ScoreResultCsv() { return "time_s,flexion_deg\n0,0\n0.02,0\n"; }
+
+// An event name that is not printable ASCII (here a byte that is not UTF-8; found by
+// fuzz_score) is refused naming the events file, its line and column; before, the score's
+// JSON writer threw on it and left the temporary file behind.
+TEST_F(HostileInput, ScoreEventNameThatIsNotAsciiIsRefused) {
+  const std::string result = Input("result.csv", ScoreResultCsv());
+  const std::string events = Input("events.csv", "name,time_s\nliftoff_\xff,0.2\n");
+  const std::string out = (dir_ / "score.json").string();
+  ExpectRefused("score '" + result + "' --scene '" + ChapterScenePath() + "' --events '" + events + "' --out '" + out + "'",
+                {"--events", "line 2, column name", "'liftoff_?'", "printable ASCII"});
+  const std::string summary = Input("summary.json", "{\"events\": [{\"name\": \"flexion_\u00e9\", \"time\": 0.3, "
+                                    "\"flexion_deg\": 90}]}");
+  ExpectRefused("score '" + result + "' --scene '" + ChapterScenePath() + "' --events '" + summary + "' --out '" + out + "'",
+                {"--events", "column name", "'flexion_?\?'"});
+}
+
+// File names need not be UTF-8 on Linux (here Latin-1 'é'). They go into the score's JSON
+// (command line, result file) replaced by U+FFFD, as in summary.json; the score is written.
+TEST_F(HostileInput, ScoreOfAResultWhosePathIsNotUtf8IsWritten) {
+  const std::string result = Input("r\xe9sultat.csv", ScoreResultCsv());
+  const CommandResult r = RunKneedyn("score '" + result + "' --scene '" + ChapterScenePath() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string json = ReadText(dir_ / "in" / "r\xe9sultat.score.json");
+  EXPECT_NE(json.find("r\xef\xbf\xbdsultat.csv"), std::string::npos) << json.substr(0, 400);  // U+FFFD in UTF-8
+  EXPECT_FALSE(fs::exists(dir_ / "in" / "r\xe9sultat.score.json.tmp"));
+}
+
 }  // namespace
 }  // namespace kneedyn::cli_test

@@ -1,0 +1,74 @@
+// libFuzzer target: what `kneedyn score` reads from an outside solver, scored against the
+// chapter scene's stored reference (benchmarks/score.hpp): the result CSV, the events file
+// (a summary.json or a CSV), the comparison at the reference's sampling times and the
+// work-precision record written from it.
+//
+// Input: a result CSV's text, optionally followed by a line "#@events" and an events file's
+// text. The reference's configuration is not run again for off-grid rows (DenseReference:
+// a whole integration per input); the result is compared at the sampling times it has.
+// An InputError is the accepted outcome of a refused file; a crash, sanitizer report, leak,
+// hang or any other exception is a finding.
+//
+// Build and run: bash .ci/bootstrap fuzz [SECONDS] score (clang, -fsanitize=fuzzer,address,undefined).
+#include <cstdint>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "benchmarks/metrics.hpp"
+#include "benchmarks/score.hpp"
+#include "fuzz/fuzz_work_dir.hpp"
+#include "scene/scene.hpp"
+#include "solver/error.hpp"
+
+namespace {
+
+using kneedyn_fuzz::WorkDir;
+
+struct ChapterReference {
+  kneedyn::Scene scene;
+  kneedyn::bench::Solution solution;
+};
+
+// The scene and its stored reference, read once (KNEEDYN_DATA_DIR or the build tree's data).
+const ChapterReference& Reference() {
+  static const ChapterReference r = [] {
+    const std::string data = kneedyn::ReferenceDataDir();
+    ChapterReference out{kneedyn::LoadScene(data + "/scenes/chapter_impact.yaml"), {}};
+    std::ifstream in(data + "/references/chapter_impact.json");
+    out.solution = kneedyn::bench::SolutionFromJson(nlohmann::json::parse(in).at("solution"));
+    return out;
+  }();
+  return r;
+}
+
+void WriteFile(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  namespace bench = kneedyn::bench;
+  const ChapterReference& reference = Reference();
+  const std::string input(reinterpret_cast<const char*>(data), size);
+  const std::string marker = "\n#@events\n";
+  const size_t at = input.find(marker);
+  const std::string result_path = WorkDir() + "/result.csv";
+  const std::string events_path = WorkDir() + "/events";
+  WriteFile(result_path, input.substr(0, at));
+  if (at != std::string::npos) WriteFile(events_path, input.substr(at + marker.size()));
+  try {
+    bench::ScoredResult result = bench::ReadResultCsv(result_path, reference.scene, reference.solution);
+    if (at != std::string::npos) result.solution.events = bench::ReadEvents(events_path);
+    (void)bench::OffGridTimes(result, reference.solution);
+    const bench::Score score = bench::ScoreResult(result, reference.solution);
+    bench::ScoreInfo info;
+    info.solver_name = "fuzz";
+    (void)bench::ScoreRecord(result, score, info).dump();
+  } catch (const kneedyn::InputError&) {
+    // A refused file: the expected outcome for most inputs.
+  }
+  return 0;
+}
