@@ -10,36 +10,18 @@
 //
 // Build and run: bash .ci/bootstrap fuzz [SECONDS] (clang, -fsanitize=fuzzer,address,undefined).
 #include <cstdint>
-#include <fstream>
 #include <string>
 
-#include "fuzz/fuzz_work_dir.hpp"
-#include "solver/constrained_dynamics.hpp"
-#include "solver/dynamics.hpp"
-#include "solver/error.hpp"
+#include "fuzz/fuzz_support.hpp"
 #include "scene/scene.hpp"
-
-using kneedyn_fuzz::WorkDir;
+#include "solver/error.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  const std::string input(reinterpret_cast<const char*>(data), size);
-  const std::string marker = "\n#@params\n";
-  const size_t at = input.find(marker);
-  const std::string scene_text = input.substr(0, at);
-  const std::string params_text = at == std::string::npos ? "" : input.substr(at + marker.size());
-  {
-    std::ofstream out(WorkDir() + "/params.yaml", std::ios::binary | std::ios::trunc);
-    out << params_text;
-  }
+  using namespace kneedyn_fuzz;
+  const SplitInput input = SplitAtMarker(data, size, "#@params");
+  WriteFile(WorkDir() + "/params.yaml", input.second.value_or(""));
   try {
-    const kneedyn::Scene scene = kneedyn::ParseScene(scene_text, "fuzz.yaml", WorkDir());
-    const kneedyn::Model& model = scene.model;
-    const kneedyn::Pose pose = kneedyn::PoseFromCoordinates(scene.initial.q);
-    kneedyn::Data d(model);
-    kneedyn::ComputeAppliedWrench(model, 0.0, pose, &d);
-    std::vector<int> active;
-    for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
-    kneedyn::SolveConstrainedAcceleration(model, 0.0, scene.initial.q, scene.initial.qd, active);
+    EvaluateFirstPhysics(kneedyn::ParseScene(input.first, "fuzz.yaml", WorkDir()));
   } catch (const kneedyn::Error&) {
     // Refused input or a physics refusal: the expected outcome for most inputs.
   }

@@ -17,13 +17,11 @@
 
 #include "benchmarks/metrics.hpp"
 #include "benchmarks/score.hpp"
-#include "fuzz/fuzz_work_dir.hpp"
+#include "fuzz/fuzz_support.hpp"
 #include "scene/scene.hpp"
 #include "solver/error.hpp"
 
 namespace {
-
-using kneedyn_fuzz::WorkDir;
 
 struct ChapterReference {
   kneedyn::Scene scene;
@@ -42,26 +40,20 @@ const ChapterReference& Reference() {
   return r;
 }
 
-void WriteFile(const std::string& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out << text;
-}
-
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   namespace bench = kneedyn::bench;
+  using namespace kneedyn_fuzz;
   const ChapterReference& reference = Reference();
-  const std::string input(reinterpret_cast<const char*>(data), size);
-  const std::string marker = "\n#@events\n";
-  const size_t at = input.find(marker);
+  const SplitInput input = SplitAtMarker(data, size, "#@events");
   const std::string result_path = WorkDir() + "/result.csv";
   const std::string events_path = WorkDir() + "/events";
-  WriteFile(result_path, input.substr(0, at));
-  if (at != std::string::npos) WriteFile(events_path, input.substr(at + marker.size()));
+  WriteFile(result_path, input.first);
+  if (input.second) WriteFile(events_path, *input.second);
   try {
     bench::ScoredResult result = bench::ReadResultCsv(result_path, reference.scene, reference.solution);
-    if (at != std::string::npos) result.solution.events = bench::ReadEvents(events_path);
+    if (input.second) result.solution.events = bench::ReadEvents(events_path);
     (void)bench::OffGridTimes(result, reference.solution);
     const bench::Score score = bench::ScoreResult(result, reference.solution);
     bench::ScoreInfo info;

@@ -16,9 +16,8 @@
 
 #include "ensembles/batch.hpp"
 #include "ensembles/sweep_spec.hpp"
+#include "fuzz/fuzz_support.hpp"
 #include "scene/scene.hpp"
-#include "solver/constrained_dynamics.hpp"
-#include "solver/dynamics.hpp"
 #include "solver/error.hpp"
 
 namespace {
@@ -47,13 +46,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     spec.parameters = variants.parameters;
     for (size_t r = 0; r < variants.rows.size() && r < kMaxRowsApplied; ++r) {
       try {
-        const kneedyn::Scene scene = ens::SceneForRun(spec, variants.rows[r]);
-        const kneedyn::Model& model = scene.model;
-        kneedyn::Data d(model);
-        kneedyn::ComputeAppliedWrench(model, 0.0, kneedyn::PoseFromCoordinates(scene.initial.q), &d);
-        std::vector<int> active;
-        for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
-        kneedyn::SolveConstrainedAcceleration(model, 0.0, scene.initial.q, scene.initial.qd, active);
+        kneedyn_fuzz::EvaluateFirstPhysics(ens::SceneForRun(spec, variants.rows[r]));
       } catch (const kneedyn::Error&) {
         // This row refused (a value the model cannot take) or a physics refusal: the next row.
       }
