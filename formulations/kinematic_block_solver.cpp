@@ -11,6 +11,16 @@
 #include "formulations/internal/sundials_util.hpp"
 #include "solver/error.hpp"
 
+// GCC's unroll hint for the fixed-size loops below (the Release build is GCC's). Left out
+// under AddressSanitizer and for clang (the fuzz builds), which cannot honour one of them
+// and say so ("ignoring loop annotation", "loop not unrolled").
+#if defined(__SANITIZE_ADDRESS__) || defined(__clang__)
+#define KNEEDYN_UNROLL(n)
+#else
+#define KNEEDYN_PRAGMA(text) _Pragma(#text)
+#define KNEEDYN_UNROLL(n) KNEEDYN_PRAGMA(GCC unroll n)
+#endif
+
 namespace kneedyn {
 namespace {
 
@@ -133,31 +143,31 @@ void KinematicBlockLu::SolveReduced(double* b) const {
   // x_r = P (b_r − C A⁻¹ b_q); its padding row (odd m) stays zero.
   Pair x[kPairs > 0 ? kPairs : kMaxPairs];
   const double* br = b + kQ;
-#pragma GCC unroll 32
+KNEEDYN_UNROLL(32)
   for (int p = 0; p < pairs; ++p) {
     const int i = 2 * p;
     x[p] = Pair{br[perm_[i]], i + 1 < m_ ? br[perm_[i + 1]] : 0.0};
   }
-#pragma GCC unroll 6
+KNEEDYN_UNROLL(6)
   for (int k = 0; k < kQ; ++k) {
     const Pair* c = &pc_[static_cast<size_t>(k) * pairs];
-#pragma GCC unroll 32
+KNEEDYN_UNROLL(32)
     for (int p = 0; p < pairs; ++p) x[p] -= c[p] * y[k];
   }
   // L U x_r = x_r: unit lower, then upper (zeros outside each triangle).
-#pragma GCC unroll 64
+KNEEDYN_UNROLL(64)
   for (int k = 0; k + 1 < rows; ++k) {
     const double xk = x[k / 2][k % 2];
     const Pair* l = &l_[static_cast<size_t>(k) * pairs];
-#pragma GCC unroll 32
+KNEEDYN_UNROLL(32)
     for (int p = k / 2; p < pairs; ++p) x[p] -= l[p] * xk;
   }
-#pragma GCC unroll 64
+KNEEDYN_UNROLL(64)
   for (int k = rows - 1; k >= 0; --k) {
     x[k / 2][k % 2] *= d_inv_[k];
     const double xk = x[k / 2][k % 2];
     const Pair* u = &u_[static_cast<size_t>(k) * pairs];
-#pragma GCC unroll 32
+KNEEDYN_UNROLL(32)
     for (int p = 0; p <= k / 2; ++p) x[p] -= u[p] * xk;
   }
   // x_q = A⁻¹ b_q − A⁻¹ B x_r.
@@ -166,7 +176,7 @@ void KinematicBlockLu::SolveReduced(double* b) const {
     for (int i = 0; i < kQ; ++i) b[i] = y[i] - w_[i] * xr[i];
   } else {
     Pair q[3] = {Pair{y[0], y[1]}, Pair{y[2], y[3]}, Pair{y[4], y[5]}};
-#pragma GCC unroll 64
+KNEEDYN_UNROLL(64)
     for (int j = 0; j < rows; ++j) {
       for (int p = 0; p < 3; ++p) q[p] -= w_full_[3 * static_cast<size_t>(j) + p] * xr[j];
     }
