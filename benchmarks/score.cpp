@@ -9,6 +9,7 @@
 
 #include "formulations/formulation.hpp"
 #include "formulations/run_output.hpp"
+#include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 
@@ -56,13 +57,16 @@ std::string EventName(const std::string& name, const std::string& path, size_t l
   return name;
 }
 
+// A result table or events file: a regular file or a pipe (an outside solver's output through
+// the shell's <(command)), up to scene_detail::kMaxTableFileBytes.
+const scene_detail::InputFileRule kTableFile{"kneedyn score", scene_detail::kMaxTableFileBytes, /*pipes=*/true};
+
 nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 }  // namespace
 
 ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const Solution& reference) {
-  std::ifstream in(path);
-  if (!in) Throw<InputError>("kneedyn score", "RESULT = '", Echo(path), "': cannot be read");
+  std::istringstream in(scene_detail::ReadInputFile(path, "RESULT", kTableFile));
   std::string line;
   if (!std::getline(in, line)) Throw<InputError>("kneedyn score", path, ": empty (no header row)");
   ScoredResult out;
@@ -185,11 +189,7 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
 }
 
 std::vector<EventRecord> ReadEvents(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) Throw<InputError>("kneedyn score", "--events = '", Echo(path), "': cannot be read");
-  std::stringstream text;
-  text << in.rdbuf();
-  const std::string body = text.str();
+  const std::string body = scene_detail::ReadInputFile(path, "--events file", kTableFile);
   std::vector<EventRecord> events;
   const size_t first = body.find_first_not_of(" \t\r\n");
   if (first != std::string::npos && body[first] == '{') {  // kneedyn's summary.json

@@ -8,6 +8,7 @@
 
 #include "benchmarks/score.hpp"
 #include "formulations/version.hpp"
+#include "scene/internal/yaml_field.hpp"
 #include "scene/scene.hpp"
 #include "solver/error.hpp"
 
@@ -29,11 +30,11 @@ std::string Digits(double v) {
 
 // Counters from a JSON file: an object of numbers, or kneedyn's summary.json ("statistics").
 nlohmann::json ReadCounters(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) Throw<InputError>("kneedyn score", "--counters = '", Echo(path), "': cannot be read");
+  const std::string text = scene_detail::ReadInputFile(
+      path, "--counters file", {"kneedyn score", scene_detail::kMaxTableFileBytes, /*pipes=*/true});
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(in);
+    j = nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
     Throw<InputError>("kneedyn score", "--counters = '", Echo(path), "': not JSON (", e.what(), ")");
   }
@@ -73,17 +74,18 @@ int ScoreCommand::Run(int argc, char** argv) {
     std::string reference_file = reference_path_;
     if (reference_file.empty()) {
       reference_file = ReferenceDataDir() + "/references/" + scene.name + ".json";
-      if (!fs::exists(reference_file)) {
+      std::error_code ec;
+      if (!fs::exists(reference_file, ec)) {
         Throw<InputError>("kneedyn score", "no stored reference for scene '", scene.name, "' (", reference_file,
                           "); give --reference");
       }
     }
-    std::ifstream rin(reference_file);
-    if (!rin) Throw<InputError>("kneedyn score", "--reference = '", Echo(reference_file), "': cannot be read");
+    const std::string reference_text = scene_detail::ReadInputFile(
+        reference_file, "--reference file", {"kneedyn score", scene_detail::kMaxTableFileBytes, /*pipes=*/true});
     nlohmann::json ref_json;
     Solution reference;
     try {
-      ref_json = nlohmann::json::parse(rin);
+      ref_json = nlohmann::json::parse(reference_text);
       reference = SolutionFromJson(ref_json.at("solution"));
     } catch (const nlohmann::json::exception& e) {
       Throw<InputError>("kneedyn score", "--reference = '", Echo(reference_file), "': not a kneedyn reference (", e.what(),

@@ -8,6 +8,7 @@
 #include <sstream>
 #include <thread>
 
+#include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn::ensembles {
@@ -111,11 +112,9 @@ BatchVariants ParseBatchVariants(const std::string& text, const std::string& lab
 }
 
 BatchVariants LoadBatchVariants(const std::string& path, const Model& base) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) Throw<InputError>("LoadBatchVariants", "cannot read the variants file '", Echo(path), "'");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ParseBatchVariants(ss.str(), path, base);
+  const std::string text = scene_detail::ReadInputFile(
+      path, "variants file", {"LoadBatchVariants", scene_detail::kMaxTableFileBytes, /*pipes=*/true});
+  return ParseBatchVariants(text, path, base);
 }
 
 Batch::Batch(Scene base, RunSettings run, std::vector<std::string> outcome_groups) {

@@ -11,6 +11,7 @@
 #include <set>
 
 #include "ensembles/sweep_io.hpp"
+#include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn::ensembles {
@@ -156,11 +157,11 @@ void WritePart(const std::string& path, const SweepTable& table, long shard, lon
 }
 
 SweepTable ReadPart(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) Throw<InputError>("ReadPart", "cannot read part file '", path, "'");
+  const std::string text =
+      scene_detail::ReadInputFile(path, "part file", {"ReadPart", scene_detail::kMaxTableFileBytes, /*pipes=*/true});
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(in);
+    j = nlohmann::json::parse(text);
     if (j.at("kind") != "kneedyn_sweep_part") {
       Throw<InputError>("ReadPart", path, ": field 'kind' = ", j.at("kind").dump(),
                         ": not a kneedyn sweep part");

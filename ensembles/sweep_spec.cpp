@@ -336,7 +336,11 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
     fs::path p = s.String();
     if (p.is_relative()) p = fs::path(base_dir) / p;
     spec.scene_path = p.lexically_normal().string();
-    if (!fs::exists(p)) s.Fail("no such file: " + spec.scene_path);
+    std::error_code ec;  // a path the system cannot look up (too long) is a refusal, not an exception
+    if (!fs::exists(p, ec)) {
+      s.Fail(ec ? "cannot look up " + Echo(spec.scene_path, 256) + " (" + ec.message() + ")"
+                : "no such file: " + spec.scene_path);
+    }
     spec.base = LoadScene(spec.scene_path);
   }
 
@@ -497,11 +501,8 @@ ParameterSpec ResolveParameterName(const Model& base, const std::string& name, c
 }
 
 SweepSpec LoadSweepSpec(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) Throw<InputError>("LoadSweepSpec", "cannot read the spec file '", path, "'");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ParseSweepSpec(ss.str(), path, fs::path(path).parent_path().string());
+  const std::string text = scene_detail::ReadInputFile(path, "spec file", {"LoadSweepSpec"});
+  return ParseSweepSpec(text, path, fs::path(path).parent_path().string());
 }
 
 ParameterSpec ResolveParameterName(const Scene& base, const std::string& name,

@@ -735,26 +735,44 @@ Field ParseYaml(const std::string& text, const std::string& label) {
   return Field(doc, root, "");
 }
 
-std::string ReadInputFile(const std::string& path, const char* what) {
+std::string ReadInputFile(const std::string& path, const char* what, const InputFileRule& rule) {
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
   if (ec || !fs::exists(st)) {
-    Throw<InputError>("LoadScene", "cannot open ", what, " '", Echo(path, 256), "'",
+    Throw<InputError>(rule.function, "cannot open ", what, " '", Echo(path, 256), "'",
                       ec ? " (" + ec.message() + ")" : std::string());
   }
-  if (!fs::is_regular_file(st)) {
-    Throw<InputError>("LoadScene", what, " '", Echo(path, 256), "' is not a regular file");
+  const bool pipe = rule.pipes && fs::is_fifo(st);
+  if (!fs::is_regular_file(st) && !pipe) {
+    Throw<InputError>(rule.function, what, " '", Echo(path, 256), "' is not a regular file",
+                      rule.pipes ? " or a pipe" : "");
   }
-  const std::uintmax_t size = fs::file_size(path, ec);
-  if (ec || size > kMaxInputFileBytes) {
-    Throw<InputError>("LoadScene", what, " '", Echo(path, 256), "' has ", ec ? 0 : size,
-                      " bytes; the limit is ", kMaxInputFileBytes);
+  std::uintmax_t size = 0;
+  if (!pipe) {
+    size = fs::file_size(path, ec);
+    if (ec || size > rule.max_bytes) {
+      Throw<InputError>(rule.function, what, " '", Echo(path, 256), "' has ", ec ? 0 : size,
+                        " bytes; the limit is ", rule.max_bytes);
+    }
   }
   std::ifstream in(path, std::ios::binary);
-  if (!in) Throw<InputError>("LoadScene", "cannot open ", what, " '", Echo(path, 256), "'");
-  std::string text(static_cast<size_t>(size), '\0');
-  in.read(text.data(), static_cast<std::streamsize>(size));
-  text.resize(static_cast<size_t>(in.gcount()));
+  if (!in) Throw<InputError>(rule.function, "cannot open ", what, " '", Echo(path, 256), "'");
+  if (!pipe) {
+    std::string text(static_cast<size_t>(size), '\0');
+    in.read(text.data(), static_cast<std::streamsize>(size));
+    text.resize(static_cast<size_t>(in.gcount()));
+    return text;
+  }
+  // A pipe has no size: read in blocks and stop one byte past the limit.
+  std::string text;
+  char block[1 << 16];
+  while (in.read(block, sizeof block) || in.gcount() > 0) {
+    text.append(block, static_cast<size_t>(in.gcount()));
+    if (text.size() > rule.max_bytes) {
+      Throw<InputError>(rule.function, what, " '", Echo(path, 256), "' (a pipe) gave more than ", rule.max_bytes,
+                        " bytes, the limit");
+    }
+  }
   return text;
 }
 

@@ -5,12 +5,23 @@
 // option, the field or key (with its line and the nearest valid key for unknown keys) and
 // the value cut to a bounded length, writes nothing and returns within the test's time
 // (no hang on huge end times, output grids or device files); input-caused physics
-// refusals (JCS-singular initial pose, dependent contact rows) exit 2 as well.
+// refusals (JCS-singular initial pose, dependent contact rows) exit 2 as well; every
+// input file of sweep, batch and score is refused when it is a device, and the tables are
+// read through a pipe.
 // Does not validate: publishing of output sets (output_publish_test.cpp), the numbers of
 // accepted runs (conformance_test.cpp, cli_test.cpp).
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <fstream>
 #include <regex>
 #include <string>
+#include <thread>
 
 #include "tests/cli_support.hpp"
 
@@ -502,6 +513,80 @@ TEST_F(HostileInput, ScoreOfAResultWhosePathIsNotUtf8IsWritten) {
   const std::string json = ReadText(dir_ / "in" / "r\xe9sultat.score.json");
   EXPECT_NE(json.find("r\xef\xbf\xbdsultat.csv"), std::string::npos) << json.substr(0, 400);  // U+FFFD in UTF-8
   EXPECT_FALSE(fs::exists(dir_ / "in" / "r\xe9sultat.score.json.tmp"));
+}
+
+// Every file a subcommand reads besides scenes and parameter sets: a device is refused at
+// once, naming the file's role. Before, /dev/zero as a sweep spec, a variants file, a
+// result, a part file... was read until memory ran out (found by fuzz_sweep's neighbour
+// check; `Bounded` makes a hang a failure).
+TEST_F(HostileInput, DeviceGivenForAnyInputFileIsRefusedAtOnce) {
+  const std::string scene = ChapterScenePath();
+  const std::string result = Input("result.csv", ScoreResultCsv());
+  const std::string out = (dir_ / "out.json").string();
+  ExpectRefused(Bounded("sweep /dev/zero --out '" + Out() + "'"), {"spec file '/dev/zero'", "not a regular file"});
+  ExpectRefused(Bounded("sweep --merge /dev/zero --out '" + Out() + "'"), {"part file '/dev/zero'", "not a regular file"});
+  ExpectRefused(Bounded("batch '" + scene + "' --variants /dev/zero --out '" + out + "'"),
+                {"variants file '/dev/zero'", "not a regular file or a pipe"});
+  ExpectRefused(Bounded("score /dev/zero --scene '" + scene + "' --out '" + out + "'"),
+                {"RESULT '/dev/zero'", "not a regular file or a pipe"});
+  for (const char* option : {"--events", "--counters", "--reference"}) {
+    ExpectRefused(Bounded("score '" + result + "' --scene '" + scene + "' " + option + " /dev/zero --out '" + out + "'"),
+                  {std::string(option) + " file '/dev/zero'", "not a regular file or a pipe"});
+  }
+  ExpectRefused(Bounded("score '" + dir_.string() + "' --scene '" + scene + "' --out '" + out + "'"),
+                {"RESULT", "not a regular file or a pipe"});
+}
+
+// A sweep spec's scene path that the system cannot look up (a name over NAME_MAX) names the
+// field; before, std::filesystem's exception ended the command with its own text (found by
+// fuzz_sweep).
+TEST_F(HostileInput, SweepSceneThatCannotBeLookedUpNamesTheField) {
+  const std::string spec = Input("spec.yaml", "scene: " + std::string(300, 'a') + ".yaml\n"
+                                 "parameters:\n  - {name: mass, relative: 0.1}\n"
+                                 "design: {type: lhs, samples: 4}\noutcomes: [liftoff_time]\n");
+  ExpectRefused("sweep '" + spec + "' --out '" + Out() + "'",
+                {"spec.yaml:1: field 'scene'", "(305 bytes)", "cannot look up", "File name too long"});
+}
+
+// What an outside solver writes may come through a pipe (the shell's <(command), a FIFO):
+// the table readers take it, up to their size limit.
+TEST_F(HostileInput, ResultAndVariantsThroughAPipeAreRead) {
+  std::signal(SIGPIPE, SIG_IGN);
+  const std::string run_out = (dir_ / "run").string();
+  ASSERT_EQ(RunKneedyn("run '" + ChapterScenePath() + "' --quiet --out '" + run_out + "'").exit_code, 0);
+  const std::string trajectory = ReadText(fs::path(run_out) / "trajectory.csv");
+  const auto through_fifo = [&](const std::string& name, const std::string& text, const std::string& args_before,
+                                const std::string& args_after) {
+    const fs::path fifo = dir_ / "in" / name;
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    // The writer waits (up to 60 s) for kneedyn to open the other end, then writes; should
+    // kneedyn never open it or stop reading, the writer gives up instead of blocking the test.
+    std::thread writer([&] {
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+      int fd = -1;
+      while ((fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK)) < 0 && errno == ENXIO &&
+             std::chrono::steady_clock::now() < deadline) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      }
+      if (fd < 0) return;
+      ::fcntl(fd, F_SETFL, 0);  // blocking writes from here
+      for (size_t done = 0; done < text.size();) {
+        const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+        if (n <= 0) break;  // EPIPE: the reader went away (SIGPIPE is ignored below)
+        done += static_cast<size_t>(n);
+      }
+      ::close(fd);
+    });
+    const CommandResult r = RunKneedyn(args_before + "'" + fifo.string() + "'" + args_after);
+    writer.join();
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+  };
+  through_fifo("result.csv", trajectory, "score ",
+               " --scene '" + ChapterScenePath() + "' --out '" + (dir_ / "score.json").string() + "'");
+  EXPECT_NE(ReadText(dir_ / "score.json").find("\"scd\""), std::string::npos);
+  through_fifo("variants.csv", "pulse.amplitude\n90\n110\n", "batch '" + ChapterScenePath() + "' --variants ",
+               " --out '" + (dir_ / "batch.csv").string() + "'");
+  EXPECT_NE(ReadText(dir_ / "batch.csv").find("pulse.amplitude"), std::string::npos);
 }
 
 }  // namespace

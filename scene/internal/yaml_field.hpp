@@ -107,9 +107,22 @@ Field ParseYaml(const std::string& text, const std::string& label);
 // ("LoadSweepSpec"). An empty document is an undefined Field.
 Field ParseYamlDocument(const std::string& text, const std::string& label, const char* reader);
 
-// A scene or parameter-set file: an existing regular file (not a device, FIFO or
-// directory) of at most kMaxInputFileBytes.
-std::string ReadInputFile(const std::string& path, const char* what);
+// How an input file named by the user is read (ReadInputFile).
+struct InputFileRule {
+  const char* function = "LoadScene";  // named in the messages
+  std::uintmax_t max_bytes = kMaxInputFileBytes;
+  // Also a pipe (a FIFO, or the /dev/fd/N of a shell's <(command)), read up to max_bytes.
+  bool pipes = false;
+};
+// CSV tables and JSON documents (variants, results, events, counters, references, sweep
+// parts): a limit for what no run writes, not for what a machine can hold.
+constexpr std::uintmax_t kMaxTableFileBytes = std::uintmax_t{1} << 30;
+
+// The whole text of an input file: an existing regular file (or a pipe, when the rule allows
+// it) of at most rule.max_bytes. A directory, a device (/dev/zero would never end, a terminal
+// would wait) or an oversized file is an InputError from rule.function naming `what`, the
+// path and the rule. Default rule: a scene or parameter-set file.
+std::string ReadInputFile(const std::string& path, const char* what, const InputFileRule& rule = {});
 
 // Names written into output headers: a letter, then letters, digits, '_', '-', '.', and
 // (elements only) spaces and '/'; at most kMaxNameLength characters.
