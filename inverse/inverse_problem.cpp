@@ -141,7 +141,7 @@ double TrajectoryStatement(const Statement& st, const sensitivity::SensitivityRe
 }  // namespace
 
 InverseSpec LoadInverseSpec(const std::string& path) {
-  const std::string text = scene_detail::ReadInputFile(path, "inverse problem file");
+  const std::string text = scene_detail::ReadInputFile(path, "inverse problem file", {"LoadInverseSpec"});
   const Field root = scene_detail::ParseYamlDocument(text, path, "LoadInverseSpec");
   if (!root.IsMap()) root.Fail("the inverse problem file must be a YAML mapping");
   root.Keys({"schema_version", "reach_fraction", "parameters", "statements"});
