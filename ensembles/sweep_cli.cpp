@@ -6,8 +6,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <new>
 #include <thread>
 
+#include "ensembles/design.hpp"
 #include "ensembles/sweep.hpp"
 #include "ensembles/sweep_io.hpp"
 #include "ensembles/sweep_mpi.hpp"
@@ -32,6 +34,13 @@ void ParseShard(const std::string& text, long* shard, long* shards) {
     }
   }
   Throw<InputError>("kneedyn sweep", "--shard = '", text, "': expected i/n with integers 0 <= i < n");
+}
+
+// "3.2 GB" (decimal gigabytes, one decimal).
+std::string FormatGigabytes(double bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f GB", bytes / 1e9);
+  return buf;
 }
 
 std::string Duration(double s) {
@@ -87,7 +96,26 @@ int SweepCommand::Run() {
       shard = mpi.rank();
       shards = mpi.size();
     }
-    const std::vector<long> indices = ShardIndices(spec, shard, shards);
+    std::vector<long> indices;
+    SweepTable table;
+    // The design is held in memory whole (its unit-cube matrix, the run indices, the results
+    // table) before the first run; a spec within the run limit can still ask for more than
+    // the machine has. That is a refusal naming the design, not std::bad_alloc.
+    const auto refuse_design_size = [&spec] {
+      const int d = static_cast<int>(spec.parameters.size());
+      const long runs = DesignRows(spec.design, d);
+      const bool grid = spec.design.type == DesignType::kGrid;
+      Throw<InputError>("kneedyn sweep", spec.path, ": field 'design.", grid ? "levels" : "samples", "' = ",
+                        grid ? spec.design.levels : spec.design.samples, ": ", runs, " runs of ", d,
+                        " parameters do not fit in this machine's memory (the design matrix alone is ",
+                        FormatGigabytes(static_cast<double>(runs) * d * sizeof(double)),
+                        ", held whole by every shard); use a smaller design");
+    };
+    try {
+      indices = ShardIndices(spec, shard, shards);
+    } catch (const std::bad_alloc&) {
+      refuse_design_size();
+    }
     const bool tty = !quiet_ && isatty(STDERR_FILENO) && mpi.rank() == 0;
     auto last = std::chrono::steady_clock::now() - std::chrono::seconds(1);
     std::function<void(const SweepProgress&)> progress;
@@ -103,7 +131,11 @@ int SweepCommand::Run() {
       };
     }
     const auto start = std::chrono::steady_clock::now();
-    SweepTable table = RunSweep(spec, indices, threads, progress);
+    try {
+      table = RunSweep(spec, indices, threads, progress);
+    } catch (const std::bad_alloc&) {
+      refuse_design_size();
+    }
     if (tty) std::fprintf(stderr, "\n");
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     long failed = 0;

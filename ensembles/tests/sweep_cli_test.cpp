@@ -1,8 +1,8 @@
 // `kneedyn sweep` end to end (ensembles/sweep_cli.hpp). Validates the contract of
 // ensembles/README.md:
 // the same bytes (sweep.csv and sweep.h5) with 1 and 2 threads, with two shards merged,
-// and with 2 MPI ranks; bad input exits 2 and writes nothing; no progress output when
-// stderr is not a terminal.
+// and with 2 MPI ranks; bad input exits 2 and writes nothing, a design too large for memory
+// included; no progress output when stderr is not a terminal.
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -126,6 +126,39 @@ TEST(SweepCli, BadInputExitsTwoNamingFieldAndValueAndWritesNothing) {
                (work / "shard.err").string()), 2);
   EXPECT_NE(ReadText(work / "shard.err").find("--shard = '2/2'"), std::string::npos) << ReadText(work / "shard.err");
   EXPECT_FALSE(fs::exists(out));
+}
+
+// A spec within the run limit (10⁸) whose design does not fit in memory is refused naming
+// the design field, its value and the matrix's size, and writes nothing; before, the
+// command ended with "std::bad_alloc". The address space is capped at 3 GB (`ulimit -v`)
+// so that the 3.2 GB design matrix fails on any machine; AddressSanitizer's shadow memory
+// cannot live under such a cap, so the sanitizer build skips this test.
+TEST(SweepCli, DesignLargerThanMemoryIsRefusedNamingTheDesign) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "ulimit -v and AddressSanitizer exclude each other";
+#endif
+  const fs::path work = WorkDir();
+  fs::remove_all(work);
+  fs::create_directories(work);
+  const fs::path spec = work / "huge.yaml";
+  std::ofstream(spec) << "scene: " << KNEEDYN_SOURCE_DIR << "/reference-data/scenes/chapter_impact.yaml\n"
+                      << "parameters:\n"
+                         "  - {name: pulse.amplitude, uniform: [80, 120]}\n"
+                         "  - {name: pulse.duration, uniform: [0.08, 0.12]}\n"
+                         "  - {name: mass, relative: 0.1}\n"
+                         "  - {name: PCL anterior.k_linear, relative: 0.3}\n"
+                         "design: {type: lhs, samples: 100000000, seed: 1}\n"
+                         "outcomes: [liftoff_time]\n";
+  const fs::path out = work / "out";
+  for (const std::string shard : {"", " --shard 0/2"}) {
+    EXPECT_EQ(Sh("ulimit -v 3000000; " + Kneedyn() + " sweep " + spec.string() + shard + " --threads 1 --out " +
+                 out.string() + " > /dev/null 2> " + (work / "err").string()), 2) << shard;
+    const std::string err = ReadText(work / "err");
+    EXPECT_NE(err.find("huge.yaml: field 'design.samples' = 100000000: 100000000 runs of 4 parameters do not fit"),
+              std::string::npos) << err;
+    EXPECT_NE(err.find("3.2 GB"), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(out)) << shard;
+  }
 }
 
 // Open MPI and HDF5 are in the plugin kneedyn_sweep_io.so (ensembles/sweep_io.hpp),
