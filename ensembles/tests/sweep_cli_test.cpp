@@ -32,19 +32,24 @@ int Sh(const std::string& command) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+// WORK/NAME: a spec of the chapter scene with `body` (parameters, design, outcomes...).
+fs::path WriteChapterSpec(const fs::path& work, const std::string& name, const std::string& body) {
+  fs::create_directories(work);
+  const fs::path spec = work / name;
+  std::ofstream(spec) << "scene: " << KNEEDYN_SOURCE_DIR << "/reference-data/scenes/chapter_impact.yaml\n" << body;
+  return spec;
+}
+
 // Seven runs of the chapter scene (a Sobol' design over three parameters).
 fs::path WriteSpec(const fs::path& work) {
-  fs::create_directories(work);
-  const fs::path spec = work / "spec.yaml";
-  std::ofstream(spec) << "scene: " << KNEEDYN_SOURCE_DIR << "/reference-data/scenes/chapter_impact.yaml\n"
-                      << "parameters:\n"
-                         "  - {name: pulse.amplitude, uniform: [70, 130]}\n"
-                         "  - {name: PCL anterior.k_linear, relative: 0.3}\n"
-                         "  - {name: MCL anterior.femoral_y, uniform: [-3, 1]}\n"
-                         "design: {type: sobol, samples: 7}\n"
-                         "outcomes: [liftoff_time, liftoff_flexion, peak_ligament_force, peak_contact_force]\n"
-                         "solver: {formulation: dae-reduced, rtol: 1.0e-6, atol: 1.0e-8}\n";
-  return spec;
+  return WriteChapterSpec(work, "spec.yaml",
+                          "parameters:\n"
+                          "  - {name: pulse.amplitude, uniform: [70, 130]}\n"
+                          "  - {name: PCL anterior.k_linear, relative: 0.3}\n"
+                          "  - {name: MCL anterior.femoral_y, uniform: [-3, 1]}\n"
+                          "design: {type: sobol, samples: 7}\n"
+                          "outcomes: [liftoff_time, liftoff_flexion, peak_ligament_force, peak_contact_force]\n"
+                          "solver: {formulation: dae-reduced, rtol: 1.0e-6, atol: 1.0e-8}\n");
 }
 
 std::string Kneedyn() { return KNEEDYN_EXE; }
@@ -139,16 +144,14 @@ TEST(SweepCli, DesignLargerThanMemoryIsRefusedNamingTheDesign) {
 #endif
   const fs::path work = WorkDir();
   fs::remove_all(work);
-  fs::create_directories(work);
-  const fs::path spec = work / "huge.yaml";
-  std::ofstream(spec) << "scene: " << KNEEDYN_SOURCE_DIR << "/reference-data/scenes/chapter_impact.yaml\n"
-                      << "parameters:\n"
-                         "  - {name: pulse.amplitude, uniform: [80, 120]}\n"
-                         "  - {name: pulse.duration, uniform: [0.08, 0.12]}\n"
-                         "  - {name: mass, relative: 0.1}\n"
-                         "  - {name: PCL anterior.k_linear, relative: 0.3}\n"
-                         "design: {type: lhs, samples: 100000000, seed: 1}\n"
-                         "outcomes: [liftoff_time]\n";
+  const fs::path spec = WriteChapterSpec(work, "huge.yaml",
+                                         "parameters:\n"
+                                         "  - {name: pulse.amplitude, uniform: [80, 120]}\n"
+                                         "  - {name: pulse.duration, uniform: [0.08, 0.12]}\n"
+                                         "  - {name: mass, relative: 0.1}\n"
+                                         "  - {name: PCL anterior.k_linear, relative: 0.3}\n"
+                                         "design: {type: lhs, samples: 100000000, seed: 1}\n"
+                                         "outcomes: [liftoff_time]\n");
   const fs::path out = work / "out";
   for (const std::string shard : {"", " --shard 0/2"}) {
     EXPECT_EQ(Sh("ulimit -v 3000000; " + Kneedyn() + " sweep " + spec.string() + shard + " --threads 1 --out " +
