@@ -57,16 +57,12 @@ std::string EventName(const std::string& name, const std::string& path, size_t l
   return name;
 }
 
-// A result table or events file: a regular file or a pipe (an outside solver's output through
-// the shell's <(command)), up to scene_detail::kMaxTableFileBytes.
-const scene_detail::InputFileRule kTableFile{"kneedyn score", scene_detail::kMaxTableFileBytes, /*pipes=*/true};
-
 nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 }  // namespace
 
 ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const Solution& reference) {
-  std::istringstream in(scene_detail::ReadInputFile(path, "RESULT", kTableFile));
+  std::istringstream in(scene_detail::ReadInputFile(path, "RESULT", scene_detail::TableFileRule("kneedyn score")));
   std::string line;
   if (!std::getline(in, line)) Throw<InputError>("kneedyn score", path, ": empty (no header row)");
   ScoredResult out;
@@ -189,7 +185,7 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
 }
 
 std::vector<EventRecord> ReadEvents(const std::string& path) {
-  const std::string body = scene_detail::ReadInputFile(path, "--events file", kTableFile);
+  const std::string body = scene_detail::ReadInputFile(path, "--events file", scene_detail::TableFileRule("kneedyn score"));
   std::vector<EventRecord> events;
   const size_t first = body.find_first_not_of(" \t\r\n");
   if (first != std::string::npos && body[first] == '{') {  // kneedyn's summary.json

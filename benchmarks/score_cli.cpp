@@ -30,8 +30,8 @@ std::string Digits(double v) {
 
 // Counters from a JSON file: an object of numbers, or kneedyn's summary.json ("statistics").
 nlohmann::json ReadCounters(const std::string& path) {
-  const std::string text = scene_detail::ReadInputFile(
-      path, "--counters file", {"kneedyn score", scene_detail::kMaxTableFileBytes, /*pipes=*/true});
+  const std::string text =
+      scene_detail::ReadInputFile(path, "--counters file", scene_detail::TableFileRule("kneedyn score"));
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(text);
@@ -80,8 +80,8 @@ int ScoreCommand::Run(int argc, char** argv) {
                           "); give --reference");
       }
     }
-    const std::string reference_text = scene_detail::ReadInputFile(
-        reference_file, "--reference file", {"kneedyn score", scene_detail::kMaxTableFileBytes, /*pipes=*/true});
+    const std::string reference_text =
+        scene_detail::ReadInputFile(reference_file, "--reference file", scene_detail::TableFileRule("kneedyn score"));
     nlohmann::json ref_json;
     Solution reference;
     try {

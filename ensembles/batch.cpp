@@ -112,8 +112,8 @@ BatchVariants ParseBatchVariants(const std::string& text, const std::string& lab
 }
 
 BatchVariants LoadBatchVariants(const std::string& path, const Model& base) {
-  const std::string text = scene_detail::ReadInputFile(
-      path, "variants file", {"LoadBatchVariants", scene_detail::kMaxTableFileBytes, /*pipes=*/true});
+  const std::string text =
+      scene_detail::ReadInputFile(path, "variants file", scene_detail::TableFileRule("LoadBatchVariants"));
   return ParseBatchVariants(text, path, base);
 }
 

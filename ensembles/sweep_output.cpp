@@ -157,8 +157,7 @@ void WritePart(const std::string& path, const SweepTable& table, long shard, lon
 }
 
 SweepTable ReadPart(const std::string& path) {
-  const std::string text =
-      scene_detail::ReadInputFile(path, "part file", {"ReadPart", scene_detail::kMaxTableFileBytes, /*pipes=*/true});
+  const std::string text = scene_detail::ReadInputFile(path, "part file", scene_detail::TableFileRule("ReadPart"));
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(text);

@@ -117,6 +117,9 @@ struct InputFileRule {
 // CSV tables and JSON documents (variants, results, events, counters, references, sweep
 // parts): a limit for what no run writes, not for what a machine can hold.
 constexpr std::uintmax_t kMaxTableFileBytes = std::uintmax_t{1} << 30;
+// The rule of those tables: a regular file or a pipe (the shell's <(command)), up to
+// kMaxTableFileBytes; messages name `function`.
+inline InputFileRule TableFileRule(const char* function) { return {function, kMaxTableFileBytes, /*pipes=*/true}; }
 
 // The whole text of an input file: an existing regular file (or a pipe, when the rule allows
 // it) of at most rule.max_bytes. A directory, a device (/dev/zero would never end, a terminal
