@@ -163,7 +163,9 @@ class GaussLegendre {
     using std::cbrt;
     const int n = static_cast<int>(y.size());
     Matrix J(n, n);
-    Vector yp = y, ym = y, fp(n), fm(n);
+    // Sized by the int n: copies sized by y.size() draw GCC 12's false -Wstringop-overflow
+    // from float128's zero fill.
+    Vector yp = y.head(n), ym = y.head(n), fp(n), fm(n);
     const T step = cbrt(std::numeric_limits<T>::epsilon());
     for (int k = 0; k < n; ++k) {
       const T dk = step * (abs(y(k)) + T(1));

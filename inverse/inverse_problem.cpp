@@ -278,7 +278,8 @@ StatementModel::Evaluation StatementModel::Evaluate(const std::vector<double>& x
         const size_t o_idx = std::find(r.outcomes.begin(), r.outcomes.end(), st.outcome) - r.outcomes.begin();
         v = r.values[o_idx];
         if (!std::isfinite(v)) Throw<SolverError>("StatementModel", "statement ", st.id, ": ", st.outcome, " not reached");
-        grad = derivatives ? r.derivatives[o_idx] : std::vector<double>();
+        // Built, then moved: copy-assigning into the empty grad draws GCC 12's false -Wnonnull.
+        if (derivatives) grad = std::vector<double>(r.derivatives[o_idx]);
       } else {
         v = TrajectoryStatement(st, r, derivatives ? &grad : nullptr);
       }
