@@ -392,12 +392,11 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
   design.OnlyKeys({"type", "samples", "levels", "seed"});
   const Node type = design.Required("type");
   spec.design.type = DesignTypeByName(type.String(), spec.path + ": field 'design.type'");
-  constexpr long kMaxRuns = 100000000;
   if (spec.design.type == DesignType::kGrid) {
     if (design.Has("samples")) design.Required("samples").Fail("a grid takes 'levels', not 'samples'");
     spec.design.levels = static_cast<int>(design.Required("levels").Integer(1, 1000));
     double rows = std::pow(static_cast<double>(spec.design.levels), d);
-    if (rows > kMaxRuns) design.Required("levels").Fail(StrCat("levels^parameters = ", rows, " runs; at most ", kMaxRuns));
+    if (rows > kMaxSweepRuns) design.Required("levels").Fail(StrCat("levels^parameters = ", rows, " runs; at most ", kMaxSweepRuns));
     for (const ParameterSpec& p : spec.parameters) {
       if (p.distribution == Distribution::kNormal) {
         design.Required("type").Fail("a grid needs bounded ranges; parameter " + p.name + " is normal");
@@ -405,13 +404,13 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
     }
   } else {
     if (design.Has("levels")) design.Required("levels").Fail("only a grid takes 'levels'");
-    spec.design.samples = design.Required("samples").Integer(1, kMaxRuns);
+    spec.design.samples = design.Required("samples").Integer(1, kMaxSweepRuns);
     if (spec.design.type == DesignType::kSaltelli) {
       if (2 * d > kMaxSobolDimension) {
         type.Fail(StrCat("the Saltelli design supports at most ", kMaxSobolDimension / 2,
                          " parameters; the spec has ", d));
       }
-      if (spec.design.samples * (d + 2) > kMaxRuns) design.Required("samples").Fail("too many runs");
+      if (spec.design.samples * (d + 2) > kMaxSweepRuns) design.Required("samples").Fail("too many runs");
     }
     if (spec.design.type == DesignType::kSobol && d > kMaxSobolDimension) {
       type.Fail(StrCat("the Sobol' design supports at most ", kMaxSobolDimension, " parameters"));

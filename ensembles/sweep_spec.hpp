@@ -17,6 +17,9 @@
 
 namespace kneedyn::ensembles {
 
+// Most runs a sweep may have (its design's rows), and so a part file's total_runs.
+constexpr long kMaxSweepRuns = 100000000;
+
 // What a parameter changes. Values are in the spec's units (those of the parameter-set
 // file): N/mm, N/mm², mm, N, s, kg.
 enum class ParameterKind {

@@ -589,5 +589,64 @@ TEST_F(HostileInput, ResultAndVariantsThroughAPipeAreRead) {
   EXPECT_NE(ReadText(dir_ / "batch.csv").find("pulse.amplitude"), std::string::npos);
 }
 
+
+// A sweep's part files (`kneedyn sweep --merge`) are checked field by field, each refusal
+// naming the file and the field (ensembles/sweep_output.hpp, ReadPart). Before, a
+// fingerprint that was not a number ended with "kneedyn: error: stoull", a wrong type
+// with nlohmann's message naming no field, a negative total_runs with "runs 20480 to -4
+// are missing" and a negative index with "run index 0 appears twice".
+TEST_F(HostileInput, SweepPartFilesAreCheckedFieldByField) {
+  auto part = [](const std::string& row) {
+    return R"({"kind":"kneedyn_sweep_part","fingerprint":"42","total_runs":2,"parameter_columns":["x"],)"
+           R"("outcome_columns":["y"],"rows":[)" + row + "]}";
+  };
+  auto row = [](const std::string& index) {
+    return R"({"index":)" + index +
+           R"(,"parameters":[0.5],"outcomes":[null],"completed":true,"end_reason":"analytic","steps":0,"failure":""})";
+  };
+  const std::string second = Input("part-1.json", part(row("1")));
+  auto merge = [&](const std::string& first_text) {
+    return "sweep --merge '" + Input("part-0.json", first_text) + "' '" + second + "' --out '" + Out() + "'";
+  };
+  // The pair as written is accepted (outcome null = a NaN), so each refusal below is the field's.
+  {
+    const CommandResult r = RunKneedyn(merge(part(row("0"))));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_TRUE(fs::exists(dir_ / "out" / "sweep.csv"));
+    fs::remove_all(dir_ / "out");
+  }
+  const std::string good = part(row("0"));
+  struct Case {
+    std::string from, to;
+    std::vector<std::string> needles;
+  };
+  const std::vector<Case> cases = {
+      {R"("fingerprint":"42")", R"("fingerprint":"abc")", {"field 'fingerprint' = 'abc'", "decimal 64-bit"}},
+      {R"("fingerprint":"42")", R"("fingerprint":"-1")", {"field 'fingerprint' = '-1'"}},
+      {R"("fingerprint":"42")", R"("fingerprint":"99999999999999999999")", {"field 'fingerprint'"}},
+      {R"("fingerprint":"42")", R"("fingerprint":42)", {"field 'fingerprint' = 42", "must be a string"}},
+      {R"("total_runs":2)", R"("total_runs":-3)", {"field 'total_runs' = -3", "[1, 100000000]"}},
+      {R"("total_runs":2)", R"("total_runs":2.5)", {"field 'total_runs' = 2.5"}},
+      {R"("index":0)", R"("index":-1)", {"field 'rows[0].index' = -1", "[0, 1]"}},
+      {R"("index":0)", R"("index":7)", {"field 'rows[0].index' = 7"}},
+      {R"("completed":true)", R"("completed":1)", {"field 'rows[0].completed' = 1", "true or false"}},
+      {R"("outcomes":[null])", R"("outcomes":["x"])", {"field 'rows[0].outcomes' holds 'x'", "not a number"}},
+      {R"("parameters":[0.5])", R"("parameters":[0.5,1])", {"field 'rows[0].parameters'", "a list of 1 numbers"}},
+      {R"("parameters":[0.5],)", "", {"field 'rows[0].parameters': missing"}},
+      {R"("steps":0)", R"("steps":-2)", {"field 'rows[0].steps' = -2"}},
+      {R"("parameter_columns":["x"])", R"("parameter_columns":[["x"]])", {"field 'parameter_columns' holds a list"}},
+      {R"("kind":"kneedyn_sweep_part")", R"("kind":[[[[1]]]])", {"field 'kind' = a list", "must be a string"}},
+      {R"("rows":[)", R"("rows":[7,)", {"field 'rows': item 0 is not an object"}},
+  };
+  for (const Case& c : cases) {
+    ASSERT_NE(good.find(c.from), std::string::npos) << c.from;
+    ExpectRefused(merge(Replaced(good, c.from, c.to)), c.needles);
+  }
+  ExpectRefused(merge("[1, 2]"), {"part-0.json", "not a JSON object"});
+  // A deeply nested value is refused without being echoed (printing it would recurse as deep).
+  ExpectRefused(merge(R"({"kind":)" + std::string(100000, '[') + std::string(100000, ']') + "}"),
+                {"field 'kind' = a list"});
+}
+
 }  // namespace
 }  // namespace kneedyn::cli_test
