@@ -1,13 +1,12 @@
 #include "ensembles/batch.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <charconv>
 #include <cmath>
 #include <fstream>
 #include <sstream>
-#include <thread>
 
+#include "ensembles/parallel_runs.hpp"
 #include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
 
@@ -146,17 +145,9 @@ SweepTable Batch::RunAll(const BatchVariants& variants, int threads) {
   for (const ParameterSpec& p : variants.parameters) table.parameter_columns.push_back(p.column);
   table.outcome_columns = outcome_columns_;
   table.rows.resize(variants.rows.size());
-  std::atomic<size_t> next{0};
-  auto worker = [&] {
-    for (size_t k = next++; k < variants.rows.size(); k = next++) {
-      table.rows[k] = EvaluateRunAt(spec_, static_cast<long>(k), variants.rows[k]);
-    }
-  };
-  threads = std::max(1, std::min<int>(threads, static_cast<int>(variants.rows.size())));
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (std::thread& t : pool) t.join();
+  ForEachRunInParallel(variants.rows.size(), threads, [&](size_t k) {
+    table.rows[k] = EvaluateRunAt(spec_, static_cast<long>(k), variants.rows[k]);
+  });
   return table;
 }
 

@@ -1,13 +1,12 @@
 #include "ensembles/sweep.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <mutex>
-#include <thread>
 
+#include "ensembles/parallel_runs.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -169,32 +168,22 @@ SweepTable RunSweep(const SweepSpec& spec, const std::vector<long>& indices, int
   const std::vector<double> unit = DesignMatrix(spec.design, d);
   table.rows.resize(indices.size());
 
-  std::atomic<size_t> next{0};
   std::mutex mutex;
   SweepProgress state;
   state.total = static_cast<long>(indices.size());
   const auto start = std::chrono::steady_clock::now();
-  auto worker = [&] {
-    for (;;) {
-      const size_t k = next.fetch_add(1);
-      if (k >= indices.size()) return;
-      const long i = indices[k];
-      const std::vector<double> u(unit.begin() + i * d, unit.begin() + (i + 1) * d);
-      table.rows[k] = EvaluateRun(spec, i, u);
-      if (progress) {
-        std::lock_guard<std::mutex> lock(mutex);
-        ++state.done;
-        if (!table.rows[k].completed) ++state.failed;
-        state.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        progress(state);
-      }
+  ForEachRunInParallel(indices.size(), threads, [&](size_t k) {
+    const long i = indices[k];
+    const std::vector<double> u(unit.begin() + i * d, unit.begin() + (i + 1) * d);
+    table.rows[k] = EvaluateRun(spec, i, u);
+    if (progress) {
+      const std::lock_guard<std::mutex> lock(mutex);
+      ++state.done;
+      if (!table.rows[k].completed) ++state.failed;
+      state.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      progress(state);
     }
-  };
-  threads = std::max(1, std::min<int>(threads, static_cast<int>(std::max<size_t>(1, indices.size()))));
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(worker);
-  worker();
-  for (std::thread& t : pool) t.join();
+  });
   return table;
 }
 

@@ -5,10 +5,12 @@
 // is known in closed form; part merging refuses gaps, duplicates and foreign parts.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 
 #include "ensembles/sweep.hpp"
 #include "ensembles/sweep_output.hpp"
@@ -135,6 +137,24 @@ TEST(Sweep, IshigamiAtAKnownPoint) {
   const SweepTable t = RunSweep(spec, {0}, 1);
   // sin(π/2) + 7 sin²(π/2) + 0.1 · 1⁴ · sin(π/2) = 8.1
   EXPECT_NEAR(t.rows[0].outcomes[0], 8.1, 1e-14);
+}
+
+// What a worker throws outside a run (here the progress callback, on whichever thread
+// evaluates the third run) reaches RunSweep's caller once every worker has stopped. Before,
+// it escaped a std::thread (or left one unjoined) and std::terminate ended the process.
+TEST(Sweep, AnExceptionInAWorkerReachesTheCallerWithTwoThreads) {
+  const SweepSpec spec = Parse(
+      "analytic: ishigami\n"
+      "parameters: [{name: x1, uniform: [0, 1]}, {name: x2, uniform: [0, 1]}, {name: x3, uniform: [0, 1]}]\n"
+      "design: {type: sobol, samples: 64}\noutcomes: [value]\n");
+  for (int threads : {1, 2}) {
+    std::atomic<int> calls{0};
+    const auto throw_on_third = [&](const SweepProgress&) {
+      if (++calls == 3) throw std::runtime_error("progress callback failed");
+    };
+    EXPECT_THROW(RunSweep(spec, ShardIndices(spec, 0, 1), threads, throw_on_third), std::runtime_error) << threads;
+    EXPECT_LT(calls.load(), 64) << "the workers stop at the first error";
+  }
 }
 
 TEST(SweepOutput, RowsRoundTripAndMergeRefusesGapsDuplicatesAndForeignParts) {
