@@ -7,6 +7,7 @@
 #include <limits>
 #include <sundials/sundials_config.h>
 
+#include "scene/internal/json_field.hpp"
 #include "solver/error.hpp"
 #include "solver/observables.hpp"
 #include "solver/units.hpp"
@@ -44,10 +45,6 @@ void AppendRow(const Scene& scene, ContactForm form, const MechanicalState& st, 
   s->values["contact_points"].push_back(points);
   s->values["contact_forces"].push_back(forces);
   s->values["ligament_forces"].push_back(tensions);
-}
-
-double JsonNumber(const nlohmann::json& j) {
-  return j.is_null() ? kNaN : j.get<double>();
 }
 
 nlohmann::json Finite(double v) {
@@ -242,23 +239,37 @@ nlohmann::json SolutionJson(const Solution& s) {
   return j;
 }
 
-Solution SolutionFromJson(const nlohmann::json& j) {
+Solution SolutionFromJson(const nlohmann::json& j, const std::string& document) {
+  const scene_detail::JsonFields read("SolutionFromJson", document);
+  const std::string top = "solution.";
   Solution s;
-  s.times = j.at("times_s").get<std::vector<double>>();
-  s.end_is_event = j.at("end_is_event").get<bool>();
-  for (const std::string& c : VariableClasses()) {
-    const nlohmann::json& jc = j.at("classes").at(c);
-    s.names[c] = jc.at("names").get<std::vector<std::string>>();
-    auto& rows = s.values[c];
-    for (const auto& r : jc.at("values")) {
-      std::vector<double> row;
-      for (const auto& v : r) row.push_back(JsonNumber(v));
-      rows.push_back(row);
+  const nlohmann::json& times = read.List(j, top, "times_s");
+  s.times = read.Numbers(times, top + "times_s");
+  for (size_t i = 0; i < s.times.size(); ++i) {
+    if (!std::isfinite(s.times[i]) || (i > 0 && !(s.times[i] > s.times[i - 1]))) {
+      read.Fail(StrCat(top, "times_s[", i, "]"), StrCat(" = ", s.times[i], ": sample times must be finite and increasing"));
     }
   }
-  for (const auto& e : j.at("events")) {
-    s.events.push_back({e.at("name").get<std::string>(), e.at("time_s").get<double>(),
-                        DegToRad(e.at("flexion_deg").get<double>())});
+  s.end_is_event = read.Boolean(j, top, "end_is_event");
+  const nlohmann::json& classes = read.At(j, top, "classes");
+  for (const std::string& c : VariableClasses()) {
+    const std::string where = top + "classes." + c + ".";
+    const nlohmann::json& jc = read.At(classes, top + "classes.", c.c_str());
+    s.names[c] = read.Strings(read.List(jc, where, "names"), where + "names");
+    const nlohmann::json& rows = read.List(jc, where, "values");
+    if (rows.size() != s.times.size()) {
+      read.Fail(where + "values", StrCat(": must hold one row per sample time (", s.times.size(), "), not ", rows.size()));
+    }
+    auto& values = s.values[c];
+    for (size_t r = 0; r < rows.size(); ++r) {
+      values.push_back(read.Numbers(rows[r], StrCat(where, "values[", r, "]"), s.names[c].size()));
+    }
+  }
+  const nlohmann::json& events = read.List(j, top, "events");
+  for (size_t i = 0; i < events.size(); ++i) {
+    const std::string where = StrCat(top, "events[", i, "].");
+    s.events.push_back({read.String(events[i], where, "name"), read.Number(events[i], where, "time_s"),
+                        DegToRad(read.Number(events[i], where, "flexion_deg"))});
   }
   return s;
 }

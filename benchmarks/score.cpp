@@ -10,6 +10,7 @@
 #include "formulations/formulation.hpp"
 #include "formulations/run_output.hpp"
 #include "scene/internal/yaml_field.hpp"
+#include "scene/internal/json_field.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 
@@ -192,12 +193,15 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
     nlohmann::json j;
     try {
       j = nlohmann::json::parse(body);
-      for (const auto& e : j.at("events")) {
-        events.push_back({EventName(e.at("name").get<std::string>(), path, 1), e.at("time").get<double>(),
-                          DegToRad(e.at("flexion_deg").get<double>())});
-      }
     } catch (const nlohmann::json::exception& e) {
       Throw<InputError>("kneedyn score", "--events = '", Echo(path), "': not a summary.json with events (", e.what(), ")");
+    }
+    const scene_detail::JsonFields read("kneedyn score", "--events = '" + Echo(path) + "'");
+    const nlohmann::json& list = read.List(j, "", "events");
+    for (size_t i = 0; i < list.size(); ++i) {
+      const std::string where = StrCat("events[", i, "].");
+      events.push_back({EventName(read.String(list[i], where, "name"), path, 1), read.Number(list[i], where, "time"),
+                        DegToRad(read.Number(list[i], where, "flexion_deg"))});
     }
     return events;
   }

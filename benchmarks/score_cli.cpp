@@ -10,6 +10,7 @@
 #include "formulations/version.hpp"
 #include "scene/internal/yaml_field.hpp"
 #include "scene/scene.hpp"
+#include "scene/internal/json_field.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn::bench {
@@ -83,18 +84,19 @@ int ScoreCommand::Run(int argc, char** argv) {
     const std::string reference_text =
         scene_detail::ReadInputFile(reference_file, "--reference file", scene_detail::TableFileRule("kneedyn score"));
     nlohmann::json ref_json;
-    Solution reference;
     try {
       ref_json = nlohmann::json::parse(reference_text);
-      reference = SolutionFromJson(ref_json.at("solution"));
     } catch (const nlohmann::json::exception& e) {
       Throw<InputError>("kneedyn score", "--reference = '", Echo(reference_file), "': not a kneedyn reference (", e.what(),
                         ")");
     }
-    if (ref_json.value("scene", std::string()) != scene.name) {
-      Throw<InputError>("kneedyn score", "--reference = '", Echo(reference_file), "' is for scene '",
-                        ref_json.value("scene", std::string()), "', not '", scene.name, "'");
+    const std::string document = "--reference = '" + Echo(reference_file) + "'";
+    const scene_detail::JsonFields read("kneedyn score", document);
+    const std::string reference_scene = read.String(ref_json, "", "scene");
+    if (reference_scene != scene.name) {
+      Throw<InputError>("kneedyn score", document, " is for scene '", Echo(reference_scene), "', not '", scene.name, "'");
     }
+    const Solution reference = SolutionFromJson(read.At(ref_json, "", "solution"), document);
     ScoredResult result = ReadResultCsv(result_path_, scene, reference);
     if (!events_path_.empty()) result.solution.events = ReadEvents(events_path_);
     ScoreInfo info;

@@ -13,6 +13,7 @@
 #include <set>
 
 #include "ensembles/sweep_io.hpp"
+#include "scene/internal/json_field.hpp"
 #include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
 
@@ -158,79 +159,6 @@ void WritePart(const std::string& path, const SweepTable& table, long shard, lon
   Publish(tmp, path);
 }
 
-namespace {
-
-// A part file's fields, read with the field's name in every refusal (nlohmann's own
-// messages name no key): where = "" at the top level, "rows[i]." in a row.
-class PartReader {
- public:
-  // A value for a message: scalars as written (cut), containers by kind only (dumping a
-  // deeply nested one would recurse as deep as the hostile file nests).
-  static std::string Brief(const nlohmann::json& v) {
-    if (v.is_array()) return "a list";
-    if (v.is_object()) return "an object";
-    return v.is_string() ? "'" + Echo(v.get<std::string>()) + "'" : Echo(v.dump());
-  }
-
-  explicit PartReader(const std::string& path) : path_(path) {}
-
-  // `what`: " = <value>: <rule>" or ": <rule>".
-  [[noreturn]] void Fail(const std::string& where, const char* key, const std::string& what) const {
-    Throw<InputError>("ReadPart", path_, ": field '", where, key, "'", what);
-  }
-  const nlohmann::json& At(const nlohmann::json& object, const std::string& where, const char* key) const {
-    const auto it = object.find(key);
-    if (it == object.end()) Fail(where, key, ": missing");
-    return *it;
-  }
-  std::string String(const nlohmann::json& object, const std::string& where, const char* key) const {
-    const nlohmann::json& v = At(object, where, key);
-    if (!v.is_string()) Fail(where, key, StrCat(" = ", Brief(v), ": must be a string"));
-    return v.get<std::string>();
-  }
-  long Integer(const nlohmann::json& object, const std::string& where, const char* key, long lo, long hi) const {
-    const nlohmann::json& v = At(object, where, key);
-    if (!v.is_number_integer() || (v.is_number_unsigned() && v.get<std::uint64_t>() > static_cast<std::uint64_t>(hi)) ||
-        v.get<long>() < lo || v.get<long>() > hi) {
-      Fail(where, key, StrCat(" = ", Brief(v), ": must be a whole number in [", lo, ", ", hi, "]"));
-    }
-    return v.get<long>();
-  }
-  bool Boolean(const nlohmann::json& object, const std::string& where, const char* key) const {
-    const nlohmann::json& v = At(object, where, key);
-    if (!v.is_boolean()) Fail(where, key, StrCat(" = ", Brief(v), ": must be true or false"));
-    return v.get<bool>();
-  }
-  // Numbers; null is a NaN (an outcome the run did not reach).
-  std::vector<double> Numbers(const nlohmann::json& object, const std::string& where, const char* key,
-                              size_t count) const {
-    const nlohmann::json& a = At(object, where, key);
-    if (!a.is_array() || a.size() != count) Fail(where, key, StrCat(": must be a list of ", count, " numbers"));
-    std::vector<double> v;
-    v.reserve(count);
-    for (const nlohmann::json& x : a) {
-      if (!x.is_null() && !x.is_number()) Fail(where, key, StrCat(" holds ", Brief(x), ": not a number"));
-      v.push_back(x.is_null() ? std::numeric_limits<double>::quiet_NaN() : x.get<double>());
-    }
-    return v;
-  }
-  std::vector<std::string> Names(const nlohmann::json& object, const char* key) const {
-    const nlohmann::json& a = At(object, "", key);
-    if (!a.is_array()) Fail("", key, ": must be a list of column names");
-    std::vector<std::string> names;
-    for (const nlohmann::json& x : a) {
-      if (!x.is_string()) Fail("", key, StrCat(" holds ", Brief(x), ": not a column name"));
-      names.push_back(x.get<std::string>());
-    }
-    return names;
-  }
-
- private:
-  std::string path_;
-};
-
-}  // namespace
-
 SweepTable ReadPart(const std::string& path) {
   const std::string text = scene_detail::ReadInputFile(path, "part file", scene_detail::TableFileRule("ReadPart"));
   nlohmann::json j;
@@ -240,33 +168,30 @@ SweepTable ReadPart(const std::string& path) {
     Throw<InputError>("ReadPart", path, ": not a valid part file: ", e.what());
   }
   if (!j.is_object()) Throw<InputError>("ReadPart", path, ": not a kneedyn sweep part (not a JSON object)");
-  const PartReader read(path);
+  const scene_detail::JsonFields read("ReadPart", path);
   if (read.String(j, "", "kind") != "kneedyn_sweep_part") {
-    read.Fail("", "kind", StrCat(" = ", PartReader::Brief(j.at("kind")), ": not a kneedyn sweep part"));
+    read.Fail("kind", " = " + read.Brief(j.at("kind")) + ": not a kneedyn sweep part");
   }
   SweepTable t;
   // The spec's 64-bit FNV-1a hash, as decimal digits (WritePart).
   const std::string fingerprint = read.String(j, "", "fingerprint");
   errno = 0;
-  char* end = nullptr;
-  const unsigned long long value = std::strtoull(fingerprint.c_str(), &end, 10);
+  const unsigned long long value = std::strtoull(fingerprint.c_str(), nullptr, 10);
   if (fingerprint.empty() || fingerprint.size() > 20 || fingerprint.find_first_not_of("0123456789") != std::string::npos ||
-      errno == ERANGE || *end != '\0') {
-    read.Fail("", "fingerprint", StrCat(" = '", Echo(fingerprint), "': must be the spec's fingerprint, a decimal 64-bit number"));
+      errno == ERANGE) {
+    read.Fail("fingerprint", " = '" + Echo(fingerprint) + "': must be the spec's fingerprint, a decimal 64-bit number");
   }
   t.fingerprint = value;
   t.total_runs = read.Integer(j, "", "total_runs", 1, kMaxSweepRuns);
-  t.parameter_columns = read.Names(j, "parameter_columns");
-  t.outcome_columns = read.Names(j, "outcome_columns");
-  const nlohmann::json& rows = read.At(j, "", "rows");
-  if (!rows.is_array()) read.Fail("", "rows", ": must be a list");
+  t.parameter_columns = read.Strings(read.List(j, "", "parameter_columns"), "parameter_columns");
+  t.outcome_columns = read.Strings(read.List(j, "", "outcome_columns"), "outcome_columns");
+  const nlohmann::json& rows = read.List(j, "", "rows");
   for (size_t i = 0; i < rows.size(); ++i) {
     const std::string where = StrCat("rows[", i, "].");
-    if (!rows[i].is_object()) read.Fail("", "rows", StrCat(": item ", i, " is not an object"));
     RunRow row;
     row.index = read.Integer(rows[i], where, "index", 0, t.total_runs - 1);
-    row.parameters = read.Numbers(rows[i], where, "parameters", t.parameter_columns.size());
-    row.outcomes = read.Numbers(rows[i], where, "outcomes", t.outcome_columns.size());
+    row.parameters = read.Numbers(read.At(rows[i], where, "parameters"), where + "parameters", t.parameter_columns.size());
+    row.outcomes = read.Numbers(read.At(rows[i], where, "outcomes"), where + "outcomes", t.outcome_columns.size());
     row.completed = read.Boolean(rows[i], where, "completed");
     row.end_reason = read.String(rows[i], where, "end_reason");
     row.steps = read.Integer(rows[i], where, "steps", 0, std::numeric_limits<long>::max());

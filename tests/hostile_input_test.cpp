@@ -23,6 +23,8 @@
 #include <string>
 #include <thread>
 
+#include <nlohmann/json.hpp>
+
 #include "tests/cli_support.hpp"
 
 namespace kneedyn::cli_test {
@@ -631,12 +633,12 @@ TEST_F(HostileInput, SweepPartFilesAreCheckedFieldByField) {
       {R"("index":0)", R"("index":7)", {"field 'rows[0].index' = 7"}},
       {R"("completed":true)", R"("completed":1)", {"field 'rows[0].completed' = 1", "true or false"}},
       {R"("outcomes":[null])", R"("outcomes":["x"])", {"field 'rows[0].outcomes' holds 'x'", "not a number"}},
-      {R"("parameters":[0.5])", R"("parameters":[0.5,1])", {"field 'rows[0].parameters'", "a list of 1 numbers"}},
+      {R"("parameters":[0.5])", R"("parameters":[0.5,1])", {"field 'rows[0].parameters'", "a list of 1 numbers (it has 2)"}},
       {R"("parameters":[0.5],)", "", {"field 'rows[0].parameters': missing"}},
       {R"("steps":0)", R"("steps":-2)", {"field 'rows[0].steps' = -2"}},
       {R"("parameter_columns":["x"])", R"("parameter_columns":[["x"]])", {"field 'parameter_columns' holds a list"}},
       {R"("kind":"kneedyn_sweep_part")", R"("kind":[[[[1]]]])", {"field 'kind' = a list", "must be a string"}},
-      {R"("rows":[)", R"("rows":[7,)", {"field 'rows': item 0 is not an object"}},
+      {R"("rows":[)", R"("rows":[7,)", {"field 'rows[0]' = 7: must be an object"}},
   };
   for (const Case& c : cases) {
     ASSERT_NE(good.find(c.from), std::string::npos) << c.from;
@@ -646,6 +648,66 @@ TEST_F(HostileInput, SweepPartFilesAreCheckedFieldByField) {
   // A deeply nested value is refused without being echoed (printing it would recurse as deep).
   ExpectRefused(merge(R"({"kind":)" + std::string(100000, '[') + std::string(100000, ']') + "}"),
                 {"field 'kind' = a list"});
+}
+
+
+// A reference solution given with --reference and a summary.json given with --events are
+// checked field by field (scene/internal/json_field.hpp), each refusal naming the file and
+// the field. Before, a row of the wrong length or a class with too few rows ended with
+// "MixedError(): sizes 2 and 0; must be equal", a reference with fewer sample times than
+// rows ran the reference configuration again and exited 1 claiming it reproduced its
+// samples to -1.4 digits, a scene that was not a string escaped as nlohmann's message, and
+// an event time that was not a number gave nlohmann's message naming no field.
+TEST_F(HostileInput, ScoreReferenceAndSummaryEventsAreCheckedFieldByField) {
+  const std::string result = Input("result.csv", ScoreResultCsv());
+  const std::string out = (dir_ / "score.json").string();
+  const nlohmann::json stored =
+      nlohmann::json::parse(ReadText(ReferenceDataDir() + "/references/chapter_impact.json"));
+  auto score_with = [&](const nlohmann::json& reference) {
+    return "score '" + result + "' --scene '" + ChapterScenePath() + "' --reference '" +
+           Input("reference.json", reference.dump()) + "' --out '" + out + "'";
+  };
+  // The stored reference as written is accepted, so each refusal below is the field's.
+  {
+    const CommandResult r = RunKneedyn(score_with(stored));
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    fs::remove(out);
+  }
+  nlohmann::json j = stored;
+  j["solution"]["classes"]["contact_forces"]["values"][5] = {1.0};
+  ExpectRefused(score_with(j), {"--reference", "field 'solution.classes.contact_forces.values[5]'",
+                                "a list of 2 numbers (it has 1)"});
+  j = stored;
+  j["solution"]["classes"]["positions"]["values"].erase(3);
+  ExpectRefused(score_with(j), {"field 'solution.classes.positions.values'", "one row per sample time (16), not 15"});
+  j = stored;
+  j["solution"]["times_s"].erase(3);
+  ExpectRefused(score_with(j), {"field 'solution.classes.positions.values'", "(15), not 16"});
+  j = stored;
+  std::swap(j["solution"]["times_s"][2], j["solution"]["times_s"][3]);
+  ExpectRefused(score_with(j), {"field 'solution.times_s[3]'", "finite and increasing"});
+  j = stored;
+  j["solution"]["classes"]["velocities"]["names"][0] = 7;
+  ExpectRefused(score_with(j), {"field 'solution.classes.velocities.names' holds 7", "not a name"});
+  j = stored;
+  j["solution"]["events"][0]["time_s"] = "soon";
+  ExpectRefused(score_with(j), {"field 'solution.events[0].time_s' = 'soon'", "finite number"});
+  j = stored;
+  j["solution"]["classes"].erase("ligament_forces");
+  ExpectRefused(score_with(j), {"field 'solution.classes.ligament_forces': missing"});
+  j = stored;
+  j["scene"] = 5;
+  ExpectRefused(score_with(j), {"field 'scene' = 5", "must be a string"});
+
+  auto score_events = [&](const std::string& summary) {
+    return "score '" + result + "' --scene '" + ChapterScenePath() + "' --events '" + Input("summary.json", summary) +
+           "' --out '" + out + "'";
+  };
+  ExpectRefused(score_events(R"({"events": [{"name": "flexion_90", "time": "abc", "flexion_deg": 90}]})"),
+                {"--events", "field 'events[0].time' = 'abc'", "finite number"});
+  ExpectRefused(score_events(R"({"events": {"name": "flexion_90"}})"), {"field 'events' = an object", "must be a list"});
+  ExpectRefused(score_events(R"({"events": [{"name": "flexion_90", "time": 0.3}]})"),
+                {"field 'events[0].flexion_deg': missing"});
 }
 
 }  // namespace
