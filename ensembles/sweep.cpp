@@ -153,7 +153,10 @@ RunRow EvaluateRunAt(const SweepSpec& spec, long index, const std::vector<double
 std::vector<long> ShardIndices(const SweepSpec& spec, long shard, long shards) {
   const long total = DesignRows(spec.design, static_cast<int>(spec.parameters.size()));
   std::vector<long> out;
-  for (long i = shard; i < total; i += shards) out.push_back(i);
+  for (long i = shard; i < total; i += shards) {
+    out.push_back(i);
+    if (shards > total - i) break;  // i + shards would pass total (and could overflow a long)
+  }
   return out;
 }
 

@@ -1,5 +1,6 @@
 #include "ensembles/sweep_cli.hpp"
 
+#include <cerrno>
 #include <unistd.h>
 
 #include <chrono>
@@ -20,20 +21,24 @@ namespace kneedyn::ensembles {
 
 namespace {
 
+// "i/n": 0 <= i < n <= kMaxSweepRuns (more shards than a sweep can have runs is a typo;
+// strtol saturates past LONG_MAX, hence the range check).
 void ParseShard(const std::string& text, long* shard, long* shards) {
   const size_t slash = text.find('/');
   char* end1 = nullptr;
   char* end2 = nullptr;
   if (slash != std::string::npos) {
     const std::string a = text.substr(0, slash), b = text.substr(slash + 1);
+    errno = 0;
     *shard = std::strtol(a.c_str(), &end1, 10);
     *shards = std::strtol(b.c_str(), &end2, 10);
-    if (!a.empty() && !b.empty() && *end1 == '\0' && *end2 == '\0' && *shards >= 1 && *shard >= 0 &&
-        *shard < *shards) {
+    if (!a.empty() && !b.empty() && *end1 == '\0' && *end2 == '\0' && errno != ERANGE && *shards >= 1 &&
+        *shards <= kMaxSweepRuns && *shard >= 0 && *shard < *shards) {
       return;
     }
   }
-  Throw<InputError>("kneedyn sweep", "--shard = '", text, "': expected i/n with integers 0 <= i < n");
+  Throw<InputError>("kneedyn sweep", "--shard = '", Echo(text), "': expected i/n with integers 0 <= i < n <= ",
+                    kMaxSweepRuns);
 }
 
 // "3.2 GB" (decimal gigabytes, one decimal).

@@ -133,6 +133,24 @@ TEST(SweepCli, BadInputExitsTwoNamingFieldAndValueAndWritesNothing) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+// --shard i/n with n past the run limit is refused naming the option. Before, n parsed past
+// LONG_MAX saturated to it, and the shard's index loop overflowed (i + n): the run evaluated
+// design rows at negative indices and wrote part-1-of-9223372036854775807.json.
+TEST(SweepCli, ShardCountPastTheRunLimitIsRefused) {
+  const fs::path work = WorkDir();
+  fs::remove_all(work);
+  fs::create_directories(work);
+  const fs::path out = work / "out";
+  for (const std::string shard : {"1/99999999999999999999", "0/100000001", "9223372036854775806/9223372036854775807"}) {
+    EXPECT_EQ(Sh(Kneedyn() + " sweep " KNEEDYN_SOURCE_DIR "/ensembles/specs/ishigami.yaml --shard " + shard +
+                 " --out " + out.string() + " > /dev/null 2> " + (work / "err").string()), 2) << shard;
+    const std::string err = ReadText(work / "err");
+    EXPECT_NE(err.find("--shard = '" + shard + "'"), std::string::npos) << err;
+    EXPECT_NE(err.find("<= 100000000"), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(out)) << shard;
+  }
+}
+
 // A spec within the run limit (10⁸) whose design does not fit in memory is refused naming
 // the design field, its value and the matrix's size, and writes nothing; before, the
 // command ended with "std::bad_alloc". The address space is capped at 3 GB (`ulimit -v`)

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -126,6 +127,22 @@ TEST(Sweep, FailedRunsAreKeptWithTheirReason) {
     EXPECT_FALSE(r.failure.empty());
     EXPECT_TRUE(std::isnan(r.outcomes[1]));
   }
+}
+
+// Shard i of n holds the indices k with k mod n = i (the definition), also when n is as
+// large as a long allows: the index loop stops before i + n could overflow.
+TEST(Sweep, ShardIndicesAreTheResidueClassEvenForHugeShardCounts) {
+  const SweepSpec spec = Parse(
+      "analytic: ishigami\n"
+      "parameters: [{name: x1, uniform: [0, 1]}, {name: x2, uniform: [0, 1]}, {name: x3, uniform: [0, 1]}]\n"
+      "design: {type: sobol, samples: 25}\noutcomes: [value]\n");
+  EXPECT_EQ(ShardIndices(spec, 0, 10), (std::vector<long>{0, 10, 20}));
+  EXPECT_EQ(ShardIndices(spec, 4, 10), (std::vector<long>{4, 14, 24}));
+  EXPECT_EQ(ShardIndices(spec, 24, 25), (std::vector<long>{24}));
+  EXPECT_TRUE(ShardIndices(spec, 30, 40).empty());
+  const long huge = std::numeric_limits<long>::max();
+  EXPECT_EQ(ShardIndices(spec, 1, huge), (std::vector<long>{1}));
+  EXPECT_EQ(ShardIndices(spec, 0, huge - 1), (std::vector<long>{0}));
 }
 
 TEST(Sweep, IshigamiAtAKnownPoint) {
