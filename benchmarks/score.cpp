@@ -270,6 +270,22 @@ nlohmann::json DenseDoubleConfiguration() {
           {"command", "kneedyn run SCENE --formulation mde --integrator cvode-adams --rtol 1e-14 --atol 1e-16"}};
 }
 
+void CheckReferenceFields(const nlohmann::json& reference_json, const std::string& document) {
+  const scene_detail::JsonFields read("kneedyn score", document);
+  (void)read.String(reference_json, "", "scene");
+  for (const char* key : {"accuracy_scd", "comparison_interval_s"}) {
+    if (read.Find(reference_json, "", key)) (void)read.Number(reference_json, "", key);
+  }
+  const nlohmann::json* primary = read.Find(reference_json, "", "primary");
+  if (primary == nullptr) return;
+  for (const char* key : {"formulation", "integrator", "command"}) {
+    if (read.Find(*primary, "primary.", key)) (void)read.String(*primary, "primary.", key);
+  }
+  for (const char* key : {"rtol", "atol"}) {
+    if (read.Find(*primary, "primary.", key)) (void)read.Number(*primary, "primary.", key);
+  }
+}
+
 double ScoreCeilingAccuracy(const nlohmann::json& reference_json, double reproduced_scd) {
   const double stated = reference_json.value("accuracy_scd", kNaN);
   return std::isfinite(reproduced_scd) ? std::min(stated, reproduced_scd) : stated;
@@ -292,8 +308,9 @@ Solution DenseReference(const Scene& scene, const nlohmann::json& reference_json
     o.rtol = primary.at("rtol").get<double>();
     o.atol = primary.at("atol").get<double>();
   } catch (const nlohmann::json::exception& e) {
-    Throw<InputError>("kneedyn score", "the reference records no configuration to run again (primary: ",
-                      primary.dump(), "; ", e.what(), ")");
+    // Not primary.dump(): a hostile reference may nest its fields arbitrarily deep.
+    Throw<InputError>("kneedyn score", "the reference records no configuration to run again (primary needs "
+                      "formulation, rtol and atol: ", e.what(), ")");
   }
   settings.output_times = times;
   const ContactForm form = CreateFormulation(settings.formulation, scene, o)->contact_form();

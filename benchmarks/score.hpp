@@ -91,6 +91,11 @@ constexpr double kMinDenseReproductionScd = 10.0;
 // stated accuracy_scd, or what the configuration run again for off-grid rows reproduced of
 // the stored samples when that is lower (NaN reproduced_scd: no off-grid rows).
 double ScoreCeilingAccuracy(const nlohmann::json& reference_json, double reproduced_scd);
+// Checks the fields of a reference document that scoring reads besides its solution (scene,
+// accuracy_scd, comparison_interval_s, primary: formulation, integrator, rtol, atol, command)
+// for their types, so that reading them later cannot throw or recurse; InputError names
+// `document` and the field.
+void CheckReferenceFields(const nlohmann::json& reference_json, const std::string& document);
 Solution DenseReference(const Scene& scene, const nlohmann::json& reference_json, const Solution& reference,
                         const std::vector<double>& times, double* reproduced_scd);
 

@@ -5,12 +5,14 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <set>
+#include <utility>
 
 #include "benchmarks/score.hpp"
 #include "formulations/version.hpp"
+#include "scene/internal/json_field.hpp"
 #include "scene/internal/yaml_field.hpp"
 #include "scene/scene.hpp"
-#include "scene/internal/json_field.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn::bench {
@@ -91,21 +93,32 @@ int ScoreCommand::Run(int argc, char** argv) {
                         ")");
     }
     const std::string document = "--reference = '" + Echo(reference_file) + "'";
-    const scene_detail::JsonFields read("kneedyn score", document);
-    const std::string reference_scene = read.String(ref_json, "", "scene");
+    CheckReferenceFields(ref_json, document);  // read below with .value() and .at()
+    const std::string reference_scene = ref_json.at("scene").get<std::string>();
     if (reference_scene != scene.name) {
       Throw<InputError>("kneedyn score", document, " is for scene '", Echo(reference_scene), "', not '", scene.name, "'");
     }
-    const Solution reference = SolutionFromJson(read.At(ref_json, "", "solution"), document);
+    const Solution reference =
+        SolutionFromJson(scene_detail::JsonFields("kneedyn score", document).At(ref_json, "", "solution"), document);
     ScoredResult result = ReadResultCsv(result_path_, scene, reference);
     if (!events_path_.empty()) result.solution.events = ReadEvents(events_path_);
     ScoreInfo info;
     info.solver_name = solver_name_;
     info.integrator = integrator_;
-    if (rtol_ > 0.0) info.setting["rtol"] = rtol_;
-    if (atol_ > 0.0) info.setting["atol"] = atol_;
-    if (step_ > 0.0) info.setting["step"] = step_;
+    // What the solver ran at, recorded as given: a value that no run can have is refused
+    // rather than left out (before, --rtol -5 and --step nan were dropped silently).
+    for (const auto& [option, value] : {std::pair<const char*, double>{"--rtol", rtol_}, {"--atol", atol_}, {"--step", step_}}) {
+      if (cmd_->count(option) == 0) continue;
+      if (!(std::isfinite(value) && value > 0.0)) {
+        Throw<InputError>("kneedyn score", option, " = ", value, ": must be a finite number > 0");
+      }
+      info.setting[std::string(option).substr(2)] = value;
+    }
+    if (cmd_->count("--cpu-time") > 0 && !(std::isfinite(cpu_time_) && cpu_time_ >= 0.0)) {
+      Throw<InputError>("kneedyn score", "--cpu-time = ", cpu_time_, ": must be a finite number of seconds >= 0");
+    }
     if (!counters_path_.empty()) info.counters = ReadCounters(counters_path_);
+    std::set<std::string> named;  // by --counter
     for (const std::string& c : counters_) {
       const size_t eq = c.find('=');
       char* end = nullptr;
@@ -113,7 +126,12 @@ int ScoreCommand::Run(int argc, char** argv) {
       if (eq == std::string::npos || eq == 0 || end == c.c_str() + eq + 1 || *end != '\0') {
         Throw<InputError>("kneedyn score", "--counter = '", Echo(c), "': give name=value");
       }
-      info.counters[c.substr(0, eq)] = v;
+      if (!std::isfinite(v)) Throw<InputError>("kneedyn score", "--counter = '", Echo(c), "': the value must be finite");
+      if (!named.insert(c.substr(0, eq)).second) {
+        Throw<InputError>("kneedyn score", "--counter = '", Echo(c), "': counter '", Echo(c.substr(0, eq)),
+                          "' given twice");
+      }
+      info.counters[c.substr(0, eq)] = v;  // over the --counters file's value of that name
     }
     info.cpu_time_s = cpu_time_;
     info.failure = failure_;

@@ -698,6 +698,21 @@ TEST_F(HostileInput, ScoreReferenceAndSummaryEventsAreCheckedFieldByField) {
   j = stored;
   j["scene"] = 5;
   ExpectRefused(score_with(j), {"field 'scene' = 5", "must be a string"});
+  j = stored;
+  j["primary"] = 5;
+  ExpectRefused(score_with(j), {"field 'primary' = 5", "must be an object"});
+  j = stored;
+  j["accuracy_scd"] = "high";
+  ExpectRefused(score_with(j), {"field 'accuracy_scd' = 'high'", "finite number"});
+  // A configuration to run again whose rtol nests 200,000 lists deep. Before, score wrote
+  // the configuration into its message with nlohmann's recursive dump and died of a stack
+  // overflow (SIGSEGV, exit 139). The text is spliced in: dumping it here would recurse too.
+  j = stored;
+  j["primary"] = {{"formulation", "dae"}, {"rtol", "DEEP"}, {"atol", 1e-10}};
+  const std::string deep_text = Replaced(j.dump(), "\"DEEP\"", std::string(200000, '[') + std::string(200000, ']'));
+  ExpectRefused("score '" + result + "' --scene '" + ChapterScenePath() + "' --reference '" +
+                    Input("reference.json", deep_text) + "' --out '" + out + "'",
+                {"field 'primary.rtol' = a list", "finite number"});
 
   auto score_events = [&](const std::string& summary) {
     return "score '" + result + "' --scene '" + ChapterScenePath() + "' --events '" + Input("summary.json", summary) +
@@ -708,6 +723,30 @@ TEST_F(HostileInput, ScoreReferenceAndSummaryEventsAreCheckedFieldByField) {
   ExpectRefused(score_events(R"({"events": {"name": "flexion_90"}})"), {"field 'events' = an object", "must be a list"});
   ExpectRefused(score_events(R"({"events": [{"name": "flexion_90", "time": 0.3}]})"),
                 {"field 'events[0].flexion_deg': missing"});
+}
+
+
+// What kneedyn score records of the solver's run (--rtol, --atol, --step, --cpu-time,
+// --counter) is refused when no run can have it. Before, --rtol -5 and --step nan were
+// left out silently and --cpu-time nan, --cpu-time -1, a counter of 1e400 and a counter
+// named twice were recorded.
+TEST_F(HostileInput, ScoreRecordedSettingsNoRunCanHaveAreRefused) {
+  const std::string result = Input("result.csv", ScoreResultCsv());
+  const std::string out = (dir_ / "score.json").string();
+  const std::string score = "score '" + result + "' --scene '" + ChapterScenePath() + "' --out '" + out + "' ";
+  ExpectRefused(score + "--rtol -5", {"--rtol = -5", "finite number > 0"});
+  ExpectRefused(score + "--atol 0", {"--atol = 0", "finite number > 0"});
+  ExpectRefused(score + "--step nan", {"--step = nan", "finite number > 0"});
+  ExpectRefused(score + "--cpu-time -1", {"--cpu-time = -1", "seconds >= 0"});
+  ExpectRefused(score + "--cpu-time nan", {"--cpu-time = nan"});
+  ExpectRefused(score + "--counter steps=1e400", {"--counter = 'steps=1e400'", "finite"});
+  ExpectRefused(score + "--counter steps=1 --counter steps=2", {"counter 'steps' given twice"});
+  const CommandResult r = RunKneedyn(score + "--rtol 1e-6 --atol 1e-8 --cpu-time 0 --counter steps=10");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json record = nlohmann::json::parse(ReadText(out)).at("results").at(0);
+  EXPECT_EQ(record.at("setting").at("rtol").get<double>(), 1e-6);
+  EXPECT_EQ(record.at("setting").at("atol").get<double>(), 1e-8);
+  EXPECT_EQ(record.at("counters").at("steps").get<double>(), 10.0);
 }
 
 }  // namespace

@@ -40,11 +40,16 @@ class JsonFields {
 
   // The fields below are object[key] with `where` the object's path and a trailing dot
   // ("" at the top, "rows[3].").
-  const nlohmann::json& At(const nlohmann::json& object, const std::string& where, const char* key) const {
+  // object[key], or nullptr when the key is absent.
+  const nlohmann::json* Find(const nlohmann::json& object, const std::string& where, const char* key) const {
     if (!object.is_object()) Fail(Trim(where), " = " + Brief(object) + ": must be an object");
     const auto it = object.find(key);
-    if (it == object.end()) Fail(where + key, ": missing");
-    return *it;
+    return it == object.end() ? nullptr : &*it;
+  }
+  const nlohmann::json& At(const nlohmann::json& object, const std::string& where, const char* key) const {
+    const nlohmann::json* v = Find(object, where, key);
+    if (v == nullptr) Fail(where + key, ": missing");
+    return *v;
   }
   const nlohmann::json& List(const nlohmann::json& object, const std::string& where, const char* key) const {
     const nlohmann::json& v = At(object, where, key);
