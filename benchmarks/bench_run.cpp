@@ -91,7 +91,7 @@ Reference LoadReference(const std::string& path) {
   Reference r;
   try {
     in >> r.json;
-    r.solution = SolutionFromJson(r.json.at("solution"));
+    r.solution = SolutionFromJson(r.json.at("solution"), "reference file '" + path + "'");
     r.comparison_interval = r.json.at("comparison_interval_s").get<double>();
     r.conservative = r.json.value("conservative", false);
     if (r.json.contains("accuracy_scd") && r.json["accuracy_scd"].is_number()) {

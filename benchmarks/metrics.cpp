@@ -245,6 +245,9 @@ Solution SolutionFromJson(const nlohmann::json& j, const std::string& document) 
   Solution s;
   const nlohmann::json& times = read.List(j, top, "times_s");
   s.times = read.Numbers(times, top + "times_s");
+  if (s.times.size() < 2) {
+    read.Fail(top + "times_s", StrCat(": must hold at least 2 sample times (it has ", s.times.size(), ")"));
+  }
   for (size_t i = 0; i < s.times.size(); ++i) {
     if (!std::isfinite(s.times[i]) || (i > 0 && !(s.times[i] > s.times[i - 1]))) {
       read.Fail(StrCat(top, "times_s[", i, "]"), StrCat(" = ", s.times[i], ": sample times must be finite and increasing"));

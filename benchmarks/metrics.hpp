@@ -111,8 +111,8 @@ void AddRunMetrics(const Scene& scene, const RunResult& result, bool conservativ
 double EnergyError(const Scene& scene, const RunResult& result);
 
 nlohmann::json SolutionJson(const Solution& s);
-// The "solution" object of a reference or bench record, checked field by field: sample
-// times increasing, every variable class with its names and one row of that many numbers
+// The "solution" object of a reference or bench record, checked field by field: at least
+// two sample times, increasing, every variable class with its names and one row of that many numbers
 // (null: NaN) per time, events with a name, a time and a flexion. InputError names
 // `document` and the field ("solution.classes.positions.values[3]").
 Solution SolutionFromJson(const nlohmann::json& j, const std::string& document = "a solution JSON");

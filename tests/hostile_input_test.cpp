@@ -683,6 +683,12 @@ TEST_F(HostileInput, ScoreReferenceAndSummaryEventsAreCheckedFieldByField) {
   j = stored;
   j["solution"]["times_s"].erase(3);
   ExpectRefused(score_with(j), {"field 'solution.classes.positions.values'", "(15), not 16"});
+  // No sample times at all. Before: SIGSEGV (exit 139) in the off-grid merge, whose count of
+  // stored samples before the end event, times.size() - 1, wrapped around.
+  j = stored;
+  j["solution"]["times_s"] = nlohmann::json::array();
+  for (auto& [name, c] : j["solution"]["classes"].items()) c["values"] = nlohmann::json::array();
+  ExpectRefused(score_with(j), {"field 'solution.times_s'", "at least 2 sample times (it has 0)"});
   j = stored;
   std::swap(j["solution"]["times_s"][2], j["solution"]["times_s"][3]);
   ExpectRefused(score_with(j), {"field 'solution.times_s[3]'", "finite and increasing"});
