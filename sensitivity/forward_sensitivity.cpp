@@ -452,23 +452,18 @@ bool SensitivityOptions::IsValid(std::string* error, const OptionText& typed) co
                     " (CVODES on y = (q, q')) and ", dae, " (IDAS on the DAE of formulations/internal/dae_system.hpp)");
     return false;
   }
-  if (!(rtol > 0.0 && rtol < 1.0)) {
-    *error = StrCat("--rtol = ", shown("--rtol", rtol), ": must be in (0, 1)");
-    return false;
-  }
   if (!(output_interval >= 0.0 && std::isfinite(output_interval))) {
     *error = StrCat("--output-interval = ", shown("--output-interval", output_interval), ": must be >= 0 (0: the scene's)");
     return false;
   }
-  if (!(atol > 0.0 && std::isfinite(atol))) {
-    *error = StrCat("--atol = ", shown("--atol", atol), ": must be > 0");
-    return false;
-  }
-  if (max_steps < 1) {
-    *error = StrCat("--max-steps = ", shown("--max-steps", max_steps), ": must be >= 1");
-    return false;
-  }
-  return true;
+  // The tolerances and the step budget under the rules `kneedyn run` applies to the same
+  // formulation (ValidateOptions): one rule per option. Before, sensitivity took --rtol up
+  // to 1 (run: 0.5), any --atol (run: 1e-2) and any --max-steps (run: 1e8).
+  FormulationOptions shared;
+  shared.rtol = rtol;
+  shared.atol = atol;
+  shared.max_steps = max_steps;
+  return ValidateOptions(FindFormulation(formulation), shared, error, typed);
 }
 
 std::vector<std::string> ParameterNames(const Scene& scene) {
