@@ -9,8 +9,8 @@
 
 #include "formulations/formulation.hpp"
 #include "formulations/run_output.hpp"
-#include "scene/internal/yaml_field.hpp"
 #include "scene/internal/json_field.hpp"
+#include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 

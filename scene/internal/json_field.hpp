@@ -22,7 +22,7 @@ namespace kneedyn::scene_detail {
 
 class JsonFields {
  public:
-  // `function` and `document` (a path, or a role such as "--reference file 'r.json'")
+  // `function` and `document` (a path, or the option and its file: "--reference = 'r.json'")
   // start every message.
   JsonFields(const char* function, std::string document) : function_(function), document_(std::move(document)) {}
 
@@ -40,6 +40,7 @@ class JsonFields {
 
   // The fields below are object[key] with `where` the object's path and a trailing dot
   // ("" at the top, "rows[3].").
+
   // object[key], or nullptr when the key is absent.
   const nlohmann::json* Find(const nlohmann::json& object, const std::string& where, const char* key) const {
     if (!object.is_object()) Fail(Trim(where), " = " + Brief(object) + ": must be an object");
