@@ -270,11 +270,11 @@ int main(int argc, char** argv) {
     }
     std::rename(tmp.c_str(), out_path.c_str());
     return 0;
-  } catch (const InputError& e) {
-    std::cerr << "kneedyn_inverse: " << e.what() << "\n";
+  } catch (const InputError& e) {  // "kneedyn_inverse: error: ..." as the other tools write it
+    std::cerr << "kneedyn_inverse: error: " << e.what() << "\n";
     return 2;
   } catch (const Error& e) {
-    std::cerr << "kneedyn_inverse: " << e.what() << "\n";
+    std::cerr << "kneedyn_inverse: error: " << e.what() << "\n";
     return 1;
   }
 }

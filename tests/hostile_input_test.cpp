@@ -758,5 +758,22 @@ TEST_F(HostileInput, ScoreRecordedSettingsNoRunCanHaveAreRefused) {
   EXPECT_EQ(record.at("counters").at("steps").get<double>(), 10.0);
 }
 
+
+// kneedyn_inverse refuses bad options before any run, in the other tools' form
+// ("<tool>: error: ..."), exit 2, nothing written. Before, its messages had no "error:".
+TEST_F(HostileInput, InverseToolRefusesBadOptionsLikeTheOtherTools) {
+  const std::string out = (dir_ / "fit.json").string();
+  const std::string inverse = std::string("'") + KNEEDYN_INVERSE_EXE + "' --scene '" + ChapterScenePath() +
+                              "' --spec '" KNEEDYN_INVERSE_SPEC "' --out '" + out + "' ";
+  for (const auto& [option, needle] : std::vector<std::pair<std::string, std::string>>{
+           {"--rtol 0.9", "--rtol = 0.9"}, {"--weights -5", "--weights: -5"}, {"--folds C", "--folds: 'C'"}}) {
+    const CommandResult r = RunShell(inverse + option);
+    EXPECT_EQ(r.exit_code, 2) << option << ": " << r.output;
+    EXPECT_EQ(r.output.rfind("kneedyn_inverse: error: ", 0), 0u) << r.output;
+    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
+    EXPECT_TRUE(Written().empty()) << option;
+  }
+}
+
 }  // namespace
 }  // namespace kneedyn::cli_test
