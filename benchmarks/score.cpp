@@ -358,6 +358,26 @@ Solution DenseReference(const Scene& scene, const nlohmann::json& reference_json
   return dense;
 }
 
+Solution ReferenceSolution(const nlohmann::json& reference_json, const std::string& document) {
+  CheckReferenceFields(reference_json, document);
+  return SolutionFromJson(scene_detail::JsonFields("kneedyn score", document).At(reference_json, "", "solution"),
+                          document);
+}
+
+ReferenceScore ScoreAgainstReference(const Scene& scene, const nlohmann::json& reference_json,
+                                     const Solution& reference, const ScoredResult& result, OffGridRows off_grid_rows) {
+  ReferenceScore out{{}, OffGridTimes(result, reference), kNaN};
+  const bool run_again = !out.off_grid_times.empty() && off_grid_rows == OffGridRows::kRunReferenceAgain;
+  out.score = ScoreResult(
+      result, run_again ? DenseReference(scene, reference_json, reference, out.off_grid_times, &out.reproduced_scd)
+                        : reference);
+  // Above the reference's accuracy (or what the run again reproduced) − 1 digit, the error
+  // measured is the reference's own: flagged as in the work-precision sweep.
+  const double ceiling_accuracy = ScoreCeilingAccuracy(reference_json, out.reproduced_scd);
+  if (std::isfinite(ceiling_accuracy)) ApplyScdCeiling(ceiling_accuracy, &out.score.metrics);
+  return out;
+}
+
 nlohmann::json ScoreRecord(const ScoredResult& result, const Score& score, const ScoreInfo& info) {
   nlohmann::json metrics = MetricsJson(score.metrics);
   // A class the CSV does not give has no error (MetricsJson writes 0 for an empty class).

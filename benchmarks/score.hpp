@@ -99,6 +99,28 @@ void CheckReferenceFields(const nlohmann::json& reference_json, const std::strin
 Solution DenseReference(const Scene& scene, const nlohmann::json& reference_json, const Solution& reference,
                         const std::vector<double>& times, double* reproduced_scd);
 
+// A reference document's solution as scoring reads it: CheckReferenceFields, then
+// SolutionFromJson of its "solution"; InputError names `document` and the field.
+Solution ReferenceSolution(const nlohmann::json& reference_json, const std::string& document);
+
+// What becomes of a result's rows off the reference's sampling times (OffGridTimes).
+enum class OffGridRows {
+  kRunReferenceAgain,  // DenseReference: the reference's configuration run again there (kneedyn score)
+  kNotCompared,        // compared at the sampling times only (fuzz targets: no integration per input)
+};
+
+// A result scored against a reference the way `kneedyn score` does it: off-grid rows as
+// `off_grid_rows` says, ScoreResult, then the ceiling of ScoreCeilingAccuracy
+// (ApplyScdCeiling). Throws SolverError when the configuration run again fails or does
+// not reproduce the stored samples (DenseReference).
+struct ReferenceScore {
+  Score score;
+  std::vector<double> off_grid_times;  // OffGridTimes, whatever was done with them
+  double reproduced_scd;               // digits the configuration run again reproduced; NaN: not run
+};
+ReferenceScore ScoreAgainstReference(const Scene& scene, const nlohmann::json& reference_json,
+                                     const Solution& reference, const ScoredResult& result, OffGridRows off_grid_rows);
+
 // The work-precision `results` record of a score (docs/outputs.md, `work_precision --json`).
 struct ScoreInfo {
   std::string solver_name;

@@ -4,7 +4,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <limits>
 #include <set>
 #include <utility>
 
@@ -20,8 +19,6 @@ namespace kneedyn::bench {
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::string Digits(double v) {
   if (std::isnan(v)) return "-";
@@ -93,13 +90,11 @@ int ScoreCommand::Run(int argc, char** argv) {
                         ")");
     }
     const std::string document = "--reference = '" + Echo(reference_file) + "'";
-    CheckReferenceFields(ref_json, document);  // read below with .value() and .at()
+    const Solution reference = ReferenceSolution(ref_json, document);  // its other fields checked too
     const std::string reference_scene = ref_json.at("scene").get<std::string>();
     if (reference_scene != scene.name) {
       Throw<InputError>("kneedyn score", document, " is for scene '", Echo(reference_scene), "', not '", scene.name, "'");
     }
-    const Solution reference =
-        SolutionFromJson(scene_detail::JsonFields("kneedyn score", document).At(ref_json, "", "solution"), document);
     ScoredResult result = ReadResultCsv(result_path_, scene, reference);
     if (!events_path_.empty()) result.solution.events = ReadEvents(events_path_);
     ScoreInfo info;
@@ -136,21 +131,17 @@ int ScoreCommand::Run(int argc, char** argv) {
     info.cpu_time_s = cpu_time_;
     info.failure = failure_;
     // Rows off the reference's sampling times: against the reference run again there.
-    const std::vector<double> off_grid = OffGridTimes(result, reference);
+    const ReferenceScore scored =
+        ScoreAgainstReference(scene, ref_json, reference, result, OffGridRows::kRunReferenceAgain);
+    const Score& score = scored.score;
+    const std::vector<double>& off_grid = scored.off_grid_times;
+    const double reproduced_scd = scored.reproduced_scd;
     std::string comparison = "the reference's sampling times (within 1e-9 s) and its end event";
-    double reproduced_scd = kNaN;
-    const Solution compared_to =
-        off_grid.empty() ? reference : DenseReference(scene, ref_json, reference, off_grid, &reproduced_scd);
     if (!off_grid.empty()) {
       comparison += StrCat(", and ", off_grid.size(), " other result times, where the reference configuration ",
                            "was run again with output there (it reproduces the stored samples to ",
                            Digits(reproduced_scd), " digits)");
     }
-    Score score = ScoreResult(result, compared_to);
-    // Above the reference's accuracy (or what the off-grid rerun reproduced) − 1 digit the
-    // error measured is the reference's own: flagged as in the work-precision sweep.
-    const double ceiling_accuracy = ScoreCeilingAccuracy(ref_json, reproduced_scd);
-    if (std::isfinite(ceiling_accuracy)) ApplyScdCeiling(ceiling_accuracy, &score.metrics);
 
     nlohmann::json out;
     out["kneedyn_version"] = KneedynVersion();

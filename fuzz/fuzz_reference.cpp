@@ -1,7 +1,7 @@
 // libFuzzer target: a reference document as `kneedyn score --reference` reads it
-// (benchmarks/score.hpp: CheckReferenceFields, SolutionFromJson), then a fixed result
-// scored against it: the result CSV read against the reference's columns, the comparison,
-// the ceiling and the record. When the result has rows off the reference's sampling times
+// (benchmarks/score.hpp: ReferenceSolution), then a fixed result scored against it as score
+// does (ScoreAgainstReference): the result CSV read against the reference's columns, the
+// comparison, the ceiling and the record. When the result has rows off the reference's sampling times
 // and the reference names a cheap configuration (rtol >= 1e-6, not an extended-precision
 // one), that configuration is run again for them (DenseReference), as score does; other
 // configurations are not run, to keep an input's time bounded.
@@ -12,9 +12,7 @@
 // crash, sanitizer report, leak, hang or any other exception is a finding.
 //
 // Build and run: bash .ci/bootstrap fuzz [SECONDS] reference (clang, -fsanitize=fuzzer,address,undefined).
-#include <cmath>
 #include <cstdint>
-#include <limits>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -49,24 +47,19 @@ std::string ResultFile(const char* name, const char* rows) {
   return path;
 }
 
-// Reads the result against the reference and scores it as score does; off-grid rows only
-// when `rerun` (the reference's configuration run again for them).
+// Reads the result against the reference and scores it as score does
+// (ScoreAgainstReference); off-grid rows are run again only when `rerun`.
 void ScoreAgainst(const std::string& result_path, const kneedyn::bench::Solution& reference,
                   const nlohmann::json& document, bool rerun) {
   namespace bench = kneedyn::bench;
   const kneedyn::Scene& scene = ChapterScene();
-  bench::ScoredResult result = bench::ReadResultCsv(result_path, scene, reference);
-  const std::vector<double> off_grid = bench::OffGridTimes(result, reference);
-  if (!off_grid.empty() && !rerun) return;
-  double reproduced_scd = std::numeric_limits<double>::quiet_NaN();
-  const bench::Solution compared_to =
-      off_grid.empty() ? reference : bench::DenseReference(scene, document, reference, off_grid, &reproduced_scd);
-  bench::Score score = bench::ScoreResult(result, compared_to);
-  const double ceiling = bench::ScoreCeilingAccuracy(document, reproduced_scd);
-  if (std::isfinite(ceiling)) bench::ApplyScdCeiling(ceiling, &score.metrics);
+  const bench::ScoredResult result = bench::ReadResultCsv(result_path, scene, reference);
+  const bench::ReferenceScore scored = bench::ScoreAgainstReference(
+      scene, document, reference, result,
+      rerun ? bench::OffGridRows::kRunReferenceAgain : bench::OffGridRows::kNotCompared);
   bench::ScoreInfo info;
   info.solver_name = "fuzz";
-  (void)bench::ScoreRecord(result, score, info).dump();
+  (void)bench::ScoreRecord(result, scored.score, info).dump();
 }
 
 }  // namespace
@@ -82,10 +75,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     return 0;  // score refuses a reference that is not JSON (InputError)
   }
   try {
-    bench::CheckReferenceFields(document, "fuzz reference");
-    const auto solution = document.find("solution");
-    if (solution == document.end()) return 0;  // score refuses it: solution missing
-    const bench::Solution reference = bench::SolutionFromJson(*solution, "fuzz reference");
+    const bench::Solution reference = bench::ReferenceSolution(document, "fuzz reference");
     ScoreAgainst(on_grid, reference, document, false);
     ScoreAgainst(off_grid, reference, document, CheapRerun(document));
   } catch (const kneedyn::InputError&) {

@@ -4,8 +4,9 @@
 // work-precision record written from it.
 //
 // Input: a result CSV's text, optionally followed by a line "#@events" and an events file's
-// text. The reference's configuration is not run again for off-grid rows (DenseReference:
-// a whole integration per input); the result is compared at the sampling times it has.
+// text. Scored as score does (ScoreAgainstReference), except that the reference's
+// configuration is not run again for off-grid rows (a whole integration per input): the
+// result is compared at the sampling times it has.
 // An InputError is the accepted outcome of a refused file; a crash, sanitizer report, leak,
 // hang or any other exception is a finding.
 //
@@ -25,6 +26,7 @@ namespace {
 
 struct ChapterReference {
   kneedyn::Scene scene;
+  nlohmann::json document;
   kneedyn::bench::Solution solution;
 };
 
@@ -32,9 +34,10 @@ struct ChapterReference {
 const ChapterReference& Reference() {
   static const ChapterReference r = [] {
     const std::string data = kneedyn::ReferenceDataDir();
-    ChapterReference out{kneedyn::LoadScene(data + "/scenes/chapter_impact.yaml"), {}};
+    ChapterReference out{kneedyn::LoadScene(data + "/scenes/chapter_impact.yaml"), {}, {}};
     std::ifstream in(data + "/references/chapter_impact.json");
-    out.solution = kneedyn::bench::SolutionFromJson(nlohmann::json::parse(in).at("solution"));
+    out.document = nlohmann::json::parse(in);
+    out.solution = kneedyn::bench::ReferenceSolution(out.document, "the chapter reference");
     return out;
   }();
   return r;
@@ -54,11 +57,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     bench::ScoredResult result = bench::ReadResultCsv(result_path, reference.scene, reference.solution);
     if (input.second) result.solution.events = bench::ReadEvents(events_path);
-    (void)bench::OffGridTimes(result, reference.solution);
-    const bench::Score score = bench::ScoreResult(result, reference.solution);
+    const bench::ReferenceScore scored = bench::ScoreAgainstReference(
+        reference.scene, reference.document, reference.solution, result, bench::OffGridRows::kNotCompared);
     bench::ScoreInfo info;
     info.solver_name = "fuzz";
-    (void)bench::ScoreRecord(result, score, info).dump();
+    (void)bench::ScoreRecord(result, scored.score, info).dump();
   } catch (const kneedyn::InputError&) {
     // A refused file: the expected outcome for most inputs.
   }
