@@ -13,6 +13,7 @@
 
 #include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
+#include "solver/internal/ceres_logging.hpp"
 #include "solver/pose.hpp"
 #include "solver/units.hpp"
 
@@ -200,6 +201,14 @@ InverseSpec LoadInverseSpec(const std::string& path) {
     if (f.Has("duration_s")) st.duration_s = f.Child("duration_s").Range(1e-3, 10.0);
     st.target = f.Required("target").Range(-1e5, 1e5);
     st.tolerance = f.Required("tolerance").Positive();
+    // A statement's value comes from runs at --rtol (1e-8 by default, 1e-3 at most); finer
+    // than a millionth of its size, a tolerance scales the runs' own error into the fit (and
+    // near 1e-300 the squared residuals overflow, so that every step is invalid).
+    const double min_tolerance = std::max(1.0, std::abs(st.target)) / 1e6;
+    if (!(st.tolerance >= min_tolerance)) {
+      f.Required("tolerance").Fail(StrCat("must be >= 1e-6 max(1, |target|) = ", min_tolerance,
+                                          ": finer than the runs that compute the statement"));
+    }
     st.half = f.Required("half").OneOf({"A", "B"}, "leave-some-out half");
     st.reason = f.Required("reason").String();
     spec.statements.push_back(st);
@@ -394,6 +403,7 @@ FitResult Fit(const StatementModel& model, const std::vector<int>& fit, const Fi
       so.parameter_tolerance = 1e-10;
       so.logging_type = ceres::SILENT;
       ceres::Solver::Summary summary;
+      QuietCeresLogging();  // the summary's report is the outcome
       ceres::Solve(so, &problem, &summary);
       result.iterations += static_cast<int>(summary.iterations.size());
       result.converged = summary.termination_type == ceres::CONVERGENCE;

@@ -34,6 +34,7 @@
 
 #include "formulations/run.hpp"
 #include "solver/error.hpp"
+#include "solver/internal/ceres_logging.hpp"
 #include "solver/loads.hpp"
 #include "solver/pose.hpp"
 #include "scene/scene.hpp"
@@ -229,6 +230,7 @@ int main(int argc, char** argv) {
       options.minimizer_progress_to_stdout = false;
       options.logging_type = ceres::SILENT;
       ceres::Solver::Summary summary;
+      kneedyn::QuietCeresLogging();  // the summary's report is the outcome
       ceres::Solve(options, &problem, &summary);
       out["ceres"] = {{"brief_report", summary.BriefReport()},
                       {"iterations", summary.iterations.size()},

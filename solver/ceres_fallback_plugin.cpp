@@ -5,23 +5,9 @@
 #include <ceres/ceres.h>
 
 #include "solver/ceres_fallback.hpp"
+#include "solver/internal/ceres_logging.hpp"
 
 namespace {
-
-// Ceres logs through glog; uninitialised, glog prints "Logging before InitGoogleLogging"
-// warnings, and initialised with defaults it writes log files under /tmp. Once per
-// process: initialise it to stderr, errors only (nothing stray is printed).
-void QuietCeresLogging() {
-  static const bool done = [] {
-    if (!google::IsGoogleLoggingInitialized()) {
-      FLAGS_logtostderr = true;
-      FLAGS_minloglevel = google::GLOG_ERROR;
-      google::InitGoogleLogging("kneedyn");
-    }
-    return true;
-  }();
-  (void)done;
-}
 
 class CallbackCost final : public ceres::CostFunction {
  public:
@@ -44,7 +30,7 @@ extern "C" __attribute__((visibility("default"))) int kneedyn_ceres_fallback_sol
   try {
     ceres::Problem problem;
     problem.AddResidualBlock(new CallbackCost(*p), nullptr, x);
-    QuietCeresLogging();
+    kneedyn::QuietCeresLogging();
     ceres::Solver::Options opts;
     opts.linear_solver_type = ceres::DENSE_QR;
     opts.max_num_iterations = p->max_iterations;

@@ -162,15 +162,17 @@ def main():
 
   # 1. Sources and CMake of solver/.
   hits = []
-  for name in sorted(os.listdir(solver)):
-    path = os.path.join(solver, name)
-    with open(path, encoding="utf-8") as f:
-      text = f.read()
-    rel = os.path.join("solver", name)
-    if name == "CMakeLists.txt":
-      hits += scan_cmake(rel, text)
-    elif name.endswith((".hpp", ".cpp", ".h")):
-      hits += scan_source(rel, text)
+  for dirpath, dirs, files in os.walk(solver):  # solver/internal/ included
+    dirs.sort()
+    for name in sorted(files):
+      path = os.path.join(dirpath, name)
+      rel = os.path.relpath(path, root)
+      if name == "CMakeLists.txt":
+        with open(path, encoding="utf-8") as f:
+          hits += scan_cmake(rel, f.read())
+      elif name.endswith((".hpp", ".cpp", ".h")):
+        with open(path, encoding="utf-8") as f:
+          hits += scan_source(rel, f.read())
   # 5. The map of the tree.
   hits += scan_architecture_doc(doc, top_cmake)
   # 4. No include points up.

@@ -4,13 +4,18 @@
 //      more statements than unknowns, so x* is its answer;
 //  (2) the statement derivatives (IDAS sensitivities through the closed-form statement
 //      functions) agree with central differences of the statement values in x;
-//  (3) the shipped parameter/bounds file loads and names only parameters the scene has.
+//  (3) the shipped parameter/bounds file loads and names only parameters the scene has;
+//  (4) a spec is refused field by field, and Ceres prints nothing by itself.
+#include <ceres/ceres.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <iterator>
 
 #include "inverse/inverse_problem.hpp"
 #include "solver/error.hpp"
+#include "solver/internal/ceres_logging.hpp"
 
 namespace kneedyn::inverse {
 namespace {
@@ -141,6 +146,64 @@ TEST(InverseProblem, BadSpecNamesTheField) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("extension_ratoi"), std::string::npos) << e.what();
   }
+}
+
+// The shipped spec with C1's tolerance replaced, written to a file and loaded.
+InverseSpec ShippedSpecWithC1Tolerance(const std::string& tolerance) {
+  std::ifstream in(std::string(KNEEDYN_SOURCE_DIR) + "/inverse/inverse_problem.yaml");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string c1 = "target: 66.0,\n     tolerance: 5.0,";
+  const size_t at = text.find(c1);
+  EXPECT_NE(at, std::string::npos) << "C1's target and tolerance are no longer written as the test expects";
+  if (at != std::string::npos) text.replace(at, c1.size(), "target: 66.0,\n     tolerance: " + tolerance + ",");
+  const std::string path = ::testing::TempDir() + "/inverse_tolerance.yaml";
+  std::ofstream(path) << text;
+  return LoadInverseSpec(path);
+}
+
+// A tolerance scales a statement's residual, (value − target) / tolerance. At 1e-300 the
+// fit's squared residuals overflow and Ceres ends on invalid steps ("reached false, |x| 0"):
+// refused when the spec is read instead, below a millionth of max(1, |target|) (66° here:
+// 6.6e-5), which is finer than the runs (rtol ≤ 1e-3, 1e-8 by default) compute the value.
+TEST(InverseProblem, ToleranceFinerThanTheRunsIsRefused) {
+  for (const char* tolerance : {"1.0e-300", "6.0e-5"}) {
+    try {
+      (void)ShippedSpecWithC1Tolerance(tolerance);
+      ADD_FAILURE() << "tolerance " << tolerance << " was accepted";
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("statements[0].tolerance"), std::string::npos) << what;
+      EXPECT_NE(what.find("must be >= 1e-6 max(1, |target|)"), std::string::npos) << what;
+    }
+  }
+  EXPECT_DOUBLE_EQ(ShippedSpecWithC1Tolerance("7.0e-5").statements[0].tolerance, 7.0e-5);
+}
+
+// Ceres logs through glog, and some of it (Levenberg–Marquardt's "Terminating: Number of
+// consecutive invalid steps ...", at ERROR) even with logging_type = SILENT. A residual of
+// 1e301 makes every step invalid (its square overflows), which is what a tolerance of
+// 1e-300 did to kneedyn_inverse; after QuietCeresLogging nothing reaches stderr, and the
+// outcome is in the summary.
+TEST(InverseProblem, CeresPrintsNothingByItself) {
+  struct Huge final : ceres::SizedCostFunction<1, 1> {
+    bool Evaluate(double const* const* x, double* r, double** J) const override {
+      r[0] = 1e301 * (x[0][0] - 1.0);
+      if (J != nullptr && J[0] != nullptr) J[0][0] = 1e301;
+      return true;
+    }
+  };
+  double x = 0.0;
+  ceres::Problem problem;
+  problem.AddResidualBlock(new Huge, nullptr, &x);
+  ceres::Solver::Options options;
+  options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  QuietCeresLogging();
+  ::testing::internal::CaptureStderr();
+  ceres::Solve(options, &problem, &summary);
+  const std::string printed = ::testing::internal::GetCapturedStderr();
+  EXPECT_NE(summary.termination_type, ceres::CONVERGENCE) << summary.BriefReport();
+  EXPECT_EQ(printed, "") << "Ceres printed by itself";
 }
 
 }  // namespace
