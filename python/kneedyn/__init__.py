@@ -218,10 +218,24 @@ def _merge(doc, changes):
             doc[k] = _copy.deepcopy(v)
 
 
+def _file_path(value, function, argument, expected="a path (str or os.PathLike)"):
+    """A str, bytes or os.PathLike path as str; anything else raises InputError naming it
+    (before, str() of it was taken as a file name: "cannot open scene file 'None'")."""
+    if isinstance(value, (str, bytes, _os.PathLike)):
+        return _os.fsdecode(value)
+    hint = " (a scene document: kneedyn.Scene.from_dict)" if isinstance(value, dict) else ""
+    text = repr(value)
+    if len(text) > 80:
+        text = text[:80] + "..."
+    raise InputError("%s(): %s = %s (%s): must be %s%s"
+                     % (function, argument, text, type(value).__name__, expected, hint))
+
+
 def load_scene(path):
     """Reads and validates a scene file exactly as `kneedyn run` does."""
-    compiled, document = _kneedyn.load_file(str(path))
-    return Scene(document, compiled, str(path), _os.path.dirname(_os.path.abspath(str(path))))
+    path = _file_path(path, "load_scene", "path")
+    compiled, document = _kneedyn.load_file(path)
+    return Scene(document, compiled, path, _os.path.dirname(_os.path.abspath(path)))
 
 
 def _unit(column):
@@ -329,7 +343,7 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
     CLI's writer. The fields of `Result.summary` are those of summary.json, listed in
     docs/outputs.md (:ref:`summary.json <outputs.md#summaryjson-schema_version-2>`)."""
     if not isinstance(scene, Scene):
-        scene = load_scene(scene)
+        scene = load_scene(_file_path(scene, "run", "scene", "a kneedyn.Scene or a scene file's path"))
     out = _kneedyn.run(scene.compiled, formulation, float(rtol), float(atol), integrator,
                        float(step), float(max_step), int(max_steps), stabilization,
                        constraint_level, jacobian, float(output_interval), "" if out is None else str(out),
@@ -363,7 +377,8 @@ def sweep(spec_path, threads=0, out=None):
     """Runs a sweep spec (ensembles/README.md) in process on `threads` workers (0: all cores),
     the GIL released; `out` also writes sweep.csv and sweep.h5 as `kneedyn sweep --out` does.
     The rows do not depend on the thread count."""
-    return SweepResult(_kneedyn.sweep(str(spec_path), int(threads), "" if out is None else str(out)))
+    return SweepResult(_kneedyn.sweep(_file_path(spec_path, "sweep", "spec_path"), int(threads),
+                                      "" if out is None else _file_path(out, "sweep", "out")))
 
 
 def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0.0, out=None, formulation="ede"):
@@ -376,6 +391,6 @@ def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0
     that relative step). `out` also writes sensitivity.csv and sensitivity.json. Unknown
     names raise InputError naming the nearest valid name; a run with an impact SolverError."""
     if not isinstance(scene, Scene):
-        scene = load_scene(scene)
+        scene = load_scene(_file_path(scene, "sensitivity", "scene", "a kneedyn.Scene or a scene file's path"))
     return _kneedyn.sensitivity(scene.compiled, list(parameters), list(outcomes), float(rtol), float(atol),
                                 float(fd_step), "" if out is None else str(out), str(formulation))

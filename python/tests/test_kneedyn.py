@@ -18,6 +18,7 @@ import io
 import json
 import math
 import os
+import pathlib
 import subprocess
 import sys
 import tempfile
@@ -224,6 +225,22 @@ def test_missing_field_unknown_type_and_missing_file():
     scene = kneedyn.load_scene(CHAPTER)
     with pytest.raises(kneedyn.InputError, match="pattern 'XYZ' matches no element"):
         scene.remove_ligaments("XYZ")
+
+
+def test_a_scene_that_is_neither_a_scene_nor_a_path_names_the_argument():
+    # Before, str() of any object was taken as a file name: "cannot open scene file 'None'".
+    with pytest.raises(kneedyn.InputError, match=r"run\(\): scene = None \(NoneType\): must be a kneedyn.Scene"):
+        kneedyn.run(None)
+    with pytest.raises(kneedyn.InputError, match=r"run\(\): scene = \{'name': 'x'\} \(dict\).*Scene.from_dict"):
+        kneedyn.run({"name": "x"})
+    with pytest.raises(kneedyn.InputError, match=r"sensitivity\(\): scene = 5 \(int\)"):
+        kneedyn.sensitivity(5, ["PCL_anterior.k_linear"], ["peak_F_PCL_anterior_N"])
+    with pytest.raises(kneedyn.InputError, match=r"load_scene\(\): path = \[1, 2\] \(list\)"):
+        kneedyn.load_scene([1, 2])
+    with pytest.raises(kneedyn.InputError, match=r"sweep\(\): spec_path = None"):
+        kneedyn.sweep(None)
+    # Paths as bytes and os.PathLike are paths.
+    assert kneedyn.load_scene(pathlib.Path(CHAPTER)).to_dict() == kneedyn.load_scene(os.fsencode(CHAPTER)).to_dict()
 
 
 def test_bad_options_raise_before_running():
