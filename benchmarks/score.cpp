@@ -38,7 +38,7 @@ double ParseCell(const std::string& cell, const std::string& path, size_t line, 
   char* end = nullptr;
   const double v = std::strtod(cell.c_str(), &end);
   if (end == cell.c_str() || *end != '\0') {
-    Throw<InputError>("kneedyn score", path, " line ", line, ", column ", column, ": '", Echo(cell),
+    Throw<InputError>("kneedyn score", EchoPath(path), " line ", line, ", column ", column, ": '", Echo(cell),
                       "' is not a number");
   }
   return v;
@@ -51,7 +51,7 @@ std::string EventName(const std::string& name, const std::string& path, size_t l
   for (const char ch : name) {
     const unsigned char c = static_cast<unsigned char>(ch);
     if (c < 0x20 || c >= 0x7f) {
-      Throw<InputError>("kneedyn score", "--events = '", Echo(path), "' line ", line, ", column name: '", Echo(name),
+      Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "' line ", line, ", column name: '", Echo(name),
                         "' is not an event name (printable ASCII, e.g. liftoff_lateral, flexion_90)");
     }
   }
@@ -65,7 +65,7 @@ nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : 
 ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const Solution& reference) {
   std::istringstream in(scene_detail::ReadInputFile(path, "RESULT", scene_detail::TableFileRule("kneedyn score")));
   std::string line;
-  if (!std::getline(in, line)) Throw<InputError>("kneedyn score", path, ": empty (no header row)");
+  if (!std::getline(in, line)) Throw<InputError>("kneedyn score", EchoPath(path), ": empty (no header row)");
   ScoredResult out;
   out.columns = SplitCsvLine(line);
   // The documented columns of trajectory.csv for this scene (run_output.hpp), and the time.
@@ -74,7 +74,7 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
   for (size_t c = 0; c < out.columns.size(); ++c) {
     const std::string& name = out.columns[c];
     if (std::count(out.columns.begin(), out.columns.end(), name) > 1) {
-      Throw<InputError>("kneedyn score", path, " header: column '", Echo(name), "' appears twice");
+      Throw<InputError>("kneedyn score", EchoPath(path), " header: column '", Echo(name), "' appears twice");
     }
     if (name == "time_s" || name == "time") {
       time_col = static_cast<int>(c);
@@ -88,11 +88,11 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
         const int d = EditDistance(name, k);
         if (d < best) best = d, nearest = k;
       }
-      Throw<InputError>("kneedyn score", path, " header: column '", Echo(name),
+      Throw<InputError>("kneedyn score", EchoPath(path), " header: column '", Echo(name),
                         "' is not a trajectory.csv column of this scene (docs/outputs.md); nearest: '", nearest, "'");
     }
   }
-  if (time_col < 0) Throw<InputError>("kneedyn score", path, " header: no time column ('time_s' or 'time', s)");
+  if (time_col < 0) Throw<InputError>("kneedyn score", EchoPath(path), " header: no time column ('time_s' or 'time', s)");
 
   // Column index of each class component (−1: not given).
   std::map<std::string, std::vector<int>> index;
@@ -131,14 +131,14 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
     if (line.empty() || line == "\r") continue;
     const std::vector<std::string> cells = SplitCsvLine(line);
     if (cells.size() != out.columns.size()) {
-      Throw<InputError>("kneedyn score", path, " line ", line_no, ": ", cells.size(), " cells for ", out.columns.size(),
+      Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": ", cells.size(), " cells for ", out.columns.size(),
                         " columns");
     }
     std::vector<double> v(cells.size());
     for (size_t c = 0; c < cells.size(); ++c) v[c] = ParseCell(cells[c], path, line_no, out.columns[c]);
     const double t = v[time_col];
     if (!std::isfinite(t) || (!row_times.empty() && !(t >= row_times.back()))) {
-      Throw<InputError>("kneedyn score", path, " line ", line_no, ": time ", Echo(cells[time_col]),
+      Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": time ", Echo(cells[time_col]),
                         " is not finite or decreases");
     }
     row_times.push_back(t);
@@ -160,7 +160,7 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
     }
   }
   out.rows = row_times.size();
-  if (out.rows == 0) Throw<InputError>("kneedyn score", path, ": no data rows");
+  if (out.rows == 0) Throw<InputError>("kneedyn score", EchoPath(path), ": no data rows");
 
   // The sampling rows first, then the end-event state as the last entry (metrics.hpp).
   const double last_sampling_time =
@@ -194,9 +194,9 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
     try {
       j = nlohmann::json::parse(body);
     } catch (const nlohmann::json::exception& e) {
-      Throw<InputError>("kneedyn score", "--events = '", Echo(path), "': not a summary.json with events (", e.what(), ")");
+      Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "': not a summary.json with events (", e.what(), ")");
     }
-    const scene_detail::JsonFields read("kneedyn score", "--events = '" + Echo(path) + "'");
+    const scene_detail::JsonFields read("kneedyn score", "--events = '" + EchoPath(path) + "'");
     const nlohmann::json& list = read.List(j, "", "events");
     for (size_t i = 0; i < list.size(); ++i) {
       const std::string where = StrCat("events[", i, "].");
@@ -213,14 +213,14 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
   const auto time_col = std::find(header.begin(), header.end(), "time_s") - header.begin();
   const auto angle_col = std::find(header.begin(), header.end(), "flexion_deg") - header.begin();
   if (name_col == static_cast<long>(header.size()) || time_col == static_cast<long>(header.size())) {
-    Throw<InputError>("kneedyn score", "--events = '", Echo(path), "': a CSV needs the columns name and time_s");
+    Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "': a CSV needs the columns name and time_s");
   }
   size_t line_no = 1;
   while (std::getline(lines, line)) {
     ++line_no;
     if (line.empty() || line == "\r") continue;
     const std::vector<std::string> cells = SplitCsvLine(line);
-    if (cells.size() != header.size()) Throw<InputError>("kneedyn score", path, " line ", line_no, ": wrong number of cells");
+    if (cells.size() != header.size()) Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": wrong number of cells");
     const double angle =
         angle_col < static_cast<long>(header.size()) ? ParseCell(cells[angle_col], path, line_no, "flexion_deg") : kNaN;
     events.push_back({EventName(cells[name_col], path, line_no), ParseCell(cells[time_col], path, line_no, "time_s"),

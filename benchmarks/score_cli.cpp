@@ -36,12 +36,12 @@ nlohmann::json ReadCounters(const std::string& path) {
   try {
     j = nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
-    Throw<InputError>("kneedyn score", "--counters = '", Echo(path), "': not JSON (", e.what(), ")");
+    Throw<InputError>("kneedyn score", "--counters = '", EchoPath(path), "': not JSON (", e.what(), ")");
   }
   if (j.is_object() && j.contains("statistics")) j = j["statistics"];
-  if (!j.is_object()) Throw<InputError>("kneedyn score", "--counters = '", Echo(path), "': not a JSON object");
+  if (!j.is_object()) Throw<InputError>("kneedyn score", "--counters = '", EchoPath(path), "': not a JSON object");
   for (const auto& [k, v] : j.items()) {
-    if (!v.is_number()) Throw<InputError>("kneedyn score", "--counters = '", Echo(path), "': counter '", k, "' is not a number");
+    if (!v.is_number()) Throw<InputError>("kneedyn score", "--counters = '", EchoPath(path), "': counter '", k, "' is not a number");
   }
   return j;
 }
@@ -86,10 +86,10 @@ int ScoreCommand::Run(int argc, char** argv) {
     try {
       ref_json = nlohmann::json::parse(reference_text);
     } catch (const nlohmann::json::exception& e) {
-      Throw<InputError>("kneedyn score", "--reference = '", Echo(reference_file), "': not a kneedyn reference (", e.what(),
+      Throw<InputError>("kneedyn score", "--reference = '", EchoPath(reference_file), "': not a kneedyn reference (", e.what(),
                         ")");
     }
-    const std::string document = "--reference = '" + Echo(reference_file) + "'";
+    const std::string document = "--reference = '" + EchoPath(reference_file) + "'";
     const Solution reference = ReferenceSolution(ref_json, document);  // its other fields checked too
     const std::string reference_scene = ref_json.at("scene").get<std::string>();
     if (reference_scene != scene.name) {
@@ -167,10 +167,10 @@ int ScoreCommand::Run(int argc, char** argv) {
       const std::string text = out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace);
       const std::string tmp = out_path + ".tmp";
       std::ofstream f(tmp);
-      if (!f) Throw<InputError>("kneedyn score", "--out = '", Echo(out_path), "': cannot be written");
+      if (!f) Throw<InputError>("kneedyn score", "--out = '", EchoPath(out_path), "': cannot be written");
       f << text << "\n";
       f.close();
-      if (!f) Throw<InputError>("kneedyn score", "--out = '", Echo(out_path), "': cannot be written");
+      if (!f) Throw<InputError>("kneedyn score", "--out = '", EchoPath(out_path), "': cannot be written");
       fs::rename(tmp, out_path);
     }
 

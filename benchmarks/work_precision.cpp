@@ -180,19 +180,19 @@ std::vector<nlohmann::json> IncludedResults(const std::string& dir, const std::s
                                             const std::string& reference_command, nlohmann::json* files) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) Throw<InputError>("work_precision", "--include = '", Echo(dir), "': not a directory");
+  if (!fs::is_directory(dir, ec)) Throw<InputError>("work_precision", "--include = '", EchoPath(dir), "': not a directory");
   std::vector<fs::path> paths;
   for (const auto& entry : fs::recursive_directory_iterator(dir)) {
     if (entry.is_regular_file() && IsScoreFile(entry.path())) paths.push_back(entry.path());
   }
   if (paths.empty()) {
-    Throw<InputError>("work_precision", "--include = '", Echo(dir),
+    Throw<InputError>("work_precision", "--include = '", EchoPath(dir),
                       "': no score.json or *.score.json (written by kneedyn score) under it");
   }
   std::sort(paths.begin(), paths.end());
   std::vector<nlohmann::json> results;
   for (const fs::path& path : paths) {
-    const std::string where = "--include = '" + Echo(dir) + "': '" + path.string() + "'";
+    const std::string where = "--include = '" + EchoPath(dir) + "': '" + path.string() + "'";
     nlohmann::json j;
     try {
       std::ifstream in(path);

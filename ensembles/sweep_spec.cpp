@@ -338,7 +338,7 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
     spec.scene_path = p.lexically_normal().string();
     std::error_code ec;  // a path the system cannot look up (too long) is a refusal, not an exception
     if (!fs::exists(p, ec)) {
-      s.Fail(ec ? "cannot look up " + Echo(spec.scene_path, 256) + " (" + ec.message() + ")"
+      s.Fail(ec ? "cannot look up " + EchoPath(spec.scene_path) + " (" + ec.message() + ")"
                 : "no such file: " + spec.scene_path);
     }
     spec.base = LoadScene(spec.scene_path);

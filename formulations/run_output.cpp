@@ -295,14 +295,14 @@ const char* const kOutputFiles[] = {"trajectory.csv", "trajectory.sto", "summary
 void WriteFile(const std::string& dir_name, const fs::path& path, std::initializer_list<std::string_view> pieces) {
   std::ofstream out(path, std::ios::binary);
   if (!out) {
-    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': cannot write '",
-                      Echo(path.string(), 256), "'");
+    Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name), "': cannot write '",
+                      EchoPath(path.string()), "'");
   }
   for (const std::string_view piece : pieces) out.write(piece.data(), static_cast<std::streamsize>(piece.size()));
   out.close();
   if (!out) {
-    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': failed writing '",
-                      Echo(path.string(), 256), "'");
+    Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name), "': failed writing '",
+                      EchoPath(path.string()), "'");
   }
 }
 
@@ -311,7 +311,7 @@ fs::path OutputPath(const std::string& dir_name) {
   fs::path out = fs::path(dir_name).lexically_normal();
   if (out.filename().empty()) out = out.parent_path();
   if (out.empty() || out.filename() == "." || out.filename() == "..") {
-    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256),
+    Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name),
                       "': must name a directory of its own (not '.', '..' or '/')");
   }
   return out;
@@ -356,7 +356,7 @@ namespace {
 
 void CheckOutputWritable(const std::string& dir_name, const fs::path& out, bool exists) {
   if (exists && ::access(out.c_str(), W_OK | X_OK) != 0) {
-    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': ", std::strerror(errno),
+    Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name), "': ", std::strerror(errno),
                       "; a run replaces the directory and its files, so it must be writable");
   }
   std::error_code ec;
@@ -374,13 +374,13 @@ void CheckOutputWritable(const std::string& dir_name, const fs::path& out, bool 
     ancestor = up;
   }
   if (!fs::is_directory(ancestor, ec)) {
-    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': '", Echo(ancestor.string(), 256),
+    Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name), "': '", EchoPath(ancestor.string()),
                       "' is not a directory");
   }
   const fs::path probe = ancestor / StrCat(TempPrefix(out), ::getpid(), "-probe");
   if (::mkdir(probe.c_str(), 0700) != 0 && errno != EEXIST) {
-    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': cannot create a directory in '",
-                      Echo(ancestor.string(), 256), "' (", std::strerror(errno), ")");
+    Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name), "': cannot create a directory in '",
+                      EchoPath(ancestor.string()), "' (", std::strerror(errno), ")");
   }
   ::rmdir(probe.c_str());
 }
@@ -392,22 +392,22 @@ void CheckOutputDirectory(const std::string& dir_name) {
   std::error_code ec;
   const fs::file_status st = fs::symlink_status(out, ec);
   if (ec && ec != std::errc::no_such_file_or_directory) {
-    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': ", ec.message());
+    Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name), "': ", ec.message());
   }
   if (!fs::exists(st)) return CheckOutputWritable(dir_name, out, /*exists=*/false);
   if (!fs::is_directory(st)) {
-    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "' exists and is not a directory");
+    Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name), "' exists and is not a directory");
   }
   for (fs::directory_iterator it(out, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
     const bool known = std::find(std::begin(kOutputFiles), std::end(kOutputFiles), name) != std::end(kOutputFiles);
     if (!known || !it->is_regular_file()) {
-      Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "' holds '", Echo(name),
+      Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name), "' holds '", Echo(name),
                         "', which is not ", known ? "a regular file" : "part of an output set",
                         "; a run replaces the whole directory: give a new or empty one");
     }
   }
-  if (ec) Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': ", ec.message());
+  if (ec) Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name), "': ", ec.message());
   CheckOutputWritable(dir_name, out, /*exists=*/true);
 }
 
@@ -421,8 +421,8 @@ void Publish(const fs::path& tmp, const fs::path& out) {
     if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, out.c_str(), RENAME_EXCHANGE) == 0) return;
     if (errno != ENOENT) break;  // ENOENT: `out` vanished in between (another run); again
   }
-  Throw<InputError>("WriteRunOutputs", "--out = '", Echo(out.string(), 256), "': cannot publish '",
-                    Echo(tmp.string(), 256), "' as it: ", std::strerror(errno));
+  Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(out.string()), "': cannot publish '",
+                    EchoPath(tmp.string()), "' as it: ", std::strerror(errno));
 }
 }  // namespace
 
@@ -522,8 +522,8 @@ void WriteRunOutputs(const std::string& dir_name, const Scene& scene, const RunS
   std::snprintf(suffix, sizeof(suffix), "%ld-%08x", static_cast<long>(::getpid()), random());
   const fs::path tmp = out.parent_path() / (TempPrefix(out) + suffix);
   if (!fs::create_directory(tmp, ec) || ec) {
-    Throw<InputError>("WriteRunOutputs", "--out = '", Echo(dir_name, 256), "': cannot create '",
-                      Echo(tmp.string(), 256), "' (", ec.message(), ")");
+    Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name), "': cannot create '",
+                      EchoPath(tmp.string()), "' (", ec.message(), ")");
   }
   try {
     const TrajectoryTable table = MakeTrajectoryTable(scene, result);

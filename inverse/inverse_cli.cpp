@@ -186,7 +186,7 @@ int main(int argc, char** argv) {
     }
     for (const std::string& t : targets) {
       if (std::find(claims.begin(), claims.end(), t) == claims.end()) {
-        Throw<InputError>("kneedyn_inverse", "--targets: '", Echo(t), "' is no claim of the statements in ", spec_path);
+        Throw<InputError>("kneedyn_inverse", "--targets: '", Echo(t), "' is no claim of the statements in ", EchoPath(spec_path));
       }
     }
     nlohmann::json out;

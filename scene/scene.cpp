@@ -29,7 +29,7 @@ ParameterSet ReadParameterSet(const Field& top, const std::string& base_dir) {
                                          : (fs::path(ReferenceDataDir()) / ps_path).string();
   }
   if (!fs::exists(ps_path, ec)) {
-    psf.Fail("parameter set file not found (looked for '" + Echo(ps_path, 256) + "'" +
+    psf.Fail("parameter set file not found (looked for '" + EchoPath(ps_path) + "'" +
              (ec ? "; " + ec.message() : std::string()) + ")");
   }
   if (!fs::is_regular_file(ps_path, ec)) psf.Fail("must name a regular file");

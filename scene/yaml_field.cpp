@@ -387,12 +387,12 @@ class YamlDocument {
       : label_(std::move(label)), reader_(reader) {
     const std::string text = AllowedUtf8(raw);
     yaml_parser_t parser;
-    if (!yaml_parser_initialize(&parser)) Throw<InputError>(reader_, Echo(label_), ": out of memory");
+    if (!yaml_parser_initialize(&parser)) Throw<InputError>(reader_, EchoPath(label_), ": out of memory");
     yaml_parser_set_input_string(&parser, reinterpret_cast<const unsigned char*>(text.data()), text.size());
     doc_.Reserve(text.size());
     const std::string problem = Compose(&parser, text, &doc_);
     yaml_parser_delete(&parser);
-    if (!problem.empty()) Throw<InputError>(reader_, Echo(label_, 256), problem[0] == ' ' ? ":" : "", problem);
+    if (!problem.empty()) Throw<InputError>(reader_, EchoPath(label_), problem[0] == ' ' ? ":" : "", problem);
   }
   YamlDocument(const YamlDocument&) = delete;
   YamlDocument& operator=(const YamlDocument&) = delete;
@@ -527,7 +527,7 @@ Field::Field(std::shared_ptr<const YamlDocument> doc, const yaml_node_t* node, s
     : doc_(std::move(doc)), node_(node), kind_(KindOf(node)), path_(std::move(path)) {}
 
 void Field::Fail(const std::string& rule) const {
-  Throw<InputError>(doc_->reader(), Echo(doc_->label(), 256), Line(node_), ": field '", path().empty() ? "(top level)" : path(),
+  Throw<InputError>(doc_->reader(), EchoPath(doc_->label()), Line(node_), ": field '", path().empty() ? "(top level)" : path(),
                     "'", kind_ == YamlKind::kScalar ? " = '" + Echo(std::string(ScalarText(node_))) + "'" : std::string(),
                     ": ", rule);
 }
@@ -552,7 +552,7 @@ const Field& Field::Keys(const std::vector<const char*>& keys) const {
       }
       list += (list.empty() ? "" : ", ") + std::string(valid);
     }
-    Throw<InputError>(doc_->reader(), Echo(doc_->label(), 256), Line(key), ": unknown key '", Echo(Where(k)), "'",
+    Throw<InputError>(doc_->reader(), EchoPath(doc_->label()), Line(key), ": unknown key '", Echo(Where(k)), "'",
                       nearest ? StrCat("; nearest valid key '", nearest, "'") : std::string(), " (valid here: ", list,
                       ")");
   }
@@ -729,7 +729,7 @@ Field ParseYaml(const std::string& text, const std::string& label) {
   const yaml_node_t* root = doc->Root();
   const YamlKind kind = KindOf(root);
   if (kind != YamlKind::kMap) {
-    Throw<InputError>("LoadScene", Echo(label), ": the top level must be a mapping of keys "
+    Throw<InputError>("LoadScene", EchoPath(label), ": the top level must be a mapping of keys "
                       "(name, parameter_set, ...); got ", kind == YamlKind::kSequence ? "a list" : kind == YamlKind::kScalar ? "a scalar" : "nothing");
   }
   return Field(doc, root, "");
@@ -739,24 +739,24 @@ std::string ReadInputFile(const std::string& path, const char* what, const Input
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
   if (ec || !fs::exists(st)) {
-    Throw<InputError>(rule.function, "cannot open ", what, " '", Echo(path, 256), "'",
+    Throw<InputError>(rule.function, "cannot open ", what, " '", EchoPath(path), "'",
                       ec ? " (" + ec.message() + ")" : std::string());
   }
   const bool pipe = rule.pipes && fs::is_fifo(st);
   if (!fs::is_regular_file(st) && !pipe) {
-    Throw<InputError>(rule.function, what, " '", Echo(path, 256), "' is not a regular file",
+    Throw<InputError>(rule.function, what, " '", EchoPath(path), "' is not a regular file",
                       rule.pipes ? " or a pipe" : "");
   }
   std::uintmax_t size = 0;
   if (!pipe) {
     size = fs::file_size(path, ec);
     if (ec || size > rule.max_bytes) {
-      Throw<InputError>(rule.function, what, " '", Echo(path, 256), "' has ", ec ? 0 : size,
+      Throw<InputError>(rule.function, what, " '", EchoPath(path), "' has ", ec ? 0 : size,
                         " bytes; the limit is ", rule.max_bytes);
     }
   }
   std::ifstream in(path, std::ios::binary);
-  if (!in) Throw<InputError>(rule.function, "cannot open ", what, " '", Echo(path, 256), "'");
+  if (!in) Throw<InputError>(rule.function, "cannot open ", what, " '", EchoPath(path), "'");
   if (!pipe) {
     std::string text(static_cast<size_t>(size), '\0');
     in.read(text.data(), static_cast<std::streamsize>(size));
@@ -769,7 +769,7 @@ std::string ReadInputFile(const std::string& path, const char* what, const Input
   while (in.read(block, sizeof block) || in.gcount() > 0) {
     text.append(block, static_cast<size_t>(in.gcount()));
     if (text.size() > rule.max_bytes) {
-      Throw<InputError>(rule.function, what, " '", Echo(path, 256), "' (a pipe) gave more than ", rule.max_bytes,
+      Throw<InputError>(rule.function, what, " '", EchoPath(path), "' (a pipe) gave more than ", rule.max_bytes,
                         " bytes, the limit");
     }
   }

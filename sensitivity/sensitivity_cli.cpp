@@ -40,17 +40,17 @@ fs::path OutputPath(const std::string& dir) {
   fs::path out = fs::path(dir).lexically_normal();
   if (out.filename().empty()) out = out.parent_path();
   if (out.empty() || out.filename() == "." || out.filename() == "..") {
-    Throw<InputError>("kneedyn sensitivity", "--out = '", Echo(dir, 256), "': must name a directory of its own (not '.', '..' or '/')");
+    Throw<InputError>("kneedyn sensitivity", "--out = '", EchoPath(dir), "': must name a directory of its own (not '.', '..' or '/')");
   }
   return out;
 }
 
 void WriteFile(const fs::path& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
-  if (!out) Throw<InputError>("kneedyn sensitivity", "cannot write '", Echo(path.string(), 256), "'");
+  if (!out) Throw<InputError>("kneedyn sensitivity", "cannot write '", EchoPath(path.string()), "'");
   out << text;
   out.close();
-  if (!out) Throw<InputError>("kneedyn sensitivity", "failed writing '", Echo(path.string(), 256), "'");
+  if (!out) Throw<InputError>("kneedyn sensitivity", "failed writing '", EchoPath(path.string()), "'");
 }
 
 // Replaces `out` by `tmp` in one step (as `kneedyn run` publishes, run_output.hpp).
@@ -61,8 +61,8 @@ void Publish(const fs::path& tmp, const fs::path& out) {
     if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, out.c_str(), RENAME_EXCHANGE) == 0) return;
     if (errno != ENOENT) break;
   }
-  Throw<InputError>("kneedyn sensitivity", "cannot publish '", Echo(tmp.string(), 256), "' as '",
-                    Echo(out.string(), 256), "': ", std::strerror(errno));
+  Throw<InputError>("kneedyn sensitivity", "cannot publish '", EchoPath(tmp.string()), "' as '",
+                    EchoPath(out.string()), "': ", std::strerror(errno));
 }
 
 // p / y · dy/dp (NaN when y = 0 or not reached).
@@ -75,15 +75,15 @@ void CheckSensitivityOutputDirectory(const std::string& dir) {
   std::error_code ec;
   const fs::file_status st = fs::symlink_status(out, ec);
   if (ec && ec != std::errc::no_such_file_or_directory) {
-    Throw<InputError>("kneedyn sensitivity", "--out = '", Echo(dir, 256), "': ", ec.message());
+    Throw<InputError>("kneedyn sensitivity", "--out = '", EchoPath(dir), "': ", ec.message());
   }
   if (!fs::exists(st)) return;
-  if (!fs::is_directory(st)) Throw<InputError>("kneedyn sensitivity", "--out = '", Echo(dir, 256), "' exists and is not a directory");
+  if (!fs::is_directory(st)) Throw<InputError>("kneedyn sensitivity", "--out = '", EchoPath(dir), "' exists and is not a directory");
   for (fs::directory_iterator it(out, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
     const bool known = std::find(std::begin(kFiles), std::end(kFiles), name) != std::end(kFiles);
     if (!known || !it->is_regular_file()) {
-      Throw<InputError>("kneedyn sensitivity", "--out = '", Echo(dir, 256), "' holds '", Echo(name),
+      Throw<InputError>("kneedyn sensitivity", "--out = '", EchoPath(dir), "' holds '", Echo(name),
                         "', which is not part of a sensitivity output set; give a new or empty directory");
     }
   }
@@ -119,7 +119,7 @@ void WriteSensitivityOutputs(const std::string& dir, const Scene& scene, const S
   std::snprintf(suffix, sizeof suffix, "%ld-%08x", static_cast<long>(::getpid()), random());
   const fs::path tmp = out.parent_path() / ("." + out.filename().string() + ".kneedyn-tmp-" + suffix);
   if (!fs::create_directory(tmp, ec) || ec) {
-    Throw<InputError>("kneedyn sensitivity", "--out = '", Echo(dir, 256), "': cannot create '", Echo(tmp.string(), 256), "'");
+    Throw<InputError>("kneedyn sensitivity", "--out = '", EchoPath(dir), "': cannot create '", EchoPath(tmp.string()), "'");
   }
   try {
     std::ostringstream csv;
@@ -262,12 +262,12 @@ int SensitivityCommand::Run(int argc, char** argv) {
     Scene scene;
     if (!spec_path_.empty()) {
       if (!parameters_.empty() || !outcomes_.empty()) {
-        Throw<InputError>("kneedyn sensitivity", "--spec = '", Echo(spec_path_),
+        Throw<InputError>("kneedyn sensitivity", "--spec = '", EchoPath(spec_path_),
                           "': takes the parameters and outcomes from the spec; do not also give --parameters/--outcomes");
       }
       const ensembles::SweepSpec spec = ensembles::LoadSweepSpec(spec_path_);
       if (spec.analytic != ensembles::AnalyticModel::kNone) {
-        Throw<InputError>("kneedyn sensitivity", "--spec = '", Echo(spec_path_), "': an analytic test function, not a scene");
+        Throw<InputError>("kneedyn sensitivity", "--spec = '", EchoPath(spec_path_), "': an analytic test function, not a scene");
       }
       scene = spec.base;
       for (const ensembles::ParameterSpec& p : spec.parameters) parameters_.push_back(p.name);

@@ -86,6 +86,11 @@ inline std::string Echo(const std::string& value, size_t max_chars = 80) {
   return out;
 }
 
+// A file or directory path as shown in a message: cut at 256 characters rather than 80,
+// since real paths (a CI workspace's, a temporary directory's) often pass 80 and the
+// reader needs the whole of it to act on the message.
+inline std::string EchoPath(const std::string& path) { return Echo(path, 256); }
+
 // Levenshtein distance, for the "nearest valid name" of a refusal message (scene keys,
 // sweep and sensitivity names, trajectory columns).
 inline int EditDistance(const std::string& a, const std::string& b) {

@@ -2,6 +2,7 @@
 // decimal that reads back exactly (bounds were printed as 9.9999999999999995e-07).
 // Validates: exact round trip (checked with strtod, independently of the formatter) over
 // random bit patterns and edge values, the expected spellings of bounds used in messages.
+// Echo and EchoPath: values cut at 80 characters, paths at 256, control bytes as '?'.
 // Does not validate: locale handling (messages are built in the "C" locale).
 #include <gtest/gtest.h>
 
@@ -71,6 +72,17 @@ TEST(StrCat, ShortestRoundTripOverRandomBitPatterns) {
   for (double v : {5e-324, 2.2250738585072014e-308, 1.7976931348623157e308, -0.0, 1.0 / 3.0}) {
     EXPECT_EQ(std::strtod(ShortestDouble(v).c_str(), nullptr), v) << ShortestDouble(v);
   }
+}
+
+// User values are cut at 80 characters; paths at 256, since a real one (a CI workspace's,
+// a temporary directory's) often passes 80 and a cut path cannot be acted on.
+TEST(Echo, PathsAreCutAt256CharactersOtherValuesAt80) {
+  const std::string path = "/" + std::string(199, 'p');  // 200 characters
+  EXPECT_EQ(EchoPath(path), path);
+  EXPECT_EQ(Echo(path), path.substr(0, 80) + "... (200 bytes)");
+  const std::string long_path = "/" + std::string(299, 'p');
+  EXPECT_EQ(EchoPath(long_path), long_path.substr(0, 256) + "... (300 bytes)");
+  EXPECT_EQ(EchoPath("/a\x1b[2Jb"), "/a?[2Jb");  // control bytes still shown as '?'
 }
 
 }  // namespace

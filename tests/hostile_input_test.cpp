@@ -542,6 +542,23 @@ TEST_F(HostileInput, DeviceGivenForAnyInputFileIsRefusedAtOnce) {
                 {"RESULT", "not a regular file or a pipe"});
 }
 
+// A message names an input file by its whole path when it is under 256 characters; it was
+// cut at 80 ("kneedyn score: --events = '/tmp/...': ...") wherever score, sensitivity and
+// work_precision named a file, so a file in a deep directory could not be found from it.
+TEST_F(HostileInput, MessagesNameLongPathsWhole) {
+  const std::string deep = std::string(60, 'd') + "/" + std::string(60, 'e');
+  fs::create_directories(dir_ / "in" / deep);
+  const std::string result = Input(deep + "/result.csv", "time_s,flexion_deg\n0,0\n0.02,0\n");
+  const std::string events = Input(deep + "/events.csv", "event\n");
+  ASSERT_GT(events.size(), 130u);
+  ExpectRefused("score '" + result + "' --scene '" + ChapterScenePath() + "' --events '" + events + "' --out '" +
+                    Out() + "'",
+                {"--events = '" + events + "'", "a CSV needs the columns name and time_s"});
+  const std::string bad_result = Input(deep + "/bad.csv", "flexion_deg\n0\n");
+  ExpectRefused("score '" + bad_result + "' --scene '" + ChapterScenePath() + "' --out '" + Out() + "'",
+                {bad_result + " header: no time column"});
+}
+
 // A sweep spec's scene path that the system cannot look up (a name over NAME_MAX) names the
 // field; before, std::filesystem's exception ended the command with its own text (found by
 // fuzz_sweep).
