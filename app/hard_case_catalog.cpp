@@ -16,6 +16,10 @@
 // per case. Exit: 0 when the catalog ran (and, with --check, every run met its case's
 // expectation); 1 when --check found a mismatch; 2 on bad input.
 #include <CLI/CLI.hpp>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include <algorithm>
 #include <chrono>
@@ -178,11 +182,52 @@ void WriteAtomically(const fs::path& path, const std::string& text) {
   const fs::path tmp = path.string() + ".tmp";
   {
     std::ofstream out(tmp);
-    if (!out) Throw<InputError>("kneedyn_catalog", "cannot write '", tmp.string(), "'");
+    if (!out) Throw<InputError>("kneedyn_catalog", "cannot write '", EchoPath(tmp.string()), "'");
     out << text;
-    if (!out) Throw<InputError>("kneedyn_catalog", "cannot write '", tmp.string(), "'");
+    if (!out) Throw<InputError>("kneedyn_catalog", "cannot write '", EchoPath(tmp.string()), "'");
   }
-  fs::rename(tmp, path);
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    Throw<InputError>("kneedyn_catalog", "cannot publish '", EchoPath(tmp.string()), "' as '",
+                      EchoPath(path.string()), "' (", ec.message(), ")");
+  }
+}
+
+// --cases-dir: a directory holding a file for every selected case. A case file that is
+// missing is a setup error, not a case refused by the loader (kClearError): before, a
+// wrong directory gave a catalog of 233 'error' rows and exit 0.
+void CheckCasesDirectory(const std::string& cases_dir, const std::vector<std::string>& case_files) {
+  std::error_code ec;
+  if (!fs::is_directory(cases_dir, ec)) {
+    Throw<InputError>("kneedyn_catalog", "--cases-dir = '", EchoPath(cases_dir), "': not a directory",
+                      ec ? " (" + ec.message() + ")" : std::string());
+  }
+  std::vector<std::string> missing;
+  for (const std::string& file : case_files) {
+    if (!fs::is_regular_file(fs::path(cases_dir) / (file + ".yaml"), ec)) missing.push_back(file + ".yaml");
+  }
+  if (!missing.empty()) {
+    std::string list;
+    for (size_t i = 0; i < missing.size() && i < 5; ++i) list += (i ? ", " : "") + missing[i];
+    if (missing.size() > 5) list += StrCat(" and ", missing.size() - 5, " more");
+    Throw<InputError>("kneedyn_catalog", "--cases-dir = '", EchoPath(cases_dir), "': ", missing.size(), " of the ",
+                      case_files.size(), " case files are missing or not regular files (", list, ")");
+  }
+}
+
+// --out: created before the runs (an hour of them on 2 cores without --case), so that a
+// directory that cannot be written is refused at once, not after them.
+void PrepareOutDirectory(const std::string& out_dir) {
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec || !fs::is_directory(out_dir, ec)) {
+    Throw<InputError>("kneedyn_catalog", "--out = '", EchoPath(out_dir), "': cannot be created as a directory",
+                      ec ? " (" + ec.message() + ")" : std::string());
+  }
+  if (::access(out_dir.c_str(), W_OK | X_OK) != 0) {
+    Throw<InputError>("kneedyn_catalog", "--out = '", EchoPath(out_dir), "': ", std::strerror(errno));
+  }
 }
 
 Row RunOne(const CaseSpec& c, const Scene* scene, const std::string& load_error,
@@ -289,6 +334,14 @@ int main(int argc, char** argv) {
         Throw<InputError>("kneedyn_catalog", "--case = '", n, "': no such case in the catalog");
       }
     }
+    std::vector<std::string> case_files;
+    for (const CaseSpec& c : Cases()) {
+      if (only_cases.empty() || std::find(only_cases.begin(), only_cases.end(), c.file) != only_cases.end()) {
+        case_files.push_back(c.file);
+      }
+    }
+    CheckCasesDirectory(cases_dir, case_files);
+    PrepareOutDirectory(out_dir);
     // What will run (for i/N progress): the same filters as the loop below.
     auto selected_case = [&](const CaseSpec& c) {
       return only_cases.empty() || std::find(only_cases.begin(), only_cases.end(), c.file) != only_cases.end();
@@ -415,7 +468,6 @@ int main(int argc, char** argv) {
          << Fmt(r.wall_s, "%.3f") << " | " << OneLine(r.events) << " | "
          << OneLine(r.reason).substr(0, 300) << " |\n";
     }
-    fs::create_directories(out_dir);
     WriteAtomically(fs::path(out_dir) / "hard_cases.csv", csv.str());
     WriteAtomically(fs::path(out_dir) / "hard_cases.md", md.str());
     std::fprintf(stderr, "wrote %s/hard_cases.md and hard_cases.csv (%zu runs)\n", out_dir.c_str(),
@@ -434,7 +486,10 @@ int main(int argc, char** argv) {
     }
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "kneedyn_catalog: error: %s\n", e.what());
     return 2;
+  } catch (const std::exception& e) {  // outside the runs, which catch their own
+    std::fprintf(stderr, "kneedyn_catalog: error: %s\n", e.what());
+    return 1;
   }
 }

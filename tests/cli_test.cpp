@@ -401,6 +401,31 @@ TEST_F(CliTest, CatalogPrintsCountedProgress) {
   EXPECT_NE(r.output.find("elapsed, ~0.0s left]"), std::string::npos) << r.output;  // nothing left after 2/2
 }
 
+// The catalog refuses what it cannot use before its runs, with exit 2 and its own prefix:
+// a --cases-dir that is not a directory or lacks a selected case's file (before: 233 rows
+// 'error', exit 0) and an --out that cannot be created (before: every case run, then an
+// uncaught filesystem_error, abort, exit 134).
+TEST_F(CliTest, CatalogRefusesAnUnusableCasesDirOrOutBeforeRunning) {
+  const std::string catalog = std::string("'") + KNEEDYN_CATALOG_EXE + "' --case c1_law --formulation dae --no-reference";
+  const fs::path empty_dir = fs::path(Out()).parent_path() / "no_cases";
+  fs::create_directories(empty_dir);
+  const fs::path not_dir = fs::path(Out()).parent_path() / "a_file";
+  std::ofstream(not_dir) << "x";
+  const std::vector<std::pair<std::string, std::string>> refusals = {
+      {" --cases-dir /nonexistent --out '" + Out() + "'", "--cases-dir = '/nonexistent': not a directory"},
+      {" --cases-dir '" + empty_dir.string() + "' --out '" + Out() + "'",
+       "1 of the 1 case files are missing or not regular files (c1_law.yaml)"},
+      {" --out '" + (not_dir / "out").string() + "'", "--out = '" + (not_dir / "out").string() + "'"},
+  };
+  for (const auto& [args, needle] : refusals) {
+    const CommandResult r = RunShell(catalog + args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_EQ(r.output.rfind("kneedyn_catalog: error: ", 0), 0u) << r.output;
+    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("[1/1"), std::string::npos) << "ran before refusing: " << r.output;
+    EXPECT_FALSE(fs::exists(Out())) << args;
+  }
+}
 
 // summary.json describes the run: schema version, command line, version and
 // commit, and the integrator and step actually used (rk4 with the default step: the
