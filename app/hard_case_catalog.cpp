@@ -33,6 +33,7 @@
 #include <sstream>
 
 #include "app/cli.hpp"
+#include "formulations/output_file.hpp"
 #include "formulations/progress.hpp"
 #include "formulations/run.hpp"
 #include "formulations/version.hpp"
@@ -176,22 +177,6 @@ std::string CsvQuote(const std::string& s) {
   std::string out = "\"";
   for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c);
   return out + "\"";
-}
-
-void WriteAtomically(const fs::path& path, const std::string& text) {
-  const fs::path tmp = path.string() + ".tmp";
-  {
-    std::ofstream out(tmp);
-    if (!out) Throw<InputError>("kneedyn_catalog", "cannot write '", EchoPath(tmp.string()), "'");
-    out << text;
-    if (!out) Throw<InputError>("kneedyn_catalog", "cannot write '", EchoPath(tmp.string()), "'");
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    Throw<InputError>("kneedyn_catalog", "cannot publish '", EchoPath(tmp.string()), "' as '",
-                      EchoPath(path.string()), "' (", ec.message(), ")");
-  }
 }
 
 // --cases-dir: a directory holding a file for every selected case. A case file that is
@@ -468,8 +453,8 @@ int main(int argc, char** argv) {
          << Fmt(r.wall_s, "%.3f") << " | " << OneLine(r.events) << " | "
          << OneLine(r.reason).substr(0, 300) << " |\n";
     }
-    WriteAtomically(fs::path(out_dir) / "hard_cases.csv", csv.str());
-    WriteAtomically(fs::path(out_dir) / "hard_cases.md", md.str());
+    WriteOutputFile("kneedyn_catalog", "--out", (fs::path(out_dir) / "hard_cases.csv").string(), csv.str());
+    WriteOutputFile("kneedyn_catalog", "--out", (fs::path(out_dir) / "hard_cases.md").string(), md.str());
     std::fprintf(stderr, "wrote %s/hard_cases.md and hard_cases.csv (%zu runs)\n", out_dir.c_str(),
                  rows.size());
     if (check) {

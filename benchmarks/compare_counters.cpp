@@ -48,6 +48,7 @@
 #include <unistd.h>
 
 #include "benchmarks/bench_run.hpp"
+#include "formulations/output_file.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -285,13 +286,7 @@ int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, co
       std::printf("not written: a run failed\n");
       return 1;
     }
-    const std::string tmpfile = baseline_path + ".tmp";
-    {
-      std::ofstream f(tmpfile);
-      f << base.dump(1) << "\n";
-      if (!f) Throw<InputError>("compare_counters", "--baseline '", baseline_path, "' cannot be written");
-    }
-    std::rename(tmpfile.c_str(), baseline_path.c_str());
+    WriteOutputFile("compare_counters", "--baseline", baseline_path, base.dump(1) + "\n");
     std::printf("wrote instruction_counts of %s\n", baseline_path.c_str());
     return 0;
   }
@@ -377,13 +372,7 @@ int main(int argc, char** argv) {
     if (write) {
       ratio["value"] = value;
       std::printf("\n");
-      const std::string tmp = baseline_path + ".tmp";
-      {
-        std::ofstream f(tmp);
-        f << base.dump(1) << "\n";
-        if (!f) Throw<InputError>("compare_counters", "--baseline '", baseline_path, "' cannot be written");
-      }
-      std::rename(tmp.c_str(), baseline_path.c_str());
+      WriteOutputFile("compare_counters", "--baseline", baseline_path, base.dump(1) + "\n");
       std::printf("wrote %s\n", baseline_path.c_str());
       return 0;
     }

@@ -47,6 +47,7 @@
 #include "benchmarks/bench_run.hpp"
 #include "benchmarks/extended_reference.hpp"
 #include "benchmarks/float128_scalar.hpp"
+#include "formulations/output_file.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -238,18 +239,9 @@ int CompareStored(const Scene& scene, const std::string& stored_path, const std:
   return ok ? 0 : 1;
 }
 
-// Writes the reference JSON atomically: to OUT.tmp, then renamed, so a failed run leaves no partial file.
+// Writes the reference JSON whole or not at all (output_file.hpp).
 int WriteReference(const nlohmann::json& j, const std::string& out_path) {
-  const std::filesystem::path out(out_path);
-  if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
-  const std::string tmp = out_path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
-    f << j.dump(1) << "\n";
-    if (!f) Throw<InputError>("make_reference", "--out '", out_path, "' cannot be written");
-  }
-  std::filesystem::rename(tmp, out);
+  WriteOutputFile("make_reference", "--out", out_path, j.dump(1) + "\n");
   return 0;
 }
 
@@ -425,6 +417,7 @@ int main(int argc, char** argv) {
     if (!compare_path.empty() && with_path.empty()) {
       Throw<InputError>("make_reference", "--compare '", compare_path, "' needs --with (the other reference)");
     }
+    if (!out_path.empty()) CheckOutputFile("make_reference", "--out", out_path);  // before an hour of runs
     const Scene scene = LoadScene(scene_path);
     if (!compare_path.empty()) return CompareStored(scene, compare_path, with_path);
     if (!verify_path.empty()) return Verify(scene, verify_path);

@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "benchmarks/score.hpp"
+#include "formulations/output_file.hpp"
 #include "formulations/version.hpp"
 #include "scene/internal/json_field.hpp"
 #include "scene/internal/yaml_field.hpp"
@@ -70,6 +71,9 @@ ScoreCommand::ScoreCommand(CLI::App& app) {
 
 int ScoreCommand::Run(int argc, char** argv) {
   try {
+    const std::string out_path =
+        out_path_.empty() ? fs::path(result_path_).replace_extension(".score.json").string() : out_path_;
+    CheckOutputFile("kneedyn score", "--out", out_path);  // before the reference may be run again
     const Scene scene = LoadScene(scene_path_);
     std::string reference_file = reference_path_;
     if (reference_file.empty()) {
@@ -159,19 +163,11 @@ int ScoreCommand::Run(int argc, char** argv) {
                      {"metrics_definition", "benchmarks/metrics.hpp, benchmarks/score.hpp, docs/problem.md"},
                      {"result_file", result_path_}};
     out["results"] = nlohmann::json::array({ScoreRecord(result, score, info)});
-    const std::string out_path =
-        out_path_.empty() ? fs::path(result_path_).replace_extension(".score.json").string() : out_path_;
     {
       // Formatted before anything is written. A path or argument that is not UTF-8 is
       // replaced (U+FFFD) in the JSON, never thrown on.
       const std::string text = out.dump(2, ' ', false, nlohmann::json::error_handler_t::replace);
-      const std::string tmp = out_path + ".tmp";
-      std::ofstream f(tmp);
-      if (!f) Throw<InputError>("kneedyn score", "--out = '", EchoPath(out_path), "': cannot be written");
-      f << text << "\n";
-      f.close();
-      if (!f) Throw<InputError>("kneedyn score", "--out = '", EchoPath(out_path), "': cannot be written");
-      fs::rename(tmp, out_path);
+      WriteOutputFile("kneedyn score", "--out", out_path, text + "\n");
     }
 
     const Metrics& m = score.metrics;

@@ -52,6 +52,7 @@
 #include "benchmarks/bench_run.hpp"
 #include "app/cli.hpp"
 #include "formulations/progress.hpp"
+#include "formulations/output_file.hpp"
 #include "formulations/version.hpp"
 #include "solver/error.hpp"
 
@@ -230,18 +231,6 @@ std::vector<nlohmann::json> IncludedResults(const std::string& dir, const std::s
 
 nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
-void WriteAtomically(const std::string& path, const std::string& text) {
-  const std::filesystem::path p(path);
-  if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    f << text;
-    if (!f) Throw<InputError>("work_precision", "output '", path, "' cannot be written");
-  }
-  std::filesystem::rename(tmp, p);
-}
-
 std::string CsvCell(const nlohmann::json& v) {
   if (v.is_null()) return "";
   if (v.is_string()) {
@@ -301,6 +290,10 @@ int main(int argc, char** argv) {
                      ? json_path.substr(0, json_path.size() - 5) + ".csv"
                      : json_path + ".csv";
     }
+    // Checked before the sweep, which takes minutes: a path that cannot be written was
+    // refused only after it (and --json into a missing /proc directory ended in abort).
+    CheckOutputFile("work_precision", "--json", json_path);
+    CheckOutputFile("work_precision", "--csv", csv_path);
     const Scene scene = LoadScene(scene_path);
     if (reference_path.empty()) reference_path = ReferenceDataDir() + "/references/" + scene.name + ".json";
     const Reference reference = LoadReference(reference_path);
@@ -316,6 +309,10 @@ int main(int argc, char** argv) {
 
     std::vector<Entry> entries;
     for (const BenchConfig& c : Grid(short_mode, rtol_min, only, include_broken)) entries.push_back({c, {}, {}, {}});
+    if (entries.empty()) {  // Google Benchmark would then write no JSON at all
+      Throw<InputError>("work_precision", "--only = '", Echo(only), "': no configuration of the ",
+                        short_mode ? "short" : "full", " sweep has it in its name");
+    }
     std::map<std::string, Entry*> by_name;
     ProgressCounter progress(static_cast<long>(entries.size()));
     for (Entry& e : entries) {
@@ -466,13 +463,16 @@ int main(int argc, char** argv) {
       for (size_t i = 0; i < cells.size(); ++i) csv += (i ? "," : "") + CsvCell(cells[i]);
       csv += "\n";
     }
-    WriteAtomically(json_path, out.dump(1) + "\n");
-    WriteAtomically(csv_path, csv);
+    WriteOutputFile("work_precision", "--json", json_path, out.dump(1) + "\n");
+    WriteOutputFile("work_precision", "--csv", csv_path, csv);
     std::fprintf(stderr, "wrote %s and %s (%zu results, %zu of them included)\n", json_path.c_str(), csv_path.c_str(),
                  out["results"].size(), included.size());
     return 0;
   } catch (const InputError& e) {
-    std::cerr << "work_precision: " << e.what() << "\n";
+    std::cerr << "work_precision: error: " << e.what() << "\n";
     return 2;
+  } catch (const std::exception& e) {  // outside the runs, which report their own failures
+    std::cerr << "work_precision: error: " << e.what() << "\n";
+    return 1;
   }
 }

@@ -7,6 +7,7 @@
 #include <iterator>
 
 #include "ensembles/batch.hpp"
+#include "formulations/output_file.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn::ensembles {
@@ -55,10 +56,7 @@ int BatchCommand::Run() {
       }
     }
     CheckOptions(FindFormulation(settings_.formulation), settings_.options, typed_);
-    const std::filesystem::path out(out_path_);
-    if (out_path_.empty() || std::filesystem::is_directory(out)) {
-      Throw<InputError>("kneedyn batch", "--out = '", out_path_, "': must name a file");
-    }
+    CheckOutputFile("kneedyn batch", "--out", out_path_);  // before the runs
     Scene scene = LoadScene(scene_path_);
     const BatchVariants variants = LoadBatchVariants(variants_path_, scene.model);
     Batch batch(std::move(scene), settings_, outcomes_);
@@ -67,16 +65,9 @@ int BatchCommand::Run() {
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const std::string csv = FormatBatchCsv(table);
     try {
-      if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
-      const std::string tmp = out_path_ + ".tmp";
-      {
-        std::ofstream f(tmp, std::ios::binary);
-        f << csv;
-        if (!f) throw std::runtime_error("cannot write '" + tmp + "'");
-      }
-      std::filesystem::rename(tmp, out);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "kneedyn batch: error: --out = '%s': %s\n", out_path_.c_str(), e.what());
+      WriteOutputFile("kneedyn batch", "--out", out_path_, csv);
+    } catch (const InputError& e) {  // checked before the runs: the system failed since
+      std::fprintf(stderr, "kneedyn batch: error: %s\n", e.what());
       return 1;
     }
     long failed = 0;

@@ -26,6 +26,7 @@
 #include <ceres/version.h>
 #include <sundials/sundials_config.h>
 
+#include "formulations/output_file.hpp"
 #include "formulations/version.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/observables.hpp"
@@ -360,19 +361,7 @@ void CheckOutputWritable(const std::string& dir_name, const fs::path& out, bool 
                       "; a run replaces the directory and its files, so it must be writable");
   }
   std::error_code ec;
-  // The nearest existing ancestor, where the run would create the missing levels; a relative
-  // path whose first level is missing ends at the working directory.
-  fs::path ancestor = out.parent_path();
-  for (;;) {
-    if (ancestor.empty()) {
-      ancestor = ".";
-      break;
-    }
-    if (fs::exists(fs::symlink_status(ancestor, ec))) break;
-    const fs::path up = ancestor.parent_path();
-    if (up == ancestor) break;
-    ancestor = up;
-  }
+  const fs::path ancestor = NearestExistingAncestor(out);  // where the run creates the missing levels
   if (!fs::is_directory(ancestor, ec)) {
     Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name), "': '", EchoPath(ancestor.string()),
                       "' is not a directory");

@@ -22,6 +22,7 @@
 #include <Eigen/Dense>
 
 #include "inverse/inverse_problem.hpp"
+#include "formulations/output_file.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -163,6 +164,7 @@ int main(int argc, char** argv) {
       Throw<InputError>("kneedyn_inverse", "--multiplier-updates = ", multiplier_updates, ": must be in [0, 100]");
     }
     if (max_iterations < 1) Throw<InputError>("kneedyn_inverse", "--max-iterations = ", max_iterations, ": must be >= 1");
+    CheckOutputFile("kneedyn_inverse", "--out", out_path);  // before the fits, which take minutes
     sensitivity::SensitivityOptions options;
     options.formulation = formulation;
     options.rtol = rtol;
@@ -262,13 +264,7 @@ int main(int argc, char** argv) {
     }
     out["runtime_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     out["runs"] = model.runs;
-    const std::string tmp = out_path + ".tmp";
-    {
-      std::ofstream f(tmp);
-      f << out.dump(1) << "\n";
-      if (!f) Throw<InputError>("kneedyn_inverse", "--out = '", out_path, "': cannot write");
-    }
-    std::rename(tmp.c_str(), out_path.c_str());
+    WriteOutputFile("kneedyn_inverse", "--out", out_path, out.dump(1) + "\n");
     return 0;
   } catch (const InputError& e) {  // "kneedyn_inverse: error: ..." as the other tools write it
     std::cerr << "kneedyn_inverse: error: " << e.what() << "\n";

@@ -32,6 +32,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "formulations/output_file.hpp"
 #include "formulations/run.hpp"
 #include "solver/error.hpp"
 #include "solver/internal/ceres_logging.hpp"
@@ -174,6 +175,7 @@ int main(int argc, char** argv) {
     if (max_iterations < 0) Throw<InputError>("calibrate_reconstruction", "--max-iterations = ", max_iterations, ": must be >= 0");
     if (!(rtol > 0.0 && rtol < 1.0)) Throw<InputError>("calibrate_reconstruction", "--rtol = ", rtol, ": must be in (0, 1)");
     (void)FindFormulation(formulation);
+    CheckOutputFile("calibrate_reconstruction", "--out", out_path);  // before the grid and the fit
     const Scene scene = LoadScene(scene_path);
     if (scene.model.pulse.shape == PulseShape::kNone) {
       Throw<InputError>("calibrate_reconstruction", "--scene = '", scene_path, "': has no pulse to scale");
@@ -245,13 +247,7 @@ int main(int argc, char** argv) {
                    {"theta_deg", p[1] * kTheta0},
                    {"pulse_amplitude_N", scale * scene.model.pulse.amplitude},
                    {"result", MeasuredJson(fit, targets)}};
-    const std::string tmp = out_path + ".tmp";
-    {
-      std::ofstream f(tmp);
-      f << out.dump(1) << "\n";
-      if (!f) Throw<InputError>("calibrate_reconstruction", "--out = '", out_path, "': cannot write");
-    }
-    std::rename(tmp.c_str(), out_path.c_str());
+    WriteOutputFile("calibrate_reconstruction", "--out", out_path, out.dump(1) + "\n");
     std::fprintf(stderr, "best: scale %.3f (A = %.1f N), theta %.1f deg, cost %.3f -> %s\n", scale,
                  scale * scene.model.pulse.amplitude, p[1] * kTheta0,
                  MeasuredJson(fit, targets)["cost"].get<double>(), out_path.c_str());

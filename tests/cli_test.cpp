@@ -358,6 +358,25 @@ TEST_F(CliTest, CatalogAndWorkPrecisionKeepTheContract) {
   r = RunShell(std::string("'") + KNEEDYN_WORK_PRECISION_EXE + "' --repetitions 1");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("--repetitions"), std::string::npos) << r.output;
+  // Refused before the sweep runs (exit 2, no progress line, nothing written): an --only that
+  // names no configuration (Google Benchmark then wrote no JSON: abort, exit 134) and a --json
+  // or --csv that cannot be written (abort after the sweep, or exit 2 after it with the JSON
+  // already written).
+  const fs::path a_file = fs::path(Out()).parent_path() / "a_file";
+  std::ofstream(a_file) << "x";
+  const std::string json = (fs::path(Out()).parent_path() / "wp.json").string();
+  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
+           {" --short --only no_such_method --json '" + json + "'", "--only = 'no_such_method': no configuration"},
+           {" --short --only dae-ggl-reduced --json '" + (a_file / "wp.json").string() + "'", "--json = '"},
+           {" --short --only dae-ggl-reduced --json '" + json + "' --csv '" + (a_file / "wp.csv").string() + "'",
+            "--csv = '"}}) {
+    r = RunShell(std::string("'") + KNEEDYN_WORK_PRECISION_EXE + "'" + args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("work_precision: error: "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("[1/"), std::string::npos) << "ran before refusing: " << r.output;
+    EXPECT_FALSE(fs::exists(json)) << args;
+  }
   r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --case");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("--case"), std::string::npos) << r.output;

@@ -42,6 +42,7 @@
 #include "benchmarks/bench_run.hpp"
 #include "crosscheck/simbody/simbody_solution.hpp"
 #include "formulations/version.hpp"
+#include "formulations/output_file.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -342,6 +343,7 @@ int main(int argc, char** argv) {
       } else Throw<InputError>("simbody_work_precision", "unknown argument '", a, "'");
     }
     if (repetitions == 0) repetitions = short_mode ? 2 : 3;
+    CheckOutputFile("simbody_work_precision", "--json", json_path);  // before the runs
     const Scene scene = LoadScene(scene_path);
     if (reference_path.empty()) reference_path = ReferenceDataDir() + "/references/" + scene.name + ".json";
     const Reference reference = LoadReference(reference_path);
@@ -474,15 +476,7 @@ int main(int argc, char** argv) {
                    best_k[t] / best_s[t]);
     }
 
-    const std::filesystem::path p(json_path);
-    if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
-    const std::string tmp = json_path + ".tmp";
-    {
-      std::ofstream f(tmp);
-      f << out.dump(1) << "\n";
-      if (!f) Throw<InputError>("simbody_work_precision", "--json = '", json_path, "' cannot be written");
-    }
-    std::filesystem::rename(tmp, p);
+    WriteOutputFile("simbody_work_precision", "--json", json_path, out.dump(1) + "\n");
     std::fprintf(stderr, "wrote %s (%zu results)\n", json_path.c_str(), results.size());
     return 0;
   } catch (const InputError& e) {

@@ -1,0 +1,80 @@
+#include "formulations/output_file.hpp"
+
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <system_error>
+
+#include "solver/error.hpp"
+
+namespace kneedyn {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+[[noreturn]] void Refuse(const std::string& function, const std::string& option, const std::string& path,
+                         const std::string& rule) {
+  Throw<InputError>(function.c_str(), option, " = '", EchoPath(path), "': ", rule);
+}
+
+}  // namespace
+
+fs::path NearestExistingAncestor(const fs::path& path) {
+  std::error_code ec;
+  fs::path ancestor = path.parent_path();
+  for (;;) {
+    if (ancestor.empty()) return ".";
+    if (fs::exists(fs::symlink_status(ancestor, ec))) return ancestor;
+    const fs::path up = ancestor.parent_path();
+    if (up == ancestor) return ancestor;
+    ancestor = up;
+  }
+}
+
+void CheckOutputFile(const std::string& function, const std::string& option, const std::string& path) {
+  if (path.empty()) Refuse(function, option, path, "must name a file");
+  std::error_code ec;
+  const fs::path file(path);
+  if (fs::is_directory(file, ec)) Refuse(function, option, path, "is a directory; must name a file");
+  const fs::path ancestor = NearestExistingAncestor(file);  // WriteOutputFile creates the levels below
+  if (!fs::is_directory(ancestor, ec)) {
+    Refuse(function, option, path, "'" + EchoPath(ancestor.string()) + "' is not a directory");
+  }
+  if (::access(ancestor.c_str(), W_OK | X_OK) != 0) {
+    Refuse(function, option, path, "cannot write in '" + EchoPath(ancestor.string()) + "' (" + std::strerror(errno) + ")");
+  }
+}
+
+void WriteOutputFile(const std::string& function, const std::string& option, const std::string& path,
+                     const std::string& text) {
+  CheckOutputFile(function, option, path);
+  const fs::path file(path);
+  std::error_code ec;
+  if (file.has_parent_path()) {
+    fs::create_directories(file.parent_path(), ec);
+    if (ec) Refuse(function, option, path, "cannot create its directory (" + ec.message() + ")");
+  }
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    out << text;
+    out.close();
+    if (!out) {
+      const std::string reason = std::strerror(errno);
+      fs::remove(tmp, ec);
+      Refuse(function, option, path, "cannot be written (" + reason + ")");
+    }
+  }
+  fs::rename(tmp, file, ec);
+  if (ec) {
+    const std::string reason = ec.message();
+    fs::remove(tmp, ec);
+    Refuse(function, option, path, "cannot replace it by '" + EchoPath(tmp) + "' (" + reason + ")");
+  }
+}
+
+}  // namespace kneedyn

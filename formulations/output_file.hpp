@@ -1,0 +1,29 @@
+// One output file of a tool (a JSON record, a CSV table, a report page), written whole or
+// not at all. `kneedyn run`'s three files are a set and are published together instead
+// (run_output.hpp); these are single files that stand alone.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+namespace kneedyn {
+
+// The nearest existing ancestor of `path` (itself excluded): where the missing levels of
+// `path` would be created. A relative path whose first level is missing ends at ".".
+std::filesystem::path NearestExistingAncestor(const std::filesystem::path& path);
+
+// Before a long computation: `path` could be written, i.e. it is not a directory and its
+// nearest existing ancestor is a directory this process may write in (the missing levels
+// between them are created by WriteOutputFile). Creates nothing. Throws InputError
+// "<function>(): <option> = '<path>': <rule>", so that a bad path is refused before the
+// work rather than after it.
+void CheckOutputFile(const std::string& function, const std::string& option, const std::string& path);
+
+// Writes `text` to "<path>.tmp" beside `path` (creating missing parent directories), then
+// renames it over `path`: a reader sees the previous file or the new one, never a part.
+// Throws InputError as CheckOutputFile, with the system's reason; the temporary file is
+// removed when the write fails.
+void WriteOutputFile(const std::string& function, const std::string& option, const std::string& path,
+                     const std::string& text);
+
+}  // namespace kneedyn
