@@ -1,5 +1,6 @@
 #include "formulations/output_file.hpp"
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -47,6 +48,14 @@ void CheckOutputFile(const std::string& function, const std::string& option, con
   if (::access(ancestor.c_str(), W_OK | X_OK) != 0) {
     Refuse(function, option, path, "cannot write in '" + EchoPath(ancestor.string()) + "' (" + std::strerror(errno) + ")");
   }
+  // access() passes for root wherever the mode bits allow, and in /proc or /sys mkdir fails
+  // all the same: a directory made and removed at once is the test that holds.
+  const fs::path probe = ancestor / (".kneedyn-probe-" + std::to_string(::getpid()));
+  if (::mkdir(probe.c_str(), 0700) != 0 && errno != EEXIST) {
+    Refuse(function, option, path, "cannot create anything in '" + EchoPath(ancestor.string()) + "' (" +
+                                       std::strerror(errno) + ")");
+  }
+  ::rmdir(probe.c_str());
 }
 
 void WriteOutputFile(const std::string& function, const std::string& option, const std::string& path,

@@ -14,7 +14,8 @@ std::filesystem::path NearestExistingAncestor(const std::filesystem::path& path)
 
 // Before a long computation: `path` could be written, i.e. it is not a directory and its
 // nearest existing ancestor is a directory this process may write in (the missing levels
-// between them are created by WriteOutputFile). Creates nothing. Throws InputError
+// between them are created by WriteOutputFile). Leaves nothing behind (it makes and removes
+// one probe directory there, the test that also holds for root and /proc). Throws InputError
 // "<function>(): <option> = '<path>': <rule>", so that a bad path is refused before the
 // work rather than after it.
 void CheckOutputFile(const std::string& function, const std::string& option, const std::string& path);

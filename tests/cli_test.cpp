@@ -385,6 +385,28 @@ TEST_F(CliTest, CatalogAndWorkPrecisionKeepTheContract) {
   EXPECT_NE(r.output.find(KNEEDYN_PROJECT_VERSION), std::string::npos) << r.output;
 }
 
+// make_reference refuses bad settings before its runs (an hour for the extended method), with
+// exit 2 and nothing written: --interval 0 looped without end; a bad --rtol or --check-rtol was
+// recorded as a failed run (exit 1) after the other configuration had run; an --out under
+// /proc was refused only after the runs.
+TEST_F(CliTest, MakeReferenceRefusesBadSettingsBeforeRunning) {
+  const std::string make_reference = std::string("timeout 60 '") + KNEEDYN_MAKE_REFERENCE_EXE + "' --scene '" +
+                                     ChapterScenePath() + "'";
+  const std::string out = (fs::path(Out()).parent_path() / "reference.json").string();
+  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
+           {" --out '" + out + "' --interval 0", "--interval: output interval 0 s; must lie in [1e-06, 10] s"},
+           {" --out '" + out + "' --method formulations --rtol -1",
+            "--formulation --integrator --rtol --atol: CreateFormulation(): --rtol = -1"},
+           {" --out '" + out + "' --method formulations --check-rtol 0.9",
+            "--check --check-integrator --check-rtol --check-atol: CreateFormulation(): --rtol = 0.9"},
+           {" --out /proc/kneedyn_no_such/reference.json", "--out = '/proc/kneedyn_no_such/reference.json': cannot"}}) {
+    const CommandResult r = RunShell(make_reference + args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("make_reference: error: "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(out)) << args;
+  }
+}
 
 // SUNDIALS prints nothing itself; its own message (here IDA's, CVODE's and
 // ARKODE's "mxstep steps taken before reaching tout") is in the failure reason and in

@@ -4,7 +4,7 @@
 //
 // Validates: CheckOutputFile refuses an empty path, a directory, a path under a regular
 // file and a directory this process cannot write in, naming the option and the path, and
-// creates nothing; it accepts a path under missing directories. WriteOutputFile creates
+// leaves nothing behind; it accepts a path under missing directories. WriteOutputFile creates
 // them, writes the exact bytes, replaces an earlier file, and when it is refused leaves
 // neither the file nor its temporary.
 // Does not validate: a kill during the write (the rename is the atomic step; the run's own
@@ -66,9 +66,14 @@ TEST_F(OutputFile, UnwritablePathsAreRefusedNamingOptionAndPathAndNothingIsCreat
     fs::permissions(dir_ / "read_only", fs::perms::owner_read | fs::perms::owner_exec);
     EXPECT_NE(Refusal((dir_ / "read_only" / "out.json").string()).find("cannot write in"), std::string::npos);
   }
+  // /proc: writable by its mode bits for root, yet nothing can be created there.
+  EXPECT_NE(Refusal("/proc/kneedyn_no_such/out.json").find("cannot"), std::string::npos)
+      << Refusal("/proc/kneedyn_no_such/out.json");
   const std::string deep = (dir_ / "new" / "deeper" / "out.json").string();
   EXPECT_EQ(Refusal(deep), "");
   EXPECT_FALSE(fs::exists(dir_ / "new")) << "CheckOutputFile created a directory";
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1 + (::geteuid() != 0))
+      << "CheckOutputFile left its probe behind";
 }
 
 TEST_F(OutputFile, WritesTheExactBytesIntoNewDirectoriesAndReplacesAnEarlierFile) {
