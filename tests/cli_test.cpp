@@ -407,6 +407,24 @@ TEST_F(CliTest, MakeReferenceRefusesBadSettingsBeforeRunning) {
     EXPECT_FALSE(fs::exists(out)) << args;
   }
 }
+// batch_throughput, the batch target's benchmark, refuses what no measurement can use
+// (exit 2, before any run): --runs 1e11 ended in the OOM killer (exit 137); a --rtol or
+// --formulation that no run can have was measured as 'scd nan' (exit 1); an unwritable --csv
+// was refused after the timed runs.
+TEST_F(CliTest, BatchThroughputRefusesBadSettingsBeforeRunning) {
+  const std::string bench = std::string("timeout 60 '") + KNEEDYN_BATCH_THROUGHPUT_EXE + "'";
+  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
+           {" --runs 100000000000", "--runs = 100000000000: must be in [1, 1000000]"},
+           {" --runs 2 --rtol -1", "--rtol = -1; must lie in (0, 0.5]"},
+           {" --runs 2 --formulation nope", "unknown formulation 'nope'"},
+           {" --runs 2 --csv /proc/kneedyn_no_such/t.csv", "--csv = '/proc/kneedyn_no_such/t.csv': cannot"}}) {
+    const CommandResult r = RunShell(bench + args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("batch_throughput: error: "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("on the nominal scene"), std::string::npos) << "ran before refusing: " << r.output;
+  }
+}
 
 // SUNDIALS prints nothing itself; its own message (here IDA's, CVODE's and
 // ARKODE's "mxstep steps taken before reaching tout") is in the failure reason and in
