@@ -26,6 +26,7 @@
 #include "benchmarks/bench_run.hpp"
 #include "ensembles/sweep.hpp"
 #include "ensembles/sweep_output.hpp"
+#include "formulations/output_file.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -81,6 +82,8 @@ int main(int argc, char** argv) {
   app.add_option("--json", json_path, "write the figures as JSON");
   CLI11_PARSE(app, argc, argv);
   try {
+    if (!std::isfinite(min_scd)) Throw<InputError>("sweep_throughput", "--min-scd = ", min_scd, ": must be finite");
+    if (!json_path.empty()) CheckOutputFile("sweep_throughput", "--json", json_path);
     const SweepSpec spec = LoadSweepSpec(spec_path);
     // 1. Accuracy of the spec's solver setting on the base scene (nominal parameters).
     const std::string reference_path =
@@ -144,7 +147,8 @@ int main(int argc, char** argv) {
                               {"failed", t.failed}, {"steps", t.steps}, {"wall_s", t.wall_s}, {"cpu_s", t.cpu_s}, {"runs_per_cpu_s", t.RunsPerCpuSecond()},
                               {"runs_per_s", t.RunsPerSecond()}, {"runs_per_s_per_core", t.RunsPerSecondPerCore()}});
     }
-    if (!json_path.empty()) std::ofstream(json_path) << j.dump(2) << '\n';
+    // Before, an unwritable --json was dropped silently (exit 0).
+    if (!json_path.empty()) WriteOutputFile("sweep_throughput", "--json", json_path, j.dump(2) + "\n");
     return 0;
   } catch (const InputError& e) {
     std::fprintf(stderr, "sweep_throughput: error: %s\n", e.what());

@@ -411,7 +411,7 @@ TEST_F(CliTest, MakeReferenceRefusesBadSettingsBeforeRunning) {
 // (exit 2, before any run): --runs 1e11 ended in the OOM killer (exit 137); a --rtol or
 // --formulation that no run can have was measured as 'scd nan' (exit 1); an unwritable --csv
 // was refused after the timed runs.
-TEST_F(CliTest, BatchThroughputRefusesBadSettingsBeforeRunning) {
+TEST_F(CliTest, ThroughputBenchmarksRefuseBadSettingsBeforeRunning) {
   const std::string bench = std::string("timeout 60 '") + KNEEDYN_BATCH_THROUGHPUT_EXE + "'";
   for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
            {" --runs 100000000000", "--runs = 100000000000: must be in [1, 1000000]"},
@@ -423,6 +423,19 @@ TEST_F(CliTest, BatchThroughputRefusesBadSettingsBeforeRunning) {
     EXPECT_NE(r.output.find("batch_throughput: error: "), std::string::npos) << r.output;
     EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
     EXPECT_EQ(r.output.find("on the nominal scene"), std::string::npos) << "ran before refusing: " << r.output;
+  }
+  // sweep_throughput dropped an unwritable --json silently (exit 0) and took --min-scd nan
+  // as a failed accuracy check (exit 1).
+  const std::string sweep_bench = std::string("cd '") + KNEEDYN_SOURCE_DIR + "' && timeout 60 '" +
+                                  KNEEDYN_SWEEP_THROUGHPUT_EXE + "'";
+  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
+           {" --json /proc/kneedyn_no_such/t.json", "--json = '/proc/kneedyn_no_such/t.json': cannot"},
+           {" --min-scd nan", "--min-scd = nan: must be finite"}}) {
+    const CommandResult r = RunShell(sweep_bench + args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find("sweep_throughput: error: "), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("runs/s"), std::string::npos) << "ran before refusing: " << r.output;
   }
 }
 
