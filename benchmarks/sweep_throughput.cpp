@@ -23,6 +23,7 @@
 
 #include <sys/resource.h>
 
+#include "app/cli.hpp"
 #include "benchmarks/bench_run.hpp"
 #include "ensembles/sweep.hpp"
 #include "ensembles/sweep_output.hpp"
@@ -80,7 +81,7 @@ int main(int argc, char** argv) {
   app.add_option("--mpiexec", mpiexec, "MPI launcher")->capture_default_str();
   app.add_option("--min-scd", min_scd, "required accuracy of the setting")->capture_default_str();
   app.add_option("--json", json_path, "write the figures as JSON");
-  CLI11_PARSE(app, argc, argv);
+  if (const int code = ParseCommandLine(app, argc, argv, "sweep_throughput"); code >= 0) return code;
   try {
     if (!std::isfinite(min_scd)) Throw<InputError>("sweep_throughput", "--min-scd = ", min_scd, ": must be finite");
     if (!json_path.empty()) CheckOutputFile("sweep_throughput", "--json", json_path);

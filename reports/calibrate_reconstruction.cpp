@@ -32,6 +32,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "app/cli.hpp"
 #include "formulations/output_file.hpp"
 #include "formulations/run.hpp"
 #include "solver/error.hpp"
@@ -169,7 +170,7 @@ int main(int argc, char** argv) {
   app.add_option("--max-iterations", max_iterations, "Ceres iterations (>= 0; 0 = grid only)")->capture_default_str();
   app.add_option("--formulation", formulation, "formulation of every run")->capture_default_str();
   app.add_option("--rtol", rtol, "relative tolerance of every run (atol = 1e-2 rtol)")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const int code = ParseCommandLine(app, argc, argv, "calibrate_reconstruction"); code >= 0) return code;
   try {
     if (grid < 1) Throw<InputError>("calibrate_reconstruction", "--grid = ", grid, ": must be >= 1");
     if (max_iterations < 0) Throw<InputError>("calibrate_reconstruction", "--max-iterations = ", max_iterations, ": must be >= 0");

@@ -783,8 +783,13 @@ TEST_F(HostileInput, InverseToolRefusesBadOptionsLikeTheOtherTools) {
   const std::string inverse = std::string("'") + KNEEDYN_INVERSE_EXE + "' --scene '" + ChapterScenePath() +
                               "' --spec '" KNEEDYN_INVERSE_SPEC "' --out '" + out + "' ";
   for (const auto& [option, needle] : std::vector<std::pair<std::string, std::string>>{
-           {"--rtol 0.9", "--rtol = 0.9"}, {"--weights -5", "--weights: -5"}, {"--folds C", "--folds: 'C'"}}) {
-    const CommandResult r = RunShell(inverse + option);
+           {"--rtol 0.9", "--rtol = 0.9"}, {"--weights -5", "--weights: -5"}, {"--folds C", "--folds: 'C'"},
+           // CLI11's own refusals ended with its codes (109, 114), without the program's name
+           {"--box -1", "not expected: -1 --box"}, {"--out '" + out + "2'", "--out: At Most 1 required"},
+           // Refused before the fits (minutes), not when written after them.
+           {"/proc/kneedyn_no_such/fit.json", "--out = '/proc/kneedyn_no_such/fit.json': cannot"}}) {
+    const CommandResult r =
+        RunShell(option[0] == '/' ? Replaced(inverse, "--out '" + out + "'", "--out " + option) : inverse + option);
     EXPECT_EQ(r.exit_code, 2) << option << ": " << r.output;
     EXPECT_EQ(r.output.rfind("kneedyn_inverse: error: ", 0), 0u) << r.output;
     EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;

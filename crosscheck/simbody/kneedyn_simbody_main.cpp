@@ -10,6 +10,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 
+#include "app/cli.hpp"
 #include "crosscheck/simbody/simbody_knee.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -35,12 +36,7 @@ int main(int argc, char** argv) {
   run->add_option("--max-steps", options.max_steps, "step budget")->capture_default_str();
   run->add_option("--out", out_dir, "output directory")->capture_default_str();
   run->add_flag("--quiet", quiet, "print nothing on success");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  }
+  if (const int code = ParseCommandLine(app, argc, argv, "kneedyn_simbody"); code >= 0) return code;
   try {
     std::string why;
     if (!options.IsValid(&why)) Throw<InputError>("kneedyn_simbody run", why);
