@@ -231,6 +231,19 @@ def _file_path(value, function, argument, expected="a path (str or os.PathLike)"
                      % (function, argument, text, type(value).__name__, expected, hint))
 
 
+def _names(value, argument):
+    """A list of names from any iterable of str; a single str is refused (list() of it gave its
+    letters: "'P' is not a parameter of this scene")."""
+    if isinstance(value, (str, bytes)):
+        raise InputError("sensitivity(): %s = %r: must be a list of names, e.g. [%r]"
+                         % (argument, value[:80], value[:80]))
+    names = list(value)
+    for n in names:
+        if not isinstance(n, str):
+            raise InputError("sensitivity(): %s: %r (%s) is not a name (str)" % (argument, n, type(n).__name__))
+    return names
+
+
 def load_scene(path):
     """Reads and validates a scene file exactly as `kneedyn run` does."""
     path = _file_path(path, "load_scene", "path")
@@ -346,7 +359,8 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
         scene = load_scene(_file_path(scene, "run", "scene", "a kneedyn.Scene or a scene file's path"))
     out = _kneedyn.run(scene.compiled, formulation, float(rtol), float(atol), integrator,
                        float(step), float(max_step), int(max_steps), stabilization,
-                       constraint_level, jacobian, float(output_interval), "" if out is None else str(out),
+                       constraint_level, jacobian, float(output_interval),
+                       "" if out is None else _file_path(out, "run", "out"),
                        linear_solver)
     return Result(_json.loads(out["summary_json"]), Trajectory(out["columns"], out["data"]))
 
@@ -392,5 +406,6 @@ def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0
     names raise InputError naming the nearest valid name; a run with an impact SolverError."""
     if not isinstance(scene, Scene):
         scene = load_scene(_file_path(scene, "sensitivity", "scene", "a kneedyn.Scene or a scene file's path"))
-    return _kneedyn.sensitivity(scene.compiled, list(parameters), list(outcomes), float(rtol), float(atol),
-                                float(fd_step), "" if out is None else str(out), str(formulation))
+    return _kneedyn.sensitivity(scene.compiled, _names(parameters, "parameters"), _names(outcomes, "outcomes"),
+                                float(rtol), float(atol), float(fd_step),
+                                "" if out is None else _file_path(out, "sensitivity", "out"), str(formulation))

@@ -239,6 +239,14 @@ def test_a_scene_that_is_neither_a_scene_nor_a_path_names_the_argument():
         kneedyn.load_scene([1, 2])
     with pytest.raises(kneedyn.InputError, match=r"sweep\(\): spec_path = None"):
         kneedyn.sweep(None)
+    # out= and the name lists: before, run(out=5) wrote into a directory named '5', and a
+    # single name was taken letter by letter ("'P' is not a parameter").
+    with pytest.raises(kneedyn.InputError, match=r"run\(\): out = 5 \(int\)"):
+        kneedyn.run(CHAPTER, out=5)
+    with pytest.raises(kneedyn.InputError, match=r"parameters = 'PCL_anterior.k_linear': must be a list of names"):
+        kneedyn.sensitivity(CHAPTER, "PCL_anterior.k_linear", ["peak_F_PCL_anterior_N"])
+    with pytest.raises(kneedyn.InputError, match=r"outcomes: 3 \(int\) is not a name"):
+        kneedyn.sensitivity(CHAPTER, ["PCL_anterior.k_linear"], [3])
     # Paths as bytes and os.PathLike are paths.
     assert kneedyn.load_scene(pathlib.Path(CHAPTER)).to_dict() == kneedyn.load_scene(os.fsencode(CHAPTER)).to_dict()
 
