@@ -16,10 +16,6 @@
 // per case. Exit: 0 when the catalog ran (and, with --check, every run met its case's
 // expectation); 1 when --check found a mismatch; 2 on bad input.
 #include <CLI/CLI.hpp>
-#include <unistd.h>
-
-#include <cerrno>
-#include <cstring>
 
 #include <algorithm>
 #include <chrono>
@@ -201,20 +197,6 @@ void CheckCasesDirectory(const std::string& cases_dir, const std::vector<std::st
   }
 }
 
-// --out: created before the runs (an hour of them on 2 cores without --case), so that a
-// directory that cannot be written is refused at once, not after them.
-void PrepareOutDirectory(const std::string& out_dir) {
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec || !fs::is_directory(out_dir, ec)) {
-    Throw<InputError>("kneedyn_catalog", "--out = '", EchoPath(out_dir), "': cannot be created as a directory",
-                      ec ? " (" + ec.message() + ")" : std::string());
-  }
-  if (::access(out_dir.c_str(), W_OK | X_OK) != 0) {
-    Throw<InputError>("kneedyn_catalog", "--out = '", EchoPath(out_dir), "': ", std::strerror(errno));
-  }
-}
-
 Row RunOne(const CaseSpec& c, const Scene* scene, const std::string& load_error,
            const std::string& formulation, const RunResult* reference) {
   Row row;
@@ -326,7 +308,7 @@ int main(int argc, char** argv) {
       }
     }
     CheckCasesDirectory(cases_dir, case_files);
-    PrepareOutDirectory(out_dir);
+    CheckOutputDirectoryWritable("kneedyn_catalog", "--out", out_dir);  // before an hour of runs
     // What will run (for i/N progress): the same filters as the loop below.
     auto selected_case = [&](const CaseSpec& c) {
       return only_cases.empty() || std::find(only_cases.begin(), only_cases.end(), c.file) != only_cases.end();

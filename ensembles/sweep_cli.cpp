@@ -15,6 +15,7 @@
 #include "ensembles/sweep_io.hpp"
 #include "ensembles/sweep_mpi.hpp"
 #include "ensembles/sweep_output.hpp"
+#include "formulations/output_file.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn::ensembles {
@@ -71,6 +72,9 @@ SweepCommand::SweepCommand(CLI::App& app) {
 
 int SweepCommand::Run() {
   try {
+    // Before the runs (hours for a large design): an --out that cannot be written was refused
+    // only when the results were, with exit 1.
+    CheckOutputDirectoryWritable("kneedyn sweep", "--out", out_dir_);
     if (!merge_.empty()) {
       if (!spec_path_.empty()) Throw<InputError>("kneedyn sweep", "--merge takes part files, not a spec ('", spec_path_, "')");
       SweepIo();  // sweep.h5: a missing plugin is refused before reading or writing

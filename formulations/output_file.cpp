@@ -22,6 +22,26 @@ namespace {
   Throw<InputError>(function.c_str(), option, " = '", EchoPath(path), "': ", rule);
 }
 
+// `where` (an existing directory) takes new entries: access() for the mode bits, and one
+// probe directory made and removed, since access() passes for root wherever the mode bits
+// allow while in /proc or /sys mkdir fails all the same.
+void ProbeDirectory(const std::string& function, const std::string& option, const std::string& path,
+                    const fs::path& where) {
+  std::error_code ec;
+  if (!fs::is_directory(where, ec)) {
+    Refuse(function, option, path, "'" + EchoPath(where.string()) + "' is not a directory");
+  }
+  if (::access(where.c_str(), W_OK | X_OK) != 0) {
+    Refuse(function, option, path, "cannot write in '" + EchoPath(where.string()) + "' (" + std::strerror(errno) + ")");
+  }
+  const fs::path probe = where / (".kneedyn-probe-" + std::to_string(::getpid()));
+  if (::mkdir(probe.c_str(), 0700) != 0 && errno != EEXIST) {
+    Refuse(function, option, path, "cannot create anything in '" + EchoPath(where.string()) + "' (" +
+                                       std::strerror(errno) + ")");
+  }
+  ::rmdir(probe.c_str());
+}
+
 }  // namespace
 
 fs::path NearestExistingAncestor(const fs::path& path) {
@@ -41,21 +61,15 @@ void CheckOutputFile(const std::string& function, const std::string& option, con
   std::error_code ec;
   const fs::path file(path);
   if (fs::is_directory(file, ec)) Refuse(function, option, path, "is a directory; must name a file");
-  const fs::path ancestor = NearestExistingAncestor(file);  // WriteOutputFile creates the levels below
-  if (!fs::is_directory(ancestor, ec)) {
-    Refuse(function, option, path, "'" + EchoPath(ancestor.string()) + "' is not a directory");
-  }
-  if (::access(ancestor.c_str(), W_OK | X_OK) != 0) {
-    Refuse(function, option, path, "cannot write in '" + EchoPath(ancestor.string()) + "' (" + std::strerror(errno) + ")");
-  }
-  // access() passes for root wherever the mode bits allow, and in /proc or /sys mkdir fails
-  // all the same: a directory made and removed at once is the test that holds.
-  const fs::path probe = ancestor / (".kneedyn-probe-" + std::to_string(::getpid()));
-  if (::mkdir(probe.c_str(), 0700) != 0 && errno != EEXIST) {
-    Refuse(function, option, path, "cannot create anything in '" + EchoPath(ancestor.string()) + "' (" +
-                                       std::strerror(errno) + ")");
-  }
-  ::rmdir(probe.c_str());
+  ProbeDirectory(function, option, path, NearestExistingAncestor(file));  // WriteOutputFile creates the levels below
+}
+
+void CheckOutputDirectoryWritable(const std::string& function, const std::string& option, const std::string& dir) {
+  if (dir.empty()) Refuse(function, option, dir, "must name a directory");
+  std::error_code ec;
+  const fs::file_status status = fs::status(dir, ec);
+  if (fs::exists(status) && !fs::is_directory(status)) Refuse(function, option, dir, "exists and is not a directory");
+  ProbeDirectory(function, option, dir, fs::exists(status) ? fs::path(dir) : NearestExistingAncestor(fs::path(dir)));
 }
 
 void WriteOutputFile(const std::string& function, const std::string& option, const std::string& path,

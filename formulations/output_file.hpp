@@ -20,6 +20,11 @@ std::filesystem::path NearestExistingAncestor(const std::filesystem::path& path)
 // work rather than after it.
 void CheckOutputFile(const std::string& function, const std::string& option, const std::string& path);
 
+// The same for a directory a tool writes its files into (--out of kneedyn sweep, of the
+// catalog): `dir` is a directory this process can create files in, or does not exist and
+// its nearest existing ancestor is one. Leaves nothing behind.
+void CheckOutputDirectoryWritable(const std::string& function, const std::string& option, const std::string& dir);
+
 // Writes `text` to "<path>.tmp" beside `path` (creating missing parent directories), then
 // renames it over `path`: a reader sees the previous file or the new one, never a part.
 // Throws InputError as CheckOutputFile, with the system's reason; the temporary file is

@@ -76,6 +76,30 @@ TEST_F(OutputFile, UnwritablePathsAreRefusedNamingOptionAndPathAndNothingIsCreat
       << "CheckOutputFile left its probe behind";
 }
 
+// The directory form (kneedyn sweep --out, the catalog's --out): an existing directory or one
+// that can be created is accepted, a file or a directory under one is refused; nothing is
+// left behind either way.
+TEST_F(OutputFile, DirectoryFormAcceptsExistingOrCreatableDirectoriesOnly) {
+  std::ofstream(dir_ / "a_file") << "x";
+  const auto refusal = [](const fs::path& dir) {
+    try {
+      CheckOutputDirectoryWritable("tool", "--out", dir.string());
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(refusal(dir_), "");
+  EXPECT_EQ(refusal(dir_ / "new" / "deeper"), "");
+  EXPECT_NE(refusal(dir_ / "a_file").find("--out = '" + (dir_ / "a_file").string() + "': exists and is not a directory"),
+            std::string::npos)
+      << refusal(dir_ / "a_file");
+  EXPECT_NE(refusal(dir_ / "a_file" / "out").find("' is not a directory"), std::string::npos);
+  EXPECT_NE(refusal("/proc/kneedyn_no_such").find("cannot"), std::string::npos) << refusal("/proc/kneedyn_no_such");
+  EXPECT_NE(refusal("").find("must name a directory"), std::string::npos);
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_), fs::directory_iterator()), 1) << "something was left";
+}
+
 TEST_F(OutputFile, WritesTheExactBytesIntoNewDirectoriesAndReplacesAnEarlierFile) {
   const fs::path file = dir_ / "new" / "deeper" / "out.json";
   const std::string text = std::string("{\"a\": 1}\n") + std::string(1, '\0') + "\xff";

@@ -133,6 +133,25 @@ TEST(SweepCli, BadInputExitsTwoNamingFieldAndValueAndWritesNothing) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+// An --out that cannot be written is refused before the runs, with exit 2, in all three modes
+// (a whole sweep, a shard, a merge); before, the sweep ran and then failed to write, exit 1.
+TEST(SweepCli, UnwritableOutIsRefusedBeforeTheRuns) {
+  const fs::path work = WorkDir();
+  fs::remove_all(work);
+  fs::create_directories(work);
+  std::ofstream(work / "a_file") << "x";
+  const fs::path out = work / "a_file" / "out";
+  const std::string spec = KNEEDYN_SOURCE_DIR "/ensembles/specs/ishigami.yaml";
+  for (const std::string& mode : {spec, spec + " --shard 0/2", "--merge " + (work / "part.json").string()}) {
+    EXPECT_EQ(Sh(Kneedyn() + " sweep " + mode + " --quiet --out " + out.string() + " > " + (work / "out.txt").string() +
+                 " 2> " + (work / "err").string()), 2) << mode;
+    const std::string err = ReadText(work / "err");
+    EXPECT_NE(err.find("--out = '" + out.string() + "': '" + (work / "a_file").string() + "' is not a directory"),
+              std::string::npos) << err;
+    EXPECT_EQ(ReadText(work / "out.txt"), "") << "ran before refusing: " << mode;
+  }
+}
+
 // --shard i/n with n past the run limit is refused naming the option. Before, n parsed past
 // LONG_MAX saturated to it, and the shard's index loop overflowed (i + n): the run evaluated
 // design rows at negative indices and wrote part-1-of-9223372036854775807.json.
