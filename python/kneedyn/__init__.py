@@ -231,6 +231,21 @@ def _file_path(value, function, argument, expected="a path (str or os.PathLike)"
                      % (function, argument, text, type(value).__name__, expected, hint))
 
 
+def _integer(value, function, argument):
+    """A whole number that fits the C++ side's int64, else InputError naming it (before,
+    max_steps=1e20 reached pybind11, whose TypeError listed the signature, not the argument).
+    The C++ side then applies its own range (e.g. max_steps in [1, 1e8])."""
+    try:
+        as_int = int(value)
+        whole = as_int == value
+    except (TypeError, ValueError, OverflowError):
+        whole = False
+    if not whole or not -2**63 <= as_int < 2**63:
+        raise InputError("%s(): %s = %r: must be a whole number in the range of a 64-bit integer"
+                         % (function, argument, value))
+    return as_int
+
+
 def _names(value, argument):
     """A list of names from any iterable of str; a single str is refused (list() of it gave its
     letters: "'P' is not a parameter of this scene")."""
@@ -358,7 +373,7 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
     if not isinstance(scene, Scene):
         scene = load_scene(_file_path(scene, "run", "scene", "a kneedyn.Scene or a scene file's path"))
     out = _kneedyn.run(scene.compiled, formulation, float(rtol), float(atol), integrator,
-                       float(step), float(max_step), int(max_steps), stabilization,
+                       float(step), float(max_step), _integer(max_steps, "run", "max_steps"), stabilization,
                        constraint_level, jacobian, float(output_interval),
                        "" if out is None else _file_path(out, "run", "out"),
                        linear_solver)
@@ -391,7 +406,8 @@ def sweep(spec_path, threads=0, out=None):
     """Runs a sweep spec (ensembles/README.md) in process on `threads` workers (0: all cores),
     the GIL released; `out` also writes sweep.csv and sweep.h5 as `kneedyn sweep --out` does.
     The rows do not depend on the thread count."""
-    return SweepResult(_kneedyn.sweep(_file_path(spec_path, "sweep", "spec_path"), int(threads),
+    return SweepResult(_kneedyn.sweep(_file_path(spec_path, "sweep", "spec_path"),
+                                      _integer(threads, "sweep", "threads"),
                                       "" if out is None else _file_path(out, "sweep", "out")))
 
 

@@ -247,6 +247,13 @@ def test_a_scene_that_is_neither_a_scene_nor_a_path_names_the_argument():
         kneedyn.sensitivity(CHAPTER, "PCL_anterior.k_linear", ["peak_F_PCL_anterior_N"])
     with pytest.raises(kneedyn.InputError, match=r"outcomes: 3 \(int\) is not a name"):
         kneedyn.sensitivity(CHAPTER, ["PCL_anterior.k_linear"], [3])
+    # Integers past int64 (pybind11's TypeError named no argument) and fractions are refused.
+    with pytest.raises(kneedyn.InputError, match=r"run\(\): max_steps = 1e\+20: must be a whole number"):
+        kneedyn.run(CHAPTER, max_steps=1e20)
+    with pytest.raises(kneedyn.InputError, match=r"run\(\): max_steps = 2.5"):
+        kneedyn.run(CHAPTER, max_steps=2.5)
+    with pytest.raises(kneedyn.InputError, match=r"sweep\(\): threads = 1000000000000000000000"):
+        kneedyn.sweep(os.path.join(OUT, "does_not_matter.yaml"), threads=10**21)
     # Paths as bytes and os.PathLike are paths.
     assert kneedyn.load_scene(pathlib.Path(CHAPTER)).to_dict() == kneedyn.load_scene(os.fsencode(CHAPTER)).to_dict()
 
