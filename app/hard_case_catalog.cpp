@@ -301,18 +301,16 @@ int main(int argc, char** argv) {
         Throw<InputError>("kneedyn_catalog", "--case = '", n, "': no such case in the catalog");
       }
     }
-    std::vector<std::string> case_files;
-    for (const CaseSpec& c : Cases()) {
-      if (only_cases.empty() || std::find(only_cases.begin(), only_cases.end(), c.file) != only_cases.end()) {
-        case_files.push_back(c.file);
-      }
-    }
-    CheckCasesDirectory(cases_dir, case_files);
-    CheckOutputDirectoryWritable("kneedyn_catalog", "--out", out_dir);  // before an hour of runs
-    // What will run (for i/N progress): the same filters as the loop below.
+    // What will run (for the checks below and i/N progress): the same filters as the loop below.
     auto selected_case = [&](const CaseSpec& c) {
       return only_cases.empty() || std::find(only_cases.begin(), only_cases.end(), c.file) != only_cases.end();
     };
+    std::vector<std::string> case_files;
+    for (const CaseSpec& c : Cases()) {
+      if (selected_case(c)) case_files.push_back(c.file);
+    }
+    CheckCasesDirectory(cases_dir, case_files);
+    CheckOutputDirectoryWritable("kneedyn_catalog", "--out", out_dir);  // before an hour of runs
     auto selected_formulation = [&](const CaseSpec& c, const std::string& name) {
       if (!only_formulations.empty() &&
           std::find(only_formulations.begin(), only_formulations.end(), name) == only_formulations.end()) {
@@ -330,10 +328,7 @@ int main(int argc, char** argv) {
     ProgressCounter progress(total_runs);
     std::vector<Row> rows;
     for (const CaseSpec& c : Cases()) {
-      if (!only_cases.empty() &&
-          std::find(only_cases.begin(), only_cases.end(), c.file) == only_cases.end()) {
-        continue;
-      }
+      if (!selected_case(c)) continue;
       const std::string path = (fs::path(cases_dir) / (c.file + ".yaml")).string();
       std::optional<Scene> scene;
       std::string load_error;
