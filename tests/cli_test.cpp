@@ -40,6 +40,25 @@ using cli_test::CommandResult;
 using cli_test::RunKneedyn;
 using cli_test::RunShell;
 
+// Refusals of a program other than `kneedyn`: `command` followed by each case's arguments
+// exits 2 with a message that begins "<program>: error: " and holds the case's needle;
+// `ran_marker` (what the program prints once it runs) never appears, and `not_written`
+// (when given) does not exist afterwards.
+void ExpectRefusedBeforeRunning(const std::string& command, const std::string& program,
+                                const std::vector<std::pair<std::string, std::string>>& cases,
+                                const std::string& ran_marker, const fs::path& not_written = {}) {
+  for (const auto& [args, needle] : cases) {
+    const CommandResult r = RunShell(command + args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
+    EXPECT_EQ(r.output.rfind(program + ": error: ", 0), 0u) << r.output;
+    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find(ran_marker), std::string::npos) << "ran before refusing: " << r.output;
+    if (!not_written.empty()) {
+      EXPECT_FALSE(fs::exists(not_written)) << args;
+    }
+  }
+}
+
 // A fresh, empty temporary directory per test; removed at the end.
 class CliTest : public ::testing::Test {
  protected:
@@ -365,18 +384,13 @@ TEST_F(CliTest, CatalogAndWorkPrecisionKeepTheContract) {
   const fs::path a_file = fs::path(Out()).parent_path() / "a_file";
   std::ofstream(a_file) << "x";
   const std::string json = (fs::path(Out()).parent_path() / "wp.json").string();
-  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
-           {" --short --only no_such_method --json '" + json + "'", "--only = 'no_such_method': no configuration"},
-           {" --short --only dae-ggl-reduced --json '" + (a_file / "wp.json").string() + "'", "--json = '"},
-           {" --short --only dae-ggl-reduced --json '" + json + "' --csv '" + (a_file / "wp.csv").string() + "'",
-            "--csv = '"}}) {
-    r = RunShell(std::string("'") + KNEEDYN_WORK_PRECISION_EXE + "'" + args);
-    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
-    EXPECT_NE(r.output.find("work_precision: error: "), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
-    EXPECT_EQ(r.output.find("[1/"), std::string::npos) << "ran before refusing: " << r.output;
-    EXPECT_FALSE(fs::exists(json)) << args;
-  }
+  ExpectRefusedBeforeRunning(
+      std::string("'") + KNEEDYN_WORK_PRECISION_EXE + "'", "work_precision",
+      {{" --short --only no_such_method --json '" + json + "'", "--only = 'no_such_method': no configuration"},
+       {" --short --only dae-ggl-reduced --json '" + (a_file / "wp.json").string() + "'", "--json = '"},
+       {" --short --only dae-ggl-reduced --json '" + json + "' --csv '" + (a_file / "wp.csv").string() + "'",
+        "--csv = '"}},
+      "[1/", json);
   r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --case");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("--case"), std::string::npos) << r.output;
@@ -393,50 +407,38 @@ TEST_F(CliTest, MakeReferenceRefusesBadSettingsBeforeRunning) {
   const std::string make_reference = std::string("timeout 60 '") + KNEEDYN_MAKE_REFERENCE_EXE + "' --scene '" +
                                      ChapterScenePath() + "'";
   const std::string out = (fs::path(Out()).parent_path() / "reference.json").string();
-  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
-           {" --out '" + out + "' --interval 0", "--interval: output interval 0 s; must lie in [1e-06, 10] s"},
-           {" --out '" + out + "' --method formulations --rtol -1",
-            "--formulation --integrator --rtol --atol: CreateFormulation(): --rtol = -1"},
-           {" --out '" + out + "' --method formulations --check-rtol 0.9",
-            "--check --check-integrator --check-rtol --check-atol: CreateFormulation(): --rtol = 0.9"},
-           {" --out /proc/kneedyn_no_such/reference.json", "--out = '/proc/kneedyn_no_such/reference.json': cannot"}}) {
-    const CommandResult r = RunShell(make_reference + args);
-    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
-    EXPECT_NE(r.output.find("make_reference: error: "), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
-    EXPECT_FALSE(fs::exists(out)) << args;
-  }
+  ExpectRefusedBeforeRunning(
+      make_reference, "make_reference",
+      {{" --out '" + out + "' --interval 0", "--interval: output interval 0 s; must lie in [1e-06, 10] s"},
+       {" --out '" + out + "' --method formulations --rtol -1",
+        "--formulation --integrator --rtol --atol: CreateFormulation(): --rtol = -1"},
+       {" --out '" + out + "' --method formulations --check-rtol 0.9",
+        "--check --check-integrator --check-rtol --check-atol: CreateFormulation(): --rtol = 0.9"},
+       {" --out /proc/kneedyn_no_such/reference.json", "--out = '/proc/kneedyn_no_such/reference.json': cannot"}},
+      "wrote ", out);
 }
+
 // batch_throughput, the batch target's benchmark, refuses what no measurement can use
 // (exit 2, before any run): --runs 1e11 ended in the OOM killer (exit 137); a --rtol or
 // --formulation that no run can have was measured as 'scd nan' (exit 1); an unwritable --csv
 // was refused after the timed runs.
 TEST_F(CliTest, ThroughputBenchmarksRefuseBadSettingsBeforeRunning) {
   const std::string bench = std::string("timeout 60 '") + KNEEDYN_BATCH_THROUGHPUT_EXE + "'";
-  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
-           {" --runs 100000000000", "--runs = 100000000000: must be in [1, 1000000]"},
-           {" --runs 2 --rtol -1", "--rtol = -1; must lie in (0, 0.5]"},
-           {" --runs 2 --formulation nope", "unknown formulation 'nope'"},
-           {" --runs 2 --csv /proc/kneedyn_no_such/t.csv", "--csv = '/proc/kneedyn_no_such/t.csv': cannot"}}) {
-    const CommandResult r = RunShell(bench + args);
-    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
-    EXPECT_NE(r.output.find("batch_throughput: error: "), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
-    EXPECT_EQ(r.output.find("on the nominal scene"), std::string::npos) << "ran before refusing: " << r.output;
-  }
+  ExpectRefusedBeforeRunning(
+      bench, "batch_throughput",
+      {{" --runs 100000000000", "--runs = 100000000000: must be in [1, 1000000]"},
+       {" --runs 2 --rtol -1", "--rtol = -1; must lie in (0, 0.5]"},
+       {" --runs 2 --formulation nope", "unknown formulation 'nope'"},
+       {" --runs 2 --csv /proc/kneedyn_no_such/t.csv", "--csv = '/proc/kneedyn_no_such/t.csv': cannot"}},
+      "on the nominal scene");
   // sweep_throughput dropped an unwritable --json silently (exit 0) and took --min-scd nan
   // as a failed accuracy check (exit 1).
   const std::string sweep_bench = std::string("cd '") + KNEEDYN_SOURCE_DIR + "' && timeout 60 '" +
                                   KNEEDYN_SWEEP_THROUGHPUT_EXE + "'";
-  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
-           {" --json /proc/kneedyn_no_such/t.json", "--json = '/proc/kneedyn_no_such/t.json': cannot"},
-           {" --min-scd nan", "--min-scd = nan: must be finite"}}) {
-    const CommandResult r = RunShell(sweep_bench + args);
-    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
-    EXPECT_NE(r.output.find("sweep_throughput: error: "), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
-    EXPECT_EQ(r.output.find("runs/s"), std::string::npos) << "ran before refusing: " << r.output;
-  }
+  ExpectRefusedBeforeRunning(sweep_bench, "sweep_throughput",
+                             {{" --json /proc/kneedyn_no_such/t.json", "--json = '/proc/kneedyn_no_such/t.json': cannot"},
+                              {" --min-scd nan", "--min-scd = nan: must be finite"}},
+                             "runs/s");
 }
 
 // SUNDIALS prints nothing itself; its own message (here IDA's, CVODE's and
@@ -483,20 +485,13 @@ TEST_F(CliTest, CatalogRefusesAnUnusableCasesDirOrOutBeforeRunning) {
   fs::create_directories(empty_dir);
   const fs::path not_dir = fs::path(Out()).parent_path() / "a_file";
   std::ofstream(not_dir) << "x";
-  const std::vector<std::pair<std::string, std::string>> refusals = {
-      {" --cases-dir /nonexistent --out '" + Out() + "'", "--cases-dir = '/nonexistent': not a directory"},
-      {" --cases-dir '" + empty_dir.string() + "' --out '" + Out() + "'",
-       "1 of the 1 case files are missing or not regular files (c1_law.yaml)"},
-      {" --out '" + (not_dir / "out").string() + "'", "--out = '" + (not_dir / "out").string() + "'"},
-  };
-  for (const auto& [args, needle] : refusals) {
-    const CommandResult r = RunShell(catalog + args);
-    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.output;
-    EXPECT_EQ(r.output.rfind("kneedyn_catalog: error: ", 0), 0u) << r.output;
-    EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
-    EXPECT_EQ(r.output.find("[1/1"), std::string::npos) << "ran before refusing: " << r.output;
-    EXPECT_FALSE(fs::exists(Out())) << args;
-  }
+  ExpectRefusedBeforeRunning(
+      catalog, "kneedyn_catalog",
+      {{" --cases-dir /nonexistent --out '" + Out() + "'", "--cases-dir = '/nonexistent': not a directory"},
+       {" --cases-dir '" + empty_dir.string() + "' --out '" + Out() + "'",
+        "1 of the 1 case files are missing or not regular files (c1_law.yaml)"},
+       {" --out '" + (not_dir / "out").string() + "'", "--out = '" + (not_dir / "out").string() + "'"}},
+      "[1/1", Out());
 }
 
 // summary.json describes the run: schema version, command line, version and
