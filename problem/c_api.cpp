@@ -1,10 +1,13 @@
 // The C interface kneedyn/problem.h over kneedyn::Problem (problem.hpp): exceptions become
 // status codes with the message kept per thread; handles are checked against the live set
-// before use.
+// before use. The live set owns the handles: a call holds its handle (shared) and its lock
+// while it runs, so calls on one handle from several threads take turns, and a destroy
+// during a call frees the handle when the call returns.
 #include <cmath>
 #include <exception>
+#include <map>
+#include <memory>
 #include <mutex>
-#include <set>
 #include <string>
 #include <vector>
 
@@ -17,30 +20,32 @@ struct kneedyn_problem {
   kneedyn::Scene scene;
   std::unique_ptr<kneedyn::Problem> problem;
   std::vector<std::string> event_names;  // of the current phase (kneedyn_problem_event_name)
+  std::mutex mutex;                      // held by the call running on this handle
 };
 
 namespace {
 
 thread_local std::string g_last_error;
 std::mutex g_handles_mutex;
-std::set<const kneedyn_problem*> g_handles;
+std::map<const kneedyn_problem*, std::shared_ptr<kneedyn_problem>> g_handles;
 
 int Set(int status, const std::string& message) {
   g_last_error = message;
   return status;
 }
 
-bool Live(const kneedyn_problem* p) {
+// The live handle p, or null (never dereferenced unless live).
+std::shared_ptr<kneedyn_problem> Live(const kneedyn_problem* p) {
   std::lock_guard<std::mutex> lock(g_handles_mutex);
-  return p != nullptr && g_handles.count(p) > 0;
+  const auto it = g_handles.find(p);
+  return it == g_handles.end() ? nullptr : it->second;
 }
 
 // Runs body, translating its exceptions into a status and the message of `function`.
 template <typename Body>
 int Translate(const char* function, Body body) {
   try {
-    body();
-    g_last_error.clear();
+    body();  // a success leaves the last failure's message as it was
     return KNEEDYN_OK;
   } catch (const kneedyn::ProblemError& e) {
     return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": " + e.what());
@@ -55,10 +60,12 @@ int Translate(const char* function, Body body) {
   }
 }
 
-// Runs body on a live handle (every entry point but create and destroy).
+// Runs body on a live handle (every entry point but create and destroy), one call at a time.
 template <typename Body>
 int Call(const char* function, const kneedyn_problem* p, Body body) {
-  if (!Live(p)) return Set(KNEEDYN_BAD_HANDLE, std::string(function) + ": not a live kneedyn_problem handle");
+  const std::shared_ptr<kneedyn_problem> held = Live(p);
+  if (held == nullptr) return Set(KNEEDYN_BAD_HANDLE, std::string(function) + ": not a live kneedyn_problem handle");
+  std::lock_guard<std::mutex> lock(held->mutex);
   return Translate(function, body);
 }
 
@@ -92,33 +99,34 @@ int kneedyn_problem_create(const char* scene_path, const char* form, double rtol
     return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": rtol and atol must not be NaN");
   }
   return Translate(function, [&] {
-    auto handle = std::make_unique<kneedyn_problem>();
+    auto handle = std::make_shared<kneedyn_problem>();
     handle->scene = kneedyn::LoadScene(scene_path);
     handle->problem = std::make_unique<kneedyn::Problem>(handle->scene, form, rtol > 0.0 ? rtol : 1.0e-6,
                                                          atol > 0.0 ? atol : 1.0e-8);
     RefreshNames(handle.get());
-    {
-      std::lock_guard<std::mutex> lock(g_handles_mutex);
-      g_handles.insert(handle.get());
-    }
-    *out = handle.release();
+    std::lock_guard<std::mutex> lock(g_handles_mutex);
+    g_handles.emplace(handle.get(), handle);
+    *out = handle.get();
   });
 }
 
 int kneedyn_problem_destroy(kneedyn_problem* p) {
   if (p == nullptr) return KNEEDYN_OK;
-  {
-    std::lock_guard<std::mutex> lock(g_handles_mutex);
-    if (g_handles.erase(p) == 0) {
-      return Set(KNEEDYN_BAD_HANDLE, "kneedyn_problem_destroy: not a live kneedyn_problem handle");
-    }
-  }
-  delete p;
+  std::shared_ptr<kneedyn_problem> owned;  // released after the lock: a running call may still hold it
+  std::lock_guard<std::mutex> lock(g_handles_mutex);
+  const auto it = g_handles.find(p);
+  if (it == g_handles.end()) return Set(KNEEDYN_BAD_HANDLE, "kneedyn_problem_destroy: not a live kneedyn_problem handle");
+  owned = std::move(it->second);
+  g_handles.erase(it);
   return KNEEDYN_OK;
 }
 
 int kneedyn_problem_size(const kneedyn_problem* p, int* n) {
-  return Call("kneedyn_problem_size", p, [&] { NotNull(n, "n"); *n = p->problem->size(); });
+  return Call("kneedyn_problem_size", p, [&] {
+    NotNull(n, "n");
+    p->problem->CheckOpen("size");
+    *n = p->problem->size();
+  });
 }
 int kneedyn_problem_index(const kneedyn_problem* p, int* index) {
   return Call("kneedyn_problem_index", p, [&] { NotNull(index, "index"); *index = p->problem->index(); });
@@ -147,8 +155,8 @@ int kneedyn_problem_tolerances(const kneedyn_problem* p, double* rtol, double* a
 int kneedyn_problem_initial_values(const kneedyn_problem* p, double* y0, double* yp0, int n) {
   return Call("kneedyn_problem_initial_values", p, [&] {
     NotNull(y0, "y0");
+    p->problem->CheckOpen("initial_values");
     SizeIs(n, p->problem->size(), "n");
-    if (p->problem->ended()) throw kneedyn::ProblemError("the run has ended; no phase is open");
     std::copy(p->problem->y0().begin(), p->problem->y0().end(), y0);
     if (yp0) std::copy(p->problem->yp0().begin(), p->problem->yp0().end(), yp0);
   });
@@ -156,6 +164,7 @@ int kneedyn_problem_initial_values(const kneedyn_problem* p, double* y0, double*
 int kneedyn_problem_differential_ids(const kneedyn_problem* p, double* ids, int n) {
   return Call("kneedyn_problem_differential_ids", p, [&] {
     NotNull(ids, "ids");
+    p->problem->CheckOpen("differential_ids");
     SizeIs(n, p->problem->size(), "n");
     const std::vector<double> id = p->problem->differential_ids();
     std::copy(id.begin(), id.end(), ids);
@@ -187,11 +196,16 @@ int kneedyn_problem_dae_jacobian(const kneedyn_problem* p, double t, const doubl
   });
 }
 int kneedyn_problem_event_count(const kneedyn_problem* p, int* m) {
-  return Call("kneedyn_problem_event_count", p, [&] { NotNull(m, "m"); *m = p->problem->event_count(); });
+  return Call("kneedyn_problem_event_count", p, [&] {
+    NotNull(m, "m");
+    p->problem->CheckOpen("event_count");
+    *m = p->problem->event_count();
+  });
 }
 int kneedyn_problem_event_name(const kneedyn_problem* p, int k, const char** name) {
   return Call("kneedyn_problem_event_name", p, [&] {
     NotNull(name, "name");
+    p->problem->CheckOpen("event_name");
     if (k < 0 || k >= p->problem->event_count()) throw kneedyn::ProblemError("k = " + std::to_string(k) + ": out of range");
     *name = p->event_names[k].c_str();
   });
@@ -199,6 +213,7 @@ int kneedyn_problem_event_name(const kneedyn_problem* p, int k, const char** nam
 int kneedyn_problem_event_direction(const kneedyn_problem* p, int k, int* direction) {
   return Call("kneedyn_problem_event_direction", p, [&] {
     NotNull(direction, "direction");
+    p->problem->CheckOpen("event_direction");
     if (k < 0 || k >= p->problem->event_count()) throw kneedyn::ProblemError("k = " + std::to_string(k) + ": out of range");
     *direction = p->problem->event_directions()[k];
   });
@@ -206,6 +221,7 @@ int kneedyn_problem_event_direction(const kneedyn_problem* p, int k, int* direct
 int kneedyn_problem_events(const kneedyn_problem* p, double t, const double* y, int n, double* g, int m) {
   return Call("kneedyn_problem_events", p, [&] {
     NotNull(g, "g");
+    p->problem->CheckOpen("events");
     SizeIs(m, p->problem->event_count(), "m");
     p->problem->Events(t, y, n, g);
   });
@@ -224,9 +240,40 @@ int kneedyn_problem_transition(kneedyn_problem* p, double t, const double* y, co
   return Call("kneedyn_problem_transition", p, [&] {
     NotNull(events, "events");
     NotNull(ended, "ended");
-    if (n_events < 1) throw kneedyn::ProblemError("n_events = " + std::to_string(n_events) + ": at least 1");
+    p->problem->CheckOpen("transition");
+    const int m = p->problem->event_count();
+    if (n_events < 1 || n_events > m) {  // checked before events[] is read
+      throw kneedyn::ProblemError("n_events = " + std::to_string(n_events) + ": the phase has " + std::to_string(m) +
+                                  " events, each given at most once");
+    }
     *ended = p->problem->Transition(t, y, yp, n, std::vector<int>(events, events + n_events)) ? 1 : 0;
-    RefreshNames(p);
+    if (!*ended) RefreshNames(p);
+  });
+}
+
+int kneedyn_problem_end_reason(const kneedyn_problem* p, const char** reason) {
+  return Call("kneedyn_problem_end_reason", p, [&] {
+    NotNull(reason, "reason");
+    *reason = p->problem->end_reason().c_str();
+  });
+}
+int kneedyn_problem_event_record_count(const kneedyn_problem* p, int* count) {
+  return Call("kneedyn_problem_event_record_count", p, [&] {
+    NotNull(count, "count");
+    *count = static_cast<int>(p->problem->events_recorded().size());
+  });
+}
+int kneedyn_problem_event_record(const kneedyn_problem* p, int i, const char** name, double* time, double* flexion) {
+  return Call("kneedyn_problem_event_record", p, [&] {
+    NotNull(name, "name");
+    const std::vector<kneedyn::EventRecord>& records = p->problem->events_recorded();
+    if (i < 0 || i >= static_cast<int>(records.size())) {
+      throw kneedyn::ProblemError("i = " + std::to_string(i) + ": " + std::to_string(records.size()) +
+                                  " events are recorded");
+    }
+    *name = records[i].name.c_str();
+    if (time) *time = records[i].time;
+    if (flexion) *flexion = records[i].flexion;
   });
 }
 

@@ -16,7 +16,12 @@ namespace {
 }  // namespace
 
 Problem::Problem(const Scene& scene, const std::string& form, double rtol, double atol)
-    : scene_(scene), form_(form), rtol_(rtol), atol_(atol), workspace_(scene.model), chart_(scene.model) {
+    : scene_(scene),
+      form_(form),
+      rtol_(rtol),
+      atol_(atol),
+      workspace_(scene.model),
+      chart_(std::make_unique<MdeChart>(scene.model)) {
   if (form != "ede" && form != "mde" && form != "dae" && form != "dae-ggl") {
     Fail("Problem: form = '" + form + "': one of 'ede', 'mde', 'dae', 'dae-ggl'");
   }
@@ -53,8 +58,8 @@ void Problem::BeginPhase() {
     dae_->InitialValues(state_, y0_.data(), yp0_.data());
   } else if (is_mde()) {
     // As the mde formulation's Start: a fresh chart at the phase start.
-    chart_.Begin(state_.active, state_.q);
-    chart_.Choose(state_.q);
+    chart_->Begin(state_.active, state_.q);
+    chart_->Choose(state_.q);
     BeginChart();
   } else {
     n_ = 12;
@@ -70,7 +75,7 @@ void Problem::BeginPhase() {
 }
 
 void Problem::BeginChart() {
-  const std::vector<int>& free = chart_.free();
+  const std::vector<int>& free = chart_->free();
   const int m = static_cast<int>(free.size());
   n_ = 2 * m;
   y0_.assign(n_, 0.0);
@@ -86,19 +91,26 @@ void Problem::CheckOpen(const char* call) const {
   if (ended_) Fail(StrCat("Problem::", call, ": the run has ended (", end_reason_, "); no phase is open"));
 }
 
-void Problem::CheckState(const char* call, const double* y, int n) const {
+void Problem::CheckState(const char* call, const char* name, const double* y, int n) const {
   CheckOpen(call);
-  if (y == nullptr) Fail(StrCat("Problem::", call, ": null state array"));
+  if (y == nullptr) Fail(StrCat("Problem::", call, ": ", name, " is a null array"));
   if (n != n_) {
-    Fail(StrCat("Problem::", call, ": state of size ", n, ", but phase ", phase_, " of the '", form_, "' form has ", n_,
-                " components"));
+    Fail(StrCat("Problem::", call, ": ", name, " of size ", n, ", but phase ", phase_, " of the '", form_, "' form has ",
+                n_, " components"));
   }
   for (int i = 0; i < n; ++i) {
-    if (!std::isfinite(y[i])) Fail(StrCat("Problem::", call, ": y[", i, "] = ", y[i], ": every component must be finite"));
+    if (!std::isfinite(y[i])) {
+      Fail(StrCat("Problem::", call, ": ", name, "[", i, "] = ", y[i], ": every component must be finite"));
+    }
   }
 }
 
+void Problem::CheckTime(const char* call, double t) const {
+  if (!std::isfinite(t)) Fail(StrCat("Problem::", call, ": t = ", t, ": must be finite"));
+}
+
 std::vector<double> Problem::differential_ids() const {
+  CheckOpen("differential_ids");
   std::vector<double> id(n_, 1.0);
   if (is_dae()) {
     for (int i = 0; i < n_; ++i) id[i] = dae_->IsDifferential(i) ? 1.0 : 0.0;
@@ -107,14 +119,15 @@ std::vector<double> Problem::differential_ids() const {
 }
 
 std::vector<std::string> Problem::component_names() const {
+  CheckOpen("component_names");
   std::vector<std::string> names;
   for (int i = 0; i < n_; ++i) {
     if (is_dae()) {
       names.push_back(dae_->UnknownName(i));
     } else if (is_mde()) {
       const int m = n_ / 2;
-      names.push_back(i < m ? std::string(CoordinateName(chart_.free()[i]))
-                            : std::string(CoordinateName(chart_.free()[i - m])) + "_rate");
+      names.push_back(i < m ? std::string(CoordinateName(chart_->free()[i]))
+                            : std::string(CoordinateName(chart_->free()[i - m])) + "_rate");
     } else {
       names.push_back(i < 6 ? std::string(CoordinateName(i)) : std::string(CoordinateName(i - 6)) + "_rate");
     }
@@ -132,11 +145,12 @@ void Problem::AccelerationAt(double t, const double* y) const {
 // the mde formulation's (formulations/mde.cpp: MdeChart::Evaluate in the chart in use).
 void Problem::Rhs(double t, const double* y, int n, double* f) const {
   if (is_dae()) Fail(StrCat("Problem::Rhs: the '", form_, "' form is a DAE; call Residual"));
-  CheckState("Rhs", y, n);
+  CheckTime("Rhs", t);
+  CheckState("Rhs", "y", y, n);
   if (is_mde()) {
     const int m = n_ / 2;
     VecM sdd(m);
-    chart_.Evaluate(t, y, &state_.ligament_branch, &sdd);
+    chart_->Evaluate(t, y, &state_.ligament_branch, &sdd);
     for (int j = 0; j < m; ++j) {
       f[j] = y[m + j];
       f[m + j] = sdd(j);
@@ -152,7 +166,8 @@ void Problem::Rhs(double t, const double* y, int n, double* f) const {
 
 void Problem::Jacobian(double t, const double* y, int n, double* J) const {
   if (is_dae()) Fail(StrCat("Problem::Jacobian: the '", form_, "' form is a DAE; call Jacobian(t, y, yp, c)"));
-  CheckState("Jacobian", y, n);
+  CheckTime("Jacobian", t);
+  CheckState("Jacobian", "y", y, n);
   if (is_mde()) {
     MdeJacobian(t, y, J);
     return;
@@ -182,7 +197,7 @@ void Problem::MdeJacobian(double t, const double* y, double* Jf) const {
   const std::vector<int>& active = state_.active;
   const int k = static_cast<int>(active.size());
   VecM sdd(n_ / 2);
-  const MdeKinematics kin = chart_.Evaluate(t, y, &state_.ligament_branch, &sdd);
+  const MdeKinematics kin = chart_->Evaluate(t, y, &state_.ligament_branch, &sdd);
   std::vector<double> normal_force(kin.normal_force.begin(), kin.normal_force.begin() + k);
   double A[72];
   if (!ConstrainedAccelerationJacobian(model, t, kin.q, kin.qd, kin.qdd, active, normal_force, &state_.ligament_branch,
@@ -203,8 +218,8 @@ void Problem::MdeJacobian(double t, const double* y, double* Jf) const {
     const Jet6 phidot = ContactConstraintRow(pose, geo).dot(nu);
     for (int i = 0; i < 6; ++i) phi_q(c, i) = geo.gap.v(i), phidot_q(c, i) = phidot.v(i);
   }
-  const std::vector<int>& free = chart_.free();
-  const std::vector<int>& elim = chart_.eliminated();
+  const std::vector<int>& free = chart_->free();
+  const std::vector<int>& elim = chart_->eliminated();
   const int m = static_cast<int>(free.size());
   MatrixXd P = MatrixXd::Zero(6, m), dqd_ds = MatrixXd::Zero(6, m);
   for (int j = 0; j < m; ++j) P(free[j], j) = 1.0;
@@ -232,15 +247,17 @@ void Problem::MdeJacobian(double t, const double* y, double* Jf) const {
 
 void Problem::Residual(double t, const double* y, const double* yp, int n, double* F) const {
   if (!is_dae()) Fail(StrCat("Problem::Residual: the '", form_, "' form is an ODE; call Rhs"));
-  CheckState("Residual", y, n);
-  CheckState("Residual", yp, n);
+  CheckTime("Residual", t);
+  CheckState("Residual", "y", y, n);
+  CheckState("Residual", "yp", yp, n);
   if (!dae_->Residual(t, y, yp, F)) Fail(StrCat("Problem::Residual: at t = ", t, " s a contact surface is evaluated outside its domain"));
 }
 
 void Problem::Jacobian(double t, const double* y, const double* yp, double c, int n, double* J) const {
   if (!is_dae()) Fail(StrCat("Problem::Jacobian: the '", form_, "' form is an ODE; call Jacobian(t, y)"));
-  CheckState("Jacobian", y, n);
-  CheckState("Jacobian", yp, n);
+  CheckTime("Jacobian", t);
+  CheckState("Jacobian", "y", y, n);
+  CheckState("Jacobian", "yp", yp, n);
   if (!std::isfinite(c)) Fail(StrCat("Problem::Jacobian: c = ", c, ": must be finite"));
   std::vector<double> column_major(static_cast<size_t>(n_) * n_);
   if (!dae_->Jacobian(t, c, y, yp, column_major.data())) {
@@ -252,6 +269,7 @@ void Problem::Jacobian(double t, const double* y, const double* yp, double c, in
 }
 
 std::vector<std::string> Problem::event_names() const {
+  CheckOpen("event_names");
   std::vector<std::string> names;
   for (const EventSpec& e : specs_) names.push_back(e.name);
   if (has_chart_event()) names.push_back(kChartEvent);
@@ -259,6 +277,7 @@ std::vector<std::string> Problem::event_names() const {
 }
 
 std::vector<int> Problem::event_directions() const {
+  CheckOpen("event_directions");
   std::vector<int> d;
   for (const EventSpec& e : specs_) d.push_back(e.direction);
   if (has_chart_event()) d.push_back(-1);
@@ -267,15 +286,16 @@ std::vector<int> Problem::event_directions() const {
 
 // The formulations' root functions (ede.cpp, dae.cpp: N from the hidden constraint or from y).
 void Problem::Events(double t, const double* y, int n, double* g) const {
-  CheckState("Events", y, n);
+  CheckTime("Events", t);
+  CheckState("Events", "y", y, n);
   std::fill(normal_.begin(), normal_.end(), 0.0);
   if (is_mde()) {  // the mde formulation's Roots, then the chart's conditioning
-    const MdeKinematics kin = chart_.Evaluate(t, y, &state_.ligament_branch, nullptr);
+    const MdeKinematics kin = chart_->Evaluate(t, y, &state_.ligament_branch, nullptr);
     for (size_t c = 0; c < state_.active.size(); ++c) normal_[state_.active[c]] = kin.normal_force[c];
     EvaluateEvents(scene_.model, specs_, kin.q, normal_, g);
     if (has_chart_event()) {
       double current = 0.0, best = 0.0;
-      chart_.Conditioning(kin.q, &current, &best);
+      chart_->Conditioning(kin.q, &current, &best);
       g[specs_.size()] = current - 0.5 * best;  // the formulation's switch threshold (factor 2)
     }
     return;
@@ -308,7 +328,7 @@ MechanicalState Problem::StateAt(double t, const double* y, const double* yp) co
     }
   } else if (is_mde()) {
     VecM sdd(n_ / 2);
-    const MdeKinematics kin = chart_.Evaluate(t, y, &state_.ligament_branch, &sdd);
+    const MdeKinematics kin = chart_->Evaluate(t, y, &state_.ligament_branch, &sdd);
     s.q = kin.q;
     s.qd = kin.qd;
     s.qdd = kin.qdd;
@@ -323,16 +343,68 @@ MechanicalState Problem::StateAt(double t, const double* y, const double* yp) co
   return s;
 }
 
+// Everything Transition and BeginPhase assign. The DAE system's phase is set again from the
+// saved state on Restore (DaeSystem::SetPhase is a function of it).
+struct Problem::PhaseSnapshot {
+  int n, phase;
+  bool ended;
+  std::string end_reason;
+  double max_position_residual;
+  MechanicalState state;
+  std::vector<EventSpec> specs;
+  size_t events_size;
+  std::vector<double> y0, yp0;
+  std::unique_ptr<MdeChart> chart;
+};
+
+Problem::PhaseSnapshot Problem::Save() const {
+  return PhaseSnapshot{n_,     phase_, ended_, end_reason_, max_position_residual_, state_, specs_, events_.size(),
+                       y0_,    yp0_,   std::make_unique<MdeChart>(*chart_)};
+}
+
+void Problem::Restore(PhaseSnapshot&& saved) {
+  n_ = saved.n;
+  phase_ = saved.phase;
+  ended_ = saved.ended;
+  end_reason_ = std::move(saved.end_reason);
+  max_position_residual_ = saved.max_position_residual;
+  state_ = std::move(saved.state);
+  specs_ = std::move(saved.specs);
+  events_.resize(saved.events_size);
+  y0_ = std::move(saved.y0);
+  yp0_ = std::move(saved.yp0);
+  chart_ = std::move(saved.chart);
+  if (is_dae()) dae_->SetPhase(state_.active, state_.contact, state_.ligament_branch);
+}
+
 bool Problem::Transition(double t, const double* y, const double* yp, int n, const std::vector<int>& events) {
-  CheckState("Transition", y, n);
-  if (is_dae()) CheckState("Transition", yp, n);
-  if (!std::isfinite(t)) Fail(StrCat("Problem::Transition: t = ", t, ": must be finite"));
+  CheckTime("Transition", t);
+  CheckState("Transition", "y", y, n);
+  if (is_dae()) CheckState("Transition", "yp", yp, n);
+  if (t < state_.t || t > scene_.end.time) {
+    Fail(StrCat("Problem::Transition: t = ", t, " s: must lie in phase ", phase_, "'s [", state_.t, ", ", scene_.end.time,
+                "] s (from its start to t_end)"));
+  }
   if (events.empty()) Fail("Problem::Transition: no event given");
-  for (int k : events) {
+  for (size_t i = 0; i < events.size(); ++i) {
+    const int k = events[i];
     if (k < 0 || k >= event_count()) {
       Fail(StrCat("Problem::Transition: event = ", k, ": phase ", phase_, " has events 0 to ", event_count() - 1));
     }
+    if (std::find(events.begin(), events.begin() + i, k) != events.begin() + i) {
+      Fail(StrCat("Problem::Transition: event = ", k, " is given twice: each root once"));
+    }
   }
+  PhaseSnapshot saved = Save();
+  try {
+    return TransitionUnguarded(t, y, yp, events);
+  } catch (...) {
+    Restore(std::move(saved));
+    throw;
+  }
+}
+
+bool Problem::TransitionUnguarded(double t, const double* y, const double* yp, const std::vector<int>& events) {
   MechanicalState s = StateAt(t, y, yp);
   // mde: the chart alone switches (the formulation's restart after a step, at its root here).
   const int chart_event = has_chart_event() ? static_cast<int>(specs_.size()) : -1;
@@ -341,8 +413,8 @@ bool Problem::Transition(double t, const double* y, const double* yp, int n, con
       Fail(StrCat("Problem::Transition: '", kChartEvent, "' together with another event: hand them one at a time"));
     }
     state_.t = s.t, state_.q = s.q, state_.qd = s.qd, state_.qdd = s.qdd;
-    chart_.ChooseAfresh(s.q);
-    chart_.SetStartPose(s.q);
+    chart_->ChooseAfresh(s.q);
+    chart_->SetStartPose(s.q);
     BeginChart();
     return false;
   }

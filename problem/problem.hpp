@@ -46,7 +46,7 @@ class Problem {
   bool is_dae() const { return form_ == "dae" || form_ == "dae-ggl"; }
   bool is_mde() const { return form_ == "mde"; }
   // mde: the coordinates of q that s holds (ascending) in the chart in use.
-  const std::vector<int>& free_coordinates() const { return chart_.free(); }
+  const std::vector<int>& free_coordinates() const { return chart_->free(); }
   // Index of the form: 0 (ODE), 2 (both DAE forms, velocity-level constraint).
   int index() const { return is_dae() ? 2 : 0; }
   int size() const { return n_; }  // of the current phase (the DAE size changes with contacts)
@@ -55,6 +55,8 @@ class Problem {
   double rtol() const { return rtol_; }
   double atol() const { return atol_; }
   bool ended() const { return ended_; }
+  // Throws ProblemError naming `call` once the run has ended (no phase is open).
+  void CheckOpen(const char* call) const;
   const std::string& end_reason() const { return end_reason_; }
   // Phases started so far − 1 (a restart at a ligament kink counts, as in the simulator).
   int phase() const { return phase_; }
@@ -62,8 +64,9 @@ class Problem {
   double phase_start_time() const { return state_.t; }
 
   // Consistent values at the phase start (t0 for the first phase, else the transition time).
-  const std::vector<double>& y0() const { return y0_; }
-  const std::vector<double>& yp0() const { return yp0_; }
+  // These, the ids, names and events below are the open phase's: after the end they throw.
+  const std::vector<double>& y0() const { CheckOpen("y0"); return y0_; }
+  const std::vector<double>& yp0() const { CheckOpen("yp0"); return yp0_; }
   // 1 for differential, 0 for algebraic components (DAE forms; all 1 for ede).
   std::vector<double> differential_ids() const;
   std::vector<std::string> component_names() const;
@@ -87,11 +90,13 @@ class Problem {
   std::vector<int> event_directions() const;
   void Events(double t, const double* y, int n, double* g) const;
 
-  // n: the length of y (and yp), checked against size(); states must be finite.
-  // The transition at the roots of `events` (t, y: the event state; yp for the DAE forms):
-  // the simulator's PhaseTransition and StartPhase. Returns true when the run has ended;
-  // otherwise y0(), yp0(), size() and the events are the next phase's. The events recorded
-  // (with pulling contacts that lift off at once) are appended to events_recorded().
+  // n: the length of y (and yp), checked against size(); times and states must be finite.
+  // The transition at the roots of `events` (distinct indices; t, y: the event state, t in
+  // [phase_start_time(), t_end()]; yp for the DAE forms): the simulator's PhaseTransition and
+  // StartPhase. Returns true when the run has ended; otherwise y0(), yp0(), size() and the
+  // events are the next phase's. The events recorded (with pulling contacts that lift off at
+  // once) are appended to events_recorded(). All or nothing: when it throws, the problem is
+  // left in the phase it was in.
   bool Transition(double t, const double* y, const double* yp, int n, const std::vector<int>& events);
   const std::vector<EventRecord>& events_recorded() const { return events_; }
   // The name of the mde chart-switch event.
@@ -101,15 +106,23 @@ class Problem {
   MechanicalState StateAt(double t, const double* y, const double* yp) const;
   // StateAt with y (and yp for the DAE forms, may be null) checked like the other calls.
   MechanicalState Coordinates(double t, const double* y, const double* yp, int n) const {
-    CheckState("Coordinates", y, n);
-    if (yp != nullptr) CheckState("Coordinates", yp, n);
+    CheckTime("Coordinates", t);
+    CheckState("Coordinates", "y", y, n);
+    if (yp != nullptr) CheckState("Coordinates", "yp", yp, n);
     return StateAt(t, y, yp);
   }
 
  private:
+  // What a transition changes, kept to put back when it throws part-way.
+  struct PhaseSnapshot;
+  PhaseSnapshot Save() const;
+  void Restore(PhaseSnapshot&& saved);
+  bool TransitionUnguarded(double t, const double* y, const double* yp, const std::vector<int>& events);
+
   void BeginPhase();
-  void CheckState(const char* call, const double* y, int n) const;
-  void CheckOpen(const char* call) const;
+  // `name` ("y" or "yp") is the array the message names.
+  void CheckState(const char* call, const char* name, const double* y, int n) const;
+  void CheckTime(const char* call, double t) const;
   void AccelerationAt(double t, const double* y) const;
   void BeginChart();  // mde: y0, yp0 in the chart in use
   void MdeJacobian(double t, const double* y, double* J) const;
@@ -132,7 +145,7 @@ class Problem {
   mutable ConstrainedDynamicsWorkspace workspace_;
   mutable ConstrainedAcceleration acc_;
   mutable std::vector<double> normal_;
-  MdeChart chart_;
+  std::unique_ptr<MdeChart> chart_;  // a pointer so that a transition can put the old chart back
 };
 
 }  // namespace kneedyn

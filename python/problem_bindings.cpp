@@ -1,11 +1,13 @@
 // kneedyn.Problem: the knee as an open initial-value problem, per phase (problem/problem.hpp,
 // docs/problem.md), for outside solvers such as SciPy's solve_ivp. Arrays are float64
-// NumPy arrays; every bad argument (form, sizes, NaN, a call out of phase, after the end)
-// raises ValueError with the C++ message.
+// NumPy arrays; every bad argument (form, sizes, NaN, a value of the wrong type, a call out of
+// phase, after the end) raises ValueError with the C++ message, which names the argument.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <climits>
+#include <cstring>
 #include <memory>
 #include <string>
 #include <vector>
@@ -32,13 +34,34 @@ py::array_t<double> ToArray(const std::vector<double>& v) {
   return a;
 }
 
-// A 1-D array; its length is checked by Problem against the phase's size.
+std::string Repr(const py::handle& obj) {
+  std::string r = py::repr(obj);
+  return r.size() > 80 ? r.substr(0, 77) + "..." : r;
+}
+
+// A 1-D array of real numbers (integer or floating; not complex, text, bool or objects, which
+// NumPy would cast or cut silently); its length is checked by Problem against the phase's size.
 Array Vector1d(const py::handle& obj, const char* name) {
-  Array a = Array::ensure(obj);
-  if (!a || a.ndim() != 1) {
-    throw ProblemError(std::string("kneedyn.Problem: ") + name + " must be a 1-D array of floats");
+  const py::array raw = py::array::ensure(obj);
+  const char kind = raw ? raw.dtype().kind() : 'O';
+  if (!raw || raw.ndim() != 1 || std::strchr("iuf", kind) == nullptr) {
+    throw ProblemError(std::string("kneedyn.Problem: ") + name + " = " + Repr(obj) +
+                       ": must be a 1-D array of real numbers (float64)");
   }
-  return a;
+  return Array::ensure(raw);
+}
+
+// A real number (int or float, NumPy's too; not bool or text), else ValueError naming it.
+double RealArgument(const py::handle& v, const char* where, const char* name) {
+  PyObject* o = v.ptr();
+  const bool real = !PyBool_Check(o) && !PyUnicode_Check(o) && !PyBytes_Check(o) && PyObject_HasAttrString(o, "__float__");
+  const double d = real ? PyFloat_AsDouble(o) : 0.0;
+  if (!real || (d == -1.0 && PyErr_Occurred())) {
+    PyErr_Clear();
+    throw ProblemError(std::string(where) + ": " + name + " = " + Repr(v) + " (" + Py_TYPE(o)->tp_name +
+                       "): must be a real number");
+  }
+  return d;
 }
 
 int Length(const Array& a) { return static_cast<int>(a.shape(0)); }
@@ -46,9 +69,18 @@ int Length(const Array& a) { return static_cast<int>(a.shape(0)); }
 // The scene: a kneedyn.Scene (its .compiled), a CompiledScene, or a path / shipped name.
 std::shared_ptr<Scene> SceneFrom(const py::object& obj) {
   if (py::isinstance<Scene>(obj)) return obj.cast<std::shared_ptr<Scene>>();
-  if (py::hasattr(obj, "compiled")) return obj.attr("compiled").cast<std::shared_ptr<Scene>>();
+  if (py::hasattr(obj, "compiled")) {
+    const py::object compiled = obj.attr("compiled");
+    if (!py::isinstance<Scene>(compiled)) {
+      throw ProblemError("kneedyn.Problem: scene.compiled = " + Repr(compiled) + ": must be a kneedyn.CompiledScene");
+    }
+    return compiled.cast<std::shared_ptr<Scene>>();
+  }
   if (py::isinstance<py::str>(obj)) {
     std::string path = obj.cast<std::string>();
+    if (path.find('\0') != std::string::npos) {
+      throw ProblemError("kneedyn.Problem: scene = " + Repr(obj) + ": a path cannot hold a NUL character");
+    }
     if (path.find('/') == std::string::npos && path.find(".yaml") == std::string::npos) {
       path = py::module_::import("kneedyn").attr("scene_path")(path).cast<std::string>();
     }
@@ -57,7 +89,9 @@ std::shared_ptr<Scene> SceneFrom(const py::object& obj) {
   throw ProblemError("kneedyn.Problem: scene must be a kneedyn.Scene, a scene file path or a shipped scene name");
 }
 
+// An index (int or NumPy integer, not bool), a name of event_names, or a list of them.
 std::vector<int> EventIndices(const Problem& p, const py::object& event) {
+  const char* where = "kneedyn.Problem.transition";
   auto one = [&](const py::handle& e) {
     if (py::isinstance<py::str>(e)) {
       const std::string name = e.cast<std::string>();
@@ -68,10 +102,26 @@ std::vector<int> EventIndices(const Problem& p, const py::object& event) {
       throw ProblemError("kneedyn.Problem.transition: event = '" + name + "': not an event of phase " +
                          std::to_string(p.phase()));
     }
-    return e.cast<int>();
+    if (PyBool_Check(e.ptr()) || !PyIndex_Check(e.ptr())) {
+      throw ProblemError(std::string(where) + ": event = " + Repr(e) + " (" + Py_TYPE(e.ptr())->tp_name +
+                         "): an event is an index (int) or a name of event_names");
+    }
+    const py::int_ index = py::reinterpret_steal<py::int_>(PyNumber_Index(e.ptr()));
+    int overflow = 0;
+    const long long k = PyLong_AsLongLongAndOverflow(index.ptr(), &overflow);
+    if (overflow != 0 || k < INT_MIN || k > INT_MAX) {
+      throw ProblemError(std::string(where) + ": event = " + Repr(e) + ": phase " + std::to_string(p.phase()) +
+                         " has events 0 to " + std::to_string(p.event_count() - 1));
+    }
+    return static_cast<int>(k);
   };
   std::vector<int> out;
-  if (py::isinstance<py::str>(event) || !py::isinstance<py::sequence>(event)) {
+  if (PyBytes_Check(event.ptr()) || PyByteArray_Check(event.ptr())) {
+    throw ProblemError(std::string(where) + ": event = " + Repr(event) + ": bytes are not an event (use its name as str)");
+  }
+  if (py::isinstance<py::array>(event) && event.cast<py::array>().ndim() == 0) {
+    out.push_back(one(event.attr("item")()));  // a NumPy scalar array
+  } else if (py::isinstance<py::str>(event) || !py::isinstance<py::sequence>(event)) {
     out.push_back(one(event));
   } else {
     for (const py::handle& e : event.cast<py::sequence>()) out.push_back(one(e));
@@ -103,7 +153,10 @@ to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
            py::arg("scene"), py::arg("form") = "ede", py::arg("rtol") = 1.0e-6, py::arg("atol") = 1.0e-8)
       .def_property_readonly("form", [](const PyProblem& p) { return p.problem->form(); })
       .def_property_readonly("index", [](const PyProblem& p) { return p.problem->index(); })
-      .def_property_readonly("size", [](const PyProblem& p) { return p.problem->size(); })
+      .def_property_readonly("size", [](const PyProblem& p) {
+        p.problem->CheckOpen("size");
+        return p.problem->size();
+      })
       .def_property_readonly("t0", [](const PyProblem& p) { return p.problem->t0(); })
       .def_property_readonly("t_end", [](const PyProblem& p) { return p.problem->t_end(); })
       .def_property_readonly("rtol", [](const PyProblem& p) { return p.problem->rtol(); })
@@ -151,7 +204,8 @@ to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
           const Array b = Vector1d(yp, "yp");
           if (Length(a) != Length(b)) throw ProblemError("kneedyn.Problem.jacobian: y and yp differ in length");
           if (c.is_none()) throw ProblemError("kneedyn.Problem.jacobian: the DAE form needs c (dF/dy + c dF/dyp)");
-          p.problem->Jacobian(t, a.data(), b.data(), c.cast<double>(), Length(a), J.mutable_data());
+          p.problem->Jacobian(t, a.data(), b.data(), RealArgument(c, "kneedyn.Problem.jacobian", "c"), Length(a),
+                              J.mutable_data());
         }
         return J;
       }, py::arg("t"), py::arg("y"), py::arg("yp") = py::none(), py::arg("c") = py::none())

@@ -4,8 +4,9 @@
 //  - f, F and the DAE Jacobian through Problem and the C interface equal the functions the
 //    formulations call (SolveConstrainedAcceleration, DaeSystem) bitwise;
 //  - the exact DAE Jacobian agrees with central differences of the residual;
-//  - bad handles, sizes, NaN states, calls of the other form and after the end return
-//    error codes with messages.
+//  - bad handles, sizes, NaN states and times, calls of the other form and after the end
+//    return error codes with messages; a failed transition changes nothing; one handle used
+//    from two threads gives the serial results.
 #include "problem/problem.hpp"
 
 #include <gtest/gtest.h>
@@ -14,7 +15,10 @@
 
 #include <cmath>
 #include <cstring>
+#include <climits>
+#include <functional>
 #include <limits>
+#include <thread>
 #include <tuple>
 
 #include "formulations/internal/ode_integrator.hpp"
@@ -538,6 +542,194 @@ TEST(Problem, BadCallsReturnErrorsWithMessages) {
   EXPECT_EQ(kneedyn_problem_transition(h, 0.1, y, nullptr, 12, &end_event, 1, &ended), KNEEDYN_BAD_ARGUMENT);
   EXPECT_EQ(kneedyn_problem_destroy(h), KNEEDYN_OK);
   EXPECT_EQ(kneedyn_problem_destroy(nullptr), KNEEDYN_OK);
+}
+
+// Every state-taking call refuses a time that is not finite, naming it; yp's faults name yp.
+TEST(Problem, NonFiniteTimesAndBadYpAreRefusedNamingThem) {
+  const Scene& scene = ChapterScene();
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+  Problem ode(scene, "ede");
+  const std::vector<double> y = ode.y0();
+  std::vector<double> out(12 * 12);
+  for (double t : {nan, inf, -inf}) {
+    SCOPED_TRACE(t);
+    auto expect_time_refused = [&](const std::function<void()>& call) {
+      try {
+        call();
+        ADD_FAILURE() << "accepted t = " << t;
+      } catch (const ProblemError& e) {
+        EXPECT_NE(std::string(e.what()).find("t = "), std::string::npos) << e.what();
+      }
+    };
+    expect_time_refused([&] { ode.Rhs(t, y.data(), 12, out.data()); });
+    expect_time_refused([&] { ode.Jacobian(t, y.data(), 12, out.data()); });
+    expect_time_refused([&] { ode.Events(t, y.data(), 12, out.data()); });
+    expect_time_refused([&] { ode.Coordinates(t, y.data(), nullptr, 12); });
+    expect_time_refused([&] { ode.Transition(t, y.data(), nullptr, 12, {0}); });
+  }
+  Problem dae(scene, "dae");
+  const int n = dae.size();
+  std::vector<double> yd = dae.y0(), ypd = dae.yp0(), F(n * n);
+  EXPECT_THROW(dae.Residual(nan, yd.data(), ypd.data(), n, F.data()), ProblemError);
+  EXPECT_THROW(dae.Jacobian(inf, yd.data(), ypd.data(), 1.0, n, F.data()), ProblemError);
+  ypd[4] = nan;
+  try {
+    dae.Residual(0.0, yd.data(), ypd.data(), n, F.data());
+    ADD_FAILURE() << "accepted yp[4] = nan";
+  } catch (const ProblemError& e) {
+    EXPECT_NE(std::string(e.what()).find("yp[4] = nan"), std::string::npos) << e.what();
+  }
+  try {
+    dae.Residual(0.0, yd.data(), nullptr, n, F.data());
+    ADD_FAILURE() << "accepted a null yp";
+  } catch (const ProblemError& e) {
+    EXPECT_NE(std::string(e.what()).find("yp is a null array"), std::string::npos) << e.what();
+  }
+}
+
+// A transition's events are distinct, and its time lies between the phase start and t_end.
+TEST(Problem, TransitionRefusesRepeatedEventsAndTimesOutsideThePhase) {
+  const Scene& scene = ChapterScene();
+  Problem p(scene, "ede");
+  const std::vector<double> y = p.y0();
+  auto message = [&](double t, const std::vector<int>& events) {
+    try {
+      p.Transition(t, y.data(), nullptr, 12, events);
+    } catch (const ProblemError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(message(0.01, {0, 0}).find("event = 0 is given twice"), std::string::npos) << message(0.01, {0, 0});
+  EXPECT_NE(message(p.t0() - 5.0, {0}).find("must lie in phase 0"), std::string::npos) << message(p.t0() - 5.0, {0});
+  EXPECT_NE(message(p.t_end() * 2.0, {0}).find("must lie in phase 0"), std::string::npos);
+  EXPECT_NE(message(1e300, {0}).find("t = 1e+300"), std::string::npos) << message(1e300, {0});
+  EXPECT_EQ(p.phase(), 0);
+  EXPECT_TRUE(p.events_recorded().empty());
+}
+
+// A transition that throws part-way (here the next phase's consistent initialization, from
+// a state far off the constraints) leaves the problem as it was: phase, start, values,
+// events and records; the same problem then transitions normally.
+TEST(Problem, FailedTransitionLeavesThePhaseAsItWas) {
+  const Scene& scene = ChapterScene();
+  for (const std::string form : {"ede", "mde", "dae", "dae-ggl"}) {
+    SCOPED_TRACE(form);
+    Problem p(scene, form);
+    const std::vector<double> y0 = p.y0(), yp0 = p.yp0();
+    const std::vector<std::string> names = p.event_names();
+    std::vector<double> far = y0;
+    for (size_t i = 0; i < far.size(); ++i) far[i] += (i % 2 == 0 ? 1.0e3 : -1.0e3);
+    // Every event but the end, one at a time: kinks (a restart), lift-offs (a mode switch).
+    int failed = 0;
+    for (int k = 0; k < p.event_count(); ++k) {
+      if (names[k].rfind("flexion_", 0) == 0) continue;
+      try {
+        p.Transition(0.05, far.data(), form.rfind("dae", 0) == 0 ? yp0.data() : nullptr, p.size(), {k});
+        ADD_FAILURE() << names[k] << ": a transition from a state 1e3 off the constraints succeeded";
+        return;
+      } catch (const std::exception&) {
+        ++failed;
+      }
+      ASSERT_EQ(p.phase(), 0) << names[k];
+      EXPECT_EQ(p.phase_start_time(), p.t0()) << names[k];
+      EXPECT_EQ(p.y0(), y0) << names[k];
+      EXPECT_EQ(p.yp0(), yp0) << names[k];
+      EXPECT_EQ(p.event_names(), names) << names[k];
+      EXPECT_TRUE(p.events_recorded().empty()) << names[k];
+    }
+    EXPECT_GT(failed, 0);
+    // And from the start state itself, the first lift-off event moves on as usual.
+    const int liftoff = static_cast<int>(std::find(names.begin(), names.end(), "liftoff_lateral") - names.begin());
+    ASSERT_LT(liftoff, static_cast<int>(names.size()));
+    Problem fresh(scene, form);
+    std::vector<double> start = y0;
+    p.Transition(0.05, start.data(), form.rfind("dae", 0) == 0 ? yp0.data() : nullptr, p.size(), {liftoff});
+    fresh.Transition(0.05, start.data(), form.rfind("dae", 0) == 0 ? yp0.data() : nullptr, fresh.size(), {liftoff});
+    EXPECT_EQ(p.phase(), 1);
+    EXPECT_EQ(p.y0(), fresh.y0());
+    EXPECT_EQ(p.event_names(), fresh.event_names());
+    ASSERT_EQ(p.events_recorded().size(), fresh.events_recorded().size());
+  }
+}
+
+// The C interface: n_events is checked before events[] is read; the last failure's message
+// outlives later successes; after the end what belongs to a phase is refused and the end
+// reason and the records answer.
+TEST(Problem, CInterfaceChecksCountsKeepsMessagesAndAnswersAfterTheEnd) {
+  const std::string scene = ScenesDir() + "/chapter_impact.yaml";
+  kneedyn_problem* h = nullptr;
+  ASSERT_EQ(kneedyn_problem_create(scene.c_str(), "ede", 0.0, 0.0, &h), KNEEDYN_OK) << kneedyn_last_error();
+  double y[12], f[12], ids[12];
+  ASSERT_EQ(kneedyn_problem_initial_values(h, y, nullptr, 12), KNEEDYN_OK);
+  int m = 0, ended = 0, n = 0, count = -1;
+  ASSERT_EQ(kneedyn_problem_event_count(h, &m), KNEEDYN_OK);
+  int one_event[1] = {0};  // a count past the array would make the library read past it
+  EXPECT_EQ(kneedyn_problem_transition(h, 0.01, y, nullptr, 12, one_event, INT_MAX, &ended), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("n_events = 2147483647"), std::string::npos) << kneedyn_last_error();
+  EXPECT_EQ(kneedyn_problem_transition(h, 0.01, y, nullptr, 12, one_event, m + 1, &ended), KNEEDYN_BAD_ARGUMENT);
+  const std::string failure = kneedyn_last_error();
+  ASSERT_EQ(kneedyn_problem_rhs(h, 0.0, y, 12, f), KNEEDYN_OK);
+  EXPECT_EQ(std::string(kneedyn_last_error()), failure) << "a success cleared the last failure's message";
+  const char* reason = nullptr;
+  ASSERT_EQ(kneedyn_problem_end_reason(h, &reason), KNEEDYN_OK);
+  EXPECT_STREQ(reason, "");
+  ASSERT_EQ(kneedyn_problem_event_record_count(h, &count), KNEEDYN_OK);
+  EXPECT_EQ(count, 0);
+  const char* name = nullptr;
+  EXPECT_EQ(kneedyn_problem_event_record(h, 0, &name, nullptr, nullptr), KNEEDYN_BAD_ARGUMENT);
+  int end_event = -1;
+  for (int k = 0; k < m; ++k) {
+    ASSERT_EQ(kneedyn_problem_event_name(h, k, &name), KNEEDYN_OK);
+    if (std::string(name).rfind("flexion_", 0) == 0) end_event = k;
+  }
+  ASSERT_GE(end_event, 0);
+  ASSERT_EQ(kneedyn_problem_transition(h, 0.1, y, nullptr, 12, &end_event, 1, &ended), KNEEDYN_OK);
+  ASSERT_EQ(ended, 1);
+  EXPECT_EQ(kneedyn_problem_size(h, &n), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("ended"), std::string::npos) << kneedyn_last_error();
+  EXPECT_EQ(kneedyn_problem_differential_ids(h, ids, 12), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_EQ(kneedyn_problem_event_count(h, &m), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_EQ(kneedyn_problem_event_name(h, 0, &name), KNEEDYN_BAD_ARGUMENT);
+  ASSERT_EQ(kneedyn_problem_end_reason(h, &reason), KNEEDYN_OK);
+  EXPECT_EQ(std::string(reason).rfind("flexion_", 0), 0u) << reason;
+  ASSERT_EQ(kneedyn_problem_event_record_count(h, &count), KNEEDYN_OK);
+  ASSERT_EQ(count, 1);
+  double t_event = 0.0, flexion = 0.0;
+  ASSERT_EQ(kneedyn_problem_event_record(h, 0, &name, &t_event, &flexion), KNEEDYN_OK);
+  EXPECT_STREQ(name, reason);
+  EXPECT_EQ(t_event, 0.1);
+  EXPECT_EQ(flexion, y[3]);  // the flexion angle of the state handed over (rad)
+  EXPECT_EQ(kneedyn_problem_destroy(h), KNEEDYN_OK);
+}
+
+// One handle, two threads, each evaluating f at its own states: every value equals the
+// serial one (the handle's workspace is shared, so the calls must take turns).
+TEST(Problem, OneHandleFromTwoThreadsGivesTheSerialValues) {
+  const std::string scene = ScenesDir() + "/chapter_impact.yaml";
+  kneedyn_problem* h = nullptr;
+  ASSERT_EQ(kneedyn_problem_create(scene.c_str(), "ede", 0.0, 0.0, &h), KNEEDYN_OK) << kneedyn_last_error();
+  std::vector<double> y0(12);
+  ASSERT_EQ(kneedyn_problem_initial_values(h, y0.data(), nullptr, 12), KNEEDYN_OK);
+  constexpr int kCalls = 20000;
+  std::vector<std::vector<double>> state(2, y0), serial(2, std::vector<double>(12));
+  state[1][9] += 0.5;  // another angular rate (rad/s): another acceleration
+  for (int w = 0; w < 2; ++w) ASSERT_EQ(kneedyn_problem_rhs(h, 0.01, state[w].data(), 12, serial[w].data()), KNEEDYN_OK);
+  ASSERT_NE(serial[0], serial[1]);
+  int mismatches[2] = {0, 0}, errors[2] = {0, 0};
+  auto worker = [&](int w) {
+    std::vector<double> f(12);
+    for (int i = 0; i < kCalls; ++i) {
+      if (kneedyn_problem_rhs(h, 0.01, state[w].data(), 12, f.data()) != KNEEDYN_OK) ++errors[w];
+      if (f != serial[w]) ++mismatches[w];
+    }
+  };
+  std::thread a(worker, 0), b(worker, 1);
+  a.join();
+  b.join();
+  EXPECT_EQ(errors[0] + errors[1], 0);
+  EXPECT_EQ(mismatches[0] + mismatches[1], 0);
+  EXPECT_EQ(kneedyn_problem_destroy(h), KNEEDYN_OK);
 }
 
 }  // namespace

@@ -5,9 +5,10 @@
  *
  *   rk4_on_the_knee SCENE.yaml STEP_S OUT_DIR
  * writes OUT_DIR/trajectory.csv (rows at multiples of 0.02 s plus every event),
- * OUT_DIR/events.csv and OUT_DIR/counters.json (f evaluations, steps) to be scored by
- * `kneedyn score`, and OUT_DIR/cpu_time_s (the CPU time of the run, clock()). Exit code 1
- * on a kneedyn error. */
+ * OUT_DIR/events.csv (the interface's event records, as the Python example writes them) and
+ * OUT_DIR/counters.json (f evaluations, steps) to be scored by `kneedyn score`, and
+ * OUT_DIR/cpu_time_s (the CPU time of the run, clock()). STEP_S in [1e-9, 0.1] s, the limits
+ * of `kneedyn run --step`. Exit code 2 on bad arguments, 1 on a kneedyn error. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -68,8 +69,15 @@ int main(int argc, char** argv) {
   char path[4096];
   FILE *traj, *events, *out;
   clock_t start;
-  if (argc != 4 || (h = atof(argv[2])) <= 0.0) {
+  char* end = NULL;
+  int recorded = 0, count;
+  if (argc != 4) {
     fprintf(stderr, "usage: %s SCENE.yaml STEP_S OUT_DIR\n", argv[0]);
+    return 2;
+  }
+  h = strtod(argv[2], &end);
+  if (end == argv[2] || *end != '\0' || !(h >= 1e-9 && h <= 0.1)) { /* NaN fails the test too */
+    fprintf(stderr, "%s: STEP_S = '%s': must be a number of seconds in [1e-9, 0.1]\n", argv[0], argv[2]);
     return 2;
   }
   start = clock();
@@ -90,7 +98,10 @@ int main(int argc, char** argv) {
   write_row(traj, t, y, 0);
   while (!ended) {
     check(kneedyn_problem_event_count(p, &m), "event_count");
-    if (m > MAX_EVENTS) return 1;
+    if (m > MAX_EVENTS) {
+      fprintf(stderr, "phase %d has %d events; this example handles at most %d (MAX_EVENTS)\n", phase, m, MAX_EVENTS);
+      return 1;
+    }
     for (k = 0; k < m; ++k) check(kneedyn_problem_event_direction(p, k, &dirs[k]), "event_direction");
     check(kneedyn_problem_events(p, t, y, N, g, m), "events");
     for (;;) {
@@ -131,10 +142,18 @@ int main(int argc, char** argv) {
       for (k = 0; k < n_fired; ++k) {
         const char* name;
         check(kneedyn_problem_event_name(p, fired[k], &name), "event_name");
-        fprintf(events, "%s,%.17g,%.17g\n", name, t, y_new[3] * 180.0 / kPi);
         printf("%s: t = %.12g s, flexion = %.10g deg\n", name, t, y_new[3] * 180.0 / kPi);
       }
       check(kneedyn_problem_transition(p, t, y_new, NULL, N, fired, n_fired, &ended), "transition");
+      /* The records: the events handed over, and contacts that lift off at once because
+       * their force would pull after the switch (a ligament kink alone records nothing). */
+      check(kneedyn_problem_event_record_count(p, &count), "event_record_count");
+      for (; recorded < count; ++recorded) {
+        const char* name;
+        double t_event, flexion;
+        check(kneedyn_problem_event_record(p, recorded, &name, &t_event, &flexion), "event_record");
+        fprintf(events, "%s,%.17g,%.17g\n", name, t_event, flexion * 180.0 / kPi);
+      }
       if (!ended) check(kneedyn_problem_initial_values(p, y, NULL, N), "initial_values");
       ++phase;
       break;

@@ -15,7 +15,12 @@
  * Every function returns a kneedyn_status; on failure kneedyn_last_error() (per thread)
  * names the function, the value and the rule. A handle that is not a live one returned by
  * kneedyn_problem_create is refused with KNEEDYN_BAD_HANDLE without being dereferenced.
- * Matrices are row-major n x n. Sizes change between phases for the DAE forms.
+ * Matrices are row-major n x n. Sizes change between phases for the DAE forms. Times and
+ * states must be finite. Calls on one handle from several threads take turns (each holds the
+ * handle while it runs); a destroy during a call frees the handle when that call returns.
+ * After the run has ended, what belongs to a phase (size, values, ids, events, f, F, the
+ * transition) is refused with KNEEDYN_BAD_ARGUMENT; the times, phase, tolerances, end reason
+ * and event records still answer.
  */
 #ifndef KNEEDYN_PROBLEM_H
 #define KNEEDYN_PROBLEM_H
@@ -24,7 +29,8 @@
 extern "C" {
 #endif
 
-#define KNEEDYN_PROBLEM_API_VERSION 1
+/* 1: the first interface; 2 adds kneedyn_problem_end_reason and the event records (additive). */
+#define KNEEDYN_PROBLEM_API_VERSION 2
 
 typedef struct kneedyn_problem kneedyn_problem; /* opaque */
 
@@ -37,7 +43,8 @@ typedef enum kneedyn_status {
   KNEEDYN_INTERNAL_ERROR = 5
 } kneedyn_status;
 
-/* The message of the last failed call on this thread ("" if none). */
+/* The message of the last failed call on this thread ("" if none); a call that succeeds
+ * leaves it as it was. */
 const char* kneedyn_last_error(void);
 
 /* form: "ede", "mde", "dae" or "dae-ggl"; rtol, atol <= 0: the defaults (1e-6, 1e-8).
@@ -79,10 +86,20 @@ int kneedyn_problem_events(const kneedyn_problem* p, double t, const double* y, 
 int kneedyn_problem_coordinates(const kneedyn_problem* p, double t, const double* y, const double* yp, int n,
                                 double* q, double* qd);
 
-/* At the roots events[0..n_events): the next phase (its size, y0, yp0, events), or
- * *ended = 1 when the run has ended. yp may be null. */
+/* At the roots events[0..n_events) (distinct, 1 <= n_events <= the event count; t from the
+ * phase start to t_end): the next phase (its size, y0, yp0, events), or *ended = 1 when the
+ * run has ended. yp may be null for the ODE forms. All or nothing: a failed transition
+ * leaves the phase as it was. */
 int kneedyn_problem_transition(kneedyn_problem* p, double t, const double* y, const double* yp, int n,
                                const int* events, int n_events, int* ended);
+
+/* Why the run ended: the end event's name (e.g. "flexion_90"); "" while a phase is open. (API version 2.) */
+int kneedyn_problem_end_reason(const kneedyn_problem* p, const char** reason);
+/* The events recorded so far, in order: every transition's events, and contacts whose force
+ * would pull after a switch and lift off at once (only here). time [s], flexion [rad] may be
+ * null; name stays valid until the next transition or destroy. (API version 2.) */
+int kneedyn_problem_event_record_count(const kneedyn_problem* p, int* count);
+int kneedyn_problem_event_record(const kneedyn_problem* p, int i, const char** name, double* time, double* flexion);
 
 #ifdef __cplusplus
 }

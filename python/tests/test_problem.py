@@ -169,3 +169,63 @@ def test_dae_residual_and_jacobian_equal_c_interface_bitwise(form):
         c.kneedyn_problem_destroy(h)
     assert np.array_equal(F.view(np.uint64), Fc.view(np.uint64))
     assert np.array_equal(J.view(np.uint64), Jc.view(np.uint64))
+
+
+def test_arguments_of_the_wrong_kind_are_refused_naming_them():
+    """Events, c, y and the scene path of the wrong kind raise ValueError naming the argument
+    (not pybind11's cast error, and not a silent cast: NumPy would drop an imaginary part
+    and read digit strings, bytes would iterate as indices, True would be event 1)."""
+    p = kneedyn.Problem(SCENE, form="ede")
+    for event in [None, 1.5, 1.0, True, {0}, {0: 1}, [[0]], b"\x00", np.float64(0)]:
+        with pytest.raises(ValueError, match="event = "):
+            p.transition(p.t0 + 0.01, p.y0, event)
+    for event in [2**40, 10**30, -2**40]:
+        with pytest.raises(ValueError, match="has events 0 to"):
+            p.transition(p.t0 + 0.01, p.y0, event)
+    with pytest.raises(ValueError, match="given twice"):
+        p.transition(p.t0 + 0.01, p.y0, [0, 0])
+    with pytest.raises(ValueError, match="given twice"):
+        p.transition(p.t0 + 0.01, p.y0, [p.event_names[0], 0])
+    for y in [p.y0.astype(complex), [str(v) for v in p.y0], [None] * p.size, np.ones(p.size, dtype=bool)]:
+        with pytest.raises(ValueError, match="y = .*real numbers"):
+            p.rhs(p.t0, y)
+    with pytest.raises(ValueError, match="t = nan"):
+        p.rhs(float("nan"), p.y0)
+    with pytest.raises(ValueError, match="scene = .*NUL"):
+        kneedyn.Problem(SCENE + "\0junk", form="ede")
+
+    class NotAScene:
+        compiled = 5
+    with pytest.raises(ValueError, match="scene.compiled = 5"):
+        kneedyn.Problem(NotAScene(), form="ede")
+    d = kneedyn.Problem(SCENE, form="dae")
+    for c in ["x", [1.0], 10**400, True]:
+        with pytest.raises(ValueError, match="c = "):
+            d.jacobian(d.t0, d.y0, d.yp0, c)
+    yp = d.yp0.copy(); yp[4] = np.nan
+    with pytest.raises(ValueError, match=r"yp\[4\] = nan"):
+        d.residual(d.t0, d.y0, yp)
+    assert p.phase == 0 and p.events_recorded == [] and d.phase == 0
+
+
+def test_integer_events_of_any_integer_type_and_numpy_scalars_are_accepted():
+    """An index may be a Python int, a NumPy integer or a 0-d integer array."""
+    end = [k for k, n in enumerate(kneedyn.Problem(SCENE, form="ede").event_names) if n.startswith("flexion_")][0]
+    for event in [end, np.int64(end), np.int32(end), np.array(end), [np.int16(end)]]:
+        p = kneedyn.Problem(SCENE, form="ede")
+        y, ended = p.transition(p.t0 + 0.01, p.y0, event)
+        assert ended and y is None, event
+
+
+def test_after_the_end_only_the_runs_own_facts_answer():
+    """After the end no phase is open: its values, sizes, ids, names and events raise; the
+    times, tolerances, phase, end reason and records answer."""
+    p = kneedyn.Problem(SCENE, form="dae")
+    end = [n for n in p.event_names if n.startswith("flexion_")][0]
+    y0, yp0 = p.y0, p.yp0
+    p.transition(p.t0 + 0.01, y0, end, yp=yp0)
+    for name in ["y0", "yp0", "size", "differential_ids", "component_names", "event_names", "event_directions"]:
+        with pytest.raises(ValueError, match="ended"):
+            getattr(p, name)
+    assert p.end_reason == end and [e[0] for e in p.events_recorded] == [end]
+    assert p.t_end > p.t0 and p.rtol == 1e-6 and p.phase == 0
