@@ -210,7 +210,7 @@ int Main(int argc, char** argv) {
                   "(the chapter's, singular at the condyle rim)")
       ->transform(CLI::CheckedTransformer(std::map<std::string, ContactChart>{
           {"regular", ContactChart::kRegular}, {"height-field", ContactChart::kHeightField}}));
-  text_option("--output-interval", "s between output rows (0: scene's)");
+  text_option("--output-interval", "s between output rows (> 0; omit it for the scene's)");
   run->add_option("--out", out_dir, "output directory")->capture_default_str();
   run->add_flag("--quiet", quiet, "no progress on stderr");
 

@@ -392,7 +392,7 @@ int main(int argc, char** argv) {
   app.add_option("--interval", interval, "comparison interval, s")->capture_default_str();
   app.add_flag("--conservative", conservative, "record the energy error (conservative scene)");
   std::string method = "extended";
-  app.add_option("--method", method, "extended (long double Gauss-Legendre) | formulations (mde checked by ede)")
+  app.add_option("--method", method, "extended (Gauss-Legendre in --scalar, default float128) | formulations (mde checked by ede)")
       ->check(CLI::IsMember({"extended", "formulations"}))
       ->capture_default_str();
   ExtendedReferenceSettings extended;

@@ -181,7 +181,9 @@ class NewmarkFormulation final : public FormulationBase {
 
   // stats_ counts over the whole run (the stepper lives across phases).
   SolverStats PhaseStats() const override { return stats_; }
-  std::string integrator() const override { return "newmark-average-acceleration"; }
+  std::string integrator() const override {
+    return scheme_.IsAverageAcceleration() ? "newmark-average-acceleration" : "generalized-alpha";
+  }
   double fixed_step() const override { return step_; }
   // One Newton step from the current state (residual + Jet Jacobian + LU per iteration)
   // and the event functions, n times.

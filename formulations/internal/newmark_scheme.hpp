@@ -28,6 +28,8 @@ struct NewmarkScheme {
   double alpha_f = 0.0;
   double beta = 0.25;
   double gamma = 0.5;
+  // Newmark's average acceleration (trapezoidal rule) exactly, the `newmark` formulations' scheme.
+  bool IsAverageAcceleration() const { return alpha_m == 0.0 && alpha_f == 0.0 && beta == 0.25 && gamma == 0.5; }
 };
 
 inline NewmarkScheme ChungHulbertScheme(double rho_inf) {

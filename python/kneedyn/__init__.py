@@ -179,8 +179,8 @@ class Scene:
         return self.update({"ligament_stiffness_scale": scale})
 
     def set_pulse(self, **fields):
-        """Pulse fields: shape (reconstructed|half_sine|none), amplitude_N, duration_s,
-        direction_T."""
+        """Pulse fields: shape (reconstructed|half_sine|reconstructed_peak|damped_sine|none),
+        amplitude_N, duration_s, direction_T (reference-data/scenes/README.md)."""
         return self.update({"pulse": fields})
 
     def set_patella(self, **fields):
