@@ -34,8 +34,13 @@ py::array_t<double> ToArray(const std::vector<double>& v) {
   return a;
 }
 
+// repr(obj) on one line (NumPy's breaks lines), cut to 80 characters.
 std::string Repr(const py::handle& obj) {
-  std::string r = py::repr(obj);
+  std::string r;
+  for (char c : std::string(py::repr(obj))) {
+    if (c == '\n') c = ' ';
+    if (c != ' ' || r.empty() || r.back() != ' ') r += c;
+  }
   return r.size() > 80 ? r.substr(0, 77) + "..." : r;
 }
 

@@ -609,25 +609,29 @@ TEST(Problem, TransitionRefusesRepeatedEventsAndTimesOutsideThePhase) {
 }
 
 // A transition that throws part-way (here the next phase's consistent initialization, from
-// a state far off the constraints) leaves the problem as it was: phase, start, values,
-// events and records; the same problem then transitions normally.
+// a state 1e3 off the constraints, after the event state was taken and, for a lift-off, the
+// event recorded) leaves the problem as it was: phase, start, values, events and records;
+// the same problem then transitions exactly as a fresh one does.
 TEST(Problem, FailedTransitionLeavesThePhaseAsItWas) {
   const Scene& scene = ChapterScene();
   for (const std::string form : {"ede", "mde", "dae", "dae-ggl"}) {
     SCOPED_TRACE(form);
-    Problem p(scene, form);
-    const std::vector<double> y0 = p.y0(), yp0 = p.yp0();
-    const std::vector<std::string> names = p.event_names();
+    const bool dae = form.rfind("dae", 0) == 0;
+    Problem fresh(scene, form);
+    const std::vector<double> y0 = fresh.y0(), yp0 = fresh.yp0();
+    const std::vector<std::string> names = fresh.event_names();
+    const int liftoff = static_cast<int>(std::find(names.begin(), names.end(), "liftoff_lateral") - names.begin());
+    ASSERT_LT(liftoff, static_cast<int>(names.size()));
     std::vector<double> far = y0;
     for (size_t i = 0; i < far.size(); ++i) far[i] += (i % 2 == 0 ? 1.0e3 : -1.0e3);
-    // Every event but the end, one at a time: kinks (a restart), lift-offs (a mode switch).
+    Problem expected(scene, form);  // the transition from the start state, for comparison
+    expected.Transition(0.05, y0.data(), dae ? yp0.data() : nullptr, expected.size(), {liftoff});
     int failed = 0;
-    for (int k = 0; k < p.event_count(); ++k) {
-      if (names[k].rfind("flexion_", 0) == 0) continue;
+    for (int k = 0; k < static_cast<int>(names.size()); ++k) {
+      Problem p(scene, form);
       try {
-        p.Transition(0.05, far.data(), form.rfind("dae", 0) == 0 ? yp0.data() : nullptr, p.size(), {k});
-        ADD_FAILURE() << names[k] << ": a transition from a state 1e3 off the constraints succeeded";
-        return;
+        p.Transition(0.05, far.data(), dae ? yp0.data() : nullptr, p.size(), {k});
+        continue;  // some events take even this state (the end; mde's lift-offs, whose chart absorbs it)
       } catch (const std::exception&) {
         ++failed;
       }
@@ -637,19 +641,15 @@ TEST(Problem, FailedTransitionLeavesThePhaseAsItWas) {
       EXPECT_EQ(p.yp0(), yp0) << names[k];
       EXPECT_EQ(p.event_names(), names) << names[k];
       EXPECT_TRUE(p.events_recorded().empty()) << names[k];
+      p.Transition(0.05, y0.data(), dae ? yp0.data() : nullptr, p.size(), {liftoff});
+      EXPECT_EQ(p.phase(), 1) << names[k];
+      EXPECT_EQ(p.y0(), expected.y0()) << names[k];
+      EXPECT_EQ(p.yp0(), expected.yp0()) << names[k];
+      EXPECT_EQ(p.event_names(), expected.event_names()) << names[k];
+      EXPECT_EQ(p.events_recorded().size(), expected.events_recorded().size()) << names[k];
     }
-    EXPECT_GT(failed, 0);
-    // And from the start state itself, the first lift-off event moves on as usual.
-    const int liftoff = static_cast<int>(std::find(names.begin(), names.end(), "liftoff_lateral") - names.begin());
-    ASSERT_LT(liftoff, static_cast<int>(names.size()));
-    Problem fresh(scene, form);
-    std::vector<double> start = y0;
-    p.Transition(0.05, start.data(), form.rfind("dae", 0) == 0 ? yp0.data() : nullptr, p.size(), {liftoff});
-    fresh.Transition(0.05, start.data(), form.rfind("dae", 0) == 0 ? yp0.data() : nullptr, fresh.size(), {liftoff});
-    EXPECT_EQ(p.phase(), 1);
-    EXPECT_EQ(p.y0(), fresh.y0());
-    EXPECT_EQ(p.event_names(), fresh.event_names());
-    ASSERT_EQ(p.events_recorded().size(), fresh.events_recorded().size());
+    // The twelve kinks fail in every form; the lift-offs too in ede and the DAE forms.
+    EXPECT_GE(failed, form == "mde" ? 12 : 14);
   }
 }
 
