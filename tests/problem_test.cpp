@@ -711,7 +711,7 @@ TEST(Problem, OneHandleFromTwoThreadsGivesTheSerialValues) {
   ASSERT_EQ(kneedyn_problem_create(scene.c_str(), "ede", 0.0, 0.0, &h), KNEEDYN_OK) << kneedyn_last_error();
   std::vector<double> y0(12);
   ASSERT_EQ(kneedyn_problem_initial_values(h, y0.data(), nullptr, 12), KNEEDYN_OK);
-  constexpr int kCalls = 20000;
+  constexpr int kCalls = 100000;  // the unguarded handle gave wrong f in 5 of 5 such runs
   std::vector<std::vector<double>> state(2, y0), serial(2, std::vector<double>(12));
   state[1][9] += 0.5;  // another angular rate (rad/s): another acceleration
   for (int w = 0; w < 2; ++w) ASSERT_EQ(kneedyn_problem_rhs(h, 0.01, state[w].data(), 12, serial[w].data()), KNEEDYN_OK);
