@@ -9,12 +9,18 @@ against time and the PCL force against flexion, and compares the lift-off angles
 """
 import argparse
 import os
+import sys
 
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-import kneedyn
+try:
+    import kneedyn
+except ImportError as e:
+    print(f"remove_acl: error: the kneedyn module is not importable ({e}); "
+          "run with PYTHONPATH=build/python or install it (docs/python.md)", file=sys.stderr)
+    sys.exit(2)
 
 RUNS = [("dae", dict(rtol=1e-8, atol=1e-10)), ("mde", dict(integrator="dopri5", rtol=1e-8, atol=1e-10))]
 
@@ -23,7 +29,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default="out/remove_acl", help="directory for remove_acl.png")
     args = ap.parse_args()
-    os.makedirs(args.out, exist_ok=True)
+    try:
+        os.makedirs(args.out, exist_ok=True)
+    except OSError as e:
+        ap.error(f"--out = '{args.out}': cannot be created ({e.strerror or e})")
 
     intact = kneedyn.load_scene(kneedyn.scene_path("chapter_impact"))
     acl_deficient = intact.copy()

@@ -7,6 +7,9 @@ OUT/trajectory.csv, events to OUT/events.csv, and `kneedyn score` scores them.
 
     PYTHONPATH=build/python /usr/bin/python3 examples/python/scipy_on_the_knee.py \
         --method Radau --rtol 1e-8 --atol 1e-10 --out out/scipy --kneedyn build/formulations/kneedyn
+
+Exit codes as kneedyn run's: 0 completed, 1 the solver failed (what was reached is written
+and scored as failed), 2 bad arguments (nothing written).
 """
 import argparse
 import csv
@@ -18,7 +21,12 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-import kneedyn
+try:
+    import kneedyn
+except ImportError as e:
+    print(f"scipy_on_the_knee: error: the kneedyn module is not importable ({e}); "
+          "run with PYTHONPATH=build/python or install it (docs/python.md)", file=sys.stderr)
+    sys.exit(2)
 
 M_TO_MM, RAD_TO_DEG = 1e3, 180.0 / np.pi
 COLUMNS = ["x0_mm", "y0_mm", "z0_mm", "flexion_deg", "valgus_deg", "external_rotation_deg",
@@ -92,7 +100,20 @@ def main():
     ap.add_argument("--out", default="out/scipy_on_the_knee")
     ap.add_argument("--kneedyn", help="kneedyn executable: score the result with `kneedyn score`")
     a = ap.parse_args()
-    p = kneedyn.Problem(a.scene, form=a.form, rtol=a.rtol, atol=a.atol)
+    # kneedyn run's limits; checked before the run, as kneedyn's programs do.
+    for option, value, low, high in (("--rtol", a.rtol, 0.0, 0.5), ("--atol", a.atol, 0.0, 1e-2),
+                                     ("--dt", a.dt, 1e-6, 100.0)):
+        if not (low < value <= high):
+            ap.error(f"{option} = {value}: must be in ({low:g}, {high:g}]")
+    if a.kneedyn and not (os.path.isfile(a.kneedyn) and os.access(a.kneedyn, os.X_OK)):
+        ap.error(f"--kneedyn = '{a.kneedyn}': not an executable file")
+    if os.path.exists(a.out) and not os.path.isdir(a.out):
+        ap.error(f"--out = '{a.out}': an existing file, not a directory")
+    try:
+        p = kneedyn.Problem(a.scene, form=a.form, rtol=a.rtol, atol=a.atol)
+        os.makedirs(a.out, exist_ok=True)
+    except (ValueError, OSError) as e:  # kneedyn.InputError is a ValueError
+        ap.error(f"{'--out' if isinstance(e, OSError) else '--scene'}: {e}")
     start = time.process_time()
     res = {"rows": [], "events": [], "nfev": 0, "njev": 0}
     try:
@@ -101,7 +122,6 @@ def main():
         end, failure = None, str(e).replace("\n", " ")
     cpu = time.process_time() - start
     rows, events, nfev, njev = res["rows"], res["events"], res["nfev"], res["njev"]
-    os.makedirs(a.out, exist_ok=True)
     traj, ev = os.path.join(a.out, "trajectory.csv"), os.path.join(a.out, "events.csv")
     with open(traj, "w", newline="") as f:
         csv.writer(f).writerows([["time_s"] + COLUMNS + ["is_event"]] + [[repr(v) for v in r] for r in rows])
@@ -112,11 +132,14 @@ def main():
     print(f"scipy {a.method}: end {end or 'failed: ' + failure}, {nfev} f evaluations, {njev} Jacobians, "
           f"{cpu:.3f} s CPU")
     if a.kneedyn:  # one curve per method in the work-precision diagrams: solver scipy, integrator the method
-        subprocess.run([a.kneedyn, "score", traj, "--scene", a.scene, "--events", ev, "--solver-name",
+        scored = subprocess.run([a.kneedyn, "score", traj, "--scene", a.scene, "--events", ev, "--solver-name",
                         "scipy" if a.form == "ede" else f"scipy-{a.form}", "--integrator", a.method, "--rtol", str(a.rtol), "--atol", str(a.atol), "--cpu-time",
                         repr(cpu), "--counter", f"residual_evaluations={nfev}", "--counter",
                         f"jacobian_evaluations={njev}", "--out", os.path.join(a.out, "score.json")]
-                       + (["--failed", failure] if failure else []), check=True)
+                       + (["--failed", failure] if failure else []), check=False)
+        if scored.returncode != 0:
+            print(f"scipy_on_the_knee: error: kneedyn score exited {scored.returncode}", file=sys.stderr)
+            return 1
     return 1 if failure else 0
 
 
