@@ -27,6 +27,7 @@ input (a missing file, a table it cannot read, a chosen run the instruction swee
 ran with other steps than the sweep: an instruction sweep of another recording) exits 2.
 """
 import argparse
+import json
 import math
 import os
 import re
@@ -36,6 +37,7 @@ sys.dont_write_bytecode = True  # keep the source tree clean
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "reports"))
 from bench_data import classify_run, load_bench, method_of  # noqa: E402
+import tool_input  # noqa: E402
 
 WINDOW = 5  # the chosen run and the four next tighter ones (a decade of quarter-decade steps)
 
@@ -136,6 +138,18 @@ def differences(target, pick):
           f"the rule chooses {want[0]} {want[1] or '-'} rtol {want[2]:.17g}"]
 
 
+def read_sweep(option, path):
+  """load_bench(path), its errors (BadInput) naming `option` and the file."""
+  def load(p):
+    try:
+      return load_bench(p)
+    except json.JSONDecodeError as e:
+      raise tool_input.BadInput(f"{option} = '{tool_input.echo(p)}': not JSON ({e})") from None
+    except tool_input.BadInput as e:
+      raise tool_input.BadInput(f"{option}: {e}") from None
+  return tool_input.checked(load, option, path)
+
+
 def main(argv=None):
   ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
   ap.add_argument("--sweep", default=os.path.join(ROOT, "benchmarks/recorded/work_precision_chapter_impact.json"))
@@ -145,14 +159,9 @@ def main(argv=None):
   a = ap.parse_args(argv)
   try:
     targets = read_targets(a.check)
-    for path, what in ((a.sweep, "--sweep"), (a.instructions, "--instructions")):
-      if not os.path.isfile(path):
-        raise InputError(f"main: {what} {path}: no such file")
-    try:
-      _, sweep = load_bench(a.sweep)
-      _, instructions = load_bench(a.instructions)
-    except ValueError as e:  # json.JSONDecodeError is one
-      raise InputError(f"main: a sweep file is not JSON: {e}")
+    # Each file's errors name its option (--sweep or --instructions) and the file.
+    _, sweep = read_sweep("--sweep", a.sweep)
+    _, instructions = read_sweep("--instructions", a.instructions)
     found = []
     for t in targets:
       pick = choose(sweep, instructions, t["among"], t["min_scd"])
@@ -165,10 +174,13 @@ def main(argv=None):
   except InputError as e:
     print(f"choose_targets: {e}", file=sys.stderr)
     return 2
+  except tool_input.BadInput as e:
+    print(f"choose_targets: {e}", file=sys.stderr)
+    return 2
   for d in found:
     print(f"choose_targets: {d}", file=sys.stderr)
   return 1 if found else 0
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  sys.exit(tool_input.exit_code("choose_targets", main))

@@ -33,6 +33,7 @@ import argparse
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -41,6 +42,8 @@ sys.dont_write_bytecode = True  # keep the source tree clean
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "reports"))
 from bench_data import load_bench, method_of, split_runs  # noqa: E402
+import tool_input  # noqa: E402
+from tool_input import BadInput  # noqa: E402
 
 # Function-name patterns (demangled, as callgrind_annotate prints them).
 # A run whose residual matches none of them is an error (measure), not a 0 % share: the
@@ -104,7 +107,10 @@ def measure(run, kneedyn, scene, tmp):
   out = os.path.join(tmp, "out")
   cg = os.path.join(tmp, "callgrind.out")
   cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={cg}"] + command_of(run, kneedyn, scene, out)
-  subprocess.run(cmd, check=True, capture_output=True)
+  p = subprocess.run(cmd, capture_output=True, text=True)
+  if p.returncode != 0:  # a run that fails is a failure of the program measured: exit 1
+    tail = (p.stderr.strip().splitlines() or ["no output"])[-1]
+    raise SystemExit(f"efficiency.py: measure(): {' '.join(cmd)} exited {p.returncode}: {tail}")
   total, costs = inclusive_costs(cg)
   residual = share(costs, RESIDUAL)
   if residual == 0:
@@ -144,19 +150,28 @@ def main(argv=None):
   ap.add_argument("--only", default="")
   ap.add_argument("--json", default=None)
   a = ap.parse_args(argv)
-  try:
-    header, runs = load_bench(a.sweep)
-  except (OSError, ValueError) as e:  # json.JSONDecodeError is a ValueError
-    print(f"efficiency.py: --sweep {a.sweep}: cannot read it ({e})", file=sys.stderr)
-    return 2
+  header, runs = tool_input.checked(load_bench, "--sweep", a.sweep)
   if a.cost == "instructions" and not any(isinstance(r.get("instructions"), int) for r in runs):
-    print(f"efficiency.py: --cost instructions: {a.sweep} has no instruction counts (benchmarks/instruction_sweep.py "
-          "writes them; --cost cpu picks by CPU time)", file=sys.stderr)
-    return 2
+    raise BadInput(f"--cost instructions: {a.sweep} has no instruction counts (benchmarks/instruction_sweep.py "
+                   "writes them; --cost cpu picks by CPU time)")
+  tool_input.number("--scd", a.scd)
+  if a.json is not None:
+    tool_input.output_file("--json", a.json)
+  picks = pick_runs(runs, a.scd, a.cost, a.only)
+  if not picks:
+    if a.only and not any(a.only in method_of(r) for r in runs):
+      raise BadInput(f"--only = '{tool_input.echo(a.only)}': no method of '{a.sweep}' matches")
+    raise BadInput(f"--scd = {a.scd:g}: no method{f' matching --only {a.only!r}' if a.only else ''} of "
+                   f"'{a.sweep}' has a result reaching it")
+  tool_input.kneedyn_executable("--kneedyn", a.kneedyn)
+  for tool in ("valgrind", "callgrind_annotate"):
+    if shutil.which(tool) is None:
+      raise BadInput(f"{tool} not found (apt-get install valgrind)")
   name = os.path.splitext(os.path.basename(str(header.get("scene") or "chapter_impact")))[0]
   scene = a.scene or os.path.join(ROOT, "reference-data/scenes", name + ".yaml")
+  tool_input.existing_file("--scene", scene)
   result = {}
-  for m, best in pick_runs(runs, a.scd, a.cost, a.only).items():
+  for m, best in picks.items():
     with tempfile.TemporaryDirectory() as tmp:
       result[m] = measure(best, os.path.abspath(a.kneedyn), scene, tmp)
     e = result[m]
@@ -176,4 +191,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  sys.exit(tool_input.exit_code("efficiency.py", main))

@@ -46,6 +46,8 @@ sys.path.insert(0, os.path.join(ROOT, "reports"))
 sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 from bench_data import load_bench, method_of  # noqa: E402
 from efficiency import command_of  # noqa: E402
+import tool_input  # noqa: E402
+from tool_input import BadInput  # noqa: E402
 
 COLLECTED = re.compile(r"Collected\s*:\s*(\d+)")
 
@@ -87,7 +89,7 @@ def measure(run, kneedyn, scene):
     return entry
 
 
-def main():
+def main(argv=None):
   ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
   ap.add_argument("--kneedyn", required=True, help="the kneedyn program to measure")
   ap.add_argument("--sweep", default=os.path.join(ROOT, "benchmarks/recorded/work_precision_chapter_impact.json"),
@@ -96,28 +98,22 @@ def main():
   ap.add_argument("--only", default="", help="only methods whose name contains this")
   ap.add_argument("--jobs", type=int, default=2, help="runs at once (default 2)")
   ap.add_argument("--json", required=True, help="output file")
-  a = ap.parse_args()
+  a = ap.parse_args(argv)
   if a.jobs < 1:
-    print(f"instruction_sweep.py: --jobs = {a.jobs}: must be at least 1", file=sys.stderr)
-    return 2
-  if shutil.which("valgrind") is None:
-    print("instruction_sweep.py: valgrind not found (apt-get install valgrind)", file=sys.stderr)
-    return 2
-  if not os.access(a.kneedyn, os.X_OK):
-    print(f"instruction_sweep.py: --kneedyn = '{a.kneedyn}': not an executable", file=sys.stderr)
-    return 2
-  try:
-    header, runs = load_bench(a.sweep)
-  except (OSError, ValueError) as e:
-    print(f"instruction_sweep.py: --sweep = '{a.sweep}': {e}", file=sys.stderr)
-    return 2
+    raise BadInput(f"--jobs = {a.jobs}: must be at least 1")
+  tool_input.output_file("--json", a.json)
+  header, runs = tool_input.checked(load_bench, "--sweep", a.sweep)
   name = os.path.splitext(os.path.basename(str(header.get("scene") or "chapter_impact")))[0]
-  scene = os.path.abspath(a.scene or os.path.join(ROOT, "reference-data/scenes", name + ".yaml"))
+  scene = os.path.abspath(tool_input.existing_file("--scene" if a.scene else "the sweep header's scene",
+                                                   a.scene or os.path.join(ROOT, "reference-data/scenes",
+                                                                           name + ".yaml")))
   # Outside solvers' results (`work_precision --include`) are not kneedyn's to run.
   todo = [r for r in runs if r.get("origin", "kneedyn") == "kneedyn" and a.only in method_of(r)]
   if not todo:
-    print(f"instruction_sweep.py: --only = '{a.only}': no configuration of '{a.sweep}' matches", file=sys.stderr)
-    return 2
+    raise BadInput(f"--only = '{a.only}': no configuration of '{a.sweep}' matches")
+  if shutil.which("valgrind") is None:
+    raise BadInput("valgrind not found (apt-get install valgrind)")
+  tool_input.kneedyn_executable("--kneedyn", a.kneedyn)
   kneedyn = os.path.abspath(a.kneedyn)
   results = [None] * len(todo)
   start = time.monotonic()
@@ -150,7 +146,7 @@ def main():
   ceilings = [e["metrics"]["scd_ceiling"] for e in results
               if isinstance((e.get("metrics") or {}).get("scd_ceiling"), (int, float))]
   rel = lambda p: os.path.relpath(os.path.abspath(p), ROOT)  # noqa: E731
-  argv = [rel(x) if os.path.exists(x) else x for x in sys.argv[1:]]
+  argv = [rel(x) if os.path.exists(x) else x for x in (sys.argv[1:] if argv is None else argv)]
   out = {"header": {"scene": name, "cost": "instructions of kneedyn::RunScene (callgrind --toggle-collect)",
                     "scd_ceiling": min(ceilings) if ceilings else None,
                     "reference": score_header.get("reference_primary"),
@@ -168,4 +164,4 @@ def main():
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  sys.exit(tool_input.exit_code("instruction_sweep.py", main))

@@ -20,6 +20,10 @@ import sys
 import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.dont_write_bytecode = True  # keep the source tree clean
+sys.path.insert(0, os.path.join(ROOT, "reports"))
+import tool_input  # noqa: E402
+from tool_input import BadInput  # noqa: E402
 
 
 def git_commit():
@@ -55,19 +59,24 @@ def main(argv=None):
   ap.add_argument("extra", nargs="*", help="arguments passed to work_precision")
   args = ap.parse_args(argv)
   if bool(args.work_precision) == bool(args.src):
-    print("record_sweep: give exactly one of --work-precision BIN or --from JSON", file=sys.stderr)
-    return 2
+    raise BadInput("give exactly one of --work-precision BIN or --from JSON")
   if args.src and not args.command:
-    print("record_sweep: --from needs --command (the command that wrote the sweep)", file=sys.stderr)
-    return 2
+    raise BadInput("--from needs --command (the command that wrote the sweep)")
+  tool_input.output_file("--out", args.out)
+  if args.work_precision:
+    tool_input.executable("--work-precision", args.work_precision)
+  else:
+    tool_input.existing_file("--from", args.src)
   commit = args.commit if (args.src and args.commit) else git_commit()
   with tempfile.TemporaryDirectory(prefix="kneedyn_sweep_") as tmp:
     if args.work_precision:
       src = os.path.join(tmp, "sweep.json")
-      cmd = [args.work_precision, "--json", src, "--csv", os.path.join(tmp, "sweep.csv")] + args.extra
-      if subprocess.run(cmd, cwd=ROOT).returncode != 0:
-        print(f"record_sweep: {' '.join(cmd)} failed", file=sys.stderr)
-        return 1
+      cmd = [os.path.abspath(args.work_precision), "--json", src, "--csv", os.path.join(tmp, "sweep.csv")] + args.extra
+      rc = subprocess.run(cmd, cwd=ROOT).returncode
+      if rc != 0:
+        # work_precision's exit 2 (bad input, its message above) stays 2; a failure is 1.
+        print(f"record_sweep: {args.work_precision} failed (exit {rc})", file=sys.stderr)
+        return 2 if rc == 2 else 1
       command = " ".join([os.path.relpath(args.work_precision, ROOT), "--json FILE"] + args.extra)
     else:
       src, command = args.src, args.command
@@ -75,11 +84,9 @@ def main(argv=None):
       with open(src, encoding="utf-8") as f:
         doc = json.load(f)
     except (OSError, ValueError) as e:
-      print(f"record_sweep: --from = '{src}': {e}", file=sys.stderr)
-      return 2
+      raise BadInput(f"--from = '{tool_input.echo(src)}': {tool_input.echo(e)}") from None
     if not isinstance(doc, dict) or not ("results" in doc or "benchmarks" in doc):
-      print(f"record_sweep: '{src}': neither a 'results' nor a 'benchmarks' array", file=sys.stderr)
-      return 2
+      raise BadInput(f"--from = '{tool_input.echo(src)}': neither a 'results' nor a 'benchmarks' array")
     for key in ("header", "context"):
       if key in doc:
         doc[key] = relative_paths(doc[key])
@@ -96,4 +103,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  sys.exit(tool_input.exit_code("record_sweep", main))

@@ -26,6 +26,8 @@ import sys
 sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "reports"))
 from bench_data import load_bench, method_of, scd_ceiling, split_runs  # noqa: E402
+import tool_input  # noqa: E402
+from tool_input import BadInput  # noqa: E402
 
 THRESHOLDS = (4, 6, 8, 10)
 
@@ -80,15 +82,10 @@ def efficiency_cell(eff, method):
 
 
 def table(path, eff=None, cost="cpu"):
-  try:
-    header, runs = load_bench(path)
-  except (ValueError, UnicodeDecodeError) as e:  # json.JSONDecodeError is a ValueError
-    print(f"work_precision_table: '{path}': not a JSON file ({e})", file=sys.stderr)
-    sys.exit(2)
+  header, runs = tool_input.checked(load_bench, "WORK_PRECISION.json", path)
   if cost == "instructions" and not any(isinstance(r.get("instructions"), int) for r in runs):
-    print(f"work_precision_table: --cost instructions: '{path}' has no instruction counts "
-          "(benchmarks/instruction_sweep.py writes them)", file=sys.stderr)
-    sys.exit(2)
+    raise BadInput(f"--cost instructions: '{path}' has no instruction counts "
+                   "(benchmarks/instruction_sweep.py writes them)")
   unit = "CPU s" if cost == "cpu" else "instructions of RunScene"
   extra = " efficiency at scd ≥ 6: residual / rhs (all model callbacks) |" if eff else ""
   lines = ["| method | runs | failed / wrong event | best scd | "
@@ -106,11 +103,39 @@ def table(path, eff=None, cost="cpu"):
   return lines
 
 
-def main(paths, eff=None, cost="cpu"):
-  for i, path in enumerate(paths):
+def load_efficiency(path, cost):
+  """benchmarks/efficiency.py --json's file, checked field by field; its runs must have been
+  chosen by `cost`, the table's."""
+  eff = tool_input.json_object("--efficiency", path)
+  where = f"--efficiency = '{tool_input.echo(path)}'"
+  methods = eff.get("methods")
+  if not isinstance(methods, dict) or not methods:
+    raise BadInput(f"{where}: methods = {tool_input.echo(methods)}: must be an object of methods "
+                   "(benchmarks/efficiency.py --json writes it)")
+  for m, e in methods.items():
+    if not isinstance(e, dict):
+      raise BadInput(f"{where}: methods.{m} = {tool_input.echo(e)}: must be an object")
+    for k in ("residual_share", "callback_share"):
+      v = e.get(k)
+      if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)):
+        raise BadInput(f"{where}: methods.{m}.{k} = {tool_input.echo(v)}: must be a finite number")
+  # The column is the efficiency of the runs in the scd ≥ 6 cells: efficiency.py picked
+  # them by its cost (files without the field: by CPU time), which must be the table's.
+  eff_cost = eff.get("cost", "cpu")
+  if eff_cost not in ("cpu", "instructions"):
+    raise BadInput(f"{where}: cost = {tool_input.echo(eff_cost)}: must be cpu or instructions")
+  if eff_cost != cost:
+    raise BadInput(f"{where}: its runs were chosen by {eff_cost}, this table's cells by {cost} "
+                   f"(use --cost {eff_cost}, or re-run efficiency.py --cost {cost})")
+  return eff
+
+
+def print_tables(paths, eff=None, cost="cpu"):
+  tables = [table(path, eff, cost) for path in paths]  # every file read before any output
+  for i, (path, lines) in enumerate(zip(paths, tables)):
     if len(paths) > 1:
       print(("\n" if i else "") + f"{path}:\n")
-    print("\n".join(table(path, eff, cost)))
+    print("\n".join(lines))
 
 
 USAGE = ("usage: work_precision_table.py WORK_PRECISION.json [MORE.json ...] [--efficiency EFF.json] "
@@ -122,36 +147,34 @@ def option(args, name):
   if name not in args:
     return None
   k = args.index(name)
-  if k + 1 >= len(args):
-    sys.exit(USAGE)
+  if k + 1 >= len(args) or args[k + 1].startswith("--"):
+    raise BadInput(f"{name} needs a value\n{USAGE}")
   value = args[k + 1]
   del args[k:k + 2]
   return value
 
 
-if __name__ == "__main__":
-  args = sys.argv[1:]
+def main(argv=None):
+  args = list(sys.argv[1:] if argv is None else argv)
+  if "--help" in args or "-h" in args:
+    print(USAGE)
+    print(__doc__)
+    return 0
   eff_path = option(args, "--efficiency")
   cost = option(args, "--cost") or "cpu"
   if cost not in ("cpu", "instructions"):
-    print(f"work_precision_table: --cost = '{cost}': expected cpu or instructions", file=sys.stderr)
-    sys.exit(2)
+    raise BadInput(f"--cost = '{tool_input.echo(cost)}': expected cpu or instructions")
+  unknown = [a for a in args if a.startswith("--")]
+  if unknown:
+    raise BadInput(f"{unknown[0]}: unknown option\n{USAGE}")
   if not args:
-    sys.exit(USAGE)
-  missing = [p for p in args + ([eff_path] if eff_path else []) if not os.path.exists(p)]
-  if missing:
-    print(f"work_precision_table: '{missing[0]}': file not found", file=sys.stderr)
-    sys.exit(2)
-  eff = None
-  if eff_path:
-    import json
-    with open(eff_path, encoding="utf-8") as f:
-      eff = json.load(f)
-    # The column is the efficiency of the runs in the scd ≥ 6 cells: efficiency.py picked
-    # them by its cost (files without the field: by CPU time), which must be the table's.
-    eff_cost = eff.get("cost", "cpu") if isinstance(eff, dict) else None
-    if eff_cost != cost:
-      print(f"work_precision_table: --efficiency {eff_path}: its runs were chosen by {eff_cost}, this table's "
-            f"cells by {cost} (use --cost {eff_cost}, or re-run efficiency.py --cost {cost})", file=sys.stderr)
-      sys.exit(2)
-  main(args, eff, cost)
+    raise BadInput(f"no work-precision file given\n{USAGE}")
+  for p in args:
+    tool_input.existing_file("WORK_PRECISION.json", p)
+  eff = load_efficiency(eff_path, cost) if eff_path is not None else None
+  print_tables(args, eff, cost)
+  return 0
+
+
+if __name__ == "__main__":
+  sys.exit(tool_input.exit_code("work_precision_table", main))

@@ -11,6 +11,8 @@ Benchmark's layout alone.
 import json
 import math
 
+from tool_input import BadInput, echo
+
 # A run is drawn as a failure (not a point) when it failed, lacks a reference event, has
 # contact events the reference lacks, or misses an event time by more than this. 1 ms is
 # 0.5° of flexion at the end of the chapter run (α̇ ≈ 460°/s): any run whose positions
@@ -49,22 +51,133 @@ def load_bench(path):
         and setting from the fields of the same name, else from the benchmark name; scd and
         event errors from fields `scd`, `metrics` or `event_time_error_s[.<event>]`.
   A top-level "provenance" {command, commit, date} is passed through in the header, and
-  `context.components` (the fairness manifest) as header["components"]."""
+  `context.components` (the fairness manifest) as header["components"].
+  Every field read is checked: a wrong type raises BadInput (a ValueError) naming the file
+  and the field path, e.g. "'f.json': results[3].metrics.scd = 'x': must be a number or
+  null"; so does a file with no results (no non-empty `results`, `runs` or `benchmarks`)."""
   with open(path, encoding="utf-8") as f:
     data = json.load(f)
+  where = f"'{echo(path)}'"
   header = {}
   if isinstance(data, dict):
+    for key in ("header", "context"):
+      if data.get(key) is not None and not isinstance(data[key], dict):
+        _bad(f"{where}: {key}", data[key], "an object")
     header = dict(data.get("header") or data.get("context") or {})
     if "provenance" in data:
       header["provenance"] = data["provenance"]
     context = data.get("context")
     if isinstance(context, dict) and "components" in context:
       header["components"] = context["components"]
+    _check_header(where, header)
     if not isinstance(data.get("results"), list) and isinstance(data.get("benchmarks"), list):
-      return header, flag_above_ceiling(_from_google_benchmark(data["benchmarks"]), scd_ceiling(header))
-    data = data.get("results", data.get("runs", []))
-  return header, flag_above_ceiling([normalize_result(r) for r in data if isinstance(r, dict)],
-                                    scd_ceiling(header))
+      if not data["benchmarks"]:
+        raise BadInput(f"{where}: no results (its 'benchmarks' array is empty)")
+      return header, flag_above_ceiling(_from_google_benchmark(data["benchmarks"], where), scd_ceiling(header))
+    key = "results" if "results" in data else "runs" if "runs" in data else None
+    if key is None:
+      raise BadInput(f"{where}: no results (neither a 'results' nor a 'benchmarks' array; "
+                     f"keys: {echo(', '.join(map(str, data)) or 'none', 120)})")
+    data = data[key]
+    if not isinstance(data, list):
+      _bad(f"{where}: {key}", data, "an array of results")
+  elif isinstance(data, list):
+    key = "results"
+  else:
+    raise BadInput(f"{where}: a JSON {_json_type(data)}, not a sweep (an object with 'results' or 'benchmarks')")
+  if not data:
+    raise BadInput(f"{where}: no results (its '{key}' array is empty)")
+  runs = []
+  for i, r in enumerate(data):
+    runs.append(normalize_result(r, f"{where}: {key}[{i}]"))
+    setting = runs[-1]["setting"]
+    if not any(k in setting for k in ("step", "rtol", "accuracy")):
+      raise BadInput(f"{where}: {key}[{i}].setting = {echo(json.dumps(setting))}: "
+                     "has none of step, rtol or accuracy")
+  return header, flag_above_ceiling(runs, scd_ceiling(header))
+
+
+def _json_type(v):
+  return {dict: "object", list: "array", str: "string", bool: "boolean", type(None): "null"}.get(
+      type(v), "number" if isinstance(v, (int, float)) else type(v).__name__)
+
+
+def _bad(field, value, what):
+  """BadInput "field = value: must be what" (field: the file and the field path)."""
+  shown = f"'{echo(value)}'" if isinstance(value, str) else echo(value if isinstance(value, float) else
+                                                                 json.dumps(value, default=str))
+  raise BadInput(f"{field} = {shown}: must be {what}")
+
+
+def _is_number(v):
+  return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _number(field, v, null=True):
+  if (v is None and null) or _is_number(v):
+    return v
+  _bad(field, v, "a number or null" if null else "a number")
+
+
+def _string(field, v, null=True):
+  if (v is None and null) or isinstance(v, str):
+    return v
+  _bad(field, v, "a string or null" if null else "a string")
+
+
+def _object(field, v, null=True):
+  if (v is None and null) or isinstance(v, dict):
+    return v
+  _bad(field, v, "an object or null" if null else "an object")
+
+
+# Numbers of a run's setting (work_precision, simbody_work_precision, instruction_sweep).
+SETTING_NUMBERS = ("rtol", "atol", "step", "accuracy", "constraint_tolerance", "newton_rtol", "newton_atol",
+                   "max_steps")
+
+
+def _check_header(where, header):
+  for k in ("scd_ceiling", "reference_accuracy_scd"):
+    _number(f"{where}: header.{k}", header.get(k))
+
+
+def check_result(r, where="result"):
+  """Checks the types of the fields of one `results` entry that the readers use; raises
+  BadInput naming `where` (e.g. "'f.json': results[3]") and the field (".metrics.scd")."""
+  if not isinstance(r, dict):
+    _bad(where, r, "an object (one run)")
+  if "formulation" in r:
+    _string(f"{where}.formulation", r["formulation"], null=False)
+  for k in ("integrator", "status", "reason", "origin", "source"):
+    _string(f"{where}.{k}", r.get(k))
+  setting = _object(f"{where}.setting", r.get("setting")) or {}
+  for k in SETTING_NUMBERS:
+    if k in setting:
+      _number(f"{where}.setting.{k}", setting[k], null=False)
+  _string(f"{where}.setting.stabilization", setting.get("stabilization"))
+  m = _object(f"{where}.metrics", r.get("metrics")) or {}
+  _number(f"{where}.metrics.scd", m.get("scd"))
+  ev = _object(f"{where}.metrics.event_time_error_s", m.get("event_time_error_s")) or {}
+  for k, v in ev.items():
+    _number(f"{where}.metrics.event_time_error_s.{k}", v)
+  cpu = r.get("cpu_time_s")
+  if isinstance(cpu, dict):
+    _number(f"{where}.cpu_time_s.median", cpu.get("median"))
+  else:
+    _number(f"{where}.cpu_time_s", cpu)
+  counters = _object(f"{where}.counters", r.get("counters")) or {}
+  for k in ("residual_evaluations", "steps"):
+    _number(f"{where}.counters.{k}", counters.get(k))
+  events = r.get("events")
+  if events is not None:
+    if not isinstance(events, list):
+      _bad(f"{where}.events", events, "an array or null")
+    for j, e in enumerate(events):
+      _object(f"{where}.events[{j}]", e, null=False)
+      _string(f"{where}.events[{j}].name", e.get("name"), null=False)
+  ins = _object(f"{where}.instructions", r.get("instructions")) or {}
+  _number(f"{where}.instructions.run_scene", ins.get("run_scene"))
+  return r
 
 
 def scd_ceiling(header):
@@ -91,8 +204,10 @@ def flag_above_ceiling(runs, ceiling):
   return runs
 
 
-def normalize_result(r):
-  """One entry of a sweep's `results` in the form the readers use (cpu_s = median CPU time)."""
+def normalize_result(r, where="result"):
+  """One entry of a sweep's `results` in the form the readers use (cpu_s = median CPU time).
+  Raises BadInput naming `where` and the field when a field has the wrong type (check_result)."""
+  check_result(r, where)
   m = r.get("metrics") or {}
   cpu = r.get("cpu_time_s")
   cpu = cpu.get("median") if isinstance(cpu, dict) else cpu
@@ -140,9 +255,9 @@ def load_included(directory, scene=None, reference_primary=None):
     if reference_primary is not None and h.get("reference_primary") != reference_primary:
       raise ValueError(f"--include = '{directory}': '{path}': scored against another reference (made by "
                        f"'{h.get('reference_primary')}'; the sweep's was made by '{reference_primary}')")
-    for r in data["results"]:
+    for i, r in enumerate(data["results"]):
       if isinstance(r, dict):
-        runs.append(normalize_result(dict(r, origin="outside", source=path)))
+        runs.append(normalize_result(dict(r, origin="outside", source=path), f"--include = '{directory}': '{path}': results[{i}]"))
   return runs
 
 
@@ -152,10 +267,33 @@ def reference_command(header):
   return prim.get("command") if isinstance(prim, dict) else prim
 
 
-def _from_google_benchmark(entries):
+def _check_google_entry(e, where):
+  """The types of the fields of one Google Benchmark entry that the reader uses."""
+  _object(where, e, null=False)
+  _string(f"{where}.name", e.get("name"), null=False)
+  for k in ("run_name", "run_type", "aggregate_name", "time_unit", "formulation", "integrator"):
+    _string(f"{where}.{k}", e.get(k))
+  if e.get("time_unit") is not None and e["time_unit"] not in UNIT_TO_S:
+    _bad(f"{where}.time_unit", e["time_unit"], "one of " + ", ".join(UNIT_TO_S))
+  for k in ("cpu_time", "scd", "residual_evaluations"):
+    _number(f"{where}.{k}", e.get(k))
+  _object(f"{where}.setting", e.get("setting"))
+  m = _object(f"{where}.metrics", e.get("metrics")) or {}
+  _number(f"{where}.metrics.scd", m.get("scd"))
+  for field, ev in ((f"{where}.metrics.event_time_error_s", m.get("event_time_error_s")),
+                    (f"{where}.event_time_error_s", e.get("event_time_error_s"))):
+    for k, v in (_object(field, ev) or {}).items():
+      _number(f"{field}.{k}", v)
+  for k, v in e.items():
+    if k.startswith("event_time_error_s.") or k.startswith("event_time_error_s_"):
+      _number(f"{where}.{k}", v)
+
+
+def _from_google_benchmark(entries, where="benchmarks"):
   groups = {}
-  for e in entries:
-    if isinstance(e, dict) and e.get("name"):
+  for i, e in enumerate(entries):
+    _check_google_entry(e, f"{where}: benchmarks[{i}]")
+    if e.get("name"):
       groups.setdefault(e.get("run_name") or e["name"], []).append(e)
   runs = []
   for name, es in groups.items():
@@ -213,7 +351,9 @@ def classify_run(r):
   of event_time_error_s (one per reference event)."""
   if r["status"] != "ok":
     return f"failed: {r['reason'] or r['status']}"
-  scd = r.get("scd")
+  scd = _number("scd", r.get("scd"))
+  for k, v in (_object("event_time_error_s", r.get("event_time_error_s")) or {}).items():
+    _number(f"event_time_error_s.{k}", v)
   if scd is None or not math.isfinite(float(scd)):
     return "no scd (comparison times missing: ended early or failed)"
   ev = r.get("event_time_error_s") or {}
@@ -227,6 +367,8 @@ def classify_run(r):
   if ev and r.get("events") is not None:
     # Ligament branch switches (kink_*) are not contact events: the sweep leaves them out of
     # its records, an outside solver's events.csv may list them.
+    for j, e in enumerate(r["events"]):
+      _string(f"events[{j}].name", e.get("name") if isinstance(e, dict) else e, null=False)
     extra = sorted({e["name"] for e in r["events"] if not e["name"].startswith("kink_")} - set(ev) - {"flexion_90"})
     if extra:
       return f"wrong events: {', '.join(extra)} not in the reference"

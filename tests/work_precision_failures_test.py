@@ -11,7 +11,10 @@ small hand-made sweep files in the layouts the project writes:
 Checks: the failure count per formulation in the figures' titles (read back from the PNG's
 text chunks) and from bench_data.failure_counts; the Pareto front of a formulation whose
 fixed-step run is dominated; benchmarks/work_precision_table.py's rows for both files; the
-report's fairness manifest (context.components) as a table, and "not recorded" without it.
+report's fairness manifest (context.components) as a table, and "not recorded" without it;
+bad input to the table (a top-level number, a wrong-typed field, no results, a directory, a
+truncated --efficiency, a usage error) refused with exit 2 naming the file and field, and
+--help printing the usage.
 Every expected value is typed in here from the planted runs, not copied from a run.
 """
 import json
@@ -112,6 +115,62 @@ def table_rows(path):
   return rows, p.stdout
 
 
+def bad_input_errors(tmp):
+  """Bad input to work_precision_table.py (README.md, "Exit codes"): exit 2 before any output,
+  a message naming the file (and the field), no traceback; --help prints the usage, exit 0."""
+  errors = []
+  good = result("dae", "", {"rtol": 1e-6, "atol": 1e-8}, 5.0, 0.020)
+  bad_metrics = dict(good, metrics=5)
+  bad_scd = dict(good, metrics={"scd": "x", "event_time_error_s": dict(EVENTS_OK)})
+  planted = {  # name: (file content, text the message must hold besides the file's name)
+      "number": ("5", "a JSON number"),
+      "metrics": (json.dumps({"header": {}, "results": [good, bad_metrics]}), "results[1].metrics = 5"),
+      "scd": (json.dumps({"header": {}, "results": [bad_scd]}), "results[0].metrics.scd = 'x'"),
+      "empty": ("{}", "no results"),
+      "oops": (json.dumps({"results": "oops"}), "results = 'oops'"),
+      "no_setting": (json.dumps({"results": [dict(good, setting={})]}), "results[0].setting"),
+      "event": (json.dumps({"results": [dict(good, events=[{"time_s": 0.2}])]}), "results[0].events[0].name"),
+      "truncated": (json.dumps({"header": {}, "results": [good]})[:40], "JSONDecodeError")}
+  paths = {}
+  for name, (text, _) in planted.items():
+    paths[name] = os.path.join(tmp, f"bad_{name}.json")
+    with open(paths[name], "w") as f:
+      f.write(text)
+  good_path = os.path.join(tmp, "bad_good.json")
+  with open(good_path, "w") as f:
+    json.dump({"header": {}, "results": [good]}, f)
+  eff_path = os.path.join(tmp, "bad_eff.json")
+  with open(eff_path, "w") as f:
+    f.write('{"scd": 6, "methods": {"dae": {"residual_sh')
+  eff_empty = os.path.join(tmp, "bad_eff_empty.json")
+  with open(eff_empty, "w") as f:
+    json.dump({"scd": 6, "methods": []}, f)
+  cases = [([paths[n]], 2, [os.path.basename(paths[n]), want]) for n, (_, want) in planted.items()]
+  cases += [([tmp], 2, [os.path.basename(tmp), "directory"]),
+            ([good_path, "--efficiency", eff_path], 2, ["--efficiency", "bad_eff.json"]),
+            ([good_path, "--efficiency", tmp], 2, ["--efficiency", "directory"]),
+            ([good_path, "--efficiency", eff_empty], 2, ["--efficiency", "methods"]),
+            ([good_path, "--efficiency", paths["number"]], 2, ["--efficiency", "not an object"]),
+            ([good_path, "--efficiency"], 2, ["--efficiency", "usage"]),
+            ([good_path, "--cost"], 2, ["--cost", "usage"]),
+            ([], 2, ["usage"]),
+            (["--help"], 0, ["usage"]), (["-h"], 0, ["usage"])]
+  for args, code, wants in cases:
+    p = subprocess.run([sys.executable, TABLE] + args, capture_output=True, text=True)
+    said = p.stdout if code == 0 else p.stderr
+    what = f"work_precision_table.py {' '.join(os.path.basename(a) for a in args)}"
+    if p.returncode != code:
+      errors.append(f"{what}: exit {p.returncode}, expected {code}: {p.stderr.strip()[-300:]}")
+    if "Traceback" in p.stderr:
+      errors.append(f"{what}: a traceback: {p.stderr.strip()[-300:]}")
+    if code == 2 and p.stdout:
+      errors.append(f"{what}: printed a table before refusing: {p.stdout[:200]!r}")
+    for want in wants:
+      if want not in said:
+        errors.append(f"{what}: message {said.strip()[-300:]!r} does not say {want!r}")
+  return errors
+
+
 def main():
   errors = []
   import figures  # noqa: E402
@@ -194,6 +253,9 @@ def main():
       errors.append("report without context.components does not say 'Components: not recorded'")
     if "2 runs drawn as failures" not in html:
       errors.append("report: the list of runs drawn as failures does not count 2")
+
+    # 5. Bad input to the table: refused with exit 2, naming the file and the field.
+    errors += bad_input_errors(tmp)
   return finish(errors, "work_precision_failures_test: FAIL:",
                 "work_precision_failures_test: " + ("ok" if not errors else f"{len(errors)} failures"))
 

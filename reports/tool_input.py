@@ -1,0 +1,161 @@
+"""The input contract of the Python tools (reports/, benchmarks/*.py), as the C++ programs keep
+it (README.md, "Exit codes"; formulations/output_file.hpp): bad input is refused before any
+run with a message naming the argument and its value, exit code 2, no traceback, and nothing
+written. A tool raises BadInput (or calls the checks below, which do) and wraps its main in
+`exit_code(prog, main)`:
+
+    def main(argv=None):
+      args = ap.parse_args(argv)
+      tool_input.kneedyn_executable("--kneedyn", args.kneedyn)
+      tool_input.output_directory("--out", args.out)
+      header, runs = tool_input.checked(bench_data.load_bench, "--bench", args.bench)
+      ...
+    if __name__ == "__main__":
+      sys.exit(tool_input.exit_code("report", main))
+"""
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+
+
+class BadInput(ValueError):
+  """Bad input: the message names the argument (or field) and its value."""
+
+
+def echo(value, limit=200):
+  """A value as typed, cut for messages."""
+  text = str(value)
+  return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def exit_code(prog, main, argv=None):
+  """main(argv)'s return code, or 2 with 'prog: error: message' when it raises BadInput."""
+  try:
+    rc = main(argv)
+  except BadInput as e:
+    print(f"{prog}: error: {e}", file=sys.stderr)
+    return 2
+  return 0 if rc is None else rc
+
+
+def checked(load, option, path, *args):
+  """load(path, *args) with an unreadable, missing, directory or malformed file (OSError,
+  ValueError incl. JSON errors, KeyError, TypeError, AttributeError) as BadInput naming option."""
+  existing_file(option, path)
+  try:
+    return load(path, *args)
+  except BadInput:
+    raise
+  except (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError) as e:
+    raise BadInput(f"{option} = '{echo(path)}': not a file this tool reads ({type(e).__name__}: {echo(e)})") from None
+
+
+def existing_file(option, path):
+  """A regular file or a pipe (the shell's <(command)) that exists."""
+  if path is None or str(path) == "":
+    raise BadInput(f"{option} is empty: a file is needed")
+  if not os.path.exists(path):
+    raise BadInput(f"{option} = '{echo(path)}': file not found")
+  if os.path.isdir(path):
+    raise BadInput(f"{option} = '{echo(path)}': a directory, not a file")
+  return path
+
+
+def json_object(option, path):
+  """The JSON object (dict) in the file `path`."""
+  def load(p):
+    with open(p, encoding="utf-8") as f:
+      data = json.load(f)
+    if not isinstance(data, dict):
+      raise BadInput(f"{option} = '{echo(p)}': a JSON {type(data).__name__}, not an object")
+    return data
+  return checked(load, option, path)
+
+
+def executable(option, path):
+  """A regular file this user may execute."""
+  existing_file(option, path)
+  if not os.access(path, os.X_OK):
+    raise BadInput(f"{option} = '{echo(path)}': not executable")
+  return path
+
+
+def kneedyn_executable(option, path):
+  """The kneedyn program: executable, and its --version starts with 'kneedyn '."""
+  executable(option, path)
+  try:
+    out = subprocess.run([path, "--version"], capture_output=True, text=True, timeout=60).stdout
+    out = out.splitlines()[0] if out else ""
+  except (OSError, subprocess.SubprocessError) as e:
+    raise BadInput(f"{option} = '{echo(path)}': could not run it ({echo(e)})") from None
+  if not out.startswith("kneedyn "):
+    raise BadInput(f"{option} = '{echo(path)}': not the kneedyn program ('--version' printed "
+                   f"'{echo(out.strip(), 80)}', not 'kneedyn <version> ...')")
+  return path
+
+
+def _nearest_existing_ancestor(path):
+  p = os.path.abspath(path)
+  while not os.path.exists(p):
+    parent = os.path.dirname(p)
+    if parent == p:
+      break
+    p = parent
+  return p
+
+
+def _unwritable(directory):
+  """Why `directory` cannot be made or written, or None. A probe directory is made and
+  removed in its nearest existing ancestor: access() says yes to root even under /proc."""
+  base = _nearest_existing_ancestor(directory)
+  try:
+    os.rmdir(tempfile.mkdtemp(prefix=".kneedyn-probe-", dir=base))
+  except OSError as e:
+    return f"cannot be created or written in '{echo(base)}' ({echo(e.strerror or e)})"
+  return None
+
+
+def output_directory(option, path):
+  """A directory that exists or can be made (not an existing file), checked before any run
+  as formulations/output_file.hpp does."""
+  if path is None or str(path) == "":
+    raise BadInput(f"{option} is empty: a directory is needed")
+  if os.path.exists(path) and not os.path.isdir(path):
+    raise BadInput(f"{option} = '{echo(path)}': an existing file, not a directory")
+  why = _unwritable(path)
+  if why:
+    raise BadInput(f"{option} = '{echo(path)}': {why}")
+  return path
+
+
+def output_file(option, path):
+  """A file that can be written: not a directory, in a directory that exists or can be made."""
+  if path is None or str(path) == "":
+    raise BadInput(f"{option} is empty: a file name is needed")
+  if os.path.isdir(path):
+    raise BadInput(f"{option} = '{echo(path)}': a directory, not a file")
+  why = _unwritable(os.path.dirname(os.path.abspath(path)))
+  if why:
+    raise BadInput(f"{option} = '{echo(path)}': {why}")
+  return path
+
+
+def number(option, value, low=None, high=None, low_open=False, integer=False):
+  """A finite number within [low, high] (low excluded when low_open)."""
+  ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+  if ok and integer:
+    ok = float(value).is_integer()
+  if ok and low is not None:
+    ok = value > low if low_open else value >= low
+  if ok and high is not None:
+    ok = value <= high
+  if not ok:
+    lo = "" if low is None else ("(" if low_open else "[") + f"{low:g}"
+    hi = "" if high is None else f"{high:g}]"
+    what = "a whole number" if integer else "a finite number"
+    rng = f" in {lo or '(-inf'}, {hi or 'inf)'}" if (low is not None or high is not None) else ""
+    raise BadInput(f"{option} = {echo(value)}: must be {what}{rng}")
+  return value
