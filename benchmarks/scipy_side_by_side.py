@@ -8,6 +8,7 @@ lateral lift-off time.
   PYTHONPATH=build/python /usr/bin/python3 benchmarks/scipy_side_by_side.py [--quick]
       [--check-digits D]          exit 1 unless SciPy's tightest lift-off agrees with the
                                   reference to >= D digits (the cross-check test)
+      [--repeats N]               min CPU time over N calls (default 3; 1 with --quick)
       [--json PATH]               also write the runs as JSON, with the fairness manifest
                                   (context.components: kneedyn's build, then SciPy's)
   cmake --build build --target bench_scipy
@@ -22,10 +23,10 @@ zero downwards (§9). Only the first contact phase (both compartments in contact
 rest at the reference pose) is needed for the lift-off time.
 
 Reference: the stored reference solution's lateral lift-off
-(reference-data/references/chapter_impact.json: kneedyn mde cvode-adams rtol 1e-14,
-checked by ede dopri5 rtol 1e-13 to 1.3e-13 s). A tight kneedyn dae-ggl run (rtol 1e-11,
-the tightest IDA completes) is printed beside it: it is only about 9.4 digits from it,
-too close to 8 digits to judge them. Digits = −log10(|t − t_ref| / t_ref).
+(reference-data/references/chapter_impact.json: make_reference's extended-precision
+Gauss-Legendre run in float128, its `generator`). A tight kneedyn dae-ggl run (rtol 1e-11,
+the tightest IDA completes) is printed beside it: it is only about 9 digits from it (8.92
+on 2026-12-05), too close to 8 digits to judge them. Digits = −log10(|t − t_ref| / t_ref).
 Times: min over repeats of the process CPU time (time.process_time; the machine may be
 shared) of one call: kneedyn.run in process through the Python binding (the whole run to
 90°, plus building its output table: kneedyn does more work than SciPy here), and the
@@ -271,6 +272,13 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--json", default=None, help="also write the runs and the fairness manifest to this JSON file")
     a = ap.parse_args()
+    # Checked before the runs (the repository's exit-code rule: 2, nothing written).
+    if not 1 <= a.repeats <= 100:
+        ap.error(f"--repeats = {a.repeats}: must be in [1, 100]")
+    if a.check_digits is not None and not 0.0 <= a.check_digits <= 17.0:
+        ap.error(f"--check-digits = {a.check_digits}: must be in [0, 17]")
+    if a.json and (os.path.isdir(a.json) or not os.path.isdir(os.path.dirname(os.path.abspath(a.json)))):
+        ap.error(f"--json = '{a.json}': a directory, or its directory does not exist")
     repeats = 1 if a.quick else a.repeats
     try:
         import kneedyn as kn

@@ -39,6 +39,8 @@ sys.dont_write_bytecode = True  # keep the source tree clean
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+sys.path.insert(0, HERE)
+import tool_input  # noqa: E402
 from record_sweep import git_commit  # noqa: E402  the recorded files' commit rule (+dirty), one copy
 EXPLANATIONS = ("reading", "beyond_precision", "contradicted", "unexplained")
 REPRODUCED = "reproduced"
@@ -185,6 +187,11 @@ def headline(rec):
   return {"project_liftoff_deg": base, "chapter_liftoff_deg": LIFTOFF_CHAPTER_DEG, "by_reading": moves}
 
 
+def _load_json(path):
+  with open(path, encoding="utf-8") as f:
+    return json.load(f)
+
+
 def main(argv=None):
   ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
   ap.add_argument("--report", required=True, help="report directory made with the reconstruction study")
@@ -194,10 +201,16 @@ def main(argv=None):
   ap.add_argument("--runtime-s", type=float, help="wall time of that command (recorded)")
   ap.add_argument("--run-study", metavar="KNEEDYN", help="run report.py --reconstruction with this binary first")
   args = ap.parse_args(argv)
+  try:  # before the study runs: its inputs, the number recorded, the file written
+    if args.run_study:
+      tool_input.kneedyn_executable("--run-study", args.run_study)
+    if args.runtime_s is not None:
+      tool_input.number("--runtime-s", args.runtime_s, 0.0)
+    tool_input.output_file("--out", args.out)
+  except tool_input.BadInput as e:
+    print(f"claim_verdicts: error: {e}", file=sys.stderr)
+    return 2
   if args.run_study:
-    if not os.access(args.run_study, os.X_OK):
-      print(f"claim_verdicts: --run-study = '{args.run_study}': not an executable file", file=sys.stderr)
-      return 2
     cmd = [sys.executable, os.path.join(HERE, "report.py"), "--kneedyn", args.run_study, "--out", args.report,
            "--reconstruction"]
     start = time.monotonic()
@@ -216,15 +229,16 @@ def main(argv=None):
       print(f"claim_verdicts: --report = '{args.report}': no {os.path.relpath(p, args.report)} "
             f"(run report.py --reconstruction first)", file=sys.stderr)
       return 2
-  with open(paths["claims"], encoding="utf-8") as f:
-    rows = json.load(f)
-  rows = rows["claims"] if isinstance(rows, dict) else rows
-  with open(paths["reconstruction"], encoding="utf-8") as f:
-    rec = json.load(f)
-  inverse = None
-  if os.path.exists(args.inverse):
-    with open(args.inverse, encoding="utf-8") as f:
-      inverse = json.load(f)
+  try:
+    rows = tool_input.checked(_load_json, "--report", paths["claims"])
+    rows = rows["claims"] if isinstance(rows, dict) else rows
+    if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+      raise tool_input.BadInput(f"--report: '{paths['claims']}': not report.py's claims.json (a list of claims)")
+    rec = tool_input.json_object("--report", paths["reconstruction"])
+    inverse = tool_input.json_object("--inverse", args.inverse) if os.path.exists(args.inverse) else None
+  except tool_input.BadInput as e:
+    print(f"claim_verdicts: error: {e}", file=sys.stderr)
+    return 2
   if rec.get("quick"):
     print("claim_verdicts: warning: the reconstruction study ran in quick mode (reduced families)", file=sys.stderr)
   result = {"claims": verdicts(rows, rec, inverse), "matrix": matrix(rec), "headline": headline(rec),

@@ -30,6 +30,9 @@ import math
 import os
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import tool_input  # noqa: E402
+
 ESTIMATORS = {"saltelli": "SaltelliSensitivityAlgorithm", "jansen": "JansenSensitivityAlgorithm",
               "martinez": "MartinezSensitivityAlgorithm",
               "mauntz-kucherenko": "MauntzKucherenkoSensitivityAlgorithm"}
@@ -41,12 +44,17 @@ def fail(msg):
 
 
 def read_sweep(csv_path, d):
-  with open(csv_path, newline="") as f:
+  with open(csv_path, newline="", encoding="utf-8") as f:
     rows = list(csv.reader(f))
-  if not rows or rows[0][0] != "index":
+  if not rows or not rows[0] or rows[0][0] != "index":
     fail(f"--sweep = '{csv_path}': not a kneedyn sweep.csv (first column must be 'index')")
   header = rows[0]
+  if "status" not in header:
+    fail(f"--sweep = '{csv_path}': no 'status' column (not a kneedyn sweep.csv)")
   status = header.index("status")
+  for i, r in enumerate(rows[1:], start=2):
+    if len(r) != len(header):
+      fail(f"--sweep = '{csv_path}': line {i} has {len(r)} fields, the header {len(header)}")
   params = header[1:1 + d]
   outcomes = header[1 + d:status]
   X = [[float(v) for v in r[1:1 + d]] for r in rows[1:]]
@@ -158,19 +166,43 @@ def main(argv=None):
   a = ap.parse_args(argv)
   import yaml
   for flag, p in (("--sweep", a.sweep), ("--spec", a.spec)):
-    if not os.path.exists(p):
-      fail(f"{flag} = '{p}': file not found")
-  with open(a.spec) as f:
-    spec = yaml.safe_load(f)
-  design = (spec or {}).get("design") or {}
+    try:
+      tool_input.existing_file(flag, p)
+    except tool_input.BadInput as e:
+      fail(str(e))
+
+  def load_spec(path):
+    with open(path, encoding="utf-8") as f:
+      return yaml.safe_load(f)
+  try:
+    spec = tool_input.checked(load_spec, "--spec", a.spec)
+  except tool_input.BadInput as e:
+    fail(str(e))
+  if not isinstance(spec, dict):
+    fail(f"--spec = '{a.spec}': a YAML {type(spec).__name__}, not a sweep spec (a mapping)")
+  design = spec.get("design") if isinstance(spec.get("design"), dict) else {}
   if design.get("type") != "saltelli":
     fail(f"--spec = '{a.spec}': field 'design.type' = '{design.get('type')}': Sobol' indices need a saltelli design")
-  if a.bootstrap < 1:
-    fail(f"--bootstrap = {a.bootstrap}: must be >= 1")
+  if not isinstance(spec.get("parameters"), (list, dict)) or not spec["parameters"]:
+    fail(f"--spec = '{a.spec}': field 'parameters' = {tool_input.echo(spec.get('parameters'))}: must list the parameters")
+  samples = design.get("samples")
+  if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+    fail(f"--spec = '{a.spec}': field 'design.samples' = {tool_input.echo(samples)}: must be a whole number >= 1")
+  if not 1 <= a.bootstrap <= 100000:
+    fail(f"--bootstrap = {a.bootstrap}: must be in [1, 100000]")
   if not 0.0 < a.confidence < 1.0:
     fail(f"--confidence = {a.confidence}: must be in (0, 1)")
-  d, n = len(spec["parameters"]), int(design["samples"])
-  params, outcomes, X, Y = read_sweep(a.sweep, d)
+  if not 0 <= a.seed < 2**32:
+    fail(f"--seed = {a.seed}: must be in [0, 2^32)")
+  try:
+    tool_input.output_directory("--out", a.out)
+  except tool_input.BadInput as e:
+    fail(str(e))
+  d, n = len(spec["parameters"]), samples
+  try:
+    params, outcomes, X, Y = read_sweep(a.sweep, d)
+  except (OSError, ValueError, IndexError, UnicodeDecodeError) as e:
+    fail(f"--sweep = '{a.sweep}': not a kneedyn sweep.csv ({type(e).__name__}: {tool_input.echo(e)})")
   if len(X) != n * (d + 2):
     fail(f"--sweep = '{a.sweep}': {len(X)} rows, but the spec's Saltelli design has N (d + 2) = {n * (d + 2)}")
   chosen = a.outcomes or outcomes

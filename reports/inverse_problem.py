@@ -50,6 +50,7 @@ sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 import claims  # noqa: E402
 import reconstruction  # noqa: E402
 import run_families  # noqa: E402
+import tool_input  # noqa: E402
 from record_sweep import git_commit  # noqa: E402  the recorded files' commit rule (+dirty), one copy
 
 SPEC = os.path.join(ROOT, "inverse", "inverse_problem.yaml")
@@ -622,6 +623,16 @@ def main(argv=None):
     if bad:
       print(f"inverse_problem: {flag}: '{bad[0]}' is none of {', '.join(sorted(allowed))}", file=sys.stderr)
       return 2
+  try:  # the numbers and the files written, before any fit
+    tool_input.number("--max-iterations", args.max_iterations, 1, 1000, integer=True)
+    tool_input.number("--jobs", args.jobs, 1, 1024, integer=True)
+    tool_input.number("--parallel", args.parallel, 1, 1024, integer=True)
+    tool_input.output_directory("--out", args.out)
+    if args.record:
+      tool_input.output_file("--record", args.record)
+  except tool_input.BadInput as e:
+    print(f"inverse_problem: error: {e}", file=sys.stderr)
+    return 2
   old = None
   if args.merge_recorded:
     try:

@@ -22,6 +22,9 @@ import os
 import subprocess
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import tool_input  # noqa: E402
+
 STEPS = [4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4]
 
 
@@ -29,7 +32,11 @@ def run(kneedyn, scene, outdir, formulation, args):
   d = os.path.join(outdir, formulation + "".join(a.replace("-", "") for a in args))
   p = subprocess.run([kneedyn, "run", scene, "--formulation", formulation, "--quiet", "--out", d] + args,
                      capture_output=True, text=True)
+  if p.returncode == 2:  # kneedyn refused the input: the scene or the options
+    raise tool_input.BadInput(f"kneedyn run refused {formulation} {' '.join(args)}: {p.stderr.strip()[-400:]}")
   if p.returncode != 0:
+    print(f"patella_coupling.py: {formulation} {' '.join(args)}: exit {p.returncode}: {p.stderr.strip()[-400:]}",
+          file=sys.stderr)
     return None
   with open(os.path.join(d, "summary.json")) as f:
     summary = json.load(f)
@@ -64,16 +71,19 @@ def coupling_error(result, reference):
   return err
 
 
-def main():
+def main(argv=None):
   ap = argparse.ArgumentParser()
   ap.add_argument("--kneedyn", required=True)
   ap.add_argument("--out", required=True)
   ap.add_argument("--scene", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "..",
                                                   "reference-data", "scenes", "patellofemoral_impact.yaml"))
-  a = ap.parse_args()
-  if not os.path.exists(a.kneedyn) or not os.path.exists(a.scene):
-    print("patella_coupling.py: --kneedyn or --scene not found", file=sys.stderr)
-    return 2
+  a = ap.parse_args(argv)
+  tool_input.kneedyn_executable("--kneedyn", a.kneedyn)
+  tool_input.existing_file("--scene", a.scene)
+  tool_input.output_directory("--out", a.out)
+  info = subprocess.run([a.kneedyn, "info", a.scene], capture_output=True, text=True)
+  if info.returncode != 0:  # the scene is read before anything is written
+    raise tool_input.BadInput(f"--scene = '{tool_input.echo(a.scene)}': {info.stderr.strip()[-400:]}")
   out = os.path.join(a.out, "patella")
   os.makedirs(out, exist_ok=True)
   reference = run(a.kneedyn, a.scene, out, "ede", ["--rtol", "1e-12", "--atol", "1e-14"])
@@ -140,4 +150,4 @@ def main():
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  sys.exit(tool_input.exit_code("patella_coupling.py", main))

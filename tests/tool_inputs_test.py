@@ -1,0 +1,106 @@
+#!/usr/bin/env python3
+"""The Python tools' input contract (reports/tool_input.py; README.md, "Exit codes"): bad
+arguments and malformed files are refused before any run, with exit 2, a message naming the
+argument and its value, no traceback, and nothing written. Planted cases for
+global_sensitivity.py, claim_verdicts.py, inverse_problem.py, patella_coupling.py and
+benchmarks/scipy_side_by_side.py, and the shared checks themselves.
+
+    tool_inputs_test.py KNEEDYN KNEEDYN_INVERSE
+"""
+import os
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, os.path.join(ROOT, "reports"))
+import tool_input  # noqa: E402
+
+PY = sys.executable
+
+
+def refused(cmd, must_name, out=None):
+  r = subprocess.run([PY] + cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
+  problems = [p for p, bad in ((f"exit {r.returncode}", r.returncode != 2),
+                               (f"no {must_name!r} in stderr", must_name not in r.stderr),
+                               ("a traceback", "Traceback" in r.stderr),
+                               (f"{out} created", out is not None and os.path.exists(out))) if bad]
+  return f"{' '.join(cmd)}: {', '.join(problems)}: {r.stderr.strip()[-300:]}" if problems else ""
+
+
+def main():
+  kneedyn, inverse = sys.argv[1], sys.argv[2]
+  failures = []
+  with tempfile.TemporaryDirectory() as tmp:
+    out = os.path.join(tmp, "out")
+    def write(name, text):
+      path = os.path.join(tmp, name)
+      os.makedirs(os.path.dirname(path), exist_ok=True)
+      with open(path, "w") as f:
+        f.write(text)
+      return path
+    spec_words = write("spec_words.yaml", "design: {type: saltelli, samples: ten}\nparameters: [a]\n")
+    spec_list = write("spec_list.yaml", "- a\n")
+    spec = write("spec.yaml", "design: {type: saltelli, samples: 2}\nparameters: [a]\n")
+    sweep_nostatus = write("nostatus.csv", "index,a,y\n0,1,2\n")
+    sweep_text = write("text.csv", "index,a,y,status\n0,x,2,completed\n")
+    gs = ["reports/global_sensitivity.py", "--out", out]
+    failures += [refused(gs + ["--spec", spec_words, "--sweep", sweep_text], "design.samples", out),
+                 refused(gs + ["--spec", spec_list, "--sweep", sweep_text], "not a sweep spec", out),
+                 refused(gs + ["--spec", tmp, "--sweep", sweep_text], "--spec", out),
+                 refused(gs + ["--spec", spec, "--sweep", sweep_nostatus], "'status'", out),
+                 refused(gs + ["--spec", spec, "--sweep", sweep_text], "--sweep", out),
+                 refused(gs + ["--spec", spec, "--sweep", sweep_text, "--bootstrap", "99999999999"], "--bootstrap", out),
+                 refused(gs + ["--spec", spec, "--sweep", sweep_text, "--seed", "-1"], "--seed", out)]
+    report = os.path.join(tmp, "report")
+    write("report/claims.json", '{"claims": [')
+    write("report/reconstruction/reconstruction.json", "[]")
+    cv_out = os.path.join(tmp, "claims_out.json")
+    cv = ["reports/claim_verdicts.py", "--report", report, "--out", cv_out]
+    failures += [refused(cv, "claims.json", cv_out),
+                 refused(cv + ["--runtime-s", "nan"], "--runtime-s = nan", cv_out),
+                 refused(cv + ["--run-study", "/bin/true"], "--run-study = '/bin/true'", cv_out),
+                 refused(["reports/claim_verdicts.py", "--report", report, "--out", "/proc/kneedyn/c.json"], "--out")]
+    scene = os.path.join(ROOT, "reference-data", "scenes", "chapter_impact.yaml")
+    ip = ["reports/inverse_problem.py", "--inverse", inverse, "--kneedyn", kneedyn, "--scenes", scene, "--out", out]
+    failures += [refused(ip + ["--max-iterations", "-1"], "--max-iterations = -1", out),
+                 refused(ip + ["--record", "/proc/kneedyn/i.json"], "--record", out),
+                 refused(ip[:-1] + ["/proc/kneedyn/out"], "--out")]
+    pc = ["reports/patella_coupling.py", "--kneedyn", kneedyn, "--out", out]
+    failures += [refused(pc + ["--scene", "/dev/null"], "--scene = '/dev/null'", out),
+                 refused(["reports/patella_coupling.py", "--kneedyn", "/bin/true", "--out", out], "--kneedyn", out)]
+    ss = ["benchmarks/scipy_side_by_side.py", "--quick"]
+    failures += [refused(ss + ["--repeats", "0"], "--repeats = 0"),
+                 refused(ss + ["--check-digits", "nan"], "--check-digits = nan"),
+                 refused(ss + ["--json", "/proc/kneedyn/s.json"], "--json")]
+    # The shared checks.
+    for check, args, name in ((tool_input.output_directory, ("--out", "/proc/kneedyn/x"), "--out"),
+                              (tool_input.output_directory, ("--out", spec), "an existing file"),
+                              (tool_input.output_file, ("--json", tmp), "a directory"),
+                              (tool_input.kneedyn_executable, ("--kneedyn", "/bin/true"), "not the kneedyn program"),
+                              (tool_input.kneedyn_executable, ("--kneedyn", tmp), "a directory"),
+                              (tool_input.json_object, ("--bench", spec_list), "not a file this tool reads"),
+                              (tool_input.number, ("--n", float("nan"), 0.0), "--n = nan")):
+      try:
+        check(*args)
+        failures.append(f"{check.__name__}{args}: accepted")
+      except tool_input.BadInput as e:
+        if name not in str(e):
+          failures.append(f"{check.__name__}{args}: {e} (does not say {name!r})")
+    try:
+      tool_input.kneedyn_executable("--kneedyn", kneedyn)
+      tool_input.output_directory("--out", os.path.join(tmp, "new", "deeper"))
+    except tool_input.BadInput as e:
+      failures.append(f"a valid kneedyn or a creatable directory refused: {e}")
+    if any(n.startswith(".kneedyn-probe-") for n in os.listdir(tmp)):
+      failures.append("a probe directory was left behind")
+  failures = [f for f in failures if f]
+  for f in failures:
+    print("FAILED:", f)
+  print(f"tool_inputs: {len(failures)} failure(s)")
+  return 1 if failures else 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())
