@@ -28,6 +28,7 @@ import yaml
 
 sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import tool_input  # noqa: E402
 from family_data import LIGAMENTS, by_family, ligament_column, load_families  # noqa: E402
 
 CLAIMS_YAML = os.path.join(os.path.dirname(os.path.abspath(__file__)), "claims.yaml")
@@ -709,6 +710,21 @@ def write_tables(outdir, rows):
       f.write("| " + " | ".join(cells) + " |\n")
 
 
+def check_run_directory(option, outdir):
+  """What build_claims reads, checked before it writes anything: the run directory, its
+  families.json with the runs it lists, and sensitivity.json when present (BadInput naming option)."""
+  from family_data import load_families_checked
+  load_families_checked(option, outdir)
+  sens = os.path.join(outdir, "sensitivity.json")
+  if os.path.exists(sens):
+    tool_input.checked(_load_json, option, sens)
+
+
+def _load_json(path):
+  with open(path, encoding="utf-8") as f:
+    return json.load(f)
+
+
 def build_claims(outdir):
   ck = Checker(outdir)
   check_all(ck)
@@ -723,6 +739,7 @@ def main(argv=None):
   ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
   ap.add_argument("--out", required=True, help="directory written by run_families.py")
   args = ap.parse_args(argv)
+  check_run_directory("--out", args.out)
   rows = build_claims(args.out)
   for r in rows:
     print(f"{r['id']:4s} {r['verdict']:15s} {r['measured']}")
@@ -730,4 +747,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  sys.exit(tool_input.exit_code("claims", main))

@@ -4,6 +4,8 @@ import os
 
 import numpy as np
 
+import tool_input
+
 # The twelve elements in parameter-set order (chapter numbering F1..F12), as trajectory.csv
 # columns F_<name with spaces -> _>_N.
 LIGAMENTS = ["ACL anterior", "ACL posterior", "PCL anterior", "PCL posterior", "MCL anterior",
@@ -104,6 +106,37 @@ def load_families(outdir):
     fam = json.load(f)
   members = [Member(outdir, m) for m in fam["members"]]
   return fam, members
+
+
+def run_directory(option, outdir):
+  """The directory run_families.py wrote (--out of figures.py, claims.py, make_report.py run
+  standalone): an existing, writable directory with families.json; BadInput naming option."""
+  if outdir is None or str(outdir) == "":
+    raise tool_input.BadInput(f"{option} is empty: the directory written by run_families.py is needed")
+  if not os.path.exists(outdir):
+    raise tool_input.BadInput(f"{option} = '{tool_input.echo(outdir)}': directory not found "
+                              "(write it first with reports/run_families.py or reports/report.py)")
+  if not os.path.isdir(outdir):
+    raise tool_input.BadInput(f"{option} = '{tool_input.echo(outdir)}': a file, not the directory "
+                              "written by run_families.py")
+  if not os.path.exists(os.path.join(outdir, "families.json")):
+    raise tool_input.BadInput(f"{option} = '{tool_input.echo(outdir)}': no families.json in it "
+                              "(not a directory written by run_families.py)")
+  tool_input.output_directory(option, outdir)
+  return outdir
+
+
+def load_families_checked(option, outdir):
+  """load_families(outdir) with a missing directory, a missing or malformed families.json or a
+  malformed run in it as BadInput naming option and the file."""
+  run_directory(option, outdir)
+  path = os.path.join(outdir, "families.json")
+  try:
+    return load_families(outdir)
+  except (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError) as e:
+    raise tool_input.BadInput(f"{option} = '{tool_input.echo(outdir)}': '{tool_input.echo(path)}' or a run it "
+                              f"lists is not what run_families.py writes ({type(e).__name__}: "
+                              f"{tool_input.echo(e)})") from None
 
 
 def by_family(members, family):

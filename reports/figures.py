@@ -21,7 +21,8 @@ import numpy as np  # noqa: E402
 
 sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from family_data import LIGAMENTS, by_family, ligament_column, load_families  # noqa: E402
+import tool_input  # noqa: E402
+from family_data import LIGAMENTS, by_family, ligament_column, load_families, load_families_checked  # noqa: E402,F401
 
 FAMILIES = [("amplitude", "Amplitude family (t0 = 0.1 s)"),
             ("duration", "Duration family (A = 100 N)")]
@@ -468,14 +469,23 @@ def main(argv=None):
   ap.add_argument("--include", action="append", default=[], metavar="DIR",
                   help="outside results scored by kneedyn score under DIR, beside the sweep's (repeatable)")
   args = ap.parse_args(argv)
-  _, members = load_families(args.out)
+  _, members = load_families_checked("--out", args.out)
+  if args.include and not args.bench:
+    raise tool_input.BadInput("--include needs --bench (the sweep the outside results are drawn beside)")
+  if args.bench:
+    header, _ = tool_input.checked(load_bench, "--bench", args.bench)
+    for d in args.include:
+      try:
+        load_included(d, header.get("scene"), reference_command(header))
+      except ValueError as e:
+        raise tool_input.BadInput(str(e)) from None
   files = make_family_figures(args.out, members)
   print(f"figures: {len(files)} family figures -> {os.path.join(args.out, 'figures')}")
-  if args.bench and os.path.exists(args.bench):
+  if args.bench:
     wp, failed, _ = make_work_precision(args.out, args.bench, include=args.include)
     print(f"figures: {len(wp)} work-precision figures, {len(failed)} failed runs listed")
   return 0
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  sys.exit(tool_input.exit_code("figures", main))

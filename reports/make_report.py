@@ -18,7 +18,8 @@ import figures  # noqa: E402
 import global_sensitivity  # noqa: E402  (Sobol' indices section)
 import methods_comparison  # noqa: E402  (dae / dae-ggl / newmark / generalized-alpha)
 import patella_section  # noqa: E402  (the patello-femoral joint, docs/model.md §12)
-from family_data import load_families  # noqa: E402
+import tool_input  # noqa: E402
+from family_data import load_families, load_families_checked  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -575,10 +576,39 @@ def components_table(header):
 STATUS_MARK = {"ok": "✓", "solver_failure": "✗", "error": "⊘"}
 
 
+# The columns of kneedyn_catalog's hard_cases.csv that hard_cases_section reads.
+HARD_CASE_COLUMNS = ("case", "formulation", "reference", "status", "t_reached_s", "flexion_deg", "err_alpha_deg",
+                     "err_R0_mm", "max_gap_mm", "energy_drift_J", "steps", "residual_evaluations", "wall_s",
+                     "reason")
+
+
+def hard_cases_csv_path(path):
+  """hard_cases.csv for a given hard_cases.csv or the hard_cases.md beside it."""
+  return path[:-3] + ".csv" if path and path.endswith(".md") else path
+
+
 def read_hard_cases_csv(path):
   import csv
   with open(path, newline="", encoding="utf-8") as f:
     return list(csv.DictReader(f))
+
+
+def load_hard_cases(path):
+  """The rows of hard_cases.csv (or of the .csv beside a hard_cases.md), with every column
+  hard_cases_section reads; ValueError when one is missing or a row is cut short."""
+  import csv
+  csv_path = hard_cases_csv_path(path)
+  with open(csv_path, newline="", encoding="utf-8") as f:
+    reader = csv.DictReader(f)
+    rows = list(reader)
+    names = reader.fieldnames or []
+  missing = [c for c in HARD_CASE_COLUMNS if c not in names]
+  if missing:
+    raise ValueError(f"not kneedyn_catalog's hard_cases.csv: no column(s) {', '.join(missing)}")
+  for i, r in enumerate(rows, start=2):
+    if any(r.get(c) is None for c in HARD_CASE_COLUMNS):
+      raise ValueError(f"'{csv_path}' line {i}: fewer cells than columns")
+  return rows
 
 
 def hard_cases_section(hard_cases):
@@ -586,14 +616,12 @@ def hard_cases_section(hard_cases):
   case × formulation table (status, time reached, error vs the case's reference) with the
   details of each case on demand."""
   parts = ["<h2 id='hard-cases'>Hard cases</h2>"]
-  path = hard_cases
-  if path and path.endswith(".md"):
-    path = path[:-3] + ".csv"
+  path = hard_cases_csv_path(hard_cases)
   if not path or not os.path.exists(path):
     parts.append("<p>No hard-case table given (<code>--hard-cases hard_cases.csv</code>, written by "
                  "<code>kneedyn_catalog --out DIR</code>); section omitted.</p>")
     return "\n".join(parts)
-  rows = read_hard_cases_csv(path)
+  rows = load_hard_cases(path)
   cases = list(dict.fromkeys(r["case"] for r in rows))
   forms = list(dict.fromkeys(r["formulation"] for r in rows))
   by = {(r["case"], r["formulation"]): r for r in rows}
@@ -715,6 +743,33 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, 
   return path
 
 
+def check_inputs(outdir, bench=None, hard_cases=None, peer_bench=None, option="--out"):
+  """What make_report reads, checked before it writes anything (BadInput naming the option):
+  the run directory with families.json and claims.json (claims.py), the sweep JSONs and the
+  hard-case table when given."""
+  load_families_checked(option, outdir)
+  tool_input.checked(_load_claims, option, os.path.join(outdir, "claims.json"))
+  check_sources(bench, hard_cases, peer_bench)
+
+
+def check_sources(bench=None, hard_cases=None, peer_bench=None):
+  """The sweep JSONs (--bench, --peer-bench) and the hard-case table (--hard-cases) when
+  given: read as make_report reads them (BadInput naming the option and the file)."""
+  for option, path in (("--bench", bench), ("--peer-bench", peer_bench)):
+    if path is not None:
+      tool_input.checked(bench_data.load_bench, option, path)
+  if hard_cases is not None:
+    tool_input.checked(load_hard_cases, "--hard-cases", hard_cases)
+
+
+def _load_claims(path):
+  with open(path, encoding="utf-8") as f:
+    rows = json.load(f)
+  if not isinstance(rows, list):
+    raise ValueError(f"a JSON {type(rows).__name__}, not claims.py's list of rows")
+  return rows
+
+
 def main(argv=None):
   ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
   ap.add_argument("--out", required=True)
@@ -723,9 +778,10 @@ def main(argv=None):
   ap.add_argument("--quick", action="store_true")
   ap.add_argument("--hard-cases")
   args = ap.parse_args(argv)
+  check_inputs(args.out, args.bench, args.hard_cases)
   print("make_report:", make_report(args.out, args.bench, args.kneedyn, args.quick, args.hard_cases))
   return 0
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  sys.exit(tool_input.exit_code("make_report", main))

@@ -676,9 +676,9 @@ def main(argv=None):
   ap.add_argument("--out", required=True)
   ap.add_argument("--quick", action="store_true", help="cut scenes, fewer points (tests)")
   a = ap.parse_args(argv)
-  if not os.path.exists(a.kneedyn):
-    print(f"patella_section.py: --kneedyn = '{a.kneedyn}': file not found", file=sys.stderr)
-    return 2
+  import tool_input
+  tool_input.kneedyn_executable("--kneedyn", a.kneedyn)
+  tool_input.output_directory("--out", a.out)
   result, ok = study(os.path.abspath(a.kneedyn), a.out, a.quick)
   make_figures(result, a.out)
   o = result["staggered_order"]
@@ -688,4 +688,5 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  import tool_input
+  sys.exit(tool_input.exit_code("patella_section", main))

@@ -31,6 +31,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import claims  # noqa: E402
 import run_families  # noqa: E402
+import tool_input  # noqa: E402
 from family_data import load_families  # noqa: E402
 
 # (key, label, scene patch). The first is the project's reading (reference-data scene).
@@ -245,12 +246,10 @@ def main(argv=None):
   ap.add_argument("--calibrate-iterations", type=int, default=20)
   ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
   args = ap.parse_args(argv)
-  if not os.access(args.kneedyn, os.X_OK):
-    print(f"reconstruction: --kneedyn = '{args.kneedyn}': not an executable file", file=sys.stderr)
-    return 2
-  if args.calibrate and not os.access(args.calibrate, os.X_OK):
-    print(f"reconstruction: --calibrate = '{args.calibrate}': not an executable file", file=sys.stderr)
-    return 2
+  tool_input.kneedyn_executable("--kneedyn", args.kneedyn)
+  if args.calibrate is not None:
+    tool_input.executable("--calibrate", args.calibrate)
+  tool_input.output_directory("--out", args.out)
   outdir = os.path.abspath(args.out)
   readings = [r for r in READINGS if not args.quick or r[0] in QUICK_READINGS]
   jobs = []
@@ -317,4 +316,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  sys.exit(tool_input.exit_code("reconstruction", main))

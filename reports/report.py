@@ -1,14 +1,16 @@
 #!/usr/bin/python3
 """One command for the whole chapter report: families + sensitivity runs, figures, claims, HTML.
 
-  report.py --kneedyn PATH --out DIR [--quick] [--bench JSON] [--include DIR]... [--hard-cases CSV]
-            [--reconstruction [--calibrate BIN]]
+  report.py --kneedyn PATH --out DIR [--quick] [--bench JSON] [--include DIR]... [--peer-bench JSON]
+            [--hard-cases CSV] [--reconstruction [--calibrate BIN]]
 
 Exit status: 0 when every family, sensitivity and patella run (reports/patella_section.py)
 completed (possibly with a documented fallback tolerance) and the report was written; 1 when
-one of them failed (the report is
-still written); 2 on bad input. Runs that fail under a reading of the reconstruction study
-are results shown in its table, not failures of the report.
+one of them failed (the report is still written); 2 on bad input, refused before any run with
+nothing written (--kneedyn not the kneedyn program, --out not a directory that can be
+written, --bench / --peer-bench / --hard-cases not files of their kind, --calibrate not
+executable). Runs that fail under a reading of the reconstruction study are results shown in
+its table, not failures of the report.
 """
 import argparse
 import os
@@ -24,6 +26,7 @@ import make_report  # noqa: E402
 import patella_section  # noqa: E402
 import reconstruction  # noqa: E402
 import run_families  # noqa: E402
+import tool_input  # noqa: E402
 
 
 def main(argv=None):
@@ -41,21 +44,22 @@ def main(argv=None):
   ap.add_argument("--reconstruction", action="store_true", help="run the reconstruction study")
   ap.add_argument("--calibrate", help="calibrate_reconstruction binary: also the Ceres calibration")
   args = ap.parse_args(argv)
-  for flag, path in (("--bench", args.bench), ("--peer-bench", args.peer_bench), ("--hard-cases", args.hard_cases), ("--calibrate", args.calibrate)):
-    if path and not os.path.exists(path):
-      print(f"report: {flag} = '{path}': file not found", file=sys.stderr)
-      return 2
+  # Every input is checked before the long runs and before --out is made (README, "Exit codes").
+  tool_input.kneedyn_executable("--kneedyn", args.kneedyn)
+  tool_input.output_directory("--out", args.out)
+  if args.calibrate is not None:
+    tool_input.executable("--calibrate", args.calibrate)
   if args.include and not args.bench:
-    print("report: --include needs --bench (the sweep the outside results are drawn beside)", file=sys.stderr)
-    return 2
-  if args.include:  # checked before the long family runs: scene and reference must match the sweep's
-    header, _ = bench_data.load_bench(args.bench)
+    raise tool_input.BadInput("--include needs --bench (the sweep the outside results are drawn beside)")
+  # --bench, --peer-bench and --hard-cases read as make_report reads them.
+  make_report.check_sources(args.bench, args.hard_cases, args.peer_bench)
+  if args.include:  # scene and reference must match the sweep's
+    header, _ = tool_input.checked(bench_data.load_bench, "--bench", args.bench)
     for d in args.include:
       try:
         bench_data.load_included(d, header.get("scene"), bench_data.reference_command(header))
       except ValueError as e:
-        print(f"report: {e}", file=sys.stderr)
-        return 2
+        raise tool_input.BadInput(str(e)) from None
   fam_args = ["--kneedyn", args.kneedyn, "--out", args.out] + (["--quick"] if args.quick else [])
   rc = run_families.main(fam_args)
   if rc == 2 or not os.path.exists(os.path.join(args.out, "families.json")):
@@ -82,4 +86,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  sys.exit(tool_input.exit_code("report", main))

@@ -23,6 +23,7 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import tool_input  # noqa: E402
 from family_data import load_csv  # noqa: E402  (one CSV reader for all report scripts)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -207,9 +208,8 @@ def main(argv=None):
   ap.add_argument("--quick", action="store_true", help="fewer members and sensitivity cases")
   ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
   args = ap.parse_args(argv)
-  if not os.access(args.kneedyn, os.X_OK):
-    print(f"run_families: --kneedyn = '{args.kneedyn}': not an executable file", file=sys.stderr)
-    return 2
+  tool_input.kneedyn_executable("--kneedyn", args.kneedyn)
+  tool_input.output_directory("--out", args.out)
   outdir = os.path.abspath(args.out)
   for sub in ("scenes", "runs"):
     os.makedirs(os.path.join(outdir, sub), exist_ok=True)
@@ -296,4 +296,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-  sys.exit(main())
+  sys.exit(tool_input.exit_code("run_families", main))

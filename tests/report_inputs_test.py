@@ -1,0 +1,140 @@
+#!/usr/bin/python3
+"""The report tools' input contract (README.md, "Exit codes"): bad input to reports/report.py
+and its pieces (run_families.py, patella_section.py, reconstruction.py, figures.py, claims.py,
+make_report.py) is refused before any run: exit 2, a message naming the argument, no Python
+traceback, nothing written (no --out directory, no file beside the planted inputs), and fast.
+
+  report_inputs_test.py --kneedyn PATH
+"""
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+REPORTS = os.path.join(ROOT, "reports")
+sys.path.insert(0, HERE)
+sys.dont_write_bytecode = True
+from py_test_support import finish  # noqa: E402
+
+# A refusal comes before any run; a run of the quick families alone takes far longer.
+FAST_S = 5.0
+
+
+def snapshot(d):
+  return sorted(os.path.relpath(os.path.join(p, f), d) for p, ds, fs in os.walk(d) for f in fs + ds)
+
+
+def main():
+  ap = argparse.ArgumentParser()
+  ap.add_argument("--kneedyn", required=True, help="the kneedyn binary (a valid one: the other inputs are bad)")
+  args = ap.parse_args()
+  kneedyn = os.path.abspath(args.kneedyn)
+  not_kneedyn = shutil.which("true") or "/bin/true"
+  errors = []
+  checked = 0
+  env = dict(os.environ, PYTHONDONTWRITEBYTECODE="1")
+  with tempfile.TemporaryDirectory(prefix="report_inputs_") as tmp:
+    def plant(name, text, mode=0o644):
+      path = os.path.join(tmp, name)
+      os.makedirs(os.path.dirname(path), exist_ok=True)
+      with open(path, "w") as f:
+        f.write(text)
+      os.chmod(path, mode)
+      return path
+
+    bad_json = plant("bad.json", '{"results": [')
+    no_columns = plant("hard_cases.csv", "a,b\n1,2\n")
+    not_exec = plant("calibrate_reconstruction", "#!/bin/sh\nexit 0\n", 0o644)
+    a_file = plant("a_file.txt", "not a directory\n")
+    a_dir = os.path.join(tmp, "a_dir")
+    os.makedirs(a_dir)
+    truncated = os.path.join(tmp, "truncated_run")
+    plant("truncated_run/families.json", '{"members": [')
+    # A minimal directory run_families.py + claims.py could have left: make_report.py reads it.
+    minimal = os.path.join(tmp, "minimal_run")
+    plant("minimal_run/families.json", '{"members": []}')
+    plant("minimal_run/claims.json", "[]")
+
+    def out(name):
+      return os.path.join(tmp, "out_" + name)
+
+    report = [os.path.join(REPORTS, "report.py"), "--quick"]
+    cases = [  # (name, command, option the message must name, --out that must not appear)
+        ("bench_bad_json", report + ["--kneedyn", kneedyn, "--out", out("a"), "--bench", bad_json], "--bench", out("a")),
+        ("peer_bench_bad_json", report + ["--kneedyn", kneedyn, "--out", out("b"), "--peer-bench", bad_json],
+         "--peer-bench", out("b")),
+        ("include_bad_bench", report + ["--kneedyn", kneedyn, "--out", out("c"), "--bench", bad_json,
+                                        "--include", a_dir], "--bench", out("c")),
+        ("include_without_bench", report + ["--kneedyn", kneedyn, "--out", out("d"), "--include", a_dir],
+         "--include", out("d")),
+        ("hard_cases_directory", report + ["--kneedyn", kneedyn, "--out", out("e"), "--hard-cases", a_dir],
+         "--hard-cases", out("e")),
+        ("hard_cases_no_columns", report + ["--kneedyn", kneedyn, "--out", out("f"), "--hard-cases", no_columns],
+         "--hard-cases", out("f")),
+        ("kneedyn_not_kneedyn", report + ["--kneedyn", not_kneedyn, "--out", out("g")], "--kneedyn", out("g")),
+        ("kneedyn_directory", report + ["--kneedyn", a_dir, "--out", out("h")], "--kneedyn", out("h")),
+        ("out_under_proc", report + ["--kneedyn", kneedyn, "--out", "/proc/x/y"], "--out", "/proc/x/y"),
+        ("out_existing_file", report + ["--kneedyn", kneedyn, "--out", a_file], "--out", None),
+        ("calibrate_not_executable", report + ["--kneedyn", kneedyn, "--out", out("i"), "--reconstruction",
+                                               "--calibrate", not_exec], "--calibrate", out("i")),
+        ("run_families_kneedyn_directory", [os.path.join(REPORTS, "run_families.py"), "--kneedyn", a_dir,
+                                            "--out", out("j"), "--quick"], "--kneedyn", out("j")),
+        ("run_families_out_under_proc", [os.path.join(REPORTS, "run_families.py"), "--kneedyn", kneedyn,
+                                         "--out", "/proc/x/y", "--quick"], "--out", "/proc/x/y"),
+        ("patella_not_kneedyn", [os.path.join(REPORTS, "patella_section.py"), "--kneedyn", not_kneedyn,
+                                 "--out", out("k"), "--quick"], "--kneedyn", out("k")),
+        ("patella_out_existing_file", [os.path.join(REPORTS, "patella_section.py"), "--kneedyn", kneedyn,
+                                       "--out", a_file, "--quick"], "--out", None),
+        ("reconstruction_calibrate", [os.path.join(REPORTS, "reconstruction.py"), "--kneedyn", kneedyn,
+                                      "--out", out("l"), "--quick", "--calibrate", not_exec], "--calibrate", out("l")),
+        ("reconstruction_not_kneedyn", [os.path.join(REPORTS, "reconstruction.py"), "--kneedyn", not_kneedyn,
+                                        "--out", out("m"), "--quick"], "--kneedyn", out("m")),
+        ("claims_missing_out", [os.path.join(REPORTS, "claims.py"), "--out", out("n")], "--out", out("n")),
+        ("claims_truncated_families", [os.path.join(REPORTS, "claims.py"), "--out", truncated], "--out", None),
+        ("figures_out_is_file", [os.path.join(REPORTS, "figures.py"), "--out", a_file], "--out", None),
+        ("figures_empty_out", [os.path.join(REPORTS, "figures.py"), "--out", a_dir], "--out", None),
+        ("make_report_truncated_families", [os.path.join(REPORTS, "make_report.py"), "--out", truncated],
+         "--out", None),
+        ("make_report_missing_bench", [os.path.join(REPORTS, "make_report.py"), "--out", minimal,
+                                       "--bench", os.path.join(tmp, "nonexistent.json")], "--bench", None),
+        ("make_report_hard_cases_no_columns", [os.path.join(REPORTS, "make_report.py"), "--out", minimal,
+                                               "--hard-cases", no_columns], "--hard-cases", None),
+    ]
+    for name, cmd, option, must_not_exist in cases:
+      before = snapshot(tmp)
+      start = time.monotonic()
+      try:
+        p = subprocess.run([sys.executable] + cmd, capture_output=True, text=True, timeout=120, cwd=ROOT, env=env)
+      except subprocess.TimeoutExpired:
+        errors.append(f"{name}: still running after 120 s (the bad input was not refused before the runs)")
+        continue
+      elapsed = time.monotonic() - start
+      checked += 1
+      tool = os.path.splitext(os.path.basename(cmd[0]))[0]
+      where = f"{name}: {' '.join(cmd[1:])}"
+      if p.returncode != 2:
+        errors.append(f"{where}: exit {p.returncode}, expected 2; stderr: {p.stderr[-400:]!r}")
+      if "Traceback" in p.stderr:
+        errors.append(f"{where}: traceback on stderr: {p.stderr[-400:]!r}")
+      if option not in p.stderr:
+        errors.append(f"{where}: the message does not name {option}: {p.stderr[-400:]!r}")
+      if not p.stderr.startswith(f"{tool}: error: "):
+        errors.append(f"{where}: the message does not start with '{tool}: error: ': {p.stderr[:200]!r}")
+      if must_not_exist and os.path.exists(must_not_exist):
+        errors.append(f"{where}: --out '{must_not_exist}' was created")
+      after = snapshot(tmp)
+      if after != before:
+        errors.append(f"{where}: wrote {sorted(set(after) - set(before))}")
+      if elapsed > FAST_S:
+        errors.append(f"{where}: took {elapsed:.1f} s: not refused before the runs (limit {FAST_S} s)")
+  return finish(errors, "report_inputs_test: FAIL", f"report_inputs_test: {checked} bad inputs refused, "
+                f"{len(errors)} problem(s)")
+
+
+if __name__ == "__main__":
+  sys.exit(main())
