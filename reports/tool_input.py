@@ -1,5 +1,5 @@
 """The input contract of the Python tools (reports/, benchmarks/*.py), as the C++ programs keep
-it (README.md, "Exit codes"; formulations/output_file.hpp): bad input is refused before any
+it (the exit codes in README.md; formulations/output_file.hpp): bad input is refused before any
 run with a message naming the argument and its value, exit code 2, no traceback, and nothing
 written. A tool raises BadInput (or calls the checks below, which do) and wraps its main in
 `exit_code(prog, main)`:

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The report tools' input contract (README.md, "Exit codes"): bad input to reports/report.py
+"""The report tools' input contract (the exit codes in README.md): bad input to reports/report.py
 and its pieces (run_families.py, patella_section.py, reconstruction.py, figures.py, claims.py,
 make_report.py) is refused before any run: exit 2, a message naming the argument, no Python
 traceback, nothing written (no --out directory, no file beside the planted inputs), and fast.

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The Python tools' input contract (reports/tool_input.py; README.md, "Exit codes"): bad
+"""The Python tools' input contract (reports/tool_input.py; the exit codes in README.md): bad
 arguments and malformed files are refused before any run, with exit 2, a message naming the
 argument and its value, no traceback, and nothing written. Planted cases for
 global_sensitivity.py, claim_verdicts.py, inverse_problem.py, patella_coupling.py and

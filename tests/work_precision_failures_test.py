@@ -116,7 +116,7 @@ def table_rows(path):
 
 
 def bad_input_errors(tmp):
-  """Bad input to work_precision_table.py (README.md, "Exit codes"): exit 2 before any output,
+  """Bad input to work_precision_table.py (the exit codes in README.md): exit 2 before any output,
   a message naming the file (and the field), no traceback; --help prints the usage, exit 0."""
   errors = []
   good = result("dae", "", {"rtol": 1e-6, "atol": 1e-8}, 5.0, 0.020)
