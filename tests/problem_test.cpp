@@ -480,6 +480,15 @@ TEST(Problem, DaeResidualAndJacobianEqualDaeSystem) {
   }
 }
 
+// The index of the phase's end event (flexion_<deg>) among its m events, or -1.
+int EndEventIndex(const kneedyn_problem* h, int m) {
+  for (int k = 0; k < m; ++k) {
+    const char* name = nullptr;
+    if (kneedyn_problem_event_name(h, k, &name) == KNEEDYN_OK && std::string(name).rfind("flexion_", 0) == 0) return k;
+  }
+  return -1;
+}
+
 TEST(Problem, BadCallsReturnErrorsWithMessages) {
   const std::string scene = ScenesDir() + "/chapter_impact.yaml";
   kneedyn_problem* h = nullptr;
@@ -529,11 +538,7 @@ TEST(Problem, BadCallsReturnErrorsWithMessages) {
   int bad_event = m;
   EXPECT_EQ(kneedyn_problem_transition(h, 0.1, y, nullptr, 12, &bad_event, 1, &ended), KNEEDYN_BAD_ARGUMENT);
   EXPECT_NE(std::string(kneedyn_last_error()).find("event = "), std::string::npos) << kneedyn_last_error();
-  int end_event = -1;
-  for (int k = 0; k < m; ++k) {
-    ASSERT_EQ(kneedyn_problem_event_name(h, k, &name), KNEEDYN_OK);
-    if (std::string(name).rfind("flexion_", 0) == 0) end_event = k;
-  }
+  const int end_event = EndEventIndex(h, m);
   ASSERT_GE(end_event, 0);
   ASSERT_EQ(kneedyn_problem_transition(h, 0.1, y, nullptr, 12, &end_event, 1, &ended), KNEEDYN_OK);
   EXPECT_EQ(ended, 1);
@@ -678,11 +683,7 @@ TEST(Problem, CInterfaceChecksCountsKeepsMessagesAndAnswersAfterTheEnd) {
   EXPECT_EQ(count, 0);
   const char* name = nullptr;
   EXPECT_EQ(kneedyn_problem_event_record(h, 0, &name, nullptr, nullptr), KNEEDYN_BAD_ARGUMENT);
-  int end_event = -1;
-  for (int k = 0; k < m; ++k) {
-    ASSERT_EQ(kneedyn_problem_event_name(h, k, &name), KNEEDYN_OK);
-    if (std::string(name).rfind("flexion_", 0) == 0) end_event = k;
-  }
+  const int end_event = EndEventIndex(h, m);
   ASSERT_GE(end_event, 0);
   ASSERT_EQ(kneedyn_problem_transition(h, 0.1, y, nullptr, 12, &end_event, 1, &ended), KNEEDYN_OK);
   ASSERT_EQ(ended, 1);

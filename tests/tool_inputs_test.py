@@ -16,6 +16,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(ROOT, "reports"))
 import tool_input  # noqa: E402
+from py_test_support import finish  # noqa: E402
 
 PY = sys.executable
 
@@ -96,10 +97,7 @@ def main():
     if any(n.startswith(".kneedyn-probe-") for n in os.listdir(tmp)):
       failures.append("a probe directory was left behind")
   failures = [f for f in failures if f]
-  for f in failures:
-    print("FAILED:", f)
-  print(f"tool_inputs: {len(failures)} failure(s)")
-  return 1 if failures else 0
+  return finish(failures, "FAILED:", f"tool_inputs: {len(failures)} failure(s)")
 
 
 if __name__ == "__main__":

@@ -10,9 +10,11 @@ import subprocess
 import sys
 import tempfile
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-ROOT = os.path.dirname(HERE)
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+EXAMPLES = os.path.join(ROOT, "examples")
 PY = sys.executable
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+from py_test_support import finish  # noqa: E402
 
 
 def expect_refused(cmd, must_name, out=None):
@@ -41,20 +43,20 @@ def main():
         bad = os.path.join(tmp, "bad.csv")
         with open(bad, "w") as f:
             f.write("name,time_s\nliftoff_lateral,soon\n")
-        check = [PY, os.path.join(HERE, "check_liftoff.py")]
+        check = [PY, os.path.join(EXAMPLES, "check_liftoff.py")]
         failures += [expect_refused(check + [bad, reference, "6"], "time_s = 'soon'"),
                      expect_refused(check + [tmp, reference, "6"], "EVENTS.csv"),
                      expect_refused(check + [good, "/dev/null", "6"], "REFERENCE.json"),
                      expect_refused(check + [good, reference, "nan"], "MIN_DIGITS = nan"),
                      expect_refused(check, "required")]
         out = os.path.join(tmp, "scipy_out")
-        scipy = [PY, os.path.join(HERE, "python", "scipy_on_the_knee.py"), "--out", out]
+        scipy = [PY, os.path.join(EXAMPLES, "python", "scipy_on_the_knee.py"), "--out", out]
         failures += [expect_refused(scipy + ["--dt", "0"], "--dt = 0.0", out),
                      expect_refused(scipy + ["--dt", "nan"], "--dt = nan", out),
                      expect_refused(scipy + ["--rtol", "-1"], "--rtol = -1.0", out),
                      expect_refused(scipy + ["--scene", "/nonexistent.yaml"], "/nonexistent.yaml", out),
                      expect_refused(scipy + ["--kneedyn", "/nonexistent"], "--kneedyn = '/nonexistent'", out)]
-        remove = [PY, os.path.join(HERE, "python", "remove_acl.py")]
+        remove = [PY, os.path.join(EXAMPLES, "python", "remove_acl.py")]
         failures.append(expect_refused(remove + ["--out", "/proc/kneedyn/remove_acl"], "--out = '/proc/kneedyn"))
         rk4_out = os.path.join(tmp, "rk4_out")
         os.makedirs(rk4_out)
@@ -63,10 +65,7 @@ def main():
         if os.listdir(rk4_out):
             failures.append(f"rk4_on_the_knee wrote {os.listdir(rk4_out)} when refusing")
     failures = [f for f in failures if f]
-    for f in failures:
-        print("FAILED:", f)
-    print(f"example_inputs: {len(failures)} failure(s)")
-    return 1 if failures else 0
+    return finish(failures, "FAILED:", f"example_inputs: {len(failures)} failure(s)")
 
 
 if __name__ == "__main__":
