@@ -187,11 +187,6 @@ def headline(rec):
   return {"project_liftoff_deg": base, "chapter_liftoff_deg": LIFTOFF_CHAPTER_DEG, "by_reading": moves}
 
 
-def _load_json(path):
-  with open(path, encoding="utf-8") as f:
-    return json.load(f)
-
-
 def main(argv=None):
   ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
   ap.add_argument("--report", required=True, help="report directory made with the reconstruction study")
@@ -230,7 +225,7 @@ def main(argv=None):
             f"(run report.py --reconstruction first)", file=sys.stderr)
       return 2
   try:
-    rows = tool_input.checked(_load_json, "--report", paths["claims"])
+    rows = tool_input.json_document("--report", paths["claims"], (dict, list))
     rows = rows["claims"] if isinstance(rows, dict) else rows
     if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
       raise tool_input.BadInput(f"--report: '{paths['claims']}': not report.py's claims.json (a list of claims)")

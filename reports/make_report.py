@@ -748,7 +748,7 @@ def check_inputs(outdir, bench=None, hard_cases=None, peer_bench=None, option="-
   the run directory with families.json and claims.json (claims.py), the sweep JSONs and the
   hard-case table when given."""
   load_families_checked(option, outdir)
-  tool_input.checked(_load_claims, option, os.path.join(outdir, "claims.json"))
+  tool_input.json_document(option, os.path.join(outdir, "claims.json"), (list,))  # claims.py's rows
   check_sources(bench, hard_cases, peer_bench)
 
 
@@ -760,14 +760,6 @@ def check_sources(bench=None, hard_cases=None, peer_bench=None):
       tool_input.checked(bench_data.load_bench, option, path)
   if hard_cases is not None:
     tool_input.checked(load_hard_cases, "--hard-cases", hard_cases)
-
-
-def _load_claims(path):
-  with open(path, encoding="utf-8") as f:
-    rows = json.load(f)
-  if not isinstance(rows, list):
-    raise ValueError(f"a JSON {type(rows).__name__}, not claims.py's list of rows")
-  return rows
 
 
 def main(argv=None):

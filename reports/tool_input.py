@@ -64,15 +64,22 @@ def existing_file(option, path):
   return path
 
 
-def json_object(option, path):
-  """The JSON object (dict) in the file `path`."""
+def json_document(option, path, kinds=(dict,)):
+  """The JSON document in the file `path`, of one of the Python types `kinds` (dict: an
+  object, list: an array)."""
   def load(p):
     with open(p, encoding="utf-8") as f:
       data = json.load(f)
-    if not isinstance(data, dict):
-      raise BadInput(f"{option} = '{echo(p)}': a JSON {type(data).__name__}, not an object")
+    if not isinstance(data, kinds):
+      names = " or ".join({dict: "an object", list: "an array"}.get(k, k.__name__) for k in kinds)
+      raise BadInput(f"{option} = '{echo(p)}': a JSON {type(data).__name__}, not {names}")
     return data
   return checked(load, option, path)
+
+
+def json_object(option, path):
+  """The JSON object (dict) in the file `path`."""
+  return json_document(option, path, (dict,))
 
 
 def executable(option, path):
