@@ -249,6 +249,10 @@ def main(argv=None):
   tool_input.kneedyn_executable("--kneedyn", args.kneedyn)
   if args.calibrate is not None:
     tool_input.executable("--calibrate", args.calibrate)
+    # calibrate_reconstruction's own limits (--grid >= 1, --max-iterations >= 0), checked
+    # here so that a bad value costs no family run.
+    tool_input.number("--calibrate-grid", args.calibrate_grid, 1, 100, integer=True)
+    tool_input.number("--calibrate-iterations", args.calibrate_iterations, 0, 10000, integer=True)
   tool_input.output_directory("--out", args.out)
   outdir = os.path.abspath(args.out)
   readings = [r for r in READINGS if not args.quick or r[0] in QUICK_READINGS]

@@ -50,6 +50,7 @@ def main():
     bad_json = plant("bad.json", '{"results": [')
     no_columns = plant("hard_cases.csv", "a,b\n1,2\n")
     not_exec = plant("calibrate_reconstruction", "#!/bin/sh\nexit 0\n", 0o644)
+    calibrate_stub = plant("calibrate_stub", "#!/bin/sh\nexit 0\n", 0o755)
     a_file = plant("a_file.txt", "not a directory\n")
     a_dir = os.path.join(tmp, "a_dir")
     os.makedirs(a_dir)
@@ -92,6 +93,9 @@ def main():
                                        "--out", a_file, "--quick"], "--out", None),
         ("reconstruction_calibrate", [os.path.join(REPORTS, "reconstruction.py"), "--kneedyn", kneedyn,
                                       "--out", out("l"), "--quick", "--calibrate", not_exec], "--calibrate", out("l")),
+        ("reconstruction_calibrate_grid", [os.path.join(REPORTS, "reconstruction.py"), "--kneedyn", kneedyn,
+                                           "--out", out("l2"), "--quick", "--calibrate", calibrate_stub,
+                                           "--calibrate-grid", "-1"], "--calibrate-grid", out("l2")),
         ("reconstruction_not_kneedyn", [os.path.join(REPORTS, "reconstruction.py"), "--kneedyn", not_kneedyn,
                                         "--out", out("m"), "--quick"], "--kneedyn", out("m")),
         ("claims_missing_out", [os.path.join(REPORTS, "claims.py"), "--out", out("n")], "--out", out("n")),
