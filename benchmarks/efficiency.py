@@ -4,14 +4,15 @@
 
     /usr/bin/python3 benchmarks/efficiency.py --kneedyn build/formulations/kneedyn \
         [--sweep benchmarks/recorded/instructions_chapter_impact.json] [--cost instructions|cpu] \
-        [--scd 6] [--only SUBSTR] [--json OUT.json]
+        [--scd 6] [--only SUBSTR] [--scene SCENE.yaml] [--json OUT.json]
 
 For each method of the sweep (formulation[:integrator][/stabilization]) it takes the
 cheapest counted run reaching scd >= --scd (the cell of `work_precision_table.py SWEEP --cost
 COST`'s column "scd >= 6"): by default the cheapest by RunScene's instructions in the
 instruction sweep (benchmarks/instruction_sweep.py), so that which run is measured does not
 depend on the evening's CPU times; `--cost cpu` takes the cheapest by CPU time of a sweep
-file. It runs that configuration once under `valgrind --tool=callgrind` (whole process:
+file. --scene is the scene the runs use (default: reference-data/scenes/<the sweep header's
+scene>.yaml). It runs that configuration once under `valgrind --tool=callgrind` (whole process:
 `kneedyn run <scene> ... --quiet --out TMP`) and reads the inclusive instruction counts of
 the callbacks the integrator calls (`callgrind_annotate --inclusive=yes`):
 
@@ -27,14 +28,15 @@ what a user's run spends on the model. These callbacks do not call one another, 
 inclusive counts add without overlap. Instruction counts are deterministic, unlike CPU time
 on a shared machine. Prints a markdown table; --json writes {scd, cost, sweep, methods:
 {method: {...}}} for `work_precision_table.py --efficiency`, which shows the column only in
-a table of the same cost (its cells are then the runs measured here).
+a table of the same cost (its cells are then the runs measured here). Exit 0 measured; 1 when a
+run, valgrind or callgrind_annotate fails (one line naming the command, its exit code and the
+end of its stderr; no --json written); 2 on bad input.
 """
 import argparse
 import json
 import os
 import re
 import shutil
-import subprocess
 import sys
 import tempfile
 
@@ -73,9 +75,9 @@ def command_of(run, kneedyn, scene, out):
 
 
 def inclusive_costs(callgrind_out):
-  """(total instructions, {function: inclusive instructions}) of a callgrind output file."""
-  text = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--threshold=100", callgrind_out],
-                        check=True, capture_output=True, text=True).stdout
+  """(total instructions, {function: inclusive instructions}) of a callgrind output file;
+  tool_input.CommandFailed (exit 1) when callgrind_annotate fails."""
+  text = tool_input.run_command(["callgrind_annotate", "--inclusive=yes", "--threshold=100", callgrind_out]).stdout
   return parse_annotate(text)
 
 
@@ -107,10 +109,8 @@ def measure(run, kneedyn, scene, tmp):
   out = os.path.join(tmp, "out")
   cg = os.path.join(tmp, "callgrind.out")
   cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={cg}"] + command_of(run, kneedyn, scene, out)
-  p = subprocess.run(cmd, capture_output=True, text=True)
-  if p.returncode != 0:  # a run that fails is a failure of the program measured: exit 1
-    tail = (p.stderr.strip().splitlines() or ["no output"])[-1]
-    raise SystemExit(f"efficiency.py: measure(): {' '.join(cmd)} exited {p.returncode}: {tail}")
+  # A run that fails is a failure of the program measured (or of valgrind): exit 1.
+  tool_input.run_command(cmd)
   total, costs = inclusive_costs(cg)
   residual = share(costs, RESIDUAL)
   if residual == 0:

@@ -8,7 +8,7 @@ sweep").
 
     /usr/bin/python3 benchmarks/instruction_sweep.py --kneedyn build/formulations/kneedyn \
         [--sweep benchmarks/recorded/work_precision_chapter_impact.json] [--only SUBSTR] \
-        [--jobs 2] --json OUT.json
+        [--scene SCENE.yaml] [--jobs 2] --json OUT.json
     /usr/bin/python3 benchmarks/work_precision_table.py OUT.json --cost instructions
 
 CPU times of one configuration drift by tens of per cent between recordings on a shared
@@ -16,7 +16,8 @@ machine; these counts repeat to the instruction for a given binary (the determin
 tested: tests/instruction_sweep_test.py), so two commits compare cell by cell. Each run is
 `valgrind --tool=callgrind --toggle-collect='kneedyn::RunScene(*' kneedyn run SCENE
 --formulation F [--integrator I] --rtol R --atol A | --step H [--stabilization S] --quiet
---out TMP` (the command efficiency.py runs); callgrind's "Collected" is the count. The run is
+--out TMP` (the command efficiency.py runs) on --scene (default: reference-data/scenes/<the
+sweep header's scene>.yaml); callgrind's "Collected" is the count. The run is
 the CLI's, with the scene's output interval, so a method that stops at output times (the
 ARKODE ones) may take a step or two more or fewer than the sweep's in-process run of the same
 setting: the scd recorded here is this run's own.
@@ -24,9 +25,11 @@ setting: the scd recorded here is this run's own.
 OUT holds {"header": {...}, "results": [...]}: each result is kneedyn score's entry for the
 run (metrics, events), with the configuration's formulation, integrator and setting, its
 summary.json statistics as counters, status "ok", and "instructions": {"run_scene": N}; a
-run that fails (nonzero exit) has status "failed", its reason and its count. reports/
-bench_data.py reads it as it reads a sweep. Progress goes to stderr. About 20 min on two
-cores for the recorded sweep's 780 configurations (valgrind slows a run ~50 times).
+run that fails (nonzero exit) has status "failed", its reason and its count; a completed run
+that `kneedyn score` cannot score stops the sweep (exit 1, one line naming the command, OUT not
+written). reports/bench_data.py reads it as it reads a sweep. Progress goes to stderr. About
+20 min on two cores for the recorded sweep's 780 configurations (valgrind slows a run ~50
+times).
 """
 import argparse
 import concurrent.futures
@@ -76,11 +79,15 @@ def measure(run, kneedyn, scene):
       messages = [l for l in p.stderr.splitlines() if l.startswith("kneedyn")] or ["no output"]
       entry.update(status="failed", reason=(summary or {}).get("failure") or messages[-1], metrics={"scd": None})
       return entry
-    s = subprocess.run([kneedyn, "score", "--scene", scene, "--events", summary_path,
-                        os.path.join(out, "trajectory.csv")], capture_output=True, text=True)
+    # A completed run that cannot be scored stops the sweep (exit 1, nothing written).
+    try:
+      tool_input.run_command([kneedyn, "score", "--scene", scene, "--events", summary_path,
+                              os.path.join(out, "trajectory.csv")])
+    except tool_input.CommandFailed as e:
+      raise tool_input.CommandFailed(f"{e} (scoring {entry['command']})") from None
     score_path = os.path.join(out, "trajectory.score.json")
-    if s.returncode != 0 or not os.path.exists(score_path):
-      raise SystemExit(f"instruction_sweep.py: kneedyn score failed on {entry['command']}: {s.stderr.strip()}")
+    if not os.path.exists(score_path):
+      raise tool_input.CommandFailed(f"kneedyn score wrote no {os.path.basename(score_path)} for {entry['command']}")
     with open(score_path, encoding="utf-8") as f:
       score = json.load(f)
     scored = score["results"][0]

@@ -1,10 +1,14 @@
 #!/usr/bin/python3
 """The chapter's figure set (Figs. 1.4-1.25) from the family runs, plus work-precision diagrams.
 
-  figures.py --out OUTDIR [--bench JSON]
+  figures.py --out OUTDIR [--bench JSON [--include DIR]...]
 
-Reads OUTDIR/families.json and OUTDIR/runs/*, writes OUTDIR/figures/<name>.png.
-Frames (spec knee-model.md): x lateral, y anterior, z proximal; valgus = beta - 90 deg (+),
+Reads OUTDIR/families.json and OUTDIR/runs/*, writes OUTDIR/figures/<name>.png; with --bench
+also the work-precision diagrams of that sweep. --include DIR (repeatable, needs --bench):
+outside solvers' results scored by `kneedyn score` under DIR (every score.json and
+*.score.json), drawn beside the sweep's; each must be scored on the sweep's scene against the
+reference the sweep used (the rule of `work_precision --include`), else exit 2.
+Frames (docs/model.md §1): x lateral, y anterior, z proximal; valgus = beta - 90 deg (+),
 external tibial rotation = gamma (+).
 """
 import argparse
@@ -22,7 +26,7 @@ import numpy as np  # noqa: E402
 sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import tool_input  # noqa: E402
-from family_data import LIGAMENTS, by_family, ligament_column, load_families, load_families_checked  # noqa: E402,F401
+from family_data import LIGAMENTS, by_family, ligament_column, load_families_checked  # noqa: E402
 
 FAMILIES = [("amplitude", "Amplitude family (t0 = 0.1 s)"),
             ("duration", "Duration family (A = 100 N)")]

@@ -6,7 +6,7 @@ with OpenTURNS (Debian python3-openturns), and a ranked bar chart per outcome.
   global_sensitivity.py --sweep DIR/sweep.csv --spec SPEC.yaml --out OUTDIR
                         [--outcomes COL ...] [--bootstrap 300] [--confidence 0.95]
                         [--estimator saltelli|jansen|martinez|mauntz-kucherenko] [--seed 1]
-                        [--local SENSITIVITY.json]
+                        [--local SENSITIVITY.json] [--no-charts]
 
 --local takes the sensitivity.json of `kneedyn sensitivity` at the nominal point for the same
 parameters and outcomes; each outcome then also gets the local normalized sensitivity p/y
@@ -15,8 +15,9 @@ S_lin,k = (dy/dp_k sigma_k)^2 / sum_j (dy/dp_j sigma_j)^2, with sigma_k the stan
 of parameter k in the sweep's own samples. Where S_1 and S_lin agree the outcome is close to
 linear over the ranges; where they differ, the local derivative would mislead.
 
-Writes OUTDIR/sobol.json and OUTDIR/sobol_<outcome>.png. The report shows them when they are
-in REPORT_OUT/global_sensitivity/ (section(), hooked into make_report.py).
+Writes OUTDIR/sobol.json and OUTDIR/sobol_<outcome>.png (one chart per outcome whose indices
+were computed; --no-charts draws none, and sobol.json then names no chart). The report shows
+them when they are in REPORT_OUT/global_sensitivity/ (section(), hooked into make_report.py).
 
 Failed runs: a base sample j is used only if all d + 2 runs of its pick-freeze group
 (A_j, B_j, A_j with column k from B_j) gave a value; the number dropped is recorded.

@@ -5,7 +5,7 @@ claims check at each fit.
   inverse_problem.py --inverse BIN --kneedyn BIN --out DIR --scenes S1 [S2 ...]
                      [--readings KEY,...|model] [--reading-targets C1] [--merge-recorded FILE]
                      [--record FILE] [--targets C1,K6|none] [--folds A,B|none] [--max-iterations N]
-                     [--quick] [--jobs N] [--parallel N] [--reuse] [--reuse-only]
+                     [--no-strain-scan] [--quick] [--jobs N] [--parallel N] [--reuse] [--reuse-only]
 
 Per scene: `kneedyn_inverse` (inverse/inverse_problem.hpp; one process per target and per
 fold, --parallel at a time, merged into DIR/<scene>/fit.json) fits each target claim's
@@ -16,6 +16,14 @@ the chapter's pulse families are run at the unchanged parameters and at each tar
 reports/claims.py judges every claim on both: `fixes` are claims not reproduced before and
 reproduced at the fit, `breaks` the reverse. The same claims check runs at each leave-some-out
 fold's fit. S1/S2 (the sensitivity studies) are not re-run.
+
+The strain scan (per scene and per reading; --no-strain-scan skips it, and the record's
+`strain_scan` is then null): a derivative-free check of C1 (lateral lift-off at 66°, reached
+within 1°) along one direction, every extension ratio shifted by s × its bound in
+inverse/inverse_problem.yaml (0.0005) at once, s = 0, ±0.5, ±1, ±2, ±4, ±8, ±16 (one run of
+the reference member each). On each side the first step that brackets 66° is bisected (up to
+12 runs, to within 0.1°) and the claims are checked at the smallest |s| reached
+(DIR/<scene>/strain_scan/): an upper bound on the smallest change reaching C1 that way.
 
 The discrete readings are the outer choices (--readings): each reading of the reconstruction
 study (reports/reconstruction.py READINGS, docs/model.md) becomes one scene, its reference

@@ -2,7 +2,10 @@
 """Writes OUTDIR/index.html (self-contained HTML, figures referenced relatively) from the outputs
 of run_families.py, figures.py and claims.py.
 
-  make_report.py --out OUTDIR [--bench JSON] [--kneedyn PATH] [--quick]
+  make_report.py --out OUTDIR [--bench JSON] [--kneedyn PATH] [--quick] [--hard-cases CSV]
+
+--hard-cases: kneedyn_catalog's hard_cases.csv (or the hard_cases.md beside it) for the
+hard-case section; without it the section says how to make one.
 """
 import argparse
 import html
@@ -715,7 +718,7 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, 
   if recorded and recorded.get("matrix"):
     os.makedirs(os.path.join(outdir, "figures"), exist_ok=True)
     figures.reading_claim_matrix(RECORDED_VERDICTS, os.path.join(outdir, "figures", "reading_claim_matrix.png"))
-  body = [f"<h1>kneedyn: chapter reproduction report</h1>",
+  body = ["<h1>kneedyn: chapter reproduction report</h1>",
           "<p>Hefzy &amp; Abdel-Rahman, 3D dynamic knee model: pulse families of section 1.4 "
           "(Figs. 1.4–1.25) with the reference solver, the chapter's claims checked automatically.</p>",
           "<nav><a href='#summary'>Summary</a><a href='#claims'>Claims</a><a href='#figures'>Figures</a>"

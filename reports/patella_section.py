@@ -161,9 +161,8 @@ def run(kneedyn, scene, run_dir, formulation, args, out):
 
 def formulations(kneedyn):
   """`kneedyn formulations` lines: [(name, needs a patella)] in registry order."""
-  p = subprocess.run([kneedyn, "formulations"], capture_output=True, text=True)
-  if p.returncode != 0:
-    raise RuntimeError(f"{kneedyn} formulations: exit {p.returncode}: {p.stderr[-300:]}")
+  import tool_input
+  p = tool_input.run_command([kneedyn, "formulations"])  # its failure ends the study: exit 1
   return [(line.split()[0], "needs a patella" in line) for line in p.stdout.splitlines() if line.strip()]
 
 

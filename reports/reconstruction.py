@@ -2,7 +2,8 @@
 """Reconstruction study: how much of the claims table rests on the readings of
 the model that the printed chapter leaves uncertain.
 
-  reconstruction.py --kneedyn PATH --out OUTDIR [--quick] [--calibrate BIN] [--jobs N]
+  reconstruction.py --kneedyn PATH --out OUTDIR [--quick] [--jobs N]
+                    [--calibrate BIN [--calibrate-grid N] [--calibrate-iterations K]]
 
 For each reading (pulse shape of the garbled Eq. 1.62 × gravity on/off, plus the C¹
 ligament law that docs/model.md records as a departure) it runs the chapter's pulse
@@ -11,7 +12,12 @@ every claim of reports/claims.yaml with reports/claims.py, and writes
 OUTDIR/reconstruction/reconstruction.json: per reading the verdict of each claim, the count
 reproduced, the lateral lift-off angle and the valgus→varus crossings of the shortest and
 longest pulse. With --calibrate it also runs the Ceres calibration
-(reports/calibrate_reconstruction.cpp) into OUTDIR/reconstruction/calibration.json.
+(reports/calibrate_reconstruction.cpp) into OUTDIR/reconstruction/calibration.json:
+--calibrate-grid N (default 5, a whole number in [1, 100]) is its start grid, N × N points
+over the pulse scale and the gravity angle (its --grid), --calibrate-iterations K (default 20,
+a whole number in [0, 10000]; 0 = the grid only) its Ceres iterations (its --max-iterations).
+With --calibrate both are checked before any family run; without it they are not used.
+--jobs N: family runs at a time (default: the number of CPUs; below 1 counts as 1).
 The sensitivity statements S1/S2 do not depend on the pulse or model reading and are not
 re-run per reading; S2 is re-run once under the chapter's DASSL start (s2_dassl_start).
 Exit 0 when every run completed, 1 when some failed (recorded per reading), 2 on bad input.

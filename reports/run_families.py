@@ -2,7 +2,9 @@
 """Runs the chapter's pulse families (reports/claims.yaml, section 1.4 / Figs. 1.4-1.6) and the two
 sensitivity studies with the reference solver, in parallel.
 
-  run_families.py --kneedyn PATH --out OUTDIR [--quick]
+  run_families.py --kneedyn PATH --out OUTDIR [--quick] [--jobs N]
+
+--jobs N: runs at a time (default: the number of CPUs, os.cpu_count(); below 1 counts as 1).
 
 Runs go through the kneedyn Python module when it is importable (PYTHONPATH, or
 <build>/python beside --kneedyn), in this process; otherwise, or with

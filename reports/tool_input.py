@@ -12,10 +12,16 @@ written. A tool raises BadInput (or calls the checks below, which do) and wraps 
       ...
     if __name__ == "__main__":
       sys.exit(tool_input.exit_code("report", main))
+
+An external program that fails (callgrind_annotate, kneedyn score, ...) where the tool cannot
+go on is a failed run, not bad input: run_command (or raising command_failed(...)) ends the
+tool through exit_code with exit 1 and one line naming the command, its exit code and the
+last lines of its stderr, instead of a CalledProcessError traceback.
 """
 import json
 import math
 import os
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -25,6 +31,11 @@ class BadInput(ValueError):
   """Bad input: the message names the argument (or field) and its value."""
 
 
+class CommandFailed(RuntimeError):
+  """An external program failed (a nonzero exit, or it could not start): a failed run, exit 1.
+  A RuntimeError, so code that records a failed step and goes on may still catch it."""
+
+
 def echo(value, limit=200):
   """A value as typed, cut for messages."""
   text = str(value)
@@ -32,13 +43,38 @@ def echo(value, limit=200):
 
 
 def exit_code(prog, main, argv=None):
-  """main(argv)'s return code, or 2 with 'prog: error: message' when it raises BadInput."""
+  """main(argv)'s return code, or 'prog: error: message' and 2 when it raises BadInput, 1 when
+  it raises CommandFailed."""
   try:
     rc = main(argv)
   except BadInput as e:
     print(f"{prog}: error: {e}", file=sys.stderr)
     return 2
+  except CommandFailed as e:
+    print(f"{prog}: error: {e}", file=sys.stderr)
+    return 1
   return 0 if rc is None else rc
+
+
+def command_failed(cmd, returncode, stderr, lines=3):
+  """The CommandFailed for `cmd` (a list) that exited `returncode`: one line with the command,
+  the exit code and the last `lines` non-blank lines of its stderr (joined by ' | ')."""
+  tail = [line.strip() for line in (stderr or "").splitlines() if line.strip()][-lines:]
+  said = echo(" | ".join(tail), 600) if tail else "nothing on stderr"
+  how = f"exited {returncode}" if returncode >= 0 else f"was killed by signal {-returncode}"
+  return CommandFailed(f"`{echo(shlex.join(str(c) for c in cmd), 400)}` {how}: {said}")
+
+
+def run_command(cmd, **kwargs):
+  """subprocess.run(cmd, capture_output=True, text=True, **kwargs) when it exits 0; CommandFailed
+  when it exits otherwise or cannot start (not found, not executable)."""
+  try:
+    p = subprocess.run(cmd, capture_output=True, text=True, **kwargs)
+  except (OSError, subprocess.SubprocessError) as e:
+    raise CommandFailed(f"`{echo(shlex.join(str(c) for c in cmd), 400)}` could not run: {echo(e)}") from None
+  if p.returncode != 0:
+    raise command_failed(cmd, p.returncode, p.stderr)
+  return p
 
 
 def checked(load, option, path, *args):

@@ -23,7 +23,7 @@ import sys
 import tempfile
 
 sys.dont_write_bytecode = True  # keep the source tree clean
-from comment_references_test import ROOT, root_argument, scanned_files  # noqa: E402
+from comment_references_test import root_argument, scanned_files  # noqa: E402
 
 # `FILE.md` (optionally in backquotes), then optionally "," and/or "(", then a quoted name.
 QUOTED = re.compile(r"([\w./-]+\.md)`?,?\s*\(?\s*[\"\u201c]([^\"\u201d]{3,}?)(?:[\"\u201d]|$)")

@@ -3,7 +3,10 @@
 arguments and malformed files are refused before any run, with exit 2, a message naming the
 argument and its value, no traceback, and nothing written. Planted cases for
 global_sensitivity.py, claim_verdicts.py, inverse_problem.py, patella_coupling.py and
-benchmarks/scipy_side_by_side.py, and the shared checks themselves.
+benchmarks/scipy_side_by_side.py, and the shared checks themselves. An external program that
+fails (fake valgrind, callgrind_annotate and kneedyn first on PATH or as --kneedyn, exiting 3)
+is a failed run: exit 1, one line naming the command, its exit code and the last lines of its
+stderr, no traceback, no output file (benchmarks/efficiency.py, reports/patella_section.py).
 
     tool_inputs_test.py KNEEDYN KNEEDYN_INVERSE
 """
@@ -25,6 +28,20 @@ def refused(cmd, must_name, out=None):
   r = subprocess.run([PY] + cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
   problems = [p for p, bad in ((f"exit {r.returncode}", r.returncode != 2),
                                (f"no {must_name!r} in stderr", must_name not in r.stderr),
+                               ("a traceback", "Traceback" in r.stderr),
+                               (f"{out} created", out is not None and os.path.exists(out))) if bad]
+  return f"{' '.join(cmd)}: {', '.join(problems)}: {r.stderr.strip()[-300:]}" if problems else ""
+
+
+def failed_run(cmd, must_names, out=None, path=None, one_line=True):
+  """cmd with the directory `path` first on PATH: exit 1 (a failed run, not bad input), each of
+  must_names in stderr (on its one line when one_line), no traceback, `out` not created."""
+  env = dict(os.environ, PATH=path + os.pathsep + os.environ.get("PATH", "")) if path else None
+  r = subprocess.run([PY] + cmd, capture_output=True, text=True, timeout=300, cwd=ROOT, env=env)
+  lines = [line for line in r.stderr.splitlines() if line.strip()]
+  problems = [p for p, bad in ((f"exit {r.returncode}", r.returncode != 1),
+                               *((f"no {n!r} in stderr", n not in r.stderr) for n in must_names),
+                               (f"{len(lines)} lines on stderr", one_line and len(lines) != 1),
                                ("a traceback", "Traceback" in r.stderr),
                                (f"{out} created", out is not None and os.path.exists(out))) if bad]
   return f"{' '.join(cmd)}: {', '.join(problems)}: {r.stderr.strip()[-300:]}" if problems else ""
@@ -75,7 +92,38 @@ def main():
     failures += [refused(ss + ["--repeats", "0"], "--repeats = 0"),
                  refused(ss + ["--check-digits", "nan"], "--check-digits = nan"),
                  refused(ss + ["--json", "/proc/kneedyn/s.json"], "--json")]
+    # A failed external command: exit 1 naming it, not a CalledProcessError traceback.
+    def fake(directory, name, script):
+      path = write(os.path.join(directory, name), "#!/bin/sh\n" + script)
+      os.chmod(path, 0o755)
+      return path
+    fake("valgrind_fails", "valgrind", "echo '==1== fake valgrind: starting' >&2\n"
+                                       "echo 'fake valgrind: no such tool' >&2\nexit 3\n")
+    fake("annotate_fails", "valgrind", "exit 0\n")
+    fake("annotate_fails", "callgrind_annotate", "echo 'fake callgrind_annotate: cannot read the profile' >&2\nexit 3\n")
+    fake_kneedyn = fake("kneedyn_fails", "kneedyn",
+                        'case "$1" in\n  --version) echo "kneedyn 0.0.0 (fake)";;\n'
+                        '  formulations) echo "fake kneedyn: no registry" >&2; exit 3;;\n'
+                        '  *) echo "fake kneedyn: $1 is not run here" >&2; exit 1;;\nesac\n')
+    eff_json = os.path.join(tmp, "efficiency.json")
+    eff = ["benchmarks/efficiency.py", "--kneedyn", kneedyn, "--only", "dae", "--json", eff_json]
+    ps = ["reports/patella_section.py", "--kneedyn", fake_kneedyn, "--out", os.path.join(tmp, "ps"), "--quick"]
+    failures += [failed_run(eff, ["`valgrind --tool=callgrind", "exited 3", "fake valgrind: no such tool"], eff_json,
+                            os.path.join(tmp, "valgrind_fails")),
+                 failed_run(eff, ["`callgrind_annotate --inclusive=yes", "exited 3",
+                                  "fake callgrind_annotate: cannot read the profile"], eff_json,
+                            os.path.join(tmp, "annotate_fails")),
+                 failed_run(ps, ["formulations` exited 3", "fake kneedyn: no registry"])]
     # The shared checks.
+    failed = tool_input.command_failed(["prog", "a b"], 3, "one\n\ntwo\nthree\nfour\n")
+    if str(failed) != "`prog 'a b'` exited 3: two | three | four":
+      failures.append(f"command_failed(): {failed} (not the command, exit code and last three lines)")
+    try:  # a program that cannot start is a failed run too, not an OSError traceback
+      tool_input.run_command([os.path.join(tmp, "no_such_program")])
+      failures.append("run_command(): a missing program ran")
+    except tool_input.CommandFailed as e:
+      if "no_such_program` could not run" not in str(e):
+        failures.append(f"run_command(): {e} (does not name the program)")
     for check, args, name in ((tool_input.output_directory, ("--out", "/proc/kneedyn/x"), "--out"),
                               (tool_input.output_directory, ("--out", spec), "an existing file"),
                               (tool_input.output_file, ("--json", tmp), "a directory"),

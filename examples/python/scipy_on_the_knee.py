@@ -8,6 +8,11 @@ OUT/trajectory.csv, events to OUT/events.csv, and `kneedyn score` scores them.
     PYTHONPATH=build/python /usr/bin/python3 examples/python/scipy_on_the_knee.py \
         --method Radau --rtol 1e-8 --atol 1e-10 --out out/scipy --kneedyn build/formulations/kneedyn
 
+--scene: a scene file or a shipped scene's name (default: chapter_impact); --form: the ODE form
+solve_ivp integrates, ede or mde (default ede; docs/problem.md); --method: Radau, BDF, LSODA or
+DOP853 (default Radau); --rtol/--atol: solve_ivp's tolerances (default 1e-8, 1e-10); --dt: the
+output interval in s (default 0.02); --kneedyn: also score the result with it.
+
 Exit codes as kneedyn run's: 0 completed, 1 the solver failed (what was reached is written
 and scored as failed), 2 bad arguments (nothing written).
 """
