@@ -17,7 +17,7 @@ longest pulse. With --calibrate it also runs the Ceres calibration
 over the pulse scale and the gravity angle (its --grid), --calibrate-iterations K (default 20,
 a whole number in [0, 10000]; 0 = the grid only) its Ceres iterations (its --max-iterations).
 With --calibrate both are checked before any family run; without it they are not used.
---jobs N: family runs at a time (default: the number of CPUs; below 1 counts as 1).
+--jobs N: family runs at a time, a whole number in [1, 1024] (default: the number of CPUs).
 The sensitivity statements S1/S2 do not depend on the pulse or model reading and are not
 re-run per reading; S2 is re-run once under the chapter's DASSL start (s2_dassl_start).
 Exit 0 when every run completed, 1 when some failed (recorded per reading), 2 on bad input.
@@ -253,6 +253,7 @@ def main(argv=None):
   ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
   args = ap.parse_args(argv)
   tool_input.kneedyn_executable("--kneedyn", args.kneedyn)
+  tool_input.number("--jobs", args.jobs, 1, 1024, integer=True)  # the range inverse_problem.py checks
   if args.calibrate is not None:
     tool_input.executable("--calibrate", args.calibrate)
     # calibrate_reconstruction's own limits (--grid >= 1, --max-iterations >= 0), checked
@@ -273,7 +274,7 @@ def main(argv=None):
       scene = run_families.write_scene(rdir, name, amp, dur, patch=run_patch)
       jobs.append((key, rdir, name, scene, (family, value, amp, dur)))
   results = {}
-  with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+  with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
     futs = {pool.submit(run_families.run_one, args.kneedyn, scene, os.path.join(rdir, "runs", name)):
             (key, name) for key, rdir, name, scene, _ in jobs}
     for i, fut in enumerate(concurrent.futures.as_completed(futs), 1):

@@ -4,7 +4,7 @@ sensitivity studies with the reference solver, in parallel.
 
   run_families.py --kneedyn PATH --out OUTDIR [--quick] [--jobs N]
 
---jobs N: runs at a time (default: the number of CPUs, os.cpu_count(); below 1 counts as 1).
+--jobs N: runs at a time, a whole number in [1, 1024] (default: the number of CPUs, os.cpu_count()).
 
 Runs go through the kneedyn Python module when it is importable (PYTHONPATH, or
 <build>/python beside --kneedyn), in this process; otherwise, or with
@@ -211,6 +211,7 @@ def main(argv=None):
   ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
   args = ap.parse_args(argv)
   tool_input.kneedyn_executable("--kneedyn", args.kneedyn)
+  tool_input.number("--jobs", args.jobs, 1, 1024, integer=True)  # the range inverse_problem.py checks
   tool_input.output_directory("--out", args.out)
   outdir = os.path.abspath(args.out)
   for sub in ("scenes", "runs"):
@@ -237,7 +238,7 @@ def main(argv=None):
                   {"kind": "contact_offset", "offset_mm": d})
 
   results = {}
-  with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+  with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
     futs = {pool.submit(run_one, args.kneedyn, scene, os.path.join(outdir, "runs", name)): name
             for name, (scene, _) in jobs.items()}
     done = 0
