@@ -167,4 +167,8 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except subprocess.CalledProcessError as e:  # the tool has printed its own errors: no traceback
+        sys.stderr.write("[docs] failed: `%s` exited %d\n" % (" ".join(str(c) for c in e.cmd), e.returncode))
+        sys.exit(1)
