@@ -27,6 +27,7 @@
 #include "sensitivity/forward_sensitivity.hpp"
 #include "sensitivity/sensitivity_cli.hpp"
 #include "formulations/run.hpp"
+#include "formulations/output_file.hpp"
 #include "formulations/run_output.hpp"
 #include "formulations/version.hpp"
 #include "solver/error.hpp"
@@ -42,15 +43,24 @@ using namespace kneedyn;
 namespace {
 
 // Python value -> YAML text through libyaml's emitter (block style, as the scene files
-// are written). Numbers are written with 17 significant digits, so the loader reads back
-// exactly the double Python holds.
+// are written). Floats are written as Python's repr, the shortest text that reads back as
+// exactly the double Python holds (80.0 stays "80.0", so it reads back as a float).
+// Refusals are InputErrors from `function` (the Python call) naming the field path.
 class YamlWriter {
  public:
-  YamlWriter() {
-    if (!yaml_emitter_initialize(&emitter_)) Throw<Error>("Scene.to_yaml", "out of memory");
+  explicit YamlWriter(std::string function) : function_(std::move(function)) {
+    if (!yaml_emitter_initialize(&emitter_)) Throw<Error>(function_.c_str(), "out of memory");
     yaml_emitter_set_output(&emitter_, &YamlWriter::Append, &text_);
     yaml_emitter_set_unicode(&emitter_, 1);
     yaml_emitter_set_width(&emitter_, -1);  // no folding of long values
+    const py::module_ numpy = py::module_::import("numpy");
+    np_bool_ = numpy.attr("bool_");
+    np_integer_ = numpy.attr("integer");
+    np_ndarray_ = numpy.attr("ndarray");
+    real_ = py::module_::import("numbers").attr("Real");
+    const py::module_ kneedyn = py::module_::import("kneedyn");
+    file_float_ = kneedyn.attr("_FileFloat");
+    file_int_ = kneedyn.attr("_FileInt");
   }
   ~YamlWriter() { yaml_emitter_delete(&emitter_); }
   YamlWriter(const YamlWriter&) = delete;
@@ -62,12 +72,13 @@ class YamlWriter {
     Emit(&e);
     yaml_document_start_event_initialize(&e, nullptr, nullptr, nullptr, 1);
     Emit(&e);
-    Value(obj, "");
+    Value(obj, "", 0);
     yaml_document_end_event_initialize(&e, 1);
     Emit(&e);
     yaml_stream_end_event_initialize(&e);
     Emit(&e);
     yaml_emitter_flush(&emitter_);
+    CheckSize("");
     return text_;
   }
 
@@ -78,8 +89,38 @@ class YamlWriter {
   }
   void Emit(yaml_event_t* e) {
     if (!yaml_emitter_emit(&emitter_, e)) {
-      Throw<Error>("Scene.to_yaml", "libyaml: ", emitter_.problem ? emitter_.problem : "emitter error");
+      Throw<Error>(function_.c_str(), "libyaml: ", emitter_.problem ? emitter_.problem : "emitter error");
     }
+  }
+  // The loader reads at most a scene file's size, and its work grows with the text: a
+  // larger document (or a list shared many times over) is refused while it is written.
+  void CheckSize(const std::string& where) const {
+    if (text_.size() > scene_detail::kMaxInputFileBytes) {
+      Throw<InputError>(function_.c_str(), "the document's YAML text passes ", scene_detail::kMaxInputFileBytes,
+                        " bytes", where.empty() ? std::string() : " at field '" + Echo(where, 128) + "'",
+                        "; the limit is ", scene_detail::kMaxInputFileBytes, " bytes (kMaxInputFileBytes, that of a scene file)");
+    }
+  }
+  [[noreturn]] void Refuse(const std::string& where, const py::handle& obj, const std::string& rule) const {
+    Throw<InputError>(function_.c_str(), "field '", where.empty() ? "(top level)" : Echo(where, 128), "' = ",
+                      Repr(obj), ": ", rule);
+  }
+  static std::string Repr(const py::handle& obj) {
+    try {
+      return Echo(std::string(py::repr(obj)));
+    } catch (const py::error_already_set&) {
+      return "<" + std::string(py::str(obj.get_type().attr("__name__"))) + " object>";
+    }
+  }
+  // A str as UTF-8; a lone surrogate (os.fsdecode of undecodable bytes) has no UTF-8 form.
+  std::string Utf8(const py::handle& str, const std::string& where, const char* what) const {
+    Py_ssize_t size = 0;
+    const char* data = PyUnicode_AsUTF8AndSize(str.ptr(), &size);
+    if (!data) {
+      PyErr_Clear();
+      Refuse(where, str, StrCat(what, " holds a lone surrogate (undecodable bytes?); it must be text that encodes as UTF-8"));
+    }
+    return std::string(data, static_cast<size_t>(size));
   }
   // A plain scalar (numbers, booleans, null), or a string: plain where YAML reads it back
   // as the same text, double-quoted where plain would read as null (empty, ~, null).
@@ -92,22 +133,35 @@ class YamlWriter {
                                  static_cast<int>(text.size()), 1, 1, style);
     Emit(&e);
   }
-  void Value(const py::handle& obj, const std::string& where) {
+  void Value(const py::handle& obj, const std::string& where, int depth) {
+    CheckSize(where);
     yaml_event_t e;
     if (obj.is_none()) return Scalar("~", false);
-    if (py::isinstance<py::bool_>(obj)) return Scalar(obj.cast<bool>() ? "true" : "false", false);
-    if (py::isinstance<py::str>(obj)) return Scalar(obj.cast<std::string>(), true);
-    if (py::isinstance<py::dict>(obj)) {
+    if (py::isinstance<py::bool_>(obj) || py::isinstance(obj, np_bool_)) {
+      return Scalar(PyObject_IsTrue(obj.ptr()) ? "true" : "false", false);
+    }
+    if (py::isinstance<py::str>(obj)) return Scalar(Utf8(obj, where, "the text"), true);
+    const bool map = py::isinstance<py::dict>(obj);
+    if (map || py::isinstance<py::list>(obj) || py::isinstance<py::tuple>(obj)) {
+      // The loader's limit; a container that holds itself would otherwise recurse until the
+      // stack overflows.
+      if (depth + 1 > scene_detail::kMaxYamlDepth) {
+        Throw<InputError>(function_.c_str(), "field '", Echo(where, 128), "': nesting depth ", depth + 1,
+                          " exceeds the limit of ", scene_detail::kMaxYamlDepth,
+                          " mappings and lists (a dict or list that contains itself?)");
+      }
+    }
+    if (map) {
       yaml_mapping_start_event_initialize(&e, nullptr, nullptr, 1, YAML_BLOCK_MAPPING_STYLE);
       Emit(&e);
       for (auto item : obj.cast<py::dict>()) {
         if (!py::isinstance<py::str>(item.first)) {
-          Throw<InputError>("Scene.from_dict", "key ", std::string(py::repr(item.first)), " under '",
-                            where.empty() ? "<top>" : where, "' must be a string");
+          Throw<InputError>(function_.c_str(), "key ", Repr(item.first), " under '",
+                            where.empty() ? "<top>" : Echo(where, 128), "' must be a string");
         }
-        const std::string key = item.first.cast<std::string>();
+        const std::string key = Utf8(item.first, where.empty() ? "(top level)" : where, "a key");
         Scalar(key, true);
-        Value(item.second, where.empty() ? key : where + "." + key);
+        Value(item.second, where.empty() ? key : where + "." + key, depth + 1);
       }
       yaml_mapping_end_event_initialize(&e);
       return Emit(&e);
@@ -116,34 +170,64 @@ class YamlWriter {
       yaml_sequence_start_event_initialize(&e, nullptr, nullptr, 1, YAML_BLOCK_SEQUENCE_STYLE);
       Emit(&e);
       size_t i = 0;
-      for (auto item : obj) Value(item, StrCat(where, "[", i++, "]"));
+      for (auto item : obj) Value(item, StrCat(where, "[", i++, "]"), depth + 1);
       yaml_sequence_end_event_initialize(&e);
       return Emit(&e);
     }
-    if (py::isinstance<py::int_>(obj) || py::hasattr(obj, "__index__")) {
+    if (py::isinstance(obj, np_ndarray_)) {
+      // A 0-d array is its number, a 1-D one a list; a float array is no integer (its
+      // __index__ made np.array(1.9) the integer 1).
+      const py::array a = py::reinterpret_borrow<py::array>(obj);
+      const char kind = a.dtype().kind();
+      if ((kind == 'b' || kind == 'i' || kind == 'u' || kind == 'f') && a.ndim() <= 1) {
+        return Value(a.attr(a.ndim() == 0 ? "item" : "tolist")(), where, depth);
+      }
+      Refuse(where, obj, StrCat("a NumPy array of shape ", std::string(py::str(a.attr("shape"))), " and dtype ",
+                                std::string(py::str(a.dtype())), "; must be a real number or a 1-D array of real numbers"));
+    }
+    if (py::isinstance(obj, file_float_) || py::isinstance(obj, file_int_)) {
+      // A number in its file's spelling (FromYaml), kept while the spelling still reads as
+      // the number (the attribute `text` could have been reassigned).
+      const py::object text = obj.attr("text");
+      double v = 0.0;
+      if (py::isinstance<py::str>(text)) {
+        const std::string spelled = Utf8(text, where, "the text");
+        if (scene_detail::PlainDecimal(spelled, &v) && v == obj.cast<double>()) return Scalar(spelled, false);
+      }
+    }
+    if (py::isinstance<py::int_>(obj) || py::isinstance(obj, np_integer_)) {
       return Scalar(std::string(py::str(py::int_(py::reinterpret_borrow<py::object>(obj)))), false);
     }
-    if (py::isinstance<py::float_>(obj) || py::hasattr(obj, "__float__")) {
-      const double v = py::float_(py::reinterpret_borrow<py::object>(obj)).cast<double>();
+    if (py::isinstance(obj, real_)) {  // float, NumPy floats, Fraction; not complex
+      double v = 0.0;
+      try {
+        v = py::float_(py::reinterpret_borrow<py::object>(obj)).cast<double>();
+      } catch (const py::error_already_set&) {
+        Refuse(where, obj, "a real number outside the range of a double");
+      }
       if (std::isnan(v)) return Scalar(".nan", false);  // the loader's "must be finite"
       if (std::isinf(v)) return Scalar(v > 0 ? ".inf" : "-.inf", false);
-      char buf[40];
-      std::snprintf(buf, sizeof(buf), "%.17g", v);
-      return Scalar(buf, false);
+      return Scalar(std::string(py::repr(py::float_(v))), false);
     }
-    Throw<InputError>("Scene.from_dict", "field '", where, "' = ", std::string(py::repr(obj)),
-                      ": unsupported type ", std::string(py::str(obj.get_type().attr("__name__"))),
-                      "; use dict, list, str, number, bool or None");
+    Refuse(where, obj, StrCat("unsupported type ", std::string(py::str(obj.get_type().attr("__name__"))),
+                              "; use dict, list, str, a real number (int, float), bool or None"));
   }
 
+  std::string function_;
   yaml_emitter_t emitter_;
   std::string text_;
+  py::object np_bool_, np_integer_, np_ndarray_, real_, file_float_, file_int_;
 };
 
-std::string EmitYaml(const py::handle& document) { return YamlWriter().Document(document); }
+std::string EmitYaml(const py::handle& document, const std::string& function) {
+  return YamlWriter(function).Document(document);
+}
 
-// YAML node -> Python value: integers and decimals become int / float, true/false bool,
-// anything else a string (as the loader would read it).
+// YAML node -> Python value. A plain scalar the loader reads as a number (a decimal) becomes
+// an int or float: a plain one when str/repr write it back as the same text, else a
+// kneedyn._FileInt/_FileFloat that YamlWriter writes back in the file's spelling (1e-3,
+// 1.10, +5). true/false become bools; any other text (0x1F, nan, True) stays a string. So
+// editing a scene changes no field it did not touch.
 py::object FromYaml(const scene_detail::Field& node) {
   if (node.IsMap()) {
     py::dict d;
@@ -157,14 +241,22 @@ py::object FromYaml(const scene_detail::Field& node) {
   }
   if (!node.IsScalar()) return py::none();
   const std::string s = node.String();
+  double v = 0.0;
   if (node.IsPlainScalar() && !s.empty()) {  // quoted scalars stay strings
-    if (s == "true" || s == "True") return py::bool_(true);
-    if (s == "false" || s == "False") return py::bool_(false);
-    char* end = nullptr;
-    const long long i = std::strtoll(s.c_str(), &end, 10);
-    if (*end == '\0') return py::int_(i);
-    const double v = std::strtod(s.c_str(), &end);
-    if (*end == '\0') return py::float_(v);
+    if (s == "true") return py::bool_(true);
+    if (s == "false") return py::bool_(false);
+    if (scene_detail::PlainDecimal(s, &v)) {
+      if (s.find_first_of(".eE") == std::string::npos) {
+        const auto i = py::reinterpret_steal<py::object>(PyLong_FromString(s.c_str(), nullptr, 10));
+        if (!i) throw py::error_already_set();
+        if (std::string(py::str(i)) == s) return i;
+        return py::module_::import("kneedyn").attr("_FileInt")(i, s);  // "+5", "007", "-0"
+      } else {
+        const py::float_ f(v);
+        if (std::string(py::repr(f)) == s) return std::move(f);
+        return py::module_::import("kneedyn").attr("_FileFloat")(f, s);  // "1e-3", "1.10"
+      }
+    }
   }
   return py::str(s);
 }
@@ -289,14 +381,16 @@ PYBIND11_MODULE(_kneedyn, m) {
     return py::make_tuple(scene, FromYaml(document));
   }, py::arg("path"), "LoadScene(path) and the file's document as a dict");
 
-  m.def("parse_document", [](const py::dict& doc, const std::string& label, const std::string& base_dir) {
-    const std::string text = EmitYaml(doc);
+  m.def("parse_document", [](const py::dict& doc, const std::string& label, const std::string& base_dir,
+                             const std::string& function) {
+    const std::string text = EmitYaml(doc, function);
     py::gil_scoped_release release;
     return std::make_shared<Scene>(ParseScene(text, label, base_dir));
-  }, py::arg("document"), py::arg("label"), py::arg("base_dir"),
+  }, py::arg("document"), py::arg("label"), py::arg("base_dir"), py::arg("function") = "Scene.from_dict",
      "ParseScene on the YAML form of a dict (the CLI loader's rules and messages)");
 
-  m.def("to_yaml", [](const py::dict& doc) { return EmitYaml(doc); }, py::arg("document"));
+  m.def("to_yaml", [](const py::dict& doc, const std::string& function) { return EmitYaml(doc, function); },
+        py::arg("document"), py::arg("function") = "Scene.to_yaml");
 
   m.def("data_dir", &ReferenceDataDir, "directory of the reference data (KNEEDYN_DATA_DIR overrides)");
 
@@ -355,6 +449,7 @@ PYBIND11_MODULE(_kneedyn, m) {
                   const std::string& stabilization, const std::string& constraint_level,
                   const std::string& jacobian, double output_interval, const std::string& out_dir,
                   const std::string& linear_solver) {
+    if (!scene) Throw<InputError>("kneedyn.run", "scene = None: must be a compiled scene (kneedyn.Scene.compiled)");
     RunSettings settings;
     settings.formulation = formulation;
     settings.options.rtol = rtol;
@@ -401,10 +496,13 @@ PYBIND11_MODULE(_kneedyn, m) {
 
   // The sweep API of ensembles/: the same spec, design, runs and result files as
   // `kneedyn sweep SPEC --threads N --out DIR`, in process and without the GIL.
-  m.def("sweep", [](const std::string& spec_path, int threads, const std::string& out_dir) {
-    if (threads < 0 || threads > 4096) {
-      Throw<InputError>("kneedyn.sweep", "threads = ", threads, ": must be in [0, 4096] (0: all cores)");
+  m.def("sweep", [](const std::string& spec_path, long long threads_arg, const std::string& out_dir) {
+    if (threads_arg < 0 || threads_arg > 4096) {
+      Throw<InputError>("kneedyn.sweep", "threads = ", threads_arg, ": must be in [0, 4096] (0: all cores)");
     }
+    // As `kneedyn sweep --out`: an unusable directory is refused before the runs, not after.
+    if (!out_dir.empty()) CheckOutputDirectoryWritable("kneedyn.sweep", "out", out_dir);
+    int threads = static_cast<int>(threads_arg);
     if (threads == 0) threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
     ensembles::SweepTable table;
     {
@@ -451,6 +549,7 @@ PYBIND11_MODULE(_kneedyn, m) {
   m.def("sensitivity", [](std::shared_ptr<Scene> scene, const std::vector<std::string>& parameters,
                           const std::vector<std::string>& outcomes, double rtol, double atol, double fd_step,
                           const std::string& out_dir, const std::string& formulation) {
+    if (!scene) Throw<InputError>("kneedyn.sensitivity", "scene = None: must be a compiled scene (kneedyn.Scene.compiled)");
     using namespace sensitivity;
     SensitivityOptions options;
     options.formulation = formulation;

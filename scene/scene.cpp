@@ -22,6 +22,8 @@ ParameterSet ReadParameterSet(const Field& top, const std::string& base_dir) {
   const Field psf = top.Required("parameter_set");
   std::string ps_path = psf.String();
   if (ps_path.empty() || ps_path.size() > 1024) psf.Fail("must be a file path of 1 to 1024 characters");
+  // The OS would read the path only up to a NUL: another file than the one named.
+  if (ps_path.find('\0') != std::string::npos) psf.Fail("must be a file path without NUL characters");
   std::error_code ec;  // error_code overloads: a path the OS refuses is "not found", not a crash
   if (!fs::path(ps_path).is_absolute()) {
     const fs::path near_scene = fs::path(base_dir) / ps_path;

@@ -12,6 +12,7 @@
 #include <limits>
 #include <sstream>
 #include <unordered_map>
+#include <unordered_set>
 
 #include "solver/error.hpp"
 
@@ -245,26 +246,44 @@ struct YamlNodes {
   }
 };
 
+// Keys are compared when they are scalars that are not null (as Field::Find looks them up).
+bool ComparableKey(const YamlNodes& doc, int node) {
+  const yaml_node_t& n = doc.nodes[node - 1];
+  if (n.type != YAML_SCALAR_NODE) return false;
+  if (n.data.scalar.style != YAML_PLAIN_SCALAR_STYLE) return true;
+  const std::string_view v = doc.ScalarText(node);
+  return !(v.empty() || v == "~" || v == "null" || v == "Null" || v == "NULL");
+}
+
+// RepeatedKey for a large mapping (a 200,000-key one took 90 s pair by pair): a hash set of
+// the keys seen so far. Out of line, so that the pairwise loop of the usual few keys stays
+// inlined where RepeatedKey is called.
+[[gnu::noinline]] int RepeatedKeyHashed(const YamlNodes& doc, const int* children, size_t count) {
+  std::unordered_set<std::string_view> seen;
+  seen.reserve(count / 2);
+  for (size_t i = 0; i < count; i += 2) {
+    if (!ComparableKey(doc, children[i])) continue;
+    if (!seen.insert(doc.ScalarText(children[i])).second) return children[i];
+  }
+  return 0;
+}
+
 // The second of two keys of one mapping (`children`: keys and values in turn) that are the
 // same scalar, else 0. Keys are compared as Field::Find looks them up (the text of a scalar
 // that is not null), so that no value of a mapping can hide behind another: YAML wants a
 // mapping's keys unique, and a repeated key would otherwise be read as its first value
 // (polynomial coefficients, ligament parameters, a section given twice).
 int RepeatedKey(const YamlNodes& doc, const int* children, size_t count) {
-  const auto comparable = [&](int node) {
-    const yaml_node_t& n = doc.nodes[node - 1];
-    if (n.type != YAML_SCALAR_NODE) return false;
-    if (n.data.scalar.style != YAML_PLAIN_SCALAR_STYLE) return true;
-    const std::string_view v = doc.ScalarText(node);
-    return !(v.empty() || v == "~" || v == "null" || v == "Null" || v == "NULL");
-  };
-  // Texts first (the length decides most pairs), then whether the equal ones count.
+  constexpr size_t kPairwiseKeys = 32;  // scene mappings hold a few keys: no allocation
+  if (count / 2 > kPairwiseKeys) return RepeatedKeyHashed(doc, children, count);
+  // Texts first (the length decides most pairs), then whether the equal ones count; the
+  // first key equal to an earlier one, as RepeatedKeyHashed finds it.
   for (size_t i = 2; i < count; i += 2) {
     if (doc.nodes[children[i] - 1].type != YAML_SCALAR_NODE) continue;
     const std::string_view key = doc.ScalarText(children[i]);
     for (size_t j = 0; j < i; j += 2) {
       if (doc.nodes[children[j] - 1].type == YAML_SCALAR_NODE && doc.ScalarText(children[j]) == key &&
-          comparable(children[i]) && comparable(children[j])) {
+          ComparableKey(doc, children[i]) && ComparableKey(doc, children[j])) {
         return children[i];
       }
     }
@@ -444,37 +463,9 @@ std::string_view KeyText(const yaml_node_t* key, std::string_view fallback) {
 
 // yaml-cpp's convert<double>::decode: `stream >> std::noskipws >> v` must succeed and only
 // white space may follow; else its spellings of infinity and NaN.
-// Plain decimals ([+-] digits [. digits] [e|E [+-] digits], a digit before or after the
-// point) take std::from_chars: correctly rounded, as the stream's strtod, so the value is
-// the same bits at ~1/10 of the cost (a parameter set holds ~200 numbers). Anything else
-// (hex, inf, nan, trailing text, out of range) takes the stream.
-bool PlainDecimal(std::string_view text, double* v) {
-  size_t i = 0;
-  const size_t n = text.size();
-  auto digits = [&] {
-    const size_t from = i;
-    while (i < n && text[i] >= '0' && text[i] <= '9') ++i;
-    return i - from;
-  };
-  if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
-  size_t count = digits();
-  if (i < n && text[i] == '.') {
-    ++i;
-    count += digits();
-  }
-  if (count == 0) return false;
-  if (i < n && (text[i] == 'e' || text[i] == 'E')) {
-    ++i;
-    if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
-    if (digits() == 0) return false;
-  }
-  if (i != n) return false;
-  // from_chars takes '-' but not '+'.
-  const char* first = text.data() + (text[0] == '+' ? 1 : 0);
-  const auto [end, ec] = std::from_chars(first, text.data() + n, *v, std::chars_format::general);
-  return ec == std::errc() && end == text.data() + n;
-}
-
+// Plain decimals take PlainDecimal (std::from_chars: correctly rounded, as the stream's
+// strtod, so the value is the same bits at ~1/10 of the cost; a parameter set holds ~200
+// numbers). Anything else (hex, inf, nan, trailing text, out of range) takes the stream.
 bool YamlCppDouble(std::istringstream& stream, std::string_view text, double* v) {
   if (PlainDecimal(text, v)) return true;
   stream.clear();
@@ -522,6 +513,34 @@ bool YamlCppBool(std::string_view text, bool* v) {
 std::string Line(const yaml_node_t* n) { return n ? StrCat(":", n->start_mark.line + 1) : std::string(); }
 
 }  // namespace
+
+// Declared in yaml_field.hpp (the Python module types a document's scalars with it).
+bool PlainDecimal(std::string_view text, double* v) {
+  size_t i = 0;
+  const size_t n = text.size();
+  auto digits = [&] {
+    const size_t from = i;
+    while (i < n && text[i] >= '0' && text[i] <= '9') ++i;
+    return i - from;
+  };
+  if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
+  size_t count = digits();
+  if (i < n && text[i] == '.') {
+    ++i;
+    count += digits();
+  }
+  if (count == 0) return false;
+  if (i < n && (text[i] == 'e' || text[i] == 'E')) {
+    ++i;
+    if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
+    if (digits() == 0) return false;
+  }
+  if (i != n) return false;
+  // from_chars takes '-' but not '+'.
+  const char* first = text.data() + (text[0] == '+' ? 1 : 0);
+  const auto [end, ec] = std::from_chars(first, text.data() + n, *v, std::chars_format::general);
+  return ec == std::errc() && end == text.data() + n;
+}
 
 Field::Field(std::shared_ptr<const YamlDocument> doc, const yaml_node_t* node, std::string path)
     : doc_(std::move(doc)), node_(node), kind_(KindOf(node)), path_(std::move(path)) {}
@@ -736,6 +755,10 @@ Field ParseYaml(const std::string& text, const std::string& label) {
 }
 
 std::string ReadInputFile(const std::string& path, const char* what, const InputFileRule& rule) {
+  // The OS would read the path only up to the NUL: another file than the one named.
+  if (path.find('\0') != std::string::npos) {
+    Throw<InputError>(rule.function, what, " path '", EchoPath(path), "' holds a NUL character, which no file name can hold");
+  }
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
   if (ec || !fs::exists(st)) {

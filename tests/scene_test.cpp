@@ -418,5 +418,45 @@ TEST(YamlReader, EachByteAtEachWordOffsetIsKeptOrReplacedByTheRule) {
   }
 }
 
+// A path holding a NUL names another file to the OS (it reads up to the NUL): refused, for
+// a scene file and for a scene's parameter_set.
+TEST(Scene, PathsWithNulAreRefused) {
+  const std::string scene = ScenesDir() + "/chapter_impact.yaml";
+  try {
+    (void)LoadScene(scene + std::string("\0junk", 5));
+    ADD_FAILURE() << "a path with a NUL was read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("chapter_impact.yaml?junk' holds a NUL character"), std::string::npos)
+        << e.what();
+  }
+  SceneFields f = ValidFields();
+  f["parameter_set"] = "\"../chapter_knee.yaml\\0junk\"";  // YAML's escape for NUL
+  ExpectRefused(f, "nul.yaml", {"field 'parameter_set' = '../chapter_knee.yaml?junk'", "without NUL characters"});
+}
+
+// The repeated-key check (a hash set above 32 keys, since a mapping of 200,000 keys took 90 s
+// pair by pair): the second key of a text is named, wherever it is; quoted and plain
+// spellings of one text are the same key; null keys (~, empty) are not compared.
+TEST(YamlReader, RepeatedKeyIsTheSecondOfItsTextInALargeMapping) {
+  std::string doc;
+  for (int i = 0; i < 50000; ++i) doc += "k" + std::to_string(i) + ": 1\n";
+  EXPECT_NO_THROW(scene_detail::ParseYamlDocument(doc, "doc", "Test"));
+  try {
+    (void)scene_detail::ParseYamlDocument(doc + "\"k17\": 2\n", "doc", "Test");
+    ADD_FAILURE() << "a repeated key was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("doc:50001: key 'k17' given twice"), std::string::npos) << e.what();
+  }
+  // Null keys are not compared, in a few keys (pair by pair) and in many (a hash set).
+  EXPECT_NO_THROW(scene_detail::ParseYamlDocument("~: 1\n? \n: 2\nnull: 3\n", "doc", "Test"));
+  EXPECT_NO_THROW(scene_detail::ParseYamlDocument(doc + "~: 1\n? \n: 2\nnull: 3\n", "doc", "Test"));
+  try {
+    (void)scene_detail::ParseYamlDocument("a: {x: 1, '~': 2, y: 3, \"~\": 4}\n", "doc", "Test");
+    ADD_FAILURE() << "a repeated quoted key was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("key 'a.~' given twice"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace kneedyn

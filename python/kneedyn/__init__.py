@@ -18,6 +18,7 @@ several scenes at once. See docs/python.md.
 """
 import copy as _copy
 import json as _json
+import numbers as _numbers
 import os as _os
 
 import numpy as _np
@@ -27,6 +28,33 @@ from ._kneedyn import Error, InputError, SolverError, CompiledScene, Problem
 
 __all__ = ["Problem", "sensitivity", "sweep", "SweepResult", "Scene", "Result", "Trajectory", "Event", "load_scene", "run", "formulations",
            "data_dir", "scene_path", "build_manifest", "Error", "InputError", "SolverError"]
+
+
+class _FileFloat(float):
+    """A number read from a scene file in a spelling repr() would not give (`1e-3`, `1.10`):
+    a float in every use, written back in the file's own spelling (YamlWriter in
+    kneedyn_module.cpp), so that editing a scene changes no field it did not touch."""
+
+    def __new__(cls, value, text):
+        number = super().__new__(cls, value)
+        number.text = text
+        return number
+
+    def __getnewargs__(self):  # copy.deepcopy and pickle rebuild it with its text
+        return (float(self), self.text)
+
+
+class _FileInt(int):
+    """An integer read from a scene file in a spelling str() would not give (`+5`, `007`);
+    as _FileFloat."""
+
+    def __new__(cls, value, text):
+        number = super().__new__(cls, value)
+        number.text = text
+        return number
+
+    def __getnewargs__(self):
+        return (int(self), self.text)
 
 
 def data_dir():
@@ -43,6 +71,7 @@ def build_manifest():
 
 def scene_path(name):
     """Path of a scene shipped in reference-data/scenes, e.g. scene_path('chapter_impact')."""
+    name = _text(name, "scene_path", "name", "a scene's name (str), e.g. 'chapter_impact'")
     return _os.path.join(data_dir(), "scenes", name if name.endswith(".yaml") else name + ".yaml")
 
 
@@ -57,6 +86,17 @@ class Scene:
     """A scene: its document (dict) and the loader's validated form of it."""
 
     def __init__(self, document, compiled, label, base_dir):
+        # A Scene without its compiled form (Scene(doc, None, ...)) crashed run() and
+        # sensitivity(): build one with load_scene() or Scene.from_dict().
+        if not isinstance(document, dict):
+            raise InputError("Scene(): document = %s (%s): must be a dict"
+                             % (_echo(document), type(document).__name__))
+        if not isinstance(compiled, CompiledScene):
+            raise InputError("Scene(): compiled = %s (%s): must be a kneedyn.CompiledScene; build a Scene with "
+                             "kneedyn.load_scene() or kneedyn.Scene.from_dict()"
+                             % (_echo(compiled), type(compiled).__name__))
+        label = _text(label, "Scene", "label")
+        base_dir = _file_path(base_dir, "Scene", "base_dir")
         self._doc = document
         self._compiled = compiled
         self._label = label
@@ -68,10 +108,11 @@ class Scene:
         """Validates a scene document with the CLI's loader. A relative parameter_set is
         looked up under base_dir (default: the working directory), then under data_dir()."""
         if not isinstance(document, dict):
-            raise InputError("Scene.from_dict(): document = %r: must be a dict" % (document,))
+            raise InputError("Scene.from_dict(): document = %s: must be a dict" % _echo(document))
+        label = _text(label, "Scene.from_dict", "label")
+        base = _os.path.abspath(_os.getcwd() if base_dir is None else _file_path(base_dir, "Scene.from_dict", "base_dir"))
         doc = _copy.deepcopy(document)
-        base = _os.path.abspath(base_dir if base_dir is not None else _os.getcwd())
-        return cls(doc, _kneedyn.parse_document(doc, label, base), label, base)
+        return cls(doc, _kneedyn.parse_document(doc, label, base, "Scene.from_dict"), label, base)
 
     def copy(self):
         return Scene(_copy.deepcopy(self._doc), self._compiled, self._label, self._base_dir)
@@ -96,7 +137,7 @@ class Scene:
 
     @ligaments.setter
     def ligaments(self, names):
-        self.update({"ligaments": list(names)})
+        self.update({"ligaments": _names(names, "ligaments", "Scene.ligaments")})
 
     @property
     def ligament_parameters(self):
@@ -129,42 +170,64 @@ class Scene:
         return _copy.deepcopy(self._doc)
 
     def to_yaml(self):
-        """The document as YAML text (what the loader reads; numbers with 17 digits)."""
-        return _kneedyn.to_yaml(self._doc)
+        """The document as YAML text (what the loader reads; floats as Python's repr, the
+        shortest text that reads back as the same double)."""
+        return _kneedyn.to_yaml(self._doc, "Scene.to_yaml")
 
     def write(self, path):
         """Writes the document as a scene file the CLI can run. A relative parameter_set
-        is made absolute so that the file works from any directory."""
+        is made absolute so that the file works from any directory. A path that cannot be
+        written raises InputError, and nothing is written."""
+        # Checked before open(): open(True, "w") wrote to file descriptor 1 and closed stdout.
+        path = _file_path(path, "Scene.write", "path")
         doc = _copy.deepcopy(self._doc)
         ps = doc.get("parameter_set")
         if isinstance(ps, str) and not _os.path.isabs(ps):
             near = _os.path.join(self._base_dir, ps)
             doc["parameter_set"] = near if _os.path.exists(near) else _os.path.join(data_dir(), ps)
-        with open(path, "w") as f:
-            f.write(_kneedyn.to_yaml(doc))
+        text = _kneedyn.to_yaml(doc, "Scene.write")  # before the file is opened: a refusal writes nothing
+        try:
+            with open(path, "w", encoding="utf-8") as f:
+                f.write(text)
+        except OSError as e:
+            raise InputError("Scene.write(): path = %s: cannot be written (%s)"
+                             % (_echo(path), e.strerror or e)) from None
 
     # --- changes (validated by the loader; atomic) ----------------------------------
     def update(self, changes):
         """Deep-merges `changes` into the document (a value None deletes the key) and
         validates the result; on error the scene is unchanged."""
+        if not isinstance(changes, dict):
+            raise InputError("Scene.update(): changes = %s (%s): must be a dict of scene keys (a value None "
+                             "deletes the key)" % (_echo(changes), type(changes).__name__))
         doc = _copy.deepcopy(self._doc)
         _merge(doc, changes)
         label = self._label if self._label.endswith("(modified in Python)") \
             else self._label + " (modified in Python)"
-        compiled = _kneedyn.parse_document(doc, label, self._base_dir)
+        compiled = _kneedyn.parse_document(doc, label, self._base_dir, "Scene.update")
         self._doc, self._compiled, self._label = doc, compiled, label
         return self
 
     def remove_ligaments(self, *patterns):
-        """Removes every element whose name contains one of the patterns (e.g. 'ACL');
-        returns the removed names. A pattern that matches nothing raises InputError."""
+        """Removes every element whose name contains one of the patterns (e.g. 'ACL'; a list
+        of patterns counts as its items); returns the removed names. A pattern that matches
+        nothing, an empty pattern (it would match every element) or one that is not a str
+        raises InputError."""
+        flat = []
+        for p in patterns:
+            flat += list(p) if isinstance(p, (list, tuple)) else [p]
+        for p in flat:
+            if not isinstance(p, str) or not p:
+                raise InputError("Scene.remove_ligaments(): pattern %s (%s): must be a non-empty str (part of an "
+                                 "element's name, e.g. 'ACL'); to remove every element set scene.ligaments = []"
+                                 % (_echo(p), type(p).__name__))
         names = self.ligaments
         removed = []
-        for p in patterns:
+        for p in flat:
             hit = [n for n in names if p in n]
             if not hit:
-                raise InputError("Scene.remove_ligaments(): pattern '%s' matches no element; the "
-                                 "scene has: %s" % (p, ", ".join(names)))
+                raise InputError("Scene.remove_ligaments(): pattern %s matches no element; the "
+                                 "scene has: %s" % (_echo(p), ", ".join(names)))
             removed += [n for n in hit if n not in removed]
         self.update({"ligaments": [n for n in names if n not in removed]})
         return removed
@@ -218,45 +281,111 @@ def _merge(doc, changes):
             doc[k] = _copy.deepcopy(v)
 
 
+def _echo(value, limit=80):
+    """A value as a message shows it: its repr (NUL, surrogates escaped), cut at `limit`."""
+    try:
+        text = repr(value)
+    except Exception:  # a repr that raises must not hide the refusal
+        text = "<%s object>" % type(value).__name__
+    return text if len(text) <= limit else text[:limit] + "... (%d characters)" % len(text)
+
+
 def _file_path(value, function, argument, expected="a path (str or os.PathLike)"):
     """A str, bytes or os.PathLike path as str; anything else raises InputError naming it
-    (before, str() of it was taken as a file name: "cannot open scene file 'None'")."""
+    (before, str() of it was taken as a file name: "cannot open scene file 'None'"), as
+    does a path with a NUL (the OS reads up to it: another file) or one that is not UTF-8
+    (the C++ side takes UTF-8 text)."""
     if isinstance(value, (str, bytes, _os.PathLike)):
-        return _os.fsdecode(value)
+        try:
+            path = _os.fsdecode(value)
+        except TypeError:  # a PathLike whose __fspath__ gives neither str nor bytes
+            path = None
+        if isinstance(path, str):
+            if "\0" in path:
+                raise InputError("%s(): %s = %s: a path cannot hold a NUL character (the system would cut it "
+                                 "there)" % (function, argument, _echo(value, 256)))
+            try:
+                path.encode("utf-8")
+            except UnicodeEncodeError:
+                raise InputError("%s(): %s = %s: must be a path that decodes as UTF-8"
+                                 % (function, argument, _echo(value, 256))) from None
+            return path
     hint = " (a scene document: kneedyn.Scene.from_dict)" if isinstance(value, dict) else ""
-    text = repr(value)
-    if len(text) > 80:
-        text = text[:80] + "..."
     raise InputError("%s(): %s = %s (%s): must be %s%s"
-                     % (function, argument, text, type(value).__name__, expected, hint))
+                     % (function, argument, _echo(value), type(value).__name__, expected, hint))
+
+
+def _text(value, function, argument, expected="a str"):
+    """A str option (a formulation's or integrator's name, a label) that the C++ side can take
+    whole: no NUL (it cut the message there), no lone surrogate; else InputError naming it."""
+    if not isinstance(value, str):
+        raise InputError("%s(): %s = %s (%s): must be %s" % (function, argument, _echo(value), type(value).__name__,
+                                                              expected))
+    if "\0" in value:
+        raise InputError("%s(): %s = %s: must not hold a NUL character" % (function, argument, _echo(value)))
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:
+        raise InputError("%s(): %s = %s: must be text that encodes as UTF-8 (it holds a lone surrogate)"
+                         % (function, argument, _echo(value))) from None
+    return value
 
 
 def _integer(value, function, argument):
     """A whole number that fits the C++ side's int64, else InputError naming it (before,
     max_steps=1e20 reached pybind11, whose TypeError listed the signature, not the argument).
-    The C++ side then applies its own range (e.g. max_steps in [1, 1e8])."""
-    try:
-        as_int = int(value)
-        whole = as_int == value
-    except (TypeError, ValueError, OverflowError):
-        whole = False
+    bool, str and arrays are refused (True was taken as 1). The C++ side then applies its own
+    range (e.g. max_steps in [1, 1e8])."""
+    whole = False
+    if isinstance(value, _numbers.Real) and not isinstance(value, (bool, _np.bool_)):
+        try:
+            as_int = int(value)
+            whole = as_int == value
+        except (TypeError, ValueError, OverflowError):
+            pass
     if not whole or not -2**63 <= as_int < 2**63:
-        raise InputError("%s(): %s = %r: must be a whole number in the range of a 64-bit integer"
-                         % (function, argument, value))
+        raise InputError("%s(): %s = %s: must be a whole number in the range of a 64-bit integer"
+                         % (function, argument, _echo(value)))
     return as_int
 
 
-def _names(value, argument):
+def _real(value, function, argument):
+    """A real number as float (int, float, NumPy real scalars, Fraction), else InputError naming
+    it: bool (True was 1.0), str ("1e-6" was parsed), bytes, complex and arrays are refused, as
+    is a number beyond a double's range (10**400)."""
+    if isinstance(value, _numbers.Real) and not isinstance(value, (bool, _np.bool_)):
+        try:
+            return float(value)
+        except (TypeError, ValueError, OverflowError):
+            raise InputError("%s(): %s = %s: must be a real number within the range of a double"
+                             % (function, argument, _echo(value))) from None
+    raise InputError("%s(): %s = %s (%s): must be a real number (int or float)"
+                     % (function, argument, _echo(value), type(value).__name__))
+
+
+def _names(value, argument, function="sensitivity"):
     """A list of names from any iterable of str; a single str is refused (list() of it gave its
-    letters: "'P' is not a parameter of this scene")."""
+    letters: "'P' is not a parameter of this scene"), as is anything not iterable."""
     if isinstance(value, (str, bytes)):
-        raise InputError("sensitivity(): %s = %r: must be a list of names, e.g. [%r]"
-                         % (argument, value[:80], value[:80]))
-    names = list(value)
+        raise InputError("%s(): %s = %s: must be a list of names, e.g. [%s]"
+                         % (function, argument, _echo(value), _echo(value)))
+    try:
+        names = list(value)
+    except TypeError:
+        raise InputError("%s(): %s = %s (%s): must be a list of names (str)"
+                         % (function, argument, _echo(value), type(value).__name__)) from None
     for n in names:
         if not isinstance(n, str):
-            raise InputError("sensitivity(): %s: %r (%s) is not a name (str)" % (argument, n, type(n).__name__))
+            raise InputError("%s(): %s: %s (%s) is not a name (str)" % (function, argument, _echo(n), type(n).__name__))
+        _text(n, function, argument + " item")
     return names
+
+
+def _scene(scene, function):
+    """A kneedyn.Scene, or one loaded from a scene file's path."""
+    if isinstance(scene, Scene):
+        return scene
+    return load_scene(_file_path(scene, function, "scene", "a kneedyn.Scene or a scene file's path"))
 
 
 def load_scene(path):
@@ -346,6 +475,7 @@ class Result:
 
     def event(self, prefix):
         """First event whose name starts with prefix (e.g. 'liftoff'), or None."""
+        prefix = _text(prefix, "Result.event", "prefix", "a str, e.g. 'liftoff'")
         return next((e for e in self.events if e.name.startswith(prefix)), None)
 
     def __repr__(self):
@@ -370,13 +500,14 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
     CLI's files (trajectory.csv, trajectory.sto, summary.json) are written there by the
     CLI's writer. The fields of `Result.summary` are those of summary.json, listed in
     docs/outputs.md (:ref:`summary.json <outputs.md#summaryjson-schema_version-2>`)."""
-    if not isinstance(scene, Scene):
-        scene = load_scene(_file_path(scene, "run", "scene", "a kneedyn.Scene or a scene file's path"))
-    out = _kneedyn.run(scene.compiled, formulation, float(rtol), float(atol), integrator,
-                       float(step), float(max_step), _integer(max_steps, "run", "max_steps"), stabilization,
-                       constraint_level, jacobian, float(output_interval),
+    scene = _scene(scene, "run")
+    out = _kneedyn.run(scene.compiled, _text(formulation, "run", "formulation"), _real(rtol, "run", "rtol"),
+                       _real(atol, "run", "atol"), _text(integrator, "run", "integrator"), _real(step, "run", "step"),
+                       _real(max_step, "run", "max_step"), _integer(max_steps, "run", "max_steps"),
+                       _text(stabilization, "run", "stabilization"), _text(constraint_level, "run", "constraint_level"),
+                       _text(jacobian, "run", "jacobian"), _real(output_interval, "run", "output_interval"),
                        "" if out is None else _file_path(out, "run", "out"),
-                       linear_solver)
+                       _text(linear_solver, "run", "linear_solver"))
     return Result(_json.loads(out["summary_json"]), Trajectory(out["columns"], out["data"]))
 
 
@@ -420,8 +551,9 @@ def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0
     `end_reason`, `steps`, and with fd_step > 0 `fd_derivatives` (central differences with
     that relative step). `out` also writes sensitivity.csv and sensitivity.json. Unknown
     names raise InputError naming the nearest valid name; a run with an impact SolverError."""
-    if not isinstance(scene, Scene):
-        scene = load_scene(_file_path(scene, "sensitivity", "scene", "a kneedyn.Scene or a scene file's path"))
+    scene = _scene(scene, "sensitivity")
     return _kneedyn.sensitivity(scene.compiled, _names(parameters, "parameters"), _names(outcomes, "outcomes"),
-                                float(rtol), float(atol), float(fd_step),
-                                "" if out is None else _file_path(out, "sensitivity", "out"), str(formulation))
+                                _real(rtol, "sensitivity", "rtol"), _real(atol, "sensitivity", "atol"),
+                                _real(fd_step, "sensitivity", "fd_step"),
+                                "" if out is None else _file_path(out, "sensitivity", "out"),
+                                _text(formulation, "sensitivity", "formulation"))

@@ -13,6 +13,7 @@ What it validates:
 What it does not: accuracy of the physics (the C++ suites do that).
 """
 import concurrent.futures
+import copy
 import csv
 import io
 import json
@@ -175,7 +176,7 @@ def chapter_doc():
 
 
 @pytest.mark.parametrize("change,field,value", [
-    ({"pulse": {"amplitude_N": -5.0}}, "pulse.amplitude_N", "-5"),
+    ({"pulse": {"amplitude_N": -5.0}}, "pulse.amplitude_N", "-5.0"),  # floats as repr(): -5.0 stays -5.0
     ({"pulse": {"shape": "square"}}, "pulse.shape", "square"),
     ({"end": {"flexion_deg": -10}}, "end.flexion_deg", "-10"),
     ({"ligaments": ["ACL anterior", "no such ligament"]}, "ligaments[1]", "no such ligament"),
@@ -192,7 +193,7 @@ def test_bad_scene_raises_loader_message(change, field, value):
     assert scene.to_dict() == before  # unchanged
     with pytest.raises(ValueError):  # InputError is a ValueError
         doc = chapter_doc()
-        kneedyn.Scene(doc, None, "", "").update(change)
+        kneedyn.Scene.from_dict(doc, base_dir=os.path.dirname(CHAPTER)).update(change)
 
 
 def test_bad_scene_message_is_the_clis():
@@ -517,3 +518,250 @@ def test_patella_setters_refuse_a_scene_without_patella():
     with pytest.raises(kneedyn.InputError, match="magnitude_N"):
         patella.set_quadriceps(magnitude_N=-5.0)
     assert patella.patella["quadriceps"]["magnitude_N"] == 50.0  # unchanged
+
+
+# --- bad input from Python: refused with InputError, never a crash, a hang or a silent change ---
+
+def run_isolated(code):
+    """Runs `code` in a fresh interpreter (after `import kneedyn` and s = the chapter scene), so
+    that a crash it would cause fails the test instead of killing pytest; returns stdout."""
+    prelude = "import kneedyn, numpy as np\nCH = %r\ns = kneedyn.load_scene(CH)\n" % CHAPTER
+    p = subprocess.run([sys.executable, "-c", prelude + code], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, "exit %d (a negative code is a signal: crashed)\n%s" % (p.returncode, p.stderr)
+    return p.stdout
+
+
+def test_a_document_that_contains_itself_is_refused_not_a_crash():
+    # Before: the YAML writer recursed until the stack overflowed (SIGSEGV).
+    out = run_isolated("""
+def refused(f, *a, **k):
+    try:
+        f(*a, **k)
+        print("ACCEPTED")
+    except kneedyn.InputError as e:
+        print(e)
+d = {}; d["a"] = d
+refused(kneedyn.Scene.from_dict, d)
+g = {}; g["x"] = g
+refused(s.update, {"gravity": g})
+l = []; l.append(l)
+refused(s.set_pulse, direction_T=l)
+""").splitlines()
+    assert len(out) == 3 and "ACCEPTED" not in out, out
+    assert out[0].startswith("Scene.from_dict(): field 'a.a.a.") and "nesting depth 65 exceeds the limit of 64" in out[0]
+    assert out[1].startswith("Scene.update(): field 'gravity.x.x.") and "limit of 64" in out[1]
+    assert out[2].startswith("Scene.update(): field 'pulse.direction_T[0][0]") and "limit of 64" in out[2]
+
+
+def test_a_scene_without_its_compiled_form_is_refused_not_a_crash():
+    # Before: Scene(doc, None, ...) was accepted, and run()/sensitivity() dereferenced the
+    # null scene (SIGSEGV).
+    out = run_isolated("""
+for call in (lambda: kneedyn.Scene(s.to_dict(), None, "", ""),
+             lambda: kneedyn.run(s, "dae-reduced"),
+             lambda: kneedyn.sensitivity(s, ["mass"], ["liftoff_time_s"])):
+    try:
+        call()
+        print("ACCEPTED")
+    except kneedyn.InputError as e:
+        print(e)
+    s._compiled = None  # as Scene(doc, None, ...) was before: no compiled scene
+""").splitlines()
+    assert out[0].startswith("Scene(): compiled = None (NoneType): must be a kneedyn.CompiledScene"), out
+    assert out[1].startswith("kneedyn.run(): scene = None: must be a compiled scene"), out
+    assert out[2].startswith("kneedyn.sensitivity(): scene = None: must be a compiled scene"), out
+
+
+def test_a_document_larger_than_a_scene_file_is_refused_naming_the_limit():
+    # Before: 200,000 keys reached the loader, whose duplicate-key check compared all pairs
+    # (90 s), then refused the unknown key. A document is held to a scene file's size.
+    s = kneedyn.load_scene(CHAPTER)
+    before = s.to_dict()
+    with pytest.raises(kneedyn.InputError, match=r"Scene.update\(\): the document's YAML text passes 1048576 bytes "
+                                                 r"at field 'extra.k\d+'; the limit is 1048576 bytes"):
+        s.update({"extra": {"k%d" % i: i for i in range(200000)}})
+    assert s.to_dict() == before
+    # A list shared at every level (2**40 items written) is stopped by the same limit.
+    shared = [1.0]
+    for _ in range(40):
+        shared = [shared, shared]
+    with pytest.raises(kneedyn.InputError, match="the limit is 1048576 bytes"):
+        s.update({"extra": shared})
+
+
+def test_numpy_values_keep_their_type():
+    s = kneedyn.load_scene(CHAPTER)
+    # Before: np.array(1.9) had __index__ and was written as the integer 1.
+    s.set_ligament_stiffness_scale(np.array(1.9))
+    assert "ligament_stiffness_scale: 1.9\n" in s.to_yaml()
+    s.set_pulse(amplitude_N=np.float32(80.5), duration_s=np.float64(0.12))
+    assert s.pulse["amplitude_N"] == 80.5 and s.pulse["duration_s"] == 0.12
+    # A 1-D array is a list (a direction), not a number: a 1-element one is refused where a
+    # number is wanted (before: np.array([80.7]) became 80).
+    s.set_pulse(direction_T=np.array([0., -1., 0.]))
+    assert "- -1.0" in s.to_yaml()
+    with pytest.raises(kneedyn.InputError, match=r"field 'pulse.amplitude_N': must be a number"):
+        s.set_pulse(amplitude_N=np.array([80.7]))
+    with pytest.raises(kneedyn.InputError, match=r"field 'pulse.direction_T' = .*shape \(3, 1\).*1-D array"):
+        s.set_pulse(direction_T=np.zeros((3, 1)))
+    # np.bool_ is a boolean (before: a number, refused by the loader or read as 0/1).
+    s.update({"gravity": {"enabled": np.bool_(False)}})
+    assert "enabled: false" in s.to_yaml()
+    # Complex numbers are refused, not cut to their real part.
+    for value in (1 + 2j, np.complex128(80 + 1j), np.array(80 + 1j)):
+        with pytest.raises(kneedyn.InputError, match=r"field 'pulse.amplitude_N' = .*real number"):
+            s.set_pulse(amplitude_N=value)
+
+
+def test_text_fields_of_a_loaded_scene_survive_an_edit():
+    # Before: any text strtod/strtoll read became a number, written back with 17 digits.
+    scene_text = open(CHAPTER).read()
+    ps = os.path.abspath(os.path.join(os.path.dirname(CHAPTER), kneedyn.load_scene(CHAPTER).to_dict()["parameter_set"]))
+    # A decimal is a number (the loader reads it as one) whatever its spelling; text the
+    # loader does not read as a number stays a string.
+    for desc, value in (("1.10", 1.1), ("0x1F", "0x1F"), ("nan", "nan"), ("+5", 5), ("1e-6", 1e-6), ("007", 7),
+                        ("123456789012345678901234567890", 123456789012345678901234567890), ("0.1", 0.1),
+                        ("80.0", 80.0), ("7", 7), ("True", "True"), ("true", True)):
+        doc = kneedyn.load_scene(CHAPTER).to_dict()
+        doc["parameter_set"] = ps
+        doc["description"] = "PLACEHOLDER"
+        path = os.path.join(OUT, "text_fields.yaml")
+        os.makedirs(OUT, exist_ok=True)
+        with open(path, "w") as f:
+            f.write(kneedyn._kneedyn.to_yaml(doc).replace("PLACEHOLDER", desc))
+        s = kneedyn.load_scene(path)
+        got = s.to_dict()["description"]
+        assert got == value and isinstance(got, type(value)), (desc, got)
+        if not isinstance(value, bool):
+            s.update({})
+            assert s.compiled.description == desc, (desc, s.compiled.description)
+            copied = copy.deepcopy(s.to_dict())  # the spelling survives copies (Scene keeps deep copies)
+            assert "description: %s\n" % desc in kneedyn._kneedyn.to_yaml(copied), desc
+            if isinstance(value, float):
+                assert got * 2 == value * 2 and type(got * 2) is float  # arithmetic gives plain numbers
+    # Shipped scenes' 1e-3-like values are numbers, written back as spelled.
+    for name in ("hard/guess_offset_1e-3mm", "anatomical_surfaces"):
+        s = kneedyn.load_scene(kneedyn.scene_path(name))
+        spelled = [(k, v) for k, v in _leaves(s.to_dict()) if isinstance(v, (kneedyn._FileFloat, kneedyn._FileInt))]
+        assert spelled, name
+        text = s.set_pulse(amplitude_N=90.0).to_yaml()  # an edit elsewhere
+        for key, v in spelled:
+            assert "%s: %s\n" % (key, v.text) in text, (name, key, v.text)
+    assert scene_text  # the shipped scene itself is untouched
+    # Floats are written as the shortest text that reads back exactly.
+    s = kneedyn.load_scene(CHAPTER).set_pulse(duration_s=0.1 + 0.02)
+    assert "duration_s: 0.12000000000000001" in s.to_yaml()
+    assert "interval_s: 0.005\n" in s.to_yaml()
+
+
+def _leaves(node, key=None):
+    """(key, value) of every scalar of a document (list items under their list's key)."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield from _leaves(v, k)
+    elif isinstance(node, list):
+        for v in node:
+            yield from _leaves(v, key)
+    else:
+        yield key, node
+
+
+def test_paths_with_nul_are_refused():
+    # Before: the path was cut at the NUL and another file read (or a directory made).
+    spec = os.path.join(OUT, "nul_spec.yaml")
+    for call, match in (
+            (lambda: kneedyn.load_scene(CHAPTER + "\0junk"), r"load_scene\(\): path = '.*\\x00junk': a path cannot hold a NUL"),
+            (lambda: kneedyn.run(CHAPTER + "\0junk", "dae-reduced"), r"run\(\): scene = .*NUL"),
+            (lambda: kneedyn.sweep(spec + "\0junk"), r"sweep\(\): spec_path = .*NUL"),
+            (lambda: kneedyn.sweep(spec, out=os.path.join(OUT, "swout\0junk")), r"sweep\(\): out = .*NUL"),
+            (lambda: kneedyn.load_scene(CHAPTER).update({"parameter_set": "../chapter_knee.yaml\0junk"}),
+             r"field 'parameter_set' = '../chapter_knee.yaml\?junk': must be a file path without NUL")):
+        with pytest.raises(kneedyn.InputError, match=match):
+            call()
+    assert not os.path.exists(os.path.join(OUT, "swout"))
+
+
+@pytest.mark.parametrize("call,match", [
+    (lambda s: kneedyn.run(s, "dae-reduced", max_steps=True), r"run\(\): max_steps = True: must be a whole number"),
+    (lambda s: kneedyn.run(s, "dae-reduced", output_interval=True), r"run\(\): output_interval = True \(bool\): must be a real number"),
+    (lambda s: kneedyn.run(s, "dae-reduced", rtol="1e-6"), r"run\(\): rtol = '1e-6' \(str\): must be a real number"),
+    (lambda s: kneedyn.run(s, "dae-reduced", rtol=np.array([1e-6])), r"run\(\): rtol = array\(\[1.e-06\]\) \(ndarray\)"),
+    (lambda s: kneedyn.run(s, rtol=None), r"run\(\): rtol = None \(NoneType\): must be a real number"),
+    (lambda s: kneedyn.run(s, rtol=1 + 0j), r"run\(\): rtol = \(1\+0j\) \(complex\): must be a real number"),
+    (lambda s: kneedyn.run(s, rtol=10**400), r"run\(\): rtol = 1000.*: must be a real number within the range of a double"),
+    (lambda s: kneedyn.sensitivity(s, ["mass"], ["liftoff_time_s"], rtol="1e-8"), r"sensitivity\(\): rtol = '1e-8' \(str\)"),
+    (lambda s: kneedyn.sweep("x.yaml", threads=True), r"sweep\(\): threads = True: must be a whole number"),
+    (lambda s: kneedyn.sweep("x.yaml", threads=2**31), r"sweep\(\): threads = 2147483648: must be in \[0, 4096\]"),
+    (lambda s: kneedyn.run(s, None), r"run\(\): formulation = None \(NoneType\): must be a str"),
+    (lambda s: kneedyn.run(s, integrator=None), r"run\(\): integrator = None"),
+    (lambda s: kneedyn.run(s, jacobian=None), r"run\(\): jacobian = None"),
+    (lambda s: kneedyn.run(s, linear_solver=None), r"run\(\): linear_solver = None"),
+    (lambda s: kneedyn.run(s, stabilization=1), r"run\(\): stabilization = 1 \(int\): must be a str"),
+    (lambda s: kneedyn.run(s, "nope\0x"), r"run\(\): formulation = 'nope\\x00x': must not hold a NUL character"),
+    (lambda s: kneedyn.Scene.from_dict(s.to_dict(), label=None), r"Scene.from_dict\(\): label = None"),
+    (lambda s: kneedyn.load_scene(b"/tmp/\xff.yaml"), r"load_scene\(\): path = b'/tmp/\\xff.yaml': must be a path that decodes as UTF-8"),
+    (lambda s: kneedyn.run(CHAPTER, out=b"/tmp/\xff"), r"run\(\): out = b'/tmp/\\xff'"),
+    (lambda s: kneedyn.sweep(b"/tmp/\xfe"), r"sweep\(\): spec_path = b'/tmp/\\xfe'"),
+    (lambda s: kneedyn.sensitivity(s, ["mass"], ["liftoff_time_s"], out=b"/tmp/\xfe"), r"sensitivity\(\): out = b'/tmp/\\xfe'"),
+    (lambda s: s.update({"description": "a\udcffb"}), r"Scene.update\(\): field 'description' = 'a\\udcffb': .*lone surrogate"),
+    (lambda s: s.update(None), r"Scene.update\(\): changes = None \(NoneType\): must be a dict"),
+    (lambda s: s.update([("name", "x")]), r"Scene.update\(\): changes = \[\('name', 'x'\)\] \(list\): must be a dict"),
+    (lambda s: kneedyn.scene_path(None), r"scene_path\(\): name = None \(NoneType\): must be a scene's name"),
+    (lambda s: kneedyn.scene_path(b"x"), r"scene_path\(\): name = b'x' \(bytes\)"),
+    (lambda s: setattr(s, "ligaments", "LCL"), r"Scene.ligaments\(\): ligaments = 'LCL': must be a list of names"),
+    (lambda s: setattr(s, "ligaments", None), r"Scene.ligaments\(\): ligaments = None \(NoneType\): must be a list"),
+    (lambda s: kneedyn.sensitivity(s, None, ["liftoff_time_s"]), r"sensitivity\(\): parameters = None \(NoneType\)"),
+    (lambda s: kneedyn.Result({"events": []}, None).event(None), r"Result.event\(\): prefix = None \(NoneType\)"),
+    (lambda s: s.remove_ligaments(""), r"remove_ligaments\(\): pattern '' \(str\): must be a non-empty str"),
+    (lambda s: s.remove_ligaments(5), r"remove_ligaments\(\): pattern 5 \(int\)"),
+    (lambda s: s.remove_ligaments(None), r"remove_ligaments\(\): pattern None \(NoneType\)"),
+])
+def test_bad_arguments_name_the_argument(call, match):
+    # Before: silently accepted (True as 1, "" matching every ligament), pybind11's
+    # "incompatible function arguments", or a TypeError naming no argument.
+    s = kneedyn.load_scene(CHAPTER)
+    before = (s.to_dict(), s.ligaments)
+    with pytest.raises(kneedyn.InputError, match=match):
+        call(s)
+    assert (s.to_dict(), s.ligaments) == before
+
+
+def test_remove_ligaments_takes_lists_of_patterns():
+    s = kneedyn.load_scene(CHAPTER)
+    assert s.remove_ligaments(["ACL"], ("LCL",)) == ["ACL anterior", "ACL posterior", "LCL"]
+    assert len(s.ligaments) == 9 and not any(n.startswith(("ACL", "LCL")) for n in s.ligaments)
+
+
+def test_write_refuses_a_bad_path_and_writes_nothing():
+    # Before: write(True) opened file descriptor 1, wrote the scene to stdout and closed it.
+    out = run_isolated("""
+import sys
+try:
+    s.write(True)
+except kneedyn.InputError as e:
+    print(e)
+print("stdout open")
+""").splitlines()
+    assert out == ["Scene.write(): path = True (bool): must be a path (str or os.PathLike)", "stdout open"], out
+    s = kneedyn.load_scene(CHAPTER)
+    os.makedirs(OUT, exist_ok=True)
+    with pytest.raises(kneedyn.InputError, match=r"Scene.write\(\): path = '.*': cannot be written \(Is a directory\)"):
+        s.write(OUT)
+    missing = os.path.join(OUT, "no_such_dir", "x.yaml")
+    with pytest.raises(kneedyn.InputError, match=r"cannot be written \(No such file or directory\)"):
+        s.write(missing)
+    assert not os.path.exists(os.path.dirname(missing))
+
+
+def test_sweep_refuses_an_unusable_out_before_running():
+    # Before: kneedyn.Error (a RuntimeError) only after every run of the design.
+    spec = os.path.join(OUT, "sweep_spec_out.yaml")
+    os.makedirs(OUT, exist_ok=True)
+    with open(spec, "w") as f:
+        f.write(SWEEP_SPEC.format(scene=os.path.abspath(CHAPTER)))
+    a_file = os.path.join(OUT, "sweep_out_is_a_file")
+    open(a_file, "w").close()
+    with pytest.raises(kneedyn.InputError, match=r"sweep\(\): out = '.*sweep_out_is_a_file': exists and is not a directory"):
+        kneedyn.sweep(spec, out=a_file)
+    with pytest.raises(kneedyn.InputError, match=r"sweep\(\): out = '/proc/x': cannot"):
+        kneedyn.sweep(spec, out="/proc/x")

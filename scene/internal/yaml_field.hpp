@@ -127,6 +127,11 @@ inline InputFileRule TableFileRule(const char* function) { return {function, kMa
 // path and the rule. Default rule: a scene or parameter-set file.
 std::string ReadInputFile(const std::string& path, const char* what, const InputFileRule& rule = {});
 
+// A plain decimal ([+-] digits [. digits] [e|E [+-] digits], a digit before or after the
+// point) that is a finite double, read into *v as the loader reads numbers; false for any
+// other text (hex, inf, nan, out of range), which the loader reads with yaml-cpp's stream.
+bool PlainDecimal(std::string_view text, double* v);
+
 // Names written into output headers: a letter, then letters, digits, '_', '-', '.', and
 // (elements only) spaces and '/'; at most kMaxNameLength characters.
 bool IsName(const std::string& s, bool element);
