@@ -23,7 +23,7 @@ Problem::Problem(const Scene& scene, const std::string& form, double rtol, doubl
       workspace_(scene.model),
       chart_(std::make_unique<MdeChart>(scene.model)) {
   if (form != "ede" && form != "mde" && form != "dae" && form != "dae-ggl") {
-    Fail("Problem: form = '" + form + "': one of 'ede', 'mde', 'dae', 'dae-ggl'");
+    Fail("Problem: form = '" + Echo(form) + "': one of 'ede', 'mde', 'dae', 'dae-ggl'");
   }
   if (!(rtol > 0.0) || !(atol > 0.0) || !std::isfinite(rtol) || !std::isfinite(atol)) {
     Fail(StrCat("Problem: rtol = ", rtol, ", atol = ", atol, ": both must be finite and > 0"));

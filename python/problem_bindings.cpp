@@ -81,8 +81,18 @@ std::shared_ptr<Scene> SceneFrom(const py::object& obj) {
     }
     return compiled.cast<std::shared_ptr<Scene>>();
   }
-  if (py::isinstance<py::str>(obj)) {
-    std::string path = obj.cast<std::string>();
+  py::object text = obj;
+  if (py::hasattr(obj, "__fspath__") || py::isinstance<py::bytes>(obj)) {  // pathlib.Path, bytes: as load_scene
+    text = py::module_::import("os").attr("fsdecode")(obj);
+  }
+  if (py::isinstance<py::str>(text)) {
+    Py_ssize_t size = 0;
+    const char* utf8 = PyUnicode_AsUTF8AndSize(text.ptr(), &size);
+    if (utf8 == nullptr) {  // a lone surrogate: os.fsdecode of bytes that are not UTF-8
+      PyErr_Clear();
+      throw ProblemError("kneedyn.Problem: scene = " + Repr(obj) + ": must be a path that decodes as UTF-8");
+    }
+    std::string path(utf8, static_cast<size_t>(size));
     if (path.find('\0') != std::string::npos) {
       throw ProblemError("kneedyn.Problem: scene = " + Repr(obj) + ": a path cannot hold a NUL character");
     }
@@ -150,9 +160,18 @@ void BindProblem(py::module_& m) {
 
 y0, yp0, size, the events and their names are those of the current phase; transition moves
 to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
-      .def(py::init([](const py::object& scene, const std::string& form, double rtol, double atol) {
+      .def(py::init([](const py::object& scene, const py::object& form, const py::object& rtol,
+                       const py::object& atol) {
+             // Checked here, not by pybind11's casts: True was taken as rtol 1.0, and None or a
+             // str tolerance gave "incompatible constructor arguments" naming no argument.
+             if (!py::isinstance<py::str>(form)) {
+               throw ProblemError("kneedyn.Problem: form = " + Repr(form) + " (" + Py_TYPE(form.ptr())->tp_name +
+                                  "): must be a str, one of 'ede', 'mde', 'dae', 'dae-ggl'");
+             }
+             const double rtol_value = RealArgument(rtol, "kneedyn.Problem", "rtol");
+             const double atol_value = RealArgument(atol, "kneedyn.Problem", "atol");
              auto s = SceneFrom(scene);
-             auto p = std::make_unique<Problem>(*s, form, rtol, atol);
+             auto p = std::make_unique<Problem>(*s, form.cast<std::string>(), rtol_value, atol_value);
              return PyProblem{s, std::move(p)};
            }),
            py::arg("scene"), py::arg("form") = "ede", py::arg("rtol") = 1.0e-6, py::arg("atol") = 1.0e-8)

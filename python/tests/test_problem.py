@@ -2,6 +2,8 @@
 equal to the C++ run's, the exact DAE Jacobian against central differences, the whole
 hybrid run driven from Python reproducing `kneedyn run`'s events, and ValueError for bad calls."""
 import math
+import os
+import pathlib
 
 import numpy as np
 import pytest
@@ -193,6 +195,18 @@ def test_arguments_of_the_wrong_kind_are_refused_naming_them():
         p.rhs(float("nan"), p.y0)
     with pytest.raises(ValueError, match="scene = .*NUL"):
         kneedyn.Problem(SCENE + "\0junk", form="ede")
+    with pytest.raises(ValueError, match="scene = .*decodes as UTF-8"):
+        kneedyn.Problem(os.fsdecode(b"/tmp/\xff.yaml"), form="ede")
+    for form in [None, b"ede", 1]:
+        with pytest.raises(ValueError, match="form = .*must be a str"):
+            kneedyn.Problem(SCENE, form=form)
+    with pytest.raises(ValueError, match=r"form = 'ede\?x': one of"):  # the message was cut at the NUL
+        kneedyn.Problem(SCENE, form="ede\0x")
+    for value in [True, "1e-6", 1 + 0j, None, 10**400]:
+        for name in ("rtol", "atol"):
+            with pytest.raises(ValueError, match=name + " = "):
+                kneedyn.Problem(SCENE, form="ede", **{name: value})
+    assert kneedyn.Problem(pathlib.Path(SCENE), form="ede").t0 == p.t0  # os.PathLike, as load_scene
 
     class NotAScene:
         compiled = 5
