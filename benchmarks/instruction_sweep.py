@@ -96,6 +96,17 @@ def measure(run, kneedyn, scene):
     return entry
 
 
+def report_progress(done, todo, i, e, start):
+  """One line on stderr for the done-th finished configuration (todo[i], its entry e)."""
+  elapsed = time.monotonic() - start
+  n = e["instructions"]["run_scene"]
+  scd = (e.get("metrics") or {}).get("scd")
+  print(f"{done}/{len(todo)} {method_of(todo[i])} {e['setting']}: "
+        f"{'?' if n is None else f'{n / 1e6:.2f} M'}, {e['status']}"
+        + (f", scd {scd:.2f}" if isinstance(scd, (int, float)) else "")
+        + f" ({elapsed:.0f} s, about {elapsed / done * (len(todo) - done):.0f} s left)", file=sys.stderr)
+
+
 def main(argv=None):
   ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
   ap.add_argument("--kneedyn", required=True, help="the kneedyn program to measure")
@@ -126,17 +137,17 @@ def main(argv=None):
   start = time.monotonic()
   with concurrent.futures.ThreadPoolExecutor(max_workers=a.jobs) as pool:
     futures = {pool.submit(measure, r, kneedyn, scene): i for i, r in enumerate(todo)}
-    for done, fut in enumerate(concurrent.futures.as_completed(futures), 1):
-      i = futures[fut]
-      results[i] = fut.result()
-      e = results[i]
-      elapsed = time.monotonic() - start
-      n = e["instructions"]["run_scene"]
-      scd = (e.get("metrics") or {}).get("scd")
-      print(f"{done}/{len(todo)} {method_of(todo[i])} {e['setting']}: "
-            f"{'?' if n is None else f'{n / 1e6:.2f} M'}, {e['status']}"
-            + (f", scd {scd:.2f}" if isinstance(scd, (int, float)) else "")
-            + f" ({elapsed:.0f} s, about {elapsed / done * (len(todo) - done):.0f} s left)", file=sys.stderr)
+    try:
+      for done, fut in enumerate(concurrent.futures.as_completed(futures), 1):
+        i = futures[fut]
+        results[i] = fut.result()
+        e = results[i]
+        report_progress(done, todo, i, e, start)
+    except BaseException:
+      # The sweep has failed (or was interrupted): the queued configurations are not run. The
+      # with block alone would wait for every one of them (~20 min for the recorded sweep).
+      pool.shutdown(cancel_futures=True)
+      raise
   # How many CLI runs took the very steps of the sweep's in-process run of the same setting
   # (those that stop at output times may not: see the module's docstring).
   same = sum(1 for e, r in zip(results, todo)

@@ -105,6 +105,17 @@ def main():
                         'case "$1" in\n  --version) echo "kneedyn 0.0.0 (fake)";;\n'
                         '  formulations) echo "fake kneedyn: no registry" >&2; exit 3;;\n'
                         '  *) echo "fake kneedyn: $1 is not run here" >&2; exit 1;;\nesac\n')
+    # instruction_sweep: a run that cannot be scored ends the sweep without running the queued
+    # configurations (the with block waited for all of them). The fake valgrind counts its runs.
+    count = os.path.join(tmp, "valgrind_runs")
+    fake("valgrind_counts", "valgrind", f"echo run >> '{count}'\necho '==1== Collected : 5' >&2\nexit 0\n")
+    isw_json = os.path.join(tmp, "isweep.json")
+    isw = ["benchmarks/instruction_sweep.py", "--kneedyn", kneedyn, "--only", "dae", "--jobs", "1", "--json", isw_json]
+    failures.append(failed_run(isw, ["kneedyn score", "(scoring kneedyn run"], isw_json,
+                               os.path.join(tmp, "valgrind_counts")))
+    runs = len(open(count).read().split()) if os.path.exists(count) else 0
+    if runs > 2:  # the failing one, and at most one the single worker had already started
+      failures.append(f"instruction_sweep.py ran {runs} configurations after the first failed to be scored")
     eff_json = os.path.join(tmp, "efficiency.json")
     eff = ["benchmarks/efficiency.py", "--kneedyn", kneedyn, "--only", "dae", "--json", eff_json]
     ps = ["reports/patella_section.py", "--kneedyn", fake_kneedyn, "--out", os.path.join(tmp, "ps"), "--quick"]
