@@ -100,8 +100,11 @@ double ScdFromErrors(const std::vector<double>& x, const std::vector<double>& x_
 // max |e| / (1 + |ref|), skipping NaN pairs; 0 when nothing compared.
 double MixedError(const std::vector<double>& x, const std::vector<double>& x_ref);
 
-// Compares at the reference's times (matching within 1e-9 s; the reference's end-event
-// state against the run's end-event state when both ended on an event).
+// Compares at the reference's times (matching within 1e-9 s, each with the run's first row
+// there; the reference's end-event state against the run's end-event state when both ended
+// on an event). Linear in the two lengths when both lists of times are finite and
+// non-decreasing, as every Solution kneedyn builds or reads is. Events: each reference
+// event name against the run's first event of that name (a hash map).
 Metrics Compare(const Solution& run, const Solution& reference);
 
 // Fills the residuals and the energy error from a run.

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <string_view>
 
 #include "formulations/formulation.hpp"
 #include "formulations/run_output.hpp"
@@ -22,32 +23,66 @@ namespace {
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kTimeMatch = 1e-9;  // s, as metrics.cpp
 
-std::vector<std::string> SplitCsvLine(std::string line) {
-  if (!line.empty() && line.back() == '\r') line.pop_back();
-  std::vector<std::string> cells;
-  std::string cell;
-  std::istringstream in(line);
-  while (std::getline(in, cell, ',')) cells.push_back(cell);
-  if (!line.empty() && line.back() == ',') cells.push_back("");
-  return cells;
+// A CSV line without its '\r' (a CRLF file), split at commas into views of `line`: no
+// allocation per field, and the fields are counted before anything is stored (a line of
+// 40M commas made 40M strings, 2.3 GB). A non-empty line has one field more than it has
+// commas, an empty one none (as std::getline split it before).
+std::string_view CsvLine(std::string_view line) {
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  return line;
+}
+size_t CsvFieldCount(std::string_view line) {
+  return line.empty() ? 0 : static_cast<size_t>(std::count(line.begin(), line.end(), ',')) + 1;
+}
+// Calls f(index, field) for each field in order until f returns false.
+template <typename F>
+void ForEachCsvField(std::string_view line, F f) {
+  if (line.empty()) return;
+  for (size_t c = 0, start = 0;; ++c) {
+    const size_t comma = line.find(',', start);
+    if (!f(c, line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start))) return;
+    if (comma == std::string_view::npos) return;
+    start = comma + 1;
+  }
 }
 
-// A cell as a number: empty = NaN (a value that does not exist).
-double ParseCell(const std::string& cell, const std::string& path, size_t line, const std::string& column) {
+// The lines of a file's text, in order, as views (no copy of the text into a stream).
+class Lines {
+ public:
+  explicit Lines(const std::string& text) : text_(text) {}
+  bool Next(std::string_view* line) {
+    if (pos_ >= text_.size()) return false;
+    const size_t end = text_.find('\n', pos_);
+    const size_t stop = end == std::string_view::npos ? text_.size() : end;
+    *line = text_.substr(pos_, stop - pos_);
+    pos_ = stop + 1;
+    return true;
+  }
+
+ private:
+  std::string_view text_;
+  size_t pos_ = 0;
+};
+
+// A cell as a number: empty = NaN (a value that does not exist). `buffer`: reused storage
+// for the cell's text (strtod reads up to its first NUL, as it did on the cell's string).
+double ParseCell(std::string_view cell, std::string* buffer, const std::string& path, size_t line,
+                 const std::string& column) {
   if (cell.empty()) return kNaN;
+  buffer->assign(cell.data(), cell.size());
   char* end = nullptr;
-  const double v = std::strtod(cell.c_str(), &end);
-  if (end == cell.c_str() || *end != '\0') {
-    Throw<InputError>("kneedyn score", EchoPath(path), " line ", line, ", column ", column, ": '", Echo(cell),
+  const double v = std::strtod(buffer->c_str(), &end);
+  if (end == buffer->c_str() || *end != '\0') {
+    Throw<InputError>("kneedyn score", EchoPath(path), " line ", line, ", column ", column, ": '", Echo(*buffer),
                       "' is not a number");
   }
   return v;
 }
 
-
 // An event name as read: kneedyn's names are printable ASCII (docs/model.md §9), and a name
 // goes into the score's JSON, which holds only valid UTF-8.
-std::string EventName(const std::string& name, const std::string& path, size_t line) {
+std::string EventName(std::string_view view, const std::string& path, size_t line) {
+  std::string name(view);
   for (const char ch : name) {
     const unsigned char c = static_cast<unsigned char>(ch);
     if (c < 0x20 || c >= 0x7f) {
@@ -63,13 +98,25 @@ nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : 
 }  // namespace
 
 ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const Solution& reference) {
-  std::istringstream in(scene_detail::ReadInputFile(path, "RESULT", scene_detail::TableFileRule("kneedyn score")));
-  std::string line;
-  if (!std::getline(in, line)) Throw<InputError>("kneedyn score", EchoPath(path), ": empty (no header row)");
+  const std::string text = scene_detail::ReadInputFile(path, "RESULT", scene_detail::TableFileRule("kneedyn score"));
+  Lines lines(text);
+  std::string_view line;
+  if (!lines.Next(&line)) Throw<InputError>("kneedyn score", EchoPath(path), ": empty (no header row)");
   ScoredResult out;
-  out.columns = SplitCsvLine(line);
   // The documented columns of trajectory.csv for this scene (run_output.hpp), and the time.
   const std::vector<std::string> known = MakeTrajectoryTable(scene, RunResult()).columns;
+  size_t longest_known = 0;
+  for (const std::string& k : known) longest_known = std::max(longest_known, k.size());
+  // A valid header names each of `known`, time_s and time at most once: more cells than that
+  // hold a name twice or an unknown one, found among the first max_columns + 1 (checked
+  // below as for any header), so the rest is not kept.
+  const size_t max_columns = known.size() + 2;
+  const std::string_view header = CsvLine(line);
+  ForEachCsvField(header, [&](size_t c, std::string_view name) {
+    if (c > max_columns) return false;
+    out.columns.emplace_back(name);
+    return true;
+  });
   int time_col = -1, event_col = -1;
   for (size_t c = 0; c < out.columns.size(); ++c) {
     const std::string& name = out.columns[c];
@@ -82,29 +129,43 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
     }
     if (name == "is_event") event_col = static_cast<int>(c);
     if (std::find(known.begin(), known.end(), name) == known.end()) {
+      // The nearest known name, for a name that can be a typo of one: not for one over
+      // twice the longest (its edit distance to every name costs its length times theirs:
+      // a 16 MB name took 27 s).
       std::string nearest;
-      int best = std::numeric_limits<int>::max();
-      for (const std::string& k : known) {
-        const int d = EditDistance(name, k);
-        if (d < best) best = d, nearest = k;
+      if (name.size() <= 2 * longest_known) {
+        int best = std::numeric_limits<int>::max();
+        for (const std::string& k : known) {
+          const int d = EditDistance(name, k);
+          if (d < best) best = d, nearest = k;
+        }
       }
       Throw<InputError>("kneedyn score", EchoPath(path), " header: column '", Echo(name),
-                        "' is not a trajectory.csv column of this scene (docs/outputs.md); nearest: '", nearest, "'");
+                        "' is not a trajectory.csv column of this scene (docs/outputs.md)",
+                        nearest.empty() ? std::string() : "; nearest: '" + nearest + "'");
     }
+  }
+  if (out.columns.size() != CsvFieldCount(header)) {  // not reached: the kept cells break a rule above
+    Throw<InputError>("kneedyn score", EchoPath(path), " header: more than ", max_columns, " columns");
   }
   if (time_col < 0) Throw<InputError>("kneedyn score", EchoPath(path), " header: no time column ('time_s' or 'time', s)");
 
   // Column index of each class component (−1: not given).
-  std::map<std::string, std::vector<int>> index;
+  struct ClassColumns {
+    std::vector<int> index;
+    std::vector<std::vector<double>>* rows;
+  };
+  std::vector<ClassColumns> classes;
   for (const std::string& c : VariableClasses()) {
     out.given_columns[c] = 0;
+    ClassColumns cc{{}, &out.solution.values[c]};
     for (const std::string& name : reference.names.at(c)) {
       const auto it = std::find(out.columns.begin(), out.columns.end(), ColumnSafeName(name));
-      index[c].push_back(it == out.columns.end() ? -1 : static_cast<int>(it - out.columns.begin()));
+      cc.index.push_back(it == out.columns.end() ? -1 : static_cast<int>(it - out.columns.begin()));
       if (it != out.columns.end()) ++out.given_columns[c];
     }
     out.solution.names[c] = reference.names.at(c);
-    out.solution.values[c];
+    classes.push_back(std::move(cc));
   }
   auto column = [&](const std::string& name) {
     const auto it = std::find(out.columns.begin(), out.columns.end(), name);
@@ -123,31 +184,53 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
   }
   if (!have_gap) out.max_gap_m = out.max_gap_rate_m_s = kNaN;
 
-  std::vector<double> row_times;
-  std::vector<bool> row_event;
+  // Rows are counted as they are read and stored as the Solution's rows at once, the sampling
+  // rows in order and the end-event state last (metrics.hpp): an event row (is_event = 1) is
+  // dropped when a row follows it. Past kMaxResultRows rows the file is refused before the
+  // row is stored.
+  Solution& s = out.solution;
+  std::vector<double> v(out.columns.size());
+  std::string cell_buffer;
+  double last_time = kNaN;
+  bool last_is_event = false;  // the last row stored has is_event = 1
   size_t line_no = 1;
-  while (std::getline(in, line)) {
+  while (lines.Next(&line)) {
     ++line_no;
     if (line.empty() || line == "\r") continue;
-    const std::vector<std::string> cells = SplitCsvLine(line);
-    if (cells.size() != out.columns.size()) {
-      Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": ", cells.size(), " cells for ", out.columns.size(),
+    const std::string_view row = CsvLine(line);
+    const size_t cells = CsvFieldCount(row);
+    if (cells != out.columns.size()) {
+      Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": ", cells, " cells for ", out.columns.size(),
                         " columns");
     }
-    std::vector<double> v(cells.size());
-    for (size_t c = 0; c < cells.size(); ++c) v[c] = ParseCell(cells[c], path, line_no, out.columns[c]);
+    if (out.rows == kMaxResultRows) {
+      Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": more than ", kMaxResultRows,
+                        " data rows (rule: at most kMaxResultRows = 10 x kneedyn's own limit of ",
+                        static_cast<size_t>(kMaxOutputRows), " output rows; docs/outputs.md)");
+    }
+    std::string_view time_cell;
+    ForEachCsvField(row, [&](size_t c, std::string_view cell) {
+      v[c] = ParseCell(cell, &cell_buffer, path, line_no, out.columns[c]);
+      if (static_cast<int>(c) == time_col) time_cell = cell;
+      return true;
+    });
     const double t = v[time_col];
-    if (!std::isfinite(t) || (!row_times.empty() && !(t >= row_times.back()))) {
-      Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": time ", Echo(cells[time_col]),
+    if (!std::isfinite(t) || (out.rows > 0 && !(t >= last_time))) {
+      Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": time ", Echo(std::string(time_cell)),
                         " is not finite or decreases");
     }
-    row_times.push_back(t);
-    row_event.push_back(event_col >= 0 && v[event_col] == 1.0);
-    for (const std::string& c : VariableClasses()) {
-      std::vector<double> values;
-      for (int k : index[c]) values.push_back(k < 0 ? kNaN : v[k]);
-      out.solution.values[c].push_back(values);
+    ++out.rows;
+    last_time = t;
+    if (last_is_event) {  // an event row inside the run
+      s.times.pop_back();
+      for (const ClassColumns& cc : classes) cc.rows->pop_back();
     }
+    s.times.push_back(t);
+    for (const ClassColumns& cc : classes) {
+      std::vector<double>& values = cc.rows->emplace_back(cc.index.size());
+      for (size_t j = 0; j < cc.index.size(); ++j) values[j] = cc.index[j] < 0 ? kNaN : v[cc.index[j]];
+    }
+    last_is_event = event_col >= 0 && v[event_col] == 1.0;
     // Drift over the rows where the contact is in contact: its contact point exists (or,
     // without point columns, N > 0; without either, every row).
     for (const Drift& d : drift) {
@@ -159,29 +242,14 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
       }
     }
   }
-  out.rows = row_times.size();
   if (out.rows == 0) Throw<InputError>("kneedyn score", EchoPath(path), ": no data rows");
 
-  // The sampling rows first, then the end-event state as the last entry (metrics.hpp).
+  // The last row is the end-event state when it is an event row, or, without is_event, when
+  // the reference ended on an event and the row lies past its last sampling time.
   const double last_sampling_time =
       reference.times.size() >= 2 ? reference.times[reference.times.size() - 2] : reference.times.back();
-  const bool end_row = event_col >= 0 ? static_cast<bool>(row_event.back())
-                                      : reference.end_is_event && row_times.back() > last_sampling_time + kTimeMatch;
-  Solution& s = out.solution;
-  std::map<std::string, std::vector<std::vector<double>>> values;
-  for (size_t r = 0; r < out.rows; ++r) {
-    const bool last = r + 1 == out.rows;
-    if (row_event[r] && !(last && end_row)) continue;  // an event row inside the run
-    if (last && end_row) continue;                      // appended below
-    s.times.push_back(row_times[r]);
-    for (const std::string& c : VariableClasses()) values[c].push_back(s.values[c][r]);
-  }
-  if (end_row) {
-    s.times.push_back(row_times.back());
-    for (const std::string& c : VariableClasses()) values[c].push_back(s.values[c].back());
-    s.end_is_event = true;
-  }
-  for (const std::string& c : VariableClasses()) s.values[c] = values[c];
+  s.end_is_event = event_col >= 0 ? last_is_event
+                                  : reference.end_is_event && last_time > last_sampling_time + kTimeMatch;
   return out;
 }
 
@@ -190,13 +258,14 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
   std::vector<EventRecord> events;
   const size_t first = body.find_first_not_of(" \t\r\n");
   if (first != std::string::npos && body[first] == '{') {  // kneedyn's summary.json
+    const std::string document = "--events = '" + EchoPath(path) + "'";
     nlohmann::json j;
     try {
-      j = nlohmann::json::parse(body);
+      j = scene_detail::ParseJsonDocument(body, "kneedyn score", document);
     } catch (const nlohmann::json::exception& e) {
       Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "': not a summary.json with events (", e.what(), ")");
     }
-    const scene_detail::JsonFields read("kneedyn score", "--events = '" + EchoPath(path) + "'");
+    const scene_detail::JsonFields read("kneedyn score", document);
     const nlohmann::json& list = read.List(j, "", "events");
     for (size_t i = 0; i < list.size(); ++i) {
       const std::string where = StrCat("events[", i, "].");
@@ -205,26 +274,43 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
     }
     return events;
   }
-  std::istringstream lines(body);
-  std::string line;
-  std::getline(lines, line);
-  const std::vector<std::string> header = SplitCsvLine(line);
-  const auto name_col = std::find(header.begin(), header.end(), "name") - header.begin();
-  const auto time_col = std::find(header.begin(), header.end(), "time_s") - header.begin();
-  const auto angle_col = std::find(header.begin(), header.end(), "flexion_deg") - header.begin();
-  if (name_col == static_cast<long>(header.size()) || time_col == static_cast<long>(header.size())) {
+  Lines lines(body);
+  std::string_view line;
+  lines.Next(&line);
+  const std::string_view header = CsvLine(line);
+  const size_t n_header = CsvFieldCount(header);
+  size_t name_col = n_header, time_col = n_header, angle_col = n_header;  // first of each name
+  ForEachCsvField(header, [&](size_t c, std::string_view cell) {
+    if (cell == "name" && name_col == n_header) name_col = c;
+    if (cell == "time_s" && time_col == n_header) time_col = c;
+    if (cell == "flexion_deg" && angle_col == n_header) angle_col = c;
+    return true;
+  });
+  if (name_col == n_header || time_col == n_header) {
     Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "': a CSV needs the columns name and time_s");
   }
+  std::string cell_buffer;
   size_t line_no = 1;
-  while (std::getline(lines, line)) {
+  while (lines.Next(&line)) {
     ++line_no;
     if (line.empty() || line == "\r") continue;
-    const std::vector<std::string> cells = SplitCsvLine(line);
-    if (cells.size() != header.size()) Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": wrong number of cells");
-    const double angle =
-        angle_col < static_cast<long>(header.size()) ? ParseCell(cells[angle_col], path, line_no, "flexion_deg") : kNaN;
-    events.push_back({EventName(cells[name_col], path, line_no), ParseCell(cells[time_col], path, line_no, "time_s"),
-                      DegToRad(angle)});
+    const std::string_view row = CsvLine(line);
+    if (CsvFieldCount(row) != n_header) Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": wrong number of cells");
+    if (events.size() == kMaxResultRows) {
+      Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "' line ", line_no, ": more than ", kMaxResultRows,
+                        " events (rule: at most kMaxResultRows, as result rows)");
+    }
+    std::string_view name, time, angle;
+    ForEachCsvField(row, [&](size_t c, std::string_view cell) {
+      if (c == name_col) name = cell;
+      if (c == time_col) time = cell;
+      if (c == angle_col) angle = cell;
+      return true;
+    });
+    const double flexion = angle_col < n_header ? ParseCell(angle, &cell_buffer, path, line_no, "flexion_deg") : kNaN;
+    std::string event_name = EventName(name, path, line_no);
+    const double event_time = ParseCell(time, &cell_buffer, path, line_no, "time_s");
+    events.push_back({std::move(event_name), event_time, DegToRad(flexion)});
   }
   return events;
 }
@@ -312,45 +398,60 @@ Solution DenseReference(const Scene& scene, const nlohmann::json& reference_json
     Throw<InputError>("kneedyn score", "the reference records no configuration to run again (primary needs "
                       "formulation, rtol and atol: ", e.what(), ")");
   }
+  // Bounded by the result's rows (kMaxResultRows, ReadResultCsv) when they come from a file.
+  if (times.size() > kMaxResultRows) {
+    Throw<InputError>("kneedyn score", "DenseReference: ", times.size(), " off-grid times; at most kMaxResultRows = ",
+                      kMaxResultRows);
+  }
   settings.output_times = times;
   const ContactForm form = CreateFormulation(settings.formulation, scene, o)->contact_form();
-  const RunResult run = RunScene(scene, settings);
-  if (!run.completed) {
-    Throw<SolverError>("kneedyn score", "the reference configuration (", primary.value("command", ""),
-                       ") failed when run again with output at the result's times: ", run.failure);
+  Solution at;  // the run's rows at `times`; the run itself is freed once they are taken
+  {
+    const RunResult run = RunScene(scene, settings);
+    if (!run.completed) {
+      Throw<SolverError>("kneedyn score", "the reference configuration (", primary.value("command", ""),
+                         ") failed when run again with output at the result's times: ", run.failure);
+    }
+    // The run again must be the stored reference: its sampling times against the stored samples.
+    const double interval = reference_json.value("comparison_interval_s", kDefaultComparisonInterval);
+    const Metrics check = Compare(ExtractSolution(scene, form, run, interval), reference);
+    const double accuracy = extended ? kMinDenseReproductionScd : reference_json.value("accuracy_scd", 0.0);
+    *reproduced_scd = check.scd;
+    if (!(check.scd >= accuracy)) {
+      Throw<SolverError>("kneedyn score", "the reference configuration (", primary.value("command", ""),
+                         ") run again with output at the result's times reproduces the stored samples to ", check.scd,
+                         " digits (rule: at least ", accuracy, extended ? " digits for the double configuration of an extended-precision reference" : " = the reference's accuracy_scd",
+                         "); score at the reference's sampling times instead");
+    }
+    at = ExtractSolutionAt(scene, form, run, times);
   }
-  // The run again must be the stored reference: its sampling times against the stored samples.
-  const double interval = reference_json.value("comparison_interval_s", kDefaultComparisonInterval);
-  const Metrics check = Compare(ExtractSolution(scene, form, run, interval), reference);
-  const double accuracy = extended ? kMinDenseReproductionScd : reference_json.value("accuracy_scd", 0.0);
-  *reproduced_scd = check.scd;
-  if (!(check.scd >= accuracy)) {
-    Throw<SolverError>("kneedyn score", "the reference configuration (", primary.value("command", ""),
-                       ") run again with output at the result's times reproduces the stored samples to ", check.scd,
-                       " digits (rule: at least ", accuracy, extended ? " digits for the double configuration of an extended-precision reference" : " = the reference's accuracy_scd",
-                       "); score at the reference's sampling times instead");
-  }
-  const Solution at = ExtractSolutionAt(scene, form, run, times);
-  // Merge: the stored samples at their times, the run's rows at `times`, in time order; the
-  // end event (stored) last.
-  Solution dense = reference;
-  dense.times.clear();
-  for (const std::string& c : VariableClasses()) dense.values[c].clear();
+  // Merge: the stored samples at their times, the run's rows at `times` (moved, not copied),
+  // in time order; the end event (stored) last.
+  Solution dense;
+  dense.end_is_event = reference.end_is_event;
+  dense.names = reference.names;
+  dense.events = reference.events;
+  for (const auto& [c, rows] : reference.values) dense.values[c].reserve(rows.size() + at.times.size());
+  dense.times.reserve(reference.times.size() + at.times.size());
   const size_t n_stored = reference.end_is_event ? reference.times.size() - 1 : reference.times.size();
   const size_t n_at = at.end_is_event ? at.times.size() - 1 : at.times.size();
   size_t i = 0, j = 0;
-  const auto take = [&](const Solution& from, size_t k) {
-    dense.times.push_back(from.times[k]);
-    for (const std::string& c : VariableClasses()) dense.values[c].push_back(from.values.at(c)[k]);
+  const auto take_stored = [&](size_t k) {
+    dense.times.push_back(reference.times[k]);
+    for (const std::string& c : VariableClasses()) dense.values[c].push_back(reference.values.at(c)[k]);
+  };
+  const auto take_run = [&](size_t k) {
+    dense.times.push_back(at.times[k]);
+    for (const std::string& c : VariableClasses()) dense.values[c].push_back(std::move(at.values.at(c)[k]));
   };
   while (i < n_stored || j < n_at) {
     if (j >= n_at || (i < n_stored && reference.times[i] <= at.times[j])) {
-      take(reference, i++);
+      take_stored(i++);
     } else {
-      take(at, j++);
+      take_run(j++);
     }
   }
-  if (reference.end_is_event) take(reference, reference.times.size() - 1);
+  if (reference.end_is_event) take_stored(reference.times.size() - 1);
   if (j != times.size()) {
     Throw<SolverError>("kneedyn score", "the reference run again has rows at ", j, " of the ", times.size(),
                        " result times inside its span");

@@ -40,9 +40,18 @@
 #include <vector>
 
 #include "benchmarks/metrics.hpp"
+#include "scene/scene.hpp"
 
 namespace kneedyn {
 namespace bench {
+
+// The most data rows a result CSV may have (and events an events CSV): 10 x kMaxOutputRows,
+// the most sampling rows `kneedyn run` writes (scene/scene.hpp; its event rows are a few
+// more), room for an outside solver that writes a row per step. A row costs about 0.5 KB
+// once read (one row of each class, NaN where not given), so the cap bounds a result at
+// about 0.5 GB, and the run again at its off-grid times (DenseReference) at as many output
+// rows; a larger file is refused as it is read (docs/outputs.md), before more is stored.
+constexpr size_t kMaxResultRows = 10 * static_cast<size_t>(kMaxOutputRows);
 
 // A result CSV read into the classes of metrics.hpp (NaN where a column is not given).
 struct ScoredResult {
@@ -56,7 +65,8 @@ struct ScoredResult {
 
 // Reads `path` for `reference`'s component names. Throws InputError naming the file, the
 // line and the column (unknown column, no time column, a number that does not parse,
-// times not increasing).
+// times not increasing, more than kMaxResultRows rows). Linear in the file's size: lines
+// are split into views, each row stored once.
 ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const Solution& reference);
 
 // Events a run reports, from kneedyn's summary.json ("events") or a CSV `name,time_s[,flexion_deg]`.

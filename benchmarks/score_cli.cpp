@@ -35,7 +35,7 @@ nlohmann::json ReadCounters(const std::string& path) {
       scene_detail::ReadInputFile(path, "--counters file", scene_detail::TableFileRule("kneedyn score"));
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(text);
+    j = scene_detail::ParseJsonDocument(text, "kneedyn score", "--counters = '" + EchoPath(path) + "'");
   } catch (const nlohmann::json::exception& e) {
     Throw<InputError>("kneedyn score", "--counters = '", EchoPath(path), "': not JSON (", e.what(), ")");
   }
@@ -88,7 +88,8 @@ int ScoreCommand::Run(int argc, char** argv) {
         scene_detail::ReadInputFile(reference_file, "--reference file", scene_detail::TableFileRule("kneedyn score"));
     nlohmann::json ref_json;
     try {
-      ref_json = nlohmann::json::parse(reference_text);
+      ref_json = scene_detail::ParseJsonDocument(reference_text, "kneedyn score",
+                                                 "--reference = '" + EchoPath(reference_file) + "'");
     } catch (const nlohmann::json::exception& e) {
       Throw<InputError>("kneedyn score", "--reference = '", EchoPath(reference_file), "': not a kneedyn reference (", e.what(),
                         ")");

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <string_view>
 
 #include "ensembles/parallel_runs.hpp"
 #include "scene/internal/yaml_field.hpp"
@@ -21,13 +22,30 @@ std::string Trim(const std::string& s) {
   return s.substr(a, b - a + 1);
 }
 
-std::vector<std::string> SplitCsv(const std::string& line) {
-  std::vector<std::string> out;
-  std::stringstream ss(line);
-  std::string field;
-  while (std::getline(ss, field, ',')) out.push_back(Trim(field));
-  if (!line.empty() && line.back() == ',') out.push_back("");
-  return out;
+std::string_view TrimView(std::string_view s) {
+  const size_t a = s.find_first_not_of(" \t\r");
+  if (a == std::string_view::npos) return {};
+  const size_t b = s.find_last_not_of(" \t\r");
+  return s.substr(a, b - a + 1);
+}
+
+// The fields of a non-empty line: one more than its commas (as a split with std::getline
+// gave, a trailing comma ending an empty field). Counted before anything is split.
+size_t CsvFieldCount(std::string_view line) {
+  return line.empty() ? 0 : static_cast<size_t>(std::count(line.begin(), line.end(), ',')) + 1;
+}
+
+// Calls f(index, trimmed field) for each field of `line` in order, as views of it (no
+// string per field: a line of 40M commas made 40M strings, 2.3 GB).
+template <typename F>
+void ForEachCsvField(std::string_view line, F f) {
+  if (line.empty()) return;
+  for (size_t c = 0, start = 0;; ++c) {
+    const size_t comma = line.find(',', start);
+    f(c, TrimView(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
+    if (comma == std::string_view::npos) return;
+    start = comma + 1;
+  }
 }
 
 // Shortest round-trip form.
@@ -67,42 +85,44 @@ BatchVariants ParseBatchVariants(const std::string& text, const std::string& lab
     ++line_no;
     const std::string t = Trim(line);
     if (t.empty() || t[0] == '#') continue;
-    const std::vector<std::string> fields = SplitCsv(t);
     if (!header) {
       header = true;
-      for (size_t c = 0; c < fields.size(); ++c) {
-        if (fields[c].empty()) {
+      // Each header cell is checked as it is split: the first bad one is refused before the
+      // rest of the line is looked at.
+      ForEachCsvField(t, [&](size_t c, std::string_view cell) {
+        if (cell.empty()) {
           Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column ", c + 1,
                             ": empty parameter name in the header");
         }
-        ParameterSpec p = ResolveParameterName(base, fields[c], label + ": line " + std::to_string(line_no));
+        const std::string name(cell);
+        ParameterSpec p = ResolveParameterName(base, name, label + ": line " + std::to_string(line_no));
         for (const ParameterSpec& q : v.parameters) {
           if (q.column == p.column) {
-            Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ": parameter '", Echo(fields[c]),
+            Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ": parameter '", Echo(name),
                               "' listed twice");
           }
         }
         v.parameters.push_back(p);
-      }
+      });
       continue;
     }
-    if (fields.size() != v.parameters.size()) {
-      Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ": ", fields.size(), " values, the header names ",
+    const size_t fields = CsvFieldCount(t);
+    if (fields != v.parameters.size()) {
+      Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ": ", fields, " values, the header names ",
                         v.parameters.size(), " parameters");
     }
-    std::vector<double> row(fields.size());
-    for (size_t c = 0; c < fields.size(); ++c) {
-      const std::string& f = fields[c];
+    std::vector<double> row(fields);
+    ForEachCsvField(t, [&](size_t c, std::string_view f) {
       const auto r = std::from_chars(f.data(), f.data() + f.size(), row[c]);
       if (f.empty() || r.ec != std::errc() || r.ptr != f.data() + f.size() || !std::isfinite(row[c])) {
         Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column '", v.parameters[c].name,
-                          "' = '", Echo(f), "': not a finite number");
+                          "' = '", Echo(std::string(f)), "': not a finite number");
       }
       if (MustBePositive(v.parameters[c].kind) && !(row[c] > 0.0)) {
         Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column '", v.parameters[c].name,
-                          "' = '", Echo(f), "': must be > 0");
+                          "' = '", Echo(std::string(f)), "': must be > 0");
       }
-    }
+    });
     v.rows.push_back(std::move(row));
   }
   if (!header) Throw<InputError>("LoadBatchVariants", label, ": no header line naming the parameters");

@@ -163,7 +163,7 @@ SweepTable ReadPart(const std::string& path) {
   const std::string text = scene_detail::ReadInputFile(path, "part file", scene_detail::TableFileRule("ReadPart"));
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(text);
+    j = scene_detail::ParseJsonDocument(text, "ReadPart", path);
   } catch (const nlohmann::json::exception& e) {
     Throw<InputError>("ReadPart", path, ": not a valid part file: ", e.what());
   }
@@ -203,8 +203,16 @@ SweepTable ReadPart(const std::string& path) {
 
 SweepTable MergeParts(const std::vector<SweepTable>& parts) {
   if (parts.empty()) Throw<InputError>("MergeParts", "no part files given");
-  SweepTable all = parts[0];
-  all.rows.clear();
+  // parts[0]'s description without its rows (copying them to clear them held a part twice),
+  // and room for every row at once.
+  SweepTable all;
+  all.fingerprint = parts[0].fingerprint;
+  all.total_runs = parts[0].total_runs;
+  all.parameter_columns = parts[0].parameter_columns;
+  all.outcome_columns = parts[0].outcome_columns;
+  size_t total_rows = 0;
+  for (const SweepTable& t : parts) total_rows += t.rows.size();
+  all.rows.reserve(total_rows);
   for (size_t p = 0; p < parts.size(); ++p) {
     const SweepTable& t = parts[p];
     if (t.fingerprint != all.fingerprint || t.total_runs != all.total_runs ||

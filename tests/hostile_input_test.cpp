@@ -665,9 +665,14 @@ TEST_F(HostileInput, SweepPartFilesAreCheckedFieldByField) {
     ExpectRefused(merge(Replaced(good, c.from, c.to)), c.needles);
   }
   ExpectRefused(merge("[1, 2]"), {"part-0.json", "not a JSON object"});
-  // A deeply nested value is refused without being echoed (printing it would recurse as deep).
+  // A nested value is refused without being echoed (printing it would recurse as deep).
+  ExpectRefused(merge(R"({"kind":)" + std::string(60, '[') + std::string(60, ']') + "}"), {"field 'kind' = a list"});
+  // Nesting past kMaxYamlDepth (64) is refused while the part is parsed, naming the file and
+  // the rule (before, 100,000 levels were built into a DOM, then refused by the field's type).
+  ExpectRefused(merge(R"({"kind":)" + std::string(64, '[') + std::string(64, ']') + "}"),
+                {"ReadPart(): ", "part-0.json: JSON nesting depth 65 exceeds the limit of 64 lists and objects"});
   ExpectRefused(merge(R"({"kind":)" + std::string(100000, '[') + std::string(100000, ']') + "}"),
-                {"field 'kind' = a list"});
+                {"part-0.json: JSON nesting depth 65", "limit of 64"});
 }
 
 
@@ -735,10 +740,16 @@ TEST_F(HostileInput, ScoreReferenceAndSummaryEventsAreCheckedFieldByField) {
   // overflow (SIGSEGV, exit 139). The text is spliced in: dumping it here would recurse too.
   j = stored;
   j["primary"] = {{"formulation", "dae"}, {"rtol", "DEEP"}, {"atol", 1e-10}};
-  const std::string deep_text = Replaced(j.dump(), "\"DEEP\"", std::string(200000, '[') + std::string(200000, ']'));
-  ExpectRefused("score '" + result + "' --scene '" + ChapterScenePath() + "' --reference '" +
-                    Input("reference.json", deep_text) + "' --out '" + out + "'",
-                {"field 'primary.rtol' = a list", "finite number"});
+  // Since the JSON depth limit (kMaxYamlDepth, 64) such a file is refused while it is parsed;
+  // below the limit (62 levels here) the field's own rule refuses it.
+  auto deep_reference = [&](int lists) {
+    return "score '" + result + "' --scene '" + ChapterScenePath() + "' --reference '" +
+           Input("reference.json", Replaced(j.dump(), "\"DEEP\"", std::string(lists, '[') + std::string(lists, ']'))) +
+           "' --out '" + out + "'";
+  };
+  ExpectRefused(deep_reference(60), {"field 'primary.rtol' = a list", "finite number"});
+  ExpectRefused(deep_reference(63), {"--reference = '", "reference.json': JSON nesting depth 65 exceeds the limit of 64"});
+  ExpectRefused(deep_reference(200000), {"--reference = '", "JSON nesting depth 65", "limit of 64"});
 
   auto score_events = [&](const std::string& summary) {
     return "score '" + result + "' --scene '" + ChapterScenePath() + "' --events '" + Input("summary.json", summary) +
@@ -749,6 +760,71 @@ TEST_F(HostileInput, ScoreReferenceAndSummaryEventsAreCheckedFieldByField) {
   ExpectRefused(score_events(R"({"events": {"name": "flexion_90"}})"), {"field 'events' = an object", "must be a list"});
   ExpectRefused(score_events(R"({"events": [{"name": "flexion_90", "time": 0.3}]})"),
                 {"field 'events[0].flexion_deg': missing"});
+  // Nesting past 64 lists and objects, in the events summary and the counters file.
+  ExpectRefused(score_events(R"({"events": )" + std::string(64, '[') + std::string(64, ']') + "}"),
+                {"--events = '", "summary.json': JSON nesting depth 65 exceeds the limit of 64"});
+  ExpectRefused("score '" + result + "' --scene '" + ChapterScenePath() + "' --counters '" +
+                    Input("counters.json", std::string(1000000, '[') + std::string(1000000, ']')) + "' --out '" + out + "'",
+                {"--counters = '", "counters.json': JSON nesting depth 65 exceeds the limit of 64"});
+}
+
+// `kneedyn score` reads at most kMaxResultRows = 1,000,000 data rows (10 x kMaxOutputRows,
+// the most `kneedyn run` writes; benchmarks/score.hpp), counted as they are read. Before, a
+// result was held at ~1 KB per row whatever its size on disk: 4M rows of "0" (8 MB) took
+// 4 GB and a 50 MB file ran out of memory; now the row past the cap is refused (exit 2,
+// naming the file, the line and the rule). The same cap holds for an events CSV.
+TEST_F(HostileInput, ScoreResultWithMoreRowsThanTheCapIsRefused) {
+  std::string rows = "time_s\n";
+  for (int i = 0; i <= 1000000; ++i) rows += "0\n";
+  ExpectRefused("score '" + Input("result.csv", rows) + "' --scene '" + ChapterScenePath() + "' --out '" + Out() + "'",
+                {"result.csv line 1000002: more than 1000000 data rows", "kMaxResultRows"});
+  std::string events = "name,time_s\n";
+  for (int i = 0; i <= 1000000; ++i) events += "a,0.1\n";
+  ExpectRefused("score '" + Input("result2.csv", ScoreResultCsv()) + "' --scene '" + ChapterScenePath() + "' --events '" +
+                    Input("events.csv", events) + "' --out '" + Out() + "'",
+                {"--events = '", "events.csv' line 1000002: more than 1000000 events"});
+}
+
+// An unknown column name longer than twice the longest known one gets no nearest name (its
+// edit distance to each of ~100 names cost 1.7 us per byte: a 16 MB name took 27 s); a
+// name that can be a typo keeps its hint (Score.MissingTimesAndBadColumns).
+TEST_F(HostileInput, ScoreLongUnknownColumnHasNoNearestName) {
+  for (const size_t length : {size_t{200}, size_t{4} << 20}) {
+    const CommandResult r =
+        ExpectRefused("score '" + Input("result.csv", "time_s," + std::string(length, 'q') + "\n0,0\n") + "' --scene '" +
+                          ChapterScenePath() + "' --out '" + Out() + "'",
+                      {"header: column 'qqqq", "bytes)' is not a trajectory.csv column of this scene (docs/outputs.md)"});
+    EXPECT_EQ(r.output.find("nearest"), std::string::npos) << r.output;
+  }
+  ExpectRefused("score '" + Input("result.csv", "time_s,flexon_deg\n0,0\n") + "' --scene '" + ChapterScenePath() +
+                    "' --out '" + Out() + "'",
+                {"column 'flexon_deg' is not a trajectory.csv column", "nearest: 'flexion_deg'"});
+}
+
+// A CSV line of 40M commas (40 MB) is refused by its field count without a string per field:
+// under a 1.5 GB address-space limit `kneedyn score` and `kneedyn batch` exit 2 naming the
+// count. Before, each split it into 40M strings (2.3 GB) first and, under the limit, died of
+// std::bad_alloc (abort, outside the exit-code contract).
+TEST_F(HostileInput, CsvLineOfManyCommasIsRefusedByItsFieldCount) {
+  const std::string commas(40000000, ',');
+  const std::string limit = "ulimit -v 1500000; '" + std::string(KNEEDYN_EXE) + "' ";
+  const CommandResult probe = RunShell(limit + "--version");
+  if (probe.exit_code != 0) GTEST_SKIP() << "kneedyn does not start under ulimit -v here: " << probe.output;
+  const CommandResult score = RunShell(limit + "score '" + Input("result.csv", "time_s,flexion_deg\n" + commas + "\n") +
+                                       "' --scene '" + ChapterScenePath() + "' --out '" + Out() + "'");
+  EXPECT_EQ(score.exit_code, 2) << score.output.substr(0, 500);
+  EXPECT_NE(score.output.find("line 2: 40000001 cells for 2 columns"), std::string::npos) << score.output.substr(0, 500);
+  const CommandResult header = RunShell(limit + "score '" + Input("header.csv", "time_s" + commas + "\n0\n") +
+                                        "' --scene '" + ChapterScenePath() + "' --out '" + Out() + "'");
+  EXPECT_EQ(header.exit_code, 2) << header.output.substr(0, 500);
+  EXPECT_NE(header.output.find("header: column '' appears twice"), std::string::npos) << header.output.substr(0, 500);
+  const CommandResult batch =
+      RunShell(limit + "batch '" + ChapterScenePath() + "' --variants '" +
+               Input("variants.csv", "pulse.amplitude\n" + commas + "\n") + "' --out '" + Out() + "/b.csv'");
+  EXPECT_EQ(batch.exit_code, 2) << batch.output.substr(0, 500);
+  EXPECT_NE(batch.output.find("line 2: 40000001 values, the header names 1 parameters"), std::string::npos)
+      << batch.output.substr(0, 500);
+  EXPECT_TRUE(Written().empty()) << Written().front();
 }
 
 

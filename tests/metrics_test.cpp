@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <limits>
+#include <random>
 
 #include "benchmarks/metrics.hpp"
 #include "solver/dynamics.hpp"
@@ -67,6 +68,107 @@ TEST(Compare, MatchesTimesEndEventAndEvents) {
   EXPECT_NEAR(m.event_time.at("flexion_90"), 0.01, 1e-15);
   EXPECT_NEAR(m.event_angle.at("flexion_90"), 1e-3 * 180.0 / M_PI, 1e-12);
   EXPECT_TRUE(std::isnan(m.event_time.at("liftoff_lateral")));
+}
+
+// Compare pairs each reference time with the run's first row within 1e-9 s in one merge
+// pass over the two sorted lists (before: a scan from the first run row per reference time,
+// quadratic). Checked against that scan, written out here, on random cases built from the
+// edge cases: unequal grids, run rows duplicated, rows 0.5e-9 / 1e-9 / 2e-9 s off a
+// reference time (either side), runs ending before or after the reference, with and without
+// end events; every row holds random values, so a row paired wrongly changes the mixed
+// errors or the scd, which must equal the scan's bit for bit. (A correctness test of the
+// merge: the old scan passes it by construction.)
+TEST(Compare, MergeMatchesTheScanFromTheStartOnEdgeCases) {
+  std::mt19937_64 rng(12345);
+  std::uniform_real_distribution<double> value(-2.0, 2.0);
+  const std::vector<double> offsets = {0.0, 0.0, 0.0, 0.5e-9, -0.5e-9, 1e-9, -1e-9, 2e-9, -2e-9, 0.01};
+  const auto times = [&](size_t n, bool allow_duplicates) {
+    std::vector<double> t;
+    for (size_t k = 0; t.size() < n && k < 4 * n + 4; ++k) {
+      if (rng() % 3 == 0) continue;  // a grid point left out: unequal grids
+      const double x = 0.02 * static_cast<double>(k) + offsets[rng() % offsets.size()];
+      if (!t.empty() && !(x > t.back())) continue;
+      t.push_back(x);
+      if (allow_duplicates && rng() % 4 == 0) t.push_back(x);
+    }
+    return t;
+  };
+  const auto random_solution = [&](std::vector<double> t, bool end_event) {
+    if (end_event) t.push_back(t.empty() ? 1.0 : t.back() + 0.013);
+    Solution s = Synthetic(t, end_event, 0.0);
+    for (const std::string& c : VariableClasses()) {
+      for (auto& row : s.values[c]) {
+        for (double& x : row) x = value(rng);
+      }
+    }
+    return s;
+  };
+  int checked_pairs = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const Solution ref = random_solution(times(1 + rng() % 12, false), rng() % 2 == 0);
+    const Solution run = random_solution(times(rng() % 16, true), rng() % 2 == 0);
+    // The scan from the start (the code before the merge).
+    std::vector<std::pair<size_t, size_t>> pairs;
+    int missing = 0;
+    const size_t n_ref = ref.times.size() - (ref.end_is_event ? 1 : 0);
+    const size_t n_run = run.times.size() - (run.end_is_event ? 1 : 0);
+    for (size_t i = 0; i < n_ref; ++i) {
+      size_t k = 0;
+      while (k < n_run && std::abs(run.times[k] - ref.times[i]) > 1e-9) ++k;
+      if (k < n_run) {
+        pairs.push_back({k, i});
+      } else {
+        ++missing;
+      }
+    }
+    if (ref.end_is_event) {
+      if (run.end_is_event) {
+        pairs.push_back({run.times.size() - 1, ref.times.size() - 1});
+      } else {
+        ++missing;
+      }
+    }
+    checked_pairs += static_cast<int>(pairs.size());
+    const Metrics m = Compare(run, ref);
+    ASSERT_EQ(m.compared_times, static_cast<int>(pairs.size())) << "trial " << trial;
+    ASSERT_EQ(m.missing_times, missing) << "trial " << trial;
+    double worst_scd = std::numeric_limits<double>::infinity();
+    for (const std::string& c : VariableClasses()) {
+      double mixed = 0.0;
+      for (const auto& [k, i] : pairs) {
+        mixed = std::max(mixed, MixedError(run.values.at(c)[k], ref.values.at(c)[i]));
+        if (c == "positions") {
+          worst_scd = std::min(worst_scd, ScdFromErrors(run.values.at(c)[k], ref.values.at(c)[i],
+                                                        {1.0, 1.0, 1.0, 1.0, 1.0, 1.0}));
+        }
+      }
+      if (pairs.empty()) {
+        ASSERT_TRUE(std::isnan(m.mixed.at(c))) << "trial " << trial;
+      } else {
+        ASSERT_EQ(m.mixed.at(c), mixed) << "trial " << trial << " " << c;
+      }
+    }
+    if (!pairs.empty()) ASSERT_EQ(m.scd_compared, worst_scd) << "trial " << trial;
+  }
+  EXPECT_GT(checked_pairs, 2000);  // the cases pair rows, not only miss them
+}
+
+// Reference events against the run's first event of the same name (a hash map since the
+// scan per reference event): duplicates in the run count their first, duplicates in the
+// reference their first, names the run lacks are NaN. (Checks the same result as the scan.)
+TEST(Compare, EventsAreMatchedWithTheRunsFirstEventOfTheName) {
+  Solution ref = Synthetic({0.0, 0.02}, false, 0.0);
+  Solution run = Synthetic({0.0, 0.02}, false, 0.0);
+  ref.events = {{"a", 1.0, 0.1}, {"b", 2.0, 0.2}, {"a", 5.0, 0.5}, {"c", 3.0, 0.3}};
+  run.events = {{"b", 2.5, 0.25}, {"a", 1.25, 0.0}, {"a", 1.0, 0.1}, {"b", 2.0, 0.2}, {"d", 9.0, 0.9}};
+  const Metrics m = Compare(run, ref);
+  ASSERT_EQ(m.event_time.size(), 3u);
+  EXPECT_DOUBLE_EQ(m.event_time.at("a"), 0.25);  // run's first "a" (1.25) against ref's first (1.0)
+  EXPECT_DOUBLE_EQ(m.event_angle.at("a"), 0.1 * 180.0 / M_PI);
+  EXPECT_DOUBLE_EQ(m.event_time.at("b"), 0.5);
+  EXPECT_TRUE(std::isnan(m.event_time.at("c")));
+  EXPECT_TRUE(std::isnan(m.event_angle.at("c")));
+  EXPECT_EQ(m.event_time.count("d"), 0u);
 }
 
 TEST(Compare, RunWithoutEndEventMissesTheEndState) {

@@ -16,9 +16,31 @@
 #include <utility>
 #include <vector>
 
+#include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn::scene_detail {
+
+// A JSON document a user gives (a reference, a summary.json's events, counters, a sweep's
+// part file), parsed with its nesting checked as it is read: more than kMaxYamlDepth lists
+// and objects deep (the YAML reader's limit; no kneedyn document nests past 6) is an
+// InputError from `function` naming `document` and the rule, raised at the first container
+// past the limit, before the rest is built (a 40 MB "[[[...]]]" built a DOM of 1.5 GB).
+// Syntax errors are nlohmann::json::exception, as from nlohmann::json::parse, for the
+// caller's own message.
+inline nlohmann::json ParseJsonDocument(const std::string& text, const char* function, const std::string& document) {
+  const nlohmann::json::parser_callback_t check_depth = [&](int depth, nlohmann::json::parse_event_t event,
+                                                             nlohmann::json&) {
+    // depth: the containers around this one (0 at the top level).
+    if ((event == nlohmann::json::parse_event_t::object_start || event == nlohmann::json::parse_event_t::array_start) &&
+        depth + 1 > kMaxYamlDepth) {
+      Throw<InputError>(function, document, ": JSON nesting depth ", depth + 1, " exceeds the limit of ", kMaxYamlDepth,
+                        " lists and objects");
+    }
+    return true;
+  };
+  return nlohmann::json::parse(text, check_depth);
+}
 
 class JsonFields {
  public:
