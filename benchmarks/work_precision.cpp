@@ -54,6 +54,7 @@
 #include "formulations/progress.hpp"
 #include "formulations/output_file.hpp"
 #include "formulations/version.hpp"
+#include "scene/internal/json_field.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -197,7 +198,9 @@ std::vector<nlohmann::json> IncludedResults(const std::string& dir, const std::s
     nlohmann::json j;
     try {
       std::ifstream in(path);
-      j = nlohmann::json::parse(in);
+      std::stringstream text;
+      text << in.rdbuf();
+      j = scene_detail::ParseJsonDocument(text.str(), "work_precision", where);  // nesting checked as read
     } catch (const nlohmann::json::exception& e) {
       Throw<InputError>("work_precision", where, ": not JSON (", e.what(), ")");
     }

@@ -247,6 +247,8 @@ def load_included(directory, scene=None, reference_primary=None):
         data = json.load(f)
     except (OSError, ValueError) as e:
       raise ValueError(f"--include = '{directory}': '{path}': not JSON ({e})") from None
+    except RecursionError:  # Python's json recurses per level: a traceback, not a refusal
+      raise ValueError(f"--include = '{directory}': '{path}': JSON nested too deep to read") from None
     if not isinstance(data, dict) or not isinstance(data.get("header"), dict) or not isinstance(data.get("results"), list):
       raise ValueError(f"--include = '{directory}': '{path}': not kneedyn score's JSON (no header and results)")
     h = data["header"]

@@ -79,7 +79,8 @@ def run_command(cmd, **kwargs):
 
 def checked(load, option, path, *args):
   """load(path, *args) with an unreadable, missing, directory or malformed file (OSError,
-  ValueError incl. JSON errors, KeyError, TypeError, AttributeError) as BadInput naming option."""
+  ValueError incl. JSON errors, KeyError, TypeError, AttributeError, IndexError, and the
+  RecursionError of JSON nested thousands deep) as BadInput naming option."""
   existing_file(option, path)
   try:
     return load(path, *args)
@@ -87,6 +88,8 @@ def checked(load, option, path, *args):
     raise
   except (OSError, ValueError, KeyError, TypeError, AttributeError, IndexError) as e:
     raise BadInput(f"{option} = '{echo(path)}': not a file this tool reads ({type(e).__name__}: {echo(e)})") from None
+  except RecursionError:  # Python's json recurses per level of nesting
+    raise BadInput(f"{option} = '{echo(path)}': not a file this tool reads (JSON nested too deep to read)") from None
 
 
 def existing_file(option, path):

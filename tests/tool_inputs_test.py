@@ -141,6 +141,8 @@ def main():
                               (tool_input.kneedyn_executable, ("--kneedyn", "/bin/true"), "not the kneedyn program"),
                               (tool_input.kneedyn_executable, ("--kneedyn", tmp), "a directory"),
                               (tool_input.json_object, ("--bench", spec_list), "not a file this tool reads"),
+                              (tool_input.json_object, ("--bench", write("deep.json", "[" * 200000 + "]" * 200000)),
+                               "nested too deep"),  # a RecursionError traceback before
                               (tool_input.number, ("--n", float("nan"), 0.0), "--n = nan")):
       try:
         check(*args)

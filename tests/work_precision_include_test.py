@@ -12,8 +12,8 @@ scored again with --failed is the planted failed outside run. Checks:
     exactly 1 failure (the planted one), and its ok run is on the Pareto front's legend;
   * the report's section with a sweep file plus --include DIR: the outside-solver table lists
     the solver, and the failed run is in the failure list;
-  * bad input: a score for another scene, a directory without score files: exit 2, nothing
-    written.
+  * bad input: a score for another scene, a directory without score files, score files
+    nested 100 and 200,000 deep: exit 2, nothing written (and bench_data refuses each).
 Expected values are the planted facts (1 failure, the names given to kneedyn score), not
 values copied from a run.
 
@@ -130,7 +130,18 @@ def main():
       json.dump(other, f)
     empty = os.path.join(tmp, "empty")
     os.makedirs(empty)
-    for d, words in ((bad, "another_scene"), (empty, "no score.json")):
+    deep = os.path.join(tmp, "deep")  # nesting past work_precision's limit of 64, refused as read
+    os.makedirs(deep)
+    with open(os.path.join(deep, "score.json"), "w") as f:
+      f.write("[" * 100 + "]" * 100)
+    deeper = os.path.join(tmp, "deeper")  # past Python's recursion limit too (a RecursionError before)
+    os.makedirs(deeper)
+    with open(os.path.join(deeper, "score.json"), "w") as f:
+      f.write("[" * 200000 + "]" * 200000)
+    # (directory, what work_precision says, what bench_data.load_included says)
+    for d, words, py_words in ((bad, "another_scene", "another_scene"), (empty, "no score.json", "no score.json"),
+                               (deep, "nesting depth 65 exceeds the limit of 64", "not kneedyn score's JSON"),
+                               (deeper, "nesting depth 65 exceeds the limit of 64", "nested too deep")):
       target = os.path.join(tmp, "not_written.json")
       r = subprocess.run([a.work_precision, "--short", "--only", "ede:rk4/step=0.002", "--include", d, "--json", target],
                          capture_output=True, text=True)
@@ -141,7 +152,7 @@ def main():
         bench_data.load_included(d, "chapter_impact")
         errors.append(f"load_included({d}) accepted it")
       except ValueError as e:
-        if words not in str(e):
+        if py_words not in str(e):
           errors.append(f"load_included({d}): {e}")
 
   return finish(errors, "FAIL:", "work_precision_include: " + ("FAILED" if errors else "passed"), sys.stdout)

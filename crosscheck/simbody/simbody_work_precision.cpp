@@ -38,11 +38,13 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <sstream>
 
 #include "benchmarks/bench_run.hpp"
 #include "crosscheck/simbody/simbody_solution.hpp"
 #include "formulations/version.hpp"
 #include "formulations/output_file.hpp"
+#include "scene/internal/json_field.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -352,8 +354,15 @@ int main(int argc, char** argv) {
     if (!merge_path.empty()) {
       std::ifstream f(merge_path);
       if (!f) Throw<InputError>("simbody_work_precision", "--merge = '", merge_path, "': cannot be read");
-      const nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
-      if (j.is_discarded() || !j.contains("results")) {
+      std::stringstream text;
+      text << f.rdbuf();
+      nlohmann::json j;
+      try {  // nesting checked as it is read, as for every JSON document a user gives
+        j = scene_detail::ParseJsonDocument(text.str(), "simbody_work_precision", "--merge = '" + merge_path + "'");
+      } catch (const nlohmann::json::exception&) {
+        j = nlohmann::json::value_t::discarded;
+      }
+      if (j.is_discarded() || !j.is_object() || !j.contains("results") || !j.contains("header")) {
         Throw<InputError>("simbody_work_precision", "--merge = '", merge_path, "': not a work_precision JSON");
       }
       merged = j.at("results");
