@@ -256,9 +256,10 @@ bool ComparableKey(const YamlNodes& doc, int node) {
 }
 
 // RepeatedKey for a large mapping (a 200,000-key one took 90 s pair by pair): a hash set of
-// the keys seen so far. Out of line, so that the pairwise loop of the usual few keys stays
-// inlined where RepeatedKey is called.
-[[gnu::noinline]] int RepeatedKeyHashed(const YamlNodes& doc, const int* children, size_t count) {
+// the keys seen so far. Out of line and cold: scene mappings are small, and compiled as hot
+// code the hash table took GCC's inlining budget of this file from the loader's own paths
+// (+12 k instructions in a default run's loading, callgrind).
+[[gnu::noinline, gnu::cold]] int RepeatedKeyHashed(const YamlNodes& doc, const int* children, size_t count) {
   std::unordered_set<std::string_view> seen;
   seen.reserve(count / 2);
   for (size_t i = 0; i < count; i += 2) {
@@ -513,34 +514,6 @@ bool YamlCppBool(std::string_view text, bool* v) {
 std::string Line(const yaml_node_t* n) { return n ? StrCat(":", n->start_mark.line + 1) : std::string(); }
 
 }  // namespace
-
-// Declared in yaml_field.hpp (the Python module types a document's scalars with it).
-bool PlainDecimal(std::string_view text, double* v) {
-  size_t i = 0;
-  const size_t n = text.size();
-  auto digits = [&] {
-    const size_t from = i;
-    while (i < n && text[i] >= '0' && text[i] <= '9') ++i;
-    return i - from;
-  };
-  if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
-  size_t count = digits();
-  if (i < n && text[i] == '.') {
-    ++i;
-    count += digits();
-  }
-  if (count == 0) return false;
-  if (i < n && (text[i] == 'e' || text[i] == 'E')) {
-    ++i;
-    if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
-    if (digits() == 0) return false;
-  }
-  if (i != n) return false;
-  // from_chars takes '-' but not '+'.
-  const char* first = text.data() + (text[0] == '+' ? 1 : 0);
-  const auto [end, ec] = std::from_chars(first, text.data() + n, *v, std::chars_format::general);
-  return ec == std::errc() && end == text.data() + n;
-}
 
 Field::Field(std::shared_ptr<const YamlDocument> doc, const yaml_node_t* node, std::string path)
     : doc_(std::move(doc)), node_(node), kind_(KindOf(node)), path_(std::move(path)) {}

@@ -24,10 +24,12 @@
 #pragma once
 
 #include <array>
+#include <charconv>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <string_view>
+#include <system_error>
 #include <vector>
 
 #include "solver/scalar.hpp"
@@ -130,7 +132,33 @@ std::string ReadInputFile(const std::string& path, const char* what, const Input
 // A plain decimal ([+-] digits [. digits] [e|E [+-] digits], a digit before or after the
 // point) that is a finite double, read into *v as the loader reads numbers; false for any
 // other text (hex, inf, nan, out of range), which the loader reads with yaml-cpp's stream.
-bool PlainDecimal(std::string_view text, double* v);
+// Inline: the loader types every scalar with it, and the Python module reads documents with it.
+inline bool PlainDecimal(std::string_view text, double* v) {
+  size_t i = 0;
+  const size_t n = text.size();
+  auto digits = [&] {
+    const size_t from = i;
+    while (i < n && text[i] >= '0' && text[i] <= '9') ++i;
+    return i - from;
+  };
+  if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
+  size_t count = digits();
+  if (i < n && text[i] == '.') {
+    ++i;
+    count += digits();
+  }
+  if (count == 0) return false;
+  if (i < n && (text[i] == 'e' || text[i] == 'E')) {
+    ++i;
+    if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
+    if (digits() == 0) return false;
+  }
+  if (i != n) return false;
+  // from_chars takes '-' but not '+'.
+  const char* first = text.data() + (text[0] == '+' ? 1 : 0);
+  const auto [end, ec] = std::from_chars(first, text.data() + n, *v, std::chars_format::general);
+  return ec == std::errc() && end == text.data() + n;
+}
 
 // Names written into output headers: a letter, then letters, digits, '_', '-', '.', and
 // (elements only) spaces and '/'; at most kMaxNameLength characters.
