@@ -148,7 +148,9 @@ TEST(Compare, MergeMatchesTheScanFromTheStartOnEdgeCases) {
         ASSERT_EQ(m.mixed.at(c), mixed) << "trial " << trial << " " << c;
       }
     }
-    if (!pairs.empty()) ASSERT_EQ(m.scd_compared, worst_scd) << "trial " << trial;
+    if (!pairs.empty()) {
+      ASSERT_EQ(m.scd_compared, worst_scd) << "trial " << trial;
+    }
   }
   EXPECT_GT(checked_pairs, 2000);  // the cases pair rows, not only miss them
 }
