@@ -10,6 +10,7 @@
 
 #include "formulations/formulation.hpp"
 #include "formulations/run_output.hpp"
+#include "scene/internal/csv_fields.hpp"
 #include "scene/internal/json_field.hpp"
 #include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
@@ -23,27 +24,13 @@ namespace {
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kTimeMatch = 1e-9;  // s, as metrics.cpp
 
-// A CSV line without its '\r' (a CRLF file), split at commas into views of `line`: no
-// allocation per field, and the fields are counted before anything is stored (a line of
-// 40M commas made 40M strings, 2.3 GB). A non-empty line has one field more than it has
-// commas, an empty one none (as std::getline split it before).
+using scene_detail::CsvFieldCount;    // fields counted before anything is stored,
+using scene_detail::ForEachCsvField;  // then split into views (scene/internal/csv_fields.hpp)
+
+// A CSV line without its '\r' (a CRLF file).
 std::string_view CsvLine(std::string_view line) {
   if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
   return line;
-}
-size_t CsvFieldCount(std::string_view line) {
-  return line.empty() ? 0 : static_cast<size_t>(std::count(line.begin(), line.end(), ',')) + 1;
-}
-// Calls f(index, field) for each field in order until f returns false.
-template <typename F>
-void ForEachCsvField(std::string_view line, F f) {
-  if (line.empty()) return;
-  for (size_t c = 0, start = 0;; ++c) {
-    const size_t comma = line.find(',', start);
-    if (!f(c, line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start))) return;
-    if (comma == std::string_view::npos) return;
-    start = comma + 1;
-  }
 }
 
 // The lines of a file's text, in order, as views (no copy of the text into a stream).

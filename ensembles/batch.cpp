@@ -8,6 +8,7 @@
 #include <string_view>
 
 #include "ensembles/parallel_runs.hpp"
+#include "scene/internal/csv_fields.hpp"
 #include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
 
@@ -29,24 +30,8 @@ std::string_view TrimView(std::string_view s) {
   return s.substr(a, b - a + 1);
 }
 
-// The fields of a non-empty line: one more than its commas (as a split with std::getline
-// gave, a trailing comma ending an empty field). Counted before anything is split.
-size_t CsvFieldCount(std::string_view line) {
-  return line.empty() ? 0 : static_cast<size_t>(std::count(line.begin(), line.end(), ',')) + 1;
-}
-
-// Calls f(index, trimmed field) for each field of `line` in order, as views of it (no
-// string per field: a line of 40M commas made 40M strings, 2.3 GB).
-template <typename F>
-void ForEachCsvField(std::string_view line, F f) {
-  if (line.empty()) return;
-  for (size_t c = 0, start = 0;; ++c) {
-    const size_t comma = line.find(',', start);
-    f(c, TrimView(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start)));
-    if (comma == std::string_view::npos) return;
-    start = comma + 1;
-  }
-}
+using scene_detail::CsvFieldCount;    // fields counted before anything is split,
+using scene_detail::ForEachCsvField;  // then split into views (scene/internal/csv_fields.hpp)
 
 // Shortest round-trip form.
 void AppendNumber(std::string* out, double v) {
@@ -90,6 +75,7 @@ BatchVariants ParseBatchVariants(const std::string& text, const std::string& lab
       // Each header cell is checked as it is split: the first bad one is refused before the
       // rest of the line is looked at.
       ForEachCsvField(t, [&](size_t c, std::string_view cell) {
+        cell = TrimView(cell);
         if (cell.empty()) {
           Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column ", c + 1,
                             ": empty parameter name in the header");
@@ -113,6 +99,7 @@ BatchVariants ParseBatchVariants(const std::string& text, const std::string& lab
     }
     std::vector<double> row(fields);
     ForEachCsvField(t, [&](size_t c, std::string_view f) {
+      f = TrimView(f);
       const auto r = std::from_chars(f.data(), f.data() + f.size(), row[c]);
       if (f.empty() || r.ec != std::errc() || r.ptr != f.data() + f.size() || !std::isfinite(row[c])) {
         Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column '", v.parameters[c].name,
