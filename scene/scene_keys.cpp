@@ -1,6 +1,11 @@
 #include "scene/internal/scene_keys.hpp"
 
+#include <deque>
 #include <stdexcept>
+#include <string>
+#include <tuple>
+
+#include "solver/surface_types.hpp"
 
 namespace kneedyn {
 namespace {
@@ -12,10 +17,31 @@ const std::vector<const char*>& Find(const std::vector<SceneKeyTable>& table, st
   throw std::logic_error("scene key table: no entry '" + std::string(name) + "'");
 }
 
+// "surface.<type>" for each scene surface type (solver/surface_types.hpp): "type" and its
+// parameters' keys, in the order the type declares them.
+std::vector<SceneKeyTable> SurfaceTypeKeys() {
+  static std::deque<std::string> names;  // the mappings' names, alive as long as the table
+  std::vector<SceneKeyTable> out;
+  ForEachSurfaceType(SceneSurfaceTypes{}, [&out](auto tag) {
+    using Surface = typename decltype(tag)::type;
+    std::vector<const char*> keys = {"type"};
+    std::apply([&keys](const auto&... parameter) { (keys.push_back(parameter.key), ...); }, Surface::kSceneParameters);
+    out.push_back({names.emplace_back(std::string("surface.") + Surface::kSceneType).c_str(), std::move(keys)});
+  });
+  return out;
+}
+
+std::vector<const char*> SurfaceTypeNames() {
+  std::vector<const char*> out;
+  ForEachSurfaceType(SceneSurfaceTypes{}, [&out](auto tag) { out.push_back(decltype(tag)::type::kSceneType); });
+  return out;
+}
+
 }  // namespace
 
 const std::vector<SceneKeyTable>& SceneMappingKeys() {
-  static const std::vector<SceneKeyTable> table = {
+  static const std::vector<SceneKeyTable> table = [] {
+    std::vector<SceneKeyTable> t = {
       // A scene file.
       {"scene", {"name", "description", "parameter_set", "body", "angular_velocity_map", "ligament_law", "ligaments",
                  "ligament_stiffness_scale", "ligament_parameters", "contacts", "surfaces", "gravity", "pulse",
@@ -39,13 +65,9 @@ const std::vector<SceneKeyTable>& SceneMappingKeys() {
       {"scene.initial_state.normal_force_guesses_N", {"medial", "lateral"}},
       {"scene.end", {"flexion_deg", "time_s"}},
       {"scene.output", {"interval_s"}},
-      // A compartment's surfaces (parameter set, or scene.surfaces.medial/lateral), and each
-      // surface type's keys. polynomial's coefficients_mm holds keys c<i><j>, i + j <= 4.
+      // A compartment's surfaces (parameter set, or scene.surfaces.medial/lateral); each
+      // surface type's keys are added below from the type itself.
       {"compartment", {"femoral_surface", "tibial_surface"}},
-      {"surface.sphere_cap", {"type", "centre_mm", "radius_mm"}},
-      {"surface.plane", {"type", "slope_x", "slope_y", "offset_mm"}},
-      {"surface.ellipsoid_cap", {"type", "centre_mm", "semi_axes_mm", "orientation_deg"}},
-      {"surface.polynomial", {"type", "origin_mm", "rotation_z_deg", "coefficients_mm"}},
       // A parameter set.
       {"parameter_set", {"name", "description", "body", "gravity", "compartments", "ligaments", "reference_pose",
                          "chapter_initial_guesses"}},
@@ -57,7 +79,10 @@ const std::vector<SceneKeyTable>& SceneMappingKeys() {
       {"parameter_set.reference_pose", {"alpha_deg", "beta_deg", "gamma_deg", "y0_mm"}},
       {"parameter_set.chapter_initial_guesses", {"medial", "lateral"}},
       {"parameter_set.chapter_initial_guesses.COMPARTMENT", {"femoral_xy_mm", "tibial_xy_mm", "normal_force_N"}},
-  };
+    };
+    for (SceneKeyTable& surface : SurfaceTypeKeys()) t.push_back(std::move(surface));
+    return t;
+  }();
   return table;
 }
 
@@ -71,7 +96,7 @@ const std::vector<SceneKeyTable>& SceneFieldValues() {
       {"scene.pulse.shape", {"reconstructed", "half_sine", "reconstructed_peak", "damped_sine", "none"}},
       // As solver/patella.cpp's ParseQuadricepsShape reads them.
       {"scene.patella.quadriceps.shape", {"constant", "ramp", "half_sine"}},
-      {"surface.type", {"sphere_cap", "plane", "ellipsoid_cap", "polynomial"}},
+      {"surface.type", SurfaceTypeNames()},  // solver/surface_types.hpp
       {"scene.initial_state.pose", {"reference", "explicit", "assemble"}},
       {"scene.initial_state.guesses", {"pose", "chapter"}},
       {"scene.initial_state.origin", {"both_contacts", "medial_contact"}},

@@ -1,82 +1,97 @@
 // Scene and parameter-set sections: surfaces, compartments and the scene's contacts.
 #include <cmath>
+#include <tuple>
 
 #include "scene/internal/scene_keys.hpp"
 #include "scene/internal/sections.hpp"
-#include "solver/ellipsoid_cap.hpp"
 #include "solver/error.hpp"
-#include "solver/polynomial_surface.hpp"
+#include "solver/surface_types.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn::scene_detail {
 namespace {
 
-// ellipsoid_cap: centre_mm [3], semi_axes_mm [3] (> 0), orientation_deg [3] (optional:
-// rotations about x, then y, then z of the bone's frame; default none).
-std::shared_ptr<const HeightField> ParseEllipsoidCap(const Field& f) {
-  f.Keys(KeysOf("surface.ellipsoid_cap"));
-  const Vector3d centre = f.Required("centre_mm").Vec3() * kMPerMm;
-  const Vector3d axes = f.Required("semi_axes_mm").Vec3();
+namespace sp = surface_parameter;
+
+// One reader per parameter descriptor (solver/surface_parameters.hpp): the file's value,
+// checked, in SI.
+Vector3d Read(const Field& f, const sp::PointMm& p) { return f.Required(p.key).Vec3() * kMPerMm; }
+
+Vector3d Read(const Field& f, const sp::SemiAxesMm& p) {
+  const Field field = f.Required(p.key);
+  const Vector3d axes = field.Vec3();
   for (int i = 0; i < 3; ++i) {
     if (!(axes(i) > 0.0 && axes(i) <= kMaxLengthMm)) {
-      f.Required("semi_axes_mm").Item(i).Fail(StrCat("must lie in (0, ", kMaxLengthMm, "] mm"));
+      field.Item(i).Fail(StrCat("must lie in (0, ", kMaxLengthMm, "] mm"));
     }
   }
-  Vector3d angles = Vector3d::Zero();
-  if (f.Has("orientation_deg")) angles = f.Required("orientation_deg").Vec3() * kRadPerDeg;
-  const Matrix3d Q = (Eigen::AngleAxisd(angles.z(), Vector3d::UnitZ()) *
-                      Eigen::AngleAxisd(angles.y(), Vector3d::UnitY()) *
-                      Eigen::AngleAxisd(angles.x(), Vector3d::UnitX())).toRotationMatrix();
-  return std::make_shared<EllipsoidCap>(centre, axes * kMPerMm, Q);
+  return axes * kMPerMm;
 }
 
-// polynomial: origin_mm [3], rotation_z_deg (optional), coefficients_mm {cij: value} with
-// i + j <= 4: z_mm = origin_z + sum cij xi_mm^i eta_mm^j.
-std::shared_ptr<const HeightField> ParsePolynomial(const Field& f) {
-  f.Keys(KeysOf("surface.polynomial"));
-  const Vector3d origin = f.Required("origin_mm").Vec3() * kMPerMm;
-  const double theta = f.Has("rotation_z_deg") ? DegToRad(f.Required("rotation_z_deg").Double()) : 0.0;
-  double c[PolynomialSurface::kMaxDegree + 1][PolynomialSurface::kMaxDegree + 1] = {};
-  const Field coeffs = f.Required("coefficients_mm");
+double Read(const Field& f, const sp::PositiveLengthMm& p) { return MmToM(f.Required(p.key).Positive(kMaxLengthMm)); }
+
+double Read(const Field& f, const sp::LengthMm& p) {
+  return MmToM(f.Required(p.key).Range(-kMaxLengthMm, kMaxLengthMm));
+}
+
+double Read(const Field& f, const sp::Slope& p) {
+  if (p.optional && !f.Has(p.key)) return 0.0;
+  return f.Required(p.key).Range(-100.0, 100.0);
+}
+
+double Read(const Field& f, const sp::AngleDeg& p) { return f.Has(p.key) ? DegToRad(f.Required(p.key).Double()) : 0.0; }
+
+Matrix3d Read(const Field& f, const sp::RotationXyzDeg& p) {
+  Vector3d angles = Vector3d::Zero();
+  if (f.Has(p.key)) angles = f.Required(p.key).Vec3() * kRadPerDeg;
+  return (Eigen::AngleAxisd(angles.z(), Vector3d::UnitZ()) * Eigen::AngleAxisd(angles.y(), Vector3d::UnitY()) *
+          Eigen::AngleAxisd(angles.x(), Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+// z_mm = c ξ_mm^i η_mm^j  →  SI coefficient c · 1000^(i+j−1).
+PolynomialCoefficients Read(const Field& f, const sp::PolynomialCoefficientsMm& p) {
+  PolynomialCoefficients out;
+  const Field coeffs = f.Required(p.key);
   int given = 0;
-  for (int i = 0; i <= PolynomialSurface::kMaxDegree; ++i) {
-    for (int j = 0; i + j <= PolynomialSurface::kMaxDegree; ++j) {
+  for (int i = 0; i <= kMaxPolynomialDegree; ++i) {
+    for (int j = 0; i + j <= kMaxPolynomialDegree; ++j) {
       const std::string key = StrCat("c", i, j);
       if (!coeffs.Has(key)) continue;
-      // z_mm = c ξ_mm^i η_mm^j  →  SI coefficient c · 1000^(i+j−1).
-      c[i][j] = coeffs.Required(key).Double() * std::pow(1.0e3, i + j - 1);
+      out.c[i][j] = coeffs.Required(key).Double() * std::pow(1.0e3, i + j - 1);
       ++given;
     }
   }
   if (given != static_cast<int>(coeffs.Keys().size())) {
     for (const std::string& key : coeffs.Keys()) {
       const bool ok = key.size() == 3 && key[0] == 'c' && key[1] >= '0' && key[2] >= '0' &&
-                      (key[1] - '0') + (key[2] - '0') <= PolynomialSurface::kMaxDegree;
+                      (key[1] - '0') + (key[2] - '0') <= kMaxPolynomialDegree;
       if (!ok) coeffs.Required(key).Fail("unknown coefficient; expected c<i><j> with i + j <= 4 (e.g. c20)");
     }
   }
   if (given == 0) coeffs.Fail("needs at least one coefficient c<i><j> with i + j <= 4 (e.g. c20)");
-  return std::make_shared<PolynomialSurface>(origin, theta, c);
+  return out;
 }
 
-// Surface factory: a new height field type is one more branch here and one entry in the
-// key table (scene_keys.cpp).
+// A surface of type Surface from its mapping: its keys checked, its parameters read in the
+// order they are declared (a braced list evaluates left to right, so the first bad value in
+// that order is the one reported), then its constructor.
+template <typename Surface>
+std::shared_ptr<const HeightField> ReadSurface(const Field& f) {
+  f.Keys(KeysOf(StrCat("surface.", Surface::kSceneType)));
+  const auto values = std::apply([&f](const auto&... p) { return std::tuple{Read(f, p)...}; }, Surface::kSceneParameters);
+  return std::apply([](const auto&... v) { return std::make_shared<Surface>(v...); }, values);
+}
+
+// The surface factory: the type named by `type:` among solver/surface_types.hpp's scene types.
 std::shared_ptr<const HeightField> ParseSurface(const Field& f) {
   const std::string type = f.Required("type").OneOf(ValuesOf("surface.type"), "surface type");
-  if (type == "sphere_cap") {
-    f.Keys(KeysOf("surface.sphere_cap"));
-    const Vector3d centre = f.Required("centre_mm").Vec3() * kMPerMm;
-    return std::make_shared<SphereCap>(centre, MmToM(f.Required("radius_mm").Positive(kMaxLengthMm)));
-  }
-  if (type == "plane") {
-    f.Keys(KeysOf("surface.plane"));
-    return std::make_shared<PlaneSurface>(
-        f.Required("slope_x").Range(-100.0, 100.0),
-        f.Has("slope_y") ? f.Required("slope_y").Range(-100.0, 100.0) : 0.0,
-        MmToM(f.Required("offset_mm").Range(-kMaxLengthMm, kMaxLengthMm)));
-  }
-  if (type == "ellipsoid_cap") return ParseEllipsoidCap(f);
-  return ParsePolynomial(f);
+  std::shared_ptr<const HeightField> surface;
+  ForEachSurfaceType(SceneSurfaceTypes{}, [&](auto tag) {
+    using Surface = typename decltype(tag)::type;
+    if (surface == nullptr && type == Surface::kSceneType) surface = ReadSurface<Surface>(f);
+  });
+  return surface;
 }
 
 }  // namespace

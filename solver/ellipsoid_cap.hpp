@@ -8,12 +8,19 @@
 // with a given normal is closed form, s = −Aᵀ n / |Aᵀ n|.
 #pragma once
 
+#include <tuple>
+
 #include "solver/height_field.hpp"
+#include "solver/surface_parameters.hpp"
 
 namespace kneedyn {
 
 class EllipsoidCap final : public ChartTplSurface<EllipsoidCap> {
  public:
+  static constexpr const char* kSceneType = "ellipsoid_cap";
+  static constexpr auto kSceneParameters =
+      std::make_tuple(surface_parameter::PointMm{"centre_mm"}, surface_parameter::SemiAxesMm{"semi_axes_mm"},
+                      surface_parameter::RotationXyzDeg{"orientation_deg"});
   // semi_axes (a, b, c) > 0 in m; orientation: rotation from the ellipsoid's axes to the
   // bone's frame.
   EllipsoidCap(const Vector3d& centre, const Vector3d& semi_axes, const Matrix3d& orientation);

@@ -11,16 +11,18 @@
 // The templates EvaluateHeight() / EvaluateChart() lift double samples to ceres::Jet by
 // the chain rule, so every Jacobian through a surface is exact without the surface knowing
 // about AD. Contact kinematics for any pair of surfaces: contact_kinematics.hpp.
-// Adding a surface type: one new file deriving from HeightField plus one line in
-// the scene loader's surface factory (scene/surfaces.cpp, ParseSurface).
+// Adding a surface type: a file pair deriving from HeightField that declares its scene
+// name and parameters (surface_parameters.hpp), and one line in surface_types.hpp.
 #pragma once
 
 #include <cmath>
 #include <memory>
 #include <string>
+#include <tuple>
 #include <type_traits>
 
 #include "solver/scalar.hpp"
+#include "solver/surface_parameters.hpp"
 
 namespace kneedyn {
 
@@ -258,6 +260,9 @@ bool MappedUnitSphereChart(const T& u, const T& v, const Vector3<T>& centre, con
 //   P(u, v) = C + r (sin u, cos u sin v, −cos u cos v),  |u| < 80°, |v| < 170°.
 class SphereCap final : public ChartTplSurface<SphereCap> {
  public:
+  static constexpr const char* kSceneType = "sphere_cap";
+  static constexpr auto kSceneParameters =
+      std::make_tuple(surface_parameter::PointMm{"centre_mm"}, surface_parameter::PositiveLengthMm{"radius_mm"});
   SphereCap(const Vector3d& centre, double radius);
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   std::string Describe() const override;
@@ -283,6 +288,10 @@ class SphereCap final : public ChartTplSurface<SphereCap> {
 // Plane z = slope_x x + slope_y y + offset (chapter Eq. 1.5 with the x′ slope, docs/model.md §3).
 class PlaneSurface final : public HeightField {
  public:
+  static constexpr const char* kSceneType = "plane";
+  static constexpr auto kSceneParameters =
+      std::make_tuple(surface_parameter::Slope{"slope_x", false}, surface_parameter::Slope{"slope_y", true},
+                      surface_parameter::LengthMm{"offset_mm"});
   PlaneSurface(double slope_x, double slope_y, double offset);
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   std::string Describe() const override;

@@ -7,16 +7,25 @@
 // (m^(1−i−j)). Defined everywhere; the regular chart is the height-field chart.
 #pragma once
 
+#include <tuple>
+
 #include "solver/height_field.hpp"
+#include "solver/surface_parameters.hpp"
 
 namespace kneedyn {
 
 class PolynomialSurface final : public HeightField {
  public:
-  static constexpr int kMaxDegree = 4;
+  static constexpr int kMaxDegree = kMaxPolynomialDegree;
+  static constexpr const char* kSceneType = "polynomial";
+  static constexpr auto kSceneParameters =
+      std::make_tuple(surface_parameter::PointMm{"origin_mm"}, surface_parameter::AngleDeg{"rotation_z_deg"},
+                      surface_parameter::PolynomialCoefficientsMm{"coefficients_mm"});
   // coefficients[i][j] = c_ij for i + j ≤ 4 (others must be zero), SI.
   PolynomialSurface(const Vector3d& origin, double rotation_z,
                     const double (&coefficients)[kMaxDegree + 1][kMaxDegree + 1]);
+  PolynomialSurface(const Vector3d& origin, double rotation_z, const PolynomialCoefficients& coefficients)
+      : PolynomialSurface(origin, rotation_z, coefficients.c) {}
   bool Evaluate(double x, double y, HeightSample* sample) const override;
   bool EvaluateChartThird(double u, double v, ChartThirdSample* sample) const override;
   std::string Describe() const override;

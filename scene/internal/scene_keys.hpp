@@ -2,7 +2,8 @@
 // and the values of each enumerated field. The loader's key checks and messages read it;
 // tests/scene_test.cpp checks it against the format document
 // (reference-data/scenes/README.md) and the fuzzer's dictionary (fuzz/yaml.dict), so the
-// three cannot drift apart. Adding a key or a value starts here.
+// three cannot drift apart. Adding a key or a value starts here; a surface type's keys and
+// name come from the type itself (solver/surface_types.hpp).
 #pragma once
 
 #include <string>
