@@ -39,7 +39,8 @@
 // index 2), as in idaSlCrank_dns.c. The system (unknowns, residual, the exact Jacobian
 // dF/dy + cj dF/dẏ) is formulations/internal/dae_system.hpp and the IDA driver that of dae
 // (dae_on_ida.hpp), both shared with dae; this file declares what GGL changes: the
-// stabilized system, the tolerances above and stopping at every output time.
+// stabilized system, the tolerances above and stopping at every output time (with no
+// sliver of a step before it: IdaPhase::SolveToStopTime, formulations/internal/ida_phase.hpp).
 #include <memory>
 
 #include "formulations/internal/dae_on_ida.hpp"

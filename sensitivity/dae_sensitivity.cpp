@@ -10,7 +10,7 @@
 // same consistent state at every phase start (ConsistentInitialize; LigamentBranchesAt +
 // CompleteHiddenConstraint), the same events and re-contact hysteresis; as dae.cpp and
 // dae_ggl.cpp: tolerances (N, μ: 1e4 per unit atol, GGL with floors; GGL stops at each
-// output time), first step (IdaPhase) and root functions (lift-off g = N_i, the DAE unknown).
+// output time, IdaPhase::SolveToStopTime), first step (IdaPhase) and root functions (lift-off g = N_i, the DAE unknown).
 //
 // Sensitivities s_j = ∂y/∂p_j solve F_y s_j + F_ẏ ṡ_j + F_pj = 0 with our own IDASensResFn:
 //   F_y = Jacobian(cj = 0), F_ẏ = Jacobian(cj = 1) − Jacobian(cj = 0) (DaeSystem, exact);
@@ -566,10 +566,11 @@ AdvanceResult DaeSensitivity::Advance(double t_out, MechanicalState* state) {
   const int n_roots = n_events + static_cast<int>(problem_.peaks().size());
   std::vector<int> fired(n_roots, 0);
   for (;;) {
-    if (form_.ggl) Check(IDASetStopTime(ida_.mem, t_out), "IDASetStopTime");  // dae_ggl.cpp: outputs are steps
     failure_.clear();
     double t_reached = t_;
-    const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
+    // dae_ggl.cpp: outputs are steps, with no sliver of a step before them (ida_phase.hpp).
+    const int flag = form_.ggl ? ida_.SolveToStopTime(t_out, &t_reached)
+                               : IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
     if (flag < 0) {
       Throw<SolverError>("RunSensitivity", "IDAS ", ida_.SolveFailure(flag),
                          failure_.empty() ? "" : " (" + failure_ + ")", messages_.Take());

@@ -7,6 +7,9 @@
 // Newton iterations, failures, root evaluations) and the same root located. On y' = −λ∘y
 // (λ = 1, 2, 3 1/s) with two root functions, one crossed in each phase. Does not validate:
 // the knee's phases (bytecmp of whole runs, benchmarks/performance-log.md "Phases re-initialized").
+// SolveToStopTime: a stop time a sliver (1e-9 of a step) past a run of equal steps is
+// reached by steps of at least a quarter of that step, where IDA_NORMAL with IDASetStopTime
+// alone takes the sliver as a step; y there is exp(−λ t).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -115,6 +118,76 @@ TEST(IdaPhase, ReinitializedPhaseRunsAsANewOne) {
   reused.Free(&counted_already, true);
   fresh.Free(&counted_already, true);
   EXPECT_EQ(counted_already.steps, 0);
+}
+
+// A phase on y' = −λ∘y from y = 1 at t = 0, steps capped at h (the local error at rtol
+// 1e-3 is far below tolerance, so IDA's steps grow to the cap and stay there).
+void StartCapped(SundialsContext& ctx, SundialsMessages* messages, IdaPhase* phase, double h) {
+  phase->Reserve(ctx, kN);
+  N_Vector atol = NewSerialVector(kN, ctx);
+  N_Vector id = NewSerialVector(kN, ctx);
+  for (int i = 0; i < kN; ++i) {
+    NvData(phase->y)[i] = 1.0;
+    NvData(phase->yp)[i] = -kLambda[i];
+    NvData(atol)[i] = 1e-8;
+    NvData(id)[i] = 1.0;
+  }
+  StepControl control;
+  control.rtol = 1e-3;
+  control.max_step = h;
+  phase->Start(ctx, kN, &Residual, &Jacobian, nullptr, nullptr, 0.0, atol, id, control, 1.0, {}, "IdaPhaseTest",
+               messages, {}, LinearSolverKind::kDense);
+  N_VDestroy(atol);
+  N_VDestroy(id);
+}
+
+// Steps until IDA's next step is the cap h (s, to round-off); then the stop time 1e-9 h
+// past three more.
+double StopTimeASliverPastThreeSteps(IdaPhase* phase, double h) {
+  double t = 0.0, next = 0.0;
+  for (int i = 0; i < 100 && !(next > (1.0 - 1e-12) * h); ++i) {
+    EXPECT_EQ(IDASolve(phase->mem, 1.0, &t, phase->y, phase->yp, IDA_ONE_STEP), IDA_SUCCESS);
+    IDAGetCurrentStep(phase->mem, &next);
+  }
+  EXPECT_GT(next, (1.0 - 1e-12) * h) << "the steps did not reach the cap";
+  return t + 3.0 * next + 1e-9 * h;
+}
+
+TEST(IdaPhase, SolveToStopTimeTakesNoSliverOfAStep) {
+  constexpr double kH = 1e-3;  // s
+  SundialsContext ctx;
+  SundialsMessages messages;
+  IdaPhase plain, phase;
+  StartCapped(ctx, &messages, &plain, kH);
+  StartCapped(ctx, &messages, &phase, kH);
+  const double t_stop = StopTimeASliverPastThreeSteps(&plain, kH);
+  ASSERT_EQ(StopTimeASliverPastThreeSteps(&phase, kH), t_stop) << "the two phases run alike";
+  double t = 0.0, last = 0.0;
+  // What IDA does alone: three steps of h, then one of ~1e-12 s.
+  ASSERT_EQ(IDASetStopTime(plain.mem, t_stop), IDA_SUCCESS);
+  ASSERT_GE(IDASolve(plain.mem, t_stop, &t, plain.y, plain.yp, IDA_NORMAL), 0);  // IDA_SUCCESS: tout = tstop
+  ASSERT_EQ(t, t_stop);
+  IDAGetLastStep(plain.mem, &last);
+  EXPECT_LT(last, 1e-6 * kH) << "IDA no longer takes the sliver: SolveToStopTime's case is gone";
+  long plain_steps = 0, steps = 0;
+  IDAGetNumSteps(plain.mem, &plain_steps);
+  // SolveToStopTime: the third step split in two equal ones, none below h/4.
+  long before = 0;
+  IDAGetNumSteps(phase.mem, &before);
+  ASSERT_EQ(phase.SolveToStopTime(t_stop, &t), IDA_TSTOP_RETURN);
+  EXPECT_EQ(t, t_stop);
+  IDAGetLastStep(phase.mem, &last);
+  EXPECT_GT(last, 0.25 * kH);
+  IDAGetNumSteps(phase.mem, &steps);
+  EXPECT_EQ(steps - before, 4);  // h, h, h/2, h/2
+  EXPECT_EQ(steps, plain_steps);
+  for (int i = 0; i < kN; ++i) {
+    const double exact = std::exp(-kLambda[i] * t_stop);
+    EXPECT_NEAR(NvData(phase.y)[i], exact, 1e-3 * exact) << i;  // rtol
+  }
+  SolverStats stats;
+  plain.Free(&stats, false);
+  phase.Free(&stats, false);
 }
 
 }  // namespace

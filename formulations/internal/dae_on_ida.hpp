@@ -26,7 +26,8 @@ namespace kneedyn {
 struct DaeOnIdaVariant {
   const char* name;  // the formulation's name, in messages
   // Gear–Gupta–Leimkuhler stabilized form (dae_system.hpp); it also stops IDA at every output
-  // time (outputs are step values, on which both constraint levels hold).
+  // time (outputs are step values, on which both constraint levels hold), with no sliver of a
+  // step before it (IdaPhase::SolveToStopTime).
   bool ggl;
 };
 
@@ -118,9 +119,10 @@ class IdaDriver : public FormulationBase {
     double t_reached = state->t;
     failure_.clear();
     // GGL stops at t_out instead of interpolating to it: outputs are step values, on which
-    // the position and velocity constraints hold to the Newton tolerance.
-    if (variant_.ggl) Check(IDASetStopTime(ida_.mem, std::min(t_out, scene_.end.time)), "IDASetStopTime");
-    const int flag = IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
+    // the position and velocity constraints hold to the Newton tolerance; no sliver of a step
+    // before it (IdaPhase::SolveToStopTime).
+    const int flag = variant_.ggl ? ida_.SolveToStopTime(std::min(t_out, scene_.end.time), &t_reached)
+                                  : IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
     AdvanceResult result;
     if (flag < 0) {
       const std::string function = SolveFunctionName();

@@ -7,6 +7,7 @@
 #include <sunmatrix/sunmatrix_dense.h>
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <cstdlib>
 #include <string>
@@ -30,6 +31,7 @@ struct IdaPhase {
   int n = 0;                // size of y, ẏ, A and LS
   bool counted = true;      // the phase's counters are in `accumulated` (EndPhase)
   double last_step = 0.0;  // s: last step of the previous phase, the restart's first step
+  long max_steps = 0;      // IDA's step budget per IDASolve call (Start's options.max_steps)
 
   // y, ẏ of `size` unknowns for the next Start: the last phase's when it had that size (its
   // IDA memory is then re-initialized; IDAReInit cannot change the size), else new ones.
@@ -104,6 +106,7 @@ struct IdaPhase {
       check(IDARootInit(mem, 0, nullptr), "IDARootInit");  // the root functions' state afresh
     }
     counted = false;
+    max_steps = options.max_steps;
     check(IDASVtolerances(mem, options.rtol, atol), "IDASVtolerances");
     check(IDASetId(mem, id), "IDASetId");
     check(IDASetStopTime(mem, end_time), "IDASetStopTime");
@@ -120,6 +123,63 @@ struct IdaPhase {
       check(IDASetRootDirection(mem, dir.data()), "IDASetRootDirection");
       check(IDASetNoInactiveRootWarn(mem), "IDASetNoInactiveRootWarn");
     }
+  }
+
+  // A remaining step shorter than this fraction of IDA's next step is a sliver (SolveToStopTime).
+  static constexpr double kSliverFraction = 1.0e-4;
+
+  // IDASolve to the stop time t_stop (s) ending on a step there, not interpolating to it (the
+  // GGL forms' outputs, dae_ggl.cpp). Returns IDASolve's flag: IDA_TSTOP_RETURN (IDA_SUCCESS
+  // from the budget's last step) with y, ẏ at t_stop, IDA_ROOT_RETURN, or a failure (< 0);
+  // *t_reached is the time returned. At most max_steps steps, as one IDA_NORMAL call.
+  // Why not IDA_NORMAL with IDASetStopTime alone: IDA cuts only a step that would pass the
+  // stop time, so a step ending just short of it leaves a remainder of any length. Runs of
+  // equal steps drift off the output grid by round-off (one_ligament.yaml: 8 steps of 6.25e-4 s
+  // ended 3.0e-14 s before t = 0.02 s), and on a 3e-14 s step the index-2 unknowns N, μ carry
+  // round-off ∝ 1/h² (dae_ggl.cpp's header): N_medial = −5e5 N fired a false lift-off, and the
+  // restart's first step, a quarter of that one, failed to converge. So IDA steps one at a time
+  // (IDA_ONE_STEP, the same steps as IDA_NORMAL), and a step that would end less than
+  // kSliverFraction of itself short of the stop time is replaced by two equal steps to it (a
+  // stop time halfway first). Round-off drift is ~1e-10 of a step; the shortest remainder
+  // steps on the shipped scenes are ~8e-4 of the step before and are left alone.
+  int SolveToStopTime(double t_stop, double* t_reached) {
+    double target = t_stop;  // t_stop, or the halfway stop time of a split
+    int flag = IDASetStopTime(mem, target);
+    long taken = 0;
+    while (flag >= 0) {
+      if (max_steps > 0 && taken + 1 >= max_steps) {
+        // The budget's last step in IDA_NORMAL, so that running out fails as IDA's own
+        // (IDA_TOO_MUCH_WORK, "mxstep steps taken before reaching tout").
+        if (target != t_stop) flag = IDASetStopTime(mem, target = t_stop);
+        if (flag < 0) break;
+        IDASetMaxNumSteps(mem, 1);
+        flag = IDASolve(mem, t_stop, t_reached, y, yp, IDA_NORMAL);
+        IDASetMaxNumSteps(mem, max_steps);
+        break;
+      }
+      long steps = 0;
+      double tn = 0.0, h = 0.0;
+      IDAGetNumSteps(mem, &steps);
+      IDAGetCurrentTime(mem, &tn);
+      IDAGetCurrentStep(mem, &h);  // the next step IDA tries (already cut to a stop time it would pass)
+      // IDA snaps to the stop time within 100 ε (|t| + |h'|), h' ≥ h / 2 its step after this one.
+      const double remainder = target - (tn + h);
+      if (steps > 0 && remainder > 100.0 * DBL_EPSILON * (std::abs(target) + 0.5 * std::abs(h)) &&
+          remainder < kSliverFraction * std::abs(h)) {
+        flag = IDASetStopTime(mem, target = tn + 0.5 * (target - tn));
+        if (flag < 0) break;
+      }
+      flag = IDASolve(mem, target, t_reached, y, yp, IDA_ONE_STEP);
+      if (flag == IDA_SUCCESS) {
+        ++taken;
+      } else if (flag == IDA_TSTOP_RETURN && target != t_stop) {
+        ++taken;
+        flag = IDASetStopTime(mem, target = t_stop);
+      } else {
+        break;
+      }
+    }
+    return flag;
   }
 
  private:
