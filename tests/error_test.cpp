@@ -35,6 +35,16 @@ TEST(StrCat, OutputIntervalMessageHasNoRoundingNoise) {
   EXPECT_NE(why.find("output interval 1e-07 s; must lie in [1e-06, 10] s"), std::string::npos) << why;
 }
 
+// At most 1e5 rows after t = 0: 0.1 s / 1e-6 s is exactly that many, although the quotient
+// of the two doubles is 100000.00000000001; one row more is refused.
+TEST(OutputInterval, RowLimitCountsRowsNotRoundOff) {
+  std::string why;
+  EXPECT_TRUE(IsValidOutputInterval(1.0e-6, 0.1, &why)) << why;
+  EXPECT_TRUE(IsValidOutputInterval(1.0e-5, 1.0, &why)) << why;
+  EXPECT_FALSE(IsValidOutputInterval(1.0e-6, 0.100001, &why));
+  EXPECT_NE(why.find("at most 100000 rows"), std::string::npos) << why;
+}
+
 TEST(StrCat, NonFiniteValues) {
   EXPECT_EQ(StrCat(std::numeric_limits<double>::infinity()), "inf");
   EXPECT_EQ(StrCat(-std::numeric_limits<double>::infinity()), "-inf");
