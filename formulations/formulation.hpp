@@ -293,6 +293,21 @@ bool HasErrorControl(const FormulationInfo& info, std::optional<IntegratorKind> 
 // Step a fixed-step method takes when --step is 0 (s).
 constexpr double kDefaultFixedStep = 1.0e-4;
 
+// Steps a pulse must span to be resolved: a fixed step longer than a tenth of the pulse is
+// refused (the Simulator), and an adaptive IDA phase that starts within the pulse begins with
+// at most a tenth of it (a longer first step can pass a short pulse whole and never see it: a
+// half-sine is zero at both ends). docs/model.md §7.
+constexpr double kStepsPerPulse = 10.0;
+
+// The longest step that resolves the pulse at time t (s): a tenth of its duration while it
+// lasts; infinity once it has ended or when the scene has none.
+inline double PulseResolvingStep(const Model& model, double t) {
+  if (model.pulse.shape == PulseShape::kNone || model.pulse.amplitude == 0.0 || !(t < model.pulse.duration)) {
+    return std::numeric_limits<double>::infinity();
+  }
+  return model.pulse.duration / kStepsPerPulse;
+}
+
 // Absolute Newton tolerance of a multiplier (contact force N, newtons; GGL's μ) per unit
 // --atol (m, rad), in every method that solves for the multipliers as unknowns (dae, dae-ggl
 // and the IDAS sensitivities through dae_on_ida.hpp; newmark, generalized-alpha): the

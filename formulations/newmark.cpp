@@ -97,7 +97,8 @@ class NewmarkFormulation final : public FormulationBase {
       : FormulationBase(scene), options_(options.control), form_(form), scheme_(options.scheme), data_(model_),
         data_jet_(model_) {
     jet_jacobian_ = options.jacobian == JacobianKind::kJet;
-    step_ = options.control.step > 0.0 ? options.control.step : kDefaultFixedStep;
+    // The default step never exceeds the scene's end time (a run shorter than one step).
+    step_ = options.control.step > 0.0 ? options.control.step : std::min(kDefaultFixedStep, scene.end.time);
     if (step_ > scene.end.time) {
       Throw<InputError>("NewmarkFormulation", "--step = ", step_, " s exceeds the scene's end time ",
                         scene.end.time, " s");

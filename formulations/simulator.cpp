@@ -54,6 +54,37 @@ std::vector<EventSpec> StartPhase(const Model& model, const EndCondition& end, d
   return specs;
 }
 
+namespace {
+
+// Releases the active contacts whose consistent force would pull (N < 0): the most negative
+// first, then solves again (e.g. a re-contact that bounces off, the second compartment
+// unloading as the first lifts off, or an assembled start whose forces are tensile), each
+// recorded as a lift-off at state->t (docs/model.md §9). `refusal`: kRefuse's reason.
+void ReleasePullingContacts(const Model& model, RestartProjection restart, PullingContact pulling, const char* refusal,
+                            MechanicalState* state, std::vector<EventRecord>* events) {
+  for (;;) {
+    int worst = -1;
+    for (int i : state->active) {
+      if (state->contact[i].normal_force < 0.0 &&
+          (worst < 0 || state->contact[i].normal_force < state->contact[worst].normal_force)) {
+        worst = i;
+      }
+    }
+    if (worst < 0) return;
+    const std::string compartment = CompartmentName(model.contacts[worst].compartment);
+    if (pulling == PullingContact::kRefuse) {
+      Throw<SolverError>("Simulator::Run", "at t = ", state->t, " s the ", compartment, " contact would pull (N = ",
+                         state->contact[worst].normal_force, " N) ", refusal);
+    }
+    events->push_back({"liftoff_" + compartment, state->t, state->q(kAlpha)});
+    state->active.erase(std::remove(state->active.begin(), state->active.end(), worst), state->active.end());
+    state->contact[worst].normal_force = 0.0;
+    CompleteRestartState(model, restart, state);
+  }
+}
+
+}  // namespace
+
 TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpec>& specs,
                                   const std::vector<int>& fired, RestartProjection restart,
                                   PullingContact pulling, MechanicalState* state,
@@ -63,7 +94,8 @@ TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpe
   bool impact = false;
   for (int k : fired) {
     const EventSpec& e = specs[k];
-    events->push_back({e.name, state->t, state->q(kAlpha)});
+    // Kinks restart the stepper but are not events of the knee (docs/outputs.md).
+    if (e.kind != EventKind::kLigamentKink) events->push_back({e.name, state->t, state->q(kAlpha)});
     switch (e.kind) {
       case EventKind::kFlexionEnd:
         out.end_reason = e.name;
@@ -90,29 +122,8 @@ TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpe
   state->active = new_active;
   if (impact) ApplyPlasticImpact(model, state);
   CompleteRestartState(model, restart, state);
-  // A contact whose consistent force would pull (N < 0): the most negative one first,
-  // then solve again (e.g. a re-contact that bounces off, or the second compartment
-  // unloading as the first lifts off).
-  for (;;) {
-    int worst = -1;
-    for (int i : state->active) {
-      if (state->contact[i].normal_force < 0.0 &&
-          (worst < 0 || state->contact[i].normal_force < state->contact[worst].normal_force)) {
-        worst = i;
-      }
-    }
-    if (worst < 0) break;
-    const std::string compartment = CompartmentName(model.contacts[worst].compartment);
-    if (pulling == PullingContact::kRefuse) {
-      Throw<SolverError>("Simulator::Run", "at t = ", state->t, " s the ", compartment, " contact would pull (N = ",
-                         state->contact[worst].normal_force,
-                         " N) after the switch: a simultaneous lift-off, whose sensitivities are not defined");
-    }
-    events->push_back({"liftoff_" + compartment, state->t, state->q(kAlpha)});
-    state->active.erase(std::remove(state->active.begin(), state->active.end(), worst), state->active.end());
-    state->contact[worst].normal_force = 0.0;
-    CompleteRestartState(model, restart, state);
-  }
+  ReleasePullingContacts(model, restart, pulling,
+                         "after the switch: a simultaneous lift-off, whose sensitivities are not defined", state, events);
   return out;
 }
 
@@ -121,6 +132,24 @@ void Simulator::Initialize() {
   std::vector<int> active;
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
   state_ = ConsistentInitialize(model, scene_.initial, active, settings_.init, &record_->init);
+  // A fixed-step method lands on each output time by cutting a step there, so an interval
+  // shorter than its step would set its step; and a step longer than a tenth of the pulse
+  // does not resolve it (kStepsPerPulse, formulation.hpp). Refused before integrating (exit 2).
+  if (const double h = stepper_->fixed_step(); h > 0.0) {
+    if (settings_.output_interval < h * (1.0 - 1e-12)) {
+      Throw<InputError>("Simulator", "output interval ", settings_.output_interval, " s is shorter than the fixed step ",
+                        h, " s: each step would be cut to an output time (rule: --step <= the output interval)");
+    }
+    if (PulseResolvingStep(model, state_.t) < h * (1.0 - 1e-12)) {
+      Throw<InputError>("Simulator", "pulse.duration_s = ", model.pulse.duration, " s spans fewer than ",
+                        kStepsPerPulse, " fixed steps of ", h, " s, which would not resolve it (rule: --step <= ",
+                        PulseResolvingStep(model, state_.t), " s)");
+    }
+  }
+  // A start whose consistent forces pull (an assembled pose; docs/model.md §6) starts with
+  // those contacts' lift-offs.
+  ReleasePullingContacts(model, settings_.restart, settings_.pulling,
+                         "at the start: a lift-off there, whose sensitivities are not defined", &state_, &record_->events);
   // Refusals the input causes are raised here, before integration (exit code 2): contact
   // rows that are dependent at the start (e.g. two compartments given the same surfaces).
   SolveConstrainedAcceleration(model, state_.t, state_.q, state_.qd, state_.active);

@@ -201,6 +201,40 @@ TEST(DaeChapter, ReachesNinetyDegreesWithLateralLiftoffFirst) {
   EXPECT_LT(RadToDeg(r.events.front().flexion), 90.0);
 }
 
+// A pulse far shorter than IDA's default first step (1e-4 s) is resolved (docs/model.md §7):
+// at its default tolerances dae puts the lateral lift-off where ede (dopri5, which estimates
+// its first step from the right-hand side) does at tight tolerances, not where the knee
+// goes without the pulse, 3 ms later. A first step that spans the half-sine sees it zero
+// at both ends.
+TEST(DaePulse, ShortPulseIsResolvedAtDefaultTolerances) {
+  Scene scene = ChapterScene();
+  scene.model.pulse.shape = PulseShape::kHalfSine;
+  scene.model.pulse.amplitude = 1.0e5;
+  scene.model.pulse.duration = 3.0e-6;
+  const auto lateral_liftoff = [](const RunResult& r) {
+    for (const EventRecord& e : r.events) {
+      if (e.name == "liftoff_lateral") return e.time;
+    }
+    return -1.0;
+  };
+  RunSettings settings;
+  settings.formulation = "dae";
+  const RunResult dae = RunScene(scene, settings);
+  settings.formulation = "ede";
+  settings.options.integrator = IntegratorKind::kDopri5;
+  settings.options.rtol = 1e-10;
+  settings.options.atol = 1e-12;
+  const RunResult ede = RunScene(scene, settings);
+  Scene no_pulse = scene;
+  no_pulse.model.pulse.amplitude = 0.0;
+  const RunResult free = RunScene(no_pulse, settings);
+  for (const RunResult* r : {&dae, &ede, &free}) ASSERT_TRUE(r->completed) << r->failure;
+  const double t_dae = lateral_liftoff(dae), t_ede = lateral_liftoff(ede), t_free = lateral_liftoff(free);
+  ASSERT_GT(t_ede, 0.0);
+  ASSERT_GT(std::abs(t_free - t_ede), 1e-3) << "the pulse must move the lift-off for this test to mean anything";
+  EXPECT_NEAR(t_dae, t_ede, 0.1 * std::abs(t_free - t_ede)) << "pulse-free lift-off at " << t_free;
+}
+
 TEST(DaeChapter, ChapterAndClosedFormContactAgree) {
   const RunResult& a = Dae();
   const RunResult& b = DaeReduced();

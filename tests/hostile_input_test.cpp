@@ -102,6 +102,19 @@ TEST_F(HostileInput, BadOutputIntervalOptionsAreRefused) {
   }
 }
 
+// A fixed step longer than the output interval (each step would be cut at an output time)
+// or than a tenth of the pulse (it would not resolve it: docs/model.md §7) is refused before
+// the run, by every fixed-step method; the default step counts as given.
+TEST_F(HostileInput, FixedStepThatCannotResolveTheOutputsOrThePulseIsRefused) {
+  ExpectRefused(RunArgs(ChapterScenePath(), "--formulation newmark --step 1e-3 --output-interval 5e-4"),
+                {"output interval 0.0005 s is shorter than the fixed step 0.001 s"});
+  const std::string scene = Input("scene.yaml", Replaced(ChapterSceneText(), "duration_s: 0.1", "duration_s: 5e-4"));
+  for (const char* method : {"newmark", "generalized-alpha", "mde --integrator rk4", "ede --integrator euler"}) {
+    ExpectRefused(RunArgs(scene, std::string("--formulation ") + method),
+                  {"pulse.duration_s = 0.0005 s", "fixed steps of 0.0001 s", "--step <= 5e-05"});
+  }
+}
+
 TEST_F(HostileInput, HugeEndTimeIsRefused) {
   const std::string scene = Input("scene.yaml", Replaced(ChapterSceneText(), "time_s: 2.0", "time_s: 1e29"));
   ExpectRefused(RunArgs(scene), {"end.time_s", "1e29", "<= 100"});

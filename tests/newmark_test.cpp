@@ -16,6 +16,7 @@
 
 #include "formulations/internal/newmark_testing.hpp"
 #include "formulations/run.hpp"
+#include "solver/error.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
@@ -131,6 +132,22 @@ TEST(Newmark, AgreesWithDaeOnChapterScene) {
     EXPECT_NEAR(n.flexion90_t, d.flexion90_t, 1.0e-5) << name;
     EXPECT_GT(r.stats.steps, 2900);  // ~0.3 s / 1e-4 s
     EXPECT_GT(r.stats.nonlinear_iterations, r.stats.steps);
+  }
+}
+
+// A scene that ends within one default step (1e-4 s) is run with its end time as the step
+// (README, `--step`); a longer step given explicitly is refused.
+TEST(Newmark, DefaultStepNeverExceedsTheEndTime) {
+  Scene scene = LoadScene(ReferenceDataDir() + "/scenes/chapter_impact.yaml");
+  scene.end.time = 5.0e-5;
+  for (const char* name : {"newmark", "generalized-alpha"}) {
+    const RunResult r = RunWith(scene, name, 0.0, 1e-6, 1e-8);
+    ASSERT_TRUE(r.completed) << name << ": " << r.failure;
+    EXPECT_EQ(r.end_reason, "end_time") << name;
+    EXPECT_EQ(r.fixed_step, 5.0e-5) << name;
+    ASSERT_FALSE(r.samples.empty());
+    EXPECT_EQ(r.samples.back().t, 5.0e-5) << name;
+    EXPECT_THROW(RunWith(scene, name, 1.0e-4, 1e-6, 1e-8), InputError) << name;
   }
 }
 

@@ -7,9 +7,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <optional>
+#include <sstream>
+#include <string>
 
 #include "formulations/run.hpp"
+#include "scene/scene.hpp"
 #include "solver/constraint_residuals.hpp"
 #include "solver/error.hpp"
 #include "solver/ligament.hpp"
@@ -112,6 +116,51 @@ TEST(Simulator, PullingContact) {
   } catch (const SolverError& e) {
     EXPECT_NE(std::string(e.what()).find("lateral contact would pull"), std::string::npos) << e.what();
     EXPECT_EQ(simulator.state().t, bounce);
+  }
+}
+
+// An assembled start whose consistent forces pull (docs/model.md §6: the chapter scene with
+// only alpha_deg: 30, N ≈ −9.6 and −9.9 kN) starts with both lift-offs at t = 0, and no
+// row of the run has an active contact that pulls (N ≥ 0, docs/model.md §4). kRefuse stops
+// there, naming the start.
+TEST(Simulator, PullingStartLiftsOffAtOnce) {
+  std::ifstream file(ScenesDir() + "/chapter_impact.yaml");
+  std::stringstream buffer;
+  buffer << file.rdbuf();
+  std::string text = buffer.str();
+  const size_t from = text.find("initial_state:"), to = text.find("end:");
+  ASSERT_NE(from, std::string::npos);
+  ASSERT_NE(to, std::string::npos);
+  text.replace(from, to - from, "initial_state:\n  pose: assemble\n  coordinates: {alpha_deg: 30}\n");
+  text.replace(text.find("time_s: 2.0"), 11, "time_s: 0.02");
+  const Scene scene = ParseScene(text, "assembled.yaml", ScenesDir());
+  for (const char* formulation : {"dae", "ede"}) {
+    SpyStepper spy(formulation, scene);
+    RunResult record;
+    Simulator simulator(scene, &spy, Settings(scene, spy), &record);
+    simulator.Initialize();
+    simulator.Run();
+    ASSERT_GE(record.events.size(), 2u) << formulation;
+    for (int k = 0; k < 2; ++k) {
+      EXPECT_EQ(record.events[k].name.rfind("liftoff_", 0), 0u) << formulation << ": " << record.events[k].name;
+      EXPECT_EQ(record.events[k].time, 0.0) << formulation;
+    }
+    ASSERT_FALSE(record.samples.empty());
+    for (const MechanicalState& s : record.samples) {
+      for (int i : s.active) EXPECT_GE(s.contact[i].normal_force, -1e-6) << formulation << " t = " << s.t;
+    }
+  }
+  SpyStepper spy("dae", scene);
+  SimulatorSettings settings = Settings(scene, spy);
+  settings.pulling = PullingContact::kRefuse;
+  RunResult record;
+  Simulator simulator(scene, &spy, settings, &record);
+  try {
+    simulator.Initialize();
+    FAIL() << "kRefuse started with pulling contacts";
+  } catch (const SolverError& e) {
+    EXPECT_NE(std::string(e.what()).find("contact would pull"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("at the start"), std::string::npos) << e.what();
   }
 }
 

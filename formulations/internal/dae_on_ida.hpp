@@ -108,7 +108,8 @@ class IdaDriver : public FormulationBase {
     ida_.Start(ctx_, n_, &IdaDriver::Residual,
                options_.jacobian == JacobianKind::kDifferenceQuotient ? nullptr : &IdaDriver::Jacobian,
                &IdaDriver::Roots, this, state.t, atol, id, options_.control, scene_.end.time, events_, variant_.name,
-               &sundials_messages_, extra_root_directions_, options_.linear_solver);
+               &sundials_messages_, extra_root_directions_, options_.linear_solver,
+               PulseResolvingStep(scene_.model, state.t));
     N_VDestroy(id);
     N_VDestroy(atol);
     ++finished_phases_.restarts;

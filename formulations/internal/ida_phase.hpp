@@ -10,6 +10,7 @@
 #include <cfloat>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -84,7 +85,8 @@ struct IdaPhase {
              void* user, double t0, N_Vector atol, N_Vector id, const StepControl& options,
              double end_time, const std::vector<EventSpec>& events, const char* owner,
              SundialsMessages* messages, const std::vector<int>& extra_root_directions = {},
-             LinearSolverKind linear_solver = LinearSolverKind::kStructured) {
+             LinearSolverKind linear_solver = LinearSolverKind::kStructured,
+             double max_first_step = std::numeric_limits<double>::infinity()) {
     auto check = [&](int flag, const char* call) {
       CheckSundials(flag, call, owner, IDAGetReturnFlagName, messages);
     };
@@ -110,8 +112,9 @@ struct IdaPhase {
     check(IDASVtolerances(mem, options.rtol, atol), "IDASVtolerances");
     check(IDASetId(mem, id), "IDASetId");
     check(IDASetStopTime(mem, end_time), "IDASetStopTime");
-    const double h0 = last_step > 0.0 ? 0.25 * last_step
-                                      : std::clamp(1e-4 * std::sqrt(options.rtol / 1e-6), 1e-8, 1e-3);
+    // max_first_step: a pulse still to come is resolved (PulseResolvingStep, formulation.hpp).
+    const double h0 = std::min(max_first_step, last_step > 0.0 ? 0.25 * last_step
+                                                               : std::clamp(1e-4 * std::sqrt(options.rtol / 1e-6), 1e-8, 1e-3));
     check(IDASetInitStep(mem, h0), "IDASetInitStep");
     // Attached again on a re-initialization: a new interface, its counters at zero.
     check(IDASetLinearSolver(mem, LS, A), "IDASetLinearSolver");
