@@ -327,7 +327,9 @@ def _from_google_benchmark(entries, where="benchmarks"):
 
 
 def setting_str(s):
-  """A run's setting as a reader writes it: fixed step, tolerance, or Simbody's accuracy."""
+  """A run's setting as a reader writes it: fixed step, tolerance, or Simbody's accuracy, with
+  the stabilization when there is one (ede:cvode-bdf at one rtol runs with none and with
+  cvode-projection: without it the two rows of a failure table read alike)."""
   if "step" in s:
     text = f"h = {s['step']:.3g} s"
   elif "rtol" in s:
@@ -338,6 +340,8 @@ def setting_str(s):
     return json.dumps(s)
   if "max_steps" in s:
     text += f", max_steps = {s['max_steps']}"
+  if s.get("stabilization"):
+    text += f", stabilization = {s['stabilization']}"
   return text
 
 

@@ -14,7 +14,8 @@ fixed-step run is dominated; benchmarks/work_precision_table.py's rows for both 
 report's fairness manifest (context.components) as a table, and "not recorded" without it;
 bad input to the table (a top-level number, a wrong-typed field, no results, a directory, a
 truncated --efficiency, a usage error) refused with exit 2 naming the file and field, and
---help printing the usage.
+--help printing the usage; two failed runs that differ only in their stabilization listed as
+two different settings.
 Every expected value is typed in here from the planted runs, not copied from a run.
 """
 import json
@@ -34,7 +35,8 @@ REF_EVENTS = [{"name": "liftoff_lateral", "time_s": 0.2163}, {"name": "flexion_9
 
 
 def result(form, integ, setting, scd, cpu, status="ok", reason="", events=None, event_errors=None):
-  name = form + (":" + integ if integ else "") + "/" + "/".join(f"{k}={v:g}" for k, v in setting.items())
+  shown = [f"{k}={v}" if isinstance(v, str) else f"{k}={v:g}" for k, v in setting.items()]
+  name = form + (":" + integ if integ else "") + "/" + "/".join(shown)
   return {"name": name, "formulation": form, "integrator": integ, "setting": setting, "status": status,
           "reason": reason, "metrics": {"scd": scd, "event_time_error_s": event_errors or dict(EVENTS_OK)},
           "cpu_time_s": {"median": cpu, "min": cpu, "max": cpu},
@@ -253,6 +255,24 @@ def main():
       errors.append("report without context.components does not say 'Components: not recorded'")
     if "2 runs drawn as failures" not in html:
       errors.append("report: the list of runs drawn as failures does not count 2")
+
+    # 4b. Two failed runs that differ only in their stabilization (ede:cvode-bdf at rtol 1e-3,
+    # without and with cvode-projection) are two different rows of the failure list.
+    stab_path = os.path.join(tmp, "stabilization.json")
+    failing = dict(status="failed", reason="CVODE: too much work", events=[],
+                   event_errors={"liftoff_lateral": None, "flexion_90": None})
+    with open(stab_path, "w") as f:
+      json.dump({"header": {"scene": "chapter_impact", "mode": "short"},
+                 "results": [result("dae", "", {"rtol": 1e-6, "atol": 1e-8}, 5.0, 0.020),
+                             result("ede", "cvode-bdf", {"rtol": 1e-3, "atol": 1e-5}, None, 0.01, **failing),
+                             result("ede", "cvode-bdf", {"rtol": 1e-3, "atol": 1e-5,
+                                                         "stabilization": "cvode-projection"}, None, 0.01,
+                                    **failing)]}, f)
+    _, stab_failed, _ = figures.make_work_precision(os.path.join(tmp, "r3"), stab_path)
+    labels = sorted((key, setting) for key, setting, _ in stab_failed)
+    if labels != [("ede / cvode-bdf", "rtol = 0.001"),
+                  ("ede / cvode-bdf", "rtol = 0.001, stabilization = cvode-projection")]:
+      errors.append(f"failures differing only in stabilization read as: {labels}")
 
     # 5. Bad input to the table: refused with exit 2, naming the file and the field.
     errors += bad_input_errors(tmp)
