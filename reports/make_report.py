@@ -514,17 +514,18 @@ def bench_section(outdir, bench, prefix="", title="Work-precision", anchor="work
     parts.append("<p>No benchmark JSON given (<code>--bench JSON</code>); diagrams omitted.</p>")
     return "\n".join(parts)
   files, failed, header = figures.make_work_precision(outdir, bench, prefix, include)
-  prov = header.get("provenance") or {}
-  kv = [("Source", os.path.basename(bench)), ("Scene", header.get("scene", "?")),
-        ("Sweep", f"{header.get('mode', '?')} (repetitions {header.get('repetitions', '?')}, tightest rtol "
-                  f"{header.get('rtol_min', '?')})"),
-        ("Reference", f"{header.get('reference', '?')} (accuracy {header.get('reference_accuracy_scd', '?')} digits)"),
-        ("Swept", header.get("date", "?")),
-        ("Recorded", f"{prov.get('date', '?')}, sweep binary built from commit {prov.get('commit', '?')}"),
-        ("Command", prov.get("command", "?")),
-        ("Machine", (header.get("machine") or {}).get("uname", "?") if isinstance(header.get("machine"), dict) else "?")]
+  kv = [("Source", os.path.basename(bench)), ("Scene", header.get("scene", NOT_RECORDED)),
+        ("Reference", f"{header.get('reference', NOT_RECORDED)} (accuracy "
+                      f"{header.get('reference_accuracy_scd', NOT_RECORDED)} digits)")]
+  kv += sweep_provenance(header, bench_data.load_bench(bench)[1])
+  kv += [("Machine", (header.get("machine") or {}).get("uname", NOT_RECORDED)
+          if isinstance(header.get("machine"), dict) else NOT_RECORDED)]
   parts.append("<dl class='kv'>" + "".join(f"<dt>{esc(k)}</dt><dd>{esc(v)}</dd>" for k, v in kv) + "</dl>")
   parts.append(components_table(header))
+  mh = merged_header(header)
+  if mh and mh.get("components") and mh["components"] != header.get("components"):
+    parts.append(components_table(mh).replace("Components (fairness manifest)",
+                                              "Components of the merged sweep (fairness manifest)"))
   parts.append("<p>Error metrics (<code>benchmarks/metrics.hpp</code>): <b>scd</b> = −log10 max |x − x_ref| / "
                "(|x_ref| + floor) over the positions x0, y0, z0 (floor 1 mm) and α, β, γ (floor 1°) at every 0.02 s "
                "and at the end event; <b>event-time digits</b> = −log10 of the largest |t − t_ref| in seconds over "
@@ -560,6 +561,61 @@ def bench_section(outdir, bench, prefix="", title="Work-precision", anchor="work
   else:
     parts.append("<p>No failed runs.</p>")
   return "\n".join(parts)
+
+
+NOT_RECORDED = "not recorded in the file"
+
+
+def merged_header(header):
+  """The header of the sweep simbody_work_precision --merge copied rows from (header.merged_from),
+  with that sweep's build (git_commit, components) from its context and its file; None when
+  nothing was merged."""
+  mf = header.get("merged_from")
+  if not isinstance(mf, dict):
+    return None
+  h = dict(mf.get("header") or {})
+  ctx = mf.get("context") if isinstance(mf.get("context"), dict) else {}
+  for k in ("git_commit", "components"):
+    if ctx.get(k) and k not in h:
+      h[k] = ctx[k]
+  h["file"] = mf.get("file")
+  return h
+
+
+def _sweep_line(h, runs):
+  """mode, repetitions and the tightest setting among `runs` (with --rtol-min, the floor the
+  sweep was given, when it is recorded: a short sweep stops above it)."""
+  tight = bench_data.tightest_setting(runs) or "none"
+  floor = f" (--rtol-min {h['rtol_min']:.3g})" if isinstance(h.get("rtol_min"), (int, float)) else ""
+  return f"{h.get('mode', NOT_RECORDED)}, repetitions {h.get('repetitions', NOT_RECORDED)}, tightest run {tight}{floor}"
+
+
+def sweep_provenance(header, runs):
+  """The sweep's provenance rows (Sweep, Swept, Built / Recorded, Command) for the section's
+  list. A file written by simbody_work_precision --merge holds two sweeps: the rows it timed
+  and the rows it copied; both are described, each from its own header."""
+  outside = [r for r in runs if bench_data.timed_where(r, header) == bench_data.TIMED_OUTSIDE]
+  mh = merged_header(header)
+  if mh is None:
+    prov = header.get("provenance") or {}
+    own = [r for r in runs if r not in outside]
+    recorded = (f"{prov.get('date', NOT_RECORDED)}, sweep binary built from commit "
+                f"{prov.get('commit', NOT_RECORDED)}" if prov else
+                f"not a recorded sweep (no provenance); sweep binary built from commit "
+                f"{bench_data.build_commit(header) or NOT_RECORDED}")
+    return [("Sweep", _sweep_line(header, own)), ("Swept", header.get("date", NOT_RECORDED)),
+            ("Recorded", recorded), ("Command", prov.get("command") or header.get("command") or NOT_RECORDED)]
+  here = [r for r in runs if bench_data.timed_where(r, header) == bench_data.TIMED_HERE]
+  merged = [r for r in runs if bench_data.timed_where(r, header) == bench_data.TIMED_MERGED]
+  src = os.path.basename(mh.get("file") or "") or NOT_RECORDED
+  this = f"this run ({len(here)} rows)"
+  copied = f"merged sweep {src} ({len(merged)} rows{f', {len(outside)} outside rows with them' if outside else ''})"
+  return [("Sweep", f"{this}: {_sweep_line(header, here)}; {copied}: {_sweep_line(mh, merged)}"),
+          ("Swept", f"{this}: {header.get('date', NOT_RECORDED)}; merged sweep: {mh.get('date', NOT_RECORDED)}"),
+          ("Built from", f"{this}: commit {bench_data.build_commit(header) or NOT_RECORDED}; merged sweep: commit "
+                         f"{bench_data.build_commit(mh) or NOT_RECORDED}"),
+          ("Command", f"{this}: {header.get('command') or NOT_RECORDED}; merged sweep: "
+                      f"{mh.get('command') or NOT_RECORDED}")]
 
 
 def components_table(header):
@@ -704,10 +760,44 @@ def commands_section(outdir, kneedyn, quick, bench, fam, include=()):
   return "<h2 id='reproduce'>Reproduction</h2>\n" + runner + "<pre>" + esc("\n".join(lines)) + "</pre>"
 
 
-PEER_INTRO = ("<p>Simbody's integrators (<code>crosscheck/simbody</code>, the chapter knee rebuilt in "
-              "Simbody's own terms) beside kneedyn's formulations, all timed in the same process run "
-              "(<code>simbody_work_precision --short --merge</code> over the main job's short kneedyn sweep), so CPU "
-              "times compare as ratios. Same reference and metrics as above.</p>")
+def peer_intro(bench):
+  """The peer section's opening, from the file's rows: which were timed in the
+  simbody_work_precision run itself (their CPU times compare as ratios), which --merge copied
+  from another sweep's process, which outside drivers timed."""
+  header, runs = bench_data.load_bench(bench)
+  groups = {w: [r for r in runs if bench_data.timed_where(r, header) == w]
+            for w in (bench_data.TIMED_HERE, bench_data.TIMED_MERGED, bench_data.TIMED_OUTSIDE)}
+
+  def methods(rs):
+    return ", ".join(dict.fromkeys(bench_data.method_of(r) for r in rs))
+  here, merged, outside = groups["here"], groups["merged"], groups["outside"]
+  sub = [r for r in here if r.get("timing")]
+  rows = [[f"this run ({header.get('generator') or 'the program that wrote the file'})", len(here), methods(here),
+           f"one process, {header.get('timer') or 'CPU time'}"
+           + (f"; {methods(sub)}: {sub[0]['timing']}" if sub else "")]]
+  if merged:
+    mh = merged_header(header) or {}
+    rows.append([f"another sweep's process (--merge from {os.path.basename(mh.get('file') or '') or NOT_RECORDED})",
+                 len(merged), methods(merged), "benchmarks/work_precision's Google Benchmark CPU time"])
+  if outside:
+    rows.append(["outside drivers", len(outside), methods(outside),
+                 "each driver's own clock (Python's time.process_time, C's clock), once"])
+  text = (f"<p>Simbody's integrators (<code>crosscheck/simbody</code>, the chapter knee rebuilt in Simbody's own "
+          f"terms) beside kneedyn's formulations. Of the {len(runs)} runs in {esc(os.path.basename(bench))}, "
+          f"{len(here)} were timed in one process run of <code>simbody_work_precision</code>: only their CPU "
+          "times compare as ratios.")
+  if merged or outside:
+    src = os.path.basename((merged_header(header) or {}).get("file") or "") or "another sweep file"
+    text += (f" The other {len(merged) + len(outside)} were copied in by <code>--merge</code> from "
+             f"{esc(src)}, timed in that sweep's process"
+             + (" (and the outside solvers' by their own drivers, interpreter and loop overhead included)"
+                if outside else "")
+             + ": the same machine, not the same run, so not ratios of one run. In "
+             f"the diagrams a formulation is marked{figures.MERGED_MARK['all']} when all its runs were copied, "
+             f"{figures.MERGED_MARK['part']} when some were (those series say (--merge)), and "
+             f"{figures.OUTSIDE_MARK} for an outside solver.")
+  text += " Same reference and metrics as above.</p>"
+  return text + table(["timed in", "runs", "methods", "clock"], rows)
 
 
 def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, peer_bench=None, include=()):
@@ -731,8 +821,8 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, 
           summary_section(fam, members), claims_section(rows, recorded), figures_section(outdir),
           sensitivity_section(outdir), reconstruction_section(outdir), global_sensitivity.section(outdir), bench_section(outdir, bench, include=include), \
           methods_comparison.section(outdir, kneedyn, bench), \
-          *([bench_section(outdir, peer_bench, "peer_", "kneedyn and Simbody, same run", "peer-work-precision",
-                           PEER_INTRO)] if peer_bench else []), patella_section.section(outdir),
+          *([bench_section(outdir, peer_bench, "peer_", "kneedyn and Simbody", "peer-work-precision",
+                           peer_intro(peer_bench))] if peer_bench else []), patella_section.section(outdir),
           hard_cases_section(hard_cases),
           commands_section(outdir, kneedyn, quick, bench, fam, include)]
   page = ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"

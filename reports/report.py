@@ -35,8 +35,9 @@ def main(argv=None):
   ap.add_argument("--out", required=True, help="output directory")
   ap.add_argument("--quick", action="store_true", help="reduced families (tests)")
   ap.add_argument("--bench", help="benchmark JSON for the work-precision diagrams")
-  ap.add_argument("--peer-bench", help="work-precision JSON with Simbody's integrators beside kneedyn's, "
-                  "measured in one run (crosscheck/simbody/simbody_work_precision --merge)")
+  ap.add_argument("--peer-bench", help="work-precision JSON with Simbody's integrators beside kneedyn's "
+                  "(crosscheck/simbody/simbody_work_precision --merge; the section says which rows it timed "
+                  "in one process and which it copied)")
   ap.add_argument("--include", action="append", default=[], metavar="DIR",
                   help="outside solvers' results scored by kneedyn score under DIR (score.json, *.score.json), "
                   "drawn beside the --bench sweep (repeatable; examples/outside_results.sh writes them)")

@@ -90,12 +90,20 @@ def sweep_file(components):
           "results": RESULTS}
 
 
-MERGED = {"header": {"scene": "chapter_impact", "mode": "short",
-                     "merged_from": {"file": "out/work_precision.json", "header": {"mode": "short"}}},
-          "results": [result("simbody", "rkm", {"accuracy": 1e-6, "constraint_tolerance": 1e-6}, 5.5, 0.040),
-                      result("simbody", "rkm", {"accuracy": 1e-8, "constraint_tolerance": 1e-8}, None, 0.090,
-                             status="failed", reason="Simbody: step size underflow", events=[],
-                             event_errors={"liftoff_lateral": None, "flexion_90": None}),
+# simbody_work_precision --merge's file: the rows it timed carry "engine"; the dae row was
+# copied from the merged sweep (another process), whose header and context merged_from keeps.
+MERGED = {"header": {"scene": "chapter_impact", "mode": "short", "repetitions": 2, "date": "2026-01-02T00:00:00Z",
+                     "command": "simbody_work_precision --short --merge wp.json --json wp.json",
+                     "merged_from": {"file": "out/work_precision.json",
+                                     "header": {"mode": "short", "repetitions": 3, "rtol_min": 1e-11,
+                                                "date": "2026-01-01T00:00:00Z"},
+                                     "context": {"git_commit": "feedbeef0001"}}},
+          "context": {"git_commit": "c0ffee000002"},
+          "results": [dict(result("simbody", "rkm", {"accuracy": 1e-6, "constraint_tolerance": 1e-6}, 5.5, 0.040),
+                           engine="simbody"),
+                      dict(result("simbody", "rkm", {"accuracy": 1e-8, "constraint_tolerance": 1e-8}, None, 0.090,
+                                  status="failed", reason="Simbody: step size underflow", events=[],
+                                  event_errors={"liftoff_lateral": None, "flexion_90": None}), engine="simbody"),
                       result("dae", "", {"rtol": 1e-6, "atol": 1e-8}, 5.0, 0.020)]}
 
 
@@ -248,13 +256,32 @@ def main():
                  "<td>-O3 -DNDEBUG</td>", "<td>kneedyn</td>"):
       if cell not in html:
         errors.append(f"report with context.components: no {cell}")
-    if "not recorded" in html:
-      errors.append("report with context.components says 'not recorded'")
+    if "Components: not recorded" in html:
+      errors.append("report with context.components says 'Components: not recorded'")
     html = make_report.bench_section(os.path.join(tmp, "r2"), paths["without_components"])
     if "Components: not recorded" not in html:
       errors.append("report without context.components does not say 'Components: not recorded'")
     if "2 runs drawn as failures" not in html:
       errors.append("report: the list of runs drawn as failures does not count 2")
+
+    # 4a. The peer file: 2 rows timed in the --merge run, 1 copied from the merged sweep; the
+    # provenance of both sweeps from their own headers, no '?'; the copied formulation marked.
+    intro = make_report.peer_intro(paths["merged"])
+    for want in ("Of the 3 runs in merged.json, 2 were timed in one process run", "The other 1 were copied in"):
+      if want not in intro:
+        errors.append(f"peer intro does not say {want!r}: {intro[:400]!r}")
+    html = make_report.bench_section(os.path.join(tmp, "r4"), paths["merged"], "peer_", "peer", "peer")
+    for want in ("this run (2 rows): short, repetitions 2, tightest run accuracy 1e-08",
+                 "merged sweep work_precision.json (1 rows): short, repetitions 3, tightest run rtol 1e-06 "
+                 "(--rtol-min 1e-11)", "2026-01-01T00:00:00Z", "commit c0ffee000002", "commit feedbeef0001",
+                 "simbody_work_precision --short --merge wp.json --json wp.json"):
+      if want not in html:
+        errors.append(f"peer section's provenance does not say {want!r}")
+    if "?" in html.split("<h3>")[0].replace("<dd>", "").split("Source")[1]:
+      errors.append("peer section's provenance list has a '?'")
+    panels = png_text(os.path.join(tmp, "r4", "figures", "peer_work_precision_cpu.png"))["Description"].splitlines()
+    if panels != ["dae [--merge: other process]  (0 failed / wrong event)", "simbody  (1 failed / wrong event)"]:
+      errors.append(f"peer panel titles do not mark the copied formulation: {panels}")
 
     # 4b. Two failed runs that differ only in their stabilization (ede:cvode-bdf at rtol 1e-3,
     # without and with cvode-projection) are two different rows of the failure list.
