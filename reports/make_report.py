@@ -3,15 +3,20 @@
 of run_families.py, figures.py and claims.py.
 
   make_report.py --out OUTDIR [--bench JSON] [--kneedyn PATH] [--quick] [--hard-cases CSV]
+                 [--peer-bench JSON] [--include DIR]...
 
 --hard-cases: kneedyn_catalog's hard_cases.csv (or the hard_cases.md beside it) for the
-hard-case section; without it the section says how to make one.
+hard-case section; without it the section says how to make one. --peer-bench: the sweep with
+Simbody's integrators (simbody_work_precision --merge) for the peer section. --include DIR:
+outside results scored by kneedyn score, drawn beside --bench (repeatable; needs --bench).
+The options are report.py's (reports/report.py runs this page last).
 """
 import argparse
 import html
 import json
 import math
 import os
+import shlex
 import sys
 
 sys.dont_write_bytecode = True  # keep the source tree clean
@@ -742,17 +747,55 @@ def hard_cases_section(hard_cases):
   return "\n".join(parts)
 
 
-def commands_section(outdir, kneedyn, quick, bench, fam, include=()):
+def cli_args(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, peer_bench=None, include=()):
+  """make_report.py's arguments that write this page from the run directory."""
+  return (["--out", outdir] + (["--bench", bench] if bench else []) + (["--kneedyn", kneedyn] if kneedyn else [])
+          + (["--quick"] if quick else []) + (["--hard-cases", hard_cases] if hard_cases else [])
+          + (["--peer-bench", peer_bench] if peer_bench else []) + [a for d in include for a in ("--include", d)])
+
+
+BOOTSTRAP = os.path.join(os.path.dirname(HERE), ".ci", "bootstrap")
+
+
+def main_job_steps(path=BOOTSTRAP):
+  """The main job's steps: the `run` branch of .ci/bootstrap (after the test branch's `else`,
+  to its closing `fi`) verbatim without its comments, or None when the file or the branch is
+  not there. Read, not copied, so that it cannot drift from what the job runs."""
+  try:
+    with open(path, encoding="utf-8") as f:
+      lines = f.read().splitlines()
+  except OSError:
+    return None
+  try:
+    i = next(k for k, ln in enumerate(lines) if ln.startswith('if [[ "$mode" == test ]]'))
+    start = next(k for k in range(i, len(lines)) if lines[k] == "else") + 1
+    end = next(k for k in range(start, len(lines)) if lines[k] == "fi")
+  except StopIteration:
+    return None
+  return [ln[2:] if ln.startswith("  ") else ln for ln in lines[start:end] if not ln.strip().startswith("#")]
+
+
+def commands_section(outdir, kneedyn, quick, bench, fam, include=(), command=None, steps=None, hard_cases=None,
+                     peer_bench=None):
+  """The Reproduction section: the command that made this page as it was given (report.py's, or
+  make_report.py's own), the pieces report.py ran with their arguments, the main job's steps
+  that made its inputs (.ci/bootstrap run) and one family member by hand."""
   kd = kneedyn or "build/formulations/kneedyn"
-  cmd = f"/usr/bin/python3 reports/report.py --kneedyn {kd} --out {outdir}" + (" --quick" if quick else "") + (
-      f" --bench {bench}" if bench else "") + "".join(f" --include {d}" for d in include)
+  if command is None:  # not given: the make_report.py command that rewrites this page
+    command = shlex.join(["/usr/bin/python3", "reports/make_report.py"]
+                         + cli_args(outdir, bench, kneedyn, quick, hard_cases, peer_bench, include))
   cands = [m for m in fam.get("members", []) if m.get("command")]
   one = next((m for m in cands if m["name"] == "amplitude_100"), cands[0] if cands else None)
-  lines = ["# whole report (families + sensitivity + figures + claims + this page)", cmd,
-           "# or, from a build directory", "cmake --build <build-dir> --target report",
-           "# the pieces", f"/usr/bin/python3 reports/run_families.py --kneedyn {kd} --out {outdir}",
-           f"/usr/bin/python3 reports/figures.py --out {outdir}", f"/usr/bin/python3 reports/claims.py --out {outdir}",
-           f"/usr/bin/python3 reports/make_report.py --out {outdir}"]
+  lines = [f"# this page, as it was made (in {os.getcwd()})", command,
+           "# or, from a build directory: report.py with --kneedyn and --out <build-dir>/report only (no sweep, "
+           "hard cases or reconstruction)",
+           "cmake --build <build-dir> --target report"]
+  if steps:
+    lines += ["# the pieces report.py ran, in order, with their arguments"] + list(steps)
+  job = main_job_steps()
+  if job:
+    lines += ["# the main job that made the inputs (.ci/bootstrap run: its run branch, verbatim; "
+              "$build = build directory, $out = output directory, this page in $out/report)"] + job
   if one:
     lines += ["# one member by hand", one["command"]]
   runner = (f"<p>Simulations ran {esc(fam['runner'])} (reports/run_families.py; "
@@ -800,7 +843,10 @@ def peer_intro(bench):
   return text + table(["timed in", "runs", "methods", "clock"], rows)
 
 
-def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, peer_bench=None, include=()):
+def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, peer_bench=None, include=(),
+                command=None, steps=None):
+  """Writes OUTDIR/index.html; `command` (the command that made it) and `steps` (the pieces
+  report.py ran) for the Reproduction section."""
   fam, members = load_families(outdir)
   with open(os.path.join(outdir, "claims.json")) as f:
     rows = json.load(f)
@@ -824,7 +870,7 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, 
           *([bench_section(outdir, peer_bench, "peer_", "kneedyn and Simbody", "peer-work-precision",
                            peer_intro(peer_bench))] if peer_bench else []), patella_section.section(outdir),
           hard_cases_section(hard_cases),
-          commands_section(outdir, kneedyn, quick, bench, fam, include)]
+          commands_section(outdir, kneedyn, quick, bench, fam, include, command, steps, hard_cases, peer_bench)]
   page = ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
           "<title>kneedyn chapter report</title><style>" + CSS + "</style></head><body>\n"
           + "\n".join(body) + "\n</body></html>\n")
@@ -862,9 +908,16 @@ def main(argv=None):
   ap.add_argument("--kneedyn")
   ap.add_argument("--quick", action="store_true")
   ap.add_argument("--hard-cases")
+  ap.add_argument("--peer-bench")
+  ap.add_argument("--include", action="append", default=[], metavar="DIR")
+  command = shlex.join([sys.executable, sys.argv[0] if argv is None else os.path.abspath(__file__)]
+                       + list(sys.argv[1:] if argv is None else argv))
   args = ap.parse_args(argv)
-  check_inputs(args.out, args.bench, args.hard_cases)
-  print("make_report:", make_report(args.out, args.bench, args.kneedyn, args.quick, args.hard_cases))
+  check_inputs(args.out, args.bench, args.hard_cases, args.peer_bench)
+  if args.include and not args.bench:
+    raise tool_input.BadInput("--include needs --bench (the sweep the outside results are drawn beside)")
+  print("make_report:", make_report(args.out, args.bench, args.kneedyn, args.quick, args.hard_cases,
+                                    args.peer_bench, args.include, command=command))
   return 0
 
 
