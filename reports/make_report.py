@@ -22,6 +22,7 @@ import sys
 sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bench_data  # noqa: E402  (the sweep JSON and its fairness manifest)
+import claim_verdicts  # noqa: E402  (which readings are informative)
 import figures  # noqa: E402
 import global_sensitivity  # noqa: E402  (Sobol' indices section)
 import methods_comparison  # noqa: E402  (dae / dae-ggl / newmark / generalized-alpha)
@@ -391,9 +392,9 @@ def reconstruction_section(outdir):
   # Matrix: claims × readings.
   head = "<tr><th>claim</th>" + "".join(f"<th title='{esc(r['label'])}'>{lab}</th>" for lab, r in zip(labels, rd)) \
       + "</tr>"
-  # Readings in which the knee reaches 90° with every family member completed: the others
-  # (e.g. a 7.7 N pulse without gravity barely moves the knee) fail most claims trivially.
-  informative = [i for i, r in enumerate(rd) if r.get("time_to_90_s") is not None and not r.get("failed_members")]
+  # claim_verdicts.informative, the rule of the recorded verdicts: the others (e.g. a 7.7 N
+  # pulse without gravity barely moves the knee) fail most claims trivially.
+  informative = [i for i, r in enumerate(rd) if claim_verdicts.informative(r)]
   body = []
   for cid in ids:
     vs = [r["verdicts"].get(cid, "not checkable") for r in rd]
@@ -412,7 +413,8 @@ def reconstruction_section(outdir):
   robust_ok = [c for c in ids if informative and all(rd[i]["verdicts"].get(c) == "reproduced" for i in informative)]
   robust_no = [c for c in ids if informative and all(rd[i]["verdicts"].get(c) == "not reproduced" for i in informative)]
   parts.append(f"<p>Reading × claim (✓ reproduced, ✗ not reproduced, – not checkable). Informative readings (the "
-               f"knee reaches 90° and every family member completes): {inf_labels}. Across them {n_vary} of "
+               f"reference member, A = 100 N and t0 = 0.1 s, reaches 90° of flexion and no family member's run "
+               f"fails): {inf_labels}. Across them {n_vary} of "
                f"{len(ids)} verdicts depend on the reading (marked *); reproduced under all of them: "
                f"{', '.join(robust_ok) or 'none'}; reproduced under none: {', '.join(robust_no) or 'none'}. "
                "Hover a cell for the failed sub-checks. S1/S2 (sensitivity statements) do not depend on the reading "
