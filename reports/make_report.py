@@ -356,7 +356,37 @@ def sensitivity_section(outdir):
   return "\n".join(parts)
 
 
-LEG_WEIGHT_N = 4.0 * 9.81  # m g of the chapter's leg (parameter set: 4.0 kg)
+def leg_weight_N(scene_path):
+  """m g of the scene's leg: body.mass_kg and gravity.magnitude_m_s2 of the scene where it
+  sets them, else of its parameter set (a path relative to the scene's directory); None when
+  they cannot be read."""
+  import yaml
+  try:
+    with open(scene_path, encoding="utf-8") as f:
+      scene = yaml.safe_load(f) or {}
+    ps_path = os.path.join(os.path.dirname(os.path.abspath(scene_path)), str(scene.get("parameter_set")))
+    with open(ps_path, encoding="utf-8") as f:
+      ps = yaml.safe_load(f) or {}
+  except (OSError, TypeError, yaml.YAMLError):
+    return None
+  mass = (scene.get("body") or {}).get("mass_kg", (ps.get("body") or {}).get("mass_kg"))
+  g = (scene.get("gravity") or {}).get("magnitude_m_s2", (ps.get("gravity") or {}).get("magnitude_m_s2"))
+  return mass * g if isinstance(mass, (int, float)) and isinstance(g, (int, float)) else None
+
+
+def pulse_peak_factor(shape):
+  """max over t ≥ 0 of the pulse over its amplitude A, for the scene's pulse shapes
+  (docs/model.md §7: Eq. 1.62 as read, and the other readings); None for a shape not known
+  here. On a grid of s = t/t0 fine enough for nine digits near the maximum."""
+  import numpy as np
+  s = np.linspace(0.0, 3.0, 300001)  # every shape has peaked and decayed by s = 3
+  eq162 = s * np.sin(2 * np.pi * s) * np.exp(-4.73 * s)
+  shapes = {"reconstructed": eq162, "reconstructed_peak": eq162 / eq162.max(),
+            "half_sine": np.where(s <= 1.0, np.sin(np.pi * s), 0.0),
+            "damped_sine": np.sin(2 * np.pi * s) * np.exp(-4.73 * s), "none": np.zeros_like(s)}
+  return float(shapes[shape].max()) if shape in shapes else None
+
+
 VERDICT_MARK = {"reproduced": "✓", "not reproduced": "✗", "not checkable": "–"}
 
 
@@ -463,21 +493,31 @@ def calibration_part(outdir):
     rows.append([label, f"{res[k]['target']:g}°", f"{base[k]['measured']:.1f}°" if base else "–",
                  f"{res[k]['measured']:.1f}°", f"{res[k]['residual']:+.2f}"])
   parts.append(table(["statement", "chapter", "project's reading (s = 1, θ = 0)", "best fit", "residual [×5°]"], rows))
-  peak = best["pulse_amplitude_N"] * (0.0769927 if cal.get("pulse_shape") == "reconstructed" else 1.0)
+  factor = pulse_peak_factor(cal.get("pulse_shape"))
+  peak = best["pulse_amplitude_N"] * factor if factor is not None else None
+  weight = leg_weight_N(cal.get("scene") or os.path.join(os.path.dirname(HERE), "reference-data", "scenes",
+                                                         "chapter_impact.yaml"))
   worst = max(abs(res[k]["residual"]) for k, _ in names)
   verdict = ("every statement within 5°" if worst <= 1.0 else
              f"the worst statement is {worst * 5:.0f}° away")
+  peak_text = (f"pulse peak ≈ {peak:.0f} N" if peak is not None
+               else f"pulse peak not computed (shape {cal.get('pulse_shape')!r})")
+  if peak is not None and weight:
+    peak_text += f", {peak / weight:.1f}× the leg's weight of {weight:.1f} N"
+  elif peak is not None:
+    peak_text += " (the leg's weight could not be read from the scene)"
   parts.append(
-      f"<p><b>Best fit:</b> s = {best['scale']:.2f} (A = {best['pulse_amplitude_N']:.0f} N, pulse peak ≈ {peak:.0f} N, "
-      f"{peak / LEG_WEIGHT_N:.1f}× the leg's weight of {LEG_WEIGHT_N:.0f} N), θ = {best['theta_deg']:.1f}°; cost "
+      f"<p><b>Best fit:</b> s = {best['scale']:.2f} (A = {best['pulse_amplitude_N']:.0f} N, {esc(peak_text)}), "
+      f"θ = {best['theta_deg']:.1f}°; cost "
       f"{res['cost']:.2f} (start {start.get('cost', float('nan')):.2f} at s = {start.get('scale', float('nan')):.2f}, "
       f"θ = {start.get('theta_deg', float('nan')):.0f}°); {verdict}; "
       f"{res.get('failed_runs', 0)} of the three runs at the best fit failed (its angles are then taken up to the "
       "failure). "
       + (f"Ceres: {esc(cal['ceres']['brief_report'])}." if cal.get("ceres") else "") + "</p>")
   plaus = []
-  plaus.append("a pulse peak of a few leg weights is physically plausible for an impact"
-               if 1.0 <= peak / LEG_WEIGHT_N <= 50 else "the fitted pulse peak is outside 1–50 leg weights: implausible")
+  if peak is not None and weight:
+    plaus.append("a pulse peak of a few leg weights is physically plausible for an impact"
+                 if 1.0 <= peak / weight <= 50 else "the fitted pulse peak is outside 1–50 leg weights: implausible")
   th = best["theta_deg"]
   plaus.append(
       f"θ = {th:.0f}° means the thigh inclined {abs(th):.0f}° from horizontal ({'knee below hip' if th > 0 else 'knee above hip'}); "
