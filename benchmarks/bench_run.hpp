@@ -62,5 +62,9 @@ nlohmann::json CountersJson(const SolverStats& s);
 // uname, nproc, compiler, build type, library versions.
 nlohmann::json MachineJson();
 
+// argv as one shell line (arguments quoted where needed): the header's "command", so a
+// sweep file says how it was made.
+std::string CommandLine(int argc, char** argv);
+
 }  // namespace bench
 }  // namespace kneedyn

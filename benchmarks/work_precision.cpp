@@ -413,6 +413,7 @@ int main(int argc, char** argv) {
     h["repetitions"] = repetitions;
     h["rtol_min"] = rtol_min;
     h["metrics_definition"] = "benchmarks/metrics.hpp";
+    h["command"] = CommandLine(argc, argv);
     if (!include_dirs.empty()) {
       h["included"] = {{"directories", include_dirs}, {"files", included_files},
                        {"note", "outside results scored by kneedyn score; their CPU times are their own, "

@@ -69,6 +69,8 @@ def load_bench(path):
     context = data.get("context")
     if isinstance(context, dict) and "components" in context:
       header["components"] = context["components"]
+    if isinstance(context, dict) and context.get("git_commit") and "git_commit" not in header:
+      header["git_commit"] = context["git_commit"]
     _check_header(where, header)
     if not isinstance(data.get("results"), list) and isinstance(data.get("benchmarks"), list):
       if not data["benchmarks"]:
@@ -148,7 +150,7 @@ def check_result(r, where="result"):
     _bad(where, r, "an object (one run)")
   if "formulation" in r:
     _string(f"{where}.formulation", r["formulation"], null=False)
-  for k in ("integrator", "status", "reason", "origin", "source"):
+  for k in ("integrator", "status", "reason", "origin", "source", "engine", "timing"):
     _string(f"{where}.{k}", r.get(k))
   setting = _object(f"{where}.setting", r.get("setting")) or {}
   for k in SETTING_NUMBERS:
@@ -218,6 +220,8 @@ def normalize_result(r, where="result"):
           "cpu_s": cpu, "residual_evaluations": (r.get("counters") or {}).get("residual_evaluations"),
           "steps": (r.get("counters") or {}).get("steps"),
           "events": r.get("events"), "origin": r.get("origin") or "kneedyn", "source": r.get("source"),
+          # simbody_work_precision marks the rows it timed itself (not those --merge copied).
+          "engine": r.get("engine"), "timing": r.get("timing"),
           "above_ceiling": bool(m.get("scd_above_ceiling")),
           # benchmarks/instruction_sweep.py's cost: instructions of RunScene (None elsewhere).
           "instructions": (r.get("instructions") or {}).get("run_scene")}
@@ -326,8 +330,48 @@ def _from_google_benchmark(entries, where="benchmarks"):
   return runs
 
 
+TIMED_HERE, TIMED_MERGED, TIMED_OUTSIDE = "here", "merged", "outside"
+
+
+def timed_where(r, header):
+  """Where a run's CPU time was measured: TIMED_OUTSIDE (an outside driver's own clock),
+  TIMED_MERGED (copied by simbody_work_precision --merge from another sweep: timed in that
+  sweep's process; the rows timed in the --merge run itself carry `engine`), or TIMED_HERE
+  (in the process that wrote the file)."""
+  if r.get("origin") == "outside":
+    return TIMED_OUTSIDE
+  if header.get("merged_from") and not r.get("engine"):
+    return TIMED_MERGED
+  return TIMED_HERE
+
+
+def build_commit(header):
+  """The kneedyn commit the sweep binary was built from: header/context git_commit, else the
+  kneedyn component's origin ("this repository, git <hash>"); None when the file has neither."""
+  if isinstance(header.get("git_commit"), str) and header["git_commit"]:
+    return header["git_commit"]
+  for c in header.get("components") or []:
+    origin = c.get("origin") if isinstance(c, dict) else None
+    if isinstance(origin, str) and c.get("name") == "kneedyn" and " git " in f" {origin}":
+      return origin.split("git ", 1)[1].split()[0] or None
+  return None
+
+
+def tightest_setting(runs):
+  """The tightest setting of each kind among runs ("rtol 1e-08, accuracy 1e-08, h 5e-05"),
+  or None when they have none."""
+  parts = []
+  for k, name in (("rtol", "rtol"), ("accuracy", "accuracy"), ("step", "h")):
+    vals = [r["setting"][k] for r in runs if isinstance((r.get("setting") or {}).get(k), (int, float))]
+    if vals:
+      parts.append(f"{name} {min(vals):.3g}" + (" s" if k == "step" else ""))
+  return ", ".join(parts) or None
+
+
 def setting_str(s):
-  """A run's setting as a reader writes it: fixed step, tolerance, or Simbody's accuracy."""
+  """A run's setting as a reader writes it: fixed step, tolerance, or Simbody's accuracy, with
+  the stabilization when there is one (ede:cvode-bdf at one rtol runs with none and with
+  cvode-projection: without it the two rows of a failure table read alike)."""
   if "step" in s:
     text = f"h = {s['step']:.3g} s"
   elif "rtol" in s:
@@ -338,6 +382,8 @@ def setting_str(s):
     return json.dumps(s)
   if "max_steps" in s:
     text += f", max_steps = {s['max_steps']}"
+  if s.get("stabilization"):
+    text += f", stabilization = {s['stabilization']}"
   return text
 
 

@@ -222,20 +222,34 @@ def make_family_figures(outdir, members):
 # benchmarks/work_precision_table.py). Re-exported here for the report and its tests.
 from bench_data import (WRONG_EVENT_TIME_S, bench_key, classify_run, event_digits,  # noqa: E402,F401
                         failure_counts, load_bench, load_included, pareto_front, reference_command,
-                        scd_ceiling, setting_str, split_runs)
+                        scd_ceiling, setting_str, split_runs, timed_where, TIMED_MERGED)
 
 POSITION_SCD_LABEL = "scd of positions vs reference\n−log10 max|e|/(|ref| + 1 mm or 1°)"
 FAILURE_MARKER = dict(marker="x", color="k", ms=8, mew=1.6, ls="none")
 
 
 OUTSIDE_MARK = " [outside, kneedyn score]"
+# A formulation whose runs simbody_work_precision --merge copied from another sweep (timed in
+# that sweep's process, not beside the rows it timed itself): all of them, or some.
+MERGED_MARK = {"all": " [--merge: other process]", "part": " [partly --merge]"}
 
 
-def failure_title(formulation, n_failed, n_untimed=0, outside=False):
-  """A panel's title: the formulation (an outside solver marked so) and how many of its runs
-  are drawn as failures."""
+def merged_marks(header, runs):
+  """{formulation: "all" | "part"} for the formulations with runs timed in a merged sweep."""
+  marks = {}
+  for f in {r["formulation"] for r in runs if r.get("origin") != "outside"}:
+    where = {timed_where(r, header) for r in runs if r["formulation"] == f}
+    if TIMED_MERGED in where:
+      marks[f] = "all" if where == {TIMED_MERGED} else "part"
+  return marks
+
+
+def failure_title(formulation, n_failed, n_untimed=0, outside=False, merged=None):
+  """A panel's title: the formulation (an outside solver, a merged one marked so) and how many
+  of its runs are drawn as failures."""
   untimed = f", {n_untimed} without a time" if n_untimed else ""
-  return f"{formulation}{OUTSIDE_MARK if outside else ''}  ({n_failed} failed / wrong event{untimed})"
+  return (f"{formulation}{OUTSIDE_MARK if outside else ''}{MERGED_MARK.get(merged, '')}  "
+          f"({n_failed} failed / wrong event{untimed})")
 
 
 def failure_row(values):
@@ -261,7 +275,7 @@ INSTRUCTIONS_PARETO = ("work_precision_pareto_instructions.png",
 
 
 def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark, outside, cost="cpu_s",
-                   ylabel=CPU_LABEL):
+                   ylabel=CPU_LABEL, merged=None):
   """One axis, every formulation's front (SciMLBenchmarks' layout: error against time, both
   logarithmic; here the error falls to the right, as scd grows in the panels): the cheapest
   run reaching each accuracy, as a staircase (the minimal cost among runs reaching at least
@@ -270,10 +284,11 @@ def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark, outs
   fig, ax = plt.subplots(figsize=(10.5, 6.2))
   titles = []
   nfail = failure_counts(runs)
+  merged = merged or {}
   for f in forms:
     front = pareto_front([r for r in ok_runs if r["formulation"] == f], cost)
-    titles.append(failure_title(f, nfail.get(f, 0), outside=f in outside))
-    name = f + (OUTSIDE_MARK if f in outside else "")
+    titles.append(failure_title(f, nfail.get(f, 0), outside=f in outside, merged=merged.get(f)))
+    name = f + (OUTSIDE_MARK if f in outside else "") + MERGED_MARK.get(merged.get(f), "")
     if not front:  # still in the legend, with its failures
       ax.plot([], [], color=fcol[f], lw=1.6, ls=":", label=f"{name} (none on a front, {nfail.get(f, 0)} failed / wrong event)")
       continue
@@ -357,12 +372,14 @@ def make_work_precision(outdir, bench_path, prefix="", include=()):
     runs += load_included(d, header.get("scene"), reference_command(header))
   outside = {r["formulation"] for r in runs if r.get("origin") == "outside"}
   header["included_runs"] = [r for r in runs if r.get("origin") == "outside"]
+  merged = merged_marks(header, runs)
   ok_runs, failed = split_runs(runs)
   forms, fcol, imark = _styles(runs)
   figdir = os.path.join(outdir, "figures")
   os.makedirs(figdir, exist_ok=True)
   files = [prefix + "work_precision_pareto.png"]
-  _pareto_figure(os.path.join(figdir, files[0]), header, runs, ok_runs, failed, forms, fcol, imark, outside)
+  _pareto_figure(os.path.join(figdir, files[0]), header, runs, ok_runs, failed, forms, fcol, imark, outside,
+                 merged=merged)
   specs = [("work_precision_cpu.png", "cpu_s", "CPU time per run (median) [s]", lambda r: r["scd"],
             POSITION_SCD_LABEL),
            ("work_precision_residuals.png", "residual_evaluations", "Residual (right-hand-side) evaluations",
@@ -396,6 +413,8 @@ def make_work_precision(outdir, bench_path, prefix="", include=()):
                      key=order)
         if pts:
           label = (g if g != "-" else "built-in (IDA / Newmark)") + (f" / {stab}" if stab else "")
+          if merged.get(f) == "part" and all(timed_where(r, header) == TIMED_MERGED for r in pts):
+            label += " (--merge)"
           ax.semilogx([r[xkey] for r in pts], [yfn(r) for r in pts], "--" if stab else "-", color=fcol[f],
                       marker=imark[g], ms=5, mfc="none", lw=0.8, label=label)
       mine = [r for r, _ in failed if r["formulation"] == f]
@@ -406,7 +425,8 @@ def make_work_precision(outdir, bench_path, prefix="", include=()):
       ax.axhline(fail_y + 0.5, color="k", lw=0.5, ls="--")
       if ceiling is not None:  # above it the reference's own error is measured
         ax.axhline(ceiling, color="0.4", lw=1.2, ls="-.", label=f"reference ceiling (scd {ceiling:.1f})")
-      titles.append(failure_title(f, len(mine), len(mine) - len(placed), outside=f in outside))
+      titles.append(failure_title(f, len(mine), len(mine) - len(placed), outside=f in outside,
+                                  merged=merged.get(f)))
       ax.set_title(titles[-1], color=fcol[f], fontsize=10, fontweight="bold")
       ax.grid(alpha=0.3, which="both")
       ax.set_ylim(fail_y - 0.7, top)

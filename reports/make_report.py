@@ -3,20 +3,26 @@
 of run_families.py, figures.py and claims.py.
 
   make_report.py --out OUTDIR [--bench JSON] [--kneedyn PATH] [--quick] [--hard-cases CSV]
+                 [--peer-bench JSON] [--include DIR]...
 
 --hard-cases: kneedyn_catalog's hard_cases.csv (or the hard_cases.md beside it) for the
-hard-case section; without it the section says how to make one.
+hard-case section; without it the section says how to make one. --peer-bench: the sweep with
+Simbody's integrators (simbody_work_precision --merge) for the peer section. --include DIR:
+outside results scored by kneedyn score, drawn beside --bench (repeatable; needs --bench).
+The options are report.py's (reports/report.py runs this page last).
 """
 import argparse
 import html
 import json
 import math
 import os
+import shlex
 import sys
 
 sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bench_data  # noqa: E402  (the sweep JSON and its fairness manifest)
+import claim_verdicts  # noqa: E402  (which readings are informative)
 import figures  # noqa: E402
 import global_sensitivity  # noqa: E402  (Sobol' indices section)
 import methods_comparison  # noqa: E402  (dae / dae-ggl / newmark / generalized-alpha)
@@ -350,7 +356,37 @@ def sensitivity_section(outdir):
   return "\n".join(parts)
 
 
-LEG_WEIGHT_N = 4.0 * 9.81  # m g of the chapter's leg (parameter set: 4.0 kg)
+def leg_weight_N(scene_path):
+  """m g of the scene's leg: body.mass_kg and gravity.magnitude_m_s2 of the scene where it
+  sets them, else of its parameter set (a path relative to the scene's directory); None when
+  they cannot be read."""
+  import yaml
+  try:
+    with open(scene_path, encoding="utf-8") as f:
+      scene = yaml.safe_load(f) or {}
+    ps_path = os.path.join(os.path.dirname(os.path.abspath(scene_path)), str(scene.get("parameter_set")))
+    with open(ps_path, encoding="utf-8") as f:
+      ps = yaml.safe_load(f) or {}
+  except (OSError, TypeError, yaml.YAMLError):
+    return None
+  mass = (scene.get("body") or {}).get("mass_kg", (ps.get("body") or {}).get("mass_kg"))
+  g = (scene.get("gravity") or {}).get("magnitude_m_s2", (ps.get("gravity") or {}).get("magnitude_m_s2"))
+  return mass * g if isinstance(mass, (int, float)) and isinstance(g, (int, float)) else None
+
+
+def pulse_peak_factor(shape):
+  """max over t ≥ 0 of the pulse over its amplitude A, for the scene's pulse shapes
+  (docs/model.md §7: Eq. 1.62 as read, and the other readings); None for a shape not known
+  here. On a grid of s = t/t0 fine enough for nine digits near the maximum."""
+  import numpy as np
+  s = np.linspace(0.0, 3.0, 300001)  # every shape has peaked and decayed by s = 3
+  eq162 = s * np.sin(2 * np.pi * s) * np.exp(-4.73 * s)
+  shapes = {"reconstructed": eq162, "reconstructed_peak": eq162 / eq162.max(),
+            "half_sine": np.where(s <= 1.0, np.sin(np.pi * s), 0.0),
+            "damped_sine": np.sin(2 * np.pi * s) * np.exp(-4.73 * s), "none": np.zeros_like(s)}
+  return float(shapes[shape].max()) if shape in shapes else None
+
+
 VERDICT_MARK = {"reproduced": "✓", "not reproduced": "✗", "not checkable": "–"}
 
 
@@ -386,9 +422,9 @@ def reconstruction_section(outdir):
   # Matrix: claims × readings.
   head = "<tr><th>claim</th>" + "".join(f"<th title='{esc(r['label'])}'>{lab}</th>" for lab, r in zip(labels, rd)) \
       + "</tr>"
-  # Readings in which the knee reaches 90° with every family member completed: the others
-  # (e.g. a 7.7 N pulse without gravity barely moves the knee) fail most claims trivially.
-  informative = [i for i, r in enumerate(rd) if r.get("time_to_90_s") is not None and not r.get("failed_members")]
+  # claim_verdicts.informative, the rule of the recorded verdicts: the others (e.g. a 7.7 N
+  # pulse without gravity barely moves the knee) fail most claims trivially.
+  informative = [i for i, r in enumerate(rd) if claim_verdicts.informative(r)]
   body = []
   for cid in ids:
     vs = [r["verdicts"].get(cid, "not checkable") for r in rd]
@@ -407,7 +443,8 @@ def reconstruction_section(outdir):
   robust_ok = [c for c in ids if informative and all(rd[i]["verdicts"].get(c) == "reproduced" for i in informative)]
   robust_no = [c for c in ids if informative and all(rd[i]["verdicts"].get(c) == "not reproduced" for i in informative)]
   parts.append(f"<p>Reading × claim (✓ reproduced, ✗ not reproduced, – not checkable). Informative readings (the "
-               f"knee reaches 90° and every family member completes): {inf_labels}. Across them {n_vary} of "
+               f"reference member, A = 100 N and t0 = 0.1 s, reaches 90° of flexion and no family member's run "
+               f"fails): {inf_labels}. Across them {n_vary} of "
                f"{len(ids)} verdicts depend on the reading (marked *); reproduced under all of them: "
                f"{', '.join(robust_ok) or 'none'}; reproduced under none: {', '.join(robust_no) or 'none'}. "
                "Hover a cell for the failed sub-checks. S1/S2 (sensitivity statements) do not depend on the reading "
@@ -456,21 +493,31 @@ def calibration_part(outdir):
     rows.append([label, f"{res[k]['target']:g}°", f"{base[k]['measured']:.1f}°" if base else "–",
                  f"{res[k]['measured']:.1f}°", f"{res[k]['residual']:+.2f}"])
   parts.append(table(["statement", "chapter", "project's reading (s = 1, θ = 0)", "best fit", "residual [×5°]"], rows))
-  peak = best["pulse_amplitude_N"] * (0.0769927 if cal.get("pulse_shape") == "reconstructed" else 1.0)
+  factor = pulse_peak_factor(cal.get("pulse_shape"))
+  peak = best["pulse_amplitude_N"] * factor if factor is not None else None
+  weight = leg_weight_N(cal.get("scene") or os.path.join(os.path.dirname(HERE), "reference-data", "scenes",
+                                                         "chapter_impact.yaml"))
   worst = max(abs(res[k]["residual"]) for k, _ in names)
   verdict = ("every statement within 5°" if worst <= 1.0 else
              f"the worst statement is {worst * 5:.0f}° away")
+  peak_text = (f"pulse peak ≈ {peak:.0f} N" if peak is not None
+               else f"pulse peak not computed (shape {cal.get('pulse_shape')!r})")
+  if peak is not None and weight:
+    peak_text += f", {peak / weight:.1f}× the leg's weight of {weight:.1f} N"
+  elif peak is not None:
+    peak_text += " (the leg's weight could not be read from the scene)"
   parts.append(
-      f"<p><b>Best fit:</b> s = {best['scale']:.2f} (A = {best['pulse_amplitude_N']:.0f} N, pulse peak ≈ {peak:.0f} N, "
-      f"{peak / LEG_WEIGHT_N:.1f}× the leg's weight of {LEG_WEIGHT_N:.0f} N), θ = {best['theta_deg']:.1f}°; cost "
+      f"<p><b>Best fit:</b> s = {best['scale']:.2f} (A = {best['pulse_amplitude_N']:.0f} N, {esc(peak_text)}), "
+      f"θ = {best['theta_deg']:.1f}°; cost "
       f"{res['cost']:.2f} (start {start.get('cost', float('nan')):.2f} at s = {start.get('scale', float('nan')):.2f}, "
       f"θ = {start.get('theta_deg', float('nan')):.0f}°); {verdict}; "
       f"{res.get('failed_runs', 0)} of the three runs at the best fit failed (its angles are then taken up to the "
       "failure). "
       + (f"Ceres: {esc(cal['ceres']['brief_report'])}." if cal.get("ceres") else "") + "</p>")
   plaus = []
-  plaus.append("a pulse peak of a few leg weights is physically plausible for an impact"
-               if 1.0 <= peak / LEG_WEIGHT_N <= 50 else "the fitted pulse peak is outside 1–50 leg weights: implausible")
+  if peak is not None and weight:
+    plaus.append("a pulse peak of a few leg weights is physically plausible for an impact"
+                 if 1.0 <= peak / weight <= 50 else "the fitted pulse peak is outside 1–50 leg weights: implausible")
   th = best["theta_deg"]
   plaus.append(
       f"θ = {th:.0f}° means the thigh inclined {abs(th):.0f}° from horizontal ({'knee below hip' if th > 0 else 'knee above hip'}); "
@@ -514,17 +561,18 @@ def bench_section(outdir, bench, prefix="", title="Work-precision", anchor="work
     parts.append("<p>No benchmark JSON given (<code>--bench JSON</code>); diagrams omitted.</p>")
     return "\n".join(parts)
   files, failed, header = figures.make_work_precision(outdir, bench, prefix, include)
-  prov = header.get("provenance") or {}
-  kv = [("Source", os.path.basename(bench)), ("Scene", header.get("scene", "?")),
-        ("Sweep", f"{header.get('mode', '?')} (repetitions {header.get('repetitions', '?')}, tightest rtol "
-                  f"{header.get('rtol_min', '?')})"),
-        ("Reference", f"{header.get('reference', '?')} (accuracy {header.get('reference_accuracy_scd', '?')} digits)"),
-        ("Swept", header.get("date", "?")),
-        ("Recorded", f"{prov.get('date', '?')}, sweep binary built from commit {prov.get('commit', '?')}"),
-        ("Command", prov.get("command", "?")),
-        ("Machine", (header.get("machine") or {}).get("uname", "?") if isinstance(header.get("machine"), dict) else "?")]
+  kv = [("Source", os.path.basename(bench)), ("Scene", header.get("scene", NOT_RECORDED)),
+        ("Reference", f"{header.get('reference', NOT_RECORDED)} (accuracy "
+                      f"{header.get('reference_accuracy_scd', NOT_RECORDED)} digits)")]
+  kv += sweep_provenance(header, bench_data.load_bench(bench)[1])
+  kv += [("Machine", (header.get("machine") or {}).get("uname", NOT_RECORDED)
+          if isinstance(header.get("machine"), dict) else NOT_RECORDED)]
   parts.append("<dl class='kv'>" + "".join(f"<dt>{esc(k)}</dt><dd>{esc(v)}</dd>" for k, v in kv) + "</dl>")
   parts.append(components_table(header))
+  mh = merged_header(header)
+  if mh and mh.get("components") and mh["components"] != header.get("components"):
+    parts.append(components_table(mh).replace("Components (fairness manifest)",
+                                              "Components of the merged sweep (fairness manifest)"))
   parts.append("<p>Error metrics (<code>benchmarks/metrics.hpp</code>): <b>scd</b> = −log10 max |x − x_ref| / "
                "(|x_ref| + floor) over the positions x0, y0, z0 (floor 1 mm) and α, β, γ (floor 1°) at every 0.02 s "
                "and at the end event; <b>event-time digits</b> = −log10 of the largest |t − t_ref| in seconds over "
@@ -560,6 +608,61 @@ def bench_section(outdir, bench, prefix="", title="Work-precision", anchor="work
   else:
     parts.append("<p>No failed runs.</p>")
   return "\n".join(parts)
+
+
+NOT_RECORDED = "not recorded in the file"
+
+
+def merged_header(header):
+  """The header of the sweep simbody_work_precision --merge copied rows from (header.merged_from),
+  with that sweep's build (git_commit, components) from its context and its file; None when
+  nothing was merged."""
+  mf = header.get("merged_from")
+  if not isinstance(mf, dict):
+    return None
+  h = dict(mf.get("header") or {})
+  ctx = mf.get("context") if isinstance(mf.get("context"), dict) else {}
+  for k in ("git_commit", "components"):
+    if ctx.get(k) and k not in h:
+      h[k] = ctx[k]
+  h["file"] = mf.get("file")
+  return h
+
+
+def _sweep_line(h, runs):
+  """mode, repetitions and the tightest setting among `runs` (with --rtol-min, the floor the
+  sweep was given, when it is recorded: a short sweep stops above it)."""
+  tight = bench_data.tightest_setting(runs) or "none"
+  floor = f" (--rtol-min {h['rtol_min']:.3g})" if isinstance(h.get("rtol_min"), (int, float)) else ""
+  return f"{h.get('mode', NOT_RECORDED)}, repetitions {h.get('repetitions', NOT_RECORDED)}, tightest run {tight}{floor}"
+
+
+def sweep_provenance(header, runs):
+  """The sweep's provenance rows (Sweep, Swept, Built / Recorded, Command) for the section's
+  list. A file written by simbody_work_precision --merge holds two sweeps: the rows it timed
+  and the rows it copied; both are described, each from its own header."""
+  outside = [r for r in runs if bench_data.timed_where(r, header) == bench_data.TIMED_OUTSIDE]
+  mh = merged_header(header)
+  if mh is None:
+    prov = header.get("provenance") or {}
+    own = [r for r in runs if r not in outside]
+    recorded = (f"{prov.get('date', NOT_RECORDED)}, sweep binary built from commit "
+                f"{prov.get('commit', NOT_RECORDED)}" if prov else
+                f"not a recorded sweep (no provenance); sweep binary built from commit "
+                f"{bench_data.build_commit(header) or NOT_RECORDED}")
+    return [("Sweep", _sweep_line(header, own)), ("Swept", header.get("date", NOT_RECORDED)),
+            ("Recorded", recorded), ("Command", prov.get("command") or header.get("command") or NOT_RECORDED)]
+  here = [r for r in runs if bench_data.timed_where(r, header) == bench_data.TIMED_HERE]
+  merged = [r for r in runs if bench_data.timed_where(r, header) == bench_data.TIMED_MERGED]
+  src = os.path.basename(mh.get("file") or "") or NOT_RECORDED
+  this = f"this run ({len(here)} rows)"
+  copied = f"merged sweep {src} ({len(merged)} rows{f', {len(outside)} outside rows with them' if outside else ''})"
+  return [("Sweep", f"{this}: {_sweep_line(header, here)}; {copied}: {_sweep_line(mh, merged)}"),
+          ("Swept", f"{this}: {header.get('date', NOT_RECORDED)}; merged sweep: {mh.get('date', NOT_RECORDED)}"),
+          ("Built from", f"{this}: commit {bench_data.build_commit(header) or NOT_RECORDED}; merged sweep: commit "
+                         f"{bench_data.build_commit(mh) or NOT_RECORDED}"),
+          ("Command", f"{this}: {header.get('command') or NOT_RECORDED}; merged sweep: "
+                      f"{mh.get('command') or NOT_RECORDED}")]
 
 
 def components_table(header):
@@ -686,17 +789,55 @@ def hard_cases_section(hard_cases):
   return "\n".join(parts)
 
 
-def commands_section(outdir, kneedyn, quick, bench, fam, include=()):
+def cli_args(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, peer_bench=None, include=()):
+  """make_report.py's arguments that write this page from the run directory."""
+  return (["--out", outdir] + (["--bench", bench] if bench else []) + (["--kneedyn", kneedyn] if kneedyn else [])
+          + (["--quick"] if quick else []) + (["--hard-cases", hard_cases] if hard_cases else [])
+          + (["--peer-bench", peer_bench] if peer_bench else []) + [a for d in include for a in ("--include", d)])
+
+
+BOOTSTRAP = os.path.join(os.path.dirname(HERE), ".ci", "bootstrap")
+
+
+def main_job_steps(path=BOOTSTRAP):
+  """The main job's steps: the `run` branch of .ci/bootstrap (after the test branch's `else`,
+  to its closing `fi`) verbatim without its comments, or None when the file or the branch is
+  not there. Read, not copied, so that it cannot drift from what the job runs."""
+  try:
+    with open(path, encoding="utf-8") as f:
+      lines = f.read().splitlines()
+  except OSError:
+    return None
+  try:
+    i = next(k for k, ln in enumerate(lines) if ln.startswith('if [[ "$mode" == test ]]'))
+    start = next(k for k in range(i, len(lines)) if lines[k] == "else") + 1
+    end = next(k for k in range(start, len(lines)) if lines[k] == "fi")
+  except StopIteration:
+    return None
+  return [ln[2:] if ln.startswith("  ") else ln for ln in lines[start:end] if not ln.strip().startswith("#")]
+
+
+def commands_section(outdir, kneedyn, quick, bench, fam, include=(), command=None, steps=None, hard_cases=None,
+                     peer_bench=None):
+  """The Reproduction section: the command that made this page as it was given (report.py's, or
+  make_report.py's own), the pieces report.py ran with their arguments, the main job's steps
+  that made its inputs (.ci/bootstrap run) and one family member by hand."""
   kd = kneedyn or "build/formulations/kneedyn"
-  cmd = f"/usr/bin/python3 reports/report.py --kneedyn {kd} --out {outdir}" + (" --quick" if quick else "") + (
-      f" --bench {bench}" if bench else "") + "".join(f" --include {d}" for d in include)
+  if command is None:  # not given: the make_report.py command that rewrites this page
+    command = shlex.join(["/usr/bin/python3", "reports/make_report.py"]
+                         + cli_args(outdir, bench, kneedyn, quick, hard_cases, peer_bench, include))
   cands = [m for m in fam.get("members", []) if m.get("command")]
   one = next((m for m in cands if m["name"] == "amplitude_100"), cands[0] if cands else None)
-  lines = ["# whole report (families + sensitivity + figures + claims + this page)", cmd,
-           "# or, from a build directory", "cmake --build <build-dir> --target report",
-           "# the pieces", f"/usr/bin/python3 reports/run_families.py --kneedyn {kd} --out {outdir}",
-           f"/usr/bin/python3 reports/figures.py --out {outdir}", f"/usr/bin/python3 reports/claims.py --out {outdir}",
-           f"/usr/bin/python3 reports/make_report.py --out {outdir}"]
+  lines = [f"# this page, as it was made (in {os.getcwd()})", command,
+           "# or, from a build directory: report.py with --kneedyn and --out <build-dir>/report only (no sweep, "
+           "hard cases or reconstruction)",
+           "cmake --build <build-dir> --target report"]
+  if steps:
+    lines += ["# the pieces report.py ran, in order, with their arguments"] + list(steps)
+  job = main_job_steps()
+  if job:
+    lines += ["# the main job that made the inputs (.ci/bootstrap run: its run branch, verbatim; "
+              "$build = build directory, $out = output directory, this page in $out/report)"] + job
   if one:
     lines += ["# one member by hand", one["command"]]
   runner = (f"<p>Simulations ran {esc(fam['runner'])} (reports/run_families.py; "
@@ -704,13 +845,50 @@ def commands_section(outdir, kneedyn, quick, bench, fam, include=()):
   return "<h2 id='reproduce'>Reproduction</h2>\n" + runner + "<pre>" + esc("\n".join(lines)) + "</pre>"
 
 
-PEER_INTRO = ("<p>Simbody's integrators (<code>crosscheck/simbody</code>, the chapter knee rebuilt in "
-              "Simbody's own terms) beside kneedyn's formulations, all timed in the same process run "
-              "(<code>simbody_work_precision --short --merge</code> over the main job's short kneedyn sweep), so CPU "
-              "times compare as ratios. Same reference and metrics as above.</p>")
+def peer_intro(bench):
+  """The peer section's opening, from the file's rows: which were timed in the
+  simbody_work_precision run itself (their CPU times compare as ratios), which --merge copied
+  from another sweep's process, which outside drivers timed."""
+  header, runs = bench_data.load_bench(bench)
+  groups = {w: [r for r in runs if bench_data.timed_where(r, header) == w]
+            for w in (bench_data.TIMED_HERE, bench_data.TIMED_MERGED, bench_data.TIMED_OUTSIDE)}
+
+  def methods(rs):
+    return ", ".join(dict.fromkeys(bench_data.method_of(r) for r in rs))
+  here, merged, outside = groups["here"], groups["merged"], groups["outside"]
+  sub = [r for r in here if r.get("timing")]
+  rows = [[f"this run ({header.get('generator') or 'the program that wrote the file'})", len(here), methods(here),
+           f"one process, {header.get('timer') or 'CPU time'}"
+           + (f"; {methods(sub)}: {sub[0]['timing']}" if sub else "")]]
+  if merged:
+    mh = merged_header(header) or {}
+    rows.append([f"another sweep's process (--merge from {os.path.basename(mh.get('file') or '') or NOT_RECORDED})",
+                 len(merged), methods(merged), "benchmarks/work_precision's Google Benchmark CPU time"])
+  if outside:
+    rows.append(["outside drivers", len(outside), methods(outside),
+                 "each driver's own clock (Python's time.process_time, C's clock), once"])
+  text = (f"<p>Simbody's integrators (<code>crosscheck/simbody</code>, the chapter knee rebuilt in Simbody's own "
+          f"terms) beside kneedyn's formulations. Of the {len(runs)} runs in {esc(os.path.basename(bench))}, "
+          f"{len(here)} were timed in one process run of <code>simbody_work_precision</code>: only their CPU "
+          "times compare as ratios.")
+  if merged or outside:
+    src = os.path.basename((merged_header(header) or {}).get("file") or "") or "another sweep file"
+    text += (f" The other {len(merged) + len(outside)} were copied in by <code>--merge</code> from "
+             f"{esc(src)}, timed in that sweep's process"
+             + (" (and the outside solvers' by their own drivers, interpreter and loop overhead included)"
+                if outside else "")
+             + ": the same machine, not the same run, so not ratios of one run. In "
+             f"the diagrams a formulation is marked{figures.MERGED_MARK['all']} when all its runs were copied, "
+             f"{figures.MERGED_MARK['part']} when some were (those series say (--merge)), and "
+             f"{figures.OUTSIDE_MARK} for an outside solver.")
+  text += " Same reference and metrics as above.</p>"
+  return text + table(["timed in", "runs", "methods", "clock"], rows)
 
 
-def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, peer_bench=None, include=()):
+def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, peer_bench=None, include=(),
+                command=None, steps=None):
+  """Writes OUTDIR/index.html; `command` (the command that made it) and `steps` (the pieces
+  report.py ran) for the Reproduction section."""
   fam, members = load_families(outdir)
   with open(os.path.join(outdir, "claims.json")) as f:
     rows = json.load(f)
@@ -731,10 +909,10 @@ def make_report(outdir, bench=None, kneedyn=None, quick=False, hard_cases=None, 
           summary_section(fam, members), claims_section(rows, recorded), figures_section(outdir),
           sensitivity_section(outdir), reconstruction_section(outdir), global_sensitivity.section(outdir), bench_section(outdir, bench, include=include), \
           methods_comparison.section(outdir, kneedyn, bench), \
-          *([bench_section(outdir, peer_bench, "peer_", "kneedyn and Simbody, same run", "peer-work-precision",
-                           PEER_INTRO)] if peer_bench else []), patella_section.section(outdir),
+          *([bench_section(outdir, peer_bench, "peer_", "kneedyn and Simbody", "peer-work-precision",
+                           peer_intro(peer_bench))] if peer_bench else []), patella_section.section(outdir),
           hard_cases_section(hard_cases),
-          commands_section(outdir, kneedyn, quick, bench, fam, include)]
+          commands_section(outdir, kneedyn, quick, bench, fam, include, command, steps, hard_cases, peer_bench)]
   page = ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
           "<title>kneedyn chapter report</title><style>" + CSS + "</style></head><body>\n"
           + "\n".join(body) + "\n</body></html>\n")
@@ -772,9 +950,16 @@ def main(argv=None):
   ap.add_argument("--kneedyn")
   ap.add_argument("--quick", action="store_true")
   ap.add_argument("--hard-cases")
+  ap.add_argument("--peer-bench")
+  ap.add_argument("--include", action="append", default=[], metavar="DIR")
+  command = shlex.join([sys.executable, sys.argv[0] if argv is None else os.path.abspath(__file__)]
+                       + list(sys.argv[1:] if argv is None else argv))
   args = ap.parse_args(argv)
-  check_inputs(args.out, args.bench, args.hard_cases)
-  print("make_report:", make_report(args.out, args.bench, args.kneedyn, args.quick, args.hard_cases))
+  check_inputs(args.out, args.bench, args.hard_cases, args.peer_bench)
+  if args.include and not args.bench:
+    raise tool_input.BadInput("--include needs --bench (the sweep the outside results are drawn beside)")
+  print("make_report:", make_report(args.out, args.bench, args.kneedyn, args.quick, args.hard_cases,
+                                    args.peer_bench, args.include, command=command))
   return 0
 
 

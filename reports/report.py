@@ -14,6 +14,7 @@ its table, not failures of the report.
 """
 import argparse
 import os
+import shlex
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -35,14 +36,18 @@ def main(argv=None):
   ap.add_argument("--out", required=True, help="output directory")
   ap.add_argument("--quick", action="store_true", help="reduced families (tests)")
   ap.add_argument("--bench", help="benchmark JSON for the work-precision diagrams")
-  ap.add_argument("--peer-bench", help="work-precision JSON with Simbody's integrators beside kneedyn's, "
-                  "measured in one run (crosscheck/simbody/simbody_work_precision --merge)")
+  ap.add_argument("--peer-bench", help="work-precision JSON with Simbody's integrators beside kneedyn's "
+                  "(crosscheck/simbody/simbody_work_precision --merge; the section says which rows it timed "
+                  "in one process and which it copied)")
   ap.add_argument("--include", action="append", default=[], metavar="DIR",
                   help="outside solvers' results scored by kneedyn score under DIR (score.json, *.score.json), "
                   "drawn beside the --bench sweep (repeatable; examples/outside_results.sh writes them)")
   ap.add_argument("--hard-cases", help="hard_cases.csv (or .md beside it) from kneedyn_catalog")
   ap.add_argument("--reconstruction", action="store_true", help="run the reconstruction study")
   ap.add_argument("--calibrate", help="calibrate_reconstruction binary: also the Ceres calibration")
+  # The command as given, for the report's Reproduction section.
+  command = shlex.join([sys.executable, sys.argv[0] if argv is None else os.path.abspath(__file__)]
+                       + list(sys.argv[1:] if argv is None else argv))
   args = ap.parse_args(argv)
   # Every input is checked before the long runs and before --out is made (README, "Exit codes").
   tool_input.kneedyn_executable("--kneedyn", args.kneedyn)
@@ -60,27 +65,37 @@ def main(argv=None):
         bench_data.load_included(d, header.get("scene"), bench_data.reference_command(header))
       except ValueError as e:
         raise tool_input.BadInput(str(e)) from None
-  fam_args = ["--kneedyn", args.kneedyn, "--out", args.out] + (["--quick"] if args.quick else [])
+  steps = []  # each piece as it is run here, for the Reproduction section
+
+  def piece(tool, tool_args):
+    steps.append(shlex.join([sys.executable, os.path.join(os.path.relpath(HERE), tool)] + tool_args))
+    return tool_args
+  fam_args = piece("run_families.py", ["--kneedyn", args.kneedyn, "--out", args.out] + (["--quick"] if args.quick else []))
   rc = run_families.main(fam_args)
   if rc == 2 or not os.path.exists(os.path.join(args.out, "families.json")):
     return 2
   if args.reconstruction or args.calibrate:
-    rec = reconstruction.main(["--kneedyn", args.kneedyn, "--out", args.out] + (["--quick"] if args.quick else [])
-                              + (["--calibrate", args.calibrate] if args.calibrate else [])
-                              + (["--calibrate-grid", "2", "--calibrate-iterations", "2"] if args.quick else []))
+    rec = reconstruction.main(piece("reconstruction.py", ["--kneedyn", args.kneedyn, "--out", args.out]
+                                    + (["--quick"] if args.quick else [])
+                                    + (["--calibrate", args.calibrate] if args.calibrate else [])
+                                    + (["--calibrate-grid", "2", "--calibrate-iterations", "2"] if args.quick else [])))
     # Failed runs under a reading are findings, shown in the study's table (e.g. a reading in
     # which the knee never reaches 90°); only bad input stops the report.
     if rec == 2:
       return 2
   # The patello-femoral joint (docs/model.md §12): its runs, figures and coupling study; a
   # failed run is shown in its section and makes the exit status 1.
-  pat = patella_section.main(["--kneedyn", args.kneedyn, "--out", args.out] + (["--quick"] if args.quick else []))
+  pat = patella_section.main(piece("patella_section.py", ["--kneedyn", args.kneedyn, "--out", args.out]
+                                   + (["--quick"] if args.quick else [])))
   if pat == 2:
     return 2
-  figures.main(["--out", args.out])
+  figures.main(piece("figures.py", ["--out", args.out]))
   claims.build_claims(args.out)
+  piece("claims.py", ["--out", args.out])
+  piece("make_report.py", make_report.cli_args(args.out, args.bench, args.kneedyn, args.quick, args.hard_cases,
+                                               args.peer_bench, args.include))
   path = make_report.make_report(args.out, args.bench, os.path.abspath(args.kneedyn), args.quick,
-                                 args.hard_cases, args.peer_bench, args.include)
+                                 args.hard_cases, args.peer_bench, args.include, command=command, steps=steps)
   print(f"report: {path}")
   return 1 if rc or pat else 0
 

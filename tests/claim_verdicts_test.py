@@ -9,7 +9,8 @@ provenance (command, commit, date). And the classifier on a synthetic study whos
 known by construction: a claim one reading reproduces is `reading` (with that reading and its
 cost), one the inverse problem reaches only beyond the printed precision is
 `beyond_precision`, one nothing reaches is `unexplained` and says the inverse problem was not
-run when it was not, and S2 without a reading is `contradicted` by S1.
+run when it was not, and S2 without a reading is `contradicted` by S1. Which readings are
+informative (claim_verdicts.informative), and that the report's matrix names the same ones.
 Does not validate: that the study's runs are right (the report's tests and the claim checks do).
 """
 import json
@@ -89,8 +90,34 @@ def synthetic():
   check(out["C"]["explanation"] == "unexplained" and "not run" in out["C"]["evidence"]["why"], f"C without inverse: {out['C']}")
 
 
+def informative_rule():
+  """Which readings are informative: the reference member reaches 90° and no member's run
+  failed; a member that completes short of 90° does not exclude a reading. The report's
+  matrix uses the same rule and says so."""
+  def r(t90, failed=()):
+    return {"time_to_90_s": t90, "failed_members": list(failed)}
+  check(claim_verdicts.informative(r(0.3)), "reference at 90°, no failure: not informative")
+  check(not claim_verdicts.informative(r(None)), "reference short of 90°: informative")
+  check(not claim_verdicts.informative(r(0.3, ["duration_0.05"])), "a failed member: informative")
+  import tempfile
+  import make_report  # noqa: E402
+  with tempfile.TemporaryDirectory(prefix="kneedyn_informative_") as tmp:
+    os.makedirs(os.path.join(tmp, "reconstruction"))
+    def reading(key, t90, failed=()):
+      return {"key": key, "label": key, "time_to_90_s": t90, "failed_members": list(failed),
+              "liftoff_lateral_deg": 60.0, "peak_pulse_N": 7.7, "crossing_deg": {},
+              "verdicts": {"A": "reproduced"}, "reasons": {}, "counts": {"reproduced": 1}}
+    with open(os.path.join(tmp, "reconstruction", "reconstruction.json"), "w") as f:
+      json.dump({"claims": ["A"], "claim_text": {"A": "a"},
+                 "readings": [reading("ok", 0.3), reading("short", None), reading("failed", 0.3, ["m"])]}, f)
+    page = make_report.reconstruction_section(tmp)
+    check("reaches 90° of flexion and no family member's run fails): R1." in page,
+          "the matrix's text does not state the rule or does not list exactly R1 as informative")
+
+
 recorded_file()
 synthetic()
+informative_rule()
 for f in failures:
   print("FAIL:", f)
 print(f"claim_verdicts_test: {len(failures)} failure(s)")

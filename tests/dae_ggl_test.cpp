@@ -6,7 +6,7 @@
 // integrated), at least ten times below `dae`'s at the same settings and at round-off
 // level (< 1e-14 m, |R0| ≈ 0.05 m) at rtol 1e-13; (2) accuracy against the stored
 // reference (reference-data/references/chapter_impact.json, quadruple-precision
-// Gauss–Legendre, 15.6 digits; 10.51 measured, 10.54 against the earlier 11.2-digit
+// Gauss–Legendre, 15.7 digits; 10.51 measured, 10.54 against the earlier 11.2-digit
 // reference): scd ≥ 10 at rtol 1e-13 (the
 // accuracy target of GGL); (3) rtol 1e-12 completes in both contact forms (it fails for `dae` on
 // the index-2 round-off; the per-component tolerances in dae_ggl.cpp are the fix);

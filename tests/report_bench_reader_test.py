@@ -2,7 +2,9 @@
 """The report's benchmark reader (reports/figures.py load_bench / classify_run) on hand-made
 files: the work_precision layout ({header, results}) and Google Benchmark's own layout
 ({context, benchmarks}) must give the same runs, and failed / wrong-event runs must not be
-plotted as points. Values are typed in here, not copied from a run.
+plotted as points. And the numbers of the report's prose that come from data (the leg's
+weight, the pulse's peak, generalized-α's lift-off error per step). Values are typed in
+here, not copied from a run.
 """
 import json
 import os
@@ -86,6 +88,51 @@ def ceiling_errors(tmp):
   return errors
 
 
+def prose_number_errors(tmp):
+  """Numbers of the report's prose read or computed from data: the leg's weight from the
+  scene (its parameter set, or its own override), the pulse's peak over A per shape, and
+  generalized-α's lift-off error at h and h/2 from the sweep's runs."""
+  import make_report
+  import methods_comparison
+  errors = []
+  ps = os.path.join(tmp, "params", "knee.yaml")
+  os.makedirs(os.path.dirname(ps))
+  with open(ps, "w") as f:
+    f.write("body: {mass_kg: 5.0}\ngravity: {magnitude_m_s2: 10.0}\n")
+  scenes = os.path.join(tmp, "scenes")
+  os.makedirs(scenes)
+  for name, extra, want in (("plain", "", 50.0), ("heavier", "body: {mass_kg: 2.0}\n", 20.0)):
+    path = os.path.join(scenes, name + ".yaml")
+    with open(path, "w") as f:
+      f.write("parameter_set: ../params/knee.yaml\n" + extra)
+    got = make_report.leg_weight_N(path)
+    if got != want:
+      errors.append(f"leg_weight_N({name}): {got}, expected {want}")
+  if make_report.leg_weight_N(os.path.join(scenes, "missing.yaml")) is not None:
+    errors.append("leg_weight_N of a missing scene is not None")
+  # Eq. 1.62 as read peaks at s = 0.23706557 (solver/loads.hpp, checked in loads_test).
+  peaks = {"half_sine": 1.0, "reconstructed": 0.0769927007935922, "reconstructed_peak": 1.0}
+  for shape, want in peaks.items():
+    got = make_report.pulse_peak_factor(shape)
+    if got is None or abs(got - want) > 1e-9:
+      errors.append(f"pulse_peak_factor({shape}): {got}, expected {want}")
+  if make_report.pulse_peak_factor("rectangular") is not None:
+    errors.append("pulse_peak_factor of an unknown shape is not None")
+
+  def ga(h, err):
+    return {"formulation": "generalized-alpha", "integrator": "", "setting": {"step": h}, "status": "ok",
+            "metrics": {"scd": 4.0, "event_time_error_s": {"liftoff_lateral": err, "flexion_90": 1e-6}},
+            "cpu_time_s": {"median": 0.1}, "events": None}
+  text = methods_comparison.liftoff_order_text([ga(2e-4, 4e-5), ga(1e-4, 1e-5), ga(5e-5, 2.5e-6)],
+                                               "generalized-alpha")
+  if "1e-05 s at h = 0.0001 s, 2.5e-06 s at 5e-05 s, 4.00× smaller" not in text:
+    errors.append(f"liftoff_order_text: {text!r}")
+  text = methods_comparison.liftoff_order_text([ga(1e-4, 1e-5)], "generalized-alpha")
+  if "no two" not in text:
+    errors.append(f"liftoff_order_text with one run: {text!r}")
+  return errors
+
+
 def main():
   errors = []
   with tempfile.TemporaryDirectory(prefix="kneedyn_bench_reader_") as tmp:
@@ -112,6 +159,7 @@ def main():
     if got["results"] != expected:
       errors.append(f"results layout: {got['results']} != {expected}")
     errors += ceiling_errors(tmp)
+    errors += prose_number_errors(tmp)
   return finish(errors, "report_bench_reader_test: FAIL:",
                 "report_bench_reader_test: " + ("ok" if not errors else f"{len(errors)} failures"))
 

@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Builds the chapter report with --quick into a temporary directory and checks its outputs:
 every figure of reports/figures.FIGURES is a valid PNG (> 1 kB), index.html references them,
-and the claims table has exactly one row per claim id of reports/claims.yaml.
+and the claims table has exactly one row per claim id of reports/claims.yaml; the
+Reproduction section gives the command that was run, with every argument, the pieces
+report.py ran and the main job's steps (.ci/bootstrap run).
 
   report_test.py --kneedyn PATH [--keep DIR]
 """
@@ -9,6 +11,7 @@ import argparse
 import csv
 import json
 import os
+import shlex
 import shutil
 import subprocess
 import sys
@@ -162,6 +165,21 @@ def main():
     for fname, _ in patella_section.FIGURES:
       if f"figures/{fname}" not in page or not os.path.exists(os.path.join(out, "figures", fname)):
         errors.append(f"patella section: figures/{fname} missing or not referenced")
+    # The Reproduction section: the command as it was run (every argument, in order), the
+    # pieces report.py ran, and the main job's steps that made the inputs (.ci/bootstrap run).
+    if "id='reproduce'" not in page:
+      errors.append("index.html has no Reproduction section")
+    else:
+      import html as html_mod
+      repro = html_mod.unescape(page[page.index("id='reproduce'"):])
+      if shlex.join(cmd[1:]) not in repro:
+        errors.append(f"Reproduction section does not give the command that made the page: {shlex.join(cmd[1:])}")
+      pieces = ["run_families.py", "patella_section.py", "figures.py", "claims.py", "make_report.py"]
+      pieces += ["reconstruction.py"] if args.calibrate else []
+      for want in pieces + ["kneedyn_catalog", "outside_results.sh", "work_precision", "simbody_work_precision",
+                            "sweep \"$spec\"", "sensitivity --spec", "global_sensitivity.py"]:
+        if want not in repro:
+          errors.append(f"Reproduction section does not list {want}")
     for extra in ("claims.md", "sensitivity.json"):
       if not os.path.exists(os.path.join(out, extra)):
         errors.append(f"missing {extra}")

@@ -202,7 +202,7 @@ TEST(Score, RowsOffTheSamplingGridAreComparedWithTheReferenceRunAgain) {
   const bench::Solution dense = bench::DenseReference(scene, Reference().json, stored, off, &reproduced);
   // The stored reference is extended precision: its off-grid rows come from the double
   // configuration, which must reproduce the stored samples to kMinDenseReproductionScd
-  // digits and then caps the score's ceiling (it is below the stated 15.6 digits).
+  // digits and then caps the score's ceiling (it is below the stated 15.7 digits).
   ASSERT_EQ(Reference().json.at("primary").value("formulation", ""), bench::kExtendedPrecisionFormulation);
   EXPECT_GE(reproduced, bench::kMinDenseReproductionScd);
   EXPECT_LT(reproduced, Reference().json.at("accuracy_scd").get<double>());

@@ -14,7 +14,8 @@ fixed-step run is dominated; benchmarks/work_precision_table.py's rows for both 
 report's fairness manifest (context.components) as a table, and "not recorded" without it;
 bad input to the table (a top-level number, a wrong-typed field, no results, a directory, a
 truncated --efficiency, a usage error) refused with exit 2 naming the file and field, and
---help printing the usage.
+--help printing the usage; two failed runs that differ only in their stabilization listed as
+two different settings.
 Every expected value is typed in here from the planted runs, not copied from a run.
 """
 import json
@@ -34,7 +35,8 @@ REF_EVENTS = [{"name": "liftoff_lateral", "time_s": 0.2163}, {"name": "flexion_9
 
 
 def result(form, integ, setting, scd, cpu, status="ok", reason="", events=None, event_errors=None):
-  name = form + (":" + integ if integ else "") + "/" + "/".join(f"{k}={v:g}" for k, v in setting.items())
+  shown = [f"{k}={v}" if isinstance(v, str) else f"{k}={v:g}" for k, v in setting.items()]
+  name = form + (":" + integ if integ else "") + "/" + "/".join(shown)
   return {"name": name, "formulation": form, "integrator": integ, "setting": setting, "status": status,
           "reason": reason, "metrics": {"scd": scd, "event_time_error_s": event_errors or dict(EVENTS_OK)},
           "cpu_time_s": {"median": cpu, "min": cpu, "max": cpu},
@@ -88,12 +90,20 @@ def sweep_file(components):
           "results": RESULTS}
 
 
-MERGED = {"header": {"scene": "chapter_impact", "mode": "short",
-                     "merged_from": {"file": "out/work_precision.json", "header": {"mode": "short"}}},
-          "results": [result("simbody", "rkm", {"accuracy": 1e-6, "constraint_tolerance": 1e-6}, 5.5, 0.040),
-                      result("simbody", "rkm", {"accuracy": 1e-8, "constraint_tolerance": 1e-8}, None, 0.090,
-                             status="failed", reason="Simbody: step size underflow", events=[],
-                             event_errors={"liftoff_lateral": None, "flexion_90": None}),
+# simbody_work_precision --merge's file: the rows it timed carry "engine"; the dae row was
+# copied from the merged sweep (another process), whose header and context merged_from keeps.
+MERGED = {"header": {"scene": "chapter_impact", "mode": "short", "repetitions": 2, "date": "2026-01-02T00:00:00Z",
+                     "command": "simbody_work_precision --short --merge wp.json --json wp.json",
+                     "merged_from": {"file": "out/work_precision.json",
+                                     "header": {"mode": "short", "repetitions": 3, "rtol_min": 1e-11,
+                                                "date": "2026-01-01T00:00:00Z"},
+                                     "context": {"git_commit": "feedbeef0001"}}},
+          "context": {"git_commit": "c0ffee000002"},
+          "results": [dict(result("simbody", "rkm", {"accuracy": 1e-6, "constraint_tolerance": 1e-6}, 5.5, 0.040),
+                           engine="simbody"),
+                      dict(result("simbody", "rkm", {"accuracy": 1e-8, "constraint_tolerance": 1e-8}, None, 0.090,
+                                  status="failed", reason="Simbody: step size underflow", events=[],
+                                  event_errors={"liftoff_lateral": None, "flexion_90": None}), engine="simbody"),
                       result("dae", "", {"rtol": 1e-6, "atol": 1e-8}, 5.0, 0.020)]}
 
 
@@ -246,13 +256,50 @@ def main():
                  "<td>-O3 -DNDEBUG</td>", "<td>kneedyn</td>"):
       if cell not in html:
         errors.append(f"report with context.components: no {cell}")
-    if "not recorded" in html:
-      errors.append("report with context.components says 'not recorded'")
+    if "Components: not recorded" in html:
+      errors.append("report with context.components says 'Components: not recorded'")
     html = make_report.bench_section(os.path.join(tmp, "r2"), paths["without_components"])
     if "Components: not recorded" not in html:
       errors.append("report without context.components does not say 'Components: not recorded'")
     if "2 runs drawn as failures" not in html:
       errors.append("report: the list of runs drawn as failures does not count 2")
+
+    # 4a. The peer file: 2 rows timed in the --merge run, 1 copied from the merged sweep; the
+    # provenance of both sweeps from their own headers, no '?'; the copied formulation marked.
+    intro = make_report.peer_intro(paths["merged"])
+    for want in ("Of the 3 runs in merged.json, 2 were timed in one process run", "The other 1 were copied in"):
+      if want not in intro:
+        errors.append(f"peer intro does not say {want!r}: {intro[:400]!r}")
+    html = make_report.bench_section(os.path.join(tmp, "r4"), paths["merged"], "peer_", "peer", "peer")
+    for want in ("this run (2 rows): short, repetitions 2, tightest run accuracy 1e-08",
+                 "merged sweep work_precision.json (1 rows): short, repetitions 3, tightest run rtol 1e-06 "
+                 "(--rtol-min 1e-11)", "2026-01-01T00:00:00Z", "commit c0ffee000002", "commit feedbeef0001",
+                 "simbody_work_precision --short --merge wp.json --json wp.json"):
+      if want not in html:
+        errors.append(f"peer section's provenance does not say {want!r}")
+    if "?" in html.split("<h3>")[0].replace("<dd>", "").split("Source")[1]:
+      errors.append("peer section's provenance list has a '?'")
+    panels = png_text(os.path.join(tmp, "r4", "figures", "peer_work_precision_cpu.png"))["Description"].splitlines()
+    if panels != ["dae [--merge: other process]  (0 failed / wrong event)", "simbody  (1 failed / wrong event)"]:
+      errors.append(f"peer panel titles do not mark the copied formulation: {panels}")
+
+    # 4b. Two failed runs that differ only in their stabilization (ede:cvode-bdf at rtol 1e-3,
+    # without and with cvode-projection) are two different rows of the failure list.
+    stab_path = os.path.join(tmp, "stabilization.json")
+    failing = dict(status="failed", reason="CVODE: too much work", events=[],
+                   event_errors={"liftoff_lateral": None, "flexion_90": None})
+    with open(stab_path, "w") as f:
+      json.dump({"header": {"scene": "chapter_impact", "mode": "short"},
+                 "results": [result("dae", "", {"rtol": 1e-6, "atol": 1e-8}, 5.0, 0.020),
+                             result("ede", "cvode-bdf", {"rtol": 1e-3, "atol": 1e-5}, None, 0.01, **failing),
+                             result("ede", "cvode-bdf", {"rtol": 1e-3, "atol": 1e-5,
+                                                         "stabilization": "cvode-projection"}, None, 0.01,
+                                    **failing)]}, f)
+    _, stab_failed, _ = figures.make_work_precision(os.path.join(tmp, "r3"), stab_path)
+    labels = sorted((key, setting) for key, setting, _ in stab_failed)
+    if labels != [("ede / cvode-bdf", "rtol = 0.001"),
+                  ("ede / cvode-bdf", "rtol = 0.001, stabilization = cvode-projection")]:
+      errors.append(f"failures differing only in stabilization read as: {labels}")
 
     # 5. Bad input to the table: refused with exit 2, naming the file and the field.
     errors += bad_input_errors(tmp)

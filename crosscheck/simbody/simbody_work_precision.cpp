@@ -25,7 +25,9 @@
 // scd 6 and 8 (log-linear interpolation between the bracketing settings; null when the
 // method does not reach it), ratio_kneedyn_over_simbody at scd 6 and 8 (fastest kneedyn
 // method / fastest Simbody method)}. --merge copies the results of a work_precision.cpp
-// JSON except the methods measured here, so one file feeds the report.
+// JSON except the methods measured here, so one file feeds the report; they were timed in
+// that sweep's process, not this one: header.merged_from keeps its header and its context
+// (git_commit, components), and only this run's own rows carry "engine".
 // Exit 0 when the sweep ran, 2 on bad input.
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -351,6 +353,7 @@ int main(int argc, char** argv) {
     const Reference reference = LoadReference(reference_path);
     nlohmann::json merged = nlohmann::json::array();
     nlohmann::json merged_header;
+    nlohmann::json merged_context;  // null when the merged file has none
     if (!merge_path.empty()) {
       std::ifstream f(merge_path);
       if (!f) Throw<InputError>("simbody_work_precision", "--merge = '", merge_path, "': cannot be read");
@@ -367,6 +370,8 @@ int main(int argc, char** argv) {
       }
       merged = j.at("results");
       merged_header = j.at("header");
+      // The merged sweep's build (git_commit, components) is in its context, not its header.
+      if (j.contains("context")) merged_context = j["context"];
     }
 
     std::vector<Entry> entries;
@@ -402,7 +407,10 @@ int main(int argc, char** argv) {
     h["timer"] = "process CPU time (std::clock) of one whole run (start, integration, outputs in memory)";
     h["metrics_definition"] = "benchmarks/metrics.hpp";
     h["generator"] = "crosscheck/simbody/simbody_work_precision.cpp";
-    if (!merge_path.empty()) h["merged_from"] = {{"file", merge_path}, {"header", merged_header}};
+    h["command"] = CommandLine(argc, argv);
+    if (!merge_path.empty()) {
+      h["merged_from"] = {{"file", merge_path}, {"header", merged_header}, {"context", merged_context}};
+    }
     char date[32];
     const std::time_t now = std::time(nullptr);
     std::strftime(date, sizeof(date), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
@@ -441,7 +449,10 @@ int main(int argc, char** argv) {
     for (const nlohmann::json& r : merged) {  // the merged file's other methods
       const std::string integ = r.value("integrator", std::string());
       const std::string key = r.value("formulation", std::string("?")) + " / " + (integ.empty() ? "-" : integ);
-      if (!measured_keys.count(key)) results.push_back(r);
+      if (measured_keys.count(key)) continue;
+      nlohmann::json copied = r;
+      copied.erase("engine");  // timed in the merged file's process, not here (a re-merge's rows too)
+      results.push_back(copied);
     }
     out["results"] = results;
     // The fairness manifest (formulations/version.hpp): this program's kneedyn build, plus
@@ -455,6 +466,8 @@ int main(int argc, char** argv) {
                           {"origin", "Debian 12 binary package libsimbody-dev (shared)"},
                           {"compile_flags", "as built by Debian (dpkg-buildflags: -O2)"}});
     out["context"]["components"] = components;
+    out["context"]["kneedyn_version"] = KneedynVersion();
+    out["context"]["git_commit"] = KneedynGitCommit();
 
     nlohmann::json tta = nlohmann::json::object();
     double best_k[2] = {INFINITY, INFINITY}, best_s[2] = {INFINITY, INFINITY};
