@@ -174,10 +174,21 @@ void Simulator::Run() {
     const double gap_tolerance =
         RecontactGapTolerance(record_->max_position_residual, state_.q, settings_.rtol, settings_.atol);
     // The chapter's DASSL start hands its first phase to the stepper unprojected.
-    const std::vector<EventSpec> specs =
+    std::vector<EventSpec> specs =
         first_phase && scene_.initial.unprojected
             ? StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_, /*complete=*/false)
             : StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_);
+    // A restart without a switch (a ligament kink, a patellar event) whose consistent force
+    // pulls lifts that contact off at once, as after a switch: its root starts negative and
+    // would never cross zero (generalized-alpha at A = 1e5 N kept a lateral contact at
+    // -1.4 kN for 6 ms). The phase's events then follow the new contact set.
+    if (!first_phase && std::any_of(state_.active.begin(), state_.active.end(),
+                                    [&](int i) { return state_.contact[i].normal_force < 0.0; })) {
+      ReleasePullingContacts(model, settings_.restart, settings_.pulling,
+                             "at a restart: a lift-off there, whose sensitivities are not defined", &state_,
+                             &record_->events);
+      specs = StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_, /*complete=*/false);
+    }
     stepper_->Start(state_, specs);
     if (first_phase && settings_.first_phase_started) settings_.first_phase_started(state_);
     first_phase = false;

@@ -148,6 +148,35 @@ TEST(GeneralizedAlpha, NoSpuriousLiftoffAndLiftoffTimeConverges) {
   }
 }
 
+// A pulse of 1e5 N (the documented maximum) unloads the lateral contact while the ligaments
+// kink: a kink restart whose consistent force already pulls must lift the contact off there
+// (formulations/simulator.cpp), not keep it active with a root that starts negative (it
+// did: N_lateral = -1.4 kN, both lift-offs together 6 ms late). The lift-off lies within two
+// steps of dae's at tight tolerances, and no row has an active contact that pulls.
+TEST(GeneralizedAlpha, KinkRestartThatPullsLiftsOff) {
+  Scene scene = ChapterScene();
+  scene.model.pulse.amplitude = 1.0e5;
+  scene.end.time = 0.025;
+  const auto first_lateral_liftoff = [](const RunResult& r) {
+    for (const EventRecord& e : r.events) {
+      if (e.name == "liftoff_lateral") return e.time;
+    }
+    return -1.0;
+  };
+  const RunResult dae = RunScene(scene, test_support::SettingsAt("dae", 1e-10, 1e-12));
+  ASSERT_TRUE(dae.completed) << dae.failure;
+  const double t_dae = first_lateral_liftoff(dae);
+  ASSERT_GT(t_dae, 0.0);
+  for (const char* name : {"generalized-alpha", "generalized-alpha-reduced"}) {
+    const RunResult r = RunScene(scene, FixedStep(name, 1e-4));
+    ASSERT_TRUE(r.completed) << name << ": " << r.failure;
+    EXPECT_NEAR(first_lateral_liftoff(r), t_dae, 2e-4) << name;
+    for (const MechanicalState& row : r.samples) {
+      for (int i : row.active) EXPECT_GE(row.contact[i].normal_force, -1e-3) << name << " t = " << row.t;
+    }
+  }
+}
+
 // The shared fixed-step event locator (formulations/internal/event_locator.hpp) on functions with
 // known roots: the earliest of two crossings is found to the resolution, a crossing in the
 // wrong direction is ignored, and Illinois needs few evaluations (plain regula falsi on
