@@ -413,6 +413,11 @@ TEST(ConsistentInit, UnprojectedStartHandsOverTheChaptersInconsistentGuesses) {
   EXPECT_NEAR(MToMm(SphereOnPlaneContact(test_support::SopOf(scene.model.contacts[1]), pose).gap), -0.0650, 1e-4);
   EXPECT_EQ(s.contact[0].normal_force, 150.0);
   EXPECT_EQ(s.contact[1].normal_force, 130.0);
+  // The medial tibial contact coordinates handed over are the chapter's guesses in m
+  // (reference-data/chapter_knee.yaml: x′c, y′c = −16.980955, −12.8 mm; the plane's charts
+  // are both (x, y), so no chart conversion applies).
+  EXPECT_NEAR(s.contact[0].coordinates[2], -16.980955e-3, 1e-15);
+  EXPECT_NEAR(s.contact[0].coordinates[3], -12.8e-3, 1e-15);
   EXPECT_EQ(s.qdd, Vector6d::Zero());
   EXPECT_FALSE(ChapterScene().initial.unprojected);
 }

@@ -18,9 +18,11 @@
 #include <random>
 #include <vector>
 
+#include "scene/scene.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
+#include "solver/rotation.hpp"
 #include "solver/units.hpp"
 #include "tests/test_support.hpp"
 
@@ -90,6 +92,31 @@ TEST(SolveConstrainedAcceleration, SatisfiesTheSaddlePointSystem) {
     CheckSaddlePoint(anatomical, {1}, {}, seed, &anatomical_ws, &anatomical_out);
     CheckSaddlePoint(anatomical, {}, {}, seed, &anatomical_ws, &anatomical_out);
   }
+}
+
+// The impact pulse acts at the centre of mass along direction_T, which turns with the tibia
+// (docs/model.md §7): on a free tibia at rest (no contact, ligament or gravity) the centre of
+// mass accelerates by F(t) R_FT d_T / m, F(t) = A sin(π t / t0) for a half-sine, and the
+// pulse exerts no moment. The pose is turned about all three axes so that T ≠ F.
+TEST(SolveConstrainedAcceleration, PulseActsAtTheCentreOfMassAlongItsTibialDirection) {
+  Model model = LoadScene(ScenesDir() + "/chapter_impact.yaml").model;
+  model.ligaments.clear();
+  model.gravity_F = Vector3d::Zero();
+  model.pulse.shape = PulseShape::kHalfSine;
+  model.pulse.amplitude = 100.0;
+  model.pulse.duration = 0.1;
+  model.pulse.direction_T = Vector3d(0.3, -0.9, 0.2).normalized();
+  Vector6d q;
+  q << 0.001, -0.04, -0.23, 0.7, kPi / 2 + 0.15, -0.25;
+  const Vector6d qd = Vector6d::Zero();
+  const double t = 0.02;
+  const ConstrainedAcceleration a = SolveConstrainedAcceleration(model, t, q, qd, {});
+  const Matrix3d R_FT = RotationFT(q(kAlpha), q(kBeta), q(kGamma));
+  const Vector3d expected = 100.0 * std::sin(kPi * t / 0.1) * R_FT * model.pulse.direction_T / model.mass;
+  EXPECT_LT((a.qdd.head<3>() - expected).norm(), 1e-12 * expected.norm())
+      << a.qdd.head<3>().transpose() << " vs " << expected.transpose();
+  EXPECT_LT(a.qdd.tail<3>().norm(), 1e-12) << "a force at the centre of mass turns nothing";
+  EXPECT_GT((R_FT * model.pulse.direction_T - model.pulse.direction_T).norm(), 0.1) << "the pose must tell T from F";
 }
 
 TEST(SolveConstrainedAcceleration, RefusesDependentContactRows) {

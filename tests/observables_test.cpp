@@ -150,6 +150,28 @@ TEST(Observables, ContactPointsAtConsistentPoseFromBothSources) {
   }
 }
 
+// The output columns omega_*_T_deg_s are the angular velocity in the tibial frame T
+// (docs/outputs.md): w_T× = Rᵀ Ṙ, by a central difference of R_FT along q + t q̇, at a pose
+// turned about all three JCS axes (in F the vector differs: R_FT w_T).
+TEST(Observables, AngularVelocityIsInTheTibialFrame) {
+  const Scene& scene = ChapterScene();
+  ConsistentInitOptions options;
+  InitReport report;
+  MechanicalState s = ConsistentInitialize(scene.model, scene.initial, {0, 1}, options, &report);
+  s.q(kAlpha) += 0.8;
+  s.q(kBeta) += 0.2;
+  s.q(kGamma) += -0.3;
+  s.qd << 0.01, -0.02, 0.005, 2.0, 0.4, 0.5;
+  Observables o;
+  ComputeObservables(scene.model, s, ContactPointSource::kStateCoordinates, &o, kObserveNothingMore);
+  const double h = 1e-6;
+  auto R = [](const Vector6d& x) { return RotationFT(x(kAlpha), x(kBeta), x(kGamma)); };
+  const Matrix3d W = R(s.q).transpose() * (R(s.q + h * s.qd) - R(s.q - h * s.qd)) / (2 * h);
+  const Vector3d w_T(W(2, 1), W(0, 2), W(1, 0));
+  EXPECT_LT((o.joint.omega_T - w_T).norm(), 1e-8 * w_T.norm()) << o.joint.omega_T.transpose() << " vs " << w_T.transpose();
+  EXPECT_GT((R(s.q) * w_T - w_T).norm(), 0.1 * w_T.norm()) << "the pose must tell T from F";
+}
+
 // Without the extras (what the trajectory table asks for) every other field is the same
 // bits as with them, the energies stay 0 and the slopes NaN; with each extra alone, that
 // extra is the full call's.
