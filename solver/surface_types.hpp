@@ -24,8 +24,8 @@ using SceneSurfaceTypes = SurfaceTypeList<SphereCap, PlaneSurface, EllipsoidCap,
 // Types the solver builds itself: OrientedPlane, the patellar facets (the `patella:` section).
 using SolverOnlySurfaceTypes = SurfaceTypeList<OrientedPlane>;
 
-// Calls visit(std::type_identity-like tag) for each type of a list, in order: the tag's
-// ::type is the surface type.
+// Calls visit(tag) for each type of a list, in order; the tag's member alias `type` is the
+// surface type.
 template <typename Surface>
 struct SurfaceTypeTag {
   using type = Surface;
