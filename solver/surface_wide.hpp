@@ -17,6 +17,7 @@
 #include "solver/surface_types.hpp"
 
 namespace kneedyn {
+/// \cond INTERNAL
 namespace surface_wide_detail {
 
 template <typename Surface, typename T, typename = void>
@@ -80,6 +81,7 @@ std::optional<bool> HeightOfListed(SurfaceTypeList<Surfaces...>, const HeightFie
 }
 
 }  // namespace surface_wide_detail
+/// \endcond
 
 template <typename T>
 bool EvaluateHeightWide(const HeightField& surface, const T& x, const T& y, HeightSampleTpl<T>* sample) {
