@@ -60,8 +60,10 @@ namespace {
 // first, then solves again (e.g. a re-contact that bounces off, the second compartment
 // unloading as the first lifts off, or an assembled start whose forces are tensile), each
 // recorded as a lift-off at state->t (docs/model.md §9). `refusal`: kRefuse's reason.
-void ReleasePullingContacts(const Model& model, RestartProjection restart, PullingContact pulling, const char* refusal,
+// Returns whether it released any.
+bool ReleasePullingContacts(const Model& model, RestartProjection restart, PullingContact pulling, const char* refusal,
                             MechanicalState* state, std::vector<EventRecord>* events) {
+  bool released = false;
   for (;;) {
     int worst = -1;
     for (int i : state->active) {
@@ -70,7 +72,7 @@ void ReleasePullingContacts(const Model& model, RestartProjection restart, Pulli
         worst = i;
       }
     }
-    if (worst < 0) return;
+    if (worst < 0) return released;
     const std::string compartment = CompartmentName(model.contacts[worst].compartment);
     if (pulling == PullingContact::kRefuse) {
       Throw<SolverError>("Simulator::Run", "at t = ", state->t, " s the ", compartment, " contact would pull (N = ",
@@ -80,6 +82,7 @@ void ReleasePullingContacts(const Model& model, RestartProjection restart, Pulli
     state->active.erase(std::remove(state->active.begin(), state->active.end(), worst), state->active.end());
     state->contact[worst].normal_force = 0.0;
     CompleteRestartState(model, restart, state);
+    released = true;
   }
 }
 
@@ -140,10 +143,10 @@ void Simulator::Initialize() {
       Throw<InputError>("Simulator", "output interval ", settings_.output_interval, " s is shorter than the fixed step ",
                         h, " s: each step would be cut to an output time (rule: --step <= the output interval)");
     }
-    if (PulseResolvingStep(model, state_.t) < h * (1.0 - 1e-12)) {
+    if (const double h_pulse = PulseResolvingStep(model, state_.t); h_pulse < h * (1.0 - 1e-12)) {
       Throw<InputError>("Simulator", "pulse.duration_s = ", model.pulse.duration, " s spans fewer than ",
                         kStepsPerPulse, " fixed steps of ", h, " s, which would not resolve it (rule: --step <= ",
-                        PulseResolvingStep(model, state_.t), " s)");
+                        h_pulse, " s)");
     }
   }
   // A start whose consistent forces pull (an assembled pose; docs/model.md §6) starts with
@@ -182,11 +185,10 @@ void Simulator::Run() {
     // pulls lifts that contact off at once, as after a switch: its root starts negative and
     // would never cross zero (generalized-alpha at A = 1e5 N kept a lateral contact at
     // -1.4 kN for 6 ms). The phase's events then follow the new contact set.
-    if (!first_phase && std::any_of(state_.active.begin(), state_.active.end(),
-                                    [&](int i) { return state_.contact[i].normal_force < 0.0; })) {
-      ReleasePullingContacts(model, settings_.restart, settings_.pulling,
-                             "at a restart: a lift-off there, whose sensitivities are not defined", &state_,
-                             &record_->events);
+    if (!first_phase &&
+        ReleasePullingContacts(model, settings_.restart, settings_.pulling,
+                               "at a restart: a lift-off there, whose sensitivities are not defined", &state_,
+                               &record_->events)) {
       specs = StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_, /*complete=*/false);
     }
     stepper_->Start(state_, specs);

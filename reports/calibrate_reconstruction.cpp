@@ -162,7 +162,7 @@ nlohmann::json MeasuredJson(const Measured& m, const Targets& t) {
 int main(int argc, char** argv) {
   CLI::App app{"calibrate_reconstruction: fit pulse scale and gravity direction to the chapter's statements"};
   std::string scene_path = ReferenceDataDir() + "/scenes/chapter_impact.yaml", out_path, formulation = "dae";
-  int grid = 5, max_iterations = 25;
+  int grid = 5, max_iterations = 20;  // reports/reconstruction.py's --calibrate-iterations default
   double rtol = 1e-7;
   app.add_option("--scene", scene_path, "scene (pulse shape, A and ligament law are taken from it)")->capture_default_str();
   app.add_option("--out", out_path, "output JSON")->required();

@@ -66,10 +66,15 @@ PolynomialCoefficients Read(const Field& f, const sp::PolynomialCoefficientsMm& 
     for (const std::string& key : coeffs.Keys()) {
       const bool ok = key.size() == 3 && key[0] == 'c' && key[1] >= '0' && key[2] >= '0' &&
                       (key[1] - '0') + (key[2] - '0') <= kMaxPolynomialDegree;
-      if (!ok) coeffs.Required(key).Fail("unknown coefficient; expected c<i><j> with i + j <= 4 (e.g. c20)");
+      if (!ok) {
+        coeffs.Required(key).Fail(
+            StrCat("unknown coefficient; expected c<i><j> with i + j <= ", kMaxPolynomialDegree, " (e.g. c20)"));
+      }
     }
   }
-  if (given == 0) coeffs.Fail("needs at least one coefficient c<i><j> with i + j <= 4 (e.g. c20)");
+  if (given == 0) {
+    coeffs.Fail(StrCat("needs at least one coefficient c<i><j> with i + j <= ", kMaxPolynomialDegree, " (e.g. c20)"));
+  }
   return out;
 }
 
@@ -78,7 +83,9 @@ PolynomialCoefficients Read(const Field& f, const sp::PolynomialCoefficientsMm& 
 // that order is the one reported), then its constructor.
 template <typename Surface>
 std::shared_ptr<const HeightField> ReadSurface(const Field& f) {
-  f.Keys(KeysOf(StrCat("surface.", Surface::kSceneType)));
+  // Looked up once per type.
+  static const std::vector<const char*>& keys = KeysOf(StrCat("surface.", Surface::kSceneType));
+  f.Keys(keys);
   const auto values = std::apply([&f](const auto&... p) { return std::tuple{Read(f, p)...}; }, Surface::kSceneParameters);
   return std::apply([](const auto&... v) { return std::make_shared<Surface>(v...); }, values);
 }
