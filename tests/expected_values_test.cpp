@@ -1,6 +1,9 @@
-// Expected values of docs/model.md §10, typed in from the model spec (the independent
-// source), compared with what the library computes for the chapter's knee
-// (scene chapter_impact.yaml).
+// Expected values of docs/model.md §10, compared with what the library computes for the
+// chapter's knee (scene chapter_impact.yaml). The typed values come from a second,
+// independent derivation: tests/expected_values_derivation_test.py (numpy, no kneedyn code)
+// computes every one from reference-data/chapter_knee.yaml and the formulas of docs/model.md
+// §4–§8 and checks each typed value here to its printed precision (ctest
+// expected_values_derivation).
 //
 // Validates: the reference pose R0, the contact points in F and T, each element's L_ref,
 // L0 and tension at the reference pose (ComputeAppliedWrench), and the consistent initial
@@ -32,8 +35,8 @@ struct ElementExpectation {
   double L_ref_mm, L0_mm, F_N;
 };
 // Reference-pose lengths, slack lengths and tensions: docs/model.md §10 prints the LCL's;
-// all twelve follow from Table 1.1 and docs/model.md §5–§6 and were typed from the table of
-// the model spec kneedyn was first written from (not part of the repository).
+// all twelve follow from Tables 1.1–1.3 and docs/model.md §5–§6, derived independently by
+// tests/expected_values_derivation_test.py (which parses this table).
 const ElementExpectation kElements[12] = {
     {"ACL anterior", 32.116623, 32.116623, 0.0},
     {"ACL posterior", 28.036058, 26.675602, 48.6216},
