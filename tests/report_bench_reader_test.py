@@ -3,7 +3,7 @@
 files: the work_precision layout ({header, results}) and Google Benchmark's own layout
 ({context, benchmarks}) must give the same runs, and failed / wrong-event runs must not be
 plotted as points. And the numbers of the report's prose that come from data (the leg's
-weight, the pulse's peak, generalized-α's lift-off error per step). Values are typed in
+weight, the pulse's peak, generalized-α's lift-off error per step and the part of it the O(h²) term leaves). Values are typed in
 here, not copied from a run.
 """
 import json
@@ -152,6 +152,23 @@ def prose_number_errors(tmp):
   text = methods_comparison.liftoff_order_text([ga(1e-4, 1e-5)], "generalized-alpha")
   if "no two" not in text:
     errors.append(f"liftoff_order_text with one run: {text!r}")
+  # The event location's share of the lift-off error: runs whose lift-off is t_ref + C h² + δ(h)
+  # with planted δ(1e-4) = +3e-8 s, δ(5e-5) = −1e-8 s: e(h) − 4 e(h/2) = δ(h) − 4 δ(h/2) = +7e-8 s
+  # (C h² cancels), 0.7 % of e(1e-4) = 1e-5 + 3e-8 s; the pair nearest 1e-4 s is (1e-4, 5e-5).
+  t_ref = 0.2
+
+  def ga_at(h, delta):
+    run = ga(h, abs(1000.0 * h * h + delta))
+    run["events"] = [{"name": "liftoff_lateral", "time_s": t_ref + 1000.0 * h * h + delta},
+                     {"name": "flexion_90", "time_s": 0.3}]
+    return run
+  text = methods_comparison.liftoff_location_text([ga_at(2e-4, 0.0), ga_at(1e-4, 3e-8), ga_at(5e-5, -1e-8)],
+                                                  "generalized-alpha", t_ref)
+  if "at h = 0.0001 s" not in text or "is +7e-08 s, 0.7% of e(h)" not in text:
+    errors.append(f"liftoff_location_text: {text!r}")
+  text = methods_comparison.liftoff_location_text([ga(1e-4, 1e-5), ga(5e-5, 2.5e-6)], "generalized-alpha", t_ref)
+  if "no two" not in text:
+    errors.append(f"liftoff_location_text without event times: {text!r}")
   return errors
 
 
