@@ -2,7 +2,8 @@
 """The report's benchmark reader (reports/figures.py load_bench / classify_run) on hand-made
 files: the work_precision layout ({header, results}) and Google Benchmark's own layout
 ({context, benchmarks}) must give the same runs, and failed / wrong-event runs must not be
-plotted as points. And the numbers of the report's prose that come from data (the leg's
+plotted as points; every series of a work-precision figure has a colour of its own, the same
+in every figure. And the numbers of the report's prose that come from data (the leg's
 weight, the pulse's peak, generalized-α's lift-off error per step and the part of it the O(h²) term leaves). Values are typed in
 here, not copied from a run.
 """
@@ -85,6 +86,76 @@ def ceiling_errors(tmp):
   files, _, _ = figures.make_work_precision(os.path.join(tmp, "ceiling"), path)
   if len(files) != len(figures.WORK_PRECISION_FIGURES):
     errors.append(f"ceiling: {len(files)} diagrams")
+  return errors
+
+
+def registered_formulations():
+  """The names formulations/registry.cpp registers (read from the source: a second list, not
+  the report's)."""
+  import re
+  with open(os.path.join(ROOT, "formulations", "registry.cpp"), encoding="utf-8") as f:
+    return re.findall(r'FormulationInfo\("([a-z0-9-]+)"', f.read())
+
+
+def colour_errors(tmp):
+  """Every series of a work-precision figure has its own colour, at least 0.25 apart in RGB
+  from any other drawn in it (the Simbody peer figure drew dae in tab10's orange and simbody in
+  Dark2's, 0.20 apart), and a series keeps its colour from figure to figure (the main sweep's
+  dae is the peer sweep's dae). Series: every registered formulation, Simbody, the outside
+  solvers of examples/ and two names the report does not know."""
+  import itertools
+  import math
+  import matplotlib.colors as mc
+  errors = []
+  names = registered_formulations()
+  if len(names) < 10 or "dae" not in names:
+    return [f"formulations/registry.cpp: read {names}"]
+  names += ["simbody", "scipy", "c-example", "c-rk4", "scipy-mde"]
+  drawn = {}  # figure file -> [(series, rgb)]
+  save = figures._save
+
+  def capture(fig, path, title, panel_titles, **kw):
+    series = []
+    for ax in fig.axes:
+      if os.path.basename(path).endswith("pareto.png"):
+        handles, labels = ax.get_legend_handles_labels()
+        series += [(lab.split(" ")[0], mc.to_rgb(h.get_color())) for h, lab in zip(handles, labels)
+                   if not lab.startswith("reference")]
+      elif ax.get_visible() and ax.get_title():  # one panel per formulation, titled in its colour
+        series.append((ax.get_title().split(" ")[0], mc.to_rgb(ax.title.get_color())))
+    drawn[os.path.basename(path)] = series
+    save(fig, path, title, panel_titles, **kw)
+
+  def sweep(forms, name):
+    doc = {"header": {"scene": "chapter_impact", "mode": "short"}, "results": [
+        {"formulation": f, "integrator": "", "setting": {"rtol": 1e-6}, "status": "ok",
+         "metrics": {"scd": 6.0 + 0.1 * i, "event_time_error_s": {"liftoff_lateral": 1e-7, "flexion_90": 1e-7}},
+         "cpu_time_s": {"median": 0.01 * (i + 1)}, "counters": {"residual_evaluations": 100}}
+        for i, f in enumerate(forms)]}
+    path = os.path.join(tmp, name + ".json")
+    with open(path, "w") as f:
+      json.dump(doc, f)
+    drawn.clear()
+    figures.make_work_precision(os.path.join(tmp, name), path)
+    return dict(drawn)
+
+  figures._save = capture
+  try:
+    peer = sweep(names, "colours_peer")
+    main_sweep = sweep(["dae", "ede", "mde"], "colours_main")
+  finally:
+    figures._save = save
+  for fig, series in peer.items():
+    if sorted(n for n, _ in series) != sorted(names):
+      errors.append(f"{fig}: series {sorted(n for n, _ in series)}, expected {sorted(names)}")
+    for (a, ca), (b, cb) in itertools.combinations(series, 2):
+      if math.dist(ca, cb) < 0.25:
+        errors.append(f"{fig}: {a} and {b} drawn {math.dist(ca, cb):.3f} apart in RGB ({mc.to_hex(ca)}, {mc.to_hex(cb)})")
+  for fig, series in main_sweep.items():
+    for n, c in series:
+      other = dict(peer.get(fig, [])).get(n)
+      if other != c:
+        errors.append(f"{fig}: {n} is {mc.to_hex(c)} without Simbody, {other and mc.to_hex(other)} with it")
   return errors
 
 
@@ -199,6 +270,7 @@ def main():
       errors.append(f"results layout: {got['results']} != {expected}")
     errors += ceiling_errors(tmp)
     errors += prose_number_errors(tmp)
+    errors += colour_errors(tmp)
   return finish(errors, "report_bench_reader_test: FAIL:",
                 "report_bench_reader_test: " + ("ok" if not errors else f"{len(errors)} failures"))
 
