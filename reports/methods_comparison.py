@@ -229,9 +229,10 @@ def section(outdir, kneedyn=None, bench=None):
     with open(bench) as f:
       sweep = json.load(f)
     results = sweep.get("results", [])
-  ref_liftoff = reference_events().get("liftoff_lateral")
-  parts[-1] += (f"({esc(liftoff_order_text(results, 'generalized-alpha'))}; "
-                f"{esc(liftoff_location_text(results, 'generalized-alpha', ref_liftoff))}).</p>")
+  order = liftoff_order_text(results, "generalized-alpha")
+  location = liftoff_location_text(results, "generalized-alpha", reference_events().get("liftoff_lateral"))
+  # Without two runs at h and h/2 the first text already says so; the second would repeat it.
+  parts[-1] += f"({esc(order)}" + ("" if location.startswith("the sweep has no two") else f"; {esc(location)}") + ").</p>"
   methods = builtin_integrator_methods(kneedyn, results)
   if kneedyn and os.path.exists(kneedyn):
     ref_events = reference_events()
