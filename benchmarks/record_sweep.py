@@ -38,13 +38,16 @@ def git_commit():
 
 
 def relative_paths(x):
-  """Paths inside the checkout -> relative to it (a recorded file names no machine path)."""
+  """Paths inside the checkout -> relative to it (a recorded file names no machine path), also
+  inside a command line (header.command holds the program and its arguments in one string)."""
   if isinstance(x, dict):
     return {k: relative_paths(v) for k, v in x.items()}
   if isinstance(x, list):
     return [relative_paths(v) for v in x]
   if isinstance(x, str) and x.startswith(ROOT + os.sep):
-    return os.path.relpath(x, ROOT)
+    x = os.path.relpath(x.split(" ")[0], ROOT) + x[len(x.split(" ")[0]):]
+  if isinstance(x, str):
+    return x.replace(" " + ROOT + os.sep, " ")
   return x
 
 

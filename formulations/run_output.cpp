@@ -31,6 +31,7 @@
 #include "solver/constrained_dynamics.hpp"
 #include "solver/observables.hpp"
 #include "solver/error.hpp"
+#include "solver/loads.hpp"
 #include "solver/units.hpp"
 #include "solver/patella.hpp"
 
@@ -435,6 +436,7 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
   pulse["shape"] = PulseShapeName(scene.model.pulse.shape);
   pulse["amplitude_N"] = scene.model.pulse.amplitude;
   pulse["duration_s"] = scene.model.pulse.duration;
+  pulse["peak_factor"] = PulsePeakFactor(scene.model.pulse.shape);  // max Fe / A (solver/loads.hpp)
   scene_json["ligament_law"] = scene.model.ligament_law == LigamentLaw::kPublished ? "published" : "c1_continuous";
   // Named only when it is not the default, so that default runs keep their summary.
   if (scene.model.angular_velocity_map == AngularVelocityMapReading::kPrintedEq1_20b) {

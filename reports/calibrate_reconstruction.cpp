@@ -193,6 +193,8 @@ int main(int argc, char** argv) {
     out["scene"] = scene_path;
     out["pulse_shape"] = PulseShapeName(scene.model.pulse.shape);
     out["amplitude_N"] = scene.model.pulse.amplitude;
+    // max Fe / A of the shape (solver/loads.hpp): the report's peak force is this × the fitted A.
+    out["pulse_peak_factor"] = PulsePeakFactor(scene.model.pulse.shape);
     out["settings"] = {{"formulation", formulation}, {"rtol", rtol}, {"atol", 1e-2 * rtol}, {"output_interval_s", 0.001}};
     out["parameters"] = {"ln pulse scale", "gravity angle theta_deg from -y_F towards -z_F"};
     // Coarse grid.

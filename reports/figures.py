@@ -330,15 +330,38 @@ def _pareto_figure(path, header, runs, ok_runs, failed, forms, fcol, imark, outs
   _save(fig, path, title, titles, bbox_inches="tight", bbox_extra_artists=legends)
 
 
+# One colour per series of the work-precision figures, the same in every figure (the main
+# sweep's, the Simbody peer sweep's, the instruction sweep's): kneedyn's registered formulations
+# (formulations/registry.cpp), Simbody and the outside solvers of examples/outside_results.sh.
+# Chosen from matplotlib's qualitative palettes by farthest-point selection: any two are at least
+# 0.25 apart in RGB (each channel in [0, 1]), and as far from the black failure crosses, the grey
+# reference-ceiling line and the white background.
+SERIES_COLOURS = {
+    "dae": "#386cb0", "dae-reduced": "#9c9ede", "dae-ggl": "#ff7f00", "dae-ggl-reduced": "#e7ba52",
+    "newmark": "#2ca02c", "newmark-reduced": "#a6d854", "generalized-alpha": "#e31a1c",
+    "generalized-alpha-reduced": "#ff9896", "mde": "#984ea3", "ede": "#a6761d", "staggered": "#ce6dbd",
+    "monolithic": "#17becf", "monolithic-ggl": "#66c2a5", "simbody": "#f0027f", "scipy": "#1b9e77",
+    "c-example": "#393b79"}
+# For series not named above (a new formulation, another outside solver), in name order; beyond
+# five such series in one figure the colours repeat.
+SPARE_COLOURS = ("#d6616b", "#843c39", "#f7b6d2", "#969696", "#a1d99b")
+MIN_COLOUR_DISTANCE = 0.25  # RGB, the palette's smallest pairwise distance
+
+
+def series_colours(names):
+  """{name: colour} for the series of one figure: SERIES_COLOURS, and spares for the others."""
+  others = sorted(n for n in set(names) if n not in SERIES_COLOURS)
+  out = {n: SERIES_COLOURS[n] for n in names if n in SERIES_COLOURS}
+  out.update({n: SPARE_COLOURS[i % len(SPARE_COLOURS)] for i, n in enumerate(others)})
+  return out
+
+
 def _styles(runs):
   """(formulations, colour by formulation, marker by integrator) of the work-precision figures."""
   forms = sorted({r["formulation"] for r in runs})
   integs = sorted({r["integrator"] or "-" for r in runs})
-  # Ten formulations and Simbody's methods: eleven colours on the Pareto axis.
-  palette = plt.get_cmap("tab10").colors + ("k",) + plt.get_cmap("Dark2").colors
   markers = "osD^v<>pP*Xh"
-  return (forms, {f: palette[i % len(palette)] for i, f in enumerate(forms)},
-          {g: markers[i % len(markers)] for i, g in enumerate(integs)})
+  return (forms, series_colours(forms), {g: markers[i % len(markers)] for i, g in enumerate(integs)})
 
 
 def make_instruction_pareto(outdir, path, prefix=""):

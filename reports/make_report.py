@@ -374,19 +374,6 @@ def leg_weight_N(scene_path):
   return mass * g if isinstance(mass, (int, float)) and isinstance(g, (int, float)) else None
 
 
-def pulse_peak_factor(shape):
-  """max over t ≥ 0 of the pulse over its amplitude A, for the scene's pulse shapes
-  (docs/model.md §7: Eq. 1.62 as read, and the other readings); None for a shape not known
-  here. On a grid of s = t/t0 fine enough for nine digits near the maximum."""
-  import numpy as np
-  s = np.linspace(0.0, 3.0, 300001)  # every shape has peaked and decayed by s = 3
-  eq162 = s * np.sin(2 * np.pi * s) * np.exp(-4.73 * s)
-  shapes = {"reconstructed": eq162, "reconstructed_peak": eq162 / eq162.max(),
-            "half_sine": np.where(s <= 1.0, np.sin(np.pi * s), 0.0),
-            "damped_sine": np.sin(2 * np.pi * s) * np.exp(-4.73 * s), "none": np.zeros_like(s)}
-  return float(shapes[shape].max()) if shape in shapes else None
-
-
 VERDICT_MARK = {"reproduced": "✓", "not reproduced": "✗", "not checkable": "–"}
 
 
@@ -493,7 +480,10 @@ def calibration_part(outdir):
     rows.append([label, f"{res[k]['target']:g}°", f"{base[k]['measured']:.1f}°" if base else "–",
                  f"{res[k]['measured']:.1f}°", f"{res[k]['residual']:+.2f}"])
   parts.append(table(["statement", "chapter", "project's reading (s = 1, θ = 0)", "best fit", "residual [×5°]"], rows))
-  factor = pulse_peak_factor(cal.get("pulse_shape"))
+  # max Fe / A of the scene's shape as calibrate_reconstruction writes it (solver/loads.hpp
+  # PulsePeakFactor, docs/outputs.md): the shapes are not derived again here.
+  factor = cal.get("pulse_peak_factor")
+  factor = factor if isinstance(factor, (int, float)) and not isinstance(factor, bool) else None
   peak = best["pulse_amplitude_N"] * factor if factor is not None else None
   weight = leg_weight_N(cal.get("scene") or os.path.join(os.path.dirname(HERE), "reference-data", "scenes",
                                                          "chapter_impact.yaml"))
@@ -501,7 +491,8 @@ def calibration_part(outdir):
   verdict = ("every statement within 5°" if worst <= 1.0 else
              f"the worst statement is {worst * 5:.0f}° away")
   peak_text = (f"pulse peak ≈ {peak:.0f} N" if peak is not None
-               else f"pulse peak not computed (shape {cal.get('pulse_shape')!r})")
+               else f"pulse peak not computed: calibration.json has no pulse_peak_factor (shape "
+               f"{cal.get('pulse_shape')!r}; written by a calibrate_reconstruction older than the field)")
   if peak is not None and weight:
     peak_text += f", {peak / weight:.1f}× the leg's weight of {weight:.1f} N"
   elif peak is not None:

@@ -14,7 +14,9 @@ Two sources, both named in the section:
     the (first) lateral lift-off time against the stored reference, contact events beyond the
     reference's (spurious lift-off / re-contact), steps, residual evaluations, wall time;
   * the work-precision sweep JSON (--bench): best scd per method and the cheapest run
-    reaching scd 4/6/8/10 (as benchmarks/work_precision_table.py).
+    reaching scd 4/6/8/10 (as benchmarks/work_precision_table.py), and generalized-α's lateral
+    lift-off times at h and h/2: its O(h²) error and what that term leaves of it (the event
+    location on the step's dense output and the higher-order terms).
 """
 import html
 import json
@@ -179,6 +181,35 @@ def liftoff_order_text(results, method, near=1e-4):
   return f"in the sweep {e:.2g} s at h = {h:g} s, {e2:.2g} s at {h2:g} s{ratio}"
 
 
+def first_event_time(run, name):
+  """Time [s] of the run's first event `name` (the sweep's `events`), or None."""
+  return next((e.get("time_s") for e in run.get("events") or [] if e.get("name") == name
+               and isinstance(e.get("time_s"), (int, float))), None)
+
+
+def liftoff_location_text(results, method, reference_liftoff_s, near=1e-4):
+  """The part of the method's lateral lift-off error that its O(h²) term does not explain, at the
+  pair of steps liftoff_order_text uses: with signed errors e = t_run − t_ref (the runs' first
+  liftoff_lateral against the reference), e(h) − 4 e(h/2) cancels C h² and leaves the event
+  location on the step's dense output (where in the step the root lands) and the higher-order
+  terms, together; their size next to e(h) is what the location can add."""
+  import math
+  times = {r["setting"]["step"]: first_event_time(r, "liftoff_lateral") for r in completed_runs(results, method)
+           if (r.get("setting") or {}).get("step")}
+  times = {h: t for h, t in times.items() if t is not None}
+  pairs = [(h, k) for h in times for k in times if abs(k - h / 2) <= 1e-9 * h]
+  if not pairs or not isinstance(reference_liftoff_s, (int, float)):
+    return (f"the sweep has no two {method} runs at h and h/2 with lift-off times to separate the event location "
+            "from the O(h²) error")
+  h, h2 = min(pairs, key=lambda p: abs(math.log(p[0] / near)))
+  e, e2 = times[h] - reference_liftoff_s, times[h2] - reference_liftoff_s
+  rest = e - 4.0 * e2
+  share = f", {abs(rest / e):.1%} of e(h)" if e else ""
+  return (f"what the O(h²) term leaves of the error at h = {h:g} s, e(h) − 4 e(h/2) from the same runs' signed "
+          f"lift-off times, is {rest:+.2g} s{share}: the event location on the step's dense output and the "
+          "higher-order terms together")
+
+
 def setting_of(r):
   s = r.get("setting", {})
   return f"h = {s['step']:g} s" if s.get("step") else f"rtol {s.get('rtol', 0):.2g}"
@@ -198,8 +229,10 @@ def section(outdir, kneedyn=None, bench=None):
     with open(bench) as f:
       sweep = json.load(f)
     results = sweep.get("results", [])
-  parts[-1] += (f"({esc(liftoff_order_text(results, 'generalized-alpha'))}; the event location on the step's "
-                "dense output adds ≤ 1e-7 s: benchmarks/README.md).</p>")
+  order = liftoff_order_text(results, "generalized-alpha")
+  location = liftoff_location_text(results, "generalized-alpha", reference_events().get("liftoff_lateral"))
+  # Without two runs at h and h/2 the first text already says so; the second would repeat it.
+  parts[-1] += f"({esc(order)}" + ("" if location.startswith("the sweep has no two") else f"; {esc(location)}") + ").</p>"
   methods = builtin_integrator_methods(kneedyn, results)
   if kneedyn and os.path.exists(kneedyn):
     ref_events = reference_events()

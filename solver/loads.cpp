@@ -25,6 +25,24 @@ double PulseMagnitude(const Pulse& pulse, double t) {
   return 0.0;
 }
 
+double PulsePeakFactor(PulseShape shape) {
+  switch (shape) {
+    case PulseShape::kNone:
+      return 0.0;
+    case PulseShape::kReconstructed:
+      return kReconstructedPeakValue;
+    case PulseShape::kHalfSine:
+    case PulseShape::kReconstructedPeak:
+      return 1.0;
+    case PulseShape::kDampedSine: {
+      // d/ds [sin(2πs) e^(−4.73 s)] = 0 at 2π cos(2πs) = 4.73 sin(2πs): the first maximum.
+      const double phase = std::atan(2.0 * kPi / 4.73);  // rad, 2π s at the peak
+      return std::sin(phase) * std::exp(-4.73 * phase / (2.0 * kPi));
+    }
+  }
+  return 0.0;
+}
+
 PulseShape ParsePulseShape(const std::string& name) {
   if (name == "none") return PulseShape::kNone;
   if (name == "reconstructed") return PulseShape::kReconstructed;

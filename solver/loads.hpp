@@ -47,6 +47,13 @@ struct PulseMagnitudeCache {
 // max over s ≥ 0 of s sin(2π s) exp(−4.73 s), at s = 0.23706557 (checked in loads_test).
 constexpr double kReconstructedPeakValue = 0.0769927007935922;
 
+// Peak force over amplitude, max over t ≥ 0 of PulseMagnitude / A (dimensionless): 1 for
+// half_sine and reconstructed_peak, kReconstructedPeakValue for reconstructed,
+// sin(φ) exp(−4.73 φ / 2π) with tan φ = 2π / 4.73 (≈ 0.398) for damped_sine, 0 for none.
+// Written to summary.json (scene.pulse.peak_factor) and calibration.json so that the report
+// takes the peak from here instead of re-deriving the shapes (docs/outputs.md).
+double PulsePeakFactor(PulseShape shape);
+
 // Scene-file spelling of the shapes: "reconstructed", "half_sine", "reconstructed_peak",
 // "damped_sine", "none".
 PulseShape ParsePulseShape(const std::string& name);  // throws InputError

@@ -7,8 +7,12 @@
     (a cell is 1 when the claim is reproduced under the reading);
   * the stated accuracy of the chapter scene's reference (README.md, docs/problem.md,
     benchmarks/README.md) against `accuracy_scd` of reference-data/references/chapter_impact.json;
-  * README.md's kneedyn / Simbody time ratios and the speed-ups it derives from them against
-    the recording in crosscheck/simbody/README.md (the recorded JSON is not in the repository).
+  * README.md's and crosscheck/simbody/README.md's kneedyn / Simbody time ratios, the speed-ups
+    README.md derives from them, the recording's commit and date, and crosscheck/simbody/README.md's
+    table (CPU s to scd 6 and 8, best scd per method) against the recorded peer sweep
+    benchmarks/recorded/simbody_work_precision_chapter_impact.json (`cmake --build build --target
+    bench_record_simbody`), recomputed from its rows (log-linear time to an scd, as
+    simbody_work_precision) and checked against the ratios the file itself carries.
 
   doc_numbers_test.py [--root DIR]
 
@@ -17,6 +21,7 @@ flag it, and on planted text with the right numbers and must not, so the test ca
 matching nothing. Exit 0 when every number agrees, 1 otherwise, 2 on bad arguments.
 """
 import json
+import math
 import os
 import re
 import sys
@@ -80,21 +85,110 @@ def accuracy_errors(texts, accuracy_scd):
   return errors
 
 
-README_RATIO = re.compile(r"scd 6 about (\d+)× and scd 8 about (\d+)× sooner: time ratios (0\.\d+) and (0\.\d+)")
+SIMBODY_RECORDING = "benchmarks/recorded/simbody_work_precision_chapter_impact.json"
+README_RATIO = re.compile(r"scd 6 about (\d+)× and scd 8 about (\d+)× sooner: time ratios (0\.\d+) and (0\.\d+), "
+                          r"recorded (\d{4}-\d\d-\d\d) at ([0-9a-f]{7,40})")
 SIMBODY_RATIO = re.compile(r"\(fastest of each\): (0\.\d+) at scd 6 .*? and (0\.\d+) at scd 8")
+# crosscheck/simbody/README.md's table rows -> the recording's (formulation / integrator) keys.
+TABLE_KEYS = {"kneedyn ede / dopri5": "ede / dopri5", "kneedyn ede / verner65": "ede / verner65",
+              "kneedyn dae (IDA)": "dae / -", "Simbody RungeKuttaMerson": "simbody / rkm",
+              "Simbody RungeKuttaFeldberg": "simbody / rkf", "Simbody CPodes BDF (Newton)": "simbody / cpodes-bdf",
+              "Simbody RungeKutta3": "simbody / rk3", "Simbody Verlet": "simbody / verlet",
+              "Simbody RungeKutta2": "simbody / rk2", "Simbody SemiExplicitEuler2": "simbody / see2",
+              "Simbody CPodes Adams (Newton)": "simbody / cpodes-adams"}
+TABLE_ROW = re.compile(r"\| ((?:kneedyn|Simbody) [^|]*?) \| ([0-9.]+|—) \| ([0-9.]+|—) \| ([0-9.]+)")
 
 
-def ratio_errors(readme, simbody_readme):
+def time_at(points, target):
+  """CPU time [s] at scd `target` on a method's (scd, cpu) points in the sweep's order (loosest
+  first): log-linear between the first point reaching it and the one before; the first point's
+  time when it already reaches it; None when none does (simbody_work_precision's rule, written
+  again here)."""
+  for i, (scd, cpu) in enumerate(points):
+    if scd >= target:
+      if i == 0:
+        return cpu
+      s0, c0 = points[i - 1]
+      f = (target - s0) / (scd - s0)
+      return math.exp(math.log(c0) + f * (math.log(cpu) - math.log(c0)))
+  return None
+
+
+def recorded_times(recording):
+  """{key: {6: s, 8: s, "best": (scd, setting)}} from the recording's rows timed in its own
+  run (those with `engine`; --merge's copies were timed in another process)."""
+  curves, best = {}, {}
+  for r in recording["results"]:
+    if "engine" not in r:
+      continue
+    key = f"{r['formulation']} / {r.get('integrator') or '-'}"
+    scd, cpu = (r.get("metrics") or {}).get("scd"), (r.get("cpu_time_s") or {}).get("median")
+    if r.get("status") != "ok" or not isinstance(scd, (int, float)) or not math.isfinite(scd):
+      continue
+    if scd > best.get(key, (-math.inf,))[0]:
+      best[key] = (scd, r.get("setting") or {})
+    if isinstance(cpu, (int, float)):
+      curves.setdefault(key, []).append((scd, cpu))
+  return {k: {6: time_at(curves.get(k, []), 6.0), 8: time_at(curves.get(k, []), 8.0), "best": best[k]} for k in best}
+
+
+def recorded_ratios(times):
+  """{6: ratio, 8: ratio}: fastest kneedyn method over fastest Simbody method to that scd."""
+  out = {}
+  for t in (6, 8):
+    k = [v[t] for key, v in times.items() if not key.startswith("simbody") and v[t] is not None]
+    s = [v[t] for key, v in times.items() if key.startswith("simbody") and v[t] is not None]
+    out[t] = min(k) / min(s) if k and s else None
+  return out
+
+
+def printed_agrees(text, value):
+  """A number printed as `text` (or — for none) is `value` rounded to its printed decimals."""
+  if text == "—" or value is None:
+    return text == "—" and value is None
+  decimals = len(text.split(".")[1]) if "." in text else 0
+  return abs(float(text) - value) <= 0.5 * 10.0 ** -decimals * (1 + 1e-9)
+
+
+def ratio_errors(readme, simbody_readme, recording):
+  """README.md's and crosscheck/simbody/README.md's ratios, README.md's speed-ups and the
+  recording's commit and date, and the crosscheck table, against the recorded sweep."""
   m, s = README_RATIO.search(readme), SIMBODY_RATIO.search(simbody_readme)
   if not m or not s:
     return [f"no kneedyn / Simbody ratio sentence in {'README.md' if not m else 'crosscheck/simbody/README.md'}"]
+  times = recorded_times(recording)
+  ratios = recorded_ratios(times)
+  want = tuple(f"{ratios[t]:.2g}" if ratios[t] is not None else "none" for t in (6, 8))
   errors = []
-  if (m[3], m[4]) != (s[1], s[2]):
-    errors.append(f"README.md's ratios {m[3]}, {m[4]} are not crosscheck/simbody/README.md's {s[1]}, {s[2]}")
-  for times, ratio in ((m[1], m[3]), (m[2], m[4])):  # to two significant digits
-    if int(times) != int(float(f"{1.0 / float(ratio):.2g}")):
-      errors.append(f"README.md: {times}× sooner does not follow from the ratio {ratio} (1/{ratio} = "
+  for name, said in (("README.md", (m[3], m[4])), ("crosscheck/simbody/README.md", (s[1], s[2]))):
+    if "none" in want or any(float(x) != float(w) for x, w in zip(said, want)):  # 0.0060 is 0.006
+      errors.append(f"{name}'s ratios {said[0]}, {said[1]} are not the recording's {want[0]}, {want[1]} "
+                    f"({SIMBODY_RECORDING})")
+  written = recording.get("ratio_kneedyn_over_simbody") or {}
+  for t in (6, 8):  # simbody_work_precision's own computation, a second implementation
+    r = (written.get(f"scd{t}") or {}).get("ratio")
+    if ratios[t] is None or r is None or abs(r - ratios[t]) > 1e-9 * abs(r):
+      errors.append(f"{SIMBODY_RECORDING}: ratio_kneedyn_over_simbody.scd{t} {r}, recomputed from its rows {ratios[t]}")
+  for times_said, ratio in ((m[1], m[3]), (m[2], m[4])):  # to two significant digits
+    if int(times_said) != int(float(f"{1.0 / float(ratio):.2g}")):
+      errors.append(f"README.md: {times_said}× sooner does not follow from the ratio {ratio} (1/{ratio} = "
                     f"{1.0 / float(ratio):.0f})")
+  prov = recording.get("provenance") or {}
+  if m[5] != str(prov.get("date", ""))[:10] or not str(prov.get("commit", "")).startswith(m[6]):
+    errors.append(f"README.md: recorded {m[5]} at {m[6]}; {SIMBODY_RECORDING}: {prov.get('date')} at {prov.get('commit')}")
+  rows = TABLE_ROW.findall(simbody_readme)
+  if not rows:
+    errors.append("crosscheck/simbody/README.md: no table of CPU s to scd 6 / 8")
+  for name, t6, t8, best in rows:
+    key = TABLE_KEYS.get(name.strip())
+    if key is None or key not in times:
+      errors.append(f"crosscheck/simbody/README.md: row '{name}' is not a method of the recording")
+      continue
+    for t, said in ((6, t6), (8, t8)):
+      if not printed_agrees(said, times[key][t]):
+        errors.append(f"crosscheck/simbody/README.md: {name} to scd {t}: {said}, the recording gives {times[key][t]}")
+    if not printed_agrees(best, times[key]["best"][0]):
+      errors.append(f"crosscheck/simbody/README.md: {name}'s best scd {best}, the recording's {times[key]['best'][0]:.2f}")
   return errors
 
 
@@ -117,12 +211,32 @@ def self_check():
     problems.append(f"accuracy check flags the right value: {accuracy_errors(texts, 15.7)}")
   if not accuracy_errors(dict(texts, **{"docs/problem.md": "`accuracy_scd` = 15.6 digits"}), 15.7):
     problems.append("accuracy check misses 15.6 against 15.7")
-  simbody = "(fastest of each): 0.0085 at scd 6 (x) and 0.0044 at scd 8 (y)"
-  readme = "scd 6 about 120× and scd 8 about 230× sooner: time ratios 0.0085 and 0.0044"
-  if ratio_errors(readme, simbody):
-    problems.append(f"ratio check flags the right values: {ratio_errors(readme, simbody)}")
-  if not ratio_errors(readme.replace("about 120×", "about 140×"), simbody):
-    problems.append("ratio check misses 140× against 0.0085")
+  # A recording whose ratios follow by hand: ede/dopri5 reaches scd 6 at exp(mean(ln 0.001, ln 0.004))
+  # = 0.002 s, ede/verner65 scd 8 at its first point, 0.01 s; rkm 0.2 s (first point) and
+  # exp(0.4 ln 0.2) = 0.525 s (f = 0.6): ratios 0.01 and 0.019, 100× and 53×. The merged dae row
+  # (no engine: timed elsewhere) is faster and must not count.
+  def row(form, integ, scd, cpu, engine=True):
+    return dict({"formulation": form, "integrator": integ, "status": "ok", "metrics": {"scd": scd},
+                 "cpu_time_s": {"median": cpu}, "setting": {}}, **({"engine": "x"} if engine else {}))
+  recording = {"results": [row("ede", "dopri5", 5.0, 0.001), row("ede", "dopri5", 7.0, 0.004),
+                           row("ede", "verner65", 9.0, 0.01), row("simbody", "rkm", 6.5, 0.2),
+                           row("simbody", "rkm", 9.0, 1.0), row("dae", "", 9.0, 1e-5, engine=False)],
+               "ratio_kneedyn_over_simbody": {"scd6": {"ratio": 0.01}, "scd8": {"ratio": 0.01 / 0.2 ** 0.4}},
+               "provenance": {"date": "2026-01-01T00:00:00Z", "commit": "abcdef1234"}}
+  simbody = ("(fastest of each): 0.01 at scd 6 (x) and 0.019 at scd 8 (y) | kneedyn ede / dopri5 | 0.0020 | — | 7.0 "
+             "(rtol) | | Simbody RungeKuttaMerson | 0.20 | 0.53 | 9.0 (x) |")
+  readme = "scd 6 about 100× and scd 8 about 53× sooner: time ratios 0.01 and 0.019, recorded 2026-01-01 at abcdef1"
+  if ratio_errors(readme, simbody, recording):
+    problems.append(f"ratio check flags the right values: {ratio_errors(readme, simbody, recording)}")
+  for wrong, what in ((readme.replace("about 100×", "about 140×"), "140× against 0.01"),
+                      (readme.replace("0.01 and", "0.012 and"), "README's 0.012 against 0.01"),
+                      (readme.replace("at abcdef1", "at 1234567"), "another commit")):
+    if not ratio_errors(wrong, simbody, recording):
+      problems.append(f"ratio check misses {what}")
+  for wrong, what in ((simbody.replace("| 0.53 |", "| 0.60 |"), "rkm's 0.60 s against 0.525"),
+                      (simbody.replace("| 0.0020 | — |", "| 0.0020 | 0.0050 |"), "a time where none reaches scd 8")):
+    if not ratio_errors(readme, wrong, recording):
+      problems.append(f"ratio check misses {what}")
   return problems
 
 
@@ -140,8 +254,10 @@ def main():
   with open(os.path.join(root, "reference-data", "references", "chapter_impact.json"), encoding="utf-8") as f:
     accuracy = json.load(f)["accuracy_scd"]
   texts = {rel: read(root, rel) for rel, _ in ACCURACY}
+  with open(os.path.join(root, SIMBODY_RECORDING), encoding="utf-8") as f:
+    recording = json.load(f)
   errors = (claims_errors(texts["README.md"], counts) + accuracy_errors(texts, accuracy)
-            + ratio_errors(texts["README.md"], read(root, "crosscheck/simbody/README.md")))
+            + ratio_errors(texts["README.md"], read(root, "crosscheck/simbody/README.md"), recording))
   for e in errors:
     print("doc_numbers_test: FAIL:", e, file=sys.stderr)
   print(f"doc_numbers_test: {len(errors)} disagreement(s)")

@@ -74,6 +74,17 @@ TEST(Loads, HalfSineSupportAndZeroBeforeStart) {
   }
 }
 
+// The factor summary.json and calibration.json carry (the report's peak force = factor × A)
+// against the sampled maximum of the shape itself: a second evaluation, not the formula again.
+TEST(Loads, PeakFactorIsTheSampledMaximumOverAmplitude) {
+  for (PulseShape s : {PulseShape::kReconstructed, PulseShape::kReconstructedPeak, PulseShape::kDampedSine,
+                       PulseShape::kHalfSine}) {
+    double t = 0.0;
+    EXPECT_NEAR(PulsePeakFactor(s), PeakBySampling(MakePulse(s, 1.0, 1.0), &t), 1e-9) << PulseShapeName(s);
+  }
+  EXPECT_EQ(PulsePeakFactor(PulseShape::kNone), 0.0);
+}
+
 TEST(Loads, SceneSpellingRoundTrip) {
   for (const char* n : {"none", "reconstructed", "half_sine", "reconstructed_peak", "damped_sine"}) {
     EXPECT_STREQ(PulseShapeName(ParsePulseShape(n)), n);

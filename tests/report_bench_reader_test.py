@@ -2,8 +2,9 @@
 """The report's benchmark reader (reports/figures.py load_bench / classify_run) on hand-made
 files: the work_precision layout ({header, results}) and Google Benchmark's own layout
 ({context, benchmarks}) must give the same runs, and failed / wrong-event runs must not be
-plotted as points. And the numbers of the report's prose that come from data (the leg's
-weight, the pulse's peak, generalized-α's lift-off error per step). Values are typed in
+plotted as points; every series of a work-precision figure has a colour of its own, the same
+in every figure. And the numbers of the report's prose that come from data (the leg's
+weight, the pulse's peak, generalized-α's lift-off error per step and the part of it the O(h²) term leaves). Values are typed in
 here, not copied from a run.
 """
 import json
@@ -88,9 +89,108 @@ def ceiling_errors(tmp):
   return errors
 
 
+def registered_formulations():
+  """The names formulations/registry.cpp registers (read from the source: a second list, not
+  the report's)."""
+  import re
+  with open(os.path.join(ROOT, "formulations", "registry.cpp"), encoding="utf-8") as f:
+    return re.findall(r'FormulationInfo\("([a-z0-9-]+)"', f.read())
+
+
+def colour_errors(tmp):
+  """Every series of a work-precision figure has its own colour, at least 0.25 apart in RGB
+  from any other drawn in it (the Simbody peer figure drew dae in tab10's orange and simbody in
+  Dark2's, 0.20 apart), and a series keeps its colour from figure to figure (the main sweep's
+  dae is the peer sweep's dae). Series: every registered formulation, Simbody, the outside
+  solvers of examples/ and two names the report does not know."""
+  import itertools
+  import math
+  import matplotlib.colors as mc
+  errors = []
+  names = registered_formulations()
+  if len(names) < 10 or "dae" not in names:
+    return [f"formulations/registry.cpp: read {names}"]
+  names += ["simbody", "scipy", "c-example", "c-rk4", "scipy-mde"]
+  drawn = {}  # figure file -> [(series, rgb)]
+  save = figures._save
+
+  def capture(fig, path, title, panel_titles, **kw):
+    series = []
+    for ax in fig.axes:
+      if os.path.basename(path).endswith("pareto.png"):
+        handles, labels = ax.get_legend_handles_labels()
+        series += [(lab.split(" ")[0], mc.to_rgb(h.get_color())) for h, lab in zip(handles, labels)
+                   if not lab.startswith("reference")]
+      elif ax.get_visible() and ax.get_title():  # one panel per formulation, titled in its colour
+        series.append((ax.get_title().split(" ")[0], mc.to_rgb(ax.title.get_color())))
+    drawn[os.path.basename(path)] = series
+    save(fig, path, title, panel_titles, **kw)
+
+  def sweep(forms, name):
+    doc = {"header": {"scene": "chapter_impact", "mode": "short"}, "results": [
+        {"formulation": f, "integrator": "", "setting": {"rtol": 1e-6}, "status": "ok",
+         "metrics": {"scd": 6.0 + 0.1 * i, "event_time_error_s": {"liftoff_lateral": 1e-7, "flexion_90": 1e-7}},
+         "cpu_time_s": {"median": 0.01 * (i + 1)}, "counters": {"residual_evaluations": 100}}
+        for i, f in enumerate(forms)]}
+    path = os.path.join(tmp, name + ".json")
+    with open(path, "w") as f:
+      json.dump(doc, f)
+    drawn.clear()
+    figures.make_work_precision(os.path.join(tmp, name), path)
+    return dict(drawn)
+
+  figures._save = capture
+  try:
+    peer = sweep(names, "colours_peer")
+    main_sweep = sweep(["dae", "ede", "mde"], "colours_main")
+  finally:
+    figures._save = save
+  for fig, series in peer.items():
+    if sorted(n for n, _ in series) != sorted(names):
+      errors.append(f"{fig}: series {sorted(n for n, _ in series)}, expected {sorted(names)}")
+    for (a, ca), (b, cb) in itertools.combinations(series, 2):
+      if math.dist(ca, cb) < 0.25:
+        errors.append(f"{fig}: {a} and {b} drawn {math.dist(ca, cb):.3f} apart in RGB ({mc.to_hex(ca)}, {mc.to_hex(cb)})")
+  for fig, series in main_sweep.items():
+    for n, c in series:
+      other = dict(peer.get(fig, [])).get(n)
+      if other != c:
+        errors.append(f"{fig}: {n} is {mc.to_hex(c)} without Simbody, {other and mc.to_hex(other)} with it")
+  return errors
+
+
+def calibration_peak_errors(tmp, scene):
+  """The calibration's peak force is calibration.json's pulse_peak_factor (written by the C++,
+  solver/loads.hpp PulsePeakFactor) × the fitted A: a planted factor of 0.25 for a half-sine
+  (whose true factor is 1, what a re-derivation of the shape in Python would give) must
+  show as 0.25 × 400 N = 100 N, 2.0× the scene's 50 N weight; without the field the report
+  says the peak is not computed rather than deriving it."""
+  import make_report
+  errors = []
+  res = {k: {"measured": 10.0, "target": 12.0, "residual": -0.4}
+         for k in ("liftoff_lateral_deg", "crossing_t0_0.05_deg", "crossing_t0_0.2_deg",
+                   "external_rotation_peak_deg", "max_varus_deg")}
+  res.update(cost=0.4, failed_runs=0)
+  cal = {"scene": scene, "pulse_shape": "half_sine", "amplitude_N": 100.0, "pulse_peak_factor": 0.25,
+         "settings": {"formulation": "dae", "rtol": 1e-7}, "grid": [],
+         "start": {"scale": 4.0, "theta_deg": 0.0, "cost": 0.5},
+         "best": {"scale": 4.0, "theta_deg": 0.0, "pulse_amplitude_N": 400.0, "result": res}}
+  for name, doc, want in (("planted", cal, "pulse peak ≈ 100 N, 2.0× the leg&#x27;s weight of 50.0 N"),
+                          ("old", {k: v for k, v in cal.items() if k != "pulse_peak_factor"},
+                           "pulse peak not computed: calibration.json has no pulse_peak_factor")):
+    out = os.path.join(tmp, "cal_" + name)
+    os.makedirs(os.path.join(out, "reconstruction"))
+    with open(os.path.join(out, "reconstruction", "calibration.json"), "w") as f:
+      json.dump(doc, f)
+    text = make_report.calibration_part(out)
+    if want not in text:
+      errors.append(f"calibration_part ({name}): no {want!r} in {text[text.find('Best fit'):][:300]!r}")
+  return errors
+
+
 def prose_number_errors(tmp):
   """Numbers of the report's prose read or computed from data: the leg's weight from the
-  scene (its parameter set, or its own override), the pulse's peak over A per shape, and
+  scene (its parameter set, or its own override), the pulse's peak from calibration.json, and
   generalized-α's lift-off error at h and h/2 from the sweep's runs."""
   import make_report
   import methods_comparison
@@ -110,14 +210,7 @@ def prose_number_errors(tmp):
       errors.append(f"leg_weight_N({name}): {got}, expected {want}")
   if make_report.leg_weight_N(os.path.join(scenes, "missing.yaml")) is not None:
     errors.append("leg_weight_N of a missing scene is not None")
-  # Eq. 1.62 as read peaks at s = 0.23706557 (solver/loads.hpp, checked in loads_test).
-  peaks = {"half_sine": 1.0, "reconstructed": 0.0769927007935922, "reconstructed_peak": 1.0}
-  for shape, want in peaks.items():
-    got = make_report.pulse_peak_factor(shape)
-    if got is None or abs(got - want) > 1e-9:
-      errors.append(f"pulse_peak_factor({shape}): {got}, expected {want}")
-  if make_report.pulse_peak_factor("rectangular") is not None:
-    errors.append("pulse_peak_factor of an unknown shape is not None")
+  errors += calibration_peak_errors(tmp, os.path.join(scenes, "plain.yaml"))
 
   def ga(h, err):
     return {"formulation": "generalized-alpha", "integrator": "", "setting": {"step": h}, "status": "ok",
@@ -130,6 +223,23 @@ def prose_number_errors(tmp):
   text = methods_comparison.liftoff_order_text([ga(1e-4, 1e-5)], "generalized-alpha")
   if "no two" not in text:
     errors.append(f"liftoff_order_text with one run: {text!r}")
+  # The event location's share of the lift-off error: runs whose lift-off is t_ref + C h² + δ(h)
+  # with planted δ(1e-4) = +3e-8 s, δ(5e-5) = −1e-8 s: e(h) − 4 e(h/2) = δ(h) − 4 δ(h/2) = +7e-8 s
+  # (C h² cancels), 0.7 % of e(1e-4) = 1e-5 + 3e-8 s; the pair nearest 1e-4 s is (1e-4, 5e-5).
+  t_ref = 0.2
+
+  def ga_at(h, delta):
+    run = ga(h, abs(1000.0 * h * h + delta))
+    run["events"] = [{"name": "liftoff_lateral", "time_s": t_ref + 1000.0 * h * h + delta},
+                     {"name": "flexion_90", "time_s": 0.3}]
+    return run
+  text = methods_comparison.liftoff_location_text([ga_at(2e-4, 0.0), ga_at(1e-4, 3e-8), ga_at(5e-5, -1e-8)],
+                                                  "generalized-alpha", t_ref)
+  if "at h = 0.0001 s" not in text or "is +7e-08 s, 0.7% of e(h)" not in text:
+    errors.append(f"liftoff_location_text: {text!r}")
+  text = methods_comparison.liftoff_location_text([ga(1e-4, 1e-5), ga(5e-5, 2.5e-6)], "generalized-alpha", t_ref)
+  if "no two" not in text:
+    errors.append(f"liftoff_location_text without event times: {text!r}")
   return errors
 
 
@@ -160,6 +270,7 @@ def main():
       errors.append(f"results layout: {got['results']} != {expected}")
     errors += ceiling_errors(tmp)
     errors += prose_number_errors(tmp)
+    errors += colour_errors(tmp)
   return finish(errors, "report_bench_reader_test: FAIL:",
                 "report_bench_reader_test: " + ("ok" if not errors else f"{len(errors)} failures"))
 

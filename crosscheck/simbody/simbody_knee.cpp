@@ -17,7 +17,7 @@
 
 #include "solver/contact_kinematics.hpp"  // SphereOnPlaneForm: the scene's surfaces as sphere + plane data
 #include "solver/error.hpp"
-#include "solver/loads.hpp"  // PulseShapeName: the shape as the scene names it
+#include "solver/loads.hpp"  // PulseShapeName, PulsePeakFactor: the pulse as summary.json names it
 #include "solver/pose.hpp"  // JCS output conversion only (CoordinateVelocity/Acceleration)
 #include "solver/units.hpp"
 
@@ -863,7 +863,8 @@ void WriteOutputs(const std::string& dir_name, const Scene& scene, const Options
   j["scene"] = {{"name", scene.name}, {"path", scene.path}, {"parameter_set", scene.parameter_set},
                 {"ligaments", model.ligaments.size()}, {"contacts", model.contacts.size()},
                 {"pulse", {{"shape", PulseShapeName(model.pulse.shape)},
-                           {"amplitude_N", model.pulse.amplitude}, {"duration_s", model.pulse.duration}}},
+                           {"amplitude_N", model.pulse.amplitude}, {"duration_s", model.pulse.duration},
+                           {"peak_factor", PulsePeakFactor(model.pulse.shape)}}},
                 {"ligament_law", model.ligament_law == LigamentLaw::kPublished ? "published" : "c1_continuous"}};
   const double cons_tol = options.constraint_tolerance > 0 ? options.constraint_tolerance : options.accuracy;
   j["formulation"] = "simbody";
