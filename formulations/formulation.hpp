@@ -299,13 +299,26 @@ constexpr double kDefaultFixedStep = 1.0e-4;
 // half-sine is zero at both ends). docs/model.md §7.
 constexpr double kStepsPerPulse = 10.0;
 
-// The longest step that resolves the pulse at time t (s): a tenth of its duration while it
-// lasts; infinity once it has ended or when the scene has none.
-inline double PulseResolvingStep(const Model& model, double t) {
-  if (model.pulse.shape == PulseShape::kNone || model.pulse.amplitude == 0.0 || !(t < model.pulse.duration)) {
-    return std::numeric_limits<double>::infinity();
+// The longest step that resolves the pulses at time t (s): a tenth of a pulse's duration
+// while it lasts; infinity once every pulse has ended or when the scene has none. The
+// quadriceps half-sine (docs/model.md §12) is a pulse as the tibial one is: F_Q is at its
+// baseline at both ends, so a step that spans it never sees it (a ramp is not: it keeps its
+// end value). *field (optional) names the duration that sets the step.
+inline double PulseResolvingStep(const Model& model, double t, const char** field = nullptr) {
+  double step = std::numeric_limits<double>::infinity();
+  if (model.pulse.shape != PulseShape::kNone && model.pulse.amplitude != 0.0 && t < model.pulse.duration) {
+    step = model.pulse.duration / kStepsPerPulse;
+    if (field != nullptr) *field = "pulse.duration_s";
   }
-  return model.pulse.duration / kStepsPerPulse;
+  if (model.patella) {
+    const QuadricepsForce& q = model.patella->quadriceps;
+    if (q.shape == QuadricepsShape::kHalfSine && q.magnitude != 0.0 && t < q.duration &&
+        q.duration / kStepsPerPulse < step) {
+      step = q.duration / kStepsPerPulse;
+      if (field != nullptr) *field = "patella.quadriceps.duration_s";
+    }
+  }
+  return step;
 }
 
 // Absolute Newton tolerance of a multiplier (contact force N, newtons; GGL's μ) per unit
