@@ -501,5 +501,40 @@ TEST(PatellaRuns, ShortQuadricepsHalfSineIsSeenByIdaAndRefusedByFixedSteps) {
   }
 }
 
+// The trajectory's patella columns follow the equilibrium through the rows' poses. With a
+// 1e5 N quadriceps half-sine of 0.01 s the tuberosity moves 26 mm between two rows; the
+// straight solve from the last row failed there (SolverError from MakeTrajectoryTable), so a
+// run that had stopped with its own failure at t = 0.046 s (partial: exit 1, its rows and
+// reason written) ended with exit 2 and nothing written. Each row's solution must hold its
+// 17 equations.
+TEST(PatellaRuns, TrajectoryTableFollowsThePatellaAcrossLargeMovesBetweenRows) {
+  Scene scene = ImpactScene();
+  QuadricepsForce& quadriceps = scene.model.patella->quadriceps;
+  quadriceps.shape = QuadricepsShape::kHalfSine;
+  quadriceps.baseline = 50.0;
+  quadriceps.magnitude = 1.0e5;
+  quadriceps.duration = 0.01;
+  RunSettings settings;
+  settings.formulation = "ede";
+  const RunResult run = RunScene(scene, settings);
+  ASSERT_GT(run.samples.size(), 5u);
+  TrajectoryTable table;
+  ASSERT_NO_THROW(table = MakeTrajectoryTable(scene, run));
+  ASSERT_EQ(table.rows.size(), run.samples.size());
+  size_t tendon_column = 0;
+  while (tendon_column < table.columns.size() && table.columns[tendon_column] != "tendon_quadriceps_ratio") ++tendon_column;
+  ASSERT_LT(tendon_column, table.columns.size());
+  // Independently of the table's path: the equilibrium at the row's pose, followed in small
+  // steps of the tuberosity from the previous row, has the same tendon ratio.
+  const Patella& p = *scene.model.patella;
+  PatellaGuess guess;
+  for (size_t i = 0; i < run.samples.size(); ++i) {
+    const Vector3d tuberosity_F = TuberosityInF(p, PoseFromCoordinates(run.samples[i].q));
+    SolvePatellaAlongTibialPath(p, i == 0 ? p.start_q : run.samples[i - 1].q, run.samples[i].q, "test", &guess);
+    EXPECT_LT(PatellaResidualNorm(p, tuberosity_F, guess.x), 1e-12) << "row " << i;
+    EXPECT_NEAR(table.rows[i][tendon_column], guess.x[kPatellaTendonRatio], 1e-9) << "row " << i;
+  }
+}
+
 }  // namespace
 }  // namespace kneedyn
