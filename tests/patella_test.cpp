@@ -536,5 +536,30 @@ TEST(PatellaRuns, TrajectoryTableFollowsThePatellaAcrossLargeMovesBetweenRows) {
   }
 }
 
+// Without facet_liftoff the monolithic DAE stops where a facet force changes sign (its root
+// g = λ_i). A start with a facet already pulling never crossed that root: the quadriceps line
+// (0.3, -0.2, 1) pulls the impact scene's medial facet at t = 0 (N = -8.1 N); monolithic ran
+// 0.12 s so and then stopped where the facet pressed again, saying it "would pull".
+TEST(PatellaRuns, MonolithicStopsAtTheStartWhenAFacetPullsThere) {
+  Scene scene = ImpactScene();
+  scene.model.patella->quadriceps.direction_F = Vector3d(0.3, -0.2, 1.0).normalized();
+  SolvePatellaStart(scene.reference_q, scene.initial.q, &*scene.model.patella);
+  // The premise, from the patella's own solve at the start: the medial facet pulls.
+  const Patella& p = *scene.model.patella;
+  PatellaGuess guess;
+  SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(scene.initial.q)), "test", &guess);
+  ASSERT_LT(guess.x[kPatellaFacetRatio], -0.1);
+  ASSERT_GT(guess.x[kPatellaFacetRatio + 1], 0.0);
+  for (const char* formulation : {"monolithic", "monolithic-ggl"}) {
+    RunSettings settings;
+    settings.formulation = formulation;
+    const RunResult run = RunScene(scene, settings);
+    EXPECT_FALSE(run.completed) << formulation;
+    EXPECT_NE(run.failure.find("medial patellar facet pulls at the start of the phase at t = 0 s"), std::string::npos)
+        << formulation << ": " << run.failure;
+    EXPECT_EQ(run.samples.size(), 1u) << formulation;
+  }
+}
+
 }  // namespace
 }  // namespace kneedyn
