@@ -561,5 +561,25 @@ TEST(PatellaRuns, MonolithicStopsAtTheStartWhenAFacetPullsThere) {
   }
 }
 
+// --max-steps bounds a phase's coupling steps: dopri5's budget is per call, i.e. per coupling
+// step, so staggered at --step 1e-9 (a valid step) ran the impact scene's 3.4e8 coupling
+// steps with no bound (killed after 60 s with --max-steps 1000). Here 2000 coupling steps of
+// 1e-9 s against a budget of 1000: stopped, where the old code completed.
+TEST(PatellaRuns, StaggeredHonoursMaxStepsAcrossCouplingSteps) {
+  Scene scene = ImpactScene();
+  scene.end.time = 2.0e-6;
+  scene.output_interval = 1.0e-6;
+  RunSettings settings;
+  settings.formulation = "staggered";
+  settings.options.step = 1.0e-9;
+  settings.options.max_steps = 1000;
+  const RunResult run = RunScene(scene, settings);
+  EXPECT_FALSE(run.completed);
+  EXPECT_NE(run.failure.find("more than --max-steps = 1000 coupling steps of 1e-09 s"), std::string::npos)
+      << run.failure;
+  settings.options.max_steps = 3000;
+  EXPECT_TRUE(RunScene(scene, settings).completed);
+}
+
 }  // namespace
 }  // namespace kneedyn
