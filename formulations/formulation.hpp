@@ -299,14 +299,33 @@ constexpr double kDefaultFixedStep = 1.0e-4;
 // half-sine is zero at both ends). docs/model.md §7.
 constexpr double kStepsPerPulse = 10.0;
 
-// The longest step that resolves the pulse at time t (s): a tenth of its duration while it
-// lasts; infinity once it has ended or when the scene has none.
-inline double PulseResolvingStep(const Model& model, double t) {
-  if (model.pulse.shape == PulseShape::kNone || model.pulse.amplitude == 0.0 || !(t < model.pulse.duration)) {
-    return std::numeric_limits<double>::infinity();
+// The longest step that resolves the pulses at time t (s): a tenth of a pulse's duration
+// while it lasts; infinity once every pulse has ended or when the scene has none. The
+// quadriceps half-sine (docs/model.md §12) is a pulse as the tibial one is: F_Q is at its
+// baseline at both ends, so a step that spans it never sees it (a ramp is not: it keeps its
+// end value). `field` and `duration` name the scene key that sets the step, for messages.
+struct PulseStepLimit {
+  double step = std::numeric_limits<double>::infinity();  // s
+  const char* field = "";                                  // e.g. "pulse.duration_s"
+  double duration = 0.0;                                   // s, that field's value
+};
+
+inline PulseStepLimit PulseResolvingStepLimit(const Model& model, double t) {
+  PulseStepLimit limit;
+  if (model.pulse.shape != PulseShape::kNone && model.pulse.amplitude != 0.0 && t < model.pulse.duration) {
+    limit = {model.pulse.duration / kStepsPerPulse, "pulse.duration_s", model.pulse.duration};
   }
-  return model.pulse.duration / kStepsPerPulse;
+  if (model.patella) {
+    const QuadricepsForce& q = model.patella->quadriceps;
+    if (q.shape == QuadricepsShape::kHalfSine && q.magnitude != 0.0 && t < q.duration &&
+        q.duration / kStepsPerPulse < limit.step) {
+      limit = {q.duration / kStepsPerPulse, "patella.quadriceps.duration_s", q.duration};
+    }
+  }
+  return limit;
 }
+
+inline double PulseResolvingStep(const Model& model, double t) { return PulseResolvingStepLimit(model, t).step; }
 
 // Absolute Newton tolerance of a multiplier (contact force N, newtons; GGL's μ) per unit
 // --atol (m, rad), in every method that solves for the multipliers as unknowns (dae, dae-ggl

@@ -62,6 +62,27 @@ class MonolithicOnIda final : public IdaDriver<MonolithicSystem> {
                   options.constraint_level, variant.ggl),
         facet_liftoff_(scene.model.patella->facet_liftoff) {}
 
+  // Without facet_liftoff the root g = λ_i stops the run where a facet starts to pull. A phase
+  // that starts with a facet pulling (λ_i < 0; e.g. the quadriceps line (0.3, -0.2, 1) of the
+  // impact scene: N_medial = -8.1 N at t = 0) never sees that root: it ran 0.12 s with the facet
+  // pulling, then stopped where it pressed again, saying "past it the facet would pull". It
+  // stops at its start instead.
+  void Start(const MechanicalState& state, const std::vector<EventSpec>& events) override {
+    IdaDriver::Start(state, events);
+    if (facet_liftoff_) return;
+    const double* y = NvData(ida_.y);
+    for (int i = 0; i < 2; ++i) {
+      const double ratio = y[system_.PatellaIndex(kPatellaFacetRatio + i)];
+      if (!(ratio < 0.0)) continue;
+      Throw<SolverError>(variant_.name, "the ", i == 0 ? "medial" : "lateral",
+                         " patellar facet pulls at the start of the phase at t = ", state.t, " s (lambda = ", ratio,
+                         ", N = ", ratio * QuadricepsMagnitude(scene_.model.patella->quadriceps, state.t),
+                         " N): the two-contact model has no patellar equilibrium with both facets pressing there. The "
+                         "monolithic DAE stops; the scene key patella.facet_liftoff lets the facet separate "
+                         "(docs/model.md §12)");
+    }
+  }
+
   // The patella's unknowns at the end of the last Advance (monolithic_system.hpp test hook).
   bool PatellaUnknowns(std::array<double, kPatellaUnknowns>* x) const {
     if (!advanced_ || ida_.y == nullptr) return false;

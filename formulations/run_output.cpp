@@ -176,7 +176,13 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
   }
 
   Observables obs;
+  // The patella's equilibrium is followed from the scene's start through the rows' tibial
+  // poses: from the last row's solution, or, when the tibia turned by more than 1° since,
+  // in steps of at most 1° (SolvePatellaAlongTibialPath, as the events follow it). A straight
+  // solve failed where the tuberosity moved 26 mm between rows (a 0.01 s, 1e5 N quadriceps
+  // half-sine): exit 2 and nothing written instead of the run's rows and its own failure.
   PatellaGuess patella_guess;
+  Vector6d patella_q = model.patella ? model.patella->start_q : Vector6d::Zero();
   for (size_t s = 0; s < result.samples.size(); ++s) {
     const MechanicalState& st = result.samples[s];
     ComputeObservables(model, st, ContactPointSource::kStateCoordinates, &obs, kObserveNothingMore);
@@ -204,7 +210,12 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
     for (const LigamentObservables& l : obs.ligaments) row.push_back(l.strain);
     if (model.patella) {
       const Patella& p = *model.patella;
-      SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(q)), "MakeTrajectoryTable", &patella_guess);
+      if ((q - patella_q).tail<3>().cwiseAbs().maxCoeff() <= DegToRad(1.0)) {
+        SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(q)), "MakeTrajectoryTable", &patella_guess);
+      } else {
+        SolvePatellaAlongTibialPath(p, patella_q, q, "MakeTrajectoryTable", &patella_guess);
+      }
+      patella_q = q;
       const std::array<double, kPatellaUnknowns>& x = patella_guess.x;
       const double quadriceps = QuadricepsMagnitude(p.quadriceps, st.t);
       for (int i = 0; i < 3; ++i) row.push_back(MToMm(x[i]));

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "solver/constrained_dynamics.hpp"
 #include "solver/constraint_residuals.hpp"
@@ -136,17 +137,17 @@ void Simulator::Initialize() {
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
   state_ = ConsistentInitialize(model, scene_.initial, active, settings_.init, &record_->init);
   // A fixed-step method lands on each output time by cutting a step there, so an interval
-  // shorter than its step would set its step; and a step longer than a tenth of the pulse
-  // does not resolve it (kStepsPerPulse, formulation.hpp). Refused before integrating (exit 2).
+  // shorter than its step would set its step; and a step longer than a tenth of a pulse (the
+  // tibial pulse or the quadriceps half-sine) does not resolve it (kStepsPerPulse,
+  // formulation.hpp). Refused before integrating (exit 2).
   if (const double h = stepper_->fixed_step(); h > 0.0) {
     if (settings_.output_interval < h * (1.0 - 1e-12)) {
       Throw<InputError>("Simulator", "output interval ", settings_.output_interval, " s is shorter than the fixed step ",
                         h, " s: each step would be cut to an output time (rule: --step <= the output interval)");
     }
-    if (const double h_pulse = PulseResolvingStep(model, state_.t); h_pulse < h * (1.0 - 1e-12)) {
-      Throw<InputError>("Simulator", "pulse.duration_s = ", model.pulse.duration, " s spans fewer than ",
-                        kStepsPerPulse, " fixed steps of ", h, " s, which would not resolve it (rule: --step <= ",
-                        h_pulse, " s)");
+    if (const PulseStepLimit limit = PulseResolvingStepLimit(model, state_.t); limit.step < h * (1.0 - 1e-12)) {
+      Throw<InputError>("Simulator", limit.field, " = ", limit.duration, " s spans fewer than ", kStepsPerPulse,
+                        " fixed steps of ", h, " s, which would not resolve it (rule: --step <= ", limit.step, " s)");
     }
   }
   // A start whose consistent forces pull (an assembled pose; docs/model.md §6) starts with

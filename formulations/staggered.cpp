@@ -44,7 +44,8 @@ class StaggeredFormulation final : public FormulationBase, public OdeProblem {
  public:
   StaggeredFormulation(const Scene& scene, const StaggeredOptions& options)
       : FormulationBase(scene), integrator_(InnerOptions(options), "staggered"), workspace_(model_),
-        step_(options.control.step > 0.0 ? options.control.step : kDefaultFixedStep) {
+        step_(options.control.step > 0.0 ? options.control.step : kDefaultFixedStep),
+        max_steps_(options.control.max_steps) {
     if (!model_.patella) {
       Throw<InputError>("staggered", "scene '", scene.name,
                         "' has no patella: section; the staggered scheme couples the tibia to the patella "
@@ -61,6 +62,7 @@ class StaggeredFormulation final : public FormulationBase, public OdeProblem {
     t_ = state.t;
     y_.resize(12);
     y_ << state.q, state.qd;
+    phase_coupling_steps_ = 0;
     UpdateLag();
     integrator_.Start(this, t_, y_, RootDirections(events_));
   }
@@ -72,6 +74,12 @@ class StaggeredFormulation final : public FormulationBase, public OdeProblem {
       const double target = std::min(t_out, next_update_);
       root = integrator_.Evolve(target, false, &t_, &y_, &found);
       if (!root && t_ >= next_update_) {  // end of a coupling step: the patella catches up
+        // --max-steps bounds the coupling steps of a phase: dopri5's own budget is per call,
+        // one coupling step, so --step 1e-9 ran 3.4e8 of them (hours) with no bound.
+        if (phase_coupling_steps_ >= max_steps_) {
+          Throw<SolverError>("staggered", "more than --max-steps = ", max_steps_, " coupling steps of ", step_,
+                             " s in this phase (t = ", t_, " s)");
+        }
         // The event functions jump with the lagged force (a normal force can change sign
         // there): a sign change in an event's direction across the update is its root.
         std::vector<double> before(events_.size()), after(events_.size());
@@ -132,12 +140,15 @@ class StaggeredFormulation final : public FormulationBase, public OdeProblem {
     lagged_ = SolvedTendon(*model_.patella, t_, PoseFromCoordinates(q), &guess_);
     next_update_ = t_ + step_;
     ++coupling_steps_;
+    ++phase_coupling_steps_;
   }
 
   OdeIntegrator integrator_;
   ConstrainedDynamicsWorkspace workspace_;
   ConstrainedAcceleration acc_;
   double step_;           // Δt, s
+  long max_steps_;        // --max-steps: coupling steps per phase
+  long phase_coupling_steps_ = 0;
   double t_ = 0.0;
   double next_update_ = 0.0;
   VectorXd y_;

@@ -328,7 +328,8 @@ PYBIND11_MODULE(_kneedyn, m) {
       })
       .def_property_readonly("patella", [](const Scene& s) -> py::object {
         // The patella as the model holds it (docs/model.md §12; mm, N, s), None without one;
-        // `start` is the builder's equilibrium at the initial pose (PatellaUnknownName).
+        // `start` is the builder's equilibrium at the initial pose (PatellaUnknownName; SI: m,
+        // rad, chart coordinates, force ratios).
         if (!s.model.patella) return py::none();
         const Patella& p = *s.model.patella;
         py::dict d;
@@ -348,7 +349,12 @@ PYBIND11_MODULE(_kneedyn, m) {
           d[py::str(std::string("trochlea_") + facets[i])] = trochlea;
           d[py::str(std::string("facet_") + facets[i])] = facet;
         }
+        const auto mm = [](const Vector3d& v) { return std::vector<double>{MToMm(v.x()), MToMm(v.y()), MToMm(v.z())}; };
+        d["apex_P_mm"] = mm(p.apex_P);
+        d["base_P_mm"] = mm(p.base_P);
+        d["tuberosity_T_mm"] = mm(p.tuberosity_T);
         d["tendon_length_mm"] = MToMm(p.tendon_length);
+        d["facet_liftoff"] = p.facet_liftoff;
         py::dict q;
         q["shape"] = QuadricepsShapeName(p.quadriceps.shape);
         q["magnitude_N"] = p.quadriceps.magnitude;

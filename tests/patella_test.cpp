@@ -8,6 +8,7 @@
 
 #include "formulations/formulation.hpp"
 #include "formulations/run.hpp"
+#include "formulations/run_output.hpp"
 #include "scene/scene.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/constraint_residuals.hpp"
@@ -460,6 +461,125 @@ TEST(PatellaLiftoff, PastTheFoldNeitherBranchHoldsAndTheirRatioIsTheCompliance) 
   }
 }
 
+
+// A quadriceps half-sine is a pulse as the tibial one is (docs/model.md §7, §12): F_Q is at its
+// baseline at both ends, so a step that spans it never sees it. 1e5 N for 3 µs moves the
+// tibia (flexion at 2 ms: -0.0160° against -0.0033° without it, ede at rtol 1e-10, the
+// reference here); IDA's default first step (1e-4 s) passed it whole, and every fixed-step
+// method at its default 1e-4 s ran as if it were not there.
+TEST(PatellaRuns, ShortQuadricepsHalfSineIsSeenByIdaAndRefusedByFixedSteps) {
+  Scene scene = ImpactScene();
+  QuadricepsForce& quadriceps = scene.model.patella->quadriceps;
+  quadriceps.shape = QuadricepsShape::kHalfSine;
+  quadriceps.baseline = 50.0;
+  quadriceps.magnitude = 1.0e5;
+  quadriceps.duration = 3.0e-6;
+  scene.end.time = 0.002;
+  scene.output_interval = 0.001;
+  const auto flexion_at_end = [](const RunResult& r) { return r.samples.back().q(kAlpha); };
+  const double reference = flexion_at_end(RunWith(scene, "ede", 1e-10, 1e-12));
+  Scene baseline_only = scene;
+  baseline_only.model.patella->quadriceps.magnitude = 0.0;
+  const double without = flexion_at_end(RunWith(baseline_only, "ede", 1e-10, 1e-12));
+  ASSERT_GT(std::abs(without - reference), DegToRad(0.01)) << "the pulse must move the tibia for this test to mean anything";
+  for (const char* formulation : {"dae", "dae-ggl", "monolithic", "monolithic-ggl"}) {
+    RunSettings settings;
+    settings.formulation = formulation;
+    const RunResult run = RunScene(scene, settings);
+    ASSERT_TRUE(run.completed) << formulation << ": " << run.failure;
+    EXPECT_NEAR(flexion_at_end(run), reference, 0.1 * std::abs(without - reference)) << formulation;
+  }
+  for (const char* formulation : {"newmark", "generalized-alpha", "staggered"}) {
+    RunSettings settings;
+    settings.formulation = formulation;
+    try {
+      RunScene(scene, settings);
+      ADD_FAILURE() << formulation << " ran a 3 us quadriceps pulse at a 1e-4 s step";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("patella.quadriceps.duration_s = 3e-06 s"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// The trajectory's patella columns follow the equilibrium through the rows' poses. With a
+// 1e5 N quadriceps half-sine of 0.01 s the tuberosity moves 26 mm between two rows; the
+// straight solve from the last row failed there (SolverError from MakeTrajectoryTable), so a
+// run that had stopped with its own failure at t = 0.046 s (partial: exit 1, its rows and
+// reason written) ended with exit 2 and nothing written. Each row's solution must hold its
+// 17 equations.
+TEST(PatellaRuns, TrajectoryTableFollowsThePatellaAcrossLargeMovesBetweenRows) {
+  Scene scene = ImpactScene();
+  QuadricepsForce& quadriceps = scene.model.patella->quadriceps;
+  quadriceps.shape = QuadricepsShape::kHalfSine;
+  quadriceps.baseline = 50.0;
+  quadriceps.magnitude = 1.0e5;
+  quadriceps.duration = 0.01;
+  RunSettings settings;
+  settings.formulation = "ede";
+  const RunResult run = RunScene(scene, settings);
+  ASSERT_GT(run.samples.size(), 5u);
+  TrajectoryTable table;
+  ASSERT_NO_THROW(table = MakeTrajectoryTable(scene, run));
+  ASSERT_EQ(table.rows.size(), run.samples.size());
+  size_t tendon_column = 0;
+  while (tendon_column < table.columns.size() && table.columns[tendon_column] != "tendon_quadriceps_ratio") ++tendon_column;
+  ASSERT_LT(tendon_column, table.columns.size());
+  // Independently of the table's path: the equilibrium at the row's pose, followed in small
+  // steps of the tuberosity from the previous row, has the same tendon ratio.
+  const Patella& p = *scene.model.patella;
+  PatellaGuess guess;
+  for (size_t i = 0; i < run.samples.size(); ++i) {
+    const Vector3d tuberosity_F = TuberosityInF(p, PoseFromCoordinates(run.samples[i].q));
+    SolvePatellaAlongTibialPath(p, i == 0 ? p.start_q : run.samples[i - 1].q, run.samples[i].q, "test", &guess);
+    EXPECT_LT(PatellaResidualNorm(p, tuberosity_F, guess.x), 1e-12) << "row " << i;
+    EXPECT_NEAR(table.rows[i][tendon_column], guess.x[kPatellaTendonRatio], 1e-9) << "row " << i;
+  }
+}
+
+// Without facet_liftoff the monolithic DAE stops where a facet force changes sign (its root
+// g = λ_i). A start with a facet already pulling never crossed that root: the quadriceps line
+// (0.3, -0.2, 1) pulls the impact scene's medial facet at t = 0 (N = -8.1 N); monolithic ran
+// 0.12 s so and then stopped where the facet pressed again, saying it "would pull".
+TEST(PatellaRuns, MonolithicStopsAtTheStartWhenAFacetPullsThere) {
+  Scene scene = ImpactScene();
+  scene.model.patella->quadriceps.direction_F = Vector3d(0.3, -0.2, 1.0).normalized();
+  SolvePatellaStart(scene.reference_q, scene.initial.q, &*scene.model.patella);
+  // The premise, from the patella's own solve at the start: the medial facet pulls.
+  const Patella& p = *scene.model.patella;
+  PatellaGuess guess;
+  SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(scene.initial.q)), "test", &guess);
+  ASSERT_LT(guess.x[kPatellaFacetRatio], -0.1);
+  ASSERT_GT(guess.x[kPatellaFacetRatio + 1], 0.0);
+  for (const char* formulation : {"monolithic", "monolithic-ggl"}) {
+    RunSettings settings;
+    settings.formulation = formulation;
+    const RunResult run = RunScene(scene, settings);
+    EXPECT_FALSE(run.completed) << formulation;
+    EXPECT_NE(run.failure.find("medial patellar facet pulls at the start of the phase at t = 0 s"), std::string::npos)
+        << formulation << ": " << run.failure;
+    EXPECT_EQ(run.samples.size(), 1u) << formulation;
+  }
+}
+
+// --max-steps bounds a phase's coupling steps: dopri5's budget is per call, i.e. per coupling
+// step, so staggered at --step 1e-9 (a valid step) ran the impact scene's 3.4e8 coupling
+// steps with no bound (killed after 60 s with --max-steps 1000). Here 2000 coupling steps of
+// 1e-9 s against a budget of 1000: stopped, where the old code completed.
+TEST(PatellaRuns, StaggeredHonoursMaxStepsAcrossCouplingSteps) {
+  Scene scene = ImpactScene();
+  scene.end.time = 2.0e-6;
+  scene.output_interval = 1.0e-6;
+  RunSettings settings;
+  settings.formulation = "staggered";
+  settings.options.step = 1.0e-9;
+  settings.options.max_steps = 1000;
+  const RunResult run = RunScene(scene, settings);
+  EXPECT_FALSE(run.completed);
+  EXPECT_NE(run.failure.find("more than --max-steps = 1000 coupling steps of 1e-09 s"), std::string::npos)
+      << run.failure;
+  settings.options.max_steps = 3000;
+  EXPECT_TRUE(RunScene(scene, settings).completed);
+}
 
 }  // namespace
 }  // namespace kneedyn

@@ -72,6 +72,8 @@ def build_manifest():
 def scene_path(name):
     """Path of a scene shipped in reference-data/scenes, e.g. scene_path('chapter_impact')."""
     name = _text(name, "scene_path", "name", "a scene's name (str), e.g. 'chapter_impact'")
+    if name in ("", ".yaml"):  # gave '<data>/scenes/.yaml', and Problem('') "cannot open scenes/.yaml"
+        raise InputError("scene_path(): name = %s: must name a scene, e.g. 'chapter_impact'" % _echo(name))
     return _os.path.join(data_dir(), "scenes", name if name.endswith(".yaml") else name + ".yaml")
 
 
@@ -161,8 +163,11 @@ class Scene:
     def patella(self):
         """The patella as the model holds it (docs/model.md §12), None without a patella:
         section: trochlea_medial|lateral (centre_mm, radius_mm), facet_medial|lateral
-        (normal_P, offset_mm), tendon_length_mm, quadriceps (shape, magnitude_N, baseline_N,
-        duration_s, direction_F) and start, the equilibrium at the initial pose."""
+        (normal_P as a unit vector, offset_mm), apex_P_mm, base_P_mm, tuberosity_T_mm,
+        tendon_length_mm, facet_liftoff, quadriceps (shape, magnitude_N, baseline_N,
+        duration_s, direction_F as a unit vector) and start, the equilibrium at the initial
+        pose in the solver's SI unknowns (solver/patella.hpp: coordinates in m and rad, chart
+        coordinates, force ratios N / F_Q)."""
         return self._compiled.patella
 
     def to_dict(self):

@@ -521,6 +521,29 @@ def test_patella_setters_refuse_a_scene_without_patella():
     assert patella.patella["quadriceps"]["magnitude_N"] == 50.0  # unchanged
 
 
+def test_patella_property_holds_every_field_of_the_section():
+    # apex_P_mm, base_P_mm, tuberosity_T_mm and facet_liftoff were missing from scene.patella
+    # (set_patella could set them, nothing read them back). The values: the scene document's.
+    scene = kneedyn.load_scene(PATELLA)
+    doc = scene.to_dict()["patella"]
+    p = scene.patella
+    for key in ("apex_P_mm", "base_P_mm", "tuberosity_T_mm"):
+        assert p[key] == pytest.approx(doc[key], rel=1e-15), key
+    assert p["facet_liftoff"] is False  # the scene has no key: the default, both facets press
+    scene.set_patella(facet_liftoff=True, apex_P_mm=[0.0, 8.5, -22.0])
+    assert scene.patella["facet_liftoff"] is True
+    assert scene.patella["apex_P_mm"] == pytest.approx([0.0, 8.5, -22.0], rel=1e-15)
+
+
+def test_scene_path_refuses_an_empty_name():
+    # scene_path("") gave '<data>/scenes/.yaml', and Problem("") said it could not open that.
+    for name in ("", ".yaml"):
+        with pytest.raises(kneedyn.InputError, match=r"scene_path\(\): name = '(\.yaml)?': must name a scene"):
+            kneedyn.scene_path(name)
+    with pytest.raises(ValueError, match="must name a scene"):
+        kneedyn.Problem("", form="ede")
+
+
 # --- bad input from Python: refused with InputError, never a crash, a hang or a silent change ---
 
 def run_isolated(code):
