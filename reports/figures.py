@@ -342,10 +342,32 @@ SERIES_COLOURS = {
     "generalized-alpha-reduced": "#ff9896", "mde": "#984ea3", "ede": "#a6761d", "staggered": "#ce6dbd",
     "monolithic": "#17becf", "monolithic-ggl": "#66c2a5", "simbody": "#f0027f", "scipy": "#1b9e77",
     "c-example": "#393b79"}
-# For series not named above (a new formulation, another outside solver), in name order; beyond
-# five such series in one figure the colours repeat.
-SPARE_COLOURS = ("#d6616b", "#843c39", "#f7b6d2", "#969696", "#a1d99b")
 MIN_COLOUR_DISTANCE = 0.25  # RGB, the palette's smallest pairwise distance
+
+
+def _spare_colours():
+  """Colours for series not named above (a new formulation, another outside solver), in name
+  order: the five the report has used, then matplotlib's qualitative palettes, then a 1/8-step
+  RGB lattice, each taken when it is at least MIN_COLOUR_DISTANCE from every SERIES_COLOURS
+  colour, the black crosses, the grey (0.4) ceiling line, the white background and the spares
+  before it (59 colours; only a figure with more unnamed series repeats one)."""
+  import itertools
+  import matplotlib.colors as mc
+  taken = [mc.to_rgb(c) for c in SERIES_COLOURS.values()] + [(0.0, 0.0, 0.0), (0.4, 0.4, 0.4), (1.0, 1.0, 1.0)]
+  candidates = [mc.to_rgb(c) for c in ("#d6616b", "#843c39", "#f7b6d2", "#969696", "#a1d99b")]
+  for name in ("tab20", "tab20b", "tab20c", "Set1", "Set2", "Set3", "Dark2", "Paired", "Accent", "Pastel1",
+               "Pastel2", "tab10"):
+    candidates += [tuple(c[:3]) for c in matplotlib.colormaps[name].colors]
+  candidates += [tuple(x / 8 for x in p) for p in itertools.product(range(9), repeat=3)]
+  spares = []
+  for rgb in candidates:
+    if all(math.dist(rgb, t) >= MIN_COLOUR_DISTANCE for t in taken):
+      spares.append(mc.to_hex(rgb))
+      taken.append(rgb)
+  return tuple(spares)
+
+
+SPARE_COLOURS = _spare_colours()
 
 
 def series_colours(names):

@@ -102,7 +102,8 @@ def colour_errors(tmp):
   from any other drawn in it (the Simbody peer figure drew dae in tab10's orange and simbody in
   Dark2's, 0.20 apart), and a series keeps its colour from figure to figure (the main sweep's
   dae is the peer sweep's dae). Series: every registered formulation, Simbody, the outside
-  solvers of examples/ and two names the report does not know."""
+  solvers of examples/ and eight names the report does not know (the spares repeated after
+  five)."""
   import itertools
   import math
   import matplotlib.colors as mc
@@ -111,6 +112,10 @@ def colour_errors(tmp):
   if len(names) < 10 or "dae" not in names:
     return [f"formulations/registry.cpp: read {names}"]
   names += ["simbody", "scipy", "c-example", "c-rk4", "scipy-mde"]
+  names += [f"unnamed-{i}" for i in range(6)]  # with c-rk4 and scipy-mde: 8 not in SERIES_COLOURS
+  unknown = [n for n in names if n not in figures.SERIES_COLOURS]
+  if len(unknown) < 8:
+    return [f"expected 8 series outside SERIES_COLOURS, got {unknown}"]
   drawn = {}  # figure file -> [(series, rgb)]
   save = figures._save
 
