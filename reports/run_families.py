@@ -103,7 +103,8 @@ _MODULE = {}
 def kneedyn_module(kneedyn):
   """The kneedyn Python module (python/, docs/python.md) if importable — from PYTHONPATH or from the
   build tree beside the binary (<build>/python) — else None. KNEEDYN_REPORT_RUNNER=subprocess
-  forces the subprocess path."""
+  forces the subprocess path. A partial build (the package directory without the _kneedyn
+  extension: a namespace package, or one without run/Error) is None too: the CLI runs."""
   if os.environ.get("KNEEDYN_REPORT_RUNNER") == "subprocess":
     return None
   if kneedyn not in _MODULE:
@@ -112,9 +113,11 @@ def kneedyn_module(kneedyn):
       sys.path.insert(0, build_python)
     try:
       import kneedyn as module
-      _MODULE[kneedyn] = module
+      if not all(hasattr(module, a) for a in ("run", "Error", "InputError", "__file__")) or not module.__file__:
+        module = None
     except ImportError:
-      _MODULE[kneedyn] = None
+      module = None
+    _MODULE[kneedyn] = module
   return _MODULE[kneedyn]
 
 

@@ -7,6 +7,7 @@ traceback, nothing written (no --out directory, no file beside the planted input
   report_inputs_test.py --kneedyn PATH
 """
 import argparse
+import json
 import os
 import shutil
 import subprocess
@@ -27,6 +28,46 @@ FAST_S = 5.0
 
 def snapshot(d):
   return sorted(os.path.relpath(os.path.join(p, f), d) for p, ds, fs in os.walk(d) for f in fs + ds)
+
+
+# In a fresh interpreter: run_families' runner beside BINARY, and one run of a missing scene.
+PARTIAL_PROBE = """
+import json, os, sys
+sys.path.insert(0, sys.argv[1])
+import run_families
+m = run_families.kneedyn_module(sys.argv[2])
+r = run_families.run_once(sys.argv[2], os.path.join(sys.argv[3], "missing.yaml"), os.path.join(sys.argv[3], "run"),
+                          run_families.SOLVER_ARGS)
+print(json.dumps({"module": m is not None, "runner": r["runner"], "returncode": r["returncode"],
+                  "description": run_families.runner_description(sys.argv[2])}))
+"""
+
+
+def partial_module_errors(kneedyn):
+  """A partial Python build (build/python/kneedyn without the _kneedyn extension: an empty
+  package directory, or __init__.py alone) must leave run_families on the CLI: a run of a
+  missing scene is the CLI's exit 2, not an AttributeError from a package without run/Error."""
+  errors = []
+  for layout in ("empty directory", "__init__.py without _kneedyn"):
+    with tempfile.TemporaryDirectory(prefix="report_partial_") as tmp:
+      os.makedirs(os.path.join(tmp, "build", "formulations"))
+      binary = os.path.join(tmp, "build", "formulations", "kneedyn")
+      os.symlink(kneedyn, binary)
+      package = os.path.join(tmp, "build", "python", "kneedyn")
+      os.makedirs(package)
+      if layout.startswith("__init__"):
+        shutil.copy(os.path.join(ROOT, "python", "kneedyn", "__init__.py"), package)
+      env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "KNEEDYN_REPORT_RUNNER")}
+      env["PYTHONDONTWRITEBYTECODE"] = "1"
+      p = subprocess.run([sys.executable, "-c", PARTIAL_PROBE, REPORTS, binary, tmp], capture_output=True,
+                         text=True, env=env, cwd=tmp, timeout=120)
+      if p.returncode != 0:
+        errors.append(f"partial build ({layout}): the runner crashed: {p.stderr[-600:]!r}")
+        continue
+      got = json.loads(p.stdout.strip().splitlines()[-1])
+      if got["module"] or got["runner"] != "subprocess" or got["returncode"] != 2 or "CLI" not in got["description"]:
+        errors.append(f"partial build ({layout}): expected the CLI runner (exit 2 for a missing scene), got {got}")
+  return errors
 
 
 def main():
@@ -140,6 +181,7 @@ def main():
         errors.append(f"{where}: wrote {sorted(set(after) - set(before))}")
       if elapsed > FAST_S:
         errors.append(f"{where}: took {elapsed:.1f} s: not refused before the runs (limit {FAST_S} s)")
+  errors += partial_module_errors(kneedyn)
   return finish(errors, "report_inputs_test: FAIL", f"report_inputs_test: {checked} bad inputs refused, "
                 f"{len(errors)} problem(s)")
 
