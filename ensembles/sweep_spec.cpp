@@ -41,6 +41,7 @@ class Node {
   // The whole scalar read by strtod.
   double Double() const {
     if (!f_.IsScalar()) Fail("must be a number");
+    if (!f_.IsPlainScalar()) Fail("must be a number, not a quoted string");  // YAML: quoted is text
     const std::string s = f_.String();
     char* end = nullptr;
     const double v = std::strtod(s.c_str(), &end);

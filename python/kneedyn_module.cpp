@@ -61,6 +61,7 @@ class YamlWriter {
     const py::module_ kneedyn = py::module_::import("kneedyn");
     file_float_ = kneedyn.attr("_FileFloat");
     file_int_ = kneedyn.attr("_FileInt");
+    file_plain_ = kneedyn.attr("_FilePlain");
   }
   ~YamlWriter() { yaml_emitter_delete(&emitter_); }
   YamlWriter(const YamlWriter&) = delete;
@@ -123,11 +124,14 @@ class YamlWriter {
     return std::string(data, static_cast<size_t>(size));
   }
   // A plain scalar (numbers, booleans, null), or a string: plain where YAML reads it back
-  // as the same text, double-quoted where plain would read as null (empty, ~, null).
+  // as the same text, double-quoted where plain would read as null (empty, ~, null) or as a
+  // number or boolean ('42', 'yes'), so that the loader refuses a str where a number or a
+  // boolean belongs ("not a quoted string") instead of reading it as one.
   void Scalar(const std::string& text, bool string) {
     const bool null_like = text.empty() || text == "~" || text == "null" || text == "Null" || text == "NULL";
+    const bool quote = string && (null_like || scene_detail::PlainReadsAsValue(text));
     const yaml_scalar_style_t style =
-        !string ? YAML_PLAIN_SCALAR_STYLE : null_like ? YAML_DOUBLE_QUOTED_SCALAR_STYLE : YAML_ANY_SCALAR_STYLE;
+        !string ? YAML_PLAIN_SCALAR_STYLE : quote ? YAML_DOUBLE_QUOTED_SCALAR_STYLE : YAML_ANY_SCALAR_STYLE;
     yaml_event_t e;
     yaml_scalar_event_initialize(&e, nullptr, nullptr, reinterpret_cast<yaml_char_t*>(const_cast<char*>(text.data())),
                                  static_cast<int>(text.size()), 1, 1, style);
@@ -140,6 +144,8 @@ class YamlWriter {
     if (py::isinstance<py::bool_>(obj) || py::isinstance(obj, np_bool_)) {
       return Scalar(PyObject_IsTrue(obj.ptr()) ? "true" : "false", false);
     }
+    // A plain value from a file that str() reads (yes, True, .inf): written back plain, as read.
+    if (py::isinstance(obj, file_plain_)) return Scalar(Utf8(obj, where, "the text"), false);
     if (py::isinstance<py::str>(obj)) return Scalar(Utf8(obj, where, "the text"), true);
     const bool map = py::isinstance<py::dict>(obj);
     if (map || py::isinstance<py::list>(obj) || py::isinstance<py::tuple>(obj)) {
@@ -216,7 +222,7 @@ class YamlWriter {
   std::string function_;
   yaml_emitter_t emitter_;
   std::string text_;
-  py::object np_bool_, np_integer_, np_ndarray_, real_, file_float_, file_int_;
+  py::object np_bool_, np_integer_, np_ndarray_, real_, file_float_, file_int_, file_plain_;
 };
 
 std::string EmitYaml(const py::handle& document, const std::string& function) {
@@ -226,8 +232,9 @@ std::string EmitYaml(const py::handle& document, const std::string& function) {
 // YAML node -> Python value. A plain scalar the loader reads as a number (a decimal) becomes
 // an int or float: a plain one when str/repr write it back as the same text, else a
 // kneedyn._FileInt/_FileFloat that YamlWriter writes back in the file's spelling (1e-3,
-// 1.10, +5). true/false become bools; any other text (0x1F, nan, True) stays a string. So
-// editing a scene changes no field it did not touch.
+// 1.10, +5). true/false become bools; any other text stays a string: a kneedyn._FilePlain
+// (written back plain) when the loader reads it plain as a number or boolean (.inf, True,
+// yes), else a str. So editing a scene changes no field it did not touch.
 py::object FromYaml(const scene_detail::Field& node) {
   if (node.IsMap()) {
     py::dict d;
@@ -257,6 +264,7 @@ py::object FromYaml(const scene_detail::Field& node) {
         return py::module_::import("kneedyn").attr("_FileFloat")(f, s);  // "1e-3", "1.10"
       }
     }
+    if (scene_detail::PlainReadsAsValue(s)) return py::module_::import("kneedyn").attr("_FilePlain")(s);
   }
   return py::str(s);
 }

@@ -515,6 +515,13 @@ std::string Line(const yaml_node_t* n) { return n ? StrCat(":", n->start_mark.li
 
 }  // namespace
 
+bool PlainReadsAsValue(std::string_view text) {
+  double d;
+  bool b;
+  std::istringstream stream;
+  return YamlCppDouble(stream, text, &d) || YamlCppBool(text, &b);
+}
+
 Field::Field(std::shared_ptr<const YamlDocument> doc, const yaml_node_t* node, std::string path)
     : doc_(std::move(doc)), node_(node), kind_(KindOf(node)), path_(std::move(path)) {}
 
@@ -597,6 +604,8 @@ std::vector<std::string> Field::Keys() const {
 
 double Field::Double() const {
   double v;
+  // YAML: a quoted scalar is a string, whatever its text ("42" is no number).
+  if (kind_ == YamlKind::kScalar && !IsPlainScalar()) Fail("must be a number, not a quoted string");
   if (kind_ != YamlKind::kScalar || !YamlCppDouble(doc_->NumberStream(), ScalarText(node_), &v)) {
     Fail("must be a number");
   }
@@ -648,6 +657,7 @@ std::string Field::Name(bool element) const {
 
 bool Field::Bool() const {
   bool v;
+  if (kind_ == YamlKind::kScalar && !IsPlainScalar()) Fail("must be true or false, not a quoted string");
   if (kind_ != YamlKind::kScalar || !YamlCppBool(ScalarText(node_), &v)) Fail("must be true or false");
   return v;
 }
@@ -658,7 +668,8 @@ bool Field::Bool() const {
 double Field::ItemInRange(size_t i, double limit) const {
   const yaml_node_t* item = doc_->Node(node_->data.sequence.items.start[i]);
   double v;
-  if (KindOf(item) == YamlKind::kScalar && YamlCppDouble(doc_->NumberStream(), ScalarText(item), &v) &&
+  if (KindOf(item) == YamlKind::kScalar && item->data.scalar.style == YAML_PLAIN_SCALAR_STYLE &&
+      YamlCppDouble(doc_->NumberStream(), ScalarText(item), &v) &&
       std::isfinite(v) && v >= -limit && v <= limit) {
     return v;
   }

@@ -226,6 +226,27 @@ TEST(Scene, RefusesWrongType) {
                     "wrong_bool.yaml", {"gravity.enabled", "sometimes"});
 }
 
+// YAML: a quoted scalar is a string, so "42" is no number and "yes" no boolean (they were read
+// as 42 and true); the plain spellings still load (ValidInlineSceneLoads).
+TEST(Scene, RefusesQuotedNumbersAndBooleans) {
+  ExpectRefusedWith("pulse", "{shape: reconstructed, amplitude_N: \"42\", duration_s: 0.1}", "quoted_number.yaml",
+                    {"field 'pulse.amplitude_N' = '42': must be a number, not a quoted string"});
+  ExpectRefusedWith("pulse", "{shape: reconstructed, amplitude_N: 100, duration_s: '0.1'}", "single_quoted.yaml",
+                    {"field 'pulse.duration_s' = '0.1': must be a number, not a quoted string"});
+  ExpectRefusedWith("body", "{principal_inertia_kg_m2: [0.0672, \"0.0672\", 0.005334]}", "quoted_item.yaml",
+                    {"field 'body.principal_inertia_kg_m2[1]' = '0.0672': must be a number, not a quoted string"});
+  ExpectRefusedWith("gravity", "{enabled: \"yes\"}", "quoted_bool.yaml",
+                    {"field 'gravity.enabled' = 'yes': must be true or false, not a quoted string"});
+  ExpectRefusedWith("gravity", "{enabled: 'true'}", "quoted_true.yaml",
+                    {"field 'gravity.enabled' = 'true': must be true or false, not a quoted string"});
+  SceneFields f = ValidFields();
+  f["gravity"] = "{enabled: yes}";  // plain: a boolean (yaml-cpp's spellings)
+  f["pulse"] = "{shape: \"reconstructed\", amplitude_N: 100, duration_s: 0.1}";  // quoted text is fine
+  const Scene scene = Parse(Text(f));
+  EXPECT_NEAR(scene.model.gravity_F.y(), -9.81, 1e-15);
+  EXPECT_EQ(scene.model.pulse.shape, PulseShape::kReconstructed);
+}
+
 TEST(Scene, RefusesUnknownLigamentName) {
   ExpectRefusedWith("ligaments", "[LCL, ACL middle]",
                     "unknown_ligament.yaml", {"ligaments[1]", "ACL middle"});

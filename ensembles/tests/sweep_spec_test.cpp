@@ -78,6 +78,9 @@ TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
       {Spec("  - {name: mass, relative: 0.1}", "{type: halton, samples: 4}"), "'halton'"},
       {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 0}"), "design.samples' = '0'"},
       {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 2.5}"), "'2.5'"},
+      // YAML: a quoted scalar is a string, not a number.
+      {Spec("  - {name: mass, relative: \"0.1\"}"), "parameters[0].relative' = '0.1': must be a number, not a quoted string"},
+      {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: '4'}"), "design.samples' = '4': must be a number, not a quoted string"},
       {Spec("  - {name: mass, relative: 0.1}", "{type: grid, samples: 4}"), "takes 'levels'"},
       {Spec("  - {name: pulse.amplitude, normal: [100, 5]}", "{type: grid, levels: 3}"), "bounded"},
       {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 4}", "solver: {rtol: -1}\n"), "rtol"},

@@ -57,6 +57,15 @@ class _FileInt(int):
         return (int(self), self.text)
 
 
+class _FilePlain(str):
+    """An unquoted value from a scene file that stays text in Python but that the loader
+    reads as a number or boolean (`yes`, `True`, `.inf`): written back unquoted
+    (YamlWriter), as the file had it. A plain str of that text is written quoted, and
+    a quoted scalar is a string to the loader, never a number or a boolean."""
+
+    __slots__ = ()
+
+
 def data_dir():
     """Directory of the reference data (parameter sets, scenes); KNEEDYN_DATA_DIR overrides."""
     return _kneedyn.data_dir()

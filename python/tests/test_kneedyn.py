@@ -678,6 +678,38 @@ def test_text_fields_of_a_loaded_scene_survive_an_edit():
     assert "interval_s: 0.005\n" in s.to_yaml()
 
 
+@pytest.mark.parametrize("scene_file,change,field,value,rule", [
+    (CHAPTER, {"pulse": {"amplitude_N": "42"}}, "pulse.amplitude_N", "42", "must be a number, not a quoted string"),
+    (CHAPTER, {"end": {"time_s": "1e-1"}}, "end.time_s", "1e-1", "must be a number, not a quoted string"),
+    (CHAPTER, {"gravity": {"enabled": "true"}}, "gravity.enabled", "true", "must be true or false, not a quoted string"),
+    (os.path.join("reference-data", "scenes", "patellofemoral_impact.yaml"), {"patella": {"facet_liftoff": "yes"}},
+     "patella.facet_liftoff", "yes", "must be true or false, not a quoted string"),
+])
+def test_a_str_where_a_number_or_bool_belongs_is_refused(scene_file, change, field, value, rule):
+    # YAML: a quoted scalar is a string. A Python str is written quoted when plain text would
+    # read as a number or boolean, and the loader refuses it there; before, '42' became 42.
+    scene = kneedyn.load_scene(scene_file)
+    with pytest.raises(ValueError) as e:
+        scene.update(change)
+    assert "field '%s' = '%s': %s" % (field, value, rule) in str(e.value), str(e.value)
+    # A str in a text field stays text, even one that reads as a number plain.
+    assert scene.update({"description": "42"}).compiled.description == "42"
+
+
+def test_plain_booleans_and_numbers_of_a_file_survive_an_edit():
+    # `enabled: yes` (unquoted) is a boolean to the loader but text to FromYaml: written back
+    # unquoted, so an edit elsewhere keeps the scene loadable.
+    doc = chapter_doc()
+    doc["parameter_set"] = os.path.abspath(os.path.join(os.path.dirname(CHAPTER), doc["parameter_set"]))
+    path = os.path.join(OUT, "plain_yes.yaml")
+    os.makedirs(OUT, exist_ok=True)
+    with open(path, "w") as f:
+        f.write(kneedyn._kneedyn.to_yaml(doc).replace("enabled: true", "enabled: yes"))
+    s = kneedyn.load_scene(path)
+    assert s.to_dict()["gravity"]["enabled"] == "yes"
+    assert "enabled: yes\n" in s.set_pulse(amplitude_N=90.0).to_yaml()
+
+
 def _leaves(node, key=None):
     """(key, value) of every scalar of a document (list items under their list's key)."""
     if isinstance(node, dict):

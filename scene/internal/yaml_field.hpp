@@ -160,6 +160,11 @@ inline bool PlainDecimal(std::string_view text, double* v) {
   return ec == std::errc() && end == text.data() + n;
 }
 
+// Whether a plain (unquoted) scalar of this text is one the loader reads as a number
+// (Field::Double) or a boolean (Field::Bool), e.g. 42, .inf, yes: a string of this text must
+// be written quoted to stay a string.
+bool PlainReadsAsValue(std::string_view text);
+
 // Names written into output headers: a letter, then letters, digits, '_', '-', '.', and
 // (elements only) spaces and '/'; at most kMaxNameLength characters.
 bool IsName(const std::string& s, bool element);
