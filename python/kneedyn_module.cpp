@@ -332,6 +332,7 @@ PYBIND11_MODULE(_kneedyn, m) {
         d["shape"] = PulseShapeName(s.model.pulse.shape);
         d["amplitude_N"] = s.model.pulse.amplitude;
         d["duration_s"] = s.model.pulse.duration;
+        d["peak_factor"] = PulsePeakFactor(s.model.pulse.shape);  // max Fe / A, as summary.json's scene.pulse
         return d;
       })
       .def_property_readonly("patella", [](const Scene& s) -> py::object {

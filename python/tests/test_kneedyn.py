@@ -710,6 +710,26 @@ def test_plain_booleans_and_numbers_of_a_file_survive_an_edit():
     assert "enabled: yes\n" in s.set_pulse(amplitude_N=90.0).to_yaml()
 
 
+def test_pulse_peak_factor_equals_the_clis_summary():
+    # Independent path: the CLI's summary.json (formulations/run_output.cpp) for the same
+    # scene; a half sine's largest force is its amplitude (peak factor 1).
+    factors = {}
+    for shape in ("reconstructed", "half_sine", "damped_sine", "reconstructed_peak"):
+        scene = kneedyn.load_scene(CHAPTER).set_pulse(shape=shape).set_end(time_s=0.01)
+        path = os.path.join(OUT, "peak_factor_%s.yaml" % shape)
+        os.makedirs(OUT, exist_ok=True)
+        scene.write(path)
+        out = os.path.join(OUT, "peak_factor_%s" % shape)
+        p = subprocess.run([CLI, "run", path, "--quiet", "--out", out], capture_output=True, text=True)
+        assert p.returncode == 0, p.stderr
+        with open(os.path.join(out, "summary.json")) as f:
+            cli = json.load(f)["scene"]["pulse"]
+        assert scene.pulse["peak_factor"] == cli["peak_factor"], (shape, scene.pulse, cli)
+        factors[shape] = scene.pulse["peak_factor"]
+    assert factors["half_sine"] == pytest.approx(1.0, abs=1e-12)
+    assert len(set(factors.values())) >= 3, factors  # the shapes differ
+
+
 def _leaves(node, key=None):
     """(key, value) of every scalar of a document (list items under their list's key)."""
     if isinstance(node, dict):
