@@ -2,7 +2,9 @@
 // it accepts must not change: for numbers, booleans, nulls and strings in many spellings,
 // the loader's verdict (accepted with the same value, or refused with the same rule) is
 // the one yaml-cpp — the previous parser, used here as the oracle — gives for the same
-// scalar (Node type, convert<double>, convert<bool>).
+// scalar (Node type, convert<double>, convert<bool>). One departure, on purpose: a quoted
+// scalar is a string (YAML 1.2), so where a number or a boolean belongs the loader refuses
+// it ("not a quoted string") where yaml-cpp decoded '2.5' or "no" from the quotes.
 #include <gtest/gtest.h>
 
 #include <yaml-cpp/yaml.h>
@@ -37,6 +39,9 @@ std::string Verdict(const std::string& text, Scene* scene) {
 // yaml-cpp's view of `value` as the scalar of a mapping entry.
 YAML::Node Oracle(const std::string& value) { return YAML::Load("v: " + value)["v"]; }
 
+// A single- or double-quoted scalar (its first character is the quote).
+bool Quoted(const std::string& value) { return !value.empty() && (value[0] == '\'' || value[0] == '"'); }
+
 const std::vector<std::string> kNumbers = {
     "1", "1.0", "+1", "-0", ".5", "5.", "2e0", "1E+2", "1e-2", "1e", "e3", "0x10", "0o7", "1_000", "1,5", "'2.5'",
     "\"2.5\"", "\" 3\"", "\"4 \"", "4 # comment", ".inf", "+.INF", "-.Inf", ".NaN", ".nan", "inf", "nan", "~",
@@ -60,6 +65,8 @@ TEST(SceneYamlSemantics, NumbersAsYamlCpp) {
     double v = 0.0;
     if (!n.IsScalar()) {
       EXPECT_NE(verdict.find("must be a number"), std::string::npos) << verdict;
+    } else if (Quoted(s)) {
+      EXPECT_NE(verdict.find("must be a number, not a quoted string"), std::string::npos) << verdict;
     } else if (!YAML::convert<double>::decode(n, v)) {
       EXPECT_NE(verdict.find("must be a number"), std::string::npos) << verdict;
     } else if (!std::isfinite(v)) {
@@ -84,6 +91,8 @@ TEST(SceneYamlSemantics, BooleansAsYamlCpp) {
     bool b = false;
     if (!n.IsScalar() || !YAML::convert<bool>::decode(n, b)) {
       EXPECT_NE(verdict.find("must be true or false"), std::string::npos) << verdict;
+    } else if (Quoted(s)) {
+      EXPECT_NE(verdict.find("not a quoted string"), std::string::npos) << verdict;
     } else {
       ASSERT_EQ(verdict, "");
       EXPECT_EQ(scene.model.gravity_F.norm() > 0.0, b);
