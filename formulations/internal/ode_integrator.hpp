@@ -108,7 +108,9 @@ class OdeIntegrator {
   // (within ARKODE's stop-time round-off, 100 ε (|t| + |t_out|)) is already reached: no
   // step, *t = t_out, y unchanged (ARKODE rejects a stop time at the current time, e.g. after
   // a restart at a root found at the end of a step that ended on an output time).
-  // t_out < *t throws.
+  // t_out < *t throws. --max-steps (StepControl::max_steps) bounds the steps since the last
+  // Start, over all calls (a phase of ede; a chart of mde, which counts its phase itself):
+  // each call may take only what is left, and running out throws SolverError naming it.
   bool Evolve(double t_out, bool one_step, double* t, VectorXd* y, std::vector<int>* roots);
   // Restarts from a modified state (after a projection), keeping the step size and counters.
   void Reset(double t, const VectorXd& y);
@@ -163,6 +165,7 @@ class OdeIntegrator {
   // CVodeReInit leaves the linear solver interface's counters (Jacobians, difference-quotient
   // right-hand sides) to the next CVode call, which zeroes them: until then they count as 0.
   bool linear_counters_stale_ = false;
+  long start_steps_ = 0;     // steps taken since the last Start (the --max-steps budget)
   SolverStats accumulated_;  // finished solver instances and pre-reset segments
   SolverStats baseline_;     // counters of the live instance at its last reset
   std::string failure_;
