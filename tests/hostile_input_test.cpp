@@ -292,6 +292,18 @@ TEST_F(HostileInput, UnknownNestedKeyIsRefused) {
   ExpectRefused(RunArgs(scene), {"unknown key 'pulse.amplitud_N'", "nearest valid key 'amplitude_N'"});
 }
 
+// patella.quadriceps with shape constant uses magnitude_N alone: baseline_N or duration_s
+// would be ignored, so it is refused (exit 2, nothing written), naming the key and the shape.
+TEST_F(HostileInput, QuadricepsKeyTheShapeDoesNotUseIsRefused) {
+  const std::string text = Replaced(ReadText(ReferenceDataDir() + "/scenes/patellofemoral_impact.yaml"),
+                                    "parameter_set: ../chapter_knee.yaml", "parameter_set: " + ChapterParameterSetPath());
+  for (const char* key : {"baseline_N: 10.0", "duration_s: 0.2"}) {
+    const std::string scene = Input("scene.yaml", Replaced(text, "magnitude_N: 50.0,", std::string("magnitude_N: 50.0, ") + key + ","));
+    const std::string name = std::string(key).substr(0, std::string(key).find(':'));
+    ExpectRefused(RunArgs(scene), {"field 'patella.quadriceps." + name + "'", "not used by quadriceps shape constant"});
+  }
+}
+
 TEST_F(HostileInput, UnknownKeyInParameterSetIsRefused) {
   const std::string scene = SceneWithParameterSet(
       *this, Replaced(ReadText(ChapterParameterSetPath()), "extension_ratio: 1.050}", "extension_ratio: 1.050, k_toe: 3}"));

@@ -150,6 +150,30 @@ TEST(Patella, QuadricepsThatDoesNotPullIsRefusedNamingTheField) {
                              "q.yaml", dir));
 }
 
+// The constant shape uses magnitude_N alone: a baseline_N or duration_s given with it would
+// be ignored, so it is refused, naming the key, the shape and the rule. The other shapes use
+// both (their forces depend on them: QuadricepsMagnitude).
+TEST(Patella, QuadricepsKeysTheShapeDoesNotUseAreRefused) {
+  const std::string dir = "reference-data/scenes";
+  for (const char* quadriceps : {"{shape: constant, magnitude_N: 50.0, baseline_N: 10.0}",
+                                 "{shape: constant, magnitude_N: 50.0, duration_s: 0.2}"}) {
+    try {
+      ParseScene(SceneWithQuadriceps(quadriceps), "q.yaml", dir);
+      ADD_FAILURE() << quadriceps << " accepted";
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      const std::string key = std::string(quadriceps).find("baseline_N") != std::string::npos ? "baseline_N" : "duration_s";
+      EXPECT_NE(what.find("field 'patella.quadriceps." + key + "'"), std::string::npos) << what;
+      EXPECT_NE(what.find("not used by quadriceps shape constant"), std::string::npos) << what;
+    }
+  }
+  for (const char* quadriceps : {"{shape: constant, magnitude_N: 50.0}",
+                                 "{shape: ramp, baseline_N: 10, magnitude_N: 200, duration_s: 0.1}",
+                                 "{shape: half_sine, baseline_N: 10, magnitude_N: 200, duration_s: 0.1}"}) {
+    EXPECT_NO_THROW(ParseScene(SceneWithQuadriceps(quadriceps), "q.yaml", dir)) << quadriceps;
+  }
+}
+
 TEST(Patella, StaggeredRefusesASceneWithoutPatella) {
   const Scene chapter = LoadScene("reference-data/scenes/chapter_impact.yaml");
   EXPECT_FALSE(chapter.model.patella.has_value());
