@@ -479,8 +479,9 @@ void OdeIntegrator::RefuseAfterSteppedRoot(const char* function) const {
                      "steps (StepToRoot) left the solver at a trial step; every root ends the phase");
 }
 
-void OdeIntegrator::Reset(double t, const VectorXd& y) {
+void OdeIntegrator::Reset(double t, const VectorXd& y, bool new_step_budget) {
   if (stepped_to_root_) RefuseAfterSteppedRoot("OdeIntegrator::Reset");
+  if (new_step_budget) start_steps_ = 0;
   // The step the controller proposed next (not the last one taken, which may have been cut
   // by a stop time): restarting from it keeps the step-size history across projections.
   double h = 0.0;
