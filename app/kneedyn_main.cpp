@@ -188,7 +188,8 @@ int Main(int argc, char** argv) {
   text_option("--integrator", "integrator (" + accepted(&FormulationInfo::integrators) + ")");
   text_option("--step", "fixed step in s (" + (describe ? FixedStepMethods() : std::string()) + ")");
   text_option("--max-step", "largest adaptive step in s (0: none)");
-  text_option("--max-steps", "step budget per phase", shown(defaults.max_steps));
+  text_option("--max-steps", "step budget per phase (dae*, monolithic*: per output interval)",
+              shown(defaults.max_steps));
   text_option("--stabilization", "stabilization (" + accepted(&FormulationInfo::stabilizations) + ")",
               shown(OptionName(defaults.stabilization)));
   text_option("--constraint-level", "constraint level: velocity (index 2) | position (index-3 variant) (" +
@@ -292,8 +293,9 @@ int Main(int argc, char** argv) {
     }
     const RunResult result = RunScene(scene, settings);
     if (show_progress) std::fprintf(stderr, "\n");
+    std::vector<PullingContact> warnings;
     try {
-      WriteRunOutputs(out_dir, scene, settings, result);
+      warnings = WriteRunOutputs(out_dir, scene, settings, result);
     } catch (const std::exception& e) {  // its messages name --out
       std::fprintf(stderr, "kneedyn: error: %s\n", Clip(e.what()).c_str());
       return 2;
@@ -315,6 +317,9 @@ int Main(int argc, char** argv) {
     std::printf("  max constraint residual: gap %.3e mm, gap rate %.3e mm/s\n",
                 MToMm(result.max_position_residual), MToMm(result.max_velocity_residual));
     std::printf("  wrote %s/{trajectory.csv, trajectory.sto, summary.json}\n", out_dir.c_str());
+    std::fflush(stdout);  // the warnings follow the summary when both streams go to one file
+    // summary.json's warnings, on stderr with or without --quiet (it hides progress only).
+    for (const PullingContact& w : warnings) std::fprintf(stderr, "kneedyn run: warning: %s\n", w.message.c_str());
     if (!result.completed) {
       std::fprintf(stderr, "kneedyn run: solver failed: %s\n  (results up to there written, marked partial)\n",
                    result.failure.c_str());

@@ -54,7 +54,7 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
       // One step at a time: the chart is checked after every step, not only at output
       // times (whose spacing must not change the physics).
       root = integrator_.Evolve(t_out, true, &t_, &y_, &found);
-      if (++phase_steps_ > options_.control.max_steps) {  // the budget ARKODE applies per call only
+      if (++phase_steps_ > options_.control.max_steps) {  // the integrator's own budget restarts with a chart
         Throw<SolverError>("MdeFormulation::Advance", "more than --max-steps = ", options_.control.max_steps,
                            " steps in this contact phase at t = ", t_, " s");
       }

@@ -306,6 +306,7 @@ void OdeIntegrator::Start(OdeProblem* problem, double t0, const VectorXd& y0,
   }
   baseline_ = SolverStats();
   ++accumulated_.restarts;
+  start_steps_ = 0;
 }
 
 bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, std::vector<int>* roots) {
@@ -325,19 +326,41 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
     *t = t_out;
     return false;
   }
+  // --max-steps is a budget per phase: a call to t_out gets what the phase's earlier calls
+  // left (SUNDIALS' own limit counts per call; ≤ 0 would mean its default, 500).
+  const long left = options_.max_steps - start_steps_;
+  const auto out_of_steps = [&](double t_at) {
+    Throw<SolverError>("OdeIntegrator::Evolve", owner_, " (", name_, "): more than --max-steps = ",
+                       options_.max_steps, " steps in this phase at t = ", t_at,
+                       " s (the budget is per phase, over all output intervals)");
+  };
+  if (left <= 0) out_of_steps(*t);
+  const auto steps_taken = [&] {
+    long v = 0;
+    if (is_cvode()) {
+      CVodeGetNumSteps(mem_, &v);
+    } else {
+      ark_->GetNumSteps(mem_, &v);
+    }
+    return v;
+  };
+  const long steps_before = steps_taken();
   double t_reached = *t;
   int flag = 0;
   bool root = false;
   if (is_cvode()) {
     Check(CVodeSetStopTime(mem_, t_out), "CVodeSetStopTime");
+    if (!one_step) Check(CVodeSetMaxNumSteps(mem_, left), "CVodeSetMaxNumSteps");
     flag = CVode(mem_, t_out, y_, &t_reached, one_step ? CV_ONE_STEP : CV_NORMAL);
     linear_counters_stale_ = false;  // CVode's first call after a re-initialization zeroed them
     root = flag == CV_ROOT_RETURN;
   } else {
     CheckArk(ark_->SetStopTime(mem_, t_out), "SetStopTime");
+    if (!one_step) CheckArk(ark_->SetMaxNumSteps(mem_, left), "SetMaxNumSteps");
     flag = ark_->Evolve(mem_, t_out, y_, &t_reached, one_step ? ARK_ONE_STEP : ARK_NORMAL);
     root = flag == ARK_ROOT_RETURN;
   }
+  start_steps_ += steps_taken() - steps_before;
   if (flag < 0) {
     double h = 0.0, t_cur = 0.0;
     std::string text;
@@ -349,6 +372,10 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
       ark_->GetCurrentStep(mem_, &h);
       ark_->GetCurrentTime(mem_, &t_cur);
       text = ReturnFlagText(ark_->GetReturnFlagName, flag);
+    }
+    if (flag == (is_cvode() ? CV_TOO_MUCH_WORK : ARK_TOO_MUCH_WORK)) {  // this call's share of the budget
+      text = StrCat("more than --max-steps = ", options_.max_steps,
+                    " steps in this phase (the budget is per phase, over all output intervals; ", text, ")");
     }
     Throw<SolverError>("OdeIntegrator::Evolve", owner_, " (", name_, "): ", text, " at t = ", t_cur, " s with step h = ", h, " s",
                        LargestErrorComponent(), failure_.empty() ? "" : " (" + failure_ + ")", sundials_messages_.Take());
@@ -452,8 +479,9 @@ void OdeIntegrator::RefuseAfterSteppedRoot(const char* function) const {
                      "steps (StepToRoot) left the solver at a trial step; every root ends the phase");
 }
 
-void OdeIntegrator::Reset(double t, const VectorXd& y) {
+void OdeIntegrator::Reset(double t, const VectorXd& y, bool new_step_budget) {
   if (stepped_to_root_) RefuseAfterSteppedRoot("OdeIntegrator::Reset");
+  if (new_step_budget) start_steps_ = 0;
   // The step the controller proposed next (not the last one taken, which may have been cut
   // by a stop time): restarting from it keeps the step-size history across projections.
   double h = 0.0;

@@ -231,6 +231,49 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
   return table;
 }
 
+std::vector<PullingContact> PullingContacts(const TrajectoryTable& table, const RunResult& result) {
+  std::vector<PullingContact> out;
+  const auto& cols = table.columns;
+  const auto column = [&](const char* name) {
+    return static_cast<size_t>(std::find(cols.begin(), cols.end(), name) - cols.begin());
+  };
+  const size_t time_col = column("time_s"), event_col = column("is_event");
+  for (size_t c = 0; c < cols.size(); ++c) {
+    const std::string& name = cols[c];
+    // N_<compartment>_N (tibial) and N_patella_<facet>_N; not the ligaments' F_*_N.
+    if (name.size() < 5 || name.compare(0, 2, "N_") != 0 || name.compare(name.size() - 2, 2, "_N") != 0) continue;
+    const std::string which = name.substr(2, name.size() - 4);  // "medial", "patella_lateral"
+    const bool facet = which.compare(0, 8, "patella_") == 0;
+    const std::string part = facet ? which.substr(8) : which;
+    const std::string liftoff = facet ? "liftoff_patellar_" + part : "liftoff_" + part;
+    double min_force = 0.0, at = 0.0;
+    for (const std::vector<double>& row : table.rows) {
+      if (c >= row.size() || !(row[c] < min_force)) continue;
+      if (event_col < row.size() && row[event_col] == 1.0) {
+        const bool own_liftoff = std::any_of(result.events.begin(), result.events.end(), [&](const EventRecord& e) {
+          return e.name == liftoff && e.time == row[time_col];
+        });
+        if (own_liftoff) continue;
+      }
+      min_force = row[c];
+      at = row[time_col];
+    }
+    if (!(min_force < 0.0)) continue;
+    PullingContact p;
+    p.column = name;
+    p.contact = (facet ? "patellar facet " : "tibial contact ") + part;
+    p.min_force_N = min_force;
+    p.time_s = at;
+    p.message = StrCat("the ", p.contact, " pulled: ", name, " = ", min_force, " N at t = ", at, " s (its minimum",
+                       facet ? "; without patella.facet_liftoff both facets stay in contact with a force of either "
+                               "sign, docs/model.md §12; facet_liftoff: true separates a pulling facet)"
+                             : "; a tibial contact separates at its lift-off event, docs/model.md §9: this row "
+                               "lies past a lift-off the integration did not locate)");
+    out.push_back(std::move(p));
+  }
+  return out;
+}
+
 // The JSON objects below are filled member by member: a braced list of {key, value} pairs
 // builds a two-element array per member first (an allocation or three more a member;
 // SummaryJson 0.20 -> 0.11 M instructions, callgrind). Keys are sorted by nlohmann::json
@@ -428,7 +471,7 @@ void Publish(const fs::path& tmp, const fs::path& out) {
 }  // namespace
 
 nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
-                           const RunResult& result) {
+                           const RunResult& result, const TrajectoryTable& table) {
   nlohmann::json j;
   j["schema_version"] = kSummarySchemaVersion;  // docs/outputs.md
   j["kneedyn_version"] = KneedynVersion();
@@ -505,6 +548,19 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
   j["constraint_residuals"]["max_gap_mm"] = MToMm(result.max_position_residual);
   j["constraint_residuals"]["max_gap_rate_mm_s"] = MToMm(result.max_velocity_residual);
   j["wall_time_s"] = result.wall_time_s;
+  // What a completed run would otherwise not say (docs/outputs.md): contacts that pulled.
+  nlohmann::json warnings = nlohmann::json::array();
+  for (const PullingContact& p : PullingContacts(table, result)) {
+    nlohmann::json w = nlohmann::json::object();
+    w["kind"] = "pulling_contact";
+    w["contact"] = p.contact;
+    w["column"] = p.column;
+    w["min_force_N"] = p.min_force_N;
+    w["time_s"] = p.time_s;
+    w["message"] = p.message;
+    warnings.push_back(std::move(w));
+  }
+  j["warnings"] = std::move(warnings);
   nlohmann::json& versions = j["versions"];
   versions["sundials"] = SUNDIALS_VERSION;
   versions["ceres"] = CERES_VERSION_STRING;
@@ -512,8 +568,8 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
   return j;
 }
 
-void WriteRunOutputs(const std::string& dir_name, const Scene& scene, const RunSettings& settings,
-                     const RunResult& result) {
+std::vector<PullingContact> WriteRunOutputs(const std::string& dir_name, const Scene& scene,
+                                            const RunSettings& settings, const RunResult& result) {
   CheckOutputDirectory(dir_name);
   const fs::path out = OutputPath(dir_name);
   std::error_code ec;
@@ -576,13 +632,14 @@ void WriteRunOutputs(const std::string& dir_name, const Scene& scene, const RunS
               {sto, std::string_view(sto_rows.get(), static_cast<size_t>(s_out - sto_rows.get()))});
     // Invalid UTF-8 (e.g. in a file path) is replaced, never thrown on.
     WriteFile(dir_name, tmp / "summary.json",
-              {SummaryJson(scene, settings, result).dump(2, ' ', false, nlohmann::json::error_handler_t::replace), "\n"});
+              {SummaryJson(scene, settings, result, table).dump(2, ' ', false, nlohmann::json::error_handler_t::replace), "\n"});
     Publish(tmp, out);
+    fs::remove_all(tmp, ec);  // the previous set, if there was one
+    return PullingContacts(table, result);
   } catch (...) {
     fs::remove_all(tmp, ec);
     throw;
   }
-  fs::remove_all(tmp, ec);  // the previous set, if there was one
 }
 
 }  // namespace kneedyn

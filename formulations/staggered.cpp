@@ -74,8 +74,8 @@ class StaggeredFormulation final : public FormulationBase, public OdeProblem {
       const double target = std::min(t_out, next_update_);
       root = integrator_.Evolve(target, false, &t_, &y_, &found);
       if (!root && t_ >= next_update_) {  // end of a coupling step: the patella catches up
-        // --max-steps bounds the coupling steps of a phase: dopri5's own budget is per call,
-        // one coupling step, so --step 1e-9 ran 3.4e8 of them (hours) with no bound.
+        // --max-steps bounds the coupling steps of a phase (and dopri5's steps within each):
+        // --step 1e-9 ran 3.4e8 coupling steps (hours) when only the inner steps were bounded.
         if (phase_coupling_steps_ >= max_steps_) {
           Throw<SolverError>("staggered", "more than --max-steps = ", max_steps_, " coupling steps of ", step_,
                              " s in this phase (t = ", t_, " s)");
@@ -95,7 +95,7 @@ class StaggeredFormulation final : public FormulationBase, public OdeProblem {
             root = true;
           }
         }
-        if (!root) integrator_.Reset(t_, y_);
+        if (!root) integrator_.Reset(t_, y_, /*new_step_budget=*/true);  // the inner steps: per coupling step
       }
     }
     const Vector6d q = y_.head<6>(), qd = y_.tail<6>();

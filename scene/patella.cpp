@@ -40,6 +40,15 @@ void ParsePatella(const Field& top, ModelDescription* model) {
   QuadricepsForce& quadriceps = patella.quadriceps;
   quadriceps.shape =
       ParseQuadricepsShape(q.Required("shape").OneOf(ValuesOf("scene.patella.quadriceps.shape"), "quadriceps shape"));
+  // A key the shape does not use would be ignored: refused, naming the shape and its rule.
+  if (quadriceps.shape == QuadricepsShape::kConstant) {
+    for (const char* key : {"baseline_N", "duration_s"}) {
+      if (q.Has(key)) {
+        q.Required(key).Fail("not used by quadriceps shape constant (F = magnitude_N at every t); baseline_N "
+                             "and duration_s belong to the shapes ramp and half_sine");
+      }
+    }
+  }
   quadriceps.magnitude = q.Required("magnitude_N").Range(-kMaxForceN, kMaxForceN);
   if (q.Has("baseline_N")) quadriceps.baseline = q.Required("baseline_N").Range(-kMaxForceN, kMaxForceN);
   if (q.Has("duration_s")) quadriceps.duration = q.Required("duration_s").Range(1e-6, 100.0);

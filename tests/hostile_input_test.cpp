@@ -292,6 +292,35 @@ TEST_F(HostileInput, UnknownNestedKeyIsRefused) {
   ExpectRefused(RunArgs(scene), {"unknown key 'pulse.amplitud_N'", "nearest valid key 'amplitude_N'"});
 }
 
+// patella.quadriceps with shape constant uses magnitude_N alone: baseline_N or duration_s
+// would be ignored, so it is refused (exit 2, nothing written), naming the key and the shape.
+TEST_F(HostileInput, QuadricepsKeyTheShapeDoesNotUseIsRefused) {
+  const std::string text = Replaced(ReadText(ReferenceDataDir() + "/scenes/patellofemoral_impact.yaml"),
+                                    "parameter_set: ../chapter_knee.yaml", "parameter_set: " + ChapterParameterSetPath());
+  for (const char* key : {"baseline_N: 10.0", "duration_s: 0.2"}) {
+    const std::string scene = Input("scene.yaml", Replaced(text, "magnitude_N: 50.0,", std::string("magnitude_N: 50.0, ") + key + ","));
+    const std::string name = std::string(key).substr(0, std::string(key).find(':'));
+    ExpectRefused(RunArgs(scene), {"field 'patella.quadriceps." + name + "'", "not used by quadriceps shape constant"});
+  }
+}
+
+// An accepted scene at an edge: the quadriceps line (0.3, -0.2, 1) pulls the medial patellar
+// facet from t = 0 and, without facet_liftoff, the run completes (exit 0). The warning of
+// summary.json is printed on stderr (stdout discarded here) although --quiet is given.
+TEST_F(HostileInput, PullingPatellarFacetIsWarnedOnStderrEvenWithQuiet) {
+  const std::string text = Replaced(ReadText(ReferenceDataDir() + "/scenes/patellofemoral_impact.yaml"),
+                                    "parameter_set: ../chapter_knee.yaml", "parameter_set: " + ChapterParameterSetPath());
+  const std::string scene = Input("scene.yaml", Replaced(text, "direction_F: [0.06, -0.2, 1.0]", "direction_F: [0.3, -0.2, 1.0]"));
+  const CommandResult r =
+      RunShell(std::string("( '") + KNEEDYN_EXE + "' " + RunArgs(scene, "--formulation ede") + " 2>&1 >/dev/null; echo \"exit $?\" )");
+  EXPECT_NE(r.output.find("exit 0"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("kneedyn run: warning: the patellar facet medial pulled: N_patella_medial_N = -"), std::string::npos)
+      << r.output;
+  const nlohmann::json summary = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
+  ASSERT_EQ(summary.at("warnings").size(), 1u) << summary.dump();
+  EXPECT_EQ(summary["warnings"][0]["column"], "N_patella_medial_N");
+}
+
 TEST_F(HostileInput, UnknownKeyInParameterSetIsRefused) {
   const std::string scene = SceneWithParameterSet(
       *this, Replaced(ReadText(ChapterParameterSetPath()), "extension_ratio: 1.050}", "extension_ratio: 1.050, k_toe: 3}"));

@@ -404,5 +404,35 @@ TEST(OdeFailures, NameTheLargestWeightedLocalErrorComponent) {
   EXPECT_NE(r.failure.find("CV_TOO_MUCH_WORK"), std::string::npos) << r.failure;
 }
 
+// --max-steps bounds the steps of a phase, over all the integrator calls of its output
+// intervals (SUNDIALS' own limit counts per call). The scene c1_law has two phases (no
+// ligament kinks restart it): rk4 at h = 1e-4 s takes 50 steps per 0.005 s output interval
+// and ceil(0.2167 / h) = 2167 in the first phase (lift-off at 0.2167 s), about 830 in the
+// second (to 90° at 0.2993 s). A budget of 2100 runs out at t = 2100 h = 0.21 s; one of 2200
+// covers both phases. On the old per-call budget both completed.
+TEST(OdeFailures, MaxStepsIsABudgetPerPhase) {
+  const Scene scene = LoadScene(ReferenceDataDir() + "/scenes/hard/c1_law.yaml");
+  for (const char* stabilization : {"none", "projection"}) {
+    FormulationOptions o;
+    o.integrator = IntegratorKind::kRk4;
+    o.step = 1.0e-4;
+    o.stabilization = ParsedOptionValue<Stabilization>(stabilization);
+    o.max_steps = 2100;
+    RunSettings settings;
+    settings.formulation = "ede";
+    settings.options = o;
+    const RunResult short_budget = RunScene(scene, settings);
+    ASSERT_FALSE(short_budget.completed) << stabilization;
+    EXPECT_NE(short_budget.failure.find("more than --max-steps = 2100 steps in this phase"), std::string::npos)
+        << stabilization << ": " << short_budget.failure;
+    ASSERT_FALSE(short_budget.samples.empty());
+    // The last row written is the output time before the budget ran out (0.21 s).
+    EXPECT_NEAR(short_budget.samples.back().t, 0.21, 1.0e-9) << stabilization;
+    settings.options.max_steps = 2200;
+    const RunResult enough = RunScene(scene, settings);
+    EXPECT_TRUE(enough.completed) << stabilization << ": " << enough.failure;
+  }
+}
+
 }  // namespace
 }  // namespace kneedyn

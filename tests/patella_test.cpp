@@ -3,8 +3,15 @@
 // (ODE check, Newton-based DAE, staggered) against each other.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
 
 #include "formulations/formulation.hpp"
 #include "formulations/run.hpp"
@@ -148,6 +155,30 @@ TEST(Patella, QuadricepsThatDoesNotPullIsRefusedNamingTheField) {
   }
   EXPECT_NO_THROW(ParseScene(SceneWithQuadriceps("{shape: ramp, baseline_N: 10, magnitude_N: 200, duration_s: 0.1}"),
                              "q.yaml", dir));
+}
+
+// The constant shape uses magnitude_N alone: a baseline_N or duration_s given with it would
+// be ignored, so it is refused, naming the key, the shape and the rule. The other shapes use
+// both (their forces depend on them: QuadricepsMagnitude).
+TEST(Patella, QuadricepsKeysTheShapeDoesNotUseAreRefused) {
+  const std::string dir = "reference-data/scenes";
+  for (const char* quadriceps : {"{shape: constant, magnitude_N: 50.0, baseline_N: 10.0}",
+                                 "{shape: constant, magnitude_N: 50.0, duration_s: 0.2}"}) {
+    try {
+      ParseScene(SceneWithQuadriceps(quadriceps), "q.yaml", dir);
+      ADD_FAILURE() << quadriceps << " accepted";
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      const std::string key = std::string(quadriceps).find("baseline_N") != std::string::npos ? "baseline_N" : "duration_s";
+      EXPECT_NE(what.find("field 'patella.quadriceps." + key + "'"), std::string::npos) << what;
+      EXPECT_NE(what.find("not used by quadriceps shape constant"), std::string::npos) << what;
+    }
+  }
+  for (const char* quadriceps : {"{shape: constant, magnitude_N: 50.0}",
+                                 "{shape: ramp, baseline_N: 10, magnitude_N: 200, duration_s: 0.1}",
+                                 "{shape: half_sine, baseline_N: 10, magnitude_N: 200, duration_s: 0.1}"}) {
+    EXPECT_NO_THROW(ParseScene(SceneWithQuadriceps(quadriceps), "q.yaml", dir)) << quadriceps;
+  }
 }
 
 TEST(Patella, StaggeredRefusesASceneWithoutPatella) {
@@ -579,6 +610,120 @@ TEST(PatellaRuns, StaggeredHonoursMaxStepsAcrossCouplingSteps) {
       << run.failure;
   settings.options.max_steps = 3000;
   EXPECT_TRUE(RunScene(scene, settings).completed);
+}
+
+// The written set of a run, read back: summary.json and trajectory.csv's columns.
+struct WrittenRun {
+  nlohmann::json summary;
+  std::vector<std::string> columns;
+  std::vector<std::vector<std::string>> rows;  // the CSV's cells as written ("" = empty)
+};
+
+WrittenRun WriteAndRead(const Scene& scene, const RunSettings& settings, const RunResult& run, const std::string& tag) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("kneedyn_patella_test_" + std::to_string(::getpid()) + "_" + tag);
+  fs::remove_all(dir);
+  WriteRunOutputs(dir.string(), scene, settings, run);
+  WrittenRun w;
+  std::ifstream summary(dir / "summary.json");
+  w.summary = nlohmann::json::parse(summary);
+  std::ifstream csv(dir / "trajectory.csv");
+  std::string line;
+  for (bool header = true; std::getline(csv, line); header = false) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
+    if (!line.empty() && line.back() == ',') cells.emplace_back();
+    (header ? w.columns : (w.rows.emplace_back(), w.rows.back())) = cells;
+  }
+  fs::remove_all(dir);
+  return w;
+}
+
+// A completed run whose patellar facet pulls (no facet_liftoff: λ of either sign, docs/model.md
+// §12) says so: summary.json's warnings hold one entry per pulling facet, its most negative
+// force and the time, equal to the minimum of its column in trajectory.csv as written (read
+// back here, not taken from the code's table). The quadriceps line (0.3, -0.2, 1) pulls the
+// impact scene's medial facet from t = 0 (MonolithicStopsAtTheStartWhenAFacetPullsThere). The
+// shipped scene (line (0.06, -0.2, 1)) has no warning with dae, whose lift-off row of the
+// lateral tibial contact holds a force of round-off below 0 (the event's own row, not a pull).
+TEST(PatellaRuns, PullingFacetIsNamedInTheSummaryWarnings) {
+  Scene scene = ImpactScene();
+  scene.model.patella->quadriceps.direction_F = Vector3d(0.3, -0.2, 1.0).normalized();
+  SolvePatellaStart(scene.reference_q, scene.initial.q, &*scene.model.patella);
+  RunSettings settings;
+  settings.formulation = "ede";
+  const RunResult run = RunScene(scene, settings);
+  ASSERT_TRUE(run.completed) << run.failure;
+  const WrittenRun w = WriteAndRead(scene, settings, run, "pull");
+  ASSERT_TRUE(w.summary.contains("warnings"));
+  const nlohmann::json& warnings = w.summary["warnings"];
+  int pulling = 0;
+  for (const char* facet : {"medial", "lateral"}) {
+    const std::string column = std::string("N_patella_") + facet + "_N";
+    const size_t c = static_cast<size_t>(std::find(w.columns.begin(), w.columns.end(), column) - w.columns.begin());
+    ASSERT_LT(c, w.columns.size()) << column;
+    double min_force = 0.0, at = 0.0;
+    for (const auto& row : w.rows) {
+      const double v = std::stod(row.at(c));
+      if (v < min_force) min_force = v, at = std::stod(row.at(0));
+    }
+    const nlohmann::json* entry = nullptr;
+    for (const nlohmann::json& x : warnings) {
+      if (x["column"] == column) entry = &x;
+    }
+    if (min_force < 0.0) {
+      ++pulling;
+      ASSERT_NE(entry, nullptr) << column << " pulls (" << min_force << " N) without a warning: " << warnings.dump();
+      EXPECT_EQ((*entry)["kind"], "pulling_contact");
+      EXPECT_EQ((*entry)["contact"], std::string("patellar facet ") + facet);
+      EXPECT_LT((*entry)["min_force_N"].get<double>(), 0.0);
+      // The CSV holds 12 significant digits.
+      EXPECT_NEAR((*entry)["min_force_N"].get<double>(), min_force, 1e-11 * std::abs(min_force)) << column;
+      EXPECT_NEAR((*entry)["time_s"].get<double>(), at, 1e-11) << column;
+      const std::string message = (*entry)["message"];
+      EXPECT_NE(message.find(std::string("patellar facet ") + facet + " pulled"), std::string::npos) << message;
+    } else {
+      EXPECT_EQ(entry, nullptr) << column << " never pulls: " << warnings.dump();
+    }
+  }
+  EXPECT_GE(pulling, 1) << "the premise: a facet pulls with this quadriceps line";
+  EXPECT_EQ(warnings.size(), static_cast<size_t>(pulling)) << warnings.dump();
+
+  const Scene shipped = ImpactScene();
+  settings.formulation = "dae";
+  const RunResult plain = RunScene(shipped, settings);
+  ASSERT_TRUE(plain.completed) << plain.failure;
+  const WrittenRun p = WriteAndRead(shipped, settings, plain, "plain");
+  EXPECT_TRUE(p.summary["warnings"].is_array());
+  EXPECT_TRUE(p.summary["warnings"].empty()) << p.summary["warnings"].dump();
+}
+
+// The same warnings for the tibial contacts, from a table built here: a force below 0 in an
+// ordinary row is reported (the column's minimum and its time), the contact's own lift-off
+// event row is not (its force is 0 by the event's definition), another event's row is.
+TEST(PatellaRuns, PullingTibialContactIsReportedOutsideItsOwnLiftoffRow) {
+  TrajectoryTable table;
+  table.columns = {"time_s", "is_event", "N_medial_N", "N_lateral_N", "F_ACL_N"};
+  table.rows = {{0.0, 0.0, 10.0, 5.0, -3.0},
+                {0.1, 1.0, -0.02, 2.0, 1.0},   // liftoff_medial's row: not counted
+                {0.2, 0.0, 0.0, -0.25, 1.0},
+                {0.3, 1.0, 0.0, -0.5, 1.0},    // liftoff_medial's again: lateral counts
+                {0.4, 0.0, 0.0, -0.5, 1.0}};
+  RunResult result;
+  result.events = {{"liftoff_medial", 0.1, 0.0}, {"recontact_medial", 0.3, 0.0}};
+  const std::vector<PullingContact> pulling = PullingContacts(table, result);
+  ASSERT_EQ(pulling.size(), 1u);
+  EXPECT_EQ(pulling[0].column, "N_lateral_N");
+  EXPECT_EQ(pulling[0].contact, "tibial contact lateral");
+  EXPECT_EQ(pulling[0].min_force_N, -0.5);
+  EXPECT_EQ(pulling[0].time_s, 0.3);  // the first row of the minimum
+  result.events = {{"liftoff_lateral", 0.3, 0.0}};  // now 0.3 is the lateral lift-off's row
+  const std::vector<PullingContact> after = PullingContacts(table, result);
+  ASSERT_EQ(after.size(), 2u);  // medial's -0.02 at 0.1 is no lift-off row any more
+  EXPECT_EQ(after[0].column, "N_medial_N");
+  EXPECT_EQ(after[0].min_force_N, -0.02);
+  EXPECT_EQ(after[1].time_s, 0.4);
 }
 
 }  // namespace

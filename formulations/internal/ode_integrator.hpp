@@ -108,10 +108,15 @@ class OdeIntegrator {
   // (within ARKODE's stop-time round-off, 100 ε (|t| + |t_out|)) is already reached: no
   // step, *t = t_out, y unchanged (ARKODE rejects a stop time at the current time, e.g. after
   // a restart at a root found at the end of a step that ended on an output time).
-  // t_out < *t throws.
+  // t_out < *t throws. --max-steps (StepControl::max_steps) bounds the steps since the last
+  // Start, over all calls (a phase of ede; a chart of mde, which counts its phase itself;
+  // a coupling step of staggered, Reset):
+  // each call may take only what is left, and running out throws SolverError naming it.
   bool Evolve(double t_out, bool one_step, double* t, VectorXd* y, std::vector<int>* roots);
   // Restarts from a modified state (after a projection), keeping the step size and counters.
-  void Reset(double t, const VectorXd& y);
+  // `new_step_budget`: the --max-steps budget starts again (staggered's coupling steps, each
+  // its own integration; the budget of their count is the formulation's).
+  void Reset(double t, const VectorXd& y, bool new_step_budget = false);
   SolverStats stats() const;
   // Testing hook (Formulation::EvaluateHotPathForTesting): the right-hand-side and root
   // callbacks the solver calls, n times at (t, y), through the same glue; false on failure.
@@ -163,6 +168,7 @@ class OdeIntegrator {
   // CVodeReInit leaves the linear solver interface's counters (Jacobians, difference-quotient
   // right-hand sides) to the next CVode call, which zeroes them: until then they count as 0.
   bool linear_counters_stale_ = false;
+  long start_steps_ = 0;     // steps taken since the last Start (the --max-steps budget)
   SolverStats accumulated_;  // finished solver instances and pre-reset segments
   SolverStats baseline_;     // counters of the live instance at its last reset
   std::string failure_;
