@@ -231,8 +231,8 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
   return table;
 }
 
-std::vector<PullingContact> PullingContacts(const TrajectoryTable& table, const RunResult& result) {
-  std::vector<PullingContact> out;
+std::vector<PullingContactWarning> PullingContactWarnings(const TrajectoryTable& table, const RunResult& result) {
+  std::vector<PullingContactWarning> out;
   const auto& cols = table.columns;
   const auto column = [&](const char* name) {
     return static_cast<size_t>(std::find(cols.begin(), cols.end(), name) - cols.begin());
@@ -259,7 +259,7 @@ std::vector<PullingContact> PullingContacts(const TrajectoryTable& table, const 
       at = row[time_col];
     }
     if (!(min_force < 0.0)) continue;
-    PullingContact p;
+    PullingContactWarning p;
     p.column = name;
     p.contact = (facet ? "patellar facet " : "tibial contact ") + part;
     p.min_force_N = min_force;
@@ -550,7 +550,7 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
   j["wall_time_s"] = result.wall_time_s;
   // What a completed run would otherwise not say (docs/outputs.md): contacts that pulled.
   nlohmann::json warnings = nlohmann::json::array();
-  for (const PullingContact& p : PullingContacts(table, result)) {
+  for (const PullingContactWarning& p : PullingContactWarnings(table, result)) {
     nlohmann::json w = nlohmann::json::object();
     w["kind"] = "pulling_contact";
     w["contact"] = p.contact;
@@ -568,7 +568,7 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
   return j;
 }
 
-std::vector<PullingContact> WriteRunOutputs(const std::string& dir_name, const Scene& scene,
+std::vector<PullingContactWarning> WriteRunOutputs(const std::string& dir_name, const Scene& scene,
                                             const RunSettings& settings, const RunResult& result) {
   CheckOutputDirectory(dir_name);
   const fs::path out = OutputPath(dir_name);
@@ -635,7 +635,7 @@ std::vector<PullingContact> WriteRunOutputs(const std::string& dir_name, const S
               {SummaryJson(scene, settings, result, table).dump(2, ' ', false, nlohmann::json::error_handler_t::replace), "\n"});
     Publish(tmp, out);
     fs::remove_all(tmp, ec);  // the previous set, if there was one
-    return PullingContacts(table, result);
+    return PullingContactWarnings(table, result);
   } catch (...) {
     fs::remove_all(tmp, ec);
     throw;

@@ -33,7 +33,7 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
 // contact's own lift-off event row is not counted: there the force is 0 by the event's
 // definition (docs/model.md §9) and its value is the event location's error (−4e-12 N with
 // dae, −0.015 N with staggered on the patellofemoral impact).
-struct PullingContact {
+struct PullingContactWarning {
   std::string column;   // the trajectory column, e.g. "N_patella_lateral_N", "N_medial_N"
   std::string contact;  // "patellar facet lateral", "tibial contact medial"
   double min_force_N = 0.0;  // the column's most negative value, N
@@ -41,7 +41,7 @@ struct PullingContact {
   std::string message;  // one line for the CLI and summary.json
 };
 // From the rows of `table` (MakeTrajectoryTable of `result`) and result.events; in column order.
-std::vector<PullingContact> PullingContacts(const TrajectoryTable& table, const RunResult& result);
+std::vector<PullingContactWarning> PullingContactWarnings(const TrajectoryTable& table, const RunResult& result);
 
 // summary.json; `table` is MakeTrajectoryTable(scene, result) (its rows give `warnings`).
 nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
@@ -59,8 +59,8 @@ void CheckOutputDirectory(const std::string& dir);
 // After a kill at any moment `dir` holds the previous complete set or the new one; a
 // later run removes temporaries whose process has ended. Of two runs into the same `dir`,
 // the last to publish wins whole. Throws InputError (checks of CheckOutputDirectory).
-// Returns summary.json's warnings (PullingContacts), for the caller to show.
-std::vector<PullingContact> WriteRunOutputs(const std::string& dir, const Scene& scene, const RunSettings& settings,
+// Returns summary.json's warnings (PullingContactWarnings), for the caller to show.
+std::vector<PullingContactWarning> WriteRunOutputs(const std::string& dir, const Scene& scene, const RunSettings& settings,
                      const RunResult& result);
 
 // The bytes of printf("%.12g", v) for the numbers of trajectory.csv/.sto, written into

@@ -712,14 +712,14 @@ TEST(PatellaRuns, PullingTibialContactIsReportedOutsideItsOwnLiftoffRow) {
                 {0.4, 0.0, 0.0, -0.5, 1.0}};
   RunResult result;
   result.events = {{"liftoff_medial", 0.1, 0.0}, {"recontact_medial", 0.3, 0.0}};
-  const std::vector<PullingContact> pulling = PullingContacts(table, result);
+  const std::vector<PullingContactWarning> pulling = PullingContactWarnings(table, result);
   ASSERT_EQ(pulling.size(), 1u);
   EXPECT_EQ(pulling[0].column, "N_lateral_N");
   EXPECT_EQ(pulling[0].contact, "tibial contact lateral");
   EXPECT_EQ(pulling[0].min_force_N, -0.5);
   EXPECT_EQ(pulling[0].time_s, 0.3);  // the first row of the minimum
   result.events = {{"liftoff_lateral", 0.3, 0.0}};  // now 0.3 is the lateral lift-off's row
-  const std::vector<PullingContact> after = PullingContacts(table, result);
+  const std::vector<PullingContactWarning> after = PullingContactWarnings(table, result);
   ASSERT_EQ(after.size(), 2u);  // medial's -0.02 at 0.1 is no lift-off row any more
   EXPECT_EQ(after[0].column, "N_medial_N");
   EXPECT_EQ(after[0].min_force_N, -0.02);
