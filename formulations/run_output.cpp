@@ -470,8 +470,8 @@ void Publish(const fs::path& tmp, const fs::path& out) {
 }
 }  // namespace
 
-nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
-                           const RunResult& result, const TrajectoryTable& table) {
+nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, const RunResult& result,
+                           const std::vector<PullingContactWarning>& pulling) {
   nlohmann::json j;
   j["schema_version"] = kSummarySchemaVersion;  // docs/outputs.md
   j["kneedyn_version"] = KneedynVersion();
@@ -550,7 +550,7 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
   j["wall_time_s"] = result.wall_time_s;
   // What a completed run would otherwise not say (docs/outputs.md): contacts that pulled.
   nlohmann::json warnings = nlohmann::json::array();
-  for (const PullingContactWarning& p : PullingContactWarnings(table, result)) {
+  for (const PullingContactWarning& p : pulling) {
     nlohmann::json w = nlohmann::json::object();
     w["kind"] = "pulling_contact";
     w["contact"] = p.contact;
@@ -631,11 +631,13 @@ std::vector<PullingContactWarning> WriteRunOutputs(const std::string& dir_name, 
     WriteFile(dir_name, tmp / "trajectory.sto",
               {sto, std::string_view(sto_rows.get(), static_cast<size_t>(s_out - sto_rows.get()))});
     // Invalid UTF-8 (e.g. in a file path) is replaced, never thrown on.
+    std::vector<PullingContactWarning> warnings = PullingContactWarnings(table, result);
     WriteFile(dir_name, tmp / "summary.json",
-              {SummaryJson(scene, settings, result, table).dump(2, ' ', false, nlohmann::json::error_handler_t::replace), "\n"});
+              {SummaryJson(scene, settings, result, warnings).dump(2, ' ', false, nlohmann::json::error_handler_t::replace),
+               "\n"});
     Publish(tmp, out);
     fs::remove_all(tmp, ec);  // the previous set, if there was one
-    return PullingContactWarnings(table, result);
+    return warnings;
   } catch (...) {
     fs::remove_all(tmp, ec);
     throw;

@@ -43,9 +43,9 @@ struct PullingContactWarning {
 // From the rows of `table` (MakeTrajectoryTable of `result`) and result.events; in column order.
 std::vector<PullingContactWarning> PullingContactWarnings(const TrajectoryTable& table, const RunResult& result);
 
-// summary.json; `table` is MakeTrajectoryTable(scene, result) (its rows give `warnings`).
-nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings,
-                           const RunResult& result, const TrajectoryTable& table);
+// summary.json; `warnings` are PullingContactWarnings of the run's table.
+nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, const RunResult& result,
+                           const std::vector<PullingContactWarning>& warnings);
 nlohmann::json StatsJson(const SolverStats& stats);
 
 // Checks that `dir` can receive an output set before a run starts: it is absent, or a
