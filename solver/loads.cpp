@@ -6,6 +6,13 @@
 #include "solver/units.hpp"
 
 namespace kneedyn {
+namespace {
+
+// The decay of Eq. 1.62's exponential per unit of t/t0 (loads.hpp): one value for every shape
+// that has it, and for the damped sine's peak below.
+constexpr double kPulseDecay = 4.73;
+
+}  // namespace
 
 double PulseMagnitude(const Pulse& pulse, double t) {
   if (t < 0.0) return 0.0;
@@ -14,13 +21,13 @@ double PulseMagnitude(const Pulse& pulse, double t) {
     case PulseShape::kNone:
       return 0.0;
     case PulseShape::kReconstructed:
-      return pulse.amplitude * s * std::sin(2.0 * kPi * s) * std::exp(-4.73 * s);
+      return pulse.amplitude * s * std::sin(2.0 * kPi * s) * std::exp(-kPulseDecay * s);
     case PulseShape::kHalfSine:
       return s <= 1.0 ? pulse.amplitude * std::sin(kPi * s) : 0.0;
     case PulseShape::kReconstructedPeak:
-      return pulse.amplitude * s * std::sin(2.0 * kPi * s) * std::exp(-4.73 * s) / kReconstructedPeakValue;
+      return pulse.amplitude * s * std::sin(2.0 * kPi * s) * std::exp(-kPulseDecay * s) / kReconstructedPeakValue;
     case PulseShape::kDampedSine:
-      return pulse.amplitude * std::sin(2.0 * kPi * s) * std::exp(-4.73 * s);
+      return pulse.amplitude * std::sin(2.0 * kPi * s) * std::exp(-kPulseDecay * s);
   }
   return 0.0;
 }
@@ -35,9 +42,9 @@ double PulsePeakFactor(PulseShape shape) {
     case PulseShape::kReconstructedPeak:
       return 1.0;
     case PulseShape::kDampedSine: {
-      // d/ds [sin(2πs) e^(−4.73 s)] = 0 at 2π cos(2πs) = 4.73 sin(2πs): the first maximum.
-      const double phase = std::atan(2.0 * kPi / 4.73);  // rad, 2π s at the peak
-      return std::sin(phase) * std::exp(-4.73 * phase / (2.0 * kPi));
+      // d/ds [sin(2πs) e^(−k s)] = 0 at 2π cos(2πs) = k sin(2πs): the first maximum.
+      const double phase = std::atan(2.0 * kPi / kPulseDecay);  // rad, 2π s at the peak
+      return std::sin(phase) * std::exp(-kPulseDecay * phase / (2.0 * kPi));
     }
   }
   return 0.0;
