@@ -28,6 +28,18 @@ namespace {
 
 Scene ImpactScene() { return LoadScene("reference-data/scenes/patellofemoral_impact.yaml"); }
 
+// The impact scene with a quadriceps half-sine of 1e5 N over a 50 N baseline, lasting
+// `duration` (s): the largest force the scene format allows, for the pulse tests below.
+Scene ImpactSceneWithQuadricepsHalfSine(double duration) {
+  Scene scene = ImpactScene();
+  QuadricepsForce& quadriceps = scene.model.patella->quadriceps;
+  quadriceps.shape = QuadricepsShape::kHalfSine;
+  quadriceps.baseline = 50.0;
+  quadriceps.magnitude = 1.0e5;
+  quadriceps.duration = duration;
+  return scene;
+}
+
 // Tibial poses the knee passes through: the chapter's impact (no patella, ede) at the first
 // output rows past the given flexion angles.
 std::vector<Vector6d> ChapterPoses(const std::vector<double>& alpha_deg) {
@@ -499,12 +511,7 @@ TEST(PatellaLiftoff, PastTheFoldNeitherBranchHoldsAndTheirRatioIsTheCompliance) 
 // reference here); IDA's default first step (1e-4 s) passed it whole, and every fixed-step
 // method at its default 1e-4 s ran as if it were not there.
 TEST(PatellaRuns, ShortQuadricepsHalfSineIsSeenByIdaAndRefusedByFixedSteps) {
-  Scene scene = ImpactScene();
-  QuadricepsForce& quadriceps = scene.model.patella->quadriceps;
-  quadriceps.shape = QuadricepsShape::kHalfSine;
-  quadriceps.baseline = 50.0;
-  quadriceps.magnitude = 1.0e5;
-  quadriceps.duration = 3.0e-6;
+  Scene scene = ImpactSceneWithQuadricepsHalfSine(3.0e-6);
   scene.end.time = 0.002;
   scene.output_interval = 0.001;
   const auto flexion_at_end = [](const RunResult& r) { return r.samples.back().q(kAlpha); };
@@ -539,12 +546,7 @@ TEST(PatellaRuns, ShortQuadricepsHalfSineIsSeenByIdaAndRefusedByFixedSteps) {
 // reason written) ended with exit 2 and nothing written. Each row's solution must hold its
 // 17 equations.
 TEST(PatellaRuns, TrajectoryTableFollowsThePatellaAcrossLargeMovesBetweenRows) {
-  Scene scene = ImpactScene();
-  QuadricepsForce& quadriceps = scene.model.patella->quadriceps;
-  quadriceps.shape = QuadricepsShape::kHalfSine;
-  quadriceps.baseline = 50.0;
-  quadriceps.magnitude = 1.0e5;
-  quadriceps.duration = 0.01;
+  Scene scene = ImpactSceneWithQuadricepsHalfSine(0.01);
   RunSettings settings;
   settings.formulation = "ede";
   const RunResult run = RunScene(scene, settings);
