@@ -188,7 +188,7 @@ int Main(int argc, char** argv) {
   text_option("--integrator", "integrator (" + accepted(&FormulationInfo::integrators) + ")");
   text_option("--step", "fixed step in s (" + (describe ? FixedStepMethods() : std::string()) + ")");
   text_option("--max-step", "largest adaptive step in s (0: none)");
-  text_option("--max-steps", "step budget per phase (dae*, monolithic*: per output interval)",
+  text_option("--max-steps", "step budget per phase, over all its output intervals",
               shown(defaults.max_steps));
   text_option("--stabilization", "stabilization (" + accepted(&FormulationInfo::stabilizations) + ")",
               shown(OptionName(defaults.stabilization)));

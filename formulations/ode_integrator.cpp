@@ -374,8 +374,7 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
       text = ReturnFlagText(ark_->GetReturnFlagName, flag);
     }
     if (flag == (is_cvode() ? CV_TOO_MUCH_WORK : ARK_TOO_MUCH_WORK)) {  // this call's share of the budget
-      text = StrCat("more than --max-steps = ", options_.max_steps,
-                    " steps in this phase (the budget is per phase, over all output intervals; ", text, ")");
+      text = StepBudgetFailure(options_.max_steps, text);
     }
     Throw<SolverError>("OdeIntegrator::Evolve", owner_, " (", name_, "): ", text, " at t = ", t_cur, " s with step h = ", h, " s",
                        LargestErrorComponent(), failure_.empty() ? "" : " (" + failure_ + ")", sundials_messages_.Take());

@@ -570,7 +570,7 @@ AdvanceResult DaeSensitivity::Advance(double t_out, MechanicalState* state) {
     double t_reached = t_;
     // dae_ggl.cpp: outputs are steps, with no sliver of a step before them (ida_phase.hpp).
     const int flag = form_.ggl ? ida_.SolveToStopTime(t_out, &t_reached)
-                               : IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
+                               : ida_.Solve(t_out, &t_reached);
     if (flag < 0) {
       Throw<SolverError>("RunSensitivity", "IDAS ", ida_.SolveFailure(flag),
                          failure_.empty() ? "" : " (" + failure_ + ")", messages_.Take());

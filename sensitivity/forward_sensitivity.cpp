@@ -315,11 +315,23 @@ AdvanceResult OdeSensitivity::Advance(double t_out, MechanicalState* state) {
   for (;;) {
     double t_reached = t_;
     cv_.failure.clear();
-    const int flag = CVode(cv_.mem, t_out, cv_.y, &t_reached, CV_NORMAL);
+    // --max-steps is per phase (a fresh CVODES instance each, its step count from 0).
+    long phase_steps = 0;
+    CVodeGetNumSteps(cv_.mem, &phase_steps);
+    const long left = options_.max_steps - phase_steps;
+    double t_current = t_;  // s: the end of CVODES' last step
+    CVodeGetCurrentTime(cv_.mem, &t_current);
+    int flag = CV_TOO_MUCH_WORK;
+    if (left > 0 || t_out <= t_current) {  // t_out within the last step: interpolated, no step taken
+      cv_.Check(CVodeSetMaxNumSteps(cv_.mem, std::max(left, 1L)), "CVodeSetMaxNumSteps");
+      flag = CVode(cv_.mem, t_out, cv_.y, &t_reached, CV_NORMAL);
+    }
     if (flag < 0) {
       double h = 0.0;
       CVodeGetCurrentStep(cv_.mem, &h);
-      Throw<SolverError>("RunSensitivity", "CVODES ", ReturnFlagText(CVodeGetReturnFlagName, flag), " at t = ", t_reached,
+      std::string text = ReturnFlagText(CVodeGetReturnFlagName, flag);
+      if (flag == CV_TOO_MUCH_WORK) text = StepBudgetFailure(options_.max_steps, text);
+      Throw<SolverError>("RunSensitivity", "CVODES ", text, " at t = ", t_reached,
                          " s with step h = ", h, " s",
                          cv_.failure.empty() ? "" : " (" + cv_.failure + ")", cv_.messages.Take());
     }

@@ -389,5 +389,45 @@ TEST(DaeFailure, StepBudgetExhaustionIsReturnedWithIdaReasonAndTime) {
   EXPECT_GT(r.stats.steps, 0);
 }
 
+// --max-steps bounds the steps of a phase over all its output intervals, as for the ODE
+// formulations (IDA's own limit counts per IDASolve call). Each scene is cut before its
+// first event or restart (monolithic restarts at ligament kinks), so the run is one phase
+// of 40 output intervals: a budget of exactly the steps that run took
+// completes, one step less stops with the budget named. On the old per-call budget both
+// completed: no output interval takes more than a few dozen steps.
+TEST(DaeFailure, MaxStepsIsABudgetPerPhase) {
+  struct Case {
+    const char* scene;
+    double end_time;  // s, before the first event or restart
+    const char* formulation;
+  };
+  for (const Case& c : {Case{"hard/c1_law.yaml", 0.2, "dae"}, Case{"hard/c1_law.yaml", 0.2, "dae-ggl"},
+                        Case{"patellofemoral_impact.yaml", 0.005, "monolithic"}}) {
+    Scene scene = LoadScene(ScenesDir() + "/" + c.scene);
+    scene.end.time = c.end_time;
+    scene.end.flexion.reset();
+    scene.output_interval = c.end_time / 40.0;
+    RunSettings settings;
+    settings.formulation = c.formulation;
+    const RunResult full = RunScene(scene, settings);
+    ASSERT_TRUE(full.completed) << c.formulation << ": " << full.failure;
+    ASSERT_EQ(full.end_reason, "end_time") << c.formulation;
+    ASSERT_EQ(full.stats.restarts, 1) << c.formulation << ": the run must be one phase";
+    ASSERT_GT(full.samples.size(), 20u) << c.formulation << ": many output intervals";
+    settings.options.max_steps = full.stats.steps;
+    const RunResult exact = RunScene(scene, settings);
+    EXPECT_TRUE(exact.completed) << c.formulation << ": " << exact.failure;
+    EXPECT_EQ(exact.stats.steps, full.stats.steps) << c.formulation;
+    settings.options.max_steps = full.stats.steps - 1;
+    const RunResult short_budget = RunScene(scene, settings);
+    ASSERT_FALSE(short_budget.completed) << c.formulation;
+    EXPECT_NE(short_budget.failure.find(StrCat("more than --max-steps = ", full.stats.steps - 1, " steps in this phase")),
+              std::string::npos) << c.formulation << ": " << short_budget.failure;
+    EXPECT_NE(short_budget.failure.find("IDA_TOO_MUCH_WORK"), std::string::npos) << short_budget.failure;
+    ASSERT_FALSE(short_budget.samples.empty());
+    EXPECT_LT(short_budget.samples.back().t, c.end_time) << c.formulation;
+  }
+}
+
 }  // namespace
 }  // namespace kneedyn

@@ -123,7 +123,7 @@ class IdaDriver : public FormulationBase {
     // the position and velocity constraints hold to the Newton tolerance; no sliver of a step
     // before it (IdaPhase::SolveToStopTime).
     const int flag = variant_.ggl ? ida_.SolveToStopTime(std::min(t_out, scene_.end.time), &t_reached)
-                                  : IDASolve(ida_.mem, t_out, &t_reached, ida_.y, ida_.yp, IDA_NORMAL);
+                                  : ida_.Solve(t_out, &t_reached);
     AdvanceResult result;
     if (flag < 0) {
       const std::string function = SolveFunctionName();

@@ -32,7 +32,7 @@ struct IdaPhase {
   int n = 0;                // size of y, ẏ, A and LS
   bool counted = true;      // the phase's counters are in `accumulated` (EndPhase)
   double last_step = 0.0;  // s: last step of the previous phase, the restart's first step
-  long max_steps = 0;      // IDA's step budget per IDASolve call (Start's options.max_steps)
+  long max_steps = 0;      // --max-steps: the phase's step budget (Start's options.max_steps)
 
   // y, ẏ of `size` unknowns for the next Start: the last phase's when it had that size (its
   // IDA memory is then re-initialized; IDAReInit cannot change the size), else new ones.
@@ -63,7 +63,32 @@ struct IdaPhase {
     double h = 0.0, t_cur = 0.0;
     IDAGetCurrentStep(mem, &h);
     IDAGetCurrentTime(mem, &t_cur);
-    return StrCat(ReturnFlagText(IDAGetReturnFlagName, flag), " at t = ", t_cur, " s with step h = ", h, " s");
+    std::string text = ReturnFlagText(IDAGetReturnFlagName, flag);
+    if (flag == IDA_TOO_MUCH_WORK) text = StepBudgetFailure(max_steps, text);
+    return StrCat(text, " at t = ", t_cur, " s with step h = ", h, " s");
+  }
+
+  // Steps left of the phase's budget (StepBudgetFailure, sundials_util.hpp). IDA's step
+  // counter starts at 0 with each phase (IDAInit, IDAReInit).
+  long StepsLeft() const {
+    long steps = 0;
+    IDAGetNumSteps(mem, &steps);
+    return max_steps - steps;
+  }
+
+  // IDASolve to t_out (IDA_NORMAL: interpolated there) with what the phase's budget has left;
+  // IDA_TOO_MUCH_WORK when t_out needs a step and none is left. Returns IDASolve's flag,
+  // *t_reached its time.
+  int Solve(double t_out, double* t_reached) {
+    long left = StepsLeft();
+    if (left <= 0) {
+      double t_current = 0.0;  // s: the end of IDA's last step
+      IDAGetCurrentTime(mem, &t_current);
+      if (t_out > t_current) return IDA_TOO_MUCH_WORK;
+      left = 1;  // t_out lies within the last step: IDA interpolates, takes none (and 0 would mean its default, 500)
+    }
+    IDASetMaxNumSteps(mem, left);
+    return IDASolve(mem, t_out, t_reached, y, yp, IDA_NORMAL);
   }
 
   // After y, yp are filled: IDACreate … IDARootInit for the phase, or IDAReInit of the last
@@ -134,7 +159,7 @@ struct IdaPhase {
   // IDASolve to the stop time t_stop (s) ending on a step there, not interpolating to it (the
   // GGL forms' outputs, dae_ggl.cpp). Returns IDASolve's flag: IDA_TSTOP_RETURN (IDA_SUCCESS
   // from the budget's last step) with y, ẏ at t_stop, IDA_ROOT_RETURN, or a failure (< 0);
-  // *t_reached is the time returned. At most max_steps steps, as one IDA_NORMAL call.
+  // *t_reached is the time returned. At most the steps left of the phase's budget (StepsLeft).
   // Why not IDA_NORMAL with IDASetStopTime alone: IDA cuts only a step that would pass the
   // stop time, so a step ending just short of it leaves a remainder of any length. Runs of
   // equal steps drift off the output grid by round-off (one_ligament.yaml: 8 steps of 6.25e-4 s
@@ -148,16 +173,12 @@ struct IdaPhase {
   int SolveToStopTime(double t_stop, double* t_reached) {
     double target = t_stop;  // t_stop, or the halfway stop time of a split
     int flag = IDASetStopTime(mem, target);
-    long taken = 0;
     while (flag >= 0) {
-      if (max_steps > 0 && taken + 1 >= max_steps) {
+      if (StepsLeft() <= 1) {
         // The budget's last step in IDA_NORMAL, so that running out fails as IDA's own
         // (IDA_TOO_MUCH_WORK, "mxstep steps taken before reaching tout").
         if (target != t_stop) flag = IDASetStopTime(mem, target = t_stop);
-        if (flag < 0) break;
-        IDASetMaxNumSteps(mem, 1);
-        flag = IDASolve(mem, t_stop, t_reached, y, yp, IDA_NORMAL);
-        IDASetMaxNumSteps(mem, max_steps);
+        if (flag >= 0) flag = Solve(t_stop, t_reached);
         break;
       }
       long steps = 0;
@@ -173,12 +194,9 @@ struct IdaPhase {
         if (flag < 0) break;
       }
       flag = IDASolve(mem, target, t_reached, y, yp, IDA_ONE_STEP);
-      if (flag == IDA_SUCCESS) {
-        ++taken;
-      } else if (flag == IDA_TSTOP_RETURN && target != t_stop) {
-        ++taken;
+      if (flag == IDA_TSTOP_RETURN && target != t_stop) {
         flag = IDASetStopTime(mem, target = t_stop);
-      } else {
+      } else if (flag != IDA_SUCCESS) {
         break;
       }
     }

@@ -53,6 +53,15 @@ std::string ReturnFlagText(NameFn name_of, int flag) {
   return text;
 }
 
+// The failure text of a phase that used up its step budget. --max-steps counts the steps of
+// a phase over all its output intervals; SUNDIALS' own limit (XSetMaxNumSteps) those of one
+// call, so the drivers set that, before each call, to what the phase has left.
+// `flag_text`: the solver's flag (ReturnFlagText).
+inline std::string StepBudgetFailure(long max_steps, const std::string& flag_text) {
+  return StrCat("more than --max-steps = ", max_steps,
+                " steps in this phase (the budget is per phase, over all output intervals; ", flag_text, ")");
+}
+
 // Throws SolverError "caller(): call failed with flag NAME (code)", the name from
 // ReturnFlagText(name_of, flag). With `messages`, SUNDIALS' own message for the failure is
 // appended.

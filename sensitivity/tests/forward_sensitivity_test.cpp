@@ -186,5 +186,37 @@ TEST(ForwardSensitivity, EditDistance) {
   EXPECT_EQ(EditDistance("mass", "mass"), 0);
 }
 
+// --max-steps bounds the steps of a phase over all its output intervals, as in `kneedyn
+// run` (CVODES' and IDAS' own limits count per call). c1_law (no ligament kinks) cut at
+// 0.2 s, before its lift-off, is one phase of 40 output intervals: a budget of exactly the
+// steps it took completes, one step less stops naming the budget. On the old per-call
+// budget both completed.
+TEST(ForwardSensitivity, MaxStepsIsABudgetPerPhase) {
+  Scene scene = LoadScene(std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes/hard/c1_law.yaml");
+  scene.end.time = 0.2;  // s
+  scene.end.flexion.reset();
+  const auto params = ResolveParameters(scene, {"mass"});
+  const auto outcomes = ResolveOutcomes(scene, {"peak_F_PCL_anterior_N"});
+  for (const std::string& formulation : SensitivityFormulations()) {
+    SensitivityOptions options;
+    options.formulation = formulation;
+    const SensitivityResult full = RunSensitivity(scene, params, Nominal(params), outcomes, options);
+    ASSERT_EQ(full.end_reason, "end_time") << formulation;
+    ASSERT_EQ(full.stats.restarts, 1) << formulation << ": the run must be one phase";
+    ASSERT_GT(full.trajectory.size(), 20u) << formulation;
+    options.max_steps = full.stats.steps;
+    EXPECT_EQ(RunSensitivity(scene, params, Nominal(params), outcomes, options).stats.steps, full.stats.steps)
+        << formulation;
+    options.max_steps = full.stats.steps - 1;
+    try {
+      RunSensitivity(scene, params, Nominal(params), outcomes, options);
+      ADD_FAILURE() << formulation << ": a budget one step short must stop the run";
+    } catch (const SolverError& e) {
+      EXPECT_NE(std::string(e.what()).find(StrCat("more than --max-steps = ", options.max_steps, " steps in this phase")),
+                std::string::npos) << formulation << ": " << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace kneedyn::sensitivity
