@@ -335,8 +335,16 @@ void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, P
   const Vector3d w = origin + patella->apex_P - tuberosity_F;
   const double half_b = w.dot(free_direction), c = w.squaredNorm() - patella->tendon_length * patella->tendon_length;
   const double disc = half_b * half_b - c;
-  if (!(disc >= 0.0)) Throw<InputError>("SolvePatellaStart", "the tendon (length ", MToMm(patella->tendon_length),
-                                        " mm) cannot reach the tuberosity with both facets in contact");
+  if (!(disc >= 0.0)) {
+    // The apex's two-facet positions form a line; its distance from the tuberosity at its closest.
+    const double closest = std::sqrt(std::max(0.0, w.squaredNorm() - half_b * half_b));
+    Throw<InputError>("SolvePatellaStart", "the tendon (patella.tendon_length_mm = ", MToMm(patella->tendon_length),
+                      " mm) cannot reach the tuberosity (patella.tuberosity_T_mm) with both facets in contact: with each "
+                      "facet plane (patella.facet_medial, facet_lateral) on its trochlear sphere (patella.trochlea_medial, "
+                      "trochlea_lateral), the apex (patella.apex_P_mm) passes ", MToMm(closest),
+                      " mm from the tuberosity at its closest, at the reference pose; the tendon must be at least that long "
+                      "(docs/model.md §12)");
+  }
   origin += (-half_b + std::sqrt(disc)) * free_direction;
   std::array<double, kPatellaUnknowns> x{};
   for (int k = 0; k < 3; ++k) x[k] = origin(k);
@@ -365,7 +373,17 @@ void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, P
     SolvePatella(*patella, tuberosity_F, "SolvePatellaStart", &guess);
     SolvePatellaAlongTibialPath(*patella, reference_q, initial_q, "SolvePatellaStart", &guess);
   } catch (const SolverError& e) {
-    Throw<InputError>("SolvePatellaStart", "no patellar equilibrium at the scene's start: ", e.what());
+    // Why, when the start guess already shows it: its force balance needs a pulling facet or tendon.
+    std::string why;
+    if (ratios.minCoeff() < 0.0) {
+      const Vector3d& d = patella->quadriceps.direction_F;
+      why = StrCat("; at the start guess (reference pose, both facets on their spheres) the force balance with the "
+                   "quadriceps along patella.quadriceps.direction_F = [", d.x(), ", ", d.y(), ", ", d.z(),
+                   "] needs force ratios lambda_medial = ", ratios(0), ", lambda_lateral = ", ratios(1), ", tendon = ",
+                   ratios(2), ": a negative one would pull (the quadriceps line against the facet normals "
+                   "patella.facet_*.normal_P and the tendon's line from patella.apex_P_mm to patella.tuberosity_T_mm)");
+    }
+    Throw<InputError>("SolvePatellaStart", "no patellar equilibrium at the scene's start: ", e.what(), why);
   }
   patella->start_q = initial_q;
   patella->start_unknowns = guess.x;

@@ -193,6 +193,66 @@ TEST(Patella, QuadricepsKeysTheShapeDoesNotUseAreRefused) {
   }
 }
 
+// Start geometry the builder cannot solve is refused naming the keys that decide it.
+// A tendon too short for the two-facet positions of the apex: the refusal names
+// patella.tendon_length_mm and the apex's closest distance D from the tuberosity. D is a
+// threshold, checked as one: a tendon 0.1 % shorter is refused for its reach, one 0.1 %
+// longer gets past that test (it may still find no equilibrium, a different refusal).
+TEST(Patella, TendonThatCannotReachIsRefusedWithTheLengthItNeeds) {
+  const std::string dir = "reference-data/scenes";
+  const auto with_tendon = [](double length_mm) {
+    std::string text = SceneWithQuadriceps("{shape: constant, magnitude_N: 50.0}");
+    const std::string key = "tendon_length_mm: 42.0";
+    return text.replace(text.find(key), key.size(), StrCat("tendon_length_mm: ", length_mm));
+  };
+  const auto refusal = [&](double length_mm) -> std::string {
+    try {
+      ParseScene(with_tendon(length_mm), "q.yaml", dir);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  const std::string what = refusal(5.0);
+  EXPECT_NE(what.find("field 'patella'"), std::string::npos) << what;
+  EXPECT_NE(what.find("patella.tendon_length_mm = 5 mm"), std::string::npos) << what;
+  const std::string marker = "passes ";
+  const size_t at = what.find(marker);
+  ASSERT_NE(at, std::string::npos) << what;
+  const double closest_mm = std::stod(what.substr(at + marker.size()));
+  EXPECT_GT(closest_mm, 5.0) << what;
+  EXPECT_LT(closest_mm, 42.0) << what;  // the shipped length reaches
+  EXPECT_NE(refusal(0.999 * closest_mm).find("cannot reach the tuberosity"), std::string::npos);
+  EXPECT_EQ(refusal(1.001 * closest_mm).find("cannot reach the tuberosity"), std::string::npos);
+}
+
+// The documented default quadriceps direction [0, 0, 1] has no start equilibrium in the
+// shipped impact geometry: the refusal says why, a facet force ratio the force balance
+// needs negative (that facet would pull), and names the direction it used.
+TEST(Patella, StartWithoutEquilibriumSaysWhichForceWouldPull) {
+  std::ifstream in("reference-data/scenes/patellofemoral_impact.yaml");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  std::string text = buffer.str();
+  const std::string direction = ", direction_F: [0.06, -0.2, 1.0]";
+  ASSERT_NE(text.find(direction), std::string::npos);
+  EXPECT_NO_THROW(ParseScene(text, "patellofemoral_impact.yaml", "reference-data/scenes"));
+  text.erase(text.find(direction), direction.size());
+  try {
+    ParseScene(text, "patellofemoral_impact.yaml", "reference-data/scenes");
+    FAIL() << "the default quadriceps direction was accepted";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("no patellar equilibrium at the scene's start"), std::string::npos) << what;
+    EXPECT_NE(what.find("patella.quadriceps.direction_F = [0, 0, 1]"), std::string::npos) << what;
+    const size_t at = what.find("lambda_medial = ");
+    ASSERT_NE(at, std::string::npos) << what;
+    const double medial = std::stod(what.substr(at + 16));
+    const double lateral = std::stod(what.substr(what.find("lambda_lateral = ") + 17));
+    EXPECT_LT(std::min(medial, lateral), 0.0) << what;
+  }
+}
+
 TEST(Patella, StaggeredRefusesASceneWithoutPatella) {
   const Scene chapter = LoadScene("reference-data/scenes/chapter_impact.yaml");
   EXPECT_FALSE(chapter.model.patella.has_value());
