@@ -161,6 +161,9 @@ void ResolveParameter(const Where& where, AnalyticModel analytic, const Model& m
     p->column = p->name;
     return;
   }
+  if ((p->name == "pulse.amplitude" || p->name == "pulse.duration") && m.pulse.shape == PulseShape::kNone) {
+    where.Fail("the base scene has no tibial pulse (pulse.shape none), so this parameter would change nothing");
+  }
   if (p->name == "pulse.amplitude") {
     p->kind = ParameterKind::kPulseAmplitude;
     p->nominal = m.pulse.amplitude;

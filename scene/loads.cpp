@@ -50,7 +50,15 @@ void ParsePulse(const Field& top, ModelDescription* model) {
   const Field f = top.Required("pulse");
   f.Keys(KeysOf("scene.pulse"));
   model->pulse.shape = ParsePulseShape(f.Required("shape").OneOf(ValuesOf("scene.pulse.shape"), "pulse shape"));
-  if (model->pulse.shape != PulseShape::kNone) {
+  // A key the shape does not use would be ignored: refused, naming the shape and its rule.
+  if (model->pulse.shape == PulseShape::kNone) {
+    for (const char* key : {"amplitude_N", "duration_s", "direction_T"}) {
+      if (f.Has(key)) {
+        f.Required(key).Fail("not used by pulse shape none (no pulse); amplitude_N, duration_s and direction_T "
+                             "belong to the other shapes");
+      }
+    }
+  } else {
     model->pulse.amplitude = f.Required("amplitude_N").NonNegative(kMaxForceN);
     model->pulse.duration = f.Required("duration_s").Range(1e-6, 100.0);
   }

@@ -479,7 +479,8 @@ bool SensitivityOptions::IsValid(std::string* error, const OptionText& typed) co
 }
 
 std::vector<std::string> ParameterNames(const Scene& scene) {
-  std::vector<std::string> names = {"pulse.amplitude", "pulse.duration", "mass"};
+  std::vector<std::string> names = {"mass"};
+  if (scene.model.pulse.shape != PulseShape::kNone) names.insert(names.begin(), {"pulse.amplitude", "pulse.duration"});
   for (const Ligament& l : scene.model.ligaments) {
     const std::string e = Sanitize(l.name) + ".";
     names.push_back(e + "k_linear");
@@ -513,7 +514,11 @@ std::vector<ParameterSpec> ResolveParameters(const Scene& scene, const std::vect
   for (const std::string& name : names) {
     // Names as the sweep writes them, with spaces or with '_' for spaces.
     const std::string key = Sanitize(name);
-    if (std::find(valid.begin(), valid.end(), key) == valid.end()) UnknownName(field, name, valid, "a parameter of this scene");
+    // A pulse parameter of a scene without a pulse: ResolveParameterName says why it is refused.
+    const bool pulse_parameter = key == "pulse.amplitude" || key == "pulse.duration";
+    if (!pulse_parameter && std::find(valid.begin(), valid.end(), key) == valid.end()) {
+      UnknownName(field, name, valid, "a parameter of this scene");
+    }
     ParameterSpec p = ensembles::ResolveParameterName(scene, name, scene.path, field);
     if (!seen.insert(p.column).second) Throw<InputError>("kneedyn sensitivity", field, ": '", Echo(name), "' is listed twice");
     out.push_back(p);

@@ -304,6 +304,21 @@ TEST_F(HostileInput, QuadricepsKeyTheShapeDoesNotUseIsRefused) {
   }
 }
 
+// The tibial pulse with shape none uses no other key: amplitude_N, duration_s or direction_T
+// would be ignored (no pulse is applied), so each is refused the same way.
+TEST_F(HostileInput, PulseKeyTheShapeNoneDoesNotUseIsRefused) {
+  for (const char* key : {"amplitude_N: 100.0", "duration_s: 0.1", "direction_T: [0, -1, 0]"}) {
+    const std::string scene = Input("scene.yaml", Replaced(ChapterSceneText(), "pulse: {shape: reconstructed, amplitude_N: 100.0, duration_s: 0.1}",
+                                                           std::string("pulse: {shape: none, ") + key + "}"));
+    const std::string name = std::string(key).substr(0, std::string(key).find(':'));
+    ExpectRefused(RunArgs(scene), {"field 'pulse." + name + "'", "not used by pulse shape none"});
+  }
+  const std::string plain = Input("scene.yaml", Replaced(ChapterSceneText(), "pulse: {shape: reconstructed, amplitude_N: 100.0, duration_s: 0.1}",
+                                                         "pulse: {shape: none}"));
+  const CommandResult r = RunKneedyn(RunArgs(plain, "--formulation ede"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+}
+
 // An accepted scene at an edge: the quadriceps line (0.3, -0.2, 1) pulls the medial patellar
 // facet from t = 0 and, without facet_liftoff, the run completes (exit 0). The warning of
 // summary.json is printed on stderr (stdout discarded here) although --quiet is given.

@@ -93,6 +93,10 @@ TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
       {"scene: chapter_impact.yaml\nparameters: [{name: mass, relative: 0.1}]\ndesign: {type: sobol, samples: 2}\n"
        "outcomes: [liftoff_angle]\n",
        "'liftoff_angle'"},
+      // A pulse parameter of a scene without a pulse would change nothing.
+      {"scene: gravity_only.yaml\nparameters: [{name: pulse.amplitude, uniform: [50, 150]}]\n"
+       "design: {type: sobol, samples: 2}\noutcomes: [time_90]\n",
+       "'pulse.amplitude': the base scene has no tibial pulse (pulse.shape none)"},
       {"analytic: ishigami\nparameters: [{name: x4, uniform: [0, 1]}]\ndesign: {type: sobol, samples: 2}\n"
        "outcomes: [value]\n",
        "'x4'"},

@@ -257,7 +257,9 @@ class Scene:
 
     def set_pulse(self, **fields):
         """Pulse fields: shape (reconstructed|half_sine|reconstructed_peak|damped_sine|none),
-        amplitude_N, duration_s, direction_T (reference-data/scenes/README.md)."""
+        amplitude_N, duration_s, direction_T (reference-data/scenes/README.md). Fields are
+        merged: shape="none" needs amplitude_N=None, duration_s=None (and direction_T=None
+        if set), since the loader refuses keys the shape does not use."""
         return self.update({"pulse": fields})
 
     def set_patella(self, **fields):

@@ -710,6 +710,16 @@ def test_plain_booleans_and_numbers_of_a_file_survive_an_edit():
     assert "enabled: yes\n" in s.set_pulse(amplitude_N=90.0).to_yaml()
 
 
+def test_pulse_shape_none_refuses_the_keys_it_does_not_use():
+    # Merged fields: the chapter's amplitude_N would be ignored with shape none, so the
+    # loader refuses it by name; removing the keys (None) gives a scene without a pulse.
+    with pytest.raises(kneedyn.InputError, match=r"pulse\.amplitude_N.*not used by pulse shape none"):
+        kneedyn.load_scene(CHAPTER).set_pulse(shape="none")
+    scene = kneedyn.load_scene(CHAPTER).set_pulse(shape="none", amplitude_N=None, duration_s=None)
+    assert scene.to_dict()["pulse"] == {"shape": "none"}
+    assert scene.pulse["amplitude_N"] == 0.0
+
+
 def test_pulse_peak_factor_equals_the_clis_summary():
     # Independent path: the CLI's summary.json (formulations/run_output.cpp) for the same
     # scene; a half sine's largest force is its amplitude (peak factor 1).

@@ -180,6 +180,25 @@ TEST(ForwardSensitivity, UnknownNamesNameTheNearestValidOne) {
   }
 }
 
+// A scene without a tibial pulse (shape none) has no pulse parameters: listed names leave
+// them out, and asking for one is refused rather than differentiated to 0.
+TEST(ForwardSensitivity, PulseParametersNeedAPulse) {
+  const Scene none = LoadScene(std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes/gravity_only.yaml");
+  ASSERT_EQ(none.model.pulse.shape, PulseShape::kNone);
+  for (const char* name : {"pulse.amplitude", "pulse.duration"}) {
+    const std::vector<std::string> names = ParameterNames(none);
+    EXPECT_EQ(std::count(names.begin(), names.end(), name), 0) << name;
+    const std::vector<std::string> chapter_names = ParameterNames(Chapter());
+    EXPECT_EQ(std::count(chapter_names.begin(), chapter_names.end(), name), 1) << name;
+    try {
+      ResolveParameters(none, {name});
+      ADD_FAILURE() << name << " accepted on a scene without a pulse";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("no tibial pulse (pulse.shape none)"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(ForwardSensitivity, EditDistance) {
   EXPECT_EQ(EditDistance("kitten", "sitting"), 3);
   EXPECT_EQ(EditDistance("", "abc"), 3);
