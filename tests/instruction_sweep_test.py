@@ -9,8 +9,8 @@ Validates:
     1e-4) gives the same RunScene instruction count to the instruction and the same scd;
   - the count is RunScene's: above zero (the toggle names a function the program has) and
     below the whole process's count of the same command under callgrind without the toggle;
-  - a failing configuration (dae, rtol 1e-13: IDA_CONV_FAIL at t ≈ 0.023 s) is recorded as
-    failed with the solver's reason, not scored;
+  - a failing configuration (ede euler, step 0.004 s: diverged, CheckSampleIsPhysical at
+    t ≈ 0.093 s) is recorded as failed with the solver's reason, not scored;
   - the report's Pareto overlay on instructions (reports/figures.py) takes the
     instruction-cheapest runs as the front and counts a wrong-event run as a failure, and
     draws nothing for a file without counts;
@@ -118,8 +118,9 @@ def main():
       print("instruction_sweep_test: valgrind not found: the sweep part skipped")
       return 77
     sweep = os.path.join(tmp, "sweep.json")
-    configs = [planted_run("ede", "dopri5", 1e-4, 0.001), planted_run("dae", "", 1e-13, 0.001),
-               planted_run("ede", "dopri5", 1e-4, 0.001)]
+    diverging = planted_run("ede", "euler", 0.0, 0.001)
+    diverging["setting"] = {"step": 0.004}
+    configs = [planted_run("ede", "dopri5", 1e-4, 0.001), diverging, planted_run("ede", "dopri5", 1e-4, 0.001)]
     with open(sweep, "w") as f:
       json.dump({"header": {"scene": "chapter_impact"}, "results": configs}, f)
     out = os.path.join(tmp, "isweep.json")
@@ -145,11 +146,11 @@ def main():
     total = int(m.group(1)) if m else None
     if not (isinstance(n, int) and total is not None and 0 < n < total):
       errors.append(f"RunScene's count {n} is not within (0, whole process {total})")
-    if failing["status"] != "failed" or "IDA_CONV_FAIL" not in failing.get("reason", ""):
-      errors.append(f"dae rtol 1e-13: status {failing['status']}, reason {failing.get('reason')!r} "
-                    "(expected failed, IDA_CONV_FAIL)")
+    if failing["status"] != "failed" or "CheckSampleIsPhysical" not in failing.get("reason", ""):
+      errors.append(f"ede euler step 0.004: status {failing['status']}, reason {failing.get('reason')!r} "
+                    "(expected failed, CheckSampleIsPhysical)")
     summary = (f"instruction_sweep_test: ede dopri5 rtol 1e-4 twice: {n} instructions in RunScene "
-               f"(whole process {total}), scd {first['metrics'].get('scd')}; dae rtol 1e-13: {failing['status']}")
+               f"(whole process {total}), scd {first['metrics'].get('scd')}; ede euler step 0.004: {failing['status']}")
   return finish(errors, "instruction_sweep_test: FAIL", summary)
 
 

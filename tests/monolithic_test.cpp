@@ -9,7 +9,7 @@
 //    solved by Newton inside the right-hand side), completed to round-off by the hidden
 //    constraint (whose tendon force is PatellarTendonForce, solver/dynamics.hpp) and with x
 //    from SolvePatella, every residual row of the monolithic DAE is zero to round-off;
-//  - `monolithic` (rtol 1e-10, the tightest it passes) and `monolithic-ggl` (rtol 1e-12)
+//  - `monolithic` (rtol 1e-10) and `monolithic-ggl` (rtol 1e-12)
 //    against `ede` at rtol 1e-12 (an independent form: an ODE integrator, closed-form
 //    contact, the patella by Newton) on patellofemoral_impact: the same events, their times
 //    to 1e-8 relative, and the patellar pose at the events — the DAE's own unknowns x, not a
