@@ -7,7 +7,8 @@
 // first sample); the run completes with liftoff_lateral then flexion_90, in time order;
 // agreement with `dae` at rtol 1e-10 (the reference, computed once) on the 90° time
 // (1e-3 s) and the lift-off angle (0.5°) — conformance-level tolerances; bounded
-// constraint drift (max |φ| < 1e-6 m); nonzero statistics.
+// constraint drift (max |φ| < 1e-6 m); nonzero statistics; and, on a one-phase cut of
+// c1_law, that --max-steps bounds the steps of a phase over all its output intervals.
 // Does not validate: accuracy orders or efficiency (benchmarks, reports).
 //
 // The patella part (PatellaConformance): every formulation that runs a scene with a patella
@@ -150,6 +151,29 @@ TEST_P(Conformance, KeepsConstraintDriftBoundedAndCountsWork) {
   EXPECT_GE(r.stats.restarts, 2);  // the start and the lift-off phase
 }
 
+// --max-steps is a budget per phase, over all the phase's output intervals, in every
+// formulation (the integrators' own limits count per call). c1_law (no ligament kinks) cut at
+// 0.2 s, before its lift-off, is one phase of 40 output intervals: a budget of exactly the
+// steps the run took completes, one step less stops the run and names the budget. A
+// per-interval or per-call budget would complete both (no 5 ms interval takes 40 steps).
+TEST_P(Conformance, MaxStepsIsABudgetPerPhaseOverItsOutputIntervals) {
+  Scene scene = LoadScene(test_support::ScenesDir() + "/hard/c1_law.yaml");
+  scene.end.time = 0.2;  // s
+  scene.end.flexion.reset();
+  RunSettings settings = SettingsFor(GetParam());
+  const RunResult full = RunScene(scene, settings);
+  ASSERT_TRUE(full.completed) << full.failure;
+  ASSERT_EQ(full.stats.restarts, 1) << "the run must be one phase";
+  ASSERT_EQ(full.samples.size(), 41u);
+  settings.options.max_steps = full.stats.steps;
+  const RunResult exact = RunScene(scene, settings);
+  EXPECT_TRUE(exact.completed) << exact.failure;
+  settings.options.max_steps = full.stats.steps - 1;
+  const RunResult short_budget = RunScene(scene, settings);
+  EXPECT_FALSE(short_budget.completed) << "a budget one step short of the phase's " << full.stats.steps << " steps";
+  EXPECT_NE(short_budget.failure.find("--max-steps = " + std::to_string(full.stats.steps - 1)), std::string::npos)
+      << short_budget.failure;
+}
 
 INSTANTIATE_TEST_SUITE_P(Registered, Conformance, ::testing::ValuesIn(test_support::RegisteredFormulationNames()),
                          test_support::FormulationParamName());
