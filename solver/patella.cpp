@@ -378,8 +378,8 @@ void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, P
     if (ratios.minCoeff() < 0.0) {
       const Vector3d& d = patella->quadriceps.direction_F;
       why = StrCat("; at the start guess (reference pose, both facets on their spheres) the force balance with the "
-                   "quadriceps along patella.quadriceps.direction_F = [", d.x(), ", ", d.y(), ", ", d.z(),
-                   "] needs force ratios lambda_medial = ", ratios(0), ", lambda_lateral = ", ratios(1), ", tendon = ",
+                   "quadriceps along patella.quadriceps.direction_F (as a unit vector [", d.x(), ", ", d.y(), ", ", d.z(),
+                   "]) needs force ratios lambda_medial = ", ratios(0), ", lambda_lateral = ", ratios(1), ", tendon = ",
                    ratios(2), ": a negative one would pull (the quadriceps line against the facet normals "
                    "patella.facet_*.normal_P and the tendon's line from patella.apex_P_mm to patella.tuberosity_T_mm)");
     }

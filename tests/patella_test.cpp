@@ -244,7 +244,7 @@ TEST(Patella, StartWithoutEquilibriumSaysWhichForceWouldPull) {
   } catch (const InputError& e) {
     const std::string what = e.what();
     EXPECT_NE(what.find("no patellar equilibrium at the scene's start"), std::string::npos) << what;
-    EXPECT_NE(what.find("patella.quadriceps.direction_F = [0, 0, 1]"), std::string::npos) << what;
+    EXPECT_NE(what.find("patella.quadriceps.direction_F (as a unit vector [0, 0, 1])"), std::string::npos) << what;
     const size_t at = what.find("lambda_medial = ");
     ASSERT_NE(at, std::string::npos) << what;
     const double medial = std::stod(what.substr(at + 16));

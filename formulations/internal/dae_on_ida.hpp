@@ -36,14 +36,11 @@ struct DaeOnIdaVariant {
 // (N, newtons, and GGL's μ, m/s: every unknown from NormalIndex(0) on) carry round-off of
 // order ε/h² in Newton corrections; they get kForceAtolScale (formulation.hpp) per unit
 // --atol, floored at kGglIndexTwoAtolFloor for GGL (dae_ggl.cpp's header comment says why)
-// and at kIndexTwoAtolFloor for the plain index-2 forms. That floor is N's round-off
-// ε·M·|q|/h² ≈ 2.2e-16 · 4 kg · 0.2 m / (1.2e-5 s)² ≈ 1.2e-6 N on the shortest first step
-// of a restart at rtol 1e-12 on the chapter scene (a quarter of the last step, 1.2e-5 to
-// 1.7e-5 s). Without it, --atol below 1e-10 asked N to converge below its round-off: at
-// rtol 1e-12, atol 1e-14 dae failed there (IDA_CONV_FAIL at t = 0.0666 s, h = 4e-14 s,
-// 2.3e-8 s after the restart at a ligament kink); with it the run completes at scd 9.08, and
-// rtol 1e-10 / 1e-11 (atol 1e-12 / 1e-13) score 7.46 / 8.16 instead of 7.20 / 7.95
-// (benchmarks/README.md, "Work-precision sweep"). At --atol ≥ 1e-10 nothing changes.
+// and at kIndexTwoAtolFloor for the plain index-2 forms: N's round-off ε·M·|q|/h² ≈
+// 2.2e-16 · 4 kg · 0.2 m / (1.2e-5 s)² ≈ 1.2e-6 N on a restart's first step at rtol 1e-12 on
+// the chapter scene. Without it, --atol < 1e-10 asked N to converge below that, and dae
+// failed at rtol ≤ 3.2e-12 after a restart (benchmarks/README.md, "Work-precision sweep",
+// has the digits gained). At --atol ≥ 1e-10 it changes nothing.
 constexpr double kGglIndexTwoAtolFloor = 1.0e-3;
 constexpr double kIndexTwoAtolFloor = 1.0e-6;
 inline double DaeUnknownAtol(bool ggl, const DaeSystem& system, int i, double atol) {
