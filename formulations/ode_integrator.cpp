@@ -327,8 +327,8 @@ bool OdeIntegrator::Evolve(double t_out, bool one_step, double* t, VectorXd* y, 
     return false;
   }
   // --max-steps is a budget per phase: a call to t_out gets what the phase's earlier calls
-  // left (SUNDIALS' own limit counts per call; ≤ 0 would mean its default, 500).
-  const long left = options_.max_steps - start_steps_;
+  // left (SUNDIALS' own limit counts per call). t_out is past *t here, so nothing left fails.
+  const long left = PerCallStepLimit(options_.max_steps, start_steps_, t_out, *t);
   const auto out_of_steps = [&](double t_at) {
     Throw<SolverError>("OdeIntegrator::Evolve", owner_, " (", name_, "): more than --max-steps = ",
                        options_.max_steps, " steps in this phase at t = ", t_at,

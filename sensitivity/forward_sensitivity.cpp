@@ -318,12 +318,12 @@ AdvanceResult OdeSensitivity::Advance(double t_out, MechanicalState* state) {
     // --max-steps is per phase (a fresh CVODES instance each, its step count from 0).
     long phase_steps = 0;
     CVodeGetNumSteps(cv_.mem, &phase_steps);
-    const long left = options_.max_steps - phase_steps;
     double t_current = t_;  // s: the end of CVODES' last step
     CVodeGetCurrentTime(cv_.mem, &t_current);
+    const long limit = PerCallStepLimit(options_.max_steps, phase_steps, t_out, t_current);
     int flag = CV_TOO_MUCH_WORK;
-    if (left > 0 || t_out <= t_current) {  // t_out within the last step: interpolated, no step taken
-      cv_.Check(CVodeSetMaxNumSteps(cv_.mem, std::max(left, 1L)), "CVodeSetMaxNumSteps");
+    if (limit > 0) {
+      cv_.Check(CVodeSetMaxNumSteps(cv_.mem, limit), "CVodeSetMaxNumSteps");
       flag = CVode(cv_.mem, t_out, cv_.y, &t_reached, CV_NORMAL);
     }
     if (flag < 0) {

@@ -12,6 +12,11 @@ namespace {
 // that has it, and for the damped sine's peak below.
 constexpr double kPulseDecay = 4.73;
 
+// Eq. 1.62's force (N) at s = t / t0: A s sin(2π s) e^(−4.73 s), in this order of products.
+double ReconstructedForce(double amplitude, double s) {
+  return amplitude * s * std::sin(2.0 * kPi * s) * std::exp(-kPulseDecay * s);
+}
+
 }  // namespace
 
 double PulseMagnitude(const Pulse& pulse, double t) {
@@ -21,11 +26,11 @@ double PulseMagnitude(const Pulse& pulse, double t) {
     case PulseShape::kNone:
       return 0.0;
     case PulseShape::kReconstructed:
-      return pulse.amplitude * s * std::sin(2.0 * kPi * s) * std::exp(-kPulseDecay * s);
+      return ReconstructedForce(pulse.amplitude, s);
     case PulseShape::kHalfSine:
       return s <= 1.0 ? pulse.amplitude * std::sin(kPi * s) : 0.0;
     case PulseShape::kReconstructedPeak:
-      return pulse.amplitude * s * std::sin(2.0 * kPi * s) * std::exp(-kPulseDecay * s) / kReconstructedPeakValue;
+      return ReconstructedForce(pulse.amplitude, s) / kReconstructedPeakValue;
     case PulseShape::kDampedSine:
       return pulse.amplitude * std::sin(2.0 * kPi * s) * std::exp(-kPulseDecay * s);
   }

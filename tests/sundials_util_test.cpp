@@ -43,6 +43,17 @@ TEST(CheckSundials, ThrowsWithCallerCallFlagAndMessage) {
   EXPECT_EQ(messages.Take(), "");  // taken into the error
 }
 
+// --max-steps is a budget per phase; SUNDIALS' limit counts per call, where 0 means its
+// default (500), so a spent budget must never be handed on as 0.
+TEST(PerCallStepLimit, WhatThePhaseHasLeftAndNoStepPastItsEnd) {
+  EXPECT_EQ(PerCallStepLimit(100, 0, 0.2, 0.0), 100);
+  EXPECT_EQ(PerCallStepLimit(100, 99, 0.2, 0.1), 1);
+  EXPECT_EQ(PerCallStepLimit(100, 100, 0.2, 0.1), 0);    // t_out needs a step: none left
+  EXPECT_EQ(PerCallStepLimit(100, 100, 0.1, 0.1), 1);    // t_out at the last step's end: interpolated
+  EXPECT_EQ(PerCallStepLimit(100, 100, 0.05, 0.1), 1);   // within the last step
+  EXPECT_EQ(PerCallStepLimit(100, 101, 0.2, 0.1), 0);
+}
+
 TEST(CheckSundials, SuccessAndWarningsDoNotThrow) {
   EXPECT_NO_THROW(CheckSundials(IDA_SUCCESS, "IDASolve", "Caller", IDAGetReturnFlagName));
   EXPECT_NO_THROW(CheckSundials(IDA_ROOT_RETURN, "IDASolve", "Caller", IDAGetReturnFlagName));

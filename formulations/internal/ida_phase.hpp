@@ -80,14 +80,13 @@ struct IdaPhase {
   // IDA_TOO_MUCH_WORK when t_out needs a step and none is left. Returns IDASolve's flag,
   // *t_reached its time.
   int Solve(double t_out, double* t_reached) {
-    long left = StepsLeft();
-    if (left <= 0) {
-      double t_current = 0.0;  // s: the end of IDA's last step
-      IDAGetCurrentTime(mem, &t_current);
-      if (t_out > t_current) return IDA_TOO_MUCH_WORK;
-      left = 1;  // t_out lies within the last step: IDA interpolates, takes none (and 0 would mean its default, 500)
-    }
-    IDASetMaxNumSteps(mem, left);
+    long steps = 0;
+    double t_current = 0.0;  // s: the end of IDA's last step
+    IDAGetNumSteps(mem, &steps);
+    IDAGetCurrentTime(mem, &t_current);
+    const long limit = PerCallStepLimit(max_steps, steps, t_out, t_current);
+    if (limit == 0) return IDA_TOO_MUCH_WORK;
+    IDASetMaxNumSteps(mem, limit);
     return IDASolve(mem, t_out, t_reached, y, yp, IDA_NORMAL);
   }
 

@@ -62,6 +62,17 @@ inline std::string StepBudgetFailure(long max_steps, const std::string& flag_tex
                 " steps in this phase (the budget is per phase, over all output intervals; ", flag_text, ")");
 }
 
+// SUNDIALS' per-call step limit (XSetMaxNumSteps) for a call to t_out (s) when the phase has
+// taken `phase_steps` of its `max_steps` and its last step ended at t_current (s): what the
+// phase has left; 1 when nothing is left but t_out lies within the last step (the solver
+// interpolates there and takes no step, while 0 would mean its default, 500); 0 when the call
+// would need a step and none is left (the caller fails with StepBudgetFailure).
+inline long PerCallStepLimit(long max_steps, long phase_steps, double t_out, double t_current) {
+  const long left = max_steps - phase_steps;
+  if (left > 0) return left;
+  return t_out <= t_current ? 1 : 0;
+}
+
 // Throws SolverError "caller(): call failed with flag NAME (code)", the name from
 // ReturnFlagText(name_of, flag). With `messages`, SUNDIALS' own message for the failure is
 // appended.
