@@ -389,6 +389,28 @@ TEST(DaeFailure, StepBudgetExhaustionIsReturnedWithIdaReasonAndTime) {
   EXPECT_GT(r.stats.steps, 0);
 }
 
+// A failure names the unknown with the largest weighted local error estimate among those in
+// IDA's error test: q and u. N, the contact coordinates and μ are algebraic and out of it
+// (IDASetSuppressAlg); their estimates are round-off ∝ 1/h², and N_lateral at 4.5e5 times
+// its tolerance was named where IDA had failed on u. 100-fold ligament stiffness at rtol
+// 1e-13 fails to converge at t ≈ 0.008 s with steps of ~1e-15 s.
+TEST(DaeFailure, NamesAnUnknownInTheErrorTest) {
+  const Scene scene = LoadScene(ScenesDir() + "/hard/stiff_ligaments_100x.yaml");
+  RunSettings settings;
+  settings.formulation = "dae";
+  settings.options.rtol = 1e-13;
+  settings.options.atol = 1e-15;
+  const RunResult r = RunScene(scene, settings);
+  ASSERT_FALSE(r.completed);
+  const std::string key = "largest weighted local error estimate: ";
+  const size_t at = r.failure.find(key);
+  ASSERT_NE(at, std::string::npos) << r.failure;
+  const std::string named = r.failure.substr(at + key.size(), r.failure.find(' ', at + key.size()) - at - key.size());
+  const std::vector<std::string> tested = {"alpha", "beta", "gamma", "x0", "y0", "z0",
+                                           "u[0]", "u[1]", "u[2]", "u[3]", "u[4]", "u[5]"};
+  EXPECT_NE(std::find(tested.begin(), tested.end(), named), tested.end()) << r.failure;
+}
+
 // --max-steps bounds the steps of a phase over all its output intervals, as for the ODE
 // formulations (IDA's own limit counts per IDASolve call). Each scene is cut before its
 // first event or restart (monolithic restarts at ligament kinks), so the run is one phase

@@ -190,7 +190,9 @@ class IdaDriver : public FormulationBase {
   }
 
   // Which unknown IDA's failure is about — the component with the largest
-  // weighted local error estimate |e_i| w_i (IDAGetEstLocalErrors, IDAGetErrWeights).
+  // weighted local error estimate |e_i| w_i (IDAGetEstLocalErrors, IDAGetErrWeights) among
+  // the differential unknowns. The algebraic ones are out of the error test
+  // (IDASetSuppressAlg), and their estimates, round-off ∝ 1/h² for N, are not what failed it.
   std::string LargestErrorComponent() const {
     N_Vector e = N_VClone(ida_.y), w = N_VClone(ida_.y);
     std::string out;
@@ -199,7 +201,7 @@ class IdaDriver : public FormulationBase {
       const double* wd = NvData(w);
       int worst = 0;
       for (int i = 1; i < n_; ++i) {
-        if (std::abs(ed[i] * wd[i]) > std::abs(ed[worst] * wd[worst])) worst = i;
+        if (system_.IsDifferential(i) && std::abs(ed[i] * wd[i]) > std::abs(ed[worst] * wd[worst])) worst = i;
       }
       out = StrCat("; largest weighted local error estimate: ", system_.UnknownName(worst), " (",
                    std::abs(ed[worst] * wd[worst]), " of the tolerance)");
