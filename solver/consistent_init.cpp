@@ -462,17 +462,23 @@ MechanicalState ConsistentInitialize(const Model& model, const InitialState& ini
   return state;
 }
 
-void CompleteHiddenConstraint(const Model& model, MechanicalState* state) {
-  // After a mode switch the remaining velocity constraints hold to the integrator's
-  // tolerance (lift-off) or exactly (after the impact impulse): the minimum-norm
-  // correction over all rates removes that residual before the restart.
-  const ConsistentInitOptions options;
+void ProjectRestartPose(const Model& model, MechanicalState* state) {
   // Gaps to round-off, not to the init's 1e-11 m: the chapter-form contact coordinates
-  // filled below from the closed form satisfy Eqs. 1.8 and the velocity rows only at
-  // φ = 0. At a 4e-12 m gap `dae` restarted off them and its first step moved u by
-  // ~3e-11 m/s at any step size (gravity_only, rtol 1e-10: IDA_ERR_FAIL after a kink).
+  // filled by CompleteHiddenConstraint from the closed form satisfy Eqs. 1.8 and the
+  // velocity rows only at φ = 0. At a 4e-12 m gap `dae` restarted off them and its first
+  // step moved u by ~3e-11 m/s at any step size (gravity_only, rtol 1e-10: IDA_ERR_FAIL
+  // after a kink).
   constexpr double kGapTolerance = 1.0e-14;  // m
   ProjectOntoContacts(model, state->active, kGapTolerance, 20, &state->q);
+}
+
+void CompleteHiddenConstraint(const Model& model, MechanicalState* state) {
+  // After a mode switch the remaining velocity constraints hold to the integrator's
+  // tolerance (lift-off) or exactly (after the impact impulse, taken at the projected
+  // pose): the minimum-norm correction over all rates removes that residual before the
+  // restart.
+  const ConsistentInitOptions options;
+  ProjectRestartPose(model, state);
   SolveVelocityLevel(ActiveConstraintRows(model, *state, PoseFromCoordinates(state->q)), {}, options, state,
                      /*restart=*/true);
   // Cheap restarts (benchmarks/README.md, "Restarts"): the hidden level is linear in (ν̇, N);

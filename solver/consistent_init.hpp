@@ -72,6 +72,11 @@ MechanicalState ConsistentInitialize(const Model& model, const InitialState& ini
 // fills qdd, normal forces and (from the contact kinematics) contact coordinates.
 void CompleteHiddenConstraint(const Model& model, MechanicalState* state);
 
+// Moves state->q onto the active contacts' gaps φ = 0 to round-off (1e-14 m): the pose a
+// restart continues from (CompleteHiddenConstraint's first step; a re-contact's impulse is
+// taken there, formulations/simulator.cpp).
+void ProjectRestartPose(const Model& model, MechanicalState* state);
+
 // Chapter-form contact coordinates of the active contacts from the contact kinematics
 // (contact_kinematics.hpp).
 void FillContactCoordinates(const Model& model, MechanicalState* state);

@@ -375,6 +375,39 @@ TEST(DaeKink, GravityOnlyAtTightToleranceCompletesAndAgreesWithClosedForm) {
   EXPECT_NEAR(a.events.back().time, b.events.back().time, 1e-6);
 }
 
+// ---------------------------------------------------------------- re-contact
+
+// A re-contact restarts IDA after a plastic impulse. The impulse was taken at the penetrated
+// pose (gap −1e-9 m) and the pose projected after it, so the restart's velocity rows held
+// only to ~9e-12 m/s, and dae failed the error test on u at rtol ≤ 1e-11 right after the
+// re-contact (step sizes down to 3e-11 s). Both scenes must complete and agree with ede (a
+// second formulation) on the re-contact's time.
+TEST(DaeRecontact, CompletesAtRtol1e11AndAgreesWithEdeOnTheRecontact) {
+  for (const char* file : {"one_ligament.yaml", "hard/distal_pulse_both_separate.yaml"}) {
+    SCOPED_TRACE(file);
+    const Scene scene = LoadScene(ScenesDir() + "/" + file);
+    RunSettings settings;
+    settings.options.rtol = 1e-11;
+    settings.options.atol = 1e-13;
+    settings.formulation = "dae";
+    const RunResult dae = RunScene(scene, settings);
+    settings.formulation = "ede";
+    const RunResult ede = RunScene(scene, settings);
+    ASSERT_TRUE(dae.completed) << dae.failure;
+    ASSERT_TRUE(ede.completed) << ede.failure;
+    const auto first_recontact = [](const RunResult& r) {
+      for (const EventRecord& e : r.events) {
+        if (e.name.rfind("recontact_", 0) == 0) return e;
+      }
+      return EventRecord{"none", -1.0, 0.0};
+    };
+    const EventRecord a = first_recontact(dae), b = first_recontact(ede);
+    ASSERT_NE(a.name, "none");
+    EXPECT_EQ(a.name, b.name);
+    EXPECT_NEAR(a.time, b.time, 1e-7);
+  }
+}
+
 // ---------------------------------------------------------------- failure
 
 TEST(DaeFailure, StepBudgetExhaustionIsReturnedWithIdaReasonAndTime) {
