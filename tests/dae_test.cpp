@@ -352,6 +352,14 @@ TEST(DaeEnergy, LooseToleranceDriftsMoreThanTight) {
   EXPECT_GT(RelativeEnergyDrift(scene, loose), 10.0 * RelativeEnergyDrift(scene, tight));
 }
 
+RunResult RunWithTolerances(const Scene& scene, const std::string& formulation, double rtol, double atol) {
+  RunSettings settings;
+  settings.formulation = formulation;
+  settings.options.rtol = rtol;
+  settings.options.atol = atol;
+  return RunScene(scene, settings);
+}
+
 // ---------------------------------------------------------------- ligament kinks
 
 // gravity_only (published law) crosses the PCL anterior kink three times after lateral
@@ -360,13 +368,8 @@ TEST(DaeEnergy, LooseToleranceDriftsMoreThanTight) {
 // chapter form must complete and agree with the closed form (a second formulation).
 TEST(DaeKink, GravityOnlyAtTightToleranceCompletesAndAgreesWithClosedForm) {
   const Scene scene = LoadScene(ScenesDir() + "/gravity_only.yaml");
-  RunSettings settings;
-  settings.options.rtol = 1e-10;
-  settings.options.atol = 1e-12;
-  settings.formulation = "dae";
-  const RunResult a = RunScene(scene, settings);
-  settings.formulation = "dae-reduced";
-  const RunResult b = RunScene(scene, settings);
+  const RunResult a = RunWithTolerances(scene, "dae", 1e-10, 1e-12);
+  const RunResult b = RunWithTolerances(scene, "dae-reduced", 1e-10, 1e-12);
   ASSERT_TRUE(a.completed) << a.failure;
   ASSERT_TRUE(b.completed) << b.failure;
   EXPECT_GT(a.ligament_kink_crossings, 0);
@@ -386,13 +389,8 @@ TEST(DaeRecontact, CompletesAtRtol1e11AndAgreesWithEdeOnTheRecontact) {
   for (const char* file : {"one_ligament.yaml", "hard/distal_pulse_both_separate.yaml"}) {
     SCOPED_TRACE(file);
     const Scene scene = LoadScene(ScenesDir() + "/" + file);
-    RunSettings settings;
-    settings.options.rtol = 1e-11;
-    settings.options.atol = 1e-13;
-    settings.formulation = "dae";
-    const RunResult dae = RunScene(scene, settings);
-    settings.formulation = "ede";
-    const RunResult ede = RunScene(scene, settings);
+    const RunResult dae = RunWithTolerances(scene, "dae", 1e-11, 1e-13);
+    const RunResult ede = RunWithTolerances(scene, "ede", 1e-11, 1e-13);
     ASSERT_TRUE(dae.completed) << dae.failure;
     ASSERT_TRUE(ede.completed) << ede.failure;
     const auto first_recontact = [](const RunResult& r) {
@@ -428,12 +426,7 @@ TEST(DaeFailure, StepBudgetExhaustionIsReturnedWithIdaReasonAndTime) {
 // its tolerance was named where IDA had failed on u. 100-fold ligament stiffness at rtol
 // 1e-13 fails to converge at t ≈ 0.008 s with steps of ~1e-15 s.
 TEST(DaeFailure, NamesAnUnknownInTheErrorTest) {
-  const Scene scene = LoadScene(ScenesDir() + "/hard/stiff_ligaments_100x.yaml");
-  RunSettings settings;
-  settings.formulation = "dae";
-  settings.options.rtol = 1e-13;
-  settings.options.atol = 1e-15;
-  const RunResult r = RunScene(scene, settings);
+  const RunResult r = RunWithTolerances(LoadScene(ScenesDir() + "/hard/stiff_ligaments_100x.yaml"), "dae", 1e-13, 1e-15);
   ASSERT_FALSE(r.completed);
   const std::string key = "largest weighted local error estimate: ";
   const size_t at = r.failure.find(key);
