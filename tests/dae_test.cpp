@@ -24,6 +24,7 @@
 #include "solver/consistent_init.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/ligament.hpp"
+#include "solver/pose.hpp"
 #include "scene/scene.hpp"
 #include "tests/test_support.hpp"
 #include "solver/units.hpp"
@@ -33,6 +34,7 @@ namespace {
 
 using test_support::ChapterScene;
 using test_support::ScenesDir;
+using test_support::SettingsAt;
 
 // ---------------------------------------------------------------- Jacobian vs FD
 
@@ -352,14 +354,6 @@ TEST(DaeEnergy, LooseToleranceDriftsMoreThanTight) {
   EXPECT_GT(RelativeEnergyDrift(scene, loose), 10.0 * RelativeEnergyDrift(scene, tight));
 }
 
-RunResult RunWithTolerances(const Scene& scene, const std::string& formulation, double rtol, double atol) {
-  RunSettings settings;
-  settings.formulation = formulation;
-  settings.options.rtol = rtol;
-  settings.options.atol = atol;
-  return RunScene(scene, settings);
-}
-
 // ---------------------------------------------------------------- ligament kinks
 
 // gravity_only (published law) crosses the PCL anterior kink three times after lateral
@@ -368,8 +362,8 @@ RunResult RunWithTolerances(const Scene& scene, const std::string& formulation, 
 // chapter form must complete and agree with the closed form (a second formulation).
 TEST(DaeKink, GravityOnlyAtTightToleranceCompletesAndAgreesWithClosedForm) {
   const Scene scene = LoadScene(ScenesDir() + "/gravity_only.yaml");
-  const RunResult a = RunWithTolerances(scene, "dae", 1e-10, 1e-12);
-  const RunResult b = RunWithTolerances(scene, "dae-reduced", 1e-10, 1e-12);
+  const RunResult a = RunScene(scene, SettingsAt("dae", 1e-10, 1e-12));
+  const RunResult b = RunScene(scene, SettingsAt("dae-reduced", 1e-10, 1e-12));
   ASSERT_TRUE(a.completed) << a.failure;
   ASSERT_TRUE(b.completed) << b.failure;
   EXPECT_GT(a.ligament_kink_crossings, 0);
@@ -389,8 +383,8 @@ TEST(DaeRecontact, CompletesAtRtol1e11AndAgreesWithEdeOnTheRecontact) {
   for (const char* file : {"one_ligament.yaml", "hard/distal_pulse_both_separate.yaml"}) {
     SCOPED_TRACE(file);
     const Scene scene = LoadScene(ScenesDir() + "/" + file);
-    const RunResult dae = RunWithTolerances(scene, "dae", 1e-11, 1e-13);
-    const RunResult ede = RunWithTolerances(scene, "ede", 1e-11, 1e-13);
+    const RunResult dae = RunScene(scene, SettingsAt("dae", 1e-11, 1e-13));
+    const RunResult ede = RunScene(scene, SettingsAt("ede", 1e-11, 1e-13));
     ASSERT_TRUE(dae.completed) << dae.failure;
     ASSERT_TRUE(ede.completed) << ede.failure;
     const auto first_recontact = [](const RunResult& r) {
@@ -426,14 +420,14 @@ TEST(DaeFailure, StepBudgetExhaustionIsReturnedWithIdaReasonAndTime) {
 // its tolerance was named where IDA had failed on u. 100-fold ligament stiffness at rtol
 // 1e-13 fails to converge at t ≈ 0.008 s with steps of ~1e-15 s.
 TEST(DaeFailure, NamesAnUnknownInTheErrorTest) {
-  const RunResult r = RunWithTolerances(LoadScene(ScenesDir() + "/hard/stiff_ligaments_100x.yaml"), "dae", 1e-13, 1e-15);
+  const RunResult r = RunScene(LoadScene(ScenesDir() + "/hard/stiff_ligaments_100x.yaml"), SettingsAt("dae", 1e-13, 1e-15));
   ASSERT_FALSE(r.completed);
   const std::string key = "largest weighted local error estimate: ";
   const size_t at = r.failure.find(key);
   ASSERT_NE(at, std::string::npos) << r.failure;
   const std::string named = r.failure.substr(at + key.size(), r.failure.find(' ', at + key.size()) - at - key.size());
-  const std::vector<std::string> tested = {"alpha", "beta", "gamma", "x0", "y0", "z0",
-                                           "u[0]", "u[1]", "u[2]", "u[3]", "u[4]", "u[5]"};
+  std::vector<std::string> tested;  // q's coordinates and u's six components
+  for (int i = 0; i < 6; ++i) tested.insert(tested.end(), {CoordinateName(i), StrCat("u[", i, "]")});
   EXPECT_NE(std::find(tested.begin(), tested.end(), named), tested.end()) << r.failure;
 }
 
