@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -429,6 +430,39 @@ TEST(DaeFailure, NamesAnUnknownInTheErrorTest) {
   std::vector<std::string> tested;  // q's coordinates and u's six components
   for (int i = 0; i < 6; ++i) tested.insert(tested.end(), {CoordinateName(i), StrCat("u[", i, "]")});
   EXPECT_NE(std::find(tested.begin(), tested.end(), named), tested.end()) << r.failure;
+}
+
+// A failure whose named unknown had a tolerance within 10 times of round-off says so. The
+// Newton systems give u to about ε max |u| (LU solutions are accurate relative to the
+// solution's norm), so --atol 1e-15 asks more than double precision gives once the rates
+// reach 1e-15 / ε ≈ 4.5 rad/s: the 100-fold stiff scene at rtol 1e-13 fails at t ≈ 0.008 s.
+// The note's round-off must be ε times the rates the run reached (the last output row's,
+// within a factor of 3: the failure is a few ms later), the note's advice must hold (--atol
+// 1e-14 completes the same run), and a failure at ample tolerances (the step budget) has no
+// note. The code before the note gave none.
+TEST(DaeFailure, SaysWhenTheToleranceIsNearRoundOff) {
+  const Scene scene = LoadScene(ScenesDir() + "/hard/stiff_ligaments_100x.yaml");
+  const RunResult tight = RunScene(scene, SettingsAt("dae", 1e-13, 1e-15));
+  ASSERT_FALSE(tight.completed);
+  ASSERT_FALSE(tight.samples.empty());
+  const std::string key = "eps max |u| = ";
+  const size_t at = tight.failure.find(key);
+  ASSERT_NE(at, std::string::npos) << tight.failure;
+  const double round_off = std::stod(tight.failure.substr(at + key.size()));
+  const double last_rates = tight.samples.back().qd.cwiseAbs().maxCoeff();
+  EXPECT_GT(round_off, DBL_EPSILON * last_rates / 3.0) << tight.failure;
+  EXPECT_LT(round_off, DBL_EPSILON * last_rates * 3.0) << tight.failure;
+  EXPECT_GT(round_off, 1e-16) << "the rates are O(1) rad/s or more";
+
+  const RunResult looser = RunScene(scene, SettingsAt("dae", 1e-13, 1e-14));
+  EXPECT_TRUE(looser.completed) << looser.failure;
+
+  RunSettings budget;
+  budget.formulation = "dae";
+  budget.options.max_steps = 5;
+  const RunResult short_budget = RunScene(ChapterScene(), budget);
+  ASSERT_FALSE(short_budget.completed);
+  EXPECT_EQ(short_budget.failure.find("round-off"), std::string::npos) << short_budget.failure;
 }
 
 // --max-steps bounds the steps of a phase over all its output intervals, as for the ODE

@@ -193,6 +193,7 @@ class IdaDriver : public FormulationBase {
   // weighted local error estimate |e_i| w_i (IDAGetEstLocalErrors, IDAGetErrWeights) among
   // the differential unknowns. The algebraic ones are out of the error test
   // (IDASetSuppressAlg), and their estimates, round-off ∝ 1/h² for N, are not what failed it.
+  // With it, RoundOffNote: whether that unknown's tolerance was near round-off.
   std::string LargestErrorComponent() const {
     N_Vector e = N_VClone(ida_.y), w = N_VClone(ida_.y);
     std::string out;
@@ -204,11 +205,32 @@ class IdaDriver : public FormulationBase {
         if (system_.IsDifferential(i) && std::abs(ed[i] * wd[i]) > std::abs(ed[worst] * wd[worst])) worst = i;
       }
       out = StrCat("; largest weighted local error estimate: ", system_.UnknownName(worst), " (",
-                   std::abs(ed[worst] * wd[worst]), " of the tolerance)");
+                   std::abs(ed[worst] * wd[worst]), " of the tolerance)", RoundOffNote(worst, 1.0 / wd[worst]));
     }
     N_VDestroy(e);
     N_VDestroy(w);
     return out;
+  }
+
+  // A tolerance within kRoundOffMargin of round-off: unknown `i` (q or u) had the tolerance
+  // `tolerance` = rtol |y_i| + atol_i, while the Newton systems give its group (q: the six
+  // coordinates, m and rad; u: the six rates) to ε · max |y_j| of the group at best (LU
+  // solutions are accurate relative to the solution's norm, not per component). At rtol
+  // 1e-13 with --atol 1e-15 the rates' ε max |u| is 1.4e-15 to 4.5e-15 on the shipped scenes
+  // (rates up to 1-20 rad/s), and the IDA forms failed on five of them, h shrinking to 1e-15 s;
+  // --atol 1e-14 completes them (README.md, "Running"). Empty otherwise.
+  std::string RoundOffNote(int i, double tolerance) const {
+    constexpr double kRoundOffMargin = 10.0;
+    const int first = i < 6 ? 0 : 6;
+    if (i >= 12) return "";
+    const double* y = NvData(ida_.y);
+    double largest = 0.0;
+    for (int j = first; j < first + 6; ++j) largest = std::max(largest, std::abs(y[j]));
+    const double round_off = DBL_EPSILON * largest;
+    if (!(tolerance < kRoundOffMargin * round_off)) return "";
+    return StrCat("; its tolerance rtol |y| + atol = ", tolerance, " is within ", kRoundOffMargin,
+                  " times the round-off of ", first == 0 ? "q" : "u", " (eps max |", first == 0 ? "q" : "u", "| = ",
+                  round_off, "): double precision may not resolve it; a larger --atol may let IDA converge");
   }
 
   void Check(int flag, const char* call) {
