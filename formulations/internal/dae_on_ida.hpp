@@ -36,16 +36,28 @@ struct DaeOnIdaVariant {
 // (N, newtons, and GGL's μ, m/s: every unknown from NormalIndex(0) on) carry round-off of
 // order ε/h² in Newton corrections; they get kForceAtolScale (formulation.hpp) per unit
 // --atol, floored at kGglIndexTwoAtolFloor for GGL (dae_ggl.cpp's header comment says why)
-// and at kIndexTwoAtolFloor for the plain index-2 forms: N's round-off ε·M·|q|/h² ≈
+// and at IndexTwoAtolFloor for the plain index-2 forms: N's round-off ε·M·|q|/h² ≈
 // 2.2e-16 · 4 kg · 0.2 m / (1.2e-5 s)² ≈ 1.2e-6 N on a restart's first step at rtol 1e-12 on
 // the chapter scene. Without it, --atol < 1e-10 asked N to converge below that, and dae
 // failed at rtol ≤ 3.2e-12 after a restart (benchmarks/README.md, "Work-precision sweep",
-// has the digits gained). At --atol ≥ 1e-10 it changes nothing.
+// has the digits gained). At --atol ≥ 1e-10 it changes nothing on the chapter's knee.
 constexpr double kGglIndexTwoAtolFloor = 1.0e-3;
-constexpr double kIndexTwoAtolFloor = 1.0e-6;
+constexpr double kIndexTwoAtolFloor = 1.0e-6;  // N, for elements as stiff as the chapter's
+// Stiffer elements shrink the steps at a given accuracy (h ∝ √(M/K)), so the round-off
+// ε·M·|q|/h² grows like ε·|q|·K: the floor scales with the elements' total linear stiffness
+// K = Σ k_linear over kFloorStiffness, 720 N/mm, just above the chapter's 713.15 N/mm
+// (Table 1.2), whose scenes keep 1e-6 N. With 100-fold stiffness (hard/stiff_ligaments_100x,
+// floor 9.9e-5 N), dae at rtol 1e-12 --atol 1e-14 and dae-reduced at rtol 1e-13 failed to
+// converge with 1e-6 N and complete with any floor from 1e-5 to 1e-3 N.
+constexpr double kFloorStiffness = 720.0e3;  // N/m
+inline double IndexTwoAtolFloor(const Model& model) {
+  double stiffness = 0.0;  // N/m
+  for (const Ligament& ligament : model.ligaments) stiffness += ligament.k_linear;
+  return kIndexTwoAtolFloor * std::max(1.0, stiffness / kFloorStiffness);
+}
 inline double DaeUnknownAtol(bool ggl, const DaeSystem& system, int i, double atol) {
   if (i < system.NormalIndex(0)) return atol;
-  return std::max(ggl ? kGglIndexTwoAtolFloor : kIndexTwoAtolFloor, atol * kForceAtolScale);
+  return std::max(ggl ? kGglIndexTwoAtolFloor : IndexTwoAtolFloor(system.model()), atol * kForceAtolScale);
 }
 
 // The options of dae, dae-reduced, dae-ggl and dae-ggl-reduced, typed and checked.

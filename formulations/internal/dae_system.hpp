@@ -46,6 +46,7 @@ class DaeSystem {
                 const std::vector<signed char>& ligament_branch);
   // The model the residual reads (the sensitivities swap in a perturbed copy; same sizes).
   void SetModel(const Model& model) { model_ = &model; }
+  const Model& model() const { return *model_; }
 
   int size() const { return n_; }
   int per_contact() const { return per_contact_; }  // contact coordinates per contact
