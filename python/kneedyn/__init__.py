@@ -258,8 +258,11 @@ class Scene:
     def set_pulse(self, **fields):
         """Pulse fields: shape (reconstructed|half_sine|reconstructed_peak|damped_sine|none),
         amplitude_N, duration_s, direction_T (reference-data/scenes/README.md). Fields are
-        merged: shape="none" needs amplitude_N=None, duration_s=None (and direction_T=None
-        if set), since the loader refuses keys the shape does not use."""
+        merged into the scene's pulse, except that shape="none" removes the keys that shape
+        does not use (amplitude_N, duration_s, direction_T); one given with it is refused by
+        the loader, as in a scene file."""
+        if fields.get("shape") == "none":
+            fields = dict({"amplitude_N": None, "duration_s": None, "direction_T": None}, **fields)
         return self.update({"pulse": fields})
 
     def set_patella(self, **fields):

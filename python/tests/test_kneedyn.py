@@ -712,14 +712,22 @@ def test_plain_booleans_and_numbers_of_a_file_survive_an_edit():
     assert "enabled: yes\n" in s.set_pulse(amplitude_N=90.0).to_yaml()
 
 
-def test_pulse_shape_none_refuses_the_keys_it_does_not_use():
-    # Merged fields: the chapter's amplitude_N would be ignored with shape none, so the
-    # loader refuses it by name; removing the keys (None) gives a scene without a pulse.
+def test_pulse_shape_none_removes_the_keys_it_does_not_use():
+    # shape="none" drops the chapter's amplitude_N and duration_s (a direction_T too), which
+    # that shape does not use; one given with it would be ignored, so the loader refuses it
+    # by name, as in a scene file. The compiled pulse (the loader's) has no force.
+    for start in (kneedyn.load_scene(CHAPTER), kneedyn.load_scene(CHAPTER).set_pulse(direction_T=[0.0, 0.0, 1.0])):
+        scene = start.set_pulse(shape="none")
+        assert scene.to_dict()["pulse"] == {"shape": "none"}
+        assert scene.pulse["amplitude_N"] == 0.0
     with pytest.raises(kneedyn.InputError, match=r"pulse\.amplitude_N.*not used by pulse shape none"):
-        kneedyn.load_scene(CHAPTER).set_pulse(shape="none")
-    scene = kneedyn.load_scene(CHAPTER).set_pulse(shape="none", amplitude_N=None, duration_s=None)
-    assert scene.to_dict()["pulse"] == {"shape": "none"}
-    assert scene.pulse["amplitude_N"] == 0.0
+        kneedyn.load_scene(CHAPTER).set_pulse(shape="none", amplitude_N=5.0)
+    # Back to a shape with a force: its fields are needed again, and named when missing.
+    with pytest.raises(kneedyn.InputError, match=r"field 'pulse': missing required field 'amplitude_N'"):
+        kneedyn.load_scene(CHAPTER).set_pulse(shape="none").set_pulse(shape="half_sine")
+    # A run of it applies no pulse force.
+    free = kneedyn.run(kneedyn.load_scene(CHAPTER).set_pulse(shape="none").set_end(time_s=0.05), "ede")
+    assert not np.any(free.trajectory["pulse_N"])
 
 
 def test_pulse_peak_factor_equals_the_clis_summary():
