@@ -293,7 +293,7 @@ int Main(int argc, char** argv) {
     }
     const RunResult result = RunScene(scene, settings);
     if (show_progress) std::fprintf(stderr, "\n");
-    std::vector<PullingContactWarning> warnings;
+    std::vector<OutputWarning> warnings;
     try {
       warnings = WriteRunOutputs(out_dir, scene, settings, result);
     } catch (const std::exception& e) {  // its messages name --out
@@ -319,7 +319,7 @@ int Main(int argc, char** argv) {
     std::printf("  wrote %s/{trajectory.csv, trajectory.sto, summary.json}\n", out_dir.c_str());
     std::fflush(stdout);  // the warnings follow the summary when both streams go to one file
     // summary.json's warnings, on stderr with or without --quiet (it hides progress only).
-    for (const PullingContactWarning& w : warnings) std::fprintf(stderr, "kneedyn run: warning: %s\n", w.message.c_str());
+    for (const OutputWarning& w : warnings) std::fprintf(stderr, "kneedyn run: warning: %s\n", w.message.c_str());
     if (!result.completed) {
       std::fprintf(stderr, "kneedyn run: solver failed: %s\n  (results up to there written, marked partial)\n",
                    result.failure.c_str());

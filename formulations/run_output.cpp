@@ -210,10 +210,23 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
     for (const LigamentObservables& l : obs.ligaments) row.push_back(l.strain);
     if (model.patella) {
       const Patella& p = *model.patella;
-      if ((q - patella_q).tail<3>().cwiseAbs().maxCoeff() <= DegToRad(1.0)) {
-        SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(q)), "MakeTrajectoryTable", &patella_guess);
-      } else {
-        SolvePatellaAlongTibialPath(p, patella_q, q, "MakeTrajectoryTable", &patella_guess);
+      // A failed run can stop at a fold of the equilibrium, where the straight path from the
+      // row before leaves it although the run's own small steps held on (hard/
+      // patella_quadriceps_2000N with newmark at --step 1e-5: 4.4° in 3.4 ms to the last
+      // state): that row's patella columns are empty, and a warning says why; the rows
+      // before and the run's own failure are written. A completed run's row throws.
+      try {
+        if ((q - patella_q).tail<3>().cwiseAbs().maxCoeff() <= DegToRad(1.0)) {
+          SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(q)), "MakeTrajectoryTable", &patella_guess);
+        } else {
+          SolvePatellaAlongTibialPath(p, patella_q, q, "MakeTrajectoryTable", &patella_guess);
+        }
+      } catch (const SolverError& e) {
+        if (result.completed) throw;
+        table.patella_not_followed.emplace_back(st.t, e.what());
+        row.resize(cols.size(), std::numeric_limits<double>::quiet_NaN());
+        table.rows.push_back(std::move(row));
+        continue;  // the next row starts from the last equilibrium reached
       }
       patella_q = q;
       const std::array<double, kPatellaUnknowns>& x = patella_guess.x;
@@ -231,8 +244,8 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
   return table;
 }
 
-std::vector<PullingContactWarning> PullingContactWarnings(const TrajectoryTable& table, const RunResult& result) {
-  std::vector<PullingContactWarning> out;
+std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const RunResult& result) {
+  std::vector<OutputWarning> out;
   const auto& cols = table.columns;
   const auto column = [&](const char* name) {
     return static_cast<size_t>(std::find(cols.begin(), cols.end(), name) - cols.begin());
@@ -259,7 +272,8 @@ std::vector<PullingContactWarning> PullingContactWarnings(const TrajectoryTable&
       at = row[time_col];
     }
     if (!(min_force < 0.0)) continue;
-    PullingContactWarning p;
+    OutputWarning p;
+    p.kind = "pulling_contact";
     p.column = name;
     p.contact = (facet ? "patellar facet " : "tibial contact ") + part;
     p.min_force_N = min_force;
@@ -269,6 +283,14 @@ std::vector<PullingContactWarning> PullingContactWarnings(const TrajectoryTable&
                                "sign, docs/model.md §12; facet_liftoff: true separates a pulling facet)"
                              : "; a tibial contact separates at its lift-off event, docs/model.md §9: this row "
                                "lies past a lift-off the integration did not locate)");
+    out.push_back(std::move(p));
+  }
+  for (const auto& [time, why] : table.patella_not_followed) {
+    OutputWarning p;
+    p.kind = "patella_not_followed";
+    p.time_s = time;
+    p.message = StrCat("the patella's columns are empty at t = ", time, " s: its equilibrium, followed from the row "
+                       "before, was not reached at this row's tibial pose, where the run stopped (", why, ")");
     out.push_back(std::move(p));
   }
   return out;
@@ -471,7 +493,7 @@ void Publish(const fs::path& tmp, const fs::path& out) {
 }  // namespace
 
 nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, const RunResult& result,
-                           const std::vector<PullingContactWarning>& pulling) {
+                           const std::vector<OutputWarning>& pulling) {
   nlohmann::json j;
   j["schema_version"] = kSummarySchemaVersion;  // docs/outputs.md
   j["kneedyn_version"] = KneedynVersion();
@@ -548,14 +570,17 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
   j["constraint_residuals"]["max_gap_mm"] = MToMm(result.max_position_residual);
   j["constraint_residuals"]["max_gap_rate_mm_s"] = MToMm(result.max_velocity_residual);
   j["wall_time_s"] = result.wall_time_s;
-  // What a completed run would otherwise not say (docs/outputs.md): contacts that pulled.
+  // What the run's status would otherwise not say (docs/outputs.md): contacts that pulled,
+  // rows whose patella was not followed.
   nlohmann::json warnings = nlohmann::json::array();
-  for (const PullingContactWarning& p : pulling) {
+  for (const OutputWarning& p : pulling) {
     nlohmann::json w = nlohmann::json::object();
-    w["kind"] = "pulling_contact";
-    w["contact"] = p.contact;
-    w["column"] = p.column;
-    w["min_force_N"] = p.min_force_N;
+    w["kind"] = p.kind;
+    if (p.kind == "pulling_contact") {
+      w["contact"] = p.contact;
+      w["column"] = p.column;
+      w["min_force_N"] = p.min_force_N;
+    }
     w["time_s"] = p.time_s;
     w["message"] = p.message;
     warnings.push_back(std::move(w));
@@ -568,7 +593,7 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
   return j;
 }
 
-std::vector<PullingContactWarning> WriteRunOutputs(const std::string& dir_name, const Scene& scene,
+std::vector<OutputWarning> WriteRunOutputs(const std::string& dir_name, const Scene& scene,
                                             const RunSettings& settings, const RunResult& result) {
   CheckOutputDirectory(dir_name);
   const fs::path out = OutputPath(dir_name);
@@ -631,7 +656,7 @@ std::vector<PullingContactWarning> WriteRunOutputs(const std::string& dir_name, 
     WriteFile(dir_name, tmp / "trajectory.sto",
               {sto, std::string_view(sto_rows.get(), static_cast<size_t>(s_out - sto_rows.get()))});
     // Invalid UTF-8 (e.g. in a file path) is replaced, never thrown on.
-    std::vector<PullingContactWarning> warnings = PullingContactWarnings(table, result);
+    std::vector<OutputWarning> warnings = OutputWarnings(table, result);
     WriteFile(dir_name, tmp / "summary.json",
               {SummaryJson(scene, settings, result, warnings).dump(2, ' ', false, nlohmann::json::error_handler_t::replace),
                "\n"});

@@ -24,28 +24,37 @@ constexpr int kSummarySchemaVersion = 2;
 struct TrajectoryTable {
   std::vector<std::string> columns;        // with units, e.g. "flexion_deg"
   std::vector<std::vector<double>> rows;   // NaN = empty (e.g. contact point when separated)
+  // A failed run's rows whose patella columns are empty: the equilibrium followed from the
+  // row before did not reach their tibial pose (where the run stopped, at a fold of the
+  // patella's equilibrium, docs/model.md §12): the row's time (s) and the solver's reason.
+  std::vector<std::pair<double, std::string>> patella_not_followed;
 };
 
 TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result);
 
-// A contact whose normal force pulled (< 0 N) in a row written: a patellar facet without
-// patella.facet_liftoff (λ of either sign, docs/model.md §12), or a tibial contact. The
-// contact's own lift-off event row is not counted: there the force is 0 by the event's
-// definition (docs/model.md §9) and its value is the event location's error (−4e-12 N with
-// dae, −0.015 N with staggered on the patellofemoral impact).
-struct PullingContactWarning {
+// What a run did that its status does not say (summary.json's `warnings`, docs/outputs.md):
+//  - kind "pulling_contact": a contact whose normal force pulled (< 0 N) in a row written:
+//    a patellar facet without patella.facet_liftoff (λ of either sign, docs/model.md §12), or
+//    a tibial contact. The contact's own lift-off event row is not counted: there the force
+//    is 0 by the event's definition (docs/model.md §9) and its value is the event location's
+//    error (−4e-12 N with dae, −0.015 N with staggered on the patellofemoral impact).
+//  - kind "patella_not_followed": a failed run's row whose patella columns are empty
+//    (TrajectoryTable::patella_not_followed); `time_s` and `message` only.
+struct OutputWarning {
+  std::string kind;     // "pulling_contact" | "patella_not_followed"
   std::string column;   // the trajectory column, e.g. "N_patella_lateral_N", "N_medial_N"
   std::string contact;  // "patellar facet lateral", "tibial contact medial"
   double min_force_N = 0.0;  // the column's most negative value, N
   double time_s = 0.0;       // its row's time, s (the first row of that value)
   std::string message;  // one line for the CLI and summary.json
 };
-// From the rows of `table` (MakeTrajectoryTable of `result`) and result.events; in column order.
-std::vector<PullingContactWarning> PullingContactWarnings(const TrajectoryTable& table, const RunResult& result);
+// From the rows of `table` (MakeTrajectoryTable of `result`) and result.events: the pulling
+// contacts in column order, then the rows whose patella was not followed.
+std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const RunResult& result);
 
-// summary.json; `warnings` are PullingContactWarnings of the run's table.
+// summary.json; `warnings` are OutputWarnings of the run's table.
 nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, const RunResult& result,
-                           const std::vector<PullingContactWarning>& warnings);
+                           const std::vector<OutputWarning>& warnings);
 nlohmann::json StatsJson(const SolverStats& stats);
 
 // Checks that `dir` can receive an output set before a run starts: it is absent, or a
@@ -59,8 +68,8 @@ void CheckOutputDirectory(const std::string& dir);
 // After a kill at any moment `dir` holds the previous complete set or the new one; a
 // later run removes temporaries whose process has ended. Of two runs into the same `dir`,
 // the last to publish wins whole. Throws InputError (checks of CheckOutputDirectory).
-// Returns summary.json's warnings (PullingContactWarnings), for the caller to show.
-std::vector<PullingContactWarning> WriteRunOutputs(const std::string& dir, const Scene& scene, const RunSettings& settings,
+// Returns summary.json's warnings (OutputWarnings), for the caller to show.
+std::vector<OutputWarning> WriteRunOutputs(const std::string& dir, const Scene& scene, const RunSettings& settings,
                      const RunResult& result);
 
 // The bytes of printf("%.12g", v) for the numbers of trajectory.csv/.sto, written into

@@ -486,7 +486,7 @@ PYBIND11_MODULE(_kneedyn, m) {
       out->result = RunScene(*scene, settings);
       out->table = MakeTrajectoryTable(*scene, out->result);
       // As run_output.cpp: invalid UTF-8 (a file path) is replaced, never thrown on.
-      out->summary_json = SummaryJson(*scene, settings, out->result, PullingContactWarnings(out->table, out->result))
+      out->summary_json = SummaryJson(*scene, settings, out->result, OutputWarnings(out->table, out->result))
                               .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
       // The CLI's writer: trajectory.csv, trajectory.sto, summary.json, byte for byte.
       if (!out_dir.empty()) WriteRunOutputs(out_dir, *scene, settings, out->result);

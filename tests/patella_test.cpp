@@ -774,18 +774,58 @@ TEST(PatellaRuns, PullingTibialContactIsReportedOutsideItsOwnLiftoffRow) {
                 {0.4, 0.0, 0.0, -0.5, 1.0}};
   RunResult result;
   result.events = {{"liftoff_medial", 0.1, 0.0}, {"recontact_medial", 0.3, 0.0}};
-  const std::vector<PullingContactWarning> pulling = PullingContactWarnings(table, result);
+  const std::vector<OutputWarning> pulling = OutputWarnings(table, result);
   ASSERT_EQ(pulling.size(), 1u);
   EXPECT_EQ(pulling[0].column, "N_lateral_N");
   EXPECT_EQ(pulling[0].contact, "tibial contact lateral");
   EXPECT_EQ(pulling[0].min_force_N, -0.5);
   EXPECT_EQ(pulling[0].time_s, 0.3);  // the first row of the minimum
   result.events = {{"liftoff_lateral", 0.3, 0.0}};  // now 0.3 is the lateral lift-off's row
-  const std::vector<PullingContactWarning> after = PullingContactWarnings(table, result);
+  const std::vector<OutputWarning> after = OutputWarnings(table, result);
   ASSERT_EQ(after.size(), 2u);  // medial's -0.02 at 0.1 is no lift-off row any more
   EXPECT_EQ(after[0].column, "N_medial_N");
   EXPECT_EQ(after[0].min_force_N, -0.02);
   EXPECT_EQ(after[1].time_s, 0.4);
+}
+
+// A failed run that stops at a fold of the patella's equilibrium: the 40-fold quadriceps
+// force with newmark at --step 1e-5 holds on with its small steps to t = 0.0984 s, 4.4° past
+// the row before, where the straight path MakeTrajectoryTable follows from that row finds no
+// equilibrium. The run's own failure says the same there (its next step: "no patellar
+// equilibrium found", a second evaluation). The set is written, that row's patella columns
+// empty, its other columns not, and a warning of kind patella_not_followed gives its time.
+// Before, WriteRunOutputs threw: exit 2 and nothing written. The same rows of a run that
+// completed still throw: a completed run's table has a patella in every row.
+TEST(PatellaRuns, RowPastAFoldOfAFailedRunHasEmptyPatellaColumnsAndAWarning) {
+  const Scene scene = LoadScene("reference-data/scenes/hard/patella_quadriceps_2000N.yaml");
+  RunSettings settings;
+  settings.formulation = "newmark";
+  settings.options.step = 1e-5;
+  RunResult run = RunScene(scene, settings);
+  ASSERT_FALSE(run.completed);
+  ASSERT_NE(run.failure.find("no patellar equilibrium found"), std::string::npos) << run.failure;
+  const WrittenRun w = WriteAndRead(scene, settings, run, "fold");
+  ASSERT_EQ(w.rows.size(), run.samples.size());
+  const auto column = [&](const std::string& name) {
+    return static_cast<size_t>(std::find(w.columns.begin(), w.columns.end(), name) - w.columns.begin());
+  };
+  const size_t first_patella = column("patella_shift_mm"), flexion = column("flexion_deg");
+  ASSERT_LT(first_patella, w.columns.size());
+  const std::vector<std::string>& last = w.rows.back();
+  for (size_t c = first_patella; c < w.columns.size(); ++c) EXPECT_EQ(last[c], "") << w.columns[c];
+  EXPECT_NE(last[flexion], "");
+  for (size_t c = first_patella; c < w.columns.size(); ++c) EXPECT_NE(w.rows[w.rows.size() - 2][c], "") << w.columns[c];
+  int found = 0;
+  for (const nlohmann::json& warning : w.summary["warnings"]) {
+    if (warning["kind"] != "patella_not_followed") continue;
+    ++found;
+    EXPECT_EQ(warning["time_s"].get<double>(), run.samples.back().t);
+    EXPECT_NE(warning["message"].get<std::string>().find("no patellar equilibrium found"), std::string::npos);
+  }
+  EXPECT_EQ(found, 1) << w.summary["warnings"].dump();
+  EXPECT_EQ(w.summary["status"], "partial");
+  run.completed = true;
+  EXPECT_THROW(MakeTrajectoryTable(scene, run), SolverError);
 }
 
 }  // namespace

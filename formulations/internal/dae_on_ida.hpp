@@ -227,7 +227,8 @@ class IdaDriver : public FormulationBase {
   // A tolerance within kRoundOffMargin of round-off: unknown `i` (q or u) had the tolerance
   // `tolerance` = rtol |y_i| + atol_i, while the Newton systems give its group (q: the six
   // coordinates, m and rad; u: the six rates) to ε · max |y_j| of the group at best (LU
-  // solutions are accurate relative to the solution's norm, not per component). At rtol
+  // solutions are accurate relative to the solution's norm, not per component, and the
+  // index-2 Newton matrix's condition grows like 1/h²; the ODE forms complete there). At rtol
   // 1e-13 with --atol 1e-15 the rates' ε max |u| is 1.4e-15 to 4.5e-15 on the shipped scenes
   // (rates up to 1-20 rad/s), and the IDA forms failed on five of them, h shrinking to 1e-15 s;
   // --atol 1e-14 completes them (README.md, "Running"). Empty otherwise.
