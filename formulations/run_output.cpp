@@ -143,6 +143,46 @@ size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]) {
   return static_cast<size_t>(o - out);
 }
 
+namespace {
+constexpr size_t kPatellaColumns = 11;  // patella_shift_mm … tendon_quadriceps_ratio (MakeTrajectoryTable)
+
+// Appends the patella's columns of a row (docs/model.md §12) to *row: its equilibrium at the
+// sample's tibial coordinates, followed from the last row's (*from_q, *guess): from its
+// solution, or, when the tibia turned by more than 1° since, in steps of at most 1°
+// (SolvePatellaAlongTibialPath, as the events follow it). A failed run can stop at a fold of
+// the equilibrium, where the straight path from the row before leaves it although the run's
+// own small steps held on (hard/patella_quadriceps_2000N with newmark at --step 1e-5: 4.4° in
+// 3.4 ms to the last state): that row's patella columns are empty (NaN) and *not_followed
+// records its time and the reason; the next row starts from the last equilibrium reached. A
+// completed run's row throws the SolverError. Out of line, so that the table's loop keeps
+// its row appends inlined.
+void AppendPatellaColumns(const Patella& p, const MechanicalState& st, bool run_completed, Vector6d* from_q,
+                          PatellaGuess* guess, std::vector<double>* row,
+                          std::vector<std::pair<double, std::string>>* not_followed) {
+  const Vector6d& q = st.q;
+  try {
+    if ((q - *from_q).tail<3>().cwiseAbs().maxCoeff() <= DegToRad(1.0)) {
+      SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(q)), "MakeTrajectoryTable", guess);
+    } else {
+      SolvePatellaAlongTibialPath(p, *from_q, q, "MakeTrajectoryTable", guess);
+    }
+  } catch (const SolverError& e) {
+    if (run_completed) throw;
+    not_followed->emplace_back(st.t, e.what());
+    row->resize(row->size() + kPatellaColumns, std::numeric_limits<double>::quiet_NaN());
+    return;
+  }
+  *from_q = q;
+  const std::array<double, kPatellaUnknowns>& x = guess->x;
+  const double quadriceps = QuadricepsMagnitude(p.quadriceps, st.t);
+  const std::array<double, kPatellaColumns> columns = {
+      MToMm(x[0]),      MToMm(x[1]),      MToMm(x[2]), RadToDeg(x[3]), RadToDeg(x[4]), RadToDeg(x[5]), quadriceps,
+      x[kPatellaTendonRatio] * quadriceps, x[kPatellaFacetRatio] * quadriceps,
+      x[kPatellaFacetRatio + 1] * quadriceps, x[kPatellaTendonRatio]};
+  row->insert(row->end(), columns.begin(), columns.end());
+}
+}  // namespace
+
 TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result) {
   const Model& model = scene.model;
   TrajectoryTable table;
@@ -173,14 +213,13 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
                           "N_patella_medial_N", "N_patella_lateral_N", "tendon_quadriceps_ratio"}) {
       cols.push_back(c);
     }
+    static_assert(kPatellaColumns == 11, "AppendPatellaColumns writes the columns named here");
   }
 
   Observables obs;
   // The patella's equilibrium is followed from the scene's start through the rows' tibial
-  // poses: from the last row's solution, or, when the tibia turned by more than 1° since,
-  // in steps of at most 1° (SolvePatellaAlongTibialPath, as the events follow it). A straight
-  // solve failed where the tuberosity moved 26 mm between rows (a 0.01 s, 1e5 N quadriceps
-  // half-sine): exit 2 and nothing written instead of the run's rows and its own failure.
+  // poses (AppendPatellaColumns; a straight solve from the row before failed where the
+  // tuberosity moved 26 mm between rows, a 0.01 s, 1e5 N quadriceps half-sine).
   PatellaGuess patella_guess;
   Vector6d patella_q = model.patella ? model.patella->start_q : Vector6d::Zero();
   for (size_t s = 0; s < result.samples.size(); ++s) {
@@ -189,55 +228,39 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
     const Vector6d& q = st.q;
     const Vector6d& qd = st.qd;
     const JointObservables& j = obs.joint;
-    std::vector<double> row = {obs.t, j.flexion_deg, j.valgus_deg, j.external_rotation_deg,
-                               MToMm(q(kX0)), MToMm(q(kY0)), MToMm(q(kZ0)), MToMm(qd(kX0)), MToMm(qd(kY0)),
-                               MToMm(qd(kZ0)), j.flexion_rate_deg_s, j.valgus_rate_deg_s,
-                               j.external_rotation_rate_deg_s};
-    row.reserve(cols.size());
-    for (int i = 0; i < 3; ++i) row.push_back(RadToDeg(j.omega_T(i)));
-    row.push_back(obs.pulse);
-    row.push_back(static_cast<double>(obs.contacts_active));
-    row.push_back(result.sample_is_event[s] ? 1.0 : 0.0);
-    for (const ContactObservables& c : obs.contacts) {  // NaN = empty when separated
-      for (int a = 0; a < 3; ++a) row.push_back(MToMm(c.point_F(a)));
-      for (int a = 0; a < 3; ++a) row.push_back(MToMm(c.point_T(a)));
+    // The row is sized once and filled in column order (no per-value capacity checks): one
+    // group per contact pair and per ligament of the model, as the columns.
+    if (obs.contacts.size() != model.contacts.size() || obs.ligaments.size() != model.ligaments.size()) {
+      Throw<SolverError>("MakeTrajectoryTable", "observables of ", obs.contacts.size(), " contacts and ",
+                         obs.ligaments.size(), " ligaments for a model of ", model.contacts.size(), " and ",
+                         model.ligaments.size());
     }
-    for (const ContactObservables& c : obs.contacts) row.push_back(c.normal_force);
-    for (const LigamentObservables& l : obs.ligaments) row.push_back(l.tension);
-    for (const ContactObservables& c : obs.contacts) row.push_back(MToMm(c.gap));
-    for (const ContactObservables& c : obs.contacts) row.push_back(MToMm(c.gap_rate));
-    for (const LigamentObservables& l : obs.ligaments) row.push_back(MToMm(l.length));
-    for (const LigamentObservables& l : obs.ligaments) row.push_back(l.strain);
+    std::vector<double> row;
+    row.reserve(cols.size());
+    row.resize(cols.size() - (model.patella ? kPatellaColumns : 0));
+    double* out = row.data();
+    for (double v : {obs.t, j.flexion_deg, j.valgus_deg, j.external_rotation_deg, MToMm(q(kX0)), MToMm(q(kY0)),
+                     MToMm(q(kZ0)), MToMm(qd(kX0)), MToMm(qd(kY0)), MToMm(qd(kZ0)), j.flexion_rate_deg_s,
+                     j.valgus_rate_deg_s, j.external_rotation_rate_deg_s}) {
+      *out++ = v;
+    }
+    for (int i = 0; i < 3; ++i) *out++ = RadToDeg(j.omega_T(i));
+    *out++ = obs.pulse;
+    *out++ = static_cast<double>(obs.contacts_active);
+    *out++ = result.sample_is_event[s] ? 1.0 : 0.0;
+    for (const ContactObservables& c : obs.contacts) {  // NaN = empty when separated
+      for (int a = 0; a < 3; ++a) *out++ = MToMm(c.point_F(a));
+      for (int a = 0; a < 3; ++a) *out++ = MToMm(c.point_T(a));
+    }
+    for (const ContactObservables& c : obs.contacts) *out++ = c.normal_force;
+    for (const LigamentObservables& l : obs.ligaments) *out++ = l.tension;
+    for (const ContactObservables& c : obs.contacts) *out++ = MToMm(c.gap);
+    for (const ContactObservables& c : obs.contacts) *out++ = MToMm(c.gap_rate);
+    for (const LigamentObservables& l : obs.ligaments) *out++ = MToMm(l.length);
+    for (const LigamentObservables& l : obs.ligaments) *out++ = l.strain;
     if (model.patella) {
-      const Patella& p = *model.patella;
-      // A failed run can stop at a fold of the equilibrium, where the straight path from the
-      // row before leaves it although the run's own small steps held on (hard/
-      // patella_quadriceps_2000N with newmark at --step 1e-5: 4.4° in 3.4 ms to the last
-      // state): that row's patella columns are empty, and a warning says why; the rows
-      // before and the run's own failure are written. A completed run's row throws.
-      try {
-        if ((q - patella_q).tail<3>().cwiseAbs().maxCoeff() <= DegToRad(1.0)) {
-          SolvePatella(p, TuberosityInF(p, PoseFromCoordinates(q)), "MakeTrajectoryTable", &patella_guess);
-        } else {
-          SolvePatellaAlongTibialPath(p, patella_q, q, "MakeTrajectoryTable", &patella_guess);
-        }
-      } catch (const SolverError& e) {
-        if (result.completed) throw;
-        table.patella_not_followed.emplace_back(st.t, e.what());
-        row.resize(cols.size(), std::numeric_limits<double>::quiet_NaN());
-        table.rows.push_back(std::move(row));
-        continue;  // the next row starts from the last equilibrium reached
-      }
-      patella_q = q;
-      const std::array<double, kPatellaUnknowns>& x = patella_guess.x;
-      const double quadriceps = QuadricepsMagnitude(p.quadriceps, st.t);
-      for (int i = 0; i < 3; ++i) row.push_back(MToMm(x[i]));
-      for (int i = 3; i < 6; ++i) row.push_back(RadToDeg(x[i]));
-      row.push_back(quadriceps);
-      row.push_back(x[kPatellaTendonRatio] * quadriceps);
-      row.push_back(x[kPatellaFacetRatio] * quadriceps);
-      row.push_back(x[kPatellaFacetRatio + 1] * quadriceps);
-      row.push_back(x[kPatellaTendonRatio]);
+      AppendPatellaColumns(*model.patella, st, result.completed, &patella_q, &patella_guess, &row,
+                           &table.patella_not_followed);
     }
     table.rows.push_back(std::move(row));
   }
