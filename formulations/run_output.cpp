@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
+#include <iterator>
 #include <limits>
 #include <memory>
 #include <random>
@@ -154,8 +155,7 @@ constexpr size_t kPatellaColumns = 11;  // patella_shift_mm … tendon_quadricep
 // own small steps held on (hard/patella_quadriceps_2000N with newmark at --step 1e-5: 4.4° in
 // 3.4 ms to the last state): that row's patella columns are empty (NaN) and *not_followed
 // records its time and the reason; the next row starts from the last equilibrium reached. A
-// completed run's row throws the SolverError. Out of line, so that the table's loop keeps
-// its row appends inlined.
+// completed run's row throws the SolverError.
 void AppendPatellaColumns(const Patella& p, const MechanicalState& st, bool run_completed, Vector6d* from_q,
                           PatellaGuess* guess, std::vector<double>* row,
                           std::vector<std::pair<double, std::string>>* not_followed) {
@@ -208,12 +208,12 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
   for (const Ligament& lig : model.ligaments) cols.push_back("strain_" + ColumnSafeName(lig.name));
   // With a patella (docs/model.md §12): its equilibrium at each row's tibial pose.
   if (model.patella) {
-    for (const char* c : {"patella_shift_mm", "patella_anterior_mm", "patella_proximal_mm", "patella_flexion_deg",
-                          "patella_tilt_deg", "patella_rotation_deg", "quadriceps_N", "tendon_force_N",
-                          "N_patella_medial_N", "N_patella_lateral_N", "tendon_quadriceps_ratio"}) {
-      cols.push_back(c);
-    }
-    static_assert(kPatellaColumns == 11, "AppendPatellaColumns writes the columns named here");
+    static constexpr const char* kPatellaColumnNames[] = {
+        "patella_shift_mm", "patella_anterior_mm", "patella_proximal_mm", "patella_flexion_deg",
+        "patella_tilt_deg", "patella_rotation_deg", "quadriceps_N",        "tendon_force_N",
+        "N_patella_medial_N", "N_patella_lateral_N", "tendon_quadriceps_ratio"};
+    static_assert(std::size(kPatellaColumnNames) == kPatellaColumns, "AppendPatellaColumns writes these columns");
+    cols.insert(cols.end(), std::begin(kPatellaColumnNames), std::end(kPatellaColumnNames));
   }
 
   Observables obs;
