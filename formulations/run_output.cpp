@@ -516,7 +516,7 @@ void Publish(const fs::path& tmp, const fs::path& out) {
 }  // namespace
 
 nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, const RunResult& result,
-                           const std::vector<OutputWarning>& pulling) {
+                           const std::vector<OutputWarning>& warnings) {
   nlohmann::json j;
   j["schema_version"] = kSummarySchemaVersion;  // docs/outputs.md
   j["kneedyn_version"] = KneedynVersion();
@@ -595,8 +595,8 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
   j["wall_time_s"] = result.wall_time_s;
   // What the run's status would otherwise not say (docs/outputs.md): contacts that pulled,
   // rows whose patella was not followed.
-  nlohmann::json warnings = nlohmann::json::array();
-  for (const OutputWarning& p : pulling) {
+  nlohmann::json listed = nlohmann::json::array();
+  for (const OutputWarning& p : warnings) {
     nlohmann::json w = nlohmann::json::object();
     w["kind"] = p.kind;
     if (p.kind == "pulling_contact") {
@@ -606,9 +606,9 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
     }
     w["time_s"] = p.time_s;
     w["message"] = p.message;
-    warnings.push_back(std::move(w));
+    listed.push_back(std::move(w));
   }
-  j["warnings"] = std::move(warnings);
+  j["warnings"] = std::move(listed);
   nlohmann::json& versions = j["versions"];
   versions["sundials"] = SUNDIALS_VERSION;
   versions["ceres"] = CERES_VERSION_STRING;

@@ -421,7 +421,8 @@ TEST(DaeFailure, StepBudgetExhaustionIsReturnedWithIdaReasonAndTime) {
 // IDA's error test: q and u. N, the contact coordinates and μ are algebraic and out of it
 // (IDASetSuppressAlg); their estimates are round-off ∝ 1/h², and N_lateral at 4.5e5 times
 // its tolerance was named where IDA had failed on u. 100-fold ligament stiffness at rtol
-// 1e-13 fails to converge at t ≈ 0.008 s with steps of ~1e-15 s.
+// 1e-13, --atol 1e-15 fails to converge (t ≈ 0.055 s since N's floor scales with the
+// stiffness, 0.008 s before) with steps of ~1e-15 s.
 TEST(DaeFailure, NamesAnUnknownInTheErrorTest) {
   const RunResult r = RunScene(LoadScene(ScenesDir() + "/hard/stiff_ligaments_100x.yaml"), SettingsAt("dae", 1e-13, 1e-15));
   ASSERT_FALSE(r.completed);
@@ -437,7 +438,7 @@ TEST(DaeFailure, NamesAnUnknownInTheErrorTest) {
 // A failure whose named unknown had a tolerance within 10 times of round-off says so. The
 // Newton systems give u to about ε max |u| (LU solutions are accurate relative to the
 // solution's norm), so --atol 1e-15 asks more than double precision gives once the rates
-// reach 1e-15 / ε ≈ 4.5 rad/s: the 100-fold stiff scene at rtol 1e-13 fails at t ≈ 0.008 s.
+// reach 1e-15 / ε ≈ 4.5 rad/s: the 100-fold stiff scene at rtol 1e-13 fails at t ≈ 0.055 s.
 // The note's round-off must be ε times the rates the run reached (the last output row's,
 // within a factor of 3: the failure is a few ms later), the note's advice must hold (--atol
 // 1e-14 completes the same run); a failure at ample tolerances has no note
