@@ -285,15 +285,16 @@ int main(int argc, char** argv) {
   app.add_option("--formulation", only_formulations, "run only this formulation (repeatable)");
   app.add_flag("--check", check, "exit 1 unless every run meets its case's expectation");
   app.add_flag("--no-reference", no_reference, "skip the tight-tolerance dae reference runs");
-  app.add_option("--contact-chart", g_contact_chart,
+  std::string chart_text = OptionName(g_contact_chart);
+  app.add_option("--contact-chart", chart_text,
                  "chart of the chapter-form contact coordinates: regular | height-field (the "
                  "chapter's; reproduces its failure at the condyle rim)")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, ContactChart>{
-          {"regular", ContactChart::kRegular}, {"height-field", ContactChart::kHeightField}}));
+      ->capture_default_str();
   app.set_version_flag("--version", VersionReport("kneedyn_catalog"));
   if (const int code = ParseCommandLine(app, argc, argv, "kneedyn_catalog"); code >= 0) return code;
 
   try {
+    g_contact_chart = ParsedOptionValue<ContactChart>(chart_text);
     for (const std::string& n : only_formulations) (void)FindFormulation(n);
     for (const std::string& n : only_cases) {
       const auto& cs = Cases();

@@ -206,11 +206,10 @@ int Main(int argc, char** argv) {
   text_option("--linear-solver", "IDA's Newton systems: structured (default; q eliminated through the rows "
                                  "u - q' = 0 first) | dense (SUNDIALS' LU of the whole matrix) (" +
                                      accepted(&FormulationInfo::linear_solvers) + ")");
-  run->add_option("--contact-chart", options.contact_chart,
-                  "chart of the contact coordinates of the chapter-form formulations: regular | height-field "
-                  "(the chapter's, singular at the condyle rim)")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, ContactChart>{
-          {"regular", ContactChart::kRegular}, {"height-field", ContactChart::kHeightField}}));
+  text_option("--contact-chart",
+              "chart of the contact coordinates of the consistent initialization and the chapter-form "
+              "formulations: regular | height-field (the chapter's, singular at the condyle rim)",
+              shown(OptionName(defaults.contact_chart)));
   text_option("--output-interval", "s between output rows (> 0; omit it for the scene's)");
   run->add_option("--out", out_dir, "output directory")->capture_default_str();
   run->add_flag("--quiet", quiet, "no progress on stderr");

@@ -51,6 +51,8 @@ constexpr Spelling<JacobianKind> kJacobians[] = {
     {"difference-quotient", JacobianKind::kDifferenceQuotient}};
 constexpr Spelling<LinearSolverKind> kLinearSolvers[] = {
     {"structured", LinearSolverKind::kStructured}, {"dense", LinearSolverKind::kDense}};
+constexpr Spelling<ContactChart> kContactCharts[] = {
+    {"regular", ContactChart::kRegular}, {"height-field", ContactChart::kHeightField}};
 
 template <typename Enum, size_t N>
 const char* NameIn(const Spelling<Enum> (&table)[N], Enum value) {
@@ -108,6 +110,7 @@ const char* OptionName(Stabilization value) { return NameIn(kStabilizations, val
 const char* OptionName(ConstraintLevel value) { return NameIn(kConstraintLevels, value); }
 const char* OptionName(JacobianKind value) { return NameIn(kJacobians, value); }
 const char* OptionName(LinearSolverKind value) { return NameIn(kLinearSolvers, value); }
+const char* OptionName(ContactChart value) { return NameIn(kContactCharts, value); }
 
 bool ParseOptionValue(const std::string& text, IntegratorKind* value, std::string* error) {
   return ParseIn(kIntegrators, "--integrator", " is not available", text, value, error);
@@ -123,6 +126,9 @@ bool ParseOptionValue(const std::string& text, JacobianKind* value, std::string*
 }
 bool ParseOptionValue(const std::string& text, LinearSolverKind* value, std::string* error) {
   return ParseIn(kLinearSolvers, "--linear-solver", "", text, value, error);
+}
+bool ParseOptionValue(const std::string& text, ContactChart* value, std::string* error) {
+  return ParseIn(kContactCharts, "--contact-chart", "", text, value, error);
 }
 
 template <typename Enum>
@@ -146,6 +152,7 @@ template Stabilization ParsedOptionValue<Stabilization>(const std::string&);
 template ConstraintLevel ParsedOptionValue<ConstraintLevel>(const std::string&);
 template JacobianKind ParsedOptionValue<JacobianKind>(const std::string&);
 template LinearSolverKind ParsedOptionValue<LinearSolverKind>(const std::string&);
+template ContactChart ParsedOptionValue<ContactChart>(const std::string&);
 
 bool ParseReal(const std::string& text, double* value) {
   if (text.empty() || std::isspace(static_cast<unsigned char>(text[0]))) return false;
@@ -215,6 +222,7 @@ std::string ReadOptionText(const OptionText& typed, FormulationOptions* options)
     else if (flag == "--constraint-level") name(&o.constraint_level);
     else if (flag == "--jacobian") name(&o.jacobian);
     else if (flag == "--linear-solver") name(&o.linear_solver);
+    else if (flag == "--contact-chart") name(&o.contact_chart);
     if (!why.empty()) return why;
   }
   return "";

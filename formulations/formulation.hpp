@@ -66,6 +66,7 @@ const char* OptionName(Stabilization value);    // "none", "baumgarte", ...
 const char* OptionName(ConstraintLevel value);  // "velocity", "position"
 const char* OptionName(JacobianKind value);     // "exact", "jet", "difference-quotient"
 const char* OptionName(LinearSolverKind value);  // "structured", "dense"
+const char* OptionName(ContactChart value);      // "regular", "height-field"
 // `text` as the value it spells; false, with a message naming the option (--integrator, ...),
 // the text and the accepted spellings, when it spells none.
 bool ParseOptionValue(const std::string& text, IntegratorKind* value, std::string* error);
@@ -73,6 +74,7 @@ bool ParseOptionValue(const std::string& text, Stabilization* value, std::string
 bool ParseOptionValue(const std::string& text, ConstraintLevel* value, std::string* error);
 bool ParseOptionValue(const std::string& text, JacobianKind* value, std::string* error);
 bool ParseOptionValue(const std::string& text, LinearSolverKind* value, std::string* error);
+bool ParseOptionValue(const std::string& text, ContactChart* value, std::string* error);
 // Throwing variant: InputError with that message.
 template <typename Enum>
 Enum ParsedOptionValue(const std::string& text);

@@ -562,6 +562,7 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
   settings_json["constraint_level"] = OptionName(o.constraint_level);
   settings_json["jacobian"] = JacobianSetting(settings);
   settings_json["linear_solver"] = LinearSolverSetting(settings);
+  settings_json["contact_chart"] = OptionName(o.contact_chart);
   settings_json["output_interval_s"] = settings.output_interval > 0 ? settings.output_interval : scene.output_interval;
   const InitReport& ir = result.init;
   nlohmann::json forces_guess = nlohmann::json::object(), forces = nlohmann::json::object();

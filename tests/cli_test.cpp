@@ -256,6 +256,28 @@ TEST_F(CliTest, JacobianOptionIsCheckedAndRecorded) {
   EXPECT_TRUE(nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json")).at("settings").at("jacobian").is_null());
 }
 
+// --contact-chart is read as text like the other names (CLI11's enum transformer accepted
+// "0" and "1" and answered in its own words), and summary.json records the chart run: the
+// two charts give different rounding, so the trajectories differ while the settings must too.
+TEST_F(CliTest, ContactChartIsCheckedAndRecorded) {
+  for (const char* bad : {"1", "height_field"}) {
+    ExpectRefused("run '" + ChapterScenePath() + "' --contact-chart " + bad + " --quiet --out '" + Out() + "'",
+                  {"--contact-chart", std::string("'") + bad + "'", "regular or height-field"});
+  }
+  std::string trajectory[2];
+  const char* charts[2] = {"", "height-field"};
+  for (int i = 0; i < 2; ++i) {
+    fs::remove_all(Out());
+    const std::string flag = *charts[i] ? std::string(" --contact-chart ") + charts[i] : "";
+    const CommandResult r = RunKneedyn("run '" + ChapterScenePath() + "'" + flag + " --quiet --out '" + Out() + "'");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const nlohmann::json j = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
+    EXPECT_EQ(j.at("settings").at("contact_chart"), *charts[i] ? charts[i] : "regular");
+    trajectory[i] = ReadText(fs::path(Out()) / "trajectory.csv");
+  }
+  EXPECT_NE(trajectory[0], trajectory[1]) << "--contact-chart height-field changed nothing";
+}
+
 TEST_F(CliTest, MalformedSceneIsRefusedWithoutOutput) {
   std::string text = ReadText(ChapterScenePath());
   const std::string from = "amplitude_N: 100.0";
@@ -477,8 +499,8 @@ TEST_F(CliTest, CatalogPrintsCountedProgress) {
 
 // The catalog refuses what it cannot use before its runs, with exit 2 and its own prefix:
 // a --cases-dir that is not a directory or lacks a selected case's file (before: 233 rows
-// 'error', exit 0) and an --out that cannot be created (before: every case run, then an
-// uncaught filesystem_error, abort, exit 134).
+// 'error', exit 0), an --out that cannot be created (before: every case run, then an
+// uncaught filesystem_error, abort, exit 134) and a --contact-chart that names no chart.
 TEST_F(CliTest, CatalogRefusesAnUnusableCasesDirOrOutBeforeRunning) {
   const std::string catalog = std::string("'") + KNEEDYN_CATALOG_EXE + "' --case c1_law --formulation dae --no-reference";
   const fs::path empty_dir = fs::path(Out()).parent_path() / "no_cases";
@@ -490,7 +512,8 @@ TEST_F(CliTest, CatalogRefusesAnUnusableCasesDirOrOutBeforeRunning) {
       {{" --cases-dir /nonexistent --out '" + Out() + "'", "--cases-dir = '/nonexistent': not a directory"},
        {" --cases-dir '" + empty_dir.string() + "' --out '" + Out() + "'",
         "1 of the 1 case files are missing or not regular files (c1_law.yaml)"},
-       {" --out '" + (not_dir / "out").string() + "'", "--out = '" + (not_dir / "out").string() + "'"}},
+       {" --out '" + (not_dir / "out").string() + "'", "--out = '" + (not_dir / "out").string() + "'"},
+       {" --contact-chart 1 --out '" + Out() + "'", "--contact-chart = '1'; must be regular or height-field"}},
       "[1/1", Out());
 }
 
