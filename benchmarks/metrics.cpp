@@ -194,22 +194,28 @@ Metrics Compare(const Solution& run, const Solution& reference) {
   double worst_scd = std::numeric_limits<double>::infinity();
   const std::vector<double> floors = {kScdFloorMm, kScdFloorMm, kScdFloorMm,
                                       kScdFloorDeg, kScdFloorDeg, kScdFloorDeg};
+  bool positions_compared = false;
   for (const std::string& c : VariableClasses()) {
     double mixed = 0.0;
+    bool compared = false;  // some component has a value in both at some time (else no figure, not "exact")
     const auto& rv = run.values.at(c);
     const auto& fv = reference.values.at(c);
     for (const auto& [k, i] : pairs) {
       mixed = std::max(mixed, MixedError(rv[k], fv[i]));
+      for (size_t j = 0; j < rv[k].size() && j < fv[i].size() && !compared; ++j) {
+        compared = !std::isnan(rv[k][j]) && !std::isnan(fv[i][j]);
+      }
       if (c == "positions") {
         worst_scd = std::min(worst_scd, ScdFromErrors(rv[k], fv[i], floors));
       }
     }
-    m.mixed[c] = pairs.empty() ? kNaN : mixed;
+    m.mixed[c] = compared ? mixed : kNaN;
+    if (c == "positions") positions_compared = compared;
   }
   // A run that misses comparison times (it failed) has no scd; its mixed errors cover
   // the times it has.
-  m.scd = pairs.empty() || m.missing_times > 0 ? kNaN : worst_scd;
-  m.scd_compared = pairs.empty() ? kNaN : worst_scd;
+  m.scd = !positions_compared || m.missing_times > 0 ? kNaN : worst_scd;
+  m.scd_compared = !positions_compared ? kNaN : worst_scd;
 
   // The run's first event of each name, through a hash map (before, a scan of the run's
   // events per reference event: O(R × E)).

@@ -36,7 +36,7 @@ std::string_view CsvLine(std::string_view line) {
 // The lines of a file's text, in order, as views (no copy of the text into a stream).
 class Lines {
  public:
-  explicit Lines(const std::string& text) : text_(text) {}
+  explicit Lines(std::string_view text) : text_(text) {}
   bool Next(std::string_view* line) {
     if (pos_ >= text_.size()) return false;
     const size_t end = text_.find('\n', pos_);
@@ -53,6 +53,8 @@ class Lines {
 
 // A cell as a number: empty = NaN (a value that does not exist). `buffer`: reused storage
 // for the cell's text (strtod reads up to its first NUL, as it did on the cell's string).
+// "nan", "inf" and a number past double's range are refused: a value that exists is finite,
+// and a non-finite one would be skipped by the comparison or score as "exact".
 double ParseCell(std::string_view cell, std::string* buffer, const std::string& path, size_t line,
                  const std::string& column) {
   if (cell.empty()) return kNaN;
@@ -63,7 +65,18 @@ double ParseCell(std::string_view cell, std::string* buffer, const std::string& 
     Throw<InputError>("kneedyn score", EchoPath(path), " line ", line, ", column ", column, ": '", Echo(*buffer),
                       "' is not a number");
   }
+  if (!std::isfinite(v)) {
+    Throw<InputError>("kneedyn score", EchoPath(path), " line ", line, ", column ", column, ": '", Echo(*buffer),
+                      "' is not a finite number (a value that does not exist is an empty cell)");
+  }
   return v;
+}
+
+// The text after a UTF-8 byte-order mark, which spreadsheet programs put before a CSV's
+// header ("\xEF\xBB\xBFtime_s" would otherwise be an unknown column).
+std::string_view WithoutByteOrderMark(std::string_view text) {
+  constexpr std::string_view kBom = "\xEF\xBB\xBF";
+  return text.compare(0, kBom.size(), kBom) == 0 ? text.substr(kBom.size()) : text;
 }
 
 // An event name as read: kneedyn's names are printable ASCII (docs/model.md §9), and a name
@@ -86,7 +99,7 @@ nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : 
 
 ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const Solution& reference) {
   const std::string text = scene_detail::ReadInputFile(path, "RESULT", scene_detail::TableFileRule("kneedyn score"));
-  Lines lines(text);
+  Lines lines(WithoutByteOrderMark(text));
   std::string_view line;
   if (!lines.Next(&line)) Throw<InputError>("kneedyn score", EchoPath(path), ": empty (no header row)");
   ScoredResult out;
@@ -154,6 +167,16 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
     out.solution.names[c] = reference.names.at(c);
     classes.push_back(std::move(cc));
   }
+  // The generalized coordinates and their rates exist at every time: an empty cell there is
+  // refused (else it is skipped, and a column left empty would compare nothing).
+  std::vector<bool> always_valued(out.columns.size(), false);
+  always_valued[time_col] = true;
+  for (size_t k = 0; k < classes.size(); ++k) {
+    if (VariableClasses()[k] != "positions" && VariableClasses()[k] != "velocities") continue;
+    for (const int index : classes[k].index) {
+      if (index >= 0) always_valued[index] = true;
+    }
+  }
   auto column = [&](const std::string& name) {
     const auto it = std::find(out.columns.begin(), out.columns.end(), name);
     return it == out.columns.end() ? -1 : static_cast<int>(it - out.columns.begin());
@@ -197,14 +220,18 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
     }
     std::string_view time_cell;
     ForEachCsvField(row, [&](size_t c, std::string_view cell) {
+      if (cell.empty() && always_valued[c]) {
+        Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ", column ", out.columns[c],
+                          ": empty; a time, a generalized coordinate or its rate has a value in every row");
+      }
       v[c] = ParseCell(cell, &cell_buffer, path, line_no, out.columns[c]);
       if (static_cast<int>(c) == time_col) time_cell = cell;
       return true;
     });
     const double t = v[time_col];
-    if (!std::isfinite(t) || (out.rows > 0 && !(t >= last_time))) {
+    if (out.rows > 0 && !(t >= last_time)) {
       Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": time ", Echo(std::string(time_cell)),
-                        " is not finite or decreases");
+                        " decreases (the row before: ", last_time, ")");
     }
     ++out.rows;
     last_time = t;
@@ -261,7 +288,7 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
     }
     return events;
   }
-  Lines lines(body);
+  Lines lines(WithoutByteOrderMark(body));
   std::string_view line;
   lines.Next(&line);
   const std::string_view header = CsvLine(line);
@@ -296,6 +323,10 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
     });
     const double flexion = angle_col < n_header ? ParseCell(angle, &cell_buffer, path, line_no, "flexion_deg") : kNaN;
     std::string event_name = EventName(name, path, line_no);
+    if (time.empty()) {
+      Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "' line ", line_no,
+                        ", column time_s: empty; an event has a time");
+    }
     const double event_time = ParseCell(time, &cell_buffer, path, line_no, "time_s");
     events.push_back({std::move(event_name), event_time, DegToRad(flexion)});
   }
@@ -330,6 +361,7 @@ std::vector<double> OffGridTimes(const ScoredResult& result, const Solution& ref
     if (t < reference.times.front() - kTimeMatch || t > t_last + kTimeMatch) continue;
     const auto it = std::lower_bound(reference.times.begin(), reference.times.end(), t - kTimeMatch);
     if (it != reference.times.end() && std::abs(*it - t) <= kTimeMatch) continue;
+    if (!off.empty() && t == off.back()) continue;  // a repeated row: one time to run the reference to
     off.push_back(t);
   }
   return off;
@@ -346,8 +378,11 @@ nlohmann::json DenseDoubleConfiguration() {
 void CheckReferenceFields(const nlohmann::json& reference_json, const std::string& document) {
   const scene_detail::JsonFields read("kneedyn score", document);
   (void)read.String(reference_json, "", "scene");
-  for (const char* key : {"accuracy_scd", "comparison_interval_s"}) {
-    if (read.Find(reference_json, "", key)) (void)read.Number(reference_json, "", key);
+  if (read.Find(reference_json, "", "accuracy_scd")) (void)read.Number(reference_json, "", "accuracy_scd");
+  // The sampling of the reference run again at off-grid rows (DenseReference).
+  if (read.Find(reference_json, "", "comparison_interval_s")) {
+    const double interval = read.Number(reference_json, "", "comparison_interval_s");
+    if (!(interval > 0.0)) read.Fail("comparison_interval_s", StrCat(" = ", interval, ": must be > 0 s"));
   }
   const nlohmann::json* primary = read.Find(reference_json, "", "primary");
   if (primary == nullptr) return;

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <utility>
 
@@ -22,8 +23,8 @@ namespace fs = std::filesystem;
 namespace {
 
 std::string Digits(double v) {
-  if (std::isnan(v)) return "-";
-  if (std::isinf(v)) return "exact";
+  if (v == std::numeric_limits<double>::infinity()) return "exact";  // no error at all
+  if (!std::isfinite(v)) return "-";  // no figure, or an infinite error
   char buf[32];
   std::snprintf(buf, sizeof(buf), "%.2f", v);
   return buf;
@@ -71,6 +72,12 @@ ScoreCommand::ScoreCommand(CLI::App& app) {
 
 int ScoreCommand::Run(int argc, char** argv) {
   try {
+    // The default lies beside RESULT, which a pipe (kneedyn score <(my_solver) ...) has not.
+    std::error_code ec;
+    if (out_path_.empty() && fs::exists(result_path_, ec) && !fs::is_regular_file(result_path_, ec)) {
+      Throw<InputError>("kneedyn score", "RESULT = '", EchoPath(result_path_),
+                        "' is not a regular file (a pipe?), so there is no RESULT.score.json beside it: give --out");
+    }
     const std::string out_path =
         out_path_.empty() ? fs::path(result_path_).replace_extension(".score.json").string() : out_path_;
     CheckOutputFile("kneedyn score", "--out", out_path);  // before the reference may be run again

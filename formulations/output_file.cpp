@@ -61,6 +61,14 @@ void CheckOutputFile(const std::string& function, const std::string& option, con
   std::error_code ec;
   const fs::path file(path);
   if (fs::is_directory(file, ec)) Refuse(function, option, path, "is a directory; must name a file");
+  // The write renames a new file over `path`: it replaces regular files only, never a device
+  // (/dev/null, as root), a FIFO or a symbolic link (which would be replaced, not followed).
+  const fs::file_status status = fs::symlink_status(file, ec);
+  if (fs::is_symlink(status)) Refuse(function, option, path, "is a symbolic link; name the file itself");
+  if (fs::exists(status) && !fs::is_regular_file(status)) {
+    Refuse(function, option, path, "exists and is not a regular file (a device, FIFO or socket); must name a new or "
+                                   "a regular file");
+  }
   ProbeDirectory(function, option, path, NearestExistingAncestor(file));  // WriteOutputFile creates the levels below
 }
 

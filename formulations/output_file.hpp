@@ -12,7 +12,8 @@ namespace kneedyn {
 // `path` would be created. A relative path whose first level is missing ends at ".".
 std::filesystem::path NearestExistingAncestor(const std::filesystem::path& path);
 
-// Before a long computation: `path` could be written, i.e. it is not a directory and its
+// Before a long computation: `path` could be written, i.e. it is new or a regular file (not a
+// directory, device, FIFO or symbolic link) and its
 // nearest existing ancestor is a directory this process may write in (the missing levels
 // between them are created by WriteOutputFile). Leaves nothing behind (it makes and removes
 // one probe directory there, the test that also holds for root and /proc). Throws InputError

@@ -566,6 +566,29 @@ TEST_F(HostileInput, ScoreEventNameThatIsNotAsciiIsRefused) {
                 {"--events", "column name", "'flexion_?\?'"});
 }
 
+// Where `kneedyn score` writes: a pipe given as RESULT (`kneedyn score <(my_solver) ...`) has
+// no RESULT.score.json beside it (before: '/dev/fd/63.score.json', refused for the
+// directory, and with /dev/stdin a file written into /dev), so --out is asked for; an --out
+// that is a FIFO or a symbolic link is refused and left as it was (before: replaced by a
+// regular file; as root, --out /dev/full replaced the device).
+TEST_F(HostileInput, ScoreAsksForOutWithAPipeAndRefusesAnOutThatIsNotARegularFile) {
+  const fs::path fifo = dir_ / "in" / "result.csv";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  ExpectRefused("score '" + fifo.string() + "' --scene '" + ChapterScenePath() + "'",
+                {"RESULT = '" + fifo.string() + "' is not a regular file", "give --out"});
+  const std::string result = Input("plain.csv", ScoreResultCsv());
+  const std::string target = Input("target.json", "keep");
+  const fs::path link = dir_ / "in" / "link.json";
+  fs::create_symlink(target, link);
+  ExpectRefused("score '" + result + "' --scene '" + ChapterScenePath() + "' --out '" + link.string() + "'",
+                {"--out = '" + link.string() + "': is a symbolic link"});
+  ExpectRefused("score '" + result + "' --scene '" + ChapterScenePath() + "' --out '" + fifo.string() + "'",
+                {"--out = '" + fifo.string() + "': exists and is not a regular file"});
+  EXPECT_TRUE(fs::is_symlink(fs::symlink_status(link)));
+  EXPECT_TRUE(fs::is_fifo(fs::symlink_status(fifo)));
+  EXPECT_EQ(ReadText(target), "keep");
+}
+
 // File names need not be UTF-8 on Linux (here Latin-1 'é'). They go into the score's JSON
 // (command line, result file) replaced by U+FFFD, as in summary.json; the score is written.
 TEST_F(HostileInput, ScoreOfAResultWhosePathIsNotUtf8IsWritten) {

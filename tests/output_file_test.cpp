@@ -3,13 +3,14 @@
 // kneedyn_inverse, compare_counters, calibrate_reconstruction, simbody_work_precision).
 //
 // Validates: CheckOutputFile refuses an empty path, a directory, a path under a regular
-// file and a directory this process cannot write in, naming the option and the path, and
-// leaves nothing behind; it accepts a path under missing directories. WriteOutputFile creates
+// file, a directory this process cannot write in, a device, a FIFO and a symbolic link,
+// naming the option and the path, and leaves nothing behind; it accepts a path under missing directories. WriteOutputFile creates
 // them, writes the exact bytes, replaces an earlier file, and when it is refused leaves
 // neither the file nor its temporary.
 // Does not validate: a kill during the write (the rename is the atomic step; the run's own
 // output sets are killed in output_publish_test.cpp).
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -124,6 +125,29 @@ TEST_F(OutputFile, AFailedWriteLeavesNeitherFileNorTemporary) {
   }
   EXPECT_FALSE(fs::exists(dir_ / "taken" / "out.json.tmp"));
   EXPECT_TRUE(fs::is_directory(dir_ / "taken" / "out.json" / "inside"));
+}
+
+// A device, a FIFO and a symbolic link are refused, and stay as they were: the write renames
+// a new file over the path, which replaced each of them by a regular file (as root,
+// `kneedyn score ... --out /dev/full` replaced the device).
+TEST_F(OutputFile, DevicesFifosAndSymbolicLinksAreRefusedAndLeftAlone) {
+  std::ofstream(dir_ / "target.json") << "keep";
+  fs::create_symlink(dir_ / "target.json", dir_ / "link.json");
+  ASSERT_EQ(::mkfifo((dir_ / "fifo.json").c_str(), 0600), 0);
+  EXPECT_NE(Refusal((dir_ / "link.json").string()).find("is a symbolic link"), std::string::npos)
+      << Refusal((dir_ / "link.json").string());
+  EXPECT_NE(Refusal((dir_ / "fifo.json").string()).find("exists and is not a regular file"), std::string::npos)
+      << Refusal((dir_ / "fifo.json").string());
+  EXPECT_NE(Refusal("/dev/null").find("tool(): --json = '/dev/null': exists and is not a regular file"),
+            std::string::npos)
+      << Refusal("/dev/null");
+  EXPECT_THROW(WriteOutputFile("tool", "--json", (dir_ / "link.json").string(), "text"), InputError);
+  EXPECT_THROW(WriteOutputFile("tool", "--json", (dir_ / "fifo.json").string(), "text"), InputError);
+  EXPECT_TRUE(fs::is_symlink(fs::symlink_status(dir_ / "link.json")));
+  EXPECT_TRUE(fs::is_fifo(fs::symlink_status(dir_ / "fifo.json")));
+  EXPECT_EQ(Read(dir_ / "target.json"), "keep");
+  EXPECT_TRUE(fs::is_character_file("/dev/null"));
+  EXPECT_EQ(Refusal((dir_ / "target.json").string()), "");  // a regular file is replaced, as before
 }
 
 }  // namespace

@@ -268,5 +268,97 @@ TEST(Score, RowsOffTheSamplingGridAreComparedWithTheReferenceRunAgain) {
   fs::remove_all(dir);
 }
 
+// What an outside solver's file can hold that no value does (found by probing `kneedyn
+// score`): "inf", "nan" or a number past double's range in a cell was skipped or made the
+// score "exact"; an empty coordinate, or a class whose every cell is empty, compared nothing
+// and scored +inf digits; an empty or "inf" event time was accepted. Each is refused naming
+// the file, line and column, or, for a class with nothing in common, has no figure (NaN).
+// A byte-order mark before the header is read past; a row repeated off the sampling grid is
+// one time to run the reference to, not two.
+TEST(Score, NonFiniteCellsAndEmptyCoordinatesAreRefusedAndNothingComparedHasNoDigits) {
+  const fs::path dir = fs::temp_directory_path() / ("kneedyn_score_cells_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const bench::Solution& ref = Reference().solution;
+  const auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream((dir / name).string(), std::ios::binary) << text;
+    return (dir / name).string();
+  };
+  // The reference's own positions at its first three times.
+  std::ostringstream rows;
+  rows.precision(17);
+  for (int i = 0; i < 3; ++i) {
+    rows << ref.times[i];
+    for (double v : ref.values.at("positions")[i]) rows << "," << v;
+    rows << "\n";
+  }
+  const std::string header = "time_s,x0_mm,y0_mm,z0_mm,flexion_deg,valgus_deg,external_rotation_deg\n";
+  const auto refusal = [&](const std::string& path) {
+    try {
+      bench::ReadResultCsv(path, ChapterScene(), ref);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  for (const char* bad : {"inf", "-inf", "nan", "1e999"}) {
+    const std::string path = write("bad.csv", header + rows.str() + "0.06,1,1,1," + bad + ",1,1\n");
+    EXPECT_NE(refusal(path).find(std::string("line 5, column flexion_deg: '") + bad + "' is not a finite number"),
+              std::string::npos)
+        << refusal(path);
+  }
+  const std::string empty_cell = write("empty.csv", header + rows.str() + "0.06,1,1,1,,1,1\n");
+  EXPECT_NE(refusal(empty_cell).find("line 5, column flexion_deg: empty"), std::string::npos) << refusal(empty_cell);
+  const std::string empty_time = write("empty_time.csv", header + rows.str() + ",1,1,1,1,1,1\n");
+  EXPECT_NE(refusal(empty_time).find("line 5, column time_s: empty"), std::string::npos) << refusal(empty_time);
+
+  // A byte-order mark: the same score as without it (exact at these three times).
+  const bench::Score with_bom = bench::ScoreResult(
+      bench::ReadResultCsv(write("bom.csv", "\xEF\xBB\xBF" + header + rows.str()), ChapterScene(), ref), ref);
+  EXPECT_EQ(with_bom.metrics.compared_times, 3);
+  EXPECT_TRUE(std::isinf(with_bom.metrics.scd_compared) && with_bom.metrics.scd_compared > 0);
+
+  // Contact points given but empty in every row: no figure for that class, not "exact".
+  std::ostringstream points;
+  points << "time_s,femoral_medial_x_mm\n";
+  for (int i = 0; i < 3; ++i) points << ref.times[i] << ",\n";
+  const bench::Score none =
+      bench::ScoreResult(bench::ReadResultCsv(write("points.csv", points.str()), ChapterScene(), ref), ref);
+  EXPECT_TRUE(std::isnan(none.mescd.at("contact_points"))) << none.mescd.at("contact_points");
+  EXPECT_TRUE(std::isnan(none.metrics.scd_compared));  // no position columns either
+
+  // A row repeated at a time between two sampling times: one off-grid time.
+  const double mid = 0.5 * (ref.times[1] + ref.times[2]);
+  std::ostringstream repeated;
+  repeated.precision(17);
+  repeated << header << ref.times[0] << ",1,1,1,1,1,1\n";
+  for (int k = 0; k < 2; ++k) repeated << mid << ",1,1,1,1,1,1\n";
+  const bench::ScoredResult r = bench::ReadResultCsv(write("repeated.csv", repeated.str()), ChapterScene(), ref);
+  EXPECT_EQ(bench::OffGridTimes(r, ref), std::vector<double>{mid});
+
+  // Event times: empty or not finite is refused; flexion may be empty.
+  for (const char* time : {"", "inf", "nan"}) {
+    const std::string events = write("events.csv", std::string("name,time_s,flexion_deg\nflexion_90,") + time + ",\n");
+    try {
+      bench::ReadEvents(events);
+      ADD_FAILURE() << "event time '" << time << "' accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("line 2, column time_s"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(bench::ReadEvents(write("events.csv", "\xEF\xBB\xBFname,time_s,flexion_deg\nflexion_90,0.3,\n")).size(), 1u);
+
+  // A reference's comparison interval must be > 0 (it spaces the reference run again).
+  nlohmann::json zero = Reference().json;
+  zero["comparison_interval_s"] = 0.0;
+  try {
+    bench::CheckReferenceFields(zero, "REF");
+    ADD_FAILURE() << "comparison_interval_s = 0 accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("field 'comparison_interval_s' = 0: must be > 0 s"), std::string::npos)
+        << e.what();
+  }
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace kneedyn
