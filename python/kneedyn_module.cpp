@@ -480,6 +480,7 @@ PYBIND11_MODULE(_kneedyn, m) {
     if (!linear_solver.empty()) settings.options.linear_solver = ParsedOptionValue<LinearSolverKind>(linear_solver);
     CheckOptions(FindFormulation(formulation), settings.options);
     settings.output_interval = output_interval;
+    if (!out_dir.empty()) CheckOutputDirectory(out_dir);  // before the run, as the CLI does
     auto out = std::make_shared<RunOutput>();
     {
       py::gil_scoped_release release;

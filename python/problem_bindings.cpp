@@ -59,6 +59,7 @@ Array Vector1d(const py::handle& obj, const char* name) {
 // A real number (int or float, NumPy's too; not bool or text), else ValueError naming it.
 double RealArgument(const py::handle& v, const char* where, const char* name) {
   PyObject* o = v.ptr();
+  if (PyFloat_CheckExact(o)) return PyFloat_AS_DOUBLE(o);  // the common case (a solver's t), without lookups
   const bool real = !PyBool_Check(o) && !PyUnicode_Check(o) && !PyBytes_Check(o) && PyObject_HasAttrString(o, "__float__");
   const double d = real ? PyFloat_AsDouble(o) : 0.0;
   if (!real || (d == -1.0 && PyErr_Occurred())) {
@@ -205,20 +206,23 @@ to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
         for (const EventRecord& e : p.problem->events_recorded()) l.append(py::make_tuple(e.name, e.time, e.flexion));
         return l;
       }, "(name, time s, flexion rad) of every event so far, pulling contacts included")
-      .def("rhs", [](const PyProblem& p, double t, const py::object& y) {
+      .def("rhs", [](const PyProblem& p, const py::object& t_arg, const py::object& y) {
+        const double t = RealArgument(t_arg, "kneedyn.Problem.rhs", "t");
         const Array a = Vector1d(y, "y");
         std::vector<double> f(p.problem->size());
         p.problem->Rhs(t, a.data(), Length(a), f.data());
         return ToArray(f);
       }, py::arg("t"), py::arg("y"))
-      .def("residual", [](const PyProblem& p, double t, const py::object& y, const py::object& yp) {
+      .def("residual", [](const PyProblem& p, const py::object& t_arg, const py::object& y, const py::object& yp) {
+        const double t = RealArgument(t_arg, "kneedyn.Problem.residual", "t");
         const Array a = Vector1d(y, "y"), b = Vector1d(yp, "yp");
         if (Length(a) != Length(b)) throw ProblemError("kneedyn.Problem.residual: y and yp differ in length");
         std::vector<double> F(p.problem->size());
         p.problem->Residual(t, a.data(), b.data(), Length(a), F.data());
         return ToArray(F);
       }, py::arg("t"), py::arg("y"), py::arg("yp"))
-      .def("jacobian", [](const PyProblem& p, double t, const py::object& y, const py::object& yp, py::object c) {
+      .def("jacobian", [](const PyProblem& p, const py::object& t_arg, const py::object& y, const py::object& yp, py::object c) {
+        const double t = RealArgument(t_arg, "kneedyn.Problem.jacobian", "t");
         const Array a = Vector1d(y, "y");
         const int n = p.problem->size();
         py::array_t<double> J({n, n});
@@ -233,13 +237,15 @@ to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
         }
         return J;
       }, py::arg("t"), py::arg("y"), py::arg("yp") = py::none(), py::arg("c") = py::none())
-      .def("events", [](const PyProblem& p, double t, const py::object& y) {
+      .def("events", [](const PyProblem& p, const py::object& t_arg, const py::object& y) {
+        const double t = RealArgument(t_arg, "kneedyn.Problem.events", "t");
         const Array a = Vector1d(y, "y");
         std::vector<double> g(p.problem->event_count());
         p.problem->Events(t, a.data(), Length(a), g.data());
         return ToArray(g);
       }, py::arg("t"), py::arg("y"))
-      .def("coordinates", [](const PyProblem& p, double t, const py::object& y) {
+      .def("coordinates", [](const PyProblem& p, const py::object& t_arg, const py::object& y) {
+        const double t = RealArgument(t_arg, "kneedyn.Problem.coordinates", "t");
         const Array a = Vector1d(y, "y");
         const MechanicalState s = p.problem->Coordinates(t, a.data(), nullptr, Length(a));
         return py::make_tuple(ToArray(std::vector<double>(s.q.data(), s.q.data() + 6)),
@@ -247,7 +253,8 @@ to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
       }, py::arg("t"), py::arg("y"),
       "(q, qdot) the state y stands for: x0, y0, z0 [m], alpha, beta, gamma [rad] and their rates "
       "(mde: the eliminated translations computed from s)")
-      .def("transition", [](PyProblem& p, double t, const py::object& y, const py::object& event, const py::object& yp) {
+      .def("transition", [](PyProblem& p, const py::object& t_arg, const py::object& y, const py::object& event, const py::object& yp) {
+        const double t = RealArgument(t_arg, "kneedyn.Problem.transition", "t");
         const Array a = Vector1d(y, "y");
         const std::vector<int> events = EventIndices(*p.problem, event);
         bool ended;

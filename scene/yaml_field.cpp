@@ -526,7 +526,7 @@ Field::Field(std::shared_ptr<const YamlDocument> doc, const yaml_node_t* node, s
     : doc_(std::move(doc)), node_(node), kind_(KindOf(node)), path_(std::move(path)) {}
 
 void Field::Fail(const std::string& rule) const {
-  Throw<InputError>(doc_->reader(), EchoPath(doc_->label()), Line(node_), ": field '", path().empty() ? "(top level)" : path(),
+  Throw<InputError>(doc_->reader(), EchoPath(doc_->label()), Line(node_), ": field '", path().empty() ? "(top level)" : EchoPath(path()),
                     "'", kind_ == YamlKind::kScalar ? " = '" + Echo(std::string(ScalarText(node_))) + "'" : std::string(),
                     ": ", rule);
 }

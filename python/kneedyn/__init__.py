@@ -88,8 +88,9 @@ def scene_path(name):
 
 def formulations():
     """The formulation registry: list of dicts with name, summary, integrators (values
-    `integrator=` accepts; empty: fixed integrator), fixed_step (steps only with `step=`)
-    and fixed_step_integrators (integrators that take `step=` instead of tolerances)."""
+    `integrator=` accepts; empty: fixed integrator), fixed_step (steps only with `step=`),
+    fixed_step_integrators (integrators that take `step=` instead of tolerances) and
+    needs_patella (runs only scenes with a `patella:` section)."""
     return _kneedyn.formulations()
 
 
@@ -127,6 +128,18 @@ class Scene:
 
     def copy(self):
         return Scene(_copy.deepcopy(self._doc), self._compiled, self._label, self._base_dir)
+
+    # copy.copy and copy.deepcopy give copy(): the compiled form is read-only and shared.
+    def __copy__(self):
+        return self.copy()
+
+    def __deepcopy__(self, memo):
+        return self.copy()
+
+    def __reduce__(self):
+        # pickle (e.g. for a ProcessPoolExecutor): the document, label and base directory;
+        # unpickling validates the document again with the loader.
+        return (_scene_from_pickle, (self._doc, self._label, self._base_dir))
 
     # --- what it is -----------------------------------------------------------------
     @property
@@ -405,6 +418,10 @@ def _scene(scene, function):
     if isinstance(scene, Scene):
         return scene
     return load_scene(_file_path(scene, function, "scene", "a kneedyn.Scene or a scene file's path"))
+
+
+def _scene_from_pickle(document, label, base_dir):
+    return Scene(document, _kneedyn.parse_document(document, label, base_dir, "pickle.loads"), label, base_dir)
 
 
 def load_scene(path):

@@ -193,6 +193,19 @@ def test_arguments_of_the_wrong_kind_are_refused_naming_them():
             p.rhs(p.t0, y)
     with pytest.raises(ValueError, match="t = nan"):
         p.rhs(float("nan"), p.y0)
+    # t of the wrong kind, in every method that takes it (True was read as 1.0 s, text raised
+    # pybind11's TypeError); a NumPy float and an int are real numbers.
+    d0 = kneedyn.Problem(SCENE, form="dae")
+    calls = {"rhs": lambda t: p.rhs(t, p.y0), "events": lambda t: p.events(t, p.y0),
+             "coordinates": lambda t: p.coordinates(t, p.y0), "jacobian": lambda t: p.jacobian(t, p.y0),
+             "transition": lambda t: p.transition(t, p.y0, 0),
+             "residual": lambda t: d0.residual(t, d0.y0, d0.yp0)}
+    for method, call in calls.items():
+        for t in [True, "0", b"0", None, [0.0]]:
+            with pytest.raises(ValueError, match=r"kneedyn.Problem.%s: t = " % method):
+                call(t)
+    assert np.array_equal(p.rhs(np.float64(p.t0), p.y0), p.rhs(p.t0, p.y0))
+    assert np.array_equal(p.rhs(int(p.t0), p.y0), p.rhs(float(int(p.t0)), p.y0))
     with pytest.raises(ValueError, match="scene = .*NUL"):
         kneedyn.Problem(SCENE + "\0junk", form="ede")
     with pytest.raises(ValueError, match="scene = .*decodes as UTF-8"):
