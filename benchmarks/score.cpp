@@ -72,13 +72,6 @@ double ParseCell(std::string_view cell, std::string* buffer, const std::string& 
   return v;
 }
 
-// The text after a UTF-8 byte-order mark, which spreadsheet programs put before a CSV's
-// header ("\xEF\xBB\xBFtime_s" would otherwise be an unknown column).
-std::string_view WithoutByteOrderMark(std::string_view text) {
-  constexpr std::string_view kBom = "\xEF\xBB\xBF";
-  return text.compare(0, kBom.size(), kBom) == 0 ? text.substr(kBom.size()) : text;
-}
-
 // An event name as read: kneedyn's names are printable ASCII (docs/model.md §9), and a name
 // goes into the score's JSON, which holds only valid UTF-8.
 std::string EventName(std::string_view view, const std::string& path, size_t line) {
@@ -99,7 +92,7 @@ nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : 
 
 ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const Solution& reference) {
   const std::string text = scene_detail::ReadInputFile(path, "RESULT", scene_detail::TableFileRule("kneedyn score"));
-  Lines lines(WithoutByteOrderMark(text));
+  Lines lines(scene_detail::WithoutByteOrderMark(text));
   std::string_view line;
   if (!lines.Next(&line)) Throw<InputError>("kneedyn score", EchoPath(path), ": empty (no header row)");
   ScoredResult out;
@@ -288,7 +281,7 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
     }
     return events;
   }
-  Lines lines(WithoutByteOrderMark(body));
+  Lines lines(scene_detail::WithoutByteOrderMark(body));
   std::string_view line;
   lines.Next(&line);
   const std::string_view header = CsvLine(line);

@@ -62,7 +62,7 @@ void AppendText(std::string* out, const std::string& s) {
 BatchVariants ParseBatchVariants(const std::string& text, const std::string& label, const Model& base) {
   BatchVariants v;
   v.path = label;
-  std::stringstream in(text);
+  std::stringstream in(std::string(scene_detail::WithoutByteOrderMark(text)));
   std::string line;
   long line_no = 0;
   bool header = false;

@@ -58,6 +58,11 @@ int BatchCommand::Run() {
     CheckOptions(FindFormulation(settings_.formulation), settings_.options, typed_);
     CheckOutputFile("kneedyn batch", "--out", out_path_);  // before the runs
     Scene scene = LoadScene(scene_path_);
+    if (std::string why; settings_.output_interval > 0.0 &&
+                         !IsValidOutputInterval(settings_.output_interval, scene.end.time, &why)) {
+      // kneedyn run's rule, before the runs (no variant moves the end time): not a failed row each.
+      Throw<InputError>("kneedyn batch", "--output-interval = '", Echo(typed_.at("--output-interval")), "': ", why);
+    }
     const BatchVariants variants = LoadBatchVariants(variants_path_, scene.model);
     Batch batch(std::move(scene), settings_, outcomes_);
     const auto t0 = std::chrono::steady_clock::now();

@@ -312,7 +312,11 @@ double InverseNormalCdf(double p) {
 }
 
 double ParameterSpec::FromUnit(double u) const {
-  if (distribution == Distribution::kUniform) return a + u * (b - a);
+  if (distribution == Distribution::kUniform) {
+    // The upper end exactly: a + 1 (b − a) rounds off b for some pairs (0.03 + (0.3 − 0.03) =
+    // 0.30000000000000004), and a grid's last level is b.
+    return u == 1.0 ? b : a + u * (b - a);
+  }
   const double tiny = std::ldexp(1.0, -53);
   return a + b * InverseNormalCdf(std::clamp(u, tiny, 1.0 - tiny));
 }
@@ -473,7 +477,10 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
     if (s.Has("output_interval_s")) {
       const Node oi = s.Required("output_interval_s");
       spec.run.output_interval = oi.Double();
-      if (!(spec.run.output_interval > 0.0)) oi.Fail("must be > 0");
+      // kneedyn run's rule on the base scene's end time (no parameter moves it): refused
+      // here, not in each row as a failed run.
+      std::string why;
+      if (!IsValidOutputInterval(spec.run.output_interval, spec.base.end.time, &why)) oi.Fail(why);
     }
     std::string why;
     if (!ValidateOptions(FindFormulation(spec.run.formulation), spec.run.options, &why)) s.Fail(why);

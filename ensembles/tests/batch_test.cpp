@@ -63,6 +63,12 @@ TEST(BatchVariants, ParsesHeaderCommentsAndRows) {
   ASSERT_EQ(v.rows.size(), 2u);
   EXPECT_EQ(v.rows[1][0], 110.0);
   EXPECT_EQ(v.rows[1][1], 12.0);
+  // A spreadsheet's "CSV UTF-8" begins with a byte-order mark: read past it (before:
+  // "no element '\ufeffpulse' in the base scene").
+  const BatchVariants bom = ParseBatchVariants("\xEF\xBB\xBFpulse.amplitude\n90\n", "v.csv", Chapter().model);
+  ASSERT_EQ(bom.parameters.size(), 1u);
+  EXPECT_EQ(bom.parameters[0].kind, ParameterKind::kPulseAmplitude);
+  EXPECT_EQ(bom.rows.size(), 1u);
 }
 
 TEST(BatchVariants, BadInputNamesLineColumnAndValue) {
@@ -166,6 +172,13 @@ TEST(BatchCli, WritesOneTableAndRefusesBadInput) {
   EXPECT_EQ(Sh(exe + common + "--variants " + (work / "good.csv").string() + " --outcomes liftoff,x --out " +
                (work / "out3/r.csv").string() + " 2> " + err), 2);
   EXPECT_FALSE(fs::exists(work / "out3"));
+  // kneedyn run's output-grid rule, before the runs (before: each row failed, exit 0).
+  EXPECT_EQ(Sh(exe + common + "--variants " + (work / "good.csv").string() + " --output-interval 1e-6 --out " +
+               (work / "out4/r.csv").string() + " 2> " + err), 2);
+  EXPECT_FALSE(fs::exists(work / "out4"));
+  std::ifstream e4(err);
+  const std::string msg4((std::istreambuf_iterator<char>(e4)), std::istreambuf_iterator<char>());
+  EXPECT_NE(msg4.find("--output-interval = '1e-6': output interval 1e-06 s gives"), std::string::npos) << msg4;
   fs::remove_all(work);
 }
 

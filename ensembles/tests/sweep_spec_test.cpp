@@ -87,6 +87,10 @@ TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
       {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 4}", "solver: {formulation: magic}\n"),
        "'magic'"},
       {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 4}", "extra_key: 1\n"), "unknown key 'extra_key'"},
+      // kneedyn run's output-grid rule on the scene's end time, before the runs (before: every
+      // row failed with RunScene's message naming --output-interval, exit 0).
+      {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 4}", "solver: {output_interval_s: 0.000001}\n"),
+       "solver.output_interval_s' = '0.000001': output interval 1e-06 s gives"},
       {"scene: nowhere.yaml\nparameters: [{name: mass, relative: 0.1}]\ndesign: {type: sobol, samples: 2}\n"
        "outcomes: [liftoff_time]\n",
        "nowhere.yaml"},
@@ -106,6 +110,21 @@ TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
     EXPECT_NE(why.find(c.must_contain), std::string::npos) << "spec:\n" << c.text << "\nmessage: " << why;
     EXPECT_NE(why.find("spec.yaml"), std::string::npos) << why;
   }
+}
+
+// A uniform parameter's last grid level is its upper end exactly: a + 1 (b − a) is not b for
+// some pairs (0.03 + (0.3 − 0.03) = 0.30000000000000004), and the lower end is a.
+TEST(SweepSpec, UniformEndsAreExact) {
+  for (const auto& [a, b] : std::vector<std::pair<double, double>>{{0.03, 0.3}, {0.1, 0.7}, {-5.0, 0.3}, {1.0, 2.0}}) {
+    ParameterSpec p;
+    p.distribution = Distribution::kUniform;
+    p.a = a;
+    p.b = b;
+    EXPECT_EQ(p.FromUnit(0.0), a);
+    EXPECT_EQ(p.FromUnit(1.0), b);
+    EXPECT_EQ(p.FromUnit(0.5), a + 0.5 * (b - a));  // inside: as before
+  }
+  ASSERT_NE(0.03 + 1.0 * (0.3 - 0.03), 0.3);  // the case that was wrong
 }
 
 TEST(SweepSpec, SaltelliRefusesMoreParametersThanTheSobolTableCovers) {

@@ -1,6 +1,7 @@
 // CSV lines read as views: the number of fields before anything is stored, then each field
 // in turn, with no string per field (a line of 40M commas made 40M strings, 2.3 GB). Read
-// by kneedyn score (result and events CSVs) and kneedyn batch (variants).
+// by kneedyn score (result and events CSVs) and kneedyn batch (variants), each past a
+// byte-order mark.
 #pragma once
 
 #include <algorithm>
@@ -33,6 +34,13 @@ void ForEachCsvField(std::string_view line, F&& f) {
     if (comma == std::string_view::npos) return;
     start = comma + 1;
   }
+}
+
+// The text after a UTF-8 byte-order mark, which spreadsheet programs put before a CSV's
+// header ("\xEF\xBB\xBFtime_s" would otherwise be an unknown name).
+inline std::string_view WithoutByteOrderMark(std::string_view text) {
+  constexpr std::string_view kBom = "\xEF\xBB\xBF";
+  return text.substr(0, kBom.size()) == kBom ? text.substr(kBom.size()) : text;
 }
 
 }  // namespace kneedyn::scene_detail
