@@ -281,9 +281,13 @@ void OdeSensitivity::Start(const MechanicalState& state, const std::vector<Event
   const int n_roots = n_events + static_cast<int>(problem_.peaks().size());
   std::vector<int> dirs = RootDirections(mode_.events);
   dirs.resize(n_roots, -1);  // dv/dt decreasing through 0: a maximum
-  cv_.Check(CVodeRootInit(cv_.mem, n_roots, &Cvodes::RootFn), "CVodeRootInit");
-  cv_.Check(CVodeSetRootDirection(cv_.mem, dirs.data()), "CVodeSetRootDirection");
-  cv_.Check(CVodeSetNoInactiveRootWarn(cv_.mem), "CVodeSetNoInactiveRootWarn");
+  // A phase with nothing to locate (no contact, no lift-off or end angle, no peak outcome)
+  // has no root functions: CVODES refuses the direction and warning settings then.
+  if (n_roots > 0) {
+    cv_.Check(CVodeRootInit(cv_.mem, n_roots, &Cvodes::RootFn), "CVodeRootInit");
+    cv_.Check(CVodeSetRootDirection(cv_.mem, dirs.data()), "CVodeSetRootDirection");
+    cv_.Check(CVodeSetNoInactiveRootWarn(cv_.mem), "CVodeSetNoInactiveRootWarn");
+  }
   if (with_s_) {
     cv_.ns = np_;
     cv_.yS = N_VCloneVectorArray(np_, cv_.y);
@@ -517,6 +521,18 @@ std::vector<ParameterSpec> ResolveParameters(const Scene& scene, const std::vect
     // A pulse parameter of a scene without a pulse: ResolveParameterName says why it is refused.
     const bool pulse_parameter = key == "pulse.amplitude" || key == "pulse.duration";
     if (!pulse_parameter && std::find(valid.begin(), valid.end(), key) == valid.end()) {
+      // A sweep parameter (e.g. inertia_x) that has no derivative here is not a typo.
+      bool sweep_parameter = true;
+      try {
+        (void)ensembles::ResolveParameterName(scene, name, scene.path, field);
+      } catch (const InputError&) {
+        sweep_parameter = false;
+      }
+      if (sweep_parameter) {
+        Throw<InputError>("kneedyn sensitivity", field, ": '", Echo(name),
+                          "' is a sweep parameter whose sensitivity is not implemented (all names that have "
+                          "one: `kneedyn sensitivity --list SCENE`)");
+      }
       UnknownName(field, name, valid, "a parameter of this scene");
     }
     ParameterSpec p = ensembles::ResolveParameterName(scene, name, scene.path, field);

@@ -282,8 +282,12 @@ int SensitivityCommand::Run(int argc, char** argv) {
       for (const std::string& n : OutcomeNames(scene)) std::printf("  %s\n", n.c_str());
       return 0;
     }
-    const std::vector<ensembles::ParameterSpec> params = ResolveParameters(scene, parameters_);
-    const std::vector<std::string> outcomes = ResolveOutcomes(scene, outcomes_);
+    // Names from a spec are refused as the spec's fields, not as options never given.
+    const std::string from = spec_path_.empty() ? "" : "--spec = '" + EchoPath(spec_path_) + "': ";
+    const std::vector<ensembles::ParameterSpec> params =
+        ResolveParameters(scene, parameters_, from.empty() ? "--parameters" : from + "parameters");
+    const std::vector<std::string> outcomes =
+        ResolveOutcomes(scene, outcomes_, from.empty() ? "--outcomes" : from + "outcomes");
     CheckSensitivityOutputDirectory(out_dir_);
     std::vector<double> values;
     for (const ensembles::ParameterSpec& p : params) values.push_back(p.nominal);

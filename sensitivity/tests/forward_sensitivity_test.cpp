@@ -134,6 +134,37 @@ TEST(ForwardSensitivity, TrajectoryDerivativesAgreeWithCentralDifferences) {
   }
 }
 
+// A phase with no root function (no contact, no end angle reached, no peak outcome): CVODES
+// refused the root directions ("Rootfinding was not initialized", exit 1) where `kneedyn run`
+// and the DAE forms complete. The run completes and its trajectory derivatives agree with
+// central differences (the rule of TrajectoryDerivativesAgreeWithCentralDifferences).
+TEST(ForwardSensitivity, APhaseWithoutRootFunctionsCompletes) {
+  const std::string text =
+      "name: no_roots\n"
+      "parameter_set: " + std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/chapter_knee.yaml\n"
+      "ligaments: all\nligament_law: c1_continuous\ncontacts: []\ngravity: {enabled: true}\n"
+      "pulse: {shape: none}\ninitial_state: {pose: reference}\nend: {time_s: 0.2}\noutput: {interval_s: 0.05}\n";
+  const Scene scene = ParseScene(text, "no_roots.yaml", ".");
+  const auto params = ResolveParameters(scene, {"mass"});
+  const auto outcomes = ResolveOutcomes(scene, {"time_90_s"});
+  SensitivityOptions options;
+  options.rtol = 1e-10;
+  options.atol = 1e-14;
+  options.output_interval = 0.05;
+  const std::vector<double> p = Nominal(params);
+  const SensitivityResult r = RunSensitivity(scene, params, p, outcomes, options);
+  EXPECT_EQ(r.end_reason, "end_time");
+  EXPECT_TRUE(std::isnan(r.values[0]));  // 90 degrees is not reached
+  ASSERT_EQ(r.trajectory.size(), 4u);    // t = 0, 0.05, 0.1, 0.15
+  const auto [h, a, b] = RunCentralDifference(scene, params, p, 0, outcomes, options);
+  for (int i : {kY0, kAlpha}) {
+    const double fd = (a.trajectory[3].q(i) - b.trajectory[3].q(i)) / (2 * h);
+    const double d = r.trajectory[3].dq[0](i);
+    EXPECT_LE(std::abs(d - fd), 1e-3 * std::abs(fd) + 1e-4 * std::abs(r.trajectory[3].q(i) / p[0]))
+        << "coordinate " << i << ": " << d << " vs " << fd;
+  }
+}
+
 TEST(ForwardSensitivity, RefusesImpacts) {
   const Scene scene = LoadScene(std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes/hard/lateral_pulse_recontact.yaml");
   const auto params = ResolveParameters(scene, {"pulse.amplitude"});

@@ -102,6 +102,19 @@ TEST(SensitivityCli, SpecGivesTheSameTableAsExplicitNames) {
     EXPECT_EQ(r.exit_code, 2) << args << ": " << r.output;
     EXPECT_FALSE(fs::exists(dir / "c")) << args;
   }
+  // A sweep parameter without a sensitivity, from a spec: the spec and the rule are named
+  // (before: "--parameters: 'inertia_x' is not a parameter of this scene; nearest valid
+  // name: 'LCL.tibial_x'", an option never given).
+  const fs::path inertia = dir / "inertia.yaml";
+  WriteText(inertia, "scene: " + kScene + "\nparameters:\n  - {name: inertia_x, relative: 0.1}\n"
+                         "design: {type: lhs, samples: 2}\noutcomes: [liftoff_time]\n");
+  const CommandResult r = RunKneedyn("sensitivity --spec '" + inertia.string() + "' --out '" + (dir / "c").string() + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--spec = '" + inertia.string() + "': parameters: 'inertia_x' is a sweep parameter whose "
+                          "sensitivity is not implemented"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(dir / "c"));
   fs::remove_all(dir);
 }
 
