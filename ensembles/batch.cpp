@@ -130,6 +130,9 @@ Batch::Batch(Scene base, RunSettings run, std::vector<std::string> outcome_group
                         "'; expected liftoff_time, liftoff_flexion, peak_ligament_force, peak_contact_force, "
                         "time_at_90, ligament_force_at_90, contact_force_at_90");
     }
+    if (std::count(outcome_groups.begin(), outcome_groups.end(), g) > 1) {  // as a sweep spec refuses it
+      Throw<InputError>("kneedyn batch", "--outcomes: outcome '", g, "' listed twice");
+    }
   }
   CreateFormulation(run.formulation, base, run.options);  // checks the options (ValidateOptions)
   spec_.path = "kneedyn batch";

@@ -172,6 +172,9 @@ TEST(BatchCli, WritesOneTableAndRefusesBadInput) {
   EXPECT_EQ(Sh(exe + common + "--variants " + (work / "good.csv").string() + " --outcomes liftoff,x --out " +
                (work / "out3/r.csv").string() + " 2> " + err), 2);
   EXPECT_FALSE(fs::exists(work / "out3"));
+  EXPECT_EQ(Sh(exe + common + "--variants " + (work / "good.csv").string() + " --outcomes liftoff_time,liftoff_time --out " +
+               (work / "out5/r.csv").string() + " 2> " + err), 2);  // a sweep spec refuses it too
+  EXPECT_FALSE(fs::exists(work / "out5"));
   // kneedyn run's output-grid rule, before the runs (before: each row failed, exit 0).
   EXPECT_EQ(Sh(exe + common + "--variants " + (work / "good.csv").string() + " --output-interval 1e-6 --out " +
                (work / "out4/r.csv").string() + " 2> " + err), 2);
