@@ -16,9 +16,16 @@ namespace {
 std::string FailureSituation(const Model& model, const MechanicalState& s) {
   std::string out = StrCat("; last state t = ", s.t, " s, flexion = ", RadToDeg(s.q(kAlpha)),
                            " deg, active contacts: ");
-  if (s.active.empty()) out += "none";
+  if (s.active.empty()) return out + "none";
   std::vector<double> gap, rate;
-  ConstraintResiduals(model, s, &gap, &rate);
+  try {
+    ConstraintResiduals(model, s, &gap, &rate);
+  } catch (const Error& e) {  // the state the run failed at may admit none (e.g. at the JCS singularity)
+    for (size_t n = 0; n < s.active.size(); ++n) {
+      out += StrCat(n ? ", " : "", CompartmentName(model.contacts[s.active[n]].compartment));
+    }
+    return out + " (their residuals cannot be formed there: " + e.what() + ")";
+  }
   for (size_t n = 0; n < s.active.size(); ++n) {
     const int i = s.active[n];
     out += StrCat(n ? ", " : "", CompartmentName(model.contacts[i].compartment), " (gap ", MToMm(gap[i]),

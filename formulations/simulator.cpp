@@ -11,6 +11,7 @@
 #include "solver/error.hpp"
 #include "solver/impact.hpp"
 #include "solver/sample_checks.hpp"
+#include "solver/units.hpp"
 
 namespace kneedyn {
 
@@ -24,6 +25,16 @@ Simulator::Simulator(const Scene& scene, Formulation* stepper, SimulatorSettings
 void Simulator::Record(bool is_event) {
   const Model& model = scene_.model;
   CheckSampleIsPhysical(model, state_);
+  // Across the JCS singularity since the last sample (sin β changed sign): a step can pass
+  // over the band |sin β| < 1e-3 without evaluating inside it (docs/model.md §2).
+  if (!record_->samples.empty()) {
+    const MechanicalState& last = record_->samples.back();
+    if (std::sin(last.q(4)) * std::sin(state_.q(4)) < 0.0) {
+      Throw<SolverError>("Simulator::Run", "the JCS singularity (sin beta = 0) was crossed between t = ", last.t,
+                         " s and t = ", state_.t, " s (beta ", RadToDeg(last.q(4)), " -> ", RadToDeg(state_.q(4)),
+                         " deg); the angular-velocity map E is singular there (docs/model.md §2)");
+    }
+  }
   record_->samples.push_back(state_);
   record_->sample_is_event.push_back(is_event);
   double max_gap = 0.0, max_gap_rate = 0.0;

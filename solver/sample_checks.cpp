@@ -4,6 +4,7 @@
 
 #include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
+#include "solver/rotation.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
@@ -12,6 +13,13 @@ void CheckSampleIsPhysical(const Model& model, const MechanicalState& s) {
   const char* kWho = "CheckSampleIsPhysical";
   if (!s.q.allFinite() || !s.qd.allFinite()) {
     Throw<SolverError>(kWho, "non-finite state at t = ", s.t, " s: the run has diverged");
+  }
+  // A sample inside the JCS band (docs/model.md §2): the integrator's own evaluations may
+  // step over it, an output time interpolated there may not be reported.
+  if (std::abs(std::sin(s.q(4))) < kJcsSingularityTolerance) {
+    Throw<SolverError>(kWho, "pose at the JCS singularity at t = ", s.t, " s: beta = ", RadToDeg(s.q(4)),
+                       " deg (|sin beta| < ", kJcsSingularityTolerance,
+                       "); the angular-velocity map E is singular there (docs/model.md §2)");
   }
   const Pose pose = PoseFromCoordinates(s.q);
   for (int i : s.active) {

@@ -2,6 +2,8 @@
 // checks every output sample and stops the run with the reason).
 //
 //  - a non-finite state;
+//  - a pose at the JCS singularity, |sin β| < kJcsSingularityTolerance (rotation.hpp), where
+//    the angular velocity cannot be formed from the rates (docs/model.md §2);
 //  - an active contact violated by more than kMaxConstraintViolation: velocity-level and
 //    fixed-step methods drift, but by far less (≤ 1e-4 mm at the chapter's settings);
 //    beyond 1 mm the run has diverged (e.g. Euler outside its stability range);

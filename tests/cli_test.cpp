@@ -321,6 +321,28 @@ TEST_F(CliTest, SolverFailureExitsOneWithPartialSummary) {
 // reference-data/ is found at run time beside the executable (no source path in
 // the binary); KNEEDYN_DATA_DIR overrides it. A scene naming its parameter set by a bare
 // file name that is not beside the scene resolves it in the data directory.
+// hard/jcs_crossing: beta(t) = 1 deg - 1 rad/s t crosses 0 at t = 0.017453 s. dae stepped
+// over the band |sin beta| < 1e-3 and completed with angles past the singularity (exit 0);
+// with output rows inside the band an output row threw and the run exited 2 with nothing
+// written. Both are solver failures now (exit 1, partial results up to the singularity).
+TEST_F(CliTest, RunThroughTheJcsSingularityIsASolverFailureWithPartialResults) {
+  const std::string scene = ReferenceDataDir() + "/scenes/hard/jcs_crossing.yaml";
+  const double t_cross = 1.0 * M_PI / 180.0;
+  for (const char* extra : {"", " --output-interval 0.0005"}) {
+    fs::remove_all(Out());
+    const CommandResult r = RunKneedyn("run '" + scene + "'" + extra + " --quiet --out '" + Out() + "'");
+    EXPECT_EQ(r.exit_code, 1) << extra << "\n" << r.output;
+    EXPECT_NE(r.output.find("JCS singularity"), std::string::npos) << r.output;
+    const nlohmann::json j = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
+    EXPECT_EQ(j.at("status"), "partial");
+    const std::vector<std::string> lines = Split(ReadText(fs::path(Out()) / "trajectory.csv"), '\n');
+    ASSERT_GE(lines.size(), 3u);
+    const double last_t = std::stod(Split(lines.back(), ',')[0]);
+    EXPECT_LT(last_t, t_cross) << extra;
+    EXPECT_GT(last_t, t_cross - 0.005 - 1e-9) << extra;  // within one output interval of it
+  }
+}
+
 TEST_F(CliTest, DataDirectoryIsFoundBesideTheExecutableAndOverriddenByEnvironment) {
   const fs::path scene = dir_ / "bare_parameter_set.yaml";
   {
