@@ -37,12 +37,13 @@ void ParseGravity(const Field& top, const ParameterSet& ps, ModelDescription* mo
   const bool enabled = f.Required("enabled").Bool();
   Vector3d dir = ps.gravity_direction_F;
   double g = ps.g;
-  if (f.Has("direction_F")) dir = f.Required("direction_F").Vec3(1e3);
-  if (f.Has("magnitude_m_s2")) g = f.Required("magnitude_m_s2").NonNegative(100.0);
-  if (enabled) {
+  if (f.Has("direction_F")) {
+    dir = f.Required("direction_F").Vec3(1e3);
+    // A direction is a direction whether gravity is on or not (the parameter set's is checked where it is read).
     if (!(dir.norm() > 0.0)) f.Required("direction_F").Fail("must be a non-zero vector");
-    model->gravity_F = g * dir.normalized();
   }
+  if (f.Has("magnitude_m_s2")) g = f.Required("magnitude_m_s2").NonNegative(100.0);
+  if (enabled) model->gravity_F = g * dir.normalized();
 }
 
 // pulse: shape (solver/loads.hpp), amplitude and duration unless none, direction.

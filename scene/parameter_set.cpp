@@ -112,6 +112,7 @@ ParameterSet LoadParameterSet(const std::string& path) {
   grav.Keys(KeysOf("parameter_set.gravity"));
   ps.g = grav.Required("magnitude_m_s2").NonNegative(100.0);
   ps.gravity_direction_F = grav.Required("direction_F").Vec3(1e3);
+  if (!(ps.gravity_direction_F.norm() > 0.0)) grav.Required("direction_F").Fail("must be a non-zero vector");
   const Field comps = top.Required("compartments");
   comps.Keys(KeysOf("parameter_set.compartments"));
   for (const char* name : {"medial", "lateral"}) {

@@ -1,4 +1,5 @@
 // Scene and parameter-set sections: surfaces, compartments and the scene's contacts.
+#include <algorithm>
 #include <cmath>
 #include <tuple>
 
@@ -59,6 +60,9 @@ PolynomialCoefficients Read(const Field& f, const sp::PolynomialCoefficientsMm& 
       const std::string key = StrCat("c", i, j);
       if (!coeffs.Has(key)) continue;
       out.c[i][j] = coeffs.Required(key).Double() * std::pow(1.0e3, i + j - 1);
+      if (!std::isfinite(out.c[i][j])) {  // 1e300 mm^-3 overflows in SI: named here, in the file's units
+        coeffs.Required(key).Fail(StrCat("is past double's range in SI units (x 1000^", i + j - 1, ")"));
+      }
       ++given;
     }
   }
@@ -136,6 +140,17 @@ void ParseContacts(const Field& top, const ParameterSet& ps, ModelDescription* m
     pair.femoral_surface = data.femoral;
     pair.tibial_surface = data.tibial;
     model->contacts.push_back(pair);
+  }
+  // Surfaces for a compartment the model leaves out would be read by nothing (and went
+  // unchecked): refused, as ligament_parameters of an element not selected.
+  if (top.Has("surfaces")) {
+    const Field surfaces = top.Required("surfaces");
+    for (const std::string& name : surfaces.Keys()) {
+      if (std::none_of(model->contacts.begin(), model->contacts.end(),
+                       [&](const ContactPair& p) { return name == CompartmentName(p.compartment); })) {
+        surfaces.Required(name).Fail("not a compartment of this scene's contacts (field 'contacts'): it would not be used");
+      }
+    }
   }
 }
 

@@ -7,9 +7,11 @@
 // the ligaments and contacts it names, in its order; every shipped scene loads.
 // Does not validate: the numbers a scene produces (expected_values_test.cpp).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -302,6 +304,51 @@ TEST(Scene, RefusesSurfacePairWithOneSurface) {
                     "{lateral: {femoral_surface: {type: sphere_cap, radius_mm: 20.0, centre_mm: [23.0, "
                     "-16.0, 11.5]}}}",
                     "one_surface.yaml", {"surfaces.lateral", "tibial_surface"});
+}
+
+// What a compartment left out of `contacts` would not use was not read at all (a negative
+// radius, an unknown key, a guess 'abc': exit 0); it is refused, as ligament_parameters of an
+// element not selected. Zero gravity directions are refused wherever they are written, and a
+// polynomial coefficient that overflows in SI units is named in the file's terms.
+TEST(Scene, RefusesWhatNothingWouldUseAndValuesPastTheirRange) {
+  SceneFields fields = ValidFields();
+  fields["contacts"] = "[medial]";
+  fields["surfaces"] =
+      "{lateral: {femoral_surface: {type: sphere_cap, radius_mm: -5, centre_mm: [0, 0]}, bogus_key: 3}}";
+  ExpectRefused(fields, "unused_surfaces.yaml",
+                {"surfaces.lateral", "not a compartment of this scene's contacts (field 'contacts')"});
+  fields = ValidFields();
+  fields["contacts"] = "[medial]";
+  fields["initial_state"] = "{pose: reference, normal_force_guesses_N: {lateral: abc}}";
+  ExpectRefused(fields, "unused_guess.yaml",
+                {"initial_state.normal_force_guesses_N.lateral", "not a compartment of this scene's contacts"});
+  ExpectRefusedWith("gravity", "{enabled: false, direction_F: [0, 0, 0]}", "zero_gravity_direction.yaml",
+                    {"gravity.direction_F", "must be a non-zero vector"});
+  ExpectRefusedWith("surfaces",
+                    "{medial: {femoral_surface: {type: sphere_cap, radius_mm: 21.0, centre_mm: [-23.75, -18.0, 12.0]}, "
+                    "tibial_surface: {type: polynomial, origin_mm: [-16.836176, -12.259720, 206.972649], "
+                    "coefficients_mm: {c10: 0.358, c40: 1e300}}}}",
+                    "huge_coefficient.yaml", {"surfaces.medial.tibial_surface.coefficients_mm.c40", "'1e300'",
+                                              "past double's range"});
+  // The parameter set's own direction: named there (was: the scene's "missing required field
+  // 'direction_F'").
+  std::string ps_text = SourceText(ScenesDir() + "/../chapter_knee.yaml");
+  const size_t at = ps_text.find("direction_F: [0.0, -1.0, 0.0]");
+  ASSERT_NE(at, std::string::npos);
+  ps_text.replace(at, std::string("direction_F: [0.0, -1.0, 0.0]").size(), "direction_F: [0.0, 0.0, 0.0]");
+  const std::string ps_path = ::testing::TempDir() + "/kneedyn_zero_gravity_" + std::to_string(::getpid()) + ".yaml";
+  std::ofstream(ps_path) << ps_text;
+  fields = ValidFields();
+  fields["parameter_set"] = ps_path;
+  try {
+    (void)Parse(Text(fields), "zero_ps_scene.yaml");
+    ADD_FAILURE() << "a zero gravity direction in a parameter set was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(ps_path), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("field 'gravity.direction_F': must be a non-zero vector"), std::string::npos)
+        << e.what();
+  }
+  std::remove(ps_path.c_str());
 }
 
 TEST(Scene, RefusesContactWhoseSurfacesAreFarApartAtTheInitialPose) {
