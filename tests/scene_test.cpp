@@ -372,8 +372,11 @@ TEST(Scene, RefusesContactWhoseSurfacesAreFarApartAtTheInitialPose) {
     const double gap_mm = std::strtod(what.c_str() + at + 6, nullptr);
     EXPECT_NEAR(gap_mm, 100.0 / std::sqrt(1.0 + 0.358 * 0.358), 1e-6) << what;
   }
-  // The lateral compartment alone is still fine with that override in place.
+  // The lateral compartment alone is fine; the medial override is then refused as unused
+  // (before: accepted unread).
   f["contacts"] = "[lateral]";
+  ExpectRefused(f, "unused_medial.yaml", {"surfaces.medial", "not a compartment of this scene's contacts"});
+  f.erase("surfaces");
   EXPECT_NO_THROW((void)Parse(Text(f)));
 }
 
