@@ -12,7 +12,10 @@
     table (CPU s to scd 6 and 8, best scd per method) against the recorded peer sweep
     benchmarks/recorded/simbody_work_precision_chapter_impact.json (`cmake --build build --target
     bench_record_simbody`), recomputed from its rows (log-linear time to an scd, as
-    simbody_work_precision) and checked against the ratios the file itself carries.
+    simbody_work_precision) and checked against the ratios the file itself carries;
+  * README.md's work-precision figures of `dae` and `ede` (best scd, CPU ms to scd 4 / 6 / 8) and
+    the recording's date and commit against benchmarks/recorded/work_precision_chapter_impact.json,
+    cell by cell as benchmarks/work_precision_table.py forms them.
 
   doc_numbers_test.py [--root DIR]
 
@@ -192,6 +195,48 @@ def ratio_errors(readme, simbody_readme, recording):
   return errors
 
 
+WORK_PRECISION_RECORDING = os.path.join("benchmarks", "recorded", "work_precision_chapter_impact.json")
+README_WP = re.compile(r"`dae`, index 2\) tops out at (\d+\.\d) significant digits \(rtol 1e-13\) and costs .*? "
+                       r"\(scd 4 / 6 / 8: ([\d.]+) / ([\d.]+) / ([\d.]+) ms CPU against ([\d.]+) and ([\d.]+) ms for "
+                       r"`ede` with Dormand–Prince 5\(4\) and ([\d.]+) ms for `ede` with Verner 6\(5\);.*?"
+                       r"re-recorded (\d{4}-\d\d-\d\d) at ([0-9a-f]{7,})")
+
+
+def cheapest_ms(root, path):
+  """{method: {4: ms, 6: ms, 8: ms, "best": scd}} of the recorded sweep, as work_precision_table.py
+  forms its cells (the cheapest completed run at or above each scd), and its date and commit."""
+  sys.path.insert(0, os.path.join(root, "benchmarks"))
+  import work_precision_table  # noqa: E402 (benchmarks/; it finds reports/bench_data.py itself)
+  header, runs = work_precision_table.load_bench(path)
+  ok, _ = work_precision_table.split_runs(runs)
+  out = {}
+  for m in ("dae", "ede:dopri5", "ede:verner65"):
+    mine = [r for r in ok if work_precision_table.method_of(r) == m]
+    cell = {t: min((1e3 * r["cpu_s"] for r in mine if r["scd"] >= t and r.get("cpu_s") is not None), default=None)
+            for t in (4, 6, 8)}
+    cell["best"] = max((r["scd"] for r in mine), default=None)
+    out[m] = cell
+  return out, str(header.get("date", ""))[:10], str(header.get("git_commit", ""))
+
+
+def work_precision_errors(readme, cells, date, commit):
+  """README.md's dae / ede figures of "What the suite finds" against the recorded sweep."""
+  m = README_WP.search(readme)
+  if not m:
+    return ["README.md: no sentence '(`dae`, index 2) tops out at X significant digits (rtol 1e-13) and costs ... "
+            "(scd 4 / 6 / 8: a / b / c ms CPU against d and e ms for `ede` with Dormand–Prince 5(4) and f ms for "
+            "`ede` with Verner 6(5); ... re-recorded DATE at COMMIT'"]
+  said_want = [(m[1], cells["dae"]["best"], "dae's best scd"), (m[2], cells["dae"][4], "dae to scd 4"),
+               (m[3], cells["dae"][6], "dae to scd 6"), (m[4], cells["dae"][8], "dae to scd 8"),
+               (m[5], cells["ede:dopri5"][4], "ede dopri5 to scd 4"), (m[6], cells["ede:dopri5"][6], "ede dopri5 to scd 6"),
+               (m[7], cells["ede:verner65"][8], "ede verner65 to scd 8")]
+  errors = [f"README.md: {what} {said}, the recording gives {want}" for said, want, what in said_want
+            if not printed_agrees(said, want)]
+  if m[8] != date or not commit.startswith(m[9]):
+    errors.append(f"README.md: re-recorded {m[8]} at {m[9]}; {WORK_PRECISION_RECORDING}: {date} at {commit}")
+  return errors
+
+
 def self_check():
   """Each check on planted text: a wrong number flagged, the right ones not."""
   problems = []
@@ -237,6 +282,18 @@ def self_check():
                       (simbody.replace("| 0.0020 | — |", "| 0.0020 | 0.0050 |"), "a time where none reaches scd 8")):
     if not ratio_errors(readme, wrong, recording):
       problems.append(f"ratio check misses {what}")
+  cells = {"dae": {4: 3.13, 6: 9.63, 8: 21.45, "best": 9.89}, "ede:dopri5": {4: 2.02, 6: 2.75, 8: 4.86, "best": 11.6},
+           "ede:verner65": {4: 2.78, 6: 3.39, 8: 4.15, "best": 11.5}}
+  wp = ("(`dae`, index 2) tops out at 9.9 significant digits (rtol 1e-13) and costs 1.5–5× the fastest (scd 4 / 6 / 8: "
+        "3.1 / 9.6 / 21.5 ms CPU against 2.0 and 2.8 ms for `ede` with Dormand–Prince 5(4) and 4.2 ms for `ede` with "
+        "Verner 6(5); x) (y, re-recorded 2026-12-06 at 8ccfc73 with")
+  if work_precision_errors(wp, cells, "2026-12-06", "8ccfc73adeee"):
+    problems.append(f"work-precision check flags the right values: {work_precision_errors(wp, cells, '2026-12-06', '8ccfc73adeee')}")
+  for wrong, what in ((wp.replace("3.1 / 9.6", "4.6 / 9.6"), "dae's 4.6 ms against 3.13"),
+                      (wp.replace("4.2 ms", "4.5 ms"), "verner65's 4.5 ms against 4.15"),
+                      (wp.replace("2026-12-06", "2026-12-03"), "another date")):
+    if not work_precision_errors(wrong, cells, "2026-12-06", "8ccfc73adeee"):
+      problems.append(f"work-precision check misses {what}")
   return problems
 
 
@@ -256,8 +313,10 @@ def main():
   texts = {rel: read(root, rel) for rel, _ in ACCURACY}
   with open(os.path.join(root, SIMBODY_RECORDING), encoding="utf-8") as f:
     recording = json.load(f)
+  cells, wp_date, wp_commit = cheapest_ms(root, os.path.join(root, WORK_PRECISION_RECORDING))
   errors = (claims_errors(texts["README.md"], counts) + accuracy_errors(texts, accuracy)
-            + ratio_errors(texts["README.md"], read(root, "crosscheck/simbody/README.md"), recording))
+            + ratio_errors(texts["README.md"], read(root, "crosscheck/simbody/README.md"), recording)
+            + work_precision_errors(texts["README.md"], cells, wp_date, wp_commit))
   for e in errors:
     print("doc_numbers_test: FAIL:", e, file=sys.stderr)
   print(f"doc_numbers_test: {len(errors)} disagreement(s)")
