@@ -455,6 +455,7 @@ PYBIND11_MODULE(_kneedyn, m) {
     d["constraint_level"] = OptionName(o.constraint_level);
     d["jacobian"] = o.jacobian ? OptionName(*o.jacobian) : "";
     d["linear_solver"] = o.linear_solver ? OptionName(*o.linear_solver) : "";
+    d["contact_chart"] = OptionName(o.contact_chart);
     d["default_fixed_step"] = kDefaultFixedStep;
     return d;
   });
@@ -463,7 +464,7 @@ PYBIND11_MODULE(_kneedyn, m) {
                   const std::string& integrator, double step, double max_step, long max_steps,
                   const std::string& stabilization, const std::string& constraint_level,
                   const std::string& jacobian, double output_interval, const std::string& out_dir,
-                  const std::string& linear_solver) {
+                  const std::string& linear_solver, const std::string& contact_chart) {
     if (!scene) Throw<InputError>("kneedyn.run", "scene = None: must be a compiled scene (kneedyn.Scene.compiled)");
     RunSettings settings;
     settings.formulation = formulation;
@@ -478,6 +479,7 @@ PYBIND11_MODULE(_kneedyn, m) {
     settings.options.constraint_level = ParsedOptionValue<ConstraintLevel>(constraint_level);
     if (!jacobian.empty()) settings.options.jacobian = ParsedOptionValue<JacobianKind>(jacobian);
     if (!linear_solver.empty()) settings.options.linear_solver = ParsedOptionValue<LinearSolverKind>(linear_solver);
+    settings.options.contact_chart = ParsedOptionValue<ContactChart>(contact_chart);
     CheckOptions(FindFormulation(formulation), settings.options);
     settings.output_interval = output_interval;
     if (!out_dir.empty()) CheckOutputDirectory(out_dir);  // before the run, as the CLI does
@@ -507,7 +509,7 @@ PYBIND11_MODULE(_kneedyn, m) {
   }, py::arg("scene"), py::arg("formulation"), py::arg("rtol"), py::arg("atol"), py::arg("integrator"),
      py::arg("step"), py::arg("max_step"), py::arg("max_steps"), py::arg("stabilization"),
      py::arg("constraint_level"), py::arg("jacobian"), py::arg("output_interval"), py::arg("out_dir") = "",
-     py::arg("linear_solver") = "",
+     py::arg("linear_solver") = "", py::arg("contact_chart") = "regular",
      "RunScene + MakeTrajectoryTable + SummaryJson (+ WriteRunOutputs into out_dir) without the GIL");
 
   // The sweep API of ensembles/: the same spec, design, runs and result files as

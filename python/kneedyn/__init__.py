@@ -527,10 +527,11 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
         integrator=_DEFAULTS["integrator"], step=_DEFAULTS["step"], max_step=_DEFAULTS["max_step"],
         max_steps=_DEFAULTS["max_steps"], stabilization=_DEFAULTS["stabilization"],
         constraint_level=_DEFAULTS["constraint_level"], jacobian=_DEFAULTS["jacobian"],
-        output_interval=0.0, out=None, linear_solver=_DEFAULTS["linear_solver"]):
+        output_interval=0.0, out=None, linear_solver=_DEFAULTS["linear_solver"],
+        contact_chart=_DEFAULTS["contact_chart"]):
     """Runs a scene (a Scene, or a path to a scene file) like `kneedyn run` with the
     options of the same names (output_interval 0: the scene's; jacobian and linear_solver
-    '' : the formulation's default). Bad options raise
+    '' : the formulation's default; contact_chart "regular" or "height-field"). Bad options raise
     InputError before anything runs; a solver failure returns a Result with
     status 'partial' and the reason in `failure`, as the CLI does. With out=DIR the
     CLI's files (trajectory.csv, trajectory.sto, summary.json) are written there by the
@@ -543,7 +544,7 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
                        _text(stabilization, "run", "stabilization"), _text(constraint_level, "run", "constraint_level"),
                        _text(jacobian, "run", "jacobian"), _real(output_interval, "run", "output_interval"),
                        "" if out is None else _file_path(out, "run", "out"),
-                       _text(linear_solver, "run", "linear_solver"))
+                       _text(linear_solver, "run", "linear_solver"), _text(contact_chart, "run", "contact_chart"))
     return Result(_json.loads(out["summary_json"]), Trajectory(out["columns"], out["data"]))
 
 

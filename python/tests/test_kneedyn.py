@@ -42,6 +42,7 @@ CASES = [
     ("ede", dict(integrator="cvode-bdf", stabilization="projection")),
     ("dae-reduced", dict(rtol=1e-8, atol=1e-10, jacobian="jet")),
     ("dae-ggl", dict(rtol=1e-8, atol=1e-10, linear_solver="dense")),
+    ("generalized-alpha", dict(step=2e-4, contact_chart="height-field")),
 ]
 
 
