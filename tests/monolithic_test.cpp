@@ -319,9 +319,9 @@ TEST(MonolithicRuns, StopsWhereTheOdeFormsMedialFacetForceCrossesZeroOnTheExtens
     EXPECT_NEAR(run.x_last[kPatellaFacetRatio], 0.0, 1e-9);  // the DAE's own λ at its root
     // ede at rtol 1e-12 with rows 1 µs either side of the root and at it, from the DAE's
     // initial pose: the scene holds four coordinates, so the start's position level
-    // (consistent_init.hpp) is under-determined and its minimum-norm solution depends on
-    // the contact description (chapter form here, closed form in ede: x0, z0 1–2 µm apart,
-    // 1e-3° of flexion later on). At a pose that closes the contact it does nothing.
+    // (consistent_init.hpp) is under-determined. Every contact form now lands on the same
+    // point of it (PatellaLiftoff.EveryContactFormStartsTheUnderdeterminedSceneFromTheSamePose);
+    // the shared start keeps this comparison independent of that.
     Scene same_start = scene;
     same_start.initial.q = run.run.samples.at(0).q;
     RunSettings settings;
