@@ -406,6 +406,18 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"long-double", "double", "float128"}))
       ->capture_default_str();
   if (const int code = ParseCommandLine(app, argc, argv, "make_reference"); code >= 0) return code;
+  // 0 means the primary's value; a negative one was taken as 0 as well (silently).
+  for (const auto& [flag, value] : {std::pair<const char*, double>{"--check-rtol", check_rtol}, {"--check-atol", check_atol}}) {
+    if (!(std::isfinite(value) && value >= 0.0)) {
+      std::cerr << "make_reference: error: " << flag << " = " << value << ": must be >= 0 (0: the primary's)\n";
+      return 2;
+    }
+  }
+  // The extended check's step, refused now rather than after the primary's run (~50 s).
+  if (!(std::isfinite(extended_check_step) && extended_check_step > 0.0)) {
+    std::cerr << "make_reference: error: --check-step = " << extended_check_step << " s: must be > 0\n";
+    return 2;
+  }
   check.rtol = check_rtol > 0.0 ? check_rtol : primary.rtol;
   check.atol = check_atol > 0.0 ? check_atol : primary.atol;
   std::string command_line;

@@ -174,8 +174,13 @@ int main(int argc, char** argv) {
   try {
     if (grid < 1) Throw<InputError>("calibrate_reconstruction", "--grid = ", grid, ": must be >= 1");
     if (max_iterations < 0) Throw<InputError>("calibrate_reconstruction", "--max-iterations = ", max_iterations, ": must be >= 0");
-    if (!(rtol > 0.0 && rtol < 1.0)) Throw<InputError>("calibrate_reconstruction", "--rtol = ", rtol, ": must be in (0, 1)");
-    (void)FindFormulation(formulation);
+    {  // kneedyn run's option rules (rtol in (0, 0.5], ...): each run would refuse them, and a refused
+       // run would count as a failed one in the fit instead of an error here.
+      FormulationOptions options;
+      options.rtol = rtol;
+      options.atol = 1e-2 * rtol;
+      CheckOptions(FindFormulation(formulation), options);
+    }
     CheckOutputFile("calibrate_reconstruction", "--out", out_path);  // before the grid and the fit
     const Scene scene = LoadScene(scene_path);
     if (scene.model.pulse.shape == PulseShape::kNone) {
@@ -256,7 +261,10 @@ int main(int argc, char** argv) {
                  MeasuredJson(fit, targets)["cost"].get<double>(), out_path.c_str());
     return 0;
   } catch (const InputError& e) {
-    std::cerr << "calibrate_reconstruction: " << e.what() << "\n";
+    std::cerr << "calibrate_reconstruction: error: " << e.what() << "\n";
     return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "calibrate_reconstruction: error: " << e.what() << "\n";
+    return 1;
   }
 }

@@ -458,7 +458,11 @@ TEST_F(CliTest, MakeReferenceRefusesBadSettingsBeforeRunning) {
         "--formulation --integrator --rtol --atol: CreateFormulation(): --rtol = -1"},
        {" --out '" + out + "' --method formulations --check-rtol 0.9",
         "--check --check-integrator --check-rtol --check-atol: CreateFormulation(): --rtol = 0.9"},
-       {" --out /proc/kneedyn_no_such/reference.json", "--out = '/proc/kneedyn_no_such/reference.json': cannot"}},
+       {" --out /proc/kneedyn_no_such/reference.json", "--out = '/proc/kneedyn_no_such/reference.json': cannot"},
+       // Before: a negative check tolerance ran as the primary's, and --check-step -1 was refused
+       // after the ~50 s primary run.
+       {" --out '" + out + "' --method formulations --check-rtol -1", "--check-rtol = -1: must be >= 0"},
+       {" --out '" + out + "' --check-step -1", "--check-step = -1 s: must be > 0"}},
       "wrote ", out);
 }
 
@@ -483,6 +487,15 @@ TEST_F(CliTest, ThroughputBenchmarksRefuseBadSettingsBeforeRunning) {
                              {{" --json /proc/kneedyn_no_such/t.json", "--json = '/proc/kneedyn_no_such/t.json': cannot"},
                               {" --min-scd nan", "--min-scd = nan: must be finite"}},
                              "runs/s");
+  // calibrate_reconstruction took --rtol in (0, 1): at 0.7 every run refused it, the fit
+  // counted them as failed runs and wrote placeholder angles, exit 0; and its messages
+  // lacked the "error:" of the contract.
+  const std::string calibrate = std::string("cd '") + KNEEDYN_SOURCE_DIR + "' && timeout 60 '" +
+                                KNEEDYN_CALIBRATE_EXE + "' --out '" + Out() + "/c.json'";
+  ExpectRefusedBeforeRunning(calibrate, "calibrate_reconstruction",
+                             {{" --rtol 0.7 --grid 1 --max-iterations 0", "--rtol = 0.7; must lie in (0, 0.5]"},
+                              {" --grid 0", "--grid = 0: must be >= 1"}},
+                             "best: scale", fs::path(Out()) / "c.json");
 }
 
 // SUNDIALS prints nothing itself; its own message (here IDA's, CVODE's and

@@ -12,6 +12,7 @@
 
 #include "app/cli.hpp"
 #include "crosscheck/simbody/simbody_knee.hpp"
+#include "formulations/output_file.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
 
@@ -40,6 +41,7 @@ int main(int argc, char** argv) {
   try {
     std::string why;
     if (!options.IsValid(&why)) Throw<InputError>("kneedyn_simbody run", why);
+    CheckOutputDirectoryWritable("kneedyn_simbody run", "--out", out_dir);  // before the run
     const Scene scene = LoadScene(scene_path);
     const simbody::Result result = simbody::Run(scene, options);
     simbody::WriteOutputs(out_dir, scene, options, result);

@@ -21,6 +21,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <vector>
 #include <map>
 
 #include "benchmarks/bench_run.hpp"
@@ -209,6 +210,37 @@ TEST(SimbodyCli, BadAccuracyExitsTwoAndWritesNothing) {
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 2);
   EXPECT_FALSE(std::filesystem::exists(out));
+}
+
+// What the port cannot run as kneedyn would is refused before the run, naming it, exit 2,
+// nothing written: a patella (before: dropped, and the tibia alone reported as completed),
+// an output grid kneedyn run refuses (before: 2e6 rows, no end in 2 min), an --out that
+// cannot be written (before: found after the run).
+TEST(SimbodyCli, RefusesAPatellaABadOutputGridAndAnUnwritableOutBeforeRunning) {
+  namespace fs = std::filesystem;
+  const std::string out = (fs::temp_directory_path() / "kneedyn_simbody_refusals").string();
+  const std::string err = out + ".err";
+  struct Case {
+    std::string args, needle;
+  };
+  const std::vector<Case> cases = {
+      {ScenePath("patellofemoral_impact") + " --out " + out, "the scene has a patella: section"},
+      {ScenePath("chapter_impact") + " --output-interval 1e-6 --out " + out, "at most 100000 rows"},
+      {ScenePath("chapter_impact") + " --out /proc/kneedyn_no_such/out", "--out = '/proc/kneedyn_no_such/out'"}};
+  for (const Case& c : cases) {
+    fs::remove_all(out);
+    const std::string cmd = "timeout 60 " + std::string(KNEEDYN_SIMBODY_EXE) + " run " + c.args + " --quiet 2> " + err;
+    const int status = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(status)) << cmd;
+    EXPECT_EQ(WEXITSTATUS(status), 2) << cmd;
+    std::ifstream in(err);
+    std::stringstream message;
+    message << in.rdbuf();
+    EXPECT_NE(message.str().find("kneedyn_simbody: error: "), std::string::npos) << message.str();
+    EXPECT_NE(message.str().find(c.needle), std::string::npos) << message.str();
+    EXPECT_FALSE(fs::exists(out)) << cmd;
+  }
+  fs::remove(err);
 }
 
 TEST(SimbodyCli, RunWritesTheThreeFiles) {

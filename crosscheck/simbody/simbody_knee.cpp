@@ -652,6 +652,17 @@ bool Options::IsValid(std::string* error) const {
 Result Run(const Scene& scene, const Options& options) {
   std::string why;
   if (!options.IsValid(&why)) Throw<InputError>("simbody::Run", why);
+  // What the port does not model is refused, not dropped: its run would be another model's.
+  if (scene.model.patella) {
+    Throw<InputError>("simbody::Run", scene.path, ": the scene has a patella: section; the Simbody port models the "
+                      "tibio-femoral joint only (the patella of docs/model.md §12 is kneedyn's)");
+  }
+  // kneedyn run's output grid rule (end time / interval at most 1e5 rows, interval >= 1 us).
+  const double interval = options.output_interval > 0.0 ? options.output_interval : scene.output_interval;
+  if (!IsValidOutputInterval(interval, scene.end.time, &why)) {
+    Throw<InputError>("simbody::Run", options.output_interval > 0.0 ? "--output-interval: " : "scene output.interval_s: ",
+                      why);
+  }
   const auto wall_start = std::chrono::steady_clock::now();
   Knee knee(scene, options);
   Result result;
