@@ -134,6 +134,13 @@ double TrajectoryStatement(const Statement& st, const sensitivity::SensitivityRe
   }
   if (best < 0) Throw<SolverError>("StatementModel", "statement ", st.id, ": no samples in its flexion window");
   const size_t k = best;
+  // A largest value at the window's edge (the run's last sample inside it, or the value still
+  // rising there) is no peak: the parabola's vertex would lie outside its three samples.
+  if (s.v[k + 1] > s.v[k] || s.v[k - 1] > s.v[k]) {
+    Throw<SolverError>("StatementModel", "statement ", st.id, ": no maximum inside its flexion window [",
+                       st.window_lo_deg, ", ", st.window_hi_deg, "] deg: the largest value is at its edge (",
+                       s.a[k], " deg of flexion)");
+  }
   return Chain<6>([](const auto& in) { return VertexFlexion(in[0], in[1], in[2], in[3], in[4], in[5]); },
                   {s.a[k - 1], s.a[k], s.a[k + 1], s.v[k - 1], s.v[k], s.v[k + 1]},
                   {&s.da[k - 1], &s.da[k], &s.da[k + 1], &s.dv[k - 1], &s.dv[k], &s.dv[k + 1]}, np, grad);

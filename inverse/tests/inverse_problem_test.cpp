@@ -137,6 +137,30 @@ TEST(InverseProblem, ShippedSpecLoads) {
   EXPECT_NO_THROW(StatementModel(Chapter(), spec, Tight()));
 }
 
+// A peak whose largest value sits at its window's edge is no peak: on the conservative scene
+// (no pulse) the knee flexes to about 44 deg, and varus (−(β − 90°)) still grows at the
+// run's last sample. The three-point vertex extrapolated 110 deg from there, outside the
+// window [0, 90] and the motion, and was scored as a residual. Now the statement is not
+// reached, with the reason, as a lift-off that does not happen.
+TEST(InverseProblem, APeakAtTheWindowsEdgeIsNotReached) {
+  const Scene scene = LoadScene(std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes/conservative.yaml");
+  InverseSpec spec = SyntheticSpec();
+  Statement k5 = Trajectory("K5", StatementKind::kPeakLocation, 4, -1.0, 0.0);
+  k5.window_lo_deg = 0.0;
+  k5.window_hi_deg = 90.0;
+  spec.statements = {k5};
+  sensitivity::SensitivityOptions options = Tight();
+  const StatementModel model(scene, spec, options);
+  try {
+    (void)model.Evaluate(std::vector<double>(model.num_parameters(), 0.0), {0}, false);
+    FAIL() << "a maximum at the window's edge was taken for a peak";
+  } catch (const SolverError& e) {
+    EXPECT_NE(std::string(e.what()).find("statement K5: no maximum inside its flexion window [0, 90] deg"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(InverseProblem, BadSpecNamesTheField) {
   InverseSpec spec = SyntheticSpec();
   spec.parameters[0].name = "PCL_anterior.extension_ratoi";
