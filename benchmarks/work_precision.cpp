@@ -268,8 +268,15 @@ int main(int argc, char** argv) {
   app.add_option("--include", include_dirs,
                  "also the outside results scored by `kneedyn score` under DIR (score.json, *.score.json; "
                  "repeatable)");
-  app.add_option("--rtol-min", rtol_min, "tightest rtol of the sweep")
-      ->check(CLI::Range(1e-300, 1e-2))->capture_default_str();
+  app.add_option("--rtol-min", rtol_min, "tightest rtol of the sweep, in [1e-300, 1e-2]")
+      ->check(CLI::Validator(
+          [](std::string& text) {  // CLI::Range printed its bounds with %f: "0.000000 to 0.010000"
+            double v = 0.0;
+            return ParseReal(text, &v) && v >= 1e-300 && v <= 1e-2 ? std::string()
+                                                                 : "'" + Echo(text) + "' must lie in [1e-300, 1e-2]";
+          },
+          "", "RTOL"))
+      ->capture_default_str();
   app.add_option("--repetitions", repetitions, "repetitions per setting (default 3 short, 5 full)")
       ->check(CLI::Range(2, 1000));
   app.set_version_flag("--version", VersionReport("work_precision"));

@@ -192,7 +192,10 @@ int main(int argc, char** argv) {
     if (targets_arg == "none") targets.clear();
     std::vector<std::string> folds = folds_arg == "none" || no_lso ? std::vector<std::string>() : Split(folds_arg);
     for (const std::string& h : folds) {
-      if (h != "A" && h != "B") Throw<InputError>("kneedyn_inverse", "--folds: '", Echo(h), "': expected A, B or none");
+      if (h != "A" && h != "B") {
+        Throw<InputError>("kneedyn_inverse", "--folds = '", Echo(folds_arg), "': '", Echo(h),
+                          "' is not a fold; give A, B or both (A,B), or none alone");
+      }
     }
     for (const std::string& t : targets) {
       if (std::find(claims.begin(), claims.end(), t) == claims.end()) {

@@ -433,7 +433,9 @@ TEST_F(CliTest, CatalogAndWorkPrecisionKeepTheContract) {
       {{" --short --only no_such_method --json '" + json + "'", "--only = 'no_such_method': no configuration"},
        {" --short --only dae-ggl-reduced --json '" + (a_file / "wp.json").string() + "'", "--json = '"},
        {" --short --only dae-ggl-reduced --json '" + json + "' --csv '" + (a_file / "wp.csv").string() + "'",
-        "--csv = '"}},
+        "--csv = '"},
+       // CLI::Range printed its bounds as "0.000000 to 0.010000", the lower one 0 for 1e-300.
+       {" --short --rtol-min 1e-301 --json '" + json + "'", "--rtol-min: '1e-301' must lie in [1e-300, 1e-2]"}},
       "[1/", json);
   r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --case");
   EXPECT_EQ(r.exit_code, 2) << r.output;
