@@ -939,7 +939,7 @@ TEST_F(HostileInput, InverseToolRefusesBadOptionsLikeTheOtherTools) {
   const std::string inverse = std::string("'") + KNEEDYN_INVERSE_EXE + "' --scene '" + ChapterScenePath() +
                               "' --spec '" KNEEDYN_INVERSE_SPEC "' --out '" + out + "' ";
   for (const auto& [option, needle] : std::vector<std::pair<std::string, std::string>>{
-           {"--rtol 0.9", "--rtol = 0.9"}, {"--weights -5", "--weights: -5"}, {"--folds C", "--folds: 'C'"},
+           {"--rtol 0.9", "--rtol = 0.9"}, {"--weights -5", "--weights: -5"}, {"--folds C", "--folds = 'C': 'C' is not a fold"},
            // CLI11's own refusals ended with its codes (109, 114), without the program's name
            {"--box -1", "not expected: -1 --box"}, {"--out '" + out + "2'", "--out: At Most 1 required"},
            // Refused before the fits (minutes), not when written after them.
