@@ -174,10 +174,21 @@ class Problem {
   }
   Scene SceneCopyAt(const std::vector<double>& p) { return ensembles::SceneForRun(spec_, p); }
 
+  // The patella's equilibrium (docs/model.md §12) is warm-started from the last solve, as the
+  // run driver's workspace does: a fresh workspace per call solved it from the scene's start
+  // pose along the tuberosity's straight path every time, and on patellofemoral_extension
+  // from t = 0.3283 s the ± evaluations of SensitivityRhs no longer agreed (CVODES stalled at
+  // steps of 1e-17 s; minutes before --max-steps ended it).
   ConstrainedAcceleration Accel(const Mode& mode, double t, const double* y, const double* p) {
     const Model& model = SceneAt(p).model;
     const Vector6d q = Eigen::Map<const Vector6d>(y), qd = Eigen::Map<const Vector6d>(y + 6);
-    return SolveConstrainedAcceleration(model, t, q, qd, mode.active, {}, mode.branch.empty() ? nullptr : &mode.branch);
+    ConstrainedDynamicsWorkspace workspace(model);
+    workspace.data.patella_guess = patella_guess_;
+    ConstrainedAcceleration out;
+    SolveConstrainedAcceleration(model, t, q, qd, mode.active, {}, mode.branch.empty() ? nullptr : &mode.branch,
+                                 &workspace, &out);
+    patella_guess_ = workspace.data.patella_guess;
+    return out;
   }
 
   void Rhs(const Mode& mode, double t, const double* y, const double* p, double* ydot) {
@@ -303,6 +314,7 @@ class Problem {
   Scene scene_;
   std::vector<double> applied_;
   bool have_scene_ = false;
+  PatellaGuess patella_guess_;  // the last patellar equilibrium solved (Accel's warm start)
 };
 
 // A maximum candidate of a peak outcome.
