@@ -29,9 +29,9 @@ void Simulator::Record(bool is_event) {
   // over the band |sin β| < 1e-3 without evaluating inside it (docs/model.md §2).
   if (!record_->samples.empty()) {
     const MechanicalState& last = record_->samples.back();
-    if (std::sin(last.q(4)) * std::sin(state_.q(4)) < 0.0) {
+    if (std::sin(last.q(kBeta)) * std::sin(state_.q(kBeta)) < 0.0) {
       Throw<SolverError>("Simulator::Run", "the JCS singularity (sin beta = 0) was crossed between t = ", last.t,
-                         " s and t = ", state_.t, " s (beta ", RadToDeg(last.q(4)), " -> ", RadToDeg(state_.q(4)),
+                         " s and t = ", state_.t, " s (beta ", RadToDeg(last.q(kBeta)), " -> ", RadToDeg(state_.q(kBeta)),
                          " deg); the angular-velocity map E is singular there (docs/model.md §2)");
     }
   }

@@ -92,12 +92,7 @@ void ParseGuesses(const Field& f, const ParameterSet& ps, const ModelDescription
   }
   if (f.Has("normal_force_guesses_N")) {
     const Field nf = f.Required("normal_force_guesses_N");
-    for (const std::string& name : nf.Keys()) {  // a guess for a compartment left out would go unread
-      if (std::none_of(model.contacts.begin(), model.contacts.end(),
-                       [&](const ContactPair& p) { return name == CompartmentName(p.compartment); })) {
-        nf.Required(name).Fail("not a compartment of this scene's contacts (field 'contacts'): it would not be used");
-      }
-    }
+    RefuseCompartmentsNotInContacts(nf, model);  // a guess for a compartment left out would go unread
     for (const ContactPair& pair : model.contacts) {
       const char* name = CompartmentName(pair.compartment);
       if (nf.Has(name)) {

@@ -143,13 +143,14 @@ void ParseContacts(const Field& top, const ParameterSet& ps, ModelDescription* m
   }
   // Surfaces for a compartment the model leaves out would be read by nothing (and went
   // unchecked): refused, as ligament_parameters of an element not selected.
-  if (top.Has("surfaces")) {
-    const Field surfaces = top.Required("surfaces");
-    for (const std::string& name : surfaces.Keys()) {
-      if (std::none_of(model->contacts.begin(), model->contacts.end(),
-                       [&](const ContactPair& p) { return name == CompartmentName(p.compartment); })) {
-        surfaces.Required(name).Fail("not a compartment of this scene's contacts (field 'contacts'): it would not be used");
-      }
+  if (top.Has("surfaces")) RefuseCompartmentsNotInContacts(top.Required("surfaces"), *model);
+}
+
+void RefuseCompartmentsNotInContacts(const Field& section, const ModelDescription& model) {
+  for (const std::string& name : section.Keys()) {
+    if (std::none_of(model.contacts.begin(), model.contacts.end(),
+                     [&](const ContactPair& p) { return name == CompartmentName(p.compartment); })) {
+      section.Required(name).Fail("not a compartment of this scene's contacts (field 'contacts'): it would not be used");
     }
   }
 }

@@ -64,9 +64,12 @@ Matrix3<T> RotationFT(const T& alpha, const T& beta, const T& gamma) {
   return RotationFT(EulerAngleTrigOf(alpha, beta, gamma));
 }
 
+// True inside the band |sin β| < kJcsSingularityTolerance where E is taken as singular.
+inline bool IsAtJcsSingularity(double sin_beta) { return std::abs(sin_beta) < kJcsSingularityTolerance; }
+
 // |sin β| of a pose below kJcsSingularityTolerance: SolverError naming the caller.
 inline void CheckJcsRegular(double beta, double sin_beta, const char* caller) {
-  if (std::abs(sin_beta) < kJcsSingularityTolerance) {
+  if (IsAtJcsSingularity(sin_beta)) {
     Throw<SolverError>(caller, "pose at the JCS singularity: beta = ", beta,
                        " rad (|sin beta| = ", std::abs(sin_beta), " < ",
                        kJcsSingularityTolerance,

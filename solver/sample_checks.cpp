@@ -16,7 +16,7 @@ void CheckSampleIsPhysical(const Model& model, const MechanicalState& s) {
   }
   // A sample inside the JCS band (docs/model.md §2): the integrator's own evaluations may
   // step over it, an output time interpolated there may not be reported.
-  if (std::abs(std::sin(s.q(4))) < kJcsSingularityTolerance) {
+  if (IsAtJcsSingularity(std::sin(s.q(kBeta)))) {
     Throw<SolverError>(kWho, "pose at the JCS singularity at t = ", s.t, " s: beta = ", RadToDeg(s.q(4)),
                        " deg (|sin beta| < ", kJcsSingularityTolerance,
                        "); the angular-velocity map E is singular there (docs/model.md §2)");

@@ -38,6 +38,9 @@ void ParseConstantLoad(const Field& top, ModelDescription* model);              
 void ParsePatella(const Field& top, ModelDescription* model);                               // patella.cpp
 void ParseLigaments(const Field& top, const ParameterSet& ps, ModelDescription* model);     // ligaments.cpp
 void ParseContacts(const Field& top, const ParameterSet& ps, ModelDescription* model);      // surfaces.cpp
+// Refuses a key of `section` that names no compartment of the model's contacts: nothing would
+// read it (surfaces.cpp).
+void RefuseCompartmentsNotInContacts(const Field& section, const ModelDescription& model);
 InitialStateRequest ParseInitialState(const Field& top, const ParameterSet& ps,
                                       const ModelDescription& model);                       // initial_state.cpp
 void ParseEndAndOutput(const Field& top, Scene* scene);                                     // end_condition.cpp
