@@ -155,8 +155,9 @@ constexpr size_t kPatellaColumns = 11;  // patella_shift_mm … tendon_quadricep
 // own small steps held on (hard/patella_quadriceps_2000N with newmark at --step 1e-5: 4.4° in
 // 3.4 ms to the last state): that row's patella columns are empty (NaN) and *not_followed
 // records its time and the reason; the next row starts from the last equilibrium reached. A
-// completed run's row throws the SolverError.
-void AppendPatellaColumns(const Patella& p, const MechanicalState& st, bool run_completed, Vector6d* from_q,
+// completed run's row is treated alike (its own steps held on where the path from the row
+// before did not): its trajectory stands, and the warning says the columns are missing.
+void AppendPatellaColumns(const Patella& p, const MechanicalState& st, Vector6d* from_q,
                           PatellaGuess* guess, std::vector<double>* row,
                           std::vector<std::pair<double, std::string>>* not_followed) {
   const Vector6d& q = st.q;
@@ -167,7 +168,6 @@ void AppendPatellaColumns(const Patella& p, const MechanicalState& st, bool run_
       SolvePatellaAlongTibialPath(p, *from_q, q, "MakeTrajectoryTable", guess);
     }
   } catch (const SolverError& e) {
-    if (run_completed) throw;
     not_followed->emplace_back(st.t, e.what());
     row->resize(row->size() + kPatellaColumns, std::numeric_limits<double>::quiet_NaN());
     return;
@@ -259,7 +259,7 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
     for (const LigamentObservables& l : obs.ligaments) *out++ = MToMm(l.length);
     for (const LigamentObservables& l : obs.ligaments) *out++ = l.strain;
     if (model.patella) {
-      AppendPatellaColumns(*model.patella, st, result.completed, &patella_q, &patella_guess, &row,
+      AppendPatellaColumns(*model.patella, st, &patella_q, &patella_guess, &row,
                            &table.patella_not_followed);
     }
     table.rows.push_back(std::move(row));
@@ -313,7 +313,8 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
     p.kind = "patella_not_followed";
     p.time_s = time;
     p.message = StrCat("the patella's columns are empty at t = ", time, " s: its equilibrium, followed from the row "
-                       "before, was not reached at this row's tibial pose, where the run stopped (", why, ")");
+                       "before, was not reached at this row's tibial pose",
+                       result.completed ? ", which the run's own steps reached (" : ", where the run stopped (", why, ")");
     out.push_back(std::move(p));
   }
   return out;

@@ -24,9 +24,9 @@ constexpr int kSummarySchemaVersion = 2;
 struct TrajectoryTable {
   std::vector<std::string> columns;        // with units, e.g. "flexion_deg"
   std::vector<std::vector<double>> rows;   // NaN = empty (e.g. contact point when separated)
-  // A failed run's rows whose patella columns are empty: the equilibrium followed from the
-  // row before did not reach their tibial pose (where the run stopped, at a fold of the
-  // patella's equilibrium, docs/model.md §12): the row's time (s) and the solver's reason.
+  // Rows whose patella columns are empty: the equilibrium followed from the row before did
+  // not reach their tibial pose (a failed run's last row, at a fold of the patella's
+  // equilibrium, docs/model.md §12): the row's time (s) and the solver's reason.
   std::vector<std::pair<double, std::string>> patella_not_followed;
 };
 
@@ -38,7 +38,7 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
 //    a tibial contact. The contact's own lift-off event row is not counted: there the force
 //    is 0 by the event's definition (docs/model.md §9) and its value is the event location's
 //    error (−4e-12 N with dae, −0.015 N with staggered on the patellofemoral impact).
-//  - kind "patella_not_followed": a failed run's row whose patella columns are empty
+//  - kind "patella_not_followed": a row whose patella columns are empty
 //    (TrajectoryTable::patella_not_followed); `time_s` and `message` only.
 struct OutputWarning {
   std::string kind;     // "pulling_contact" | "patella_not_followed"

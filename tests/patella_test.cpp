@@ -794,8 +794,8 @@ TEST(PatellaRuns, PullingTibialContactIsReportedOutsideItsOwnLiftoffRow) {
 // equilibrium. The run's own failure says the same there (its next step: "no patellar
 // equilibrium found", a second evaluation). The set is written, that row's patella columns
 // empty, its other columns not, and a warning of kind patella_not_followed gives its time.
-// Before, WriteRunOutputs threw: exit 2 and nothing written. The same rows of a run that
-// completed still throw: a completed run's table has a patella in every row.
+// Before, WriteRunOutputs threw: exit 2 and nothing written. The same rows in a run marked
+// completed get the same empty columns, and the warning says the run's own steps got there.
 TEST(PatellaRuns, RowPastAFoldOfAFailedRunHasEmptyPatellaColumnsAndAWarning) {
   const Scene scene = LoadScene("reference-data/scenes/hard/patella_quadriceps_2000N.yaml");
   RunSettings settings;
@@ -825,7 +825,15 @@ TEST(PatellaRuns, RowPastAFoldOfAFailedRunHasEmptyPatellaColumnsAndAWarning) {
   EXPECT_EQ(found, 1) << w.summary["warnings"].dump();
   EXPECT_EQ(w.summary["status"], "partial");
   run.completed = true;
-  EXPECT_THROW(MakeTrajectoryTable(scene, run), SolverError);
+  const TrajectoryTable completed = MakeTrajectoryTable(scene, run);
+  ASSERT_EQ(completed.patella_not_followed.size(), 1u);
+  EXPECT_EQ(completed.patella_not_followed[0].first, run.samples.back().t);
+  EXPECT_TRUE(std::isnan(completed.rows.back()[first_patella]));
+  const std::vector<OutputWarning> warnings = OutputWarnings(completed, run);
+  const auto warning = std::find_if(warnings.begin(), warnings.end(),
+                                    [](const OutputWarning& o) { return o.kind == "patella_not_followed"; });
+  ASSERT_NE(warning, warnings.end());
+  EXPECT_NE(warning->message.find("which the run's own steps reached"), std::string::npos) << warning->message;
 }
 
 }  // namespace
