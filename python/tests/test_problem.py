@@ -256,3 +256,20 @@ def test_after_the_end_only_the_runs_own_facts_answer():
             getattr(p, name)
     assert p.end_reason == end and [e[0] for e in p.events_recorded] == [end]
     assert p.t_end > p.t0 and p.rtol == 1e-6 and p.phase == 0
+
+
+def test_a_problem_is_not_copied_but_a_pickled_scene_builds_the_same_problem():
+    """A Problem holds its open phase (active contacts, events so far): copy and pickle raise
+    TypeError (docs/problem.md). A process pool sends the Scene instead: the Problem built from
+    the unpickled scene starts where the original does, with the same f, bitwise."""
+    import copy
+    import pickle
+    scene = kneedyn.load_scene(SCENE)
+    p = kneedyn.Problem(scene, form="ede")
+    for clone in (copy.copy, copy.deepcopy, pickle.dumps):
+        with pytest.raises(TypeError):
+            clone(p)
+    q = kneedyn.Problem(pickle.loads(pickle.dumps(scene)), form="ede")
+    assert q.t0 == p.t0 and q.event_names == p.event_names
+    np.testing.assert_array_equal(q.y0, p.y0)
+    np.testing.assert_array_equal(q.rhs(p.t0 + 0.01, p.y0), p.rhs(p.t0 + 0.01, p.y0))
