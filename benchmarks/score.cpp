@@ -72,7 +72,7 @@ double ParseCell(std::string_view cell, std::string* buffer, const std::string& 
   return v;
 }
 
-// An event name as read: kneedyn's names are printable ASCII (docs/model.md §9), and a name
+// An event name as read: kneedyn's names are printable ASCII (docs/outputs.md, `events`), and a name
 // goes into the score's JSON, which holds only valid UTF-8.
 std::string EventName(std::string_view view, const std::string& path, size_t line) {
   std::string name(view);

@@ -11,7 +11,7 @@
 //   q̇_{n+1} = q̇_n + h/2 (q̈_n + q̈_{n+1})
 // and the equations at t_{n+1}:
 //   h²/4 [Q(t, q, ν) + Σ_i N_i G_iᵀ − M ν̇] = 0, ν̇ = GeneralizedAcceleration(q, q̇, q̈)
-//                                          (Eqs. 1.48–1.61, as dae.cpp rows F7–F12;
+//                                          (Eqs. 1.48–1.57, as dae.cpp rows F7–F12;
 //                                           scaled by h²/4 so rows are ~ M Δq)
 //   chapter form: the five ChapterContactResiduals per contact (Eqs. 1.8, 1.13)
 //   closed form:  φ_i(q) = 0 (sphere on plane)

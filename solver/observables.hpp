@@ -6,7 +6,7 @@
 // otherwise (the joint angles as the outputs report them).
 //
 //   joint angles   flexion α, valgus β − 90° (β is the raw JCS coordinate, 90° = neutral),
-//                  external rotation γ, their rates, and w_T (chapter Eqs. 1.1–1.3)
+//                  external rotation γ, their rates (Eq. 1.3), and w_T (docs/model.md §2: the exact map)
 //   energies       kinetic ½ m|v|² + ½ w_Tᵀ I w_T; potential of gravity and the constant
 //                  load −(m g + F)·R0; ligament strain energy Σ V_j(L_j) (the integral of
 //                  Eq. 1.14); mechanical = their sum, equal to MechanicalEnergy (dynamics.hpp)

@@ -18,7 +18,7 @@ struct PoseTpl {
   Vector3<T> p_FoTo_F;  // R0, m
   Matrix3<T> R_FT;
 
-  // Femoral coordinates of a point given in tibial coordinates: P = R0 + R r (Eq. 1.1).
+  // Femoral coordinates of a point given in tibial coordinates: P = R0 + R r (Eq. 1.2).
   Vector3<T> PointInF(const Vector3<T>& p_T) const { return p_FoTo_F + R_FT * p_T; }
   Vector3<T> PointInT(const Vector3<T>& p_F) const {
     return R_FT.transpose() * (p_F - p_FoTo_F);

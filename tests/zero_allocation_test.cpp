@@ -149,7 +149,7 @@ FormulationOptions OptionsOf(const HotPathCase& c) {
 // Every registered formulation × its integrators × (ede) stabilizations × two scenes that
 // the factory accepts (ede's cvode-projection needs a CVODE integrator, cvode-adams no
 // projection of kneedyn's: those combinations are not runs, so they are not cases;
-// EveryFormulationHasACase checks that none drops out whole).
+// EveryFormulationAndIntegratorHasACase checks that none drops out whole).
 std::vector<HotPathCase> AllCases() {
   std::vector<HotPathCase> cases;
   for (const std::string scene_name : {"chapter_impact", "anatomical_surfaces"}) {

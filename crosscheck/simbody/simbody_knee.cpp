@@ -153,7 +153,7 @@ class LigamentForces : public SimTK::Force::Custom::Implementation {
       const double length = span_G.norm();
       const double tension = TensionAt(s, j, length);
       if (tension == 0.0) continue;
-      // On the tibia at its attachment, towards the femoral attachment (Eq. 1.16).
+      // On the tibia at its attachment, towards the femoral attachment (docs/model.md §5).
       tibia_.applyForceToBodyPoint(s, station_B, tension * span_G / length, body_forces);
     }
   }

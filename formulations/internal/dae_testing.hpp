@@ -1,6 +1,6 @@
 // Test hook for the `dae` / `dae-reduced` residual and IDA Jacobian (tests/dae_test.cpp).
-// Not for production use: it builds a DaeFormulation, starts it at `state` (no events) and
-// evaluates the members IDA calls.
+// Not for production use: it builds the DaeSystem that IdaDriver<DaeSystem> drives, sets its
+// phase at `state` (no events) and evaluates the members IDA calls.
 #pragma once
 
 #include <vector>
