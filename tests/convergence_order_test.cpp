@@ -180,11 +180,11 @@ TEST(ConvergenceOrderCoverage, EveryFixedStepMethodHasACase) {
       });
     };
     if (IsFixedStep(info, "")) {
-      EXPECT_TRUE(has(std::nullopt)) << info.name << " has no order case";
+      EXPECT_TRUE(has(std::nullopt)) << info.name << " has no order case (add its theoretical order to Cases())";
     }
     for (IntegratorKind k : info.integrators) {
       if (IsFixedStep(info, std::optional<IntegratorKind>(k))) {
-        EXPECT_TRUE(has(k)) << info.name << " --integrator " << OptionName(k) << " has no order case";
+        EXPECT_TRUE(has(k)) << info.name << " --integrator " << OptionName(k) << " has no order case (add its theoretical order to Cases())";
       }
     }
   }

@@ -137,8 +137,8 @@ TEST(SceneKeyTable, EveryKeyAndValueIsDocumentedAndInTheFuzzDictionary) {
   for (const auto* table : {&SceneMappingKeys(), &SceneFieldValues()}) {
     for (const SceneKeyTable& t : *table) {
       for (const char* entry : t.entries) {
-        EXPECT_TRUE(documented.count(entry)) << t.mapping << ": '" << entry << "' not in reference-data/scenes/README.md";
-        EXPECT_TRUE(dictionary.count(entry)) << t.mapping << ": '" << entry << "' not in fuzz/yaml.dict";
+        EXPECT_TRUE(documented.count(entry)) << t.mapping << ": '" << entry << "' not in a `code span` of reference-data/scenes/README.md";
+        EXPECT_TRUE(dictionary.count(entry)) << t.mapping << ": '" << entry << "' not a quoted line \"" << entry << "\" of fuzz/yaml.dict";
       }
     }
   }
