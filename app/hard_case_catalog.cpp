@@ -28,7 +28,7 @@
 #include <optional>
 #include <sstream>
 
-#include "app/cli.hpp"
+#include "solver/internal/command_line.hpp"
 #include "formulations/output_file.hpp"
 #include "formulations/progress.hpp"
 #include "formulations/run.hpp"

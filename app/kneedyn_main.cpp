@@ -25,7 +25,7 @@
 #include "ensembles/sweep_cli.hpp"
 #include "benchmarks/score_cli.hpp"
 #include "sensitivity/sensitivity_cli.hpp"
-#include "app/cli.hpp"
+#include "solver/internal/command_line.hpp"
 #include "formulations/progress.hpp"
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"

@@ -24,7 +24,7 @@
 #include "ensembles/batch.hpp"
 #include "formulations/formulation.hpp"
 #include "formulations/output_file.hpp"
-#include "app/cli.hpp"
+#include "solver/internal/command_line.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;

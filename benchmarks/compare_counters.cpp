@@ -34,7 +34,7 @@
 // Exit codes: 0 pass, 1 regression, 2 bad input, 77 skipped (no valgrind).
 #include <CLI/CLI.hpp>
 
-#include "app/cli.hpp"
+#include "solver/internal/command_line.hpp"
 
 #include <algorithm>
 #include <chrono>

@@ -34,7 +34,7 @@
 // Exit codes: 0 ok, 1 drift or solver failure, 2 bad input (nothing written).
 #include <CLI/CLI.hpp>
 
-#include "app/cli.hpp"
+#include "solver/internal/command_line.hpp"
 
 #include <chrono>
 #include <cmath>

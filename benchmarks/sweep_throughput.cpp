@@ -23,7 +23,7 @@
 
 #include <sys/resource.h>
 
-#include "app/cli.hpp"
+#include "solver/internal/command_line.hpp"
 #include "benchmarks/bench_run.hpp"
 #include "ensembles/sweep.hpp"
 #include "ensembles/sweep_output.hpp"

@@ -50,7 +50,7 @@
 #include <sstream>
 
 #include "benchmarks/bench_run.hpp"
-#include "app/cli.hpp"
+#include "solver/internal/command_line.hpp"
 #include "formulations/progress.hpp"
 #include "formulations/output_file.hpp"
 #include "formulations/version.hpp"

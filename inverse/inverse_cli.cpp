@@ -24,6 +24,7 @@
 #include "inverse/inverse_problem.hpp"
 #include "formulations/output_file.hpp"
 #include "solver/error.hpp"
+#include "solver/internal/command_line.hpp"
 
 using namespace kneedyn;
 using namespace kneedyn::inverse;
@@ -152,15 +153,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--weights", weights, "penalty weights of the statement residuals, one Ceres stage each")
       ->delimiter(',')->capture_default_str();
-  // As app/cli.hpp's ParseCommandLine (a layer above this one): --help exits 0, an argument
-  // error exits 2 naming it (CLI11's own codes were 105-114, without the program's name).
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    if (e.get_exit_code() == static_cast<int>(CLI::ExitCodes::Success)) return app.exit(e);
-    std::cerr << "kneedyn_inverse: error: " << e.what() << "\nRun 'kneedyn_inverse --help' for the arguments.\n";
-    return 2;
-  }
+  if (const int code = ParseCommandLine(app, argc, argv, "kneedyn_inverse"); code >= 0) return code;
   const auto t0 = std::chrono::steady_clock::now();
   try {
     if (!(rtol > 0.0 && rtol < 1e-3)) Throw<InputError>("kneedyn_inverse", "--rtol = ", rtol, ": must be in (0, 1e-3)");

@@ -32,7 +32,7 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
-#include "app/cli.hpp"
+#include "solver/internal/command_line.hpp"
 #include "formulations/output_file.hpp"
 #include "formulations/run.hpp"
 #include "solver/error.hpp"

@@ -953,5 +953,35 @@ TEST_F(HostileInput, InverseToolRefusesBadOptionsLikeTheOtherTools) {
   }
 }
 
+// An empty value ('' from a script's unset variable) is refused by every program, naming the
+// option: CLI11 took it as "not given" or as 0 (`sweep --shard ''` ran the whole sweep,
+// `score --cpu-time ''` recorded 0 s, `score --out ''` wrote beside the result, and
+// kneedyn_inverse --folds '' started the fits).
+TEST_F(HostileInput, EmptyOptionValuesAreRefusedByEveryProgram) {
+  const std::string result = Input("result.csv", ScoreResultCsv());
+  const std::string score = "score '" + result + "' --scene '" + ChapterScenePath() + "' ";
+  const std::string spec = Input("spec.yaml", "scene: " + ChapterScenePath() + "\n"
+                                 "parameters:\n  - {name: mass, relative: 0.1}\n"
+                                 "design: {type: lhs, samples: 4}\noutcomes: [liftoff_time]\n");
+  const std::string out = " --out '" + Out() + "/s.json'";
+  for (const auto& [args, option] : std::vector<std::pair<std::string, std::string>>{
+           {score + "--out ''", "--out"},
+           {score + "--cpu-time ''" + out, "--cpu-time"},
+           {score + "--failed ''" + out, "--failed"},
+           {"sweep '" + spec + "' --shard '' --out '" + Out() + "'", "--shard"},
+           {RunArgs(ChapterScenePath(), "--formulation ''"), "--formulation"}}) {
+    ExpectRefused(args, {option + " = '': the value is empty"});
+  }
+  const std::string inverse = std::string("'") + KNEEDYN_INVERSE_EXE + "' --scene '" + ChapterScenePath() +
+                              "' --spec '" KNEEDYN_INVERSE_SPEC "' --out '" + (dir_ / "fit.json").string() + "' ";
+  for (const std::string option : {"--folds", "--targets"}) {
+    const CommandResult r = RunShell(inverse + option + " ''");
+    EXPECT_EQ(r.exit_code, 2) << option << ": " << r.output;
+    EXPECT_NE(r.output.find("kneedyn_inverse: error: " + option + " = '': the value is empty"), std::string::npos)
+        << r.output;
+    EXPECT_TRUE(Written().empty()) << option;
+  }
+}
+
 }  // namespace
 }  // namespace kneedyn::cli_test

@@ -10,7 +10,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 
-#include "app/cli.hpp"
+#include "solver/internal/command_line.hpp"
 #include "crosscheck/simbody/simbody_knee.hpp"
 #include "formulations/output_file.hpp"
 #include "solver/error.hpp"
