@@ -105,9 +105,9 @@ BatchVariants ParseBatchVariants(const std::string& text, const std::string& lab
         Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column '", v.parameters[c].name,
                           "' = '", Echo(std::string(f)), "': not a finite number");
       }
-      if (MustBePositive(v.parameters[c].kind) && !(row[c] > 0.0)) {
+      if (const ParameterRange range = RangeOf(v.parameters[c].kind); !range.Contains(row[c])) {
         Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ", column '", v.parameters[c].name,
-                          "' = '", Echo(std::string(f)), "': must be > 0");
+                          "' = '", Echo(std::string(f)), "': must lie in ", range.Describe(), " (the scene's range)");
       }
     });
     v.rows.push_back(std::move(row));

@@ -250,23 +250,32 @@ void ResolveParameter(const Where& where, AnalyticModel analytic, const Model& m
 
 }  // namespace
 
-bool MustBePositive(ParameterKind k) {
+ParameterRange RangeOf(ParameterKind k) {
+  constexpr double kForce = 1.0e5, kLength = 1000.0, kStiffness = 1.0e6;  // N, mm, N/mm (N/mm²)
   switch (k) {
     case ParameterKind::kLigamentLinearStiffness:
     case ParameterKind::kLigamentParabolicStiffness:
+    case ParameterKind::kLigamentExtensionRatio: return {0.0, kStiffness, true};  // ligament_parameters: > 0
     case ParameterKind::kLigamentSlackLength:
-    case ParameterKind::kLigamentExtensionRatio:
-    case ParameterKind::kPulseDuration:
-    case ParameterKind::kQuadricepsMagnitude:
-    case ParameterKind::kQuadricepsBaseline:
-    case ParameterKind::kQuadricepsDuration:
     case ParameterKind::kTendonLength:
-    case ParameterKind::kTrochlearRadius:
-    case ParameterKind::kMass:
-    case ParameterKind::kPrincipalInertia: return true;
-    default: return false;
+    case ParameterKind::kTrochlearRadius: return {0.0, kLength, true};
+    case ParameterKind::kLigamentFemoralAttachment:
+    case ParameterKind::kLigamentTibialAttachment:
+    case ParameterKind::kTrochlearCentre:
+    case ParameterKind::kPatellarFacetOffset: return {-kLength, kLength, false};
+    case ParameterKind::kPulseAmplitude: return {0.0, kForce, false};
+    case ParameterKind::kPulseDuration:
+    case ParameterKind::kQuadricepsDuration: return {1.0e-6, 100.0, false};
+    case ParameterKind::kQuadricepsMagnitude:
+    case ParameterKind::kQuadricepsBaseline: return {0.0, kForce, true};
+    case ParameterKind::kMass: return {1.0e-3, 1.0e3, false};
+    case ParameterKind::kPrincipalInertia: return {0.0, 1.0e3, true};
+    case ParameterKind::kAnalytic: return {};
   }
+  return {};
 }
+
+std::string ParameterRange::Describe() const { return StrCat(lo_open ? "(" : "[", lo, ", ", hi, "]"); }
 
 const std::set<std::string>& OutcomeGroups() {
   static const std::set<std::string> kGroups = {
@@ -386,10 +395,15 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
       p.a = n.Item(0).Double();
       p.b = n.Item(1).Double();
       if (!(p.b > 0.0)) n.Item(1).Fail("standard deviation must be > 0");
-      if (MustBePositive(p.kind)) n.Fail(StrCat(p.name, " must stay > 0; a normal distribution is unbounded: use uniform or relative"));
     }
-    if (p.distribution == Distribution::kUniform && MustBePositive(p.kind) && !(p.a > 0.0)) {
-      item.Fail(StrCat(p.name, " must stay > 0; its range starts at ", p.a));
+    // Every value the design can draw lies in the parameter's range: a uniform's ends, and
+    // a normal's, whose draws reach mean ± z sd with z = Φ⁻¹(1 − 2⁻⁵³) ≈ 8.2 (FromUnit).
+    const ParameterRange range = RangeOf(p.kind);
+    const double low = p.FromUnit(0.0), high = p.FromUnit(1.0);
+    if (!range.Contains(low) || !range.Contains(high)) {
+      item.Fail(StrCat(p.name, " must lie in ", range.Describe(), " (the scene's range); ",
+                       p.distribution == Distribution::kNormal ? "this normal distribution draws values in [" : "this range is [",
+                       low, ", ", high, "]"));
     }
     spec.parameters.push_back(p);
   }

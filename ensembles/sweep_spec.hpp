@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <set>
 #include <string>
 #include <vector>
@@ -85,8 +86,18 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
 // range. Throws InputError naming `where`, the name and the rule.
 ParameterSpec ResolveParameterName(const Model& base, const std::string& name, const std::string& where);
 
-// Physical lower bounds: a value at or below them makes no model (spec ranges, batch rows).
-bool MustBePositive(ParameterKind k);
+// The values a parameter may take, in its spec units: the range the scene loader applies to
+// the field the parameter replaces (scene/*.cpp: forces ≤ 1e5 N, lengths ≤ 1000 mm, mass in
+// [1e-3, 1e3] kg, …), and > 0 where a value at or below 0 makes no model. A sweep or a batch
+// then runs only scenes a scene file could describe (before, a variant's pulse.amplitude of
+// 1e9 or −5 ran). lo_open: lo itself is excluded.
+struct ParameterRange {
+  double lo = -std::numeric_limits<double>::infinity(), hi = std::numeric_limits<double>::infinity();
+  bool lo_open = false;
+  bool Contains(double v) const { return (lo_open ? v > lo : v >= lo) && v <= hi; }
+  std::string Describe() const;  // "(0, 1e+06]", "[-1000, 1000]"
+};
+ParameterRange RangeOf(ParameterKind k);
 // The outcome groups a spec's `outcomes` (and `kneedyn batch --outcomes`) may name.
 const std::set<std::string>& OutcomeGroups();
 

@@ -78,7 +78,12 @@ TEST(BatchVariants, BadInputNamesLineColumnAndValue) {
   m = ParseError("pulse.amplitude\n1e400\n");
   EXPECT_NE(m.find("not a finite number"), std::string::npos) << m;
   m = ParseError("mass\n0\n");
-  EXPECT_NE(m.find("'mass' = '0': must be > 0"), std::string::npos) << m;
+  EXPECT_NE(m.find("'mass' = '0': must lie in [0.001, 1000] (the scene's range)"), std::string::npos) << m;
+  // The scene file's limits: before, a variant's 1e9 N or -5 N pulse ran.
+  for (const char* amplitude : {"1e9", "-5"}) {
+    m = ParseError(std::string("pulse.amplitude\n") + amplitude + "\n");
+    EXPECT_NE(m.find(std::string("'pulse.amplitude' = '") + amplitude + "': must lie in [0, 100000]"), std::string::npos) << m;
+  }
   m = ParseError("pulse.amplitude,mass\n100\n");
   EXPECT_NE(m.find("line 2: 1 values, the header names 2"), std::string::npos) << m;
   m = ParseError("XYZ ligament.k_linear\n1\n");

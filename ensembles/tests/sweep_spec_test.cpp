@@ -61,6 +61,19 @@ TEST(SweepSpec, ResolvesParametersWithTheBaseScenesNominalValues) {
   EXPECT_EQ(s.run.formulation, "dae");
 }
 
+// A normal distribution of a parameter that must stay > 0 is accepted when every draw does
+// (mean − 8.2 sd > 0): the range, not the distribution's kind, is the rule; its draws at the
+// unit cube's ends are the extremes the spec check tested.
+TEST(SweepSpec, ANormalWhoseDrawsStayInTheRangeIsAccepted) {
+  const SweepSpec s = Parse(Spec("  - {name: mass, normal: [4, 0.1]}"));
+  const ParameterSpec& p = s.parameters[0];
+  EXPECT_EQ(p.distribution, Distribution::kNormal);
+  EXPECT_GT(p.FromUnit(0.0), 3.1);
+  EXPECT_LT(p.FromUnit(0.0), 3.2);
+  EXPECT_NEAR(p.FromUnit(0.0) + p.FromUnit(1.0), 8.0, 1e-9);  // symmetric about the mean
+  for (double u : {1e-300, 1e-20, 0.5, 1.0 - 1e-17}) EXPECT_TRUE(RangeOf(p.kind).Contains(p.FromUnit(u))) << u;
+}
+
 TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
   struct Case {
     std::string text, must_contain;
@@ -69,7 +82,13 @@ TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
       {Spec("  - {name: PCL middle.k_linear, relative: 0.3}"), "'PCL middle.k_linear'"},
       {Spec("  - {name: PCL anterior.k_lin, relative: 0.3}"), "unknown property 'k_lin'"},
       {Spec("  - {name: mass, uniform: [5, 4]}"), "parameters[0].uniform[1]' = '4'"},
-      {Spec("  - {name: mass, uniform: [-1, 4]}"), "must stay > 0"},
+      {Spec("  - {name: mass, uniform: [-1, 4]}"), "mass must lie in [0.001, 1000] (the scene's range); this range is [-1, 4]"},
+      // The scene file's limits hold for a sweep's values too (before, these ran).
+      {Spec("  - {name: pulse.amplitude, uniform: [-1.0e9, -1.0e8]}"), "must lie in [0, 100000]"},
+      {Spec("  - {name: PCL anterior.k_linear, uniform: [0, 10]}"), "must lie in (0, 1000000]"},
+      {Spec("  - {name: MCL deep.tibial_y, uniform: [-2000, 0]}"), "must lie in [-1000, 1000]"},
+      // A normal's draws reach mean ± 8.2 sd (FromUnit clamps u to [2^-53, 1 - 2^-53]).
+      {Spec("  - {name: mass, normal: [4, 0.5]}"), "this normal distribution draws values in [-0.1"},
       {Spec("  - {name: mass, relative: 1.5}"), "parameters[0].relative' = '1.5'"},
       {Spec("  - {name: mass, relative: 0.1, uniform: [1, 2]}"), "exactly one of"},
       {Spec("  - {name: mass, relativ: 0.1}"), "unknown key 'parameters[0].relativ'"},
