@@ -64,6 +64,7 @@ int BatchCommand::Run() {
       Throw<InputError>("kneedyn batch", "--output-interval = '", Echo(typed_.at("--output-interval")), "': ", why);
     }
     const BatchVariants variants = LoadBatchVariants(variants_path_, scene.model);
+    CheckFixedStepBeforeRuns(scene, settings_, variants.parameters);
     Batch batch(std::move(scene), settings_, outcomes_);
     const auto t0 = std::chrono::steady_clock::now();
     const SweepTable table = batch.RunAll(variants, threads_);

@@ -8,6 +8,7 @@
 #include <set>
 #include <sstream>
 
+#include "formulations/simulator.hpp"
 #include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
 #include "solver/height_field.hpp"
@@ -275,6 +276,16 @@ ParameterRange RangeOf(ParameterKind k) {
   return {};
 }
 
+void CheckFixedStepBeforeRuns(const Scene& base, const RunSettings& settings,
+                              const std::vector<ParameterSpec>& parameters) {
+  const bool durations_vary = std::any_of(parameters.begin(), parameters.end(), [](const ParameterSpec& p) {
+    return p.kind == ParameterKind::kPulseDuration || p.kind == ParameterKind::kQuadricepsDuration;
+  });
+  const double output_interval = settings.output_interval > 0.0 ? settings.output_interval : base.output_interval;
+  const double h = CreateFormulation(settings.formulation, base, settings.options)->fixed_step();
+  CheckFixedStep(base.model, 0.0, h, output_interval, !durations_vary);
+}
+
 std::string ParameterRange::Describe() const { return StrCat(lo_open ? "(" : "[", lo, ", ", hi, "]"); }
 
 const std::set<std::string>& OutcomeGroups() {
@@ -502,6 +513,7 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
       // The formulation's own factory checks the options that apply to it.
       try {
         CreateFormulation(spec.run.formulation, spec.base, spec.run.options);
+        CheckFixedStepBeforeRuns(spec.base, spec.run, spec.parameters);
       } catch (const InputError& e) {
         s.Fail(e.what());
       }

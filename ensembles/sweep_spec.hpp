@@ -98,6 +98,12 @@ struct ParameterRange {
   std::string Describe() const;  // "(0, 1e+06]", "[-1000, 1000]"
 };
 ParameterRange RangeOf(ParameterKind k);
+
+// kneedyn run's fixed-step rules (CheckFixedStep, formulations/simulator.hpp) on the base
+// scene, before the runs: refused there (InputError) instead of failing every row. The pulse
+// rule only when no parameter moves a pulse's duration (a row may then keep it or not).
+void CheckFixedStepBeforeRuns(const Scene& base, const RunSettings& settings,
+                              const std::vector<ParameterSpec>& parameters);
 // The outcome groups a spec's `outcomes` (and `kneedyn batch --outcomes`) may name.
 const std::set<std::string>& OutcomeGroups();
 

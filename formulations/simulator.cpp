@@ -150,25 +150,24 @@ TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpe
   return out;
 }
 
+void CheckFixedStep(const Model& model, double t, double h, double output_interval, bool pulses) {
+  if (!(h > 0.0)) return;
+  if (output_interval < h * (1.0 - 1e-12)) {
+    Throw<InputError>("Simulator", "output interval ", output_interval, " s is shorter than the fixed step ", h,
+                      " s: each step would be cut to an output time (rule: --step <= the output interval)");
+  }
+  if (const PulseStepLimit limit = PulseResolvingStepLimit(model, t); pulses && limit.step < h * (1.0 - 1e-12)) {
+    Throw<InputError>("Simulator", limit.field, " = ", limit.duration, " s spans fewer than ", kStepsPerPulse,
+                      " fixed steps of ", h, " s, which would not resolve it (rule: --step <= ", limit.step, " s)");
+  }
+}
+
 void Simulator::Initialize() {
   const Model& model = scene_.model;
   std::vector<int> active;
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
   state_ = ConsistentInitialize(model, scene_.initial, active, settings_.init, &record_->init);
-  // A fixed-step method lands on each output time by cutting a step there, so an interval
-  // shorter than its step would set its step; and a step longer than a tenth of a pulse (the
-  // tibial pulse or the quadriceps half-sine) does not resolve it (kStepsPerPulse,
-  // formulation.hpp). Refused before integrating (exit 2).
-  if (const double h = stepper_->fixed_step(); h > 0.0) {
-    if (settings_.output_interval < h * (1.0 - 1e-12)) {
-      Throw<InputError>("Simulator", "output interval ", settings_.output_interval, " s is shorter than the fixed step ",
-                        h, " s: each step would be cut to an output time (rule: --step <= the output interval)");
-    }
-    if (const PulseStepLimit limit = PulseResolvingStepLimit(model, state_.t); limit.step < h * (1.0 - 1e-12)) {
-      Throw<InputError>("Simulator", limit.field, " = ", limit.duration, " s spans fewer than ", kStepsPerPulse,
-                        " fixed steps of ", h, " s, which would not resolve it (rule: --step <= ", limit.step, " s)");
-    }
-  }
+  CheckFixedStep(model, state_.t, stepper_->fixed_step(), settings_.output_interval, /*pulses=*/true);
   // A start whose consistent forces pull (an assembled pose; docs/model.md §6) starts with
   // those contacts' lift-offs.
   ReleasePullingContacts(model, settings_.restart, settings_.pulling,

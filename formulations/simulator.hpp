@@ -116,6 +116,14 @@ void CompleteRestartState(const Model& model, RestartProjection restart, Mechani
 std::vector<EventSpec> StartPhase(const Model& model, const EndCondition& end, double gap_tolerance,
                                   RestartProjection restart, MechanicalState* state, bool complete = true);
 
+// The rules a fixed step h (s) keeps on a scene, refused before integrating (InputError, exit
+// 2): a fixed-step method lands on each output time by cutting a step there, so an interval
+// (s) shorter than its step would set its step; and a step longer than a tenth of a pulse
+// lasting past t (the tibial pulse or the quadriceps half-sine) does not resolve it
+// (kStepsPerPulse, formulation.hpp; `pulses` false skips that rule). h = 0: an adaptive method.
+// The simulator applies them at the start; batches and sweeps on their base scene, before the runs.
+void CheckFixedStep(const Model& model, double t, double h, double output_interval, bool pulses);
+
 class Simulator {
  public:
   // `scene` and `stepper` outlive the simulator; `record` receives init, events, samples,

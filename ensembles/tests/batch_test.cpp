@@ -187,6 +187,26 @@ TEST(BatchCli, WritesOneTableAndRefusesBadInput) {
   std::ifstream e4(err);
   const std::string msg4((std::istreambuf_iterator<char>(e4)), std::istreambuf_iterator<char>());
   EXPECT_NE(msg4.find("--output-interval = '1e-6': output interval 1e-06 s gives"), std::string::npos) << msg4;
+  // kneedyn run's fixed-step rules on the base scene, before the runs (before: each row failed,
+  // exit 0); the pulse rule not when a variant moves the pulse's duration.
+  const auto refusal = [&](const std::string& args, const std::string& out) {
+    EXPECT_EQ(Sh(exe + " batch " + kScene + " --variants " + (work / "good.csv").string() + " " + args + " --out " +
+                 (work / out / "r.csv").string() + " 2> " + err), 2) << args;
+    EXPECT_FALSE(fs::exists(work / out)) << args;
+    std::ifstream e(err);
+    return std::string((std::istreambuf_iterator<char>(e)), std::istreambuf_iterator<char>());
+  };
+  std::string m = refusal("--formulation newmark --step 0.008", "out6");
+  EXPECT_NE(m.find("output interval 0.005 s is shorter than the fixed step 0.008 s"), std::string::npos) << m;
+  m = refusal("--formulation ede --integrator rk4 --step 0.02 --output-interval 0.05", "out7");
+  EXPECT_NE(m.find("pulse.duration_s = 0.1 s spans fewer than 10 fixed steps of 0.02 s"), std::string::npos) << m;
+  {
+    std::ofstream d(work / "durations.csv");
+    d << "pulse.duration\n0.5\n";
+  }
+  EXPECT_EQ(Sh(exe + " batch " + kScene + " --variants " + (work / "durations.csv").string() +
+               " --formulation ede --integrator rk4 --step 0.02 --output-interval 0.05 --out " +
+               (work / "out8/r.csv").string() + " 2> " + err), 0);
   fs::remove_all(work);
 }
 

@@ -110,6 +110,9 @@ TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
       // row failed with RunScene's message naming --output-interval, exit 0).
       {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 4}", "solver: {output_interval_s: 0.000001}\n"),
        "solver.output_interval_s' = '0.000001': output interval 1e-06 s gives"},
+      // kneedyn run's fixed-step rule on the base scene, before the runs.
+      {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 4}", "solver: {formulation: newmark, output_interval_s: 0.00005}\n"),
+       "output interval 5e-05 s is shorter than the fixed step 0.0001 s"},
       {"scene: nowhere.yaml\nparameters: [{name: mass, relative: 0.1}]\ndesign: {type: sobol, samples: 2}\n"
        "outcomes: [liftoff_time]\n",
        "nowhere.yaml"},
