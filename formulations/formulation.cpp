@@ -295,6 +295,10 @@ bool CheckShared(const OptionRequest& r) {
     return r.Fail(StrCat("--jacobian = '", OptionName(*o.jacobian), "' is not available for formulation '", name,
                          "'; it accepts: ", Accepted(info.jacobians)));
   }
+  if (!info.contact_chart && o.contact_chart != FormulationOptions().contact_chart) {
+    return r.Fail(StrCat("--contact-chart = '", OptionName(o.contact_chart), "': formulation '", name,
+                         "' eliminates the contact coordinates in closed form; the option does not apply"));
+  }
   if (o.linear_solver && !Accepts(info.linear_solvers, *o.linear_solver)) {
     return r.Fail(StrCat("--linear-solver = '", OptionName(*o.linear_solver), "': formulation '", name,
                          info.linear_solvers.empty() ? "' solves no IDA Newton system; the option does not apply"
@@ -302,8 +306,9 @@ bool CheckShared(const OptionRequest& r) {
   }
   // Step control: a fixed-step method takes --step, an error-controlled one --max-step.
   if (IsFixedStep(info, o.integrator)) {
-    if (info.fixed_step && o.max_step != 0.0) {
-      return r.Fail(StrCat("--max-step = ", r.Shown("--max-step", o.max_step), " s: ", name,
+    if (o.max_step != 0.0) {  // a fixed-step method, or an ODE form with euler or rk4
+      const std::string with = info.fixed_step ? "" : StrCat(" with --integrator ", OptionName(*o.integrator));
+      return r.Fail(StrCat("--max-step = ", r.Shown("--max-step", o.max_step), " s: ", name, with,
                            " takes fixed steps; use --step"));
     }
   } else if (o.step != 0.0) {

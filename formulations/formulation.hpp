@@ -231,6 +231,9 @@ struct FormulationInfo {
   std::vector<Stabilization> stabilizations = {Stabilization::kNone};          // --stabilization
   std::vector<ConstraintLevel> constraint_levels = {ConstraintLevel::kVelocity};  // --constraint-level
   bool general_surfaces = true;  // any surface pair (contact_kinematics.hpp), not only sphere on plane
+  // Reads --contact-chart (the chart of its contact coordinates); mde eliminates them in
+  // closed form and takes none.
+  bool contact_chart = true;
   bool event_location = true;    // locates event roots inside a step (root finder or event locator)
   std::vector<JacobianKind> jacobians;  // values --jacobian accepts; empty: the option does not apply
   std::vector<LinearSolverKind> linear_solvers;  // values --linear-solver accepts; empty: does not apply
@@ -250,6 +253,7 @@ struct FormulationInfo {
   FormulationInfo& Stabilizations(std::vector<Stabilization> v) { stabilizations = std::move(v); return *this; }
   FormulationInfo& ConstraintLevels(std::vector<ConstraintLevel> v) { constraint_levels = std::move(v); return *this; }
   FormulationInfo& SphereOnPlaneOnly() { general_surfaces = false; return *this; }
+  FormulationInfo& NoContactChart() { contact_chart = false; return *this; }
   FormulationInfo& NoEventLocation() { event_location = false; return *this; }
   FormulationInfo& Jacobians(std::vector<JacobianKind> v) { jacobians = std::move(v); return *this; }
   FormulationInfo& LinearSolvers(std::vector<LinearSolverKind> v) { linear_solvers = std::move(v); return *this; }

@@ -50,6 +50,11 @@ bool ReadGeneralizedAlphaOptions(const OptionRequest& request, NewmarkOptions* o
     return request.Fail(StrCat("--alpha-m/--alpha-f/--beta/--gamma: ", given, " of 4 given (", given_list,
                                "); give all four or none (then from --rho-inf)"));
   }
+  // The four set the scheme whole: a --rho-inf beside them would be dropped silently.
+  if (request.typed.count("--rho-inf") || o.rho_inf != FormulationOptions().rho_inf) {
+    return request.Fail(StrCat("--rho-inf = ", request.Shown("--rho-inf", o.rho_inf), " and ", given_list,
+                               ": give --rho-inf or the four scheme parameters, not both"));
+  }
   const NewmarkScheme scheme{*o.alpha_m, *o.alpha_f, *o.newmark_beta, *o.newmark_gamma};
   if (!(scheme.alpha_m < 1.0 && scheme.alpha_f < 1.0 && scheme.beta > 0.0 && scheme.gamma > 0.0)) {
     return request.Fail(StrCat("generalized-alpha parameters (alpha_m, alpha_f, beta, gamma) = (", scheme.alpha_m,

@@ -164,6 +164,12 @@ TEST_F(HostileInput, OptionMessagesEchoTheTextTyped) {
       {"--formulation dae --gamma 0.6", {"--gamma", "generalized-alpha only"}, ""},
       {"--formulation generalized-alpha --alpha-m inf --alpha-f 0 --beta 0.25 --gamma 0.5", {"--alpha-m = 'inf'"}, ""},
       {"--formulation mde --integrator rk9", {"--integrator = 'rk9'", "cvode-adams"}, ""},
+      // Options a formulation would drop were accepted and recorded in summary.json.
+      {"--formulation mde --contact-chart height-field", {"--contact-chart = 'height-field'", "does not apply"}, ""},
+      {"--formulation mde --integrator rk4 --max-step 0.00005",
+       {"--max-step = 0.00005 s: mde with --integrator rk4 takes fixed steps"}, ""},
+      {"--formulation generalized-alpha --rho-inf 0.5 --alpha-m 0 --alpha-f 0 --beta 0.25 --gamma 0.5",
+       {"--rho-inf = 0.5 and --alpha-m = 0", "not both"}, ""},
   };
   for (const Case& c : cases) {
     const CommandResult r = ExpectRefused(RunArgs(ChapterScenePath(), c.extra), c.needles);
