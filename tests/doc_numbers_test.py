@@ -196,21 +196,27 @@ def ratio_errors(readme, simbody_readme, recording):
 
 
 WORK_PRECISION_RECORDING = os.path.join("benchmarks", "recorded", "work_precision_chapter_impact.json")
-README_WP = re.compile(r"`dae`, index 2\) tops out at (\d+\.\d) significant digits \(rtol 1e-13\) and costs .*? "
-                       r"\(scd 4 / 6 / 8: ([\d.]+) / ([\d.]+) / ([\d.]+) ms CPU against ([\d.]+) and ([\d.]+) ms for "
-                       r"`ede` with Dormand–Prince 5\(4\) and ([\d.]+) ms for `ede` with Verner 6\(5\);.*?"
-                       r"re-recorded (\d{4}-\d\d-\d\d) at ([0-9a-f]{7,})")
+README_WP = re.compile(r"`dae`, index 2\) tops out at (\d+\.\d) significant digits \(rtol 1e-13\) and costs "
+                       r"([\d.]+)–([\d.]+)× the fastest method at equal accuracy "
+                       r"\(scd 4 / 6 / 8: ([\d.]+) / ([\d.]+) / ([\d.]+) ms CPU against "
+                       r"([\d.]+) ms for `ede` with (.+?), ([\d.]+) ms for `ede` with (.+?) and "
+                       r"([\d.]+) ms for `ede` with (.+?);.*?"
+                       r"re-recorded (\d{4}-\d\d-\d\d) at ([0-9a-f]{7,})", re.S)
+# The names README.md gives ede's integrators.
+INTEGRATOR_NAMES = {"fixed-step RK4": "ede:rk4", "Dormand–Prince 5(4)": "ede:dopri5", "Verner 6(5)": "ede:verner65",
+                    "CVODE's Adams": "ede:cvode-adams", "Fehlberg 7(8)": "ede:fehlberg78"}
 
 
 def cheapest_ms(root, path):
-  """{method: {4: ms, 6: ms, 8: ms, "best": scd}} of the recorded sweep, as work_precision_table.py
-  forms its cells (the cheapest completed run at or above each scd), and its date and commit."""
+  """{method: {4: ms, 6: ms, 8: ms, "best": scd}} of every method of the recorded sweep, as
+  work_precision_table.py forms its cells (the cheapest completed run at or above each scd),
+  and its date and commit."""
   sys.path.insert(0, os.path.join(root, "benchmarks"))
   import work_precision_table  # noqa: E402 (benchmarks/; it finds reports/bench_data.py itself)
   header, runs = work_precision_table.load_bench(path)
   ok, _ = work_precision_table.split_runs(runs)
   out = {}
-  for m in ("dae", "ede:dopri5", "ede:verner65"):
+  for m in dict.fromkeys(work_precision_table.method_of(r) for r in runs):
     mine = [r for r in ok if work_precision_table.method_of(r) == m]
     cell = {t: min((1e3 * r["cpu_s"] for r in mine if r["scd"] >= t and r.get("cpu_s") is not None), default=None)
             for t in (4, 6, 8)}
@@ -220,20 +226,34 @@ def cheapest_ms(root, path):
 
 
 def work_precision_errors(readme, cells, date, commit):
-  """README.md's dae / ede figures of "What the suite finds" against the recorded sweep."""
+  """README.md's dae figures of "What the suite finds" against the recorded sweep: dae's cost
+  at each scd, the method named at each being the fastest there and its cost, and the range
+  of dae's cost over the fastest (two significant digits)."""
   m = README_WP.search(readme)
   if not m:
-    return ["README.md: no sentence '(`dae`, index 2) tops out at X significant digits (rtol 1e-13) and costs ... "
-            "(scd 4 / 6 / 8: a / b / c ms CPU against d and e ms for `ede` with Dormand–Prince 5(4) and f ms for "
-            "`ede` with Verner 6(5); ... re-recorded DATE at COMMIT'"]
-  said_want = [(m[1], cells["dae"]["best"], "dae's best scd"), (m[2], cells["dae"][4], "dae to scd 4"),
-               (m[3], cells["dae"][6], "dae to scd 6"), (m[4], cells["dae"][8], "dae to scd 8"),
-               (m[5], cells["ede:dopri5"][4], "ede dopri5 to scd 4"), (m[6], cells["ede:dopri5"][6], "ede dopri5 to scd 6"),
-               (m[7], cells["ede:verner65"][8], "ede verner65 to scd 8")]
-  errors = [f"README.md: {what} {said}, the recording gives {want}" for said, want, what in said_want
-            if not printed_agrees(said, want)]
-  if m[8] != date or not commit.startswith(m[9]):
-    errors.append(f"README.md: re-recorded {m[8]} at {m[9]}; {WORK_PRECISION_RECORDING}: {date} at {commit}")
+    return ["README.md: no sentence '(`dae`, index 2) tops out at X significant digits (rtol 1e-13) and costs "
+            "r1–r2× the fastest method at equal accuracy (scd 4 / 6 / 8: a / b / c ms CPU against d ms for `ede` "
+            "with NAME, e ms for `ede` with NAME and f ms for `ede` with NAME; ... re-recorded DATE at COMMIT'"]
+  errors = [f"README.md: dae's best scd {m[1]}, the recording gives {cells['dae']['best']}"
+            for _ in [0] if not printed_agrees(m[1], cells["dae"]["best"])]
+  ratios = []
+  for i, t in enumerate((4, 6, 8)):
+    dae_said, fastest_said, name = m[4 + i], m[7 + 2 * i], m[8 + 2 * i]
+    if not printed_agrees(dae_said, cells["dae"][t]):
+      errors.append(f"README.md: dae to scd {t} {dae_said} ms, the recording gives {cells['dae'][t]}")
+    reach = {k: c[t] for k, c in cells.items() if c[t] is not None}
+    fastest = min(reach, key=reach.get)
+    if INTEGRATOR_NAMES.get(name) != fastest:
+      errors.append(f"README.md: '{name}' named the fastest to scd {t}; the recording's fastest is {fastest} "
+                    f"({reach[fastest]:.2f} ms)")
+    elif not printed_agrees(fastest_said, reach[fastest]):
+      errors.append(f"README.md: {fastest} to scd {t} {fastest_said} ms, the recording gives {reach[fastest]}")
+    ratios.append(cells["dae"][t] / reach[fastest])
+  want = (f"{min(ratios):.2g}", f"{max(ratios):.2g}")
+  if (m[2], m[3]) != want:
+    errors.append(f"README.md: dae costs {m[2]}–{m[3]}× the fastest; the recording gives {want[0]}–{want[1]}×")
+  if m[13] != date or not commit.startswith(m[14]):
+    errors.append(f"README.md: re-recorded {m[13]} at {m[14]}; {WORK_PRECISION_RECORDING}: {date} at {commit}")
   return errors
 
 
@@ -283,14 +303,18 @@ def self_check():
     if not ratio_errors(readme, wrong, recording):
       problems.append(f"ratio check misses {what}")
   cells = {"dae": {4: 3.13, 6: 9.63, 8: 21.45, "best": 9.89}, "ede:dopri5": {4: 2.02, 6: 2.75, 8: 4.86, "best": 11.6},
-           "ede:verner65": {4: 2.78, 6: 3.39, 8: 4.15, "best": 11.5}}
-  wp = ("(`dae`, index 2) tops out at 9.9 significant digits (rtol 1e-13) and costs 1.5–5× the fastest (scd 4 / 6 / 8: "
-        "3.1 / 9.6 / 21.5 ms CPU against 2.0 and 2.8 ms for `ede` with Dormand–Prince 5(4) and 4.2 ms for `ede` with "
-        "Verner 6(5); x) (y, re-recorded 2026-12-06 at 8ccfc73 with")
+           "ede:verner65": {4: 2.78, 6: 3.39, 8: 4.15, "best": 11.5}, "ede:rk4": {4: 1.72, 6: 6.9, 8: None, "best": 6.8}}
+  wp = ("(`dae`, index 2) tops out at 9.9 significant digits (rtol 1e-13) and costs 1.8–5.2× the fastest method at "
+        "equal accuracy (scd 4 / 6 / 8: 3.1 / 9.6 / 21.5 ms CPU against 1.7 ms for `ede` with fixed-step RK4, 2.8 ms "
+        "for `ede` with Dormand–Prince 5(4) and 4.1 ms for `ede` with Verner 6(5); x) (y, re-recorded 2026-12-06 at "
+        "8ccfc73 with")
   if work_precision_errors(wp, cells, "2026-12-06", "8ccfc73adeee"):
     problems.append(f"work-precision check flags the right values: {work_precision_errors(wp, cells, '2026-12-06', '8ccfc73adeee')}")
   for wrong, what in ((wp.replace("3.1 / 9.6", "4.6 / 9.6"), "dae's 4.6 ms against 3.13"),
-                      (wp.replace("4.2 ms", "4.5 ms"), "verner65's 4.5 ms against 4.15"),
+                      (wp.replace("4.1 ms", "4.5 ms"), "verner65's 4.5 ms against 4.15"),
+                      (wp.replace("1.7 ms for `ede` with fixed-step RK4", "2.0 ms for `ede` with Dormand–Prince 5(4)"),
+                       "dopri5 named the fastest to scd 4, where rk4 is"),
+                      (wp.replace("1.8–5.2×", "1.5–5×"), "the ratio range 1.5–5 against 1.8–5.2"),
                       (wp.replace("2026-12-06", "2026-12-03"), "another date")):
     if not work_precision_errors(wrong, cells, "2026-12-06", "8ccfc73adeee"):
       problems.append(f"work-precision check misses {what}")
