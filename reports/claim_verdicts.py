@@ -62,8 +62,9 @@ TEXT_CONTRADICTIONS = {
 def informative(reading):
   """A reading whose reference member (A = 100 N, t0 = 0.1 s) reaches 90° of flexion and none
   of whose family members' runs failed (a member that completes short of 90° still counts):
-  elsewhere most claims fail for want of the motion they describe."""
-  return reading.get("time_to_90_s") is not None and not reading.get("failed_members")
+  elsewhere most claims fail for want of the motion they describe. A reading that repeats an
+  earlier one's scenes (`same_as`, reports/reconstruction.py) is not counted twice."""
+  return reading.get("time_to_90_s") is not None and not reading.get("failed_members") and not reading.get("same_as")
 
 
 def verdicts(rows, rec, inverse=None):
@@ -163,7 +164,7 @@ def matrix(rec):
   ids = rec["claims"]
   rows = []
   for r in rec["readings"]:
-    rows.append({"key": r["key"], "label": r["label"], "informative": informative(r),
+    rows.append({"key": r["key"], "label": r["label"], "informative": informative(r), "same_as": r.get("same_as"),
                  "liftoff_lateral_deg": r.get("liftoff_lateral_deg"), "reproduced": r["counts"].get(REPRODUCED),
                  "cells": [1 if r["verdicts"].get(c) == REPRODUCED else
                            (0 if r["verdicts"].get(c) == "not reproduced" else None) for c in ids]})

@@ -323,7 +323,7 @@ def check_all(ck):
     """Sub-check: c's first sign change (Curve.crossings) in [lo, hi] lies in the band ±tol
     (deg); returns the crossings."""
     x = c.crossings(direction, lo, hi)
-    s.req(name, bool(x) and in_band(x[0], band_lo, band_hi), f"{fmt(x)}°")
+    s.req(name, bool(x) and in_band(x[0], band_lo, band_hi), f"{fmt(x)}°" if x else f"no crossing in {lo}–{hi}°")
     return x
 
   # ---------------- Kinematics

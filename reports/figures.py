@@ -518,7 +518,8 @@ def reading_claim_matrix(verdicts_json, path):
   ax.set_xticks(range(len(ids)))
   ax.set_xticklabels(ids, rotation=90, fontsize=7)
   ax.set_yticks(range(len(rows)))
-  ax.set_yticklabels([r["key"] + ("" if r["informative"] else " (incomplete)") for r in rows], fontsize=7)
+  ax.set_yticklabels([r["key"] + ("" if r["informative"] else f" (= {r['same_as']})" if r.get("same_as")
+                                  else " (incomplete)") for r in rows], fontsize=7)
   for i, r in enumerate(rows):
     lo = r.get("liftoff_lateral_deg")
     ax.text(len(ids) - 0.3, i, f"  {lo:.1f}°  {r.get('reproduced')}✓" if lo is not None else "  none",

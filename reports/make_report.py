@@ -399,9 +399,12 @@ def reconstruction_section(outdir):
     cr = r.get("crossing_deg") or {}
     keys = sorted(cr, key=float)
     cross = " → ".join(f"{cr[k]:.1f}°" if cr[k] is not None else "none" for k in keys)
-    rows.append([Raw(f"<b style='white-space:nowrap'>{lab}</b>"), r["label"], f"{r['peak_pulse_N']:.1f}" if r.get("peak_pulse_N") is not None else "–",
+    same = r.get("same_as")
+    label = r["label"] + (f" (the same scenes as {labels[[x['key'] for x in rd].index(same)]}; not counted again)"
+                          if same in [x["key"] for x in rd] else "")
+    rows.append([Raw(f"<b style='white-space:nowrap'>{lab}</b>"), label, f"{r['peak_pulse_N']:.1f}" if r.get("peak_pulse_N") is not None else "–",
                  f"{r['liftoff_lateral_deg']:.1f}°" if r.get("liftoff_lateral_deg") is not None else "none",
-                 cross + (f" (t0 {keys[0]}→{keys[-1]} s)" if keys else ""),
+                 cross + (f" (t0 {keys[0]}→{keys[-1]} s)" if keys else "–"),
                  f"{r['counts']['reproduced']} / {len(ids)}",
                  ", ".join(r.get("failed_members") or []) or "–"])
   parts.append(table(["", "reading", "peak pulse at A = 100 N [N]", "lateral lift-off (chapter ≈ 66°)",

@@ -155,6 +155,20 @@ def resolve_patch(patch, rdir):
 
 READINGS += [(f"model/{k}", label, patch) for k, label, patch, _ in MODEL_READINGS]
 READINGS += [combination(c)[:3] for c in COMBINATIONS]
+
+
+def same_as(readings):
+  """{key: the earlier reading's key} for a reading whose scene patch equals an earlier one's
+  (model/c1_law is the pulse readings' reconstructed/g_on/c1_law): its scenes and runs are the
+  same, so it keeps its row (and the numbering) but is not counted again."""
+  first, out = {}, {}
+  for key, _, patch in readings:
+    out.update({key: first[s]} if (s := json.dumps(patch, sort_keys=True)) in first else {})
+    first.setdefault(s, key)
+  return out
+
+
+SAME_AS = same_as(READINGS)
 READING_DOCS = {key: ("§5, §7" if key.endswith("c1_law") else "§7") for key, _, _ in READINGS if not key.startswith("model/")}
 READING_DOCS.update({f"model/{k}": sec for k, _, _, sec in MODEL_READINGS})
 READING_DOCS.update({combination(c)[0]: combination(c)[3] for c in COMBINATIONS})
@@ -300,7 +314,8 @@ def main(argv=None):
       json.dump({"solver_args": run_families.SOLVER_ARGS, "output_interval_s": run_families.OUTPUT_INTERVAL_S,
                  "quick": args.quick, "reading": key, "patch": patch, "members": members}, f, indent=2)
     ev = evaluate(rdir)
-    ev.update({"key": key, "label": label, "patch": patch, "docs_model_md": READING_DOCS.get(key)})
+    ev.update({"key": key, "label": label, "patch": patch, "docs_model_md": READING_DOCS.get(key),
+               "same_as": SAME_AS.get(key)})
     summary["readings"].append(ev)
     print(f"reconstruction: {key:28s} reproduced {ev['counts'][claims.REPRODUCED]:2d}/{len(summary['claims'])}, "
           f"lift-off {ev['liftoff_lateral_deg']}", flush=True)
