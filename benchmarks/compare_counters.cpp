@@ -386,10 +386,10 @@ int main(int argc, char** argv) {
     std::printf("%s\n", ok ? "counters within baseline" : "PERFORMANCE REGRESSION");
     return ok ? 0 : 1;
   } catch (const InputError& e) {
-    std::cerr << "compare_counters: " << e.what() << "\n";
+    std::cerr << "compare_counters: error: " << e.what() << "\n";
     return 2;
   } catch (const nlohmann::json::exception& e) {
-    std::cerr << "compare_counters: --baseline '" << baseline_path << "': " << e.what() << "\n";
+    std::cerr << "compare_counters: error: --baseline '" << baseline_path << "': " << e.what() << "\n";
     return 2;
   }
 }

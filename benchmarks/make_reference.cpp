@@ -406,6 +406,20 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"long-double", "double", "float128"}))
       ->capture_default_str();
   if (const int code = ParseCommandLine(app, argc, argv, "make_reference"); code >= 0) return code;
+  // Each method's options, refused with the other (they were ignored: --method extended with
+  // --rtol -1 or --formulation nope started the quadruple-precision run).
+  for (const auto& [of, flags] : {std::pair<const char*, std::vector<const char*>>{
+                                      "formulations", {"--formulation", "--check", "--integrator", "--check-integrator",
+                                                       "--rtol", "--atol", "--check-rtol", "--check-atol"}},
+                                  {"extended", {"--stages", "--step", "--check-step", "--scalar"}}}) {
+    for (const char* flag : flags) {
+      if (method != of && app.count(flag) > 0) {
+        std::cerr << "make_reference: error: " << flag << " applies to --method " << of << " only, not to --method "
+                  << method << "\n";
+        return 2;
+      }
+    }
+  }
   // 0 means the primary's value; a negative one was taken as 0 as well (silently).
   for (const auto& [flag, value] : {std::pair<const char*, double>{"--check-rtol", check_rtol}, {"--check-atol", check_atol}}) {
     if (!(std::isfinite(value) && value >= 0.0)) {

@@ -464,7 +464,11 @@ TEST_F(CliTest, MakeReferenceRefusesBadSettingsBeforeRunning) {
        // Before: a negative check tolerance ran as the primary's, and --check-step -1 was refused
        // after the ~50 s primary run.
        {" --out '" + out + "' --method formulations --check-rtol -1", "--check-rtol = -1: must be >= 0"},
-       {" --out '" + out + "' --check-step -1", "--check-step = -1 s: must be > 0"}},
+       {" --out '" + out + "' --check-step -1", "--check-step = -1 s: must be > 0"},
+       // Each method's options with the other were ignored (the extended run started).
+       {" --out '" + out + "' --rtol -1", "--rtol applies to --method formulations only, not to --method extended"},
+       {" --out '" + out + "' --formulation nope", "--formulation applies to --method formulations only"},
+       {" --out '" + out + "' --method formulations --stages 4", "--stages applies to --method extended only"}},
       "wrote ", out);
 }
 

@@ -56,6 +56,19 @@ def main():
     copied = sorted((r["formulation"], r["integrator"]) for r in doc["results"] if not r.get("engine"))
     if copied != [("dae-reduced", ""), ("simbody", "rk2")]:
       errors.append(f"copied rows: {copied}")
+  # Its command line is the suite's (solver/internal/command_line.hpp): --help exits 0; an
+  # unknown argument, an empty value or 0 repetitions exit 2 naming it, and write nothing.
+  p = subprocess.run([sys.argv[1], "--help"], capture_output=True, text=True, timeout=60)
+  if p.returncode != 0 or "--merge" not in p.stdout:
+    errors.append(f"--help: exit {p.returncode}, {p.stdout[:200]!r}")
+  with tempfile.TemporaryDirectory(prefix="kneedyn_simbody_args_") as tmp:
+    for args, needle in ((["--bogus"], "--bogus"), (["--repetitions", "0"], "--repetitions"),
+                         (["--only", ""], "--only = ''")):
+      out = os.path.join(tmp, "peer.json")
+      p = subprocess.run([sys.argv[1], *args, "--json", out], capture_output=True, text=True, timeout=60)
+      if p.returncode != 2 or not p.stderr.startswith("simbody_work_precision: error: ") or needle not in p.stderr \
+         or os.path.exists(out):
+        errors.append(f"{args}: exit {p.returncode}, {p.stderr.strip()[:200]!r}")
   for e in errors:
     print("simbody_merge_test: FAIL:", e, file=sys.stderr)
   print(f"simbody_merge_test: {len(errors)} failure(s)")

@@ -33,6 +33,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <ctime>
@@ -48,6 +50,7 @@
 #include "formulations/output_file.hpp"
 #include "scene/internal/json_field.hpp"
 #include "solver/error.hpp"
+#include "solver/internal/command_line.hpp"
 
 using namespace kneedyn;
 using namespace kneedyn::bench;
@@ -327,25 +330,19 @@ int main(int argc, char** argv) {
   std::string scene_path = ReferenceDataDir() + "/scenes/chapter_impact.yaml";
   std::string reference_path, json_path = "simbody_work_precision.json", merge_path, only;
   int repetitions = 0;
+  // The command line through the suite's one parser (--help; every argument error exits 2).
+  CLI::App app{"Simbody's integrators beside kneedyn's dae and ede: work-precision on one scene, "
+               "against the same reference and metric as work_precision (crosscheck/simbody/README.md)"};
+  app.add_flag("--short", short_mode, "the short grid (rkm rk3 verlet, dae, ede:dopri5, cpodes-bdf)");
+  app.add_option("--scene", scene_path, "scene file")->capture_default_str();
+  app.add_option("--reference", reference_path, "stored reference (default: references/<scene name>.json)");
+  app.add_option("--json", json_path, "output JSON")->capture_default_str();
+  app.add_option("--merge", merge_path, "a work_precision JSON whose other methods' results are copied in");
+  app.add_option("--only", only, "run only the methods whose name contains this text");
+  app.add_option("--repetitions", repetitions, "timed runs per setting (default 3, --short 2)")
+      ->check(CLI::Range(1, 1000));
+  if (const int code = ParseCommandLine(app, argc, argv, "simbody_work_precision"); code >= 0) return code;
   try {
-    for (int i = 1; i < argc; ++i) {
-      const std::string a = argv[i];
-      auto value = [&]() -> std::string {
-        if (i + 1 >= argc) Throw<InputError>("simbody_work_precision", a, " needs a value");
-        return argv[++i];
-      };
-      if (a == "--short") short_mode = true;
-      else if (a == "--scene") scene_path = value();
-      else if (a == "--reference") reference_path = value();
-      else if (a == "--json") json_path = value();
-      else if (a == "--merge") merge_path = value();
-      else if (a == "--only") only = value();
-      else if (a == "--repetitions") {
-        const std::string v = value();
-        repetitions = std::atoi(v.c_str());
-        if (repetitions < 1) Throw<InputError>("simbody_work_precision", "--repetitions = ", v, "; must be >= 1");
-      } else Throw<InputError>("simbody_work_precision", "unknown argument '", a, "'");
-    }
     if (repetitions == 0) repetitions = short_mode ? 2 : 3;
     CheckOutputFile("simbody_work_precision", "--json", json_path);  // before the runs
     const Scene scene = LoadScene(scene_path);
