@@ -180,10 +180,12 @@ def fmt_num(x, f="{:.1f}"):
   return "–" if x is None else f.format(x)
 
 
-def inverse_section(path=RECORDED_INVERSE):
+def inverse_section(path=RECORDED_INVERSE, recorded_claims=None):
   """The bounded inverse problem (reports/recorded/inverse_problem.json, reports/inverse_problem.py):
   per target the smallest normalized change and its cost in claims, the claims at each
-  leave-some-out fold's fit, and the readings as outer choices of the lift-off fit."""
+  leave-some-out fold's fit, and the readings as outer choices of the lift-off fit. Where the
+  recorded claims (reports/recorded/claims.json, `recorded_claims`) are newer, each reading's
+  lift-off there stands beside the inverse recording's."""
   inv = load_json(path)
   if inv is None:
     return ""
@@ -196,6 +198,18 @@ def inverse_section(path=RECORDED_INVERSE):
            f"{esc(inv.get('commit'))}, {esc(inv.get('date'))} (command: <code>{esc(inv.get('command'))}</code>; "
            f"{fmt_num(inv.get('runtime_s'), '{:.0f}')} s). The fits are upper bounds on the smallest change "
            "(rough statements, few iterations), not certified minima.</p>"]
+  earlier = {(e.get("commit"), e.get("date")): [] for t in inv.get("targets", {}).values()
+             if (e := t.get("recorded_earlier"))}
+  for cid, t in inv.get("targets", {}).items():
+    if t.get("recorded_earlier"):
+      earlier[(t["recorded_earlier"].get("commit"), t["recorded_earlier"].get("date"))].append(cid)
+  for (commit, date), ids in earlier.items():
+    parts.append(f"<p>The target rows {esc(', '.join(ids))} were not redone by that command: they were recorded "
+                 f"earlier, at commit {esc(str(commit)[:12])}, {esc(date)} (each target's <code>recorded_earlier"
+                 "</code>).</p>")
+  parts.append("<p>A target is <i>reached</i> when its fitted statements are, on the reference member; the claim "
+               "itself is judged on all its sub-checks over the pulse families at the fit, so a reached target can "
+               "still break its own claim.</p>")
   rows = []
   for cid, t in inv.get("targets", {}).items():
     wp = (t.get("within_precision") or {}).get("fitted_statements") or {}
@@ -214,8 +228,8 @@ def inverse_section(path=RECORDED_INVERSE):
     parts.append(table(["fold", "fitted", "‖x‖", "judged closer / further", "claims fixed", "claims broken"],
                        [[fold, ", ".join(f.get("fitted") or []), fmt_num(f.get("normalized_change")),
                          f"{f.get('judged_closer')} / {f.get('judged_further')}",
-                         ", ".join(f.get("fixes") or []) if "claims_at_fit" in f else "not run",
-                         ", ".join(f.get("breaks") or []) if "claims_at_fit" in f else "not run"]
+                         (", ".join(f.get("fixes") or []) or "none") if "claims_at_fit" in f else "not run",
+                         (", ".join(f.get("breaks") or []) or "none") if "claims_at_fit" in f else "not run"]
                         for fold, f in lso.items()]))
   rt = inv.get("readings_table", [])
   if rt:
@@ -231,12 +245,27 @@ def inverse_section(path=RECORDED_INVERSE):
       if r.get("C1_fit_normalized_change") is not None:
         return f"not reached ({r['C1_fit_normalized_change']:.1f})"
       if "not run" in str(r.get("error") or ""):
-        return "not run (no fit recorded)"
+        return "not run: " + str(r["error"]).split("not run", 1)[1].strip().strip("()").replace("\n", " ")[:90]
       return "does not run" + (f": {str(r.get('C1_fit_error'))[:90]}" if r.get("C1_fit_error") else "")
-    parts.append(table(["reading", "lift-off unchanged (°)", "Ceres fit ‖x‖", "strain scan s", "smallest ‖x‖",
+    now = {m["key"]: m.get("liftoff_lateral_deg")
+           for m in ((recorded_claims or {}).get("matrix") or {}).get("readings", [])}
+    now["chapter_impact"] = now.get("reconstructed/g_on")
+    if now and recorded_claims:
+      parts.append(f"<p>The column <i>lift-off in claims.json</i> is the reading's lateral lift-off in the newer "
+                   f"reconstruction study (<code>reports/recorded/claims.json</code>, {esc(recorded_claims.get('date'))}); "
+                   "where it differs from the recording's own, the fits of this table were made on the model as it "
+                   "was then.</p>")
+
+    def now_cell(r):
+      if r["reading"] not in now:
+        return "–"
+      v = now[r["reading"]]
+      return "none" if v is None else fmt_num(v)
+    parts.append(table(["reading", "lift-off unchanged (°)", "lift-off in claims.json (°)", "Ceres fit ‖x‖",
+                        "strain scan s", "smallest ‖x‖",
                         "max |x_i|", "lift-off there (°)", "claims reproduced", "fixes vs project",
                         "breaks vs project"],
-                       [[r["reading"], fmt_num(r.get("liftoff_deg_unchanged")), fit_cell(r),
+                       [[r["reading"], fmt_num(r.get("liftoff_deg_unchanged")), now_cell(r), fit_cell(r),
                          fmt_num(r.get("strain_scan_s"), "{:+.3f}") if r.get("strain_scan_reached") else "not reached",
                          fmt_num(r.get("normalized_change"), "{:.2f}") if r.get("reached") else "–",
                          fmt_num(r.get("max_normalized_change"), "{:.2f}") if r.get("reached") else "–",
@@ -290,7 +319,7 @@ def claims_section(rows, recorded=None):
                    f"{best['liftoff_deg']:.1f}° ({best['towards_66_deg']:+.1f}° towards 66°), losing "
                    f"{esc(', '.join(best['loses']) or 'no claim')} and gaining {esc(', '.join(best['gains']) or 'none')}."
                    "</p>")
-  parts.append(inverse_section())
+  parts.append(inverse_section(recorded_claims=recorded))
   return "\n".join(parts)
 
 
