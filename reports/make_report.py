@@ -308,7 +308,7 @@ def claims_section(rows, recorded=None):
   if recorded and recorded.get("matrix"):
     parts.append("<figure><img src='figures/reading_claim_matrix.png' alt='reading × claim matrix'>"
                  "<figcaption>Reading × claim matrix of the recorded verdicts: every reading of the study (the "
-                 "pulse readings R1–R9, one per documented ambiguity of docs/model.md, and their combinations in "
+                 "pulse readings R1–R8 and the C¹ ligament law R9, then one per documented ambiguity of docs/model.md, then their combinations in "
                  "the order the Sobol' indices rank what they touch), each claim's verdict under it, and its "
                  "lateral lift-off angle (chapter ≈ 66°).</figcaption></figure>")
     hl = recorded.get("headline", {})

@@ -104,7 +104,7 @@ def live_row(kneedyn, outdir, method, ref_events, fixed_step=None):
   st = s.get("statistics", {})
   cr = s.get("constraint_residuals", {})
   return [method, " ".join(setting), lift_err,
-          "none" if extra == 0 else f"{extra:+d} ({', '.join(e['name'] for e in events)})",
+          "none" if extra == 0 else f"{extra:+d} (its {len(events)} events: {', '.join(e['name'] for e in events)})",
           f"{cr.get('max_gap_mm', float('nan')):.1e}", f"{cr.get('max_gap_rate_mm_s', float('nan')):.1e}",
           st.get("steps", ""), st.get("residual_evaluations", ""), f"{s.get('wall_time_s', float('nan')):.3f}"]
 
