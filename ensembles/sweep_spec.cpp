@@ -252,25 +252,26 @@ void ResolveParameter(const Where& where, AnalyticModel analytic, const Model& m
 }  // namespace
 
 ParameterRange RangeOf(ParameterKind k) {
-  constexpr double kForce = 1.0e5, kLength = 1000.0, kStiffness = 1.0e6;  // N, mm, N/mm (N/mm²)
+  // The loader's own bounds (scene/internal/yaml_field.hpp), in the spec units N, mm, kg, s.
+  using namespace scene_detail;
   switch (k) {
     case ParameterKind::kLigamentLinearStiffness:
     case ParameterKind::kLigamentParabolicStiffness:
-    case ParameterKind::kLigamentExtensionRatio: return {0.0, kStiffness, true};  // ligament_parameters: > 0
+    case ParameterKind::kLigamentExtensionRatio: return {0.0, kMaxPositive, true};  // ligament_parameters: Positive()
     case ParameterKind::kLigamentSlackLength:
     case ParameterKind::kTendonLength:
-    case ParameterKind::kTrochlearRadius: return {0.0, kLength, true};
+    case ParameterKind::kTrochlearRadius: return {0.0, kMaxLengthMm, true};
     case ParameterKind::kLigamentFemoralAttachment:
     case ParameterKind::kLigamentTibialAttachment:
     case ParameterKind::kTrochlearCentre:
-    case ParameterKind::kPatellarFacetOffset: return {-kLength, kLength, false};
-    case ParameterKind::kPulseAmplitude: return {0.0, kForce, false};
+    case ParameterKind::kPatellarFacetOffset: return {-kMaxLengthMm, kMaxLengthMm, false};
+    case ParameterKind::kPulseAmplitude: return {0.0, kMaxForceN, false};
     case ParameterKind::kPulseDuration:
-    case ParameterKind::kQuadricepsDuration: return {1.0e-6, 100.0, false};
+    case ParameterKind::kQuadricepsDuration: return {kMinDurationS, kMaxDurationS, false};
     case ParameterKind::kQuadricepsMagnitude:
-    case ParameterKind::kQuadricepsBaseline: return {0.0, kForce, true};
-    case ParameterKind::kMass: return {1.0e-3, 1.0e3, false};
-    case ParameterKind::kPrincipalInertia: return {0.0, 1.0e3, true};
+    case ParameterKind::kQuadricepsBaseline: return {0.0, kMaxForceN, true};
+    case ParameterKind::kMass: return {kMinMassKg, kMaxMassKg, false};
+    case ParameterKind::kPrincipalInertia: return {0.0, 1.0e3, true};  // body.principal_inertia_kg_m2: Vec3(1e3), > 0
     case ParameterKind::kAnalytic: return {};
   }
   return {};
@@ -510,9 +511,9 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
     std::string why;
     if (!ValidateOptions(FindFormulation(spec.run.formulation), spec.run.options, &why)) s.Fail(why);
     if (spec.analytic == AnalyticModel::kNone) {
-      // The formulation's own factory checks the options that apply to it.
+      // The formulation's own factory checks the options that apply to it (CheckFixedStepBeforeRuns
+      // builds it), then kneedyn run's fixed-step rules.
       try {
-        CreateFormulation(spec.run.formulation, spec.base, spec.run.options);
         CheckFixedStepBeforeRuns(spec.base, spec.run, spec.parameters);
       } catch (const InputError& e) {
         s.Fail(e.what());

@@ -156,7 +156,8 @@ void CheckFixedStep(const Model& model, double t, double h, double output_interv
     Throw<InputError>("Simulator", "output interval ", output_interval, " s is shorter than the fixed step ", h,
                       " s: each step would be cut to an output time (rule: --step <= the output interval)");
   }
-  if (const PulseStepLimit limit = PulseResolvingStepLimit(model, t); pulses && limit.step < h * (1.0 - 1e-12)) {
+  if (!pulses) return;
+  if (const PulseStepLimit limit = PulseResolvingStepLimit(model, t); limit.step < h * (1.0 - 1e-12)) {
     Throw<InputError>("Simulator", limit.field, " = ", limit.duration, " s spans fewer than ", kStepsPerPulse,
                       " fixed steps of ", h, " s, which would not resolve it (rule: --step <= ", limit.step, " s)");
   }

@@ -20,7 +20,7 @@ void ParseBody(const Field& top, const ParameterSet& ps, ModelDescription* model
   if (!top.Has("body")) return;
   const Field body = top.Required("body");
   body.Keys(KeysOf("scene.body"));
-  if (body.Has("mass_kg")) model->mass = body.Required("mass_kg").Range(1e-3, 1e3);
+  if (body.Has("mass_kg")) model->mass = body.Required("mass_kg").Range(kMinMassKg, kMaxMassKg);
   if (body.Has("principal_inertia_kg_m2")) {
     const Field f = body.Required("principal_inertia_kg_m2");
     model->inertia_T = f.Vec3(1e3);
@@ -61,7 +61,7 @@ void ParsePulse(const Field& top, ModelDescription* model) {
     }
   } else {
     model->pulse.amplitude = f.Required("amplitude_N").NonNegative(kMaxForceN);
-    model->pulse.duration = f.Required("duration_s").Range(1e-6, 100.0);
+    model->pulse.duration = f.Required("duration_s").Range(kMinDurationS, kMaxDurationS);
   }
   if (f.Has("direction_T")) {
     const Vector3d d = f.Required("direction_T").Vec3(1e3);

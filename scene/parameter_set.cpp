@@ -103,7 +103,7 @@ ParameterSet LoadParameterSet(const std::string& path) {
   if (top.Has("description")) top.Required("description").String();
   const Field body = top.Required("body");
   body.Keys(KeysOf("parameter_set.body"));
-  ps.mass = body.Required("mass_kg").Range(1e-3, 1e3);
+  ps.mass = body.Required("mass_kg").Range(kMinMassKg, kMaxMassKg);
   ps.inertia_T = body.Required("principal_inertia_kg_m2").Vec3(1e3);
   for (int i = 0; i < 3; ++i) {
     if (!(ps.inertia_T(i) > 0.0)) body.Required("principal_inertia_kg_m2").Item(i).Fail("must be > 0");

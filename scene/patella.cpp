@@ -51,7 +51,7 @@ void ParsePatella(const Field& top, ModelDescription* model) {
   }
   quadriceps.magnitude = q.Required("magnitude_N").Range(-kMaxForceN, kMaxForceN);
   if (q.Has("baseline_N")) quadriceps.baseline = q.Required("baseline_N").Range(-kMaxForceN, kMaxForceN);
-  if (q.Has("duration_s")) quadriceps.duration = q.Required("duration_s").Range(1e-6, 100.0);
+  if (q.Has("duration_s")) quadriceps.duration = q.Required("duration_s").Range(kMinDurationS, kMaxDurationS);
   if (q.Has("direction_F")) {
     const Vector3d d = q.Required("direction_F").Vec3(1e3);
     if (!(d.norm() > 0.0)) q.Required("direction_F").Fail("must be a non-zero vector");

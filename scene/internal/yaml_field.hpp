@@ -44,6 +44,9 @@ constexpr size_t kMaxNameLength = 64;                    // scene, set and eleme
 constexpr double kMaxLengthMm = 1000.0;                  // any position or length, mm
 constexpr double kMaxAngleDeg = 360.0;
 constexpr double kMaxForceN = 1.0e5;
+constexpr double kMaxPositive = 1.0e6;                   // Positive()/NonNegative()'s default bound
+constexpr double kMinMassKg = 1.0e-3, kMaxMassKg = 1.0e3;
+constexpr double kMinDurationS = 1.0e-6, kMaxDurationS = 100.0;  // a pulse's or a ramp's
 
 class YamlDocument;
 enum class YamlKind { kUndefined, kNull, kScalar, kSequence, kMap };
@@ -74,8 +77,8 @@ class Field {
 
   double Double() const;
   double Range(double lo, double hi) const;  // a number in [lo, hi]
-  double Positive(double hi = 1.0e6) const;
-  double NonNegative(double hi = 1.0e6) const;
+  double Positive(double hi = kMaxPositive) const;
+  double NonNegative(double hi = kMaxPositive) const;
   std::string String() const;
   // One of `values` (a table of scene_keys.hpp); else refused listing them.
   std::string OneOf(const std::vector<const char*>& values, const char* what) const;
