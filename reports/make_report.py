@@ -198,11 +198,10 @@ def inverse_section(path=RECORDED_INVERSE, recorded_claims=None):
            f"{esc(inv.get('commit'))}, {esc(inv.get('date'))} (command: <code>{esc(inv.get('command'))}</code>; "
            f"{fmt_num(inv.get('runtime_s'), '{:.0f}')} s). The fits are upper bounds on the smallest change "
            "(rough statements, few iterations), not certified minima.</p>"]
-  earlier = {(e.get("commit"), e.get("date")): [] for t in inv.get("targets", {}).values()
-             if (e := t.get("recorded_earlier"))}
+  earlier = {}  # (commit, date) -> the targets recorded then
   for cid, t in inv.get("targets", {}).items():
-    if t.get("recorded_earlier"):
-      earlier[(t["recorded_earlier"].get("commit"), t["recorded_earlier"].get("date"))].append(cid)
+    if e := t.get("recorded_earlier"):
+      earlier.setdefault((e.get("commit"), e.get("date")), []).append(cid)
   for (commit, date), ids in earlier.items():
     parts.append(f"<p>The target rows {esc(', '.join(ids))} were not redone by that command: they were recorded "
                  f"earlier, at commit {esc(str(commit)[:12])}, {esc(date)} (each target's <code>recorded_earlier"
@@ -423,14 +422,14 @@ def reconstruction_section(outdir):
       "whose verdict changes across columns rests on the reading; one that does not is robust to it."
       + (" <b>Quick mode: reduced families.</b>" if rec.get("quick") else "") + "</p>")
   labels = [f"R{i + 1}" for i in range(len(rd))]
+  label_of_key = {r["key"]: lab for lab, r in zip(labels, rd)}
   rows = []
   for lab, r in zip(labels, rd):
     cr = r.get("crossing_deg") or {}
     keys = sorted(cr, key=float)
     cross = " → ".join(f"{cr[k]:.1f}°" if cr[k] is not None else "none" for k in keys)
-    same = r.get("same_as")
-    label = r["label"] + (f" (the same scenes as {labels[[x['key'] for x in rd].index(same)]}; not counted again)"
-                          if same in [x["key"] for x in rd] else "")
+    same = label_of_key.get(r.get("same_as"))
+    label = r["label"] + (f" (the same scenes as {same}; not counted again)" if same else "")
     rows.append([Raw(f"<b style='white-space:nowrap'>{lab}</b>"), label, f"{r['peak_pulse_N']:.1f}" if r.get("peak_pulse_N") is not None else "–",
                  f"{r['liftoff_lateral_deg']:.1f}°" if r.get("liftoff_lateral_deg") is not None else "none",
                  cross + (f" (t0 {keys[0]}→{keys[-1]} s)" if keys else "–"),

@@ -161,10 +161,13 @@ def same_as(readings):
   """{key: the earlier reading's key} for a reading whose scene patch equals an earlier one's
   (model/c1_law is the pulse readings' reconstructed/g_on/c1_law): its scenes and runs are the
   same, so it keeps its row (and the numbering) but is not counted again."""
-  first, out = {}, {}
+  first, out = {}, {}  # patch (as sorted JSON) -> the first reading with it
   for key, _, patch in readings:
-    out.update({key: first[s]} if (s := json.dumps(patch, sort_keys=True)) in first else {})
-    first.setdefault(s, key)
+    patch_text = json.dumps(patch, sort_keys=True)
+    if patch_text in first:
+      out[key] = first[patch_text]
+    else:
+      first[patch_text] = key
   return out
 
 
