@@ -154,7 +154,8 @@ void CheckFixedStep(const Model& model, double t, double h, double output_interv
   if (!(h > 0.0)) return;
   if (output_interval < h * (1.0 - 1e-12)) {
     Throw<InputError>("Simulator", "output interval ", output_interval, " s is shorter than the fixed step ", h,
-                      " s: each step would be cut to an output time (rule: --step <= the output interval)");
+                      " s: each step would be cut to an output time (rule: the fixed step, --step or the formulation's"
+                      " default, <= the output interval, --output-interval or the scene's output.interval_s)");
   }
   if (!pulses) return;
   if (const PulseStepLimit limit = PulseResolvingStepLimit(model, t); limit.step < h * (1.0 - 1e-12)) {

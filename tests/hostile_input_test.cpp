@@ -108,6 +108,10 @@ TEST_F(HostileInput, BadOutputIntervalOptionsAreRefused) {
 TEST_F(HostileInput, FixedStepThatCannotResolveTheOutputsOrThePulseIsRefused) {
   ExpectRefused(RunArgs(ChapterScenePath(), "--formulation newmark --step 1e-3 --output-interval 5e-4"),
                 {"output interval 0.0005 s is shorter than the fixed step 0.001 s"});
+  // Only the interval given: the message names where the step came from.
+  ExpectRefused(RunArgs(ChapterScenePath(), "--formulation newmark --output-interval 5e-5"),
+                {"output interval 5e-05 s is shorter than the fixed step 0.0001 s",
+                 "--step or the formulation's default", "--output-interval or the scene's output.interval_s"});
   const std::string scene = Input("scene.yaml", Replaced(ChapterSceneText(), "duration_s: 0.1", "duration_s: 5e-4"));
   for (const char* method : {"newmark", "generalized-alpha", "mde --integrator rk4", "ede --integrator euler"}) {
     ExpectRefused(RunArgs(scene, std::string("--formulation ") + method),
