@@ -44,10 +44,13 @@ else()
   set(KNEEDYN_PC_SUNDIALS_LIBS "-lsundials_idas -lsundials_cvodes -lsundials_arkode -lsundials_nvecserial -lsundials_sunmatrixdense -lsundials_sunlinsoldense")
 endif()
 
+# The run-time plugins (the Ceres fallback, solver/CMakeLists.txt; the sweep I/O).
+set(KNEEDYN_PLUGIN_INSTALL_DIR ${CMAKE_INSTALL_LIBDIR}/kneedyn)
+
 install(EXPORT kneedynTargets NAMESPACE kneedyn:: DESTINATION ${KNEEDYN_CMAKE_DIR} COMPONENT development)
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/kneedynConfig.cmake.in
   ${PROJECT_BINARY_DIR}/kneedynConfig.cmake INSTALL_DESTINATION ${KNEEDYN_CMAKE_DIR}
-  PATH_VARS CMAKE_INSTALL_DATADIR KNEEDYN_SUNDIALS_INSTALL_DIR)
+  PATH_VARS CMAKE_INSTALL_DATADIR KNEEDYN_SUNDIALS_INSTALL_DIR KNEEDYN_PLUGIN_INSTALL_DIR)
 write_basic_package_version_file(${PROJECT_BINARY_DIR}/kneedynConfigVersion.cmake
   COMPATIBILITY SameMinorVersion)
 install(FILES ${PROJECT_BINARY_DIR}/kneedynConfig.cmake ${PROJECT_BINARY_DIR}/kneedynConfigVersion.cmake

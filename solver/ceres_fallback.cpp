@@ -3,7 +3,6 @@
 #include <dlfcn.h>
 
 #include <string>
-#include <vector>
 
 #include "solver/error.hpp"
 #include "solver/plugin_loader.hpp"
@@ -13,26 +12,14 @@ namespace {
 
 constexpr const char* kPluginName = "kneedyn_ceres_fallback.so";
 
-// Tried after the relative candidates (solver/plugin_loader.hpp): the build tree's and the
-// install prefix's own paths, for programs elsewhere linking the installed library.
-std::vector<std::string> AbsoluteCandidates() {
-  std::vector<std::string> paths;
-#ifdef KNEEDYN_CERES_FALLBACK_BUILD_PATH
-  paths.emplace_back(KNEEDYN_CERES_FALLBACK_BUILD_PATH);
-#endif
-#ifdef KNEEDYN_CERES_FALLBACK_INSTALL_PATH
-  paths.emplace_back(KNEEDYN_CERES_FALLBACK_INSTALL_PATH);
-#endif
-  return paths;
-}
-
 KneedynCeresSolveFn Load() {
   const OpenedPlugin plugin = OpenPlugin(kPluginName, reinterpret_cast<const void*>(&CeresFallback),
-                                         RTLD_NOW | RTLD_LOCAL, AbsoluteCandidates());
+                                         RTLD_NOW | RTLD_LOCAL);
   if (plugin.path.empty()) {
     Throw<SolverError>("ConsistentInitialize", "the Ceres fallback plugin ", kPluginName,
                        " (Levenberg-Marquardt, needed when the direct Newton path of a level fails) is missing; looked for ",
-                       plugin.tried.empty() ? std::string("(nothing)") : plugin.tried, ". Reinstall kneedyn");
+                       plugin.tried.empty() ? std::string("(nothing)") : plugin.tried, ", then on ", kPluginRunPathNote,
+                       ". Reinstall kneedyn");
   }
   if (!plugin.handle) {
     Throw<SolverError>("ConsistentInitialize", "cannot load the Ceres fallback plugin '", plugin.path.string(),

@@ -1,6 +1,7 @@
 #include "solver/plugin_loader.hpp"
 
 #include <dlfcn.h>
+#include <link.h>
 
 #ifndef KNEEDYN_PLUGIN_LIBDIR
 #define KNEEDYN_PLUGIN_LIBDIR "lib"
@@ -10,8 +11,7 @@ namespace kneedyn {
 
 namespace fs = std::filesystem;
 
-std::vector<fs::path> PluginCandidates(const char* file_name, const void* anchor,
-                                       const std::vector<std::string>& extra_paths) {
+std::vector<fs::path> PluginCandidates(const char* file_name, const void* anchor) {
   std::vector<fs::path> start_dirs;
   std::error_code ec;
   const fs::path exe = fs::weakly_canonical(fs::read_symlink("/proc/self/exe", ec), ec);
@@ -29,14 +29,12 @@ std::vector<fs::path> PluginCandidates(const char* file_name, const void* anchor
       if (dir == dir.root_path()) break;
     }
   }
-  for (const std::string& path : extra_paths) out.emplace_back(path);
   return out;
 }
 
-OpenedPlugin OpenPlugin(const char* file_name, const void* anchor, int dlopen_flags,
-                        const std::vector<std::string>& extra_paths) {
+OpenedPlugin OpenPlugin(const char* file_name, const void* anchor, int dlopen_flags) {
   OpenedPlugin opened;
-  for (const fs::path& candidate : PluginCandidates(file_name, anchor, extra_paths)) {
+  for (const fs::path& candidate : PluginCandidates(file_name, anchor)) {
     std::error_code ec;
     if (!fs::is_regular_file(candidate, ec)) {
       opened.tried += (opened.tried.empty() ? "'" : ", '") + candidate.string() + "'";
@@ -49,6 +47,16 @@ OpenedPlugin OpenPlugin(const char* file_name, const void* anchor, int dlopen_fl
       opened.dlopen_error = why ? why : "unknown dlopen error";
     }
     return opened;
+  }
+  // A bare name: LD_LIBRARY_PATH and the run path of the object calling dlopen (here the
+  // program, which holds the static libkneedyn_solver.a).
+  if (void* handle = dlopen(file_name, dlopen_flags)) {
+    link_map* map = nullptr;
+    if (dlinfo(handle, RTLD_DI_LINKMAP, &map) == 0 && map && map->l_name) opened.path = map->l_name;
+    if (opened.path.empty()) opened.path = file_name;
+    opened.handle = handle;
+  } else {
+    dlerror();  // not found there either: the caller reports `tried` and the search
   }
   return opened;
 }

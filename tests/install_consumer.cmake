@@ -39,6 +39,51 @@ run(${CMAKE_COMMAND} --build ${WORK}/consumer-build)
 run(${WORK}/consumer-build/consumer)
 message(STATUS "consumer: ${out}")
 
+# The installed static libraries name no file of the build tree (they are its files, copied).
+file(GLOB_RECURSE archives ${prefix}/*/libkneedyn_*.a)
+foreach(archive ${archives})
+  file(STRINGS ${archive} paths REGEX "/")
+  foreach(path IN LISTS paths)
+    string(FIND "${path}" "${BUILD}" at)
+    if(NOT at EQUAL -1)
+      message(FATAL_ERROR "${archive} names the build tree: '${path}'")
+    endif()
+  endforeach()
+endforeach()
+# A start the direct Newton path cannot take (an assembled pose at 30 degrees of abduction)
+# loads the Ceres fallback plugin: a consumer outside the build tree finds the installed
+# one through the run path its CMake package gave it (LD_DEBUG=libs names the file loaded).
+file(READ ${prefix}/share/kneedyn/scenes/chapter_impact.yaml scene_text)
+string(REPLACE "parameter_set: ../chapter_knee.yaml" "parameter_set: ${prefix}/share/kneedyn/chapter_knee.yaml"
+       scene_text "${scene_text}")
+string(REGEX REPLACE "initial_state:[^\n]*\n(  [^\n]*\n)*" "initial_state: {pose: assemble, coordinates: {alpha_deg: 30.0}}\n"
+       scene_text "${scene_text}")
+string(FIND "${scene_text}" "parameter_set: ${prefix}/share" at)
+if(NOT scene_text MATCHES "pose: assemble" OR at EQUAL -1)
+  message(FATAL_ERROR "could not write the assembled-start scene from chapter_impact.yaml:\n${scene_text}")
+endif()
+string(RANDOM LENGTH 10 ALPHABET abcdefghijklmnopqrstuvwxyz0123456789 tag)
+set(outside /tmp/kneedyn_consumer_${tag})
+file(MAKE_DIRECTORY ${outside})
+file(WRITE ${outside}/assemble.yaml "${scene_text}")
+file(COPY ${WORK}/consumer-build/consumer DESTINATION ${outside})
+execute_process(COMMAND ${CMAKE_COMMAND} -E env LD_DEBUG=libs ${outside}/consumer ${outside}/assemble.yaml
+                WORKING_DIRECTORY ${outside} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+file(REMOVE_RECURSE ${outside})
+string(REGEX MATCH "calling init: ([^\n]*kneedyn_ceres_fallback\\.so)" loaded "${err}")
+file(REAL_PATH ${prefix} real_prefix)
+set(plugin_path "${CMAKE_MATCH_1}")
+if(plugin_path)
+  file(REAL_PATH "${plugin_path}" plugin_path)
+endif()
+string(FIND "${plugin_path}" "${real_prefix}/" at)
+if(NOT rc EQUAL 0 OR NOT at EQUAL 0)
+  message(FATAL_ERROR "consumer outside the build tree, assembled start (${rc}): loaded the Ceres fallback "
+                      "'${plugin_path}', expected the one under ${real_prefix}\n${out}")
+endif()
+string(STRIP "${out}" out)
+message(STATUS "consumer, assembled start: ${out}; Ceres fallback from ${plugin_path}")
+
 # The installed tool finds its data beside itself, from elsewhere, without the override.
 file(MAKE_DIRECTORY ${WORK}/elsewhere)
 execute_process(COMMAND ${CMAKE_COMMAND} -E env --unset=KNEEDYN_DATA_DIR
@@ -78,6 +123,13 @@ if(PKG_CONFIG)
   endif()
   if(NOT rc EQUAL 0 OR NOT got STREQUAL want)
     message(FATAL_ERROR "pkg-config --variable=includedir kneedyn: '${got}' (${rc}, ${err}); expected ${want}")
+  endif()
+  # The run path a pkg-config consumer gets: the directory of the Ceres fallback plugin.
+  execute_process(COMMAND ${CMAKE_COMMAND} -E env PKG_CONFIG_PATH=${pcdir} ${PKG_CONFIG} --libs kneedyn
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE libs ERROR_VARIABLE err)
+  string(REGEX MATCH "-Wl,-rpath,([^ \n]+)" rpath "${libs}")
+  if(NOT rc EQUAL 0 OR NOT EXISTS "${CMAKE_MATCH_1}/kneedyn_ceres_fallback.so")
+    message(FATAL_ERROR "pkg-config --libs kneedyn: '${libs}' (${rc}, ${err}): no -Wl,-rpath to the plugin directory")
   endif()
 endif()
 file(REMOVE_RECURSE ${WORK})

@@ -1,8 +1,9 @@
-// Ten lines against the installed kneedyn: load the chapter scene, run dae, check it completed.
+// Ten lines against the installed kneedyn: load a scene (the installed chapter scene, or the
+// one named), run dae, check it completed.
 #include <cstdio>
 #include "formulations/run.hpp"
-int main() {
-  const kneedyn::Scene scene = kneedyn::LoadScene(KNEEDYN_INSTALLED_DATA "/scenes/chapter_impact.yaml");
+int main(int argc, char** argv) {
+  const kneedyn::Scene scene = kneedyn::LoadScene(argc > 1 ? argv[1] : KNEEDYN_INSTALLED_DATA "/scenes/chapter_impact.yaml");
   kneedyn::RunSettings settings;
   settings.formulation = "dae";
   const kneedyn::RunResult r = kneedyn::RunScene(scene, settings);
