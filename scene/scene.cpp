@@ -25,14 +25,17 @@ ParameterSet ReadParameterSet(const Field& top, const std::string& base_dir) {
   // The OS would read the path only up to a NUL: another file than the one named.
   if (ps_path.find('\0') != std::string::npos) psf.Fail("must be a file path without NUL characters");
   std::error_code ec;  // error_code overloads: a path the OS refuses is "not found", not a crash
+  std::string looked_for;
   if (!fs::path(ps_path).is_absolute()) {
     const fs::path near_scene = fs::path(base_dir) / ps_path;
+    looked_for = "'" + EchoPath(near_scene.string()) + "' (beside the scene), then ";
     ps_path = fs::exists(near_scene, ec) ? near_scene.string()
                                          : (fs::path(ReferenceDataDir()) / ps_path).string();
   }
   if (!fs::exists(ps_path, ec)) {
-    psf.Fail("parameter set file not found (looked for '" + EchoPath(ps_path) + "'" +
-             (ec ? "; " + ec.message() : std::string()) + ")");
+    psf.Fail("parameter set file not found (looked for " + looked_for + "'" + EchoPath(ps_path) + "'" +
+             (looked_for.empty() ? "" : " (in the data directory)") + (ec ? "; " + ec.message() : std::string()) +
+             ")");
   }
   if (!fs::is_regular_file(ps_path, ec)) psf.Fail("must name a regular file");
   return LoadParameterSet(ps_path);
@@ -55,12 +58,13 @@ bool IsValidOutputInterval(double interval, double end_time, std::string* why) {
   return true;
 }
 
-// Found at run time, never baked in: $KNEEDYN_DATA_DIR, else share/kneedyn beside the
-// running executable (<prefix>/bin/kneedyn -> <prefix>/share/kneedyn; in a build tree,
-// <build>/share/kneedyn is a link to the source tree's reference-data/ made by CMake), else
-// beside the binary that holds this code (the Python module: <build>/python/_kneedyn.so or
-// <prefix>/lib/python3.X/site-packages/kneedyn/_kneedyn.so), else ./reference-data (a source
-// checkout's top directory).
+// Found at run time, never baked in: $KNEEDYN_DATA_DIR, else beside the shared object that
+// holds this code when it is not the executable (the Python module: <build>/python/kneedyn/
+// _kneedyn.so or <prefix>/lib/python3.X/site-packages/kneedyn/_kneedyn.so; searched first, or
+// a module in a venv would read the data of a kneedyn installed beside /usr/bin/python3),
+// else share/kneedyn beside the running executable (<prefix>/bin/kneedyn -> <prefix>/share/
+// kneedyn; in a build tree, <build>/share/kneedyn is a link to the source tree's
+// reference-data/ made by CMake), else ./reference-data (a source checkout's top directory).
 std::string ReferenceDataDir() {
   if (const char* env = std::getenv("KNEEDYN_DATA_DIR"); env && *env) return env;
   static const std::string found = [] {
@@ -74,16 +78,17 @@ std::string ReferenceDataDir() {
       return std::string();
     };
     std::error_code ec;
-    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    if (!ec) {
-      if (std::string dir = search_up(exe.parent_path(), 3); !dir.empty()) return dir;
-    }
+    const fs::path exe = fs::weakly_canonical(fs::read_symlink("/proc/self/exe", ec), ec);
     Dl_info info{};
-    if (dladdr(reinterpret_cast<void*>(&ReferenceDataDir), &info) != 0 && info.dli_fname) {
-      const fs::path object = fs::weakly_canonical(fs::path(info.dli_fname), ec);
-      if (!ec) return search_up(object.parent_path(), 5);
+    if (dladdr(reinterpret_cast<void*>(&ReferenceDataDir), &info) != 0 && info.dli_fname &&
+        info.dli_fname[0] == '/') {
+      std::error_code ec2;
+      const fs::path object = fs::weakly_canonical(fs::path(info.dli_fname), ec2);
+      if (!ec2 && object != exe) {
+        if (std::string dir = search_up(object.parent_path(), 5); !dir.empty()) return dir;
+      }
     }
-    return std::string();
+    return exe.empty() ? std::string() : search_up(exe.parent_path(), 3);
   }();
   return found.empty() ? std::string("reference-data") : found;
 }

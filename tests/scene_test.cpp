@@ -468,6 +468,14 @@ TEST(Scene, LoadSceneRefusesMissingFile) {
   EXPECT_THROW((void)LoadScene(ScenesDir() + "/does_not_exist.yaml"), InputError);
 }
 
+// A relative parameter set is looked for beside the scene, then in the data directory: a
+// missing one names both places (a scene copied out of the data tree named only the second).
+TEST(Scene, MissingRelativeParameterSetNamesBothPlacesLookedIn) {
+  ExpectRefusedWith("parameter_set", "../no_such_knee.yaml", "copied.yaml",
+                    {"parameter set file not found", ScenesDir() + "/../no_such_knee.yaml' (beside the scene), then '",
+                     "/../no_such_knee.yaml' (in the data directory)"});
+}
+
 }  // namespace
 }  // namespace kneedyn
 

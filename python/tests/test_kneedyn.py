@@ -20,6 +20,7 @@ import json
 import math
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -909,3 +910,24 @@ def test_a_field_path_with_a_nul_is_echoed_whole():
     with pytest.raises(kneedyn.InputError,
                        match=r"field 'ligament_parameters\.LCL\?x': not a ligament element selected"):
         scene.set_ligament_parameters("LCL\0x", k_linear_N_mm=1.0)
+
+
+def test_the_data_beside_the_module_wins_over_data_beside_the_interpreter(tmp_path):
+    """The module looks for share/kneedyn beside itself before beside the running program: an
+    interpreter whose prefix holds another kneedyn's data (a .deb under /usr, a venv's python
+    linked to /usr/bin/python3) must not make the module read that data."""
+    interpreter = tmp_path / "bin" / "python3"
+    interpreter.parent.mkdir()
+    shutil.copy2(os.path.realpath(sys.executable), interpreter)  # /proc/self/exe is its real path
+    (tmp_path / "share" / "kneedyn" / "scenes").mkdir(parents=True)  # the other install's data
+    env = {k: v for k, v in os.environ.items() if k != "KNEEDYN_DATA_DIR"}
+    env["PYTHONPATH"] = os.path.dirname(os.path.dirname(os.path.abspath(kneedyn.__file__)))
+    code = "import kneedyn; print(kneedyn.data_dir())"
+    found = {}
+    for name, program in (("usual", sys.executable), ("copied", str(interpreter))):
+        p = subprocess.run([program, "-c", code], env=env, capture_output=True, text=True, timeout=120,
+                           cwd=str(tmp_path))
+        assert p.returncode == 0, p.stderr
+        found[name] = p.stdout.strip()
+    assert not found["copied"].startswith(str(tmp_path)), found
+    assert found["copied"] == found["usual"], found
