@@ -2,7 +2,8 @@
 """Builds the documentation site (`bash .ci/bootstrap docs`, or the CMake target `docs`):
 
   1. `cmake --install BUILD --prefix WORK/stage`: what a user gets (programs, headers,
-     Python module, data), so the reference documents exactly the installed public API;
+     Python module, data), so the reference documents exactly the installed public API
+     (BUILD/install_manifest.txt, which the install rewrites, is put back as it was);
   2. Doxygen over the installed headers (XML for Breathe); any warning fails the build
      (WARN_AS_ERROR); plain // comments become descriptions (docs/doxygen_filter.py);
   3. the pages generated at build time, in a copy of docs/: cli.md (the `--help` of the
@@ -136,7 +137,17 @@ def main():
     work = (args.work or out.with_name(out.name + "-work")).resolve()
     shutil.rmtree(work, ignore_errors=True)
     stage = work / "stage"
-    run(["cmake", "--install", build, "--prefix", stage], stdout=subprocess.DEVNULL)
+    # `cmake --install` always (re)writes BUILD/install_manifest.txt, the list of the files of
+    # the last install; the docs' staging is not an install, so the manifest is put back.
+    manifest = build / "install_manifest.txt"
+    manifest_before = manifest.read_bytes() if manifest.exists() else None
+    try:
+        run(["cmake", "--install", build, "--prefix", stage], stdout=subprocess.DEVNULL)
+    finally:
+        if manifest_before is None:
+            manifest.unlink(missing_ok=True)
+        else:
+            manifest.write_bytes(manifest_before)
 
     include_dir = stage / "include" / "kneedyn"
     warnings = doxygen(include_dir, work / "doxygen", work / "doxygen-warnings.txt")
