@@ -4,7 +4,7 @@ claims check at each fit.
 
   inverse_problem.py --inverse BIN --kneedyn BIN --out DIR --scenes S1 [S2 ...]
                      [--readings KEY,...|model] [--reading-targets C1] [--merge-recorded FILE]
-                     [--record FILE] [--targets C1,K6|none] [--folds A,B|none] [--max-iterations N]
+                     [--recheck-recorded FILE] [--record FILE] [--targets C1,K6|none] [--folds A,B|none] [--max-iterations N]
                      [--no-strain-scan] [--quick] [--jobs N] [--parallel N] [--reuse] [--reuse-only]
 
 Per scene: `kneedyn_inverse` (inverse/inverse_problem.hpp; one process per target and per
@@ -32,7 +32,10 @@ lift-off 66°, by default; no folds). `model` = every model reading and the comb
 Sobol' indices rank first. Per reading the record also compares the claims at the fit with
 the project's reading (the first scene unchanged): `fixes_vs_project`, `breaks_vs_project`.
 --merge-recorded keeps what an earlier record has and this run does not redo (readings,
-targets), each entry marked with the earlier record's commit and date.
+targets), each entry marked with the earlier record's commit and date. --recheck-recorded runs
+the points of an earlier record's target fits again at the current code, with the claims
+check (`recorded_points_rechecked`): the fit is a local search whose path moves with the
+solver, so a point found earlier that still reaches its target is a bound too.
 
 Writes DIR/<scene>/fit.json (kneedyn_inverse's file), DIR/<scene>/<run>/ (families, claims)
 and DIR/inverse_problem.json; with --record the same JSON also there (the first scene's
@@ -398,6 +401,8 @@ def target_entry(t):
   entry = {"reached": bool(t.get("reached")), "normalized_change": t.get("normalized_change"),
            "max_normalized_change": t.get("max_normalized_change"),
            "beyond_precision": t.get("beyond_precision"), "parameters": t.get("parameters", {}),
+           # The whole point (every x_i), so that a later record can re-check it (--recheck-recorded).
+           "all_parameters_normalized": t.get("all_parameters_normalized"),
            "moved": t.get("moved"), "linearized": t.get("linearized"),
            "fitted_statements": t.get("fitted_statements"), "statements_at_fit": t.get("statements_at_fit"),
            "within_precision": {k: (t.get("within_precision") or {}).get(k)
@@ -484,6 +489,33 @@ def fit_scene(args, key, scene_path, outdir, targets, folds, bounds, project_bef
                leave_some_out=lso, reused_fit_s=fit.get("reused_runtime_s", 0.0), fit_commands=fit.get("commands"),
                claims_runtime_s=time.monotonic() - t0, sensitivity_runs=fit.get("runs"), settings=fit.get("settings"))
   return entry, failed
+
+
+def recheck_points(args, old, scene_path, sdir, bounds, before):
+  """The target fits of an earlier record (its headline scene), run again at the current code:
+  each point as recorded (every x_i, or the parameters it lists, those moved by at least a tenth
+  of the largest, in records before the whole point was kept), with the claims check. A fit is
+  a local search whose path moves with the solver; a point found earlier that still reaches its
+  target bounds the smallest change too."""
+  scene = load_scene(scene_path)
+  out = {}
+  for cid, t in sorted((old.get("targets") or {}).items()):
+    whole = t.get("all_parameters_normalized")
+    point = dict(whole) if whole else {n: v / bounds[n] for n, v in (t.get("parameters") or {}).items()}
+    if not point:
+      continue
+    at = claims_at_fit(args, scene, point, bounds, os.path.join(sdir, "recheck_" + cid), before)
+    norm = sum(x * x for x in point.values()) ** 0.5
+    out[cid] = {"recorded_commit": old.get("commit"), "recorded_date": old.get("date"),
+                "recorded_normalized_change": t.get("normalized_change"), "recorded_reached": t.get("reached"),
+                "point": "every x_i" if whole else "the recorded parameters only (%d of %d)" % (len(point), len(bounds)),
+                "normalized_change": norm, "max_normalized_change": max(abs(x) for x in point.values()),
+                "liftoff_lateral_deg_by_kneedyn_run": at.get("liftoff_lateral_deg_by_kneedyn_run"),
+                "reproduced_at_fit": at["reproduced_at_fit"], "fixes": at["fixes"], "breaks": at["breaks"],
+                "failed_family_runs": at["failed_family_runs"]}
+    print(f"inverse_problem: recorded {cid} point of {old.get('commit')}: |x| {norm:.2f}, lift-off "
+          f"{out[cid]['liftoff_lateral_deg_by_kneedyn_run']}, fixes {at['fixes']}, breaks {at['breaks']}", flush=True)
+  return out
 
 
 def merge_recorded(readings, old):
@@ -596,6 +628,8 @@ def main(argv=None):
   ap.add_argument("--reading-targets", default="C1", help="targets fitted per reading ('none': the statements at x = 0 only)")
   ap.add_argument("--record", help="also write the result JSON here (reports/recorded/inverse_problem.json)")
   ap.add_argument("--merge-recorded", help="an earlier record: keep its readings, targets and folds not redone here")
+  ap.add_argument("--recheck-recorded",
+                  help="an earlier record: run its target fits' points again (claims check) -> recorded_points_rechecked")
   ap.add_argument("--targets", default="C1,K6,K7,V2,V4",
                   help="claim ids ('' = every claim with a statement, 'none' = no target); default: the statements "
                        "the unchanged model misses (C1, K6, K7, V2, V4)")
@@ -641,14 +675,16 @@ def main(argv=None):
   except tool_input.BadInput as e:
     print(f"inverse_problem: error: {e}", file=sys.stderr)
     return 2
-  old = None
-  if args.merge_recorded:
-    try:
-      with open(args.merge_recorded) as f:
-        old = json.load(f)
-    except (OSError, ValueError) as e:
-      print(f"inverse_problem: --merge-recorded = '{args.merge_recorded}': {e}", file=sys.stderr)
-      return 2
+  earlier = {}  # read before anything is written: either file may be the --record file itself
+  for flag, path in (("--merge-recorded", args.merge_recorded), ("--recheck-recorded", args.recheck_recorded)):
+    if path:
+      try:
+        with open(path) as f:
+          earlier[flag] = json.load(f)
+      except (OSError, ValueError) as e:
+        print(f"inverse_problem: {flag} = '{path}': {e}", file=sys.stderr)
+        return 2
+  old = earlier.get("--merge-recorded")
   t_start = time.monotonic()
   outdir = os.path.abspath(args.out)
   os.makedirs(outdir, exist_ok=True)
@@ -664,6 +700,10 @@ def main(argv=None):
     failed |= bad
     if n == 0:
       project_before = entry.get("claims_unchanged")
+      if "--recheck-recorded" in earlier and project_before is not None:
+        entry["recorded_points_rechecked"] = recheck_points(
+            args, earlier["--recheck-recorded"], scene_path, os.path.join(outdir, key.replace("/", "__")), bounds,
+            project_before)
   for key in reading_keys:
     path, label = reading_scene(key, outdir)
     entry, bad = fit_scene(args, key, path, outdir, split_list(args.reading_targets, claim_ids), [], bounds,
@@ -679,6 +719,7 @@ def main(argv=None):
   head = readings.get(first, {})
   result = {"targets": head.get("targets", {}),
             "leave_some_out": head.get("leave_some_out", {}),
+            "recorded_points_rechecked": head.get("recorded_points_rechecked"),
             "readings": readings,
             "readings_table": readings_table(readings, first),
             "headline": headline(readings_table(readings, first), first),

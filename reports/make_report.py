@@ -219,6 +219,20 @@ def inverse_section(path=RECORDED_INVERSE, recorded_claims=None):
   if rows:
     parts.append(table(["target", "reached", "‖x‖", "max |x_i|", "closest within the precision (|x_i| ≤ 1)",
                         "fixes", "breaks"], rows))
+  rechecked = inv.get("recorded_points_rechecked") or {}
+  if rechecked:
+    parts.append("<p id='inverse-rechecked'><b>Points of the earlier record, run again.</b> The fit is a local "
+                 "search whose path moves with the solver, so each target's point from the record before this one "
+                 "(<code>--recheck-recorded</code>) is run again at this commit, with the claims check: where it "
+                 "still reaches its target, it bounds the smallest change as well as this record's fit.</p>")
+    parts.append(table(["target", "recorded at", "‖x‖ then", "point run again", "‖x‖", "max |x_i|",
+                        "lift-off by kneedyn run (°)", "claims reproduced", "fixes", "breaks"],
+                       [[cid, f"{esc(str(r.get('recorded_commit'))[:12])}, {esc(str(r.get('recorded_date')))}",
+                         fmt_num(r.get("recorded_normalized_change")), esc(r.get("point")),
+                         fmt_num(r.get("normalized_change")), fmt_num(r.get("max_normalized_change")),
+                         fmt_num(r.get("liftoff_lateral_deg_by_kneedyn_run")), str(r.get("reproduced_at_fit")),
+                         ", ".join(r.get("fixes") or []) or "–", ", ".join(r.get("breaks") or []) or "–"]
+                        for cid, r in rechecked.items()]))
   lso = inv.get("leave_some_out", {})
   if lso:
     parts.append("<p><b>Leave-some-out.</b> The statements of one half fitted together, the other half judged at "

@@ -17,8 +17,10 @@ Validates:
   each fold's fit;
 - the strain scan (the derivative-free C1 check along the uniform extension-ratio shift) on a
   planted linear lift-off: the root it finds and its ||x||;
-- the reading loop (--readings), --merge-recorded provenance, the commit rule shared with
-  benchmarks/record_sweep.py, and exit 2 with nothing written on a bad --readings key.
+- the reading loop (--readings), --merge-recorded provenance, --recheck-recorded (an earlier
+  record's points run again: a partial point in its units, a whole one normalized), the
+  commit rule shared with benchmarks/record_sweep.py, and exit 2 with nothing written on a
+  bad --readings key.
 Does not validate: the fit itself (inverse/tests: a planted change recovered by Ceres) or
 the claim checks (tests/claims_checks_test.py).
 """
@@ -134,10 +136,16 @@ def test_driver(tmp):
   with open(earlier, "w") as f:
     json.dump({"command": "earlier command", "commit": "abc", "date": "2026-01-01T00:00:00Z",
                "readings": {"chapter_impact": {"targets": {"K9": {"reached": False}}},
-                            "old/reading": {"targets": {}}}}, f)
+                            "old/reading": {"targets": {}}},
+               # Points to re-check: one as older records kept it (the moved parameters, in
+               # their units: +9 bounds of the LCL e), one whole (+2 bounds).
+               "targets": {"C1": {"reached": True, "normalized_change": 20.0,
+                                  "parameters": {"LCL.extension_ratio": 9.0 * LCL_E_BOUND}},
+                           "K6": {"reached": False, "normalized_change": 3.0,
+                                  "all_parameters_normalized": {"LCL.extension_ratio": 2.0}}}}, f)
   rc = inverse_problem.main(["--inverse", fake, "--kneedyn", sys.executable, "--out", out, "--scenes", SCENE,
                              "--targets", "C1", "--readings", "model/strains_down", "--parallel", "1",
-                             "--merge-recorded", earlier, "--no-strain-scan"])
+                             "--merge-recorded", earlier, "--recheck-recorded", earlier, "--no-strain-scan"])
   check(rc == 0, f"driver exit {rc}")
   with open(os.path.join(out, "inverse_problem.json")) as f:
     res = json.load(f)
@@ -183,6 +191,20 @@ def test_driver(tmp):
   check(res["readings"].get("old/reading", {}).get("recorded_earlier", {}).get("command") == "earlier command",
         "merged reading lost its provenance")
   check("recorded_earlier" not in c1, "a target run now marked as recorded earlier")
+  # The recorded points re-checked: +0.0045 (P reproduced: fixes P, breaks Q), +0.001 (none).
+  re = res.get("recorded_points_rechecked") or {}
+  rc1, rk6 = re.get("C1", {}), re.get("K6", {})
+  check(rc1.get("fixes") == ["P"] and rc1.get("breaks") == ["Q"], f"rechecked C1 point: {rc1}")
+  check(abs(rc1.get("normalized_change", 0) - 9.0) < 1e-9 and rc1.get("point", "").startswith("the recorded parameters"),
+        f"rechecked C1 point: |x| {rc1.get('normalized_change')}, point {rc1.get('point')!r}")
+  check(rc1.get("recorded_commit") == "abc" and rc1.get("recorded_normalized_change") == 20.0, f"provenance {rc1}")
+  with open(os.path.join(out, "chapter_impact", "recheck_C1", "fitted_knee.yaml")) as f:
+    e = lcl(yaml.safe_load(f))["extension_ratio"]
+  check(abs(e - (LCL_E + 9.0 * LCL_E_BOUND)) < 1e-12, f"rechecked C1 point: LCL e {e}")
+  check(rk6.get("fixes") == [] and rk6.get("breaks") == [] and rk6.get("point") == "every x_i"
+        and abs(rk6.get("normalized_change", 0) - 2.0) < 1e-12, f"rechecked K6 point: {rk6}")
+  check(c1.get("all_parameters_normalized") == PLANTED["target_C1"],
+        f"the fit's whole point is not recorded: {c1.get('all_parameters_normalized')}")
   check(res["commit"] == record_sweep.git_commit(), f"commit {res['commit']!r} not record_sweep's rule")
   for k in ("command", "date", "runtime_s"):
     check(res.get(k) not in (None, ""), f"provenance '{k}' missing")

@@ -140,6 +140,18 @@ def main():
           errors.append(f"methods section: no row for {m}")
       if "failed (exit" in methods_part.split("</table>")[0]:
         errors.append("methods section: a live run failed")
+    # The inverse problem's earlier points run again: one row per target of the recorded file.
+    with open(os.path.join(ROOT, "reports", "recorded", "inverse_problem.json"), encoding="utf-8") as f:
+      rechecked = json.load(f).get("recorded_points_rechecked") or {}
+    if rechecked and "id='inverse-rechecked'" not in page:
+      errors.append("index.html has no table of the inverse problem's rechecked points")
+    elif rechecked:
+      part = page[page.index("id='inverse-rechecked'"):].split("</table>")[0]
+      for cid, r in rechecked.items():
+        lo = r.get("liftoff_lateral_deg_by_kneedyn_run")
+        row = f"<tr><td>{cid}</td><td>{str(r['recorded_commit'])[:12]}, {r['recorded_date']}</td>"
+        if row not in part or (lo is not None and f"<td>{lo:.1f}</td>" not in part):
+          errors.append(f"rechecked inverse point {cid}: no row '{row}' with lift-off {lo}")
     if args.catalog and "<table class='hard'>" not in page:
       errors.append("index.html has no compact hard-case table")
     if args.calibrate:
