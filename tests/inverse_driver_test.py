@@ -265,12 +265,37 @@ def test_strain_scan(tmp):
   check(not flat["reached"] and len(flat["scan"]) == len(inverse_problem.STRAIN_SCAN_S), f"flat scan {flat}")
 
 
+def test_smallest_change_among_fit_and_recorded_point():
+  """The headline row takes the smallest change that reaches 66°: a fit at ||x|| 40 loses to the
+  previous record's point run again at 22 when that lands within 1° of 66°, not when it misses."""
+  def readings(liftoff_again):
+    fit = {"reached": True, "normalized_change": 40.0, "max_normalized_change": 12.0,
+           "fitted_statements": {"C1": {"value": 66.7}}, "reproduced_at_fit": 22, "fixes": ["C1"],
+           "breaks": ["C2", "L12"]}
+    again = {"recorded_commit": "0aa95ac50b1a", "recorded_date": "2026-12-02T14:16:07Z", "point": "every x_i",
+             "normalized_change": 22.0, "max_normalized_change": 10.0,
+             "liftoff_lateral_deg_by_kneedyn_run": liftoff_again, "reproduced_at_fit": 23, "fixes": ["C1"],
+             "breaks": ["C2"]}
+    return {"chapter_impact": {"baseline_statements": {"C1": {"value": 52.6}}, "targets": {"C1": fit},
+                               "recorded_points_rechecked": {"C1": again}}}
+  row = inverse_problem.readings_table(readings(66.6), "chapter_impact")[0]
+  check(row.get("method") == "recorded_point" and row.get("normalized_change") == 22.0
+        and row.get("breaks_vs_project") == ["C2"] and row.get("reproduced_at_change") == 23,
+        f"a reaching earlier point at 22 not taken over the fit at 40: {row}")
+  head = inverse_problem.headline([row], "chapter_impact")
+  check("||x|| = 22.00" in head and "2026-12-02 (0aa95ac), run again" in head, f"headline: {head}")
+  row = inverse_problem.readings_table(readings(64.5), "chapter_impact")[0]
+  check(row.get("method") == "fit" and row.get("normalized_change") == 40.0,
+        f"an earlier point 1.5° short of 66° taken: {row}")
+
+
 def main():
   tmp = tempfile.mkdtemp(prefix="inverse_driver_test_")
   try:
     test_fitted_scene_normalization(tmp)
     test_strain_scan(tmp)
     test_driver(tmp)
+    test_smallest_change_among_fit_and_recorded_point()
   finally:
     shutil.rmtree(tmp, ignore_errors=True)
   for f in failures:
