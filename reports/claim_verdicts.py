@@ -67,6 +67,25 @@ def informative(reading):
   return reading.get("time_to_90_s") is not None and not reading.get("failed_members") and not reading.get("same_as")
 
 
+def inverse_evidence(inverse, cid):
+  """What the inverse problem needs to reach claim `cid` (its target's fit), or None. For C1,
+  the lift-off the readings are fitted for, the headline scene's row of `readings_table`: the
+  smallest change found that reaches 66° (the fit, the strain scan or the previous record's
+  point run again; reports/inverse_problem.py)."""
+  t = (inverse or {}).get("targets", {}).get(cid)
+  row = next(iter((inverse or {}).get("readings_table") or []), None)
+  if cid != "C1" or not row or not row.get("reached"):
+    return t
+  out = {"reached": True, "normalized_change": row["normalized_change"],
+         "beyond_precision": row["max_normalized_change"] > 1.0,
+         "fixes": row.get("fixes_vs_project"), "breaks": row.get("breaks_vs_project"), "method": row.get("method")}
+  if row.get("method") == "fit" and t:
+    out["parameters"] = t.get("parameters")
+  if row.get("recorded_point"):
+    out["recorded_point"] = row["recorded_point"]
+  return out
+
+
 def verdicts(rows, rec, inverse=None):
   """{id: {claim, verdict, explanation, evidence}} from the project's rows, the reconstruction
   summary and the inverse problem's targets (or None)."""
@@ -75,7 +94,6 @@ def verdicts(rows, rec, inverse=None):
   project = next((r for r in rec["readings"] if r["key"] == "reconstructed/g_on"), None)
   project_ok = {c for c, v in (project or {}).get("verdicts", {}).items() if v == REPRODUCED}
   skipped = [r["key"] for r in rec["readings"] if not informative(r)]
-  targets = (inverse or {}).get("targets", {})
   out = {}
   for cid, row in base.items():
     entry = {"claim": row.get("claim"), "verdict": row["verdict"], "explanation": None,
@@ -135,12 +153,12 @@ def verdicts(rows, rec, inverse=None):
                  "why": (f"{len(fixing)} of {len(readings)} readings reproduce it; the one losing fewest of the "
                          f"project's reproduced claims ({best['key']}) loses {len(costs[best['key']])}"
                          + (f"; no reading reproduces it together with {', '.join(never)}" if never else ""))})
-      t = targets.get(cid)
+      t = inverse_evidence(inverse, cid)
       if t:  # what the inverse problem needs instead of the reading (evidence, not the verdict)
         ev["inverse_problem"] = {k: t.get(k) for k in ("reached", "normalized_change", "beyond_precision",
-                                                       "fixes", "breaks")}
+                                                       "fixes", "breaks", "method", "recorded_point") if k in t}
       continue
-    t = targets.get(cid)
+    t = inverse_evidence(inverse, cid)
     if t and t.get("reached") and t.get("beyond_precision"):
       entry["explanation"] = "beyond_precision"
       ev.update({"normalized_change": t.get("normalized_change"), "parameters": t.get("parameters"),

@@ -9,7 +9,9 @@ provenance (command, commit, date). And the classifier on a synthetic study whos
 known by construction: a claim one reading reproduces is `reading` (with that reading and its
 cost), one the inverse problem reaches only beyond the printed precision is
 `beyond_precision`, one nothing reaches is `unexplained` and says the inverse problem was not
-run when it was not, and S2 without a reading is `contradicted` by S1. Which readings are
+run when it was not, and S2 without a reading is `contradicted` by S1; C1's inverse evidence is
+the smallest change that reaches 66° (readings_table), an earlier record's point when that is
+smaller than the fit. Which readings are
 informative (claim_verdicts.informative), and that the report's matrix names the same ones.
 Does not validate: that the study's runs are right (the report's tests and the claim checks do).
 """
@@ -90,6 +92,25 @@ def synthetic():
   check(out["C"]["explanation"] == "unexplained" and "not run" in out["C"]["evidence"]["why"], f"C without inverse: {out['C']}")
 
 
+def inverse_evidence_for_c1():
+  """C1's evidence is the inverse problem's smallest change reaching 66° (readings_table's
+  first row), not necessarily its own fit: an earlier point at 22 beats a fit at 40."""
+  inverse = {"targets": {"C1": {"reached": True, "normalized_change": 40.0, "beyond_precision": True,
+                                "fixes": ["C1"], "breaks": ["C2", "L12"], "parameters": {"LCL.k": 1.0}},
+                         "K6": {"reached": False, "normalized_change": 5.0}},
+             "readings_table": [{"reading": "chapter_impact", "reached": True, "method": "recorded_point",
+                                 "normalized_change": 22.0, "max_normalized_change": 10.0,
+                                 "fixes_vs_project": ["C1"], "breaks_vs_project": ["C2"],
+                                 "recorded_point": {"recorded_commit": "abc"}}]}
+  ev = claim_verdicts.inverse_evidence(inverse, "C1")
+  check(ev["normalized_change"] == 22.0 and ev["breaks"] == ["C2"] and ev["beyond_precision"]
+        and ev["method"] == "recorded_point" and "parameters" not in ev, f"C1 evidence {ev}")
+  check(claim_verdicts.inverse_evidence(inverse, "K6")["normalized_change"] == 5.0, "K6: not its own target")
+  inverse["readings_table"][0].update(method="fit", normalized_change=40.0, recorded_point=None)
+  ev = claim_verdicts.inverse_evidence(inverse, "C1")
+  check(ev["normalized_change"] == 40.0 and ev["parameters"] == {"LCL.k": 1.0}, f"C1 evidence from the fit {ev}")
+
+
 def informative_rule():
   """Which readings are informative: the reference member reaches 90° and no member's run
   failed; a member that completes short of 90° does not exclude a reading. The report's
@@ -117,6 +138,7 @@ def informative_rule():
 
 recorded_file()
 synthetic()
+inverse_evidence_for_c1()
 informative_rule()
 for f in failures:
   print("FAIL:", f)
