@@ -15,7 +15,10 @@
     simbody_work_precision) and checked against the ratios the file itself carries;
   * README.md's work-precision figures of `dae` and `ede` (best scd, CPU ms to scd 4 / 6 / 8) and
     the recording's date and commit against benchmarks/recorded/work_precision_chapter_impact.json,
-    cell by cell as benchmarks/work_precision_table.py forms them.
+    cell by cell as benchmarks/work_precision_table.py forms them;
+  * the inverse problem's change from the project's reading to lift-off 66° (README.md,
+    docs/model.md §11: the smallest ‖x‖ found, the record's own fit's ‖x‖, the closest
+    lift-off within the printed precision) against reports/recorded/inverse_problem.json.
 
   doc_numbers_test.py [--root DIR]
 
@@ -257,6 +260,32 @@ def work_precision_errors(readme, cells, date, commit):
   return errors
 
 
+INVERSE_TEXTS = [
+    ("README.md", "smallest", re.compile(r"lift-off 66° needs a change of Tables 1\.1–1\.3 of ‖x‖ ≤ (\d+\.\d) printed")),
+    ("README.md", "within", re.compile(r"within the printed precision it stays below (\d+\.\d)°")),
+    ("docs/model.md", "smallest", re.compile(r"\*\*From the project's reading\*\* 66° needs ‖x‖ ≤ (\d+\.\d)")),
+    ("docs/model.md", "fit", re.compile(r"This record's own fit, from the same start, stops at ‖x‖ = (\d+\.\d)"))]
+
+
+def inverse_numbers(inverse):
+  """{smallest, fit, within} of the headline scene: readings_table's first row (the smallest
+  change reaching 66°), the C1 fit's ‖x‖, the fit's closest lift-off within the precision."""
+  row = inverse["readings_table"][0]
+  return {"smallest": row["normalized_change"], "fit": inverse["targets"]["C1"]["normalized_change"],
+          "within": row["C1_within_precision_liftoff_deg"]}
+
+
+def inverse_errors(texts, numbers):
+  errors = []
+  for rel, what, pattern in INVERSE_TEXTS:
+    m = pattern.search(texts[rel])
+    if not m:
+      errors.append(f"{rel}: no sentence matching /{pattern.pattern}/")
+    elif abs(float(m[1]) - numbers[what]) > 0.05 + 1e-9:
+      errors.append(f"{rel} says {m[1]} ({what}); reports/recorded/inverse_problem.json gives {numbers[what]:.2f}")
+  return errors
+
+
 def self_check():
   """Each check on planted text: a wrong number flagged, the right ones not."""
   problems = []
@@ -318,6 +347,18 @@ def self_check():
                       (wp.replace("2026-12-06", "2026-12-03"), "another date")):
     if not work_precision_errors(wrong, cells, "2026-12-06", "8ccfc73adeee"):
       problems.append(f"work-precision check misses {what}")
+  inv_good = {"README.md": "lift-off 66° needs a change of Tables 1.1–1.3 of ‖x‖ ≤ 22.3 printed precisions (x; within "
+              "the printed precision it stays below 53.4°)",
+              "docs/model.md": "**From the project's reading** 66° needs ‖x‖ ≤ 22.3. y. This record's own fit, from "
+              "the same start, stops at ‖x‖ = 40.5 (66.8°"}
+  inv_numbers = {"smallest": 22.32, "fit": 40.47, "within": 53.37}
+  if inverse_errors(inv_good, inv_numbers):
+    problems.append(f"inverse check flags the right values: {inverse_errors(inv_good, inv_numbers)}")
+  for rel, old, new, what in (("README.md", "≤ 22.3", "≤ 22.5", "22.5 against 22.32"),
+                              ("docs/model.md", "= 40.5", "= 22.5", "a fit of 22.5 against 40.47"),
+                              ("README.md", "below 53.4°", "below 53.6°", "53.6° against 53.37")):
+    if not inverse_errors(dict(inv_good, **{rel: inv_good[rel].replace(old, new)}), inv_numbers):
+      problems.append(f"inverse check misses {what}")
   return problems
 
 
@@ -335,12 +376,16 @@ def main():
   with open(os.path.join(root, "reference-data", "references", "chapter_impact.json"), encoding="utf-8") as f:
     accuracy = json.load(f)["accuracy_scd"]
   texts = {rel: read(root, rel) for rel, _ in ACCURACY}
+  texts["docs/model.md"] = read(root, "docs/model.md")
+  with open(os.path.join(root, "reports", "recorded", "inverse_problem.json"), encoding="utf-8") as f:
+    inverse = inverse_numbers(json.load(f))
   with open(os.path.join(root, SIMBODY_RECORDING), encoding="utf-8") as f:
     recording = json.load(f)
   cells, wp_date, wp_commit = cheapest_ms(root, os.path.join(root, WORK_PRECISION_RECORDING))
   errors = (claims_errors(texts["README.md"], counts) + accuracy_errors(texts, accuracy)
             + ratio_errors(texts["README.md"], read(root, "crosscheck/simbody/README.md"), recording)
-            + work_precision_errors(texts["README.md"], cells, wp_date, wp_commit))
+            + work_precision_errors(texts["README.md"], cells, wp_date, wp_commit)
+            + inverse_errors(texts, inverse))
   for e in errors:
     print("doc_numbers_test: FAIL:", e, file=sys.stderr)
   print(f"doc_numbers_test: {len(errors)} disagreement(s)")
