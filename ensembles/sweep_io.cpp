@@ -45,8 +45,7 @@ const KneedynSweepIo& SweepIo() {
     if (!found) {
       Throw<InputError>("kneedyn sweep", "the sweep I/O plugin ", kPluginName,
                         " (Open MPI and HDF5: needed for mpirun and for writing sweep.h5) is missing; looked for ",
-                        tried.empty() ? std::string("(no directory to search)") : tried, ", then on ",
-                        kPluginRunPathNote, ". Reinstall kneedyn, or use --shard i/n (part files need no plugin)");
+                        tried, ". Reinstall kneedyn, or use --shard i/n (part files need no plugin)");
     }
     return found;
   }();

@@ -1,7 +1,5 @@
 #include "scene/scene.hpp"
 
-#include <dlfcn.h>
-
 #include <cstdlib>
 #include <filesystem>
 
@@ -10,6 +8,7 @@
 #include "solver/error.hpp"
 #include "solver/model_builder.hpp"
 #include "solver/patella.hpp"
+#include "solver/plugin_loader.hpp"
 
 namespace kneedyn {
 namespace {
@@ -68,27 +67,16 @@ bool IsValidOutputInterval(double interval, double end_time, std::string* why) {
 std::string ReferenceDataDir() {
   if (const char* env = std::getenv("KNEEDYN_DATA_DIR"); env && *env) return env;
   static const std::string found = [] {
-    const auto search_up = [](fs::path dir, int levels) {
+    // <origin>/share/kneedyn and up to four levels above (the build tree's tests/, bin/).
+    for (fs::path dir : SearchOrigins(reinterpret_cast<const void*>(&ReferenceDataDir))) {
       std::error_code ec;
-      for (int up = 0; up < levels && !dir.empty(); ++up, dir = dir.parent_path()) {
+      for (int up = 0; up < 5 && !dir.empty(); ++up, dir = dir.parent_path()) {
         const fs::path candidate = dir / "share" / "kneedyn";
         if (fs::is_directory(candidate / "scenes", ec)) return candidate.string();
         if (dir == dir.root_path()) break;
       }
-      return std::string();
-    };
-    std::error_code ec;
-    const fs::path exe = fs::weakly_canonical(fs::read_symlink("/proc/self/exe", ec), ec);
-    Dl_info info{};
-    if (dladdr(reinterpret_cast<void*>(&ReferenceDataDir), &info) != 0 && info.dli_fname &&
-        info.dli_fname[0] == '/') {
-      std::error_code ec2;
-      const fs::path object = fs::weakly_canonical(fs::path(info.dli_fname), ec2);
-      if (!ec2 && object != exe) {
-        if (std::string dir = search_up(object.parent_path(), 5); !dir.empty()) return dir;
-      }
     }
-    return exe.empty() ? std::string() : search_up(exe.parent_path(), 3);
+    return std::string();
   }();
   return found.empty() ? std::string("reference-data") : found;
 }

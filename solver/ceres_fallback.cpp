@@ -18,8 +18,7 @@ KneedynCeresSolveFn Load() {
   if (plugin.path.empty()) {
     Throw<SolverError>("ConsistentInitialize", "the Ceres fallback plugin ", kPluginName,
                        " (Levenberg-Marquardt, needed when the direct Newton path of a level fails) is missing; looked for ",
-                       plugin.tried.empty() ? std::string("(nothing)") : plugin.tried, ", then on ", kPluginRunPathNote,
-                       ". Reinstall kneedyn");
+                       plugin.tried, ". Reinstall kneedyn");
   }
   if (!plugin.handle) {
     Throw<SolverError>("ConsistentInitialize", "cannot load the Ceres fallback plugin '", plugin.path.string(),

@@ -11,19 +11,23 @@ namespace kneedyn {
 
 namespace fs = std::filesystem;
 
-std::vector<fs::path> PluginCandidates(const char* file_name, const void* anchor) {
-  std::vector<fs::path> start_dirs;
+std::vector<fs::path> SearchOrigins(const void* anchor) {
+  std::vector<fs::path> origins;
   std::error_code ec;
   const fs::path exe = fs::weakly_canonical(fs::read_symlink("/proc/self/exe", ec), ec);
   Dl_info info{};
   if (anchor && dladdr(anchor, &info) != 0 && info.dli_fname && info.dli_fname[0] == '/') {
     std::error_code ec2;
     const fs::path object = fs::weakly_canonical(fs::path(info.dli_fname), ec2);
-    if (!ec2 && object != exe) start_dirs.push_back(object.parent_path());
+    if (!ec2 && object != exe) origins.push_back(object.parent_path());
   }
-  if (!exe.empty()) start_dirs.push_back(exe.parent_path());
+  if (!exe.empty()) origins.push_back(exe.parent_path());
+  return origins;
+}
+
+std::vector<fs::path> PluginCandidates(const char* file_name, const void* anchor) {
   std::vector<fs::path> out;
-  for (fs::path dir : start_dirs) {
+  for (fs::path dir : SearchOrigins(anchor)) {
     for (int up = 0; up < 5 && !dir.empty(); ++up, dir = dir.parent_path()) {
       out.push_back(dir / KNEEDYN_PLUGIN_LIBDIR / "kneedyn" / file_name);
       if (dir == dir.root_path()) break;
@@ -56,7 +60,10 @@ OpenedPlugin OpenPlugin(const char* file_name, const void* anchor, int dlopen_fl
     if (opened.path.empty()) opened.path = file_name;
     opened.handle = handle;
   } else {
-    dlerror();  // not found there either: the caller reports `tried` and the search
+    dlerror();  // not found there either
+    opened.tried += std::string(opened.tried.empty() ? "" : ", then ") + "'" + file_name +
+                    "' on the dynamic linker's search path (LD_LIBRARY_PATH, the program's run path: kneedyn's "
+                    "CMake package and kneedyn.pc put <prefix>/<libdir>/kneedyn on it)";
   }
   return opened;
 }

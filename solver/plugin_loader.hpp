@@ -11,28 +11,28 @@ namespace kneedyn {
 
 struct OpenedPlugin {
   void* handle = nullptr;          // dlopen handle; null when no candidate file exists or dlopen failed
-  std::filesystem::path path;      // the candidate that exists (empty when none does)
+  std::filesystem::path path;      // the file opened, or the candidate that exists (empty when none does)
   std::string dlopen_error;        // dlerror() when the file exists but dlopen failed
-  std::string tried;               // the candidates that do not exist, quoted and comma separated
-                                   // (the dynamic linker's search, tried last, is not listed)
+  std::string tried;               // where it was looked for, for a message: the candidates, quoted
+                                   // and comma separated, then the dynamic linker's search
 };
 
-// Candidates, in order: <dir>/<libdir>/kneedyn/<file_name> for the directory of the shared
-// object holding `anchor` (when it is not the executable, e.g. the Python module) and of the
-// running executable, and up to four levels above each (the build tree's tests/ and
-// benchmarks/, the install's bin/). No path is compiled in: the installed static libraries
-// are the build tree's files, and the prefix is chosen at install time.
+// The directories kneedyn's run-time files (its plugins, its data directory) are looked for
+// from, in order: that of the shared object holding `anchor` when it is not the executable
+// (the Python module), then that of the running executable.
+std::vector<std::filesystem::path> SearchOrigins(const void* anchor);
+
+// Candidates, in order: <dir>/<libdir>/kneedyn/<file_name> for each of SearchOrigins(anchor)
+// and up to four levels above it (the build tree's tests/ and benchmarks/, the install's
+// bin/). No path is compiled in: the installed static libraries are the build tree's files,
+// and the prefix is chosen at install time.
 std::vector<std::filesystem::path> PluginCandidates(const char* file_name, const void* anchor);
 
-// The phrase naming the last place OpenPlugin looks, for the callers' messages.
-inline constexpr const char* kPluginRunPathNote =
-    "the dynamic linker's search path (LD_LIBRARY_PATH, the program's run path: kneedyn's CMake "
-    "package and kneedyn.pc put <prefix>/<libdir>/kneedyn on it)";
-
 // dlopen's the first candidate that exists, with `dlopen_flags` (RTLD_NOW | RTLD_LOCAL or
-// RTLD_GLOBAL); when none exists, `file_name` alone, through the dynamic linker's search (a
-// program built against the installed libraries, anywhere). Throws nothing: the caller words
-// the error for its own use.
+// RTLD_GLOBAL); when none exists, `file_name` alone, through the dynamic linker's search
+// (LD_LIBRARY_PATH, the program's run path, on which kneedyn's CMake package and kneedyn.pc
+// put <prefix>/<libdir>/kneedyn: a program built against the installed libraries, anywhere).
+// Throws nothing: the caller words the error for its own use.
 OpenedPlugin OpenPlugin(const char* file_name, const void* anchor, int dlopen_flags);
 
 }  // namespace kneedyn
