@@ -227,8 +227,8 @@ def inverse_section(path=RECORDED_INVERSE, recorded_claims=None):
                  "still reaches its target, it bounds the smallest change as well as this record's fit.</p>")
     parts.append(table(["target", "recorded at", "‖x‖ then", "point run again", "‖x‖", "max |x_i|",
                         "lift-off by kneedyn run (°)", "claims reproduced", "fixes", "breaks"],
-                       [[cid, f"{esc(str(r.get('recorded_commit'))[:12])}, {esc(str(r.get('recorded_date')))}",
-                         fmt_num(r.get("recorded_normalized_change")), esc(r.get("point")),
+                       [[cid, f"{str(r.get('recorded_commit'))[:12]}, {r.get('recorded_date')}",
+                         fmt_num(r.get("recorded_normalized_change")), r.get("point"),
                          fmt_num(r.get("normalized_change")), fmt_num(r.get("max_normalized_change")),
                          fmt_num(r.get("liftoff_lateral_deg_by_kneedyn_run")), str(r.get("reproduced_at_fit")),
                          ", ".join(r.get("fixes") or []) or "–", ", ".join(r.get("breaks") or []) or "–"]
