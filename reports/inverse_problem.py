@@ -414,10 +414,15 @@ def target_entry(t):
   return entry
 
 
+def scene_dir(outdir, key):
+  """DIR/<scene key, '/' as '__'>: a scene's fits, claims runs and re-checked points."""
+  return os.path.join(outdir, key.replace("/", "__"))
+
+
 def fit_scene(args, key, scene_path, outdir, targets, folds, bounds, project_before):
   """Fits, the claims check unchanged and at each fit, and the strain scan, of one scene.
   Returns (entry, failed): failed when a fit or a family run failed."""
-  sdir = os.path.join(outdir, key.replace("/", "__"))
+  sdir = scene_dir(outdir, key)
   os.makedirs(sdir, exist_ok=True)
   t0 = time.monotonic()
   spec_path, dropped = scene_spec(args.kneedyn, scene_path, sdir)
@@ -715,8 +720,7 @@ def main(argv=None):
       project_before = entry.get("claims_unchanged")
       if "--recheck-recorded" in earlier and project_before is not None:
         entry["recorded_points_rechecked"] = recheck_points(
-            args, earlier["--recheck-recorded"], scene_path, os.path.join(outdir, key.replace("/", "__")), bounds,
-            project_before)
+            args, earlier["--recheck-recorded"], scene_path, scene_dir(outdir, key), bounds, project_before)
   for key in reading_keys:
     path, label = reading_scene(key, outdir)
     entry, bad = fit_scene(args, key, path, outdir, split_list(args.reading_targets, claim_ids), [], bounds,
@@ -730,12 +734,13 @@ def main(argv=None):
   if old is not None:
     readings = merge_recorded(readings, old)
   head = readings.get(first, {})
+  table = readings_table(readings, first)
   result = {"targets": head.get("targets", {}),
             "leave_some_out": head.get("leave_some_out", {}),
             "recorded_points_rechecked": head.get("recorded_points_rechecked"),
             "readings": readings,
-            "readings_table": readings_table(readings, first),
-            "headline": headline(readings_table(readings, first), first),
+            "readings_table": table,
+            "headline": headline(table, first),
             "spec": os.path.relpath(SPEC, ROOT),
             "normalization": "x_i = change_i / bound_i (inverse/inverse_problem.yaml: half a unit of the last printed "
                              "digit); normalized_change = ||x||_2; beyond_precision: max |x_i| > 1",

@@ -67,14 +67,10 @@ bool IsValidOutputInterval(double interval, double end_time, std::string* why) {
 std::string ReferenceDataDir() {
   if (const char* env = std::getenv("KNEEDYN_DATA_DIR"); env && *env) return env;
   static const std::string found = [] {
-    // <origin>/share/kneedyn and up to four levels above (the build tree's tests/, bin/).
-    for (fs::path dir : SearchOrigins(reinterpret_cast<const void*>(&ReferenceDataDir))) {
-      std::error_code ec;
-      for (int up = 0; up < 5 && !dir.empty(); ++up, dir = dir.parent_path()) {
-        const fs::path candidate = dir / "share" / "kneedyn";
-        if (fs::is_directory(candidate / "scenes", ec)) return candidate.string();
-        if (dir == dir.root_path()) break;
-      }
+    std::error_code ec;
+    for (const fs::path& candidate :
+         RunTimeCandidates(fs::path("share") / "kneedyn", reinterpret_cast<const void*>(&ReferenceDataDir))) {
+      if (fs::is_directory(candidate / "scenes", ec)) return candidate.string();
     }
     return std::string();
   }();

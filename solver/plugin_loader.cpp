@@ -11,7 +11,7 @@ namespace kneedyn {
 
 namespace fs = std::filesystem;
 
-std::vector<fs::path> SearchOrigins(const void* anchor) {
+std::vector<fs::path> RunTimeCandidates(const fs::path& relative, const void* anchor) {
   std::vector<fs::path> origins;
   std::error_code ec;
   const fs::path exe = fs::weakly_canonical(fs::read_symlink("/proc/self/exe", ec), ec);
@@ -22,18 +22,18 @@ std::vector<fs::path> SearchOrigins(const void* anchor) {
     if (!ec2 && object != exe) origins.push_back(object.parent_path());
   }
   if (!exe.empty()) origins.push_back(exe.parent_path());
-  return origins;
-}
-
-std::vector<fs::path> PluginCandidates(const char* file_name, const void* anchor) {
   std::vector<fs::path> out;
-  for (fs::path dir : SearchOrigins(anchor)) {
+  for (fs::path dir : origins) {
     for (int up = 0; up < 5 && !dir.empty(); ++up, dir = dir.parent_path()) {
-      out.push_back(dir / KNEEDYN_PLUGIN_LIBDIR / "kneedyn" / file_name);
+      out.push_back(dir / relative);
       if (dir == dir.root_path()) break;
     }
   }
   return out;
+}
+
+std::vector<fs::path> PluginCandidates(const char* file_name, const void* anchor) {
+  return RunTimeCandidates(fs::path(KNEEDYN_PLUGIN_LIBDIR) / "kneedyn" / file_name, anchor);
 }
 
 OpenedPlugin OpenPlugin(const char* file_name, const void* anchor, int dlopen_flags) {

@@ -17,15 +17,15 @@ struct OpenedPlugin {
                                    // and comma separated, then the dynamic linker's search
 };
 
-// The directories kneedyn's run-time files (its plugins, its data directory) are looked for
-// from, in order: that of the shared object holding `anchor` when it is not the executable
-// (the Python module), then that of the running executable.
-std::vector<std::filesystem::path> SearchOrigins(const void* anchor);
+// Where kneedyn's run-time files (its plugins, its data directory) are looked for, in order:
+// <dir>/<relative> for the directory of the shared object holding `anchor` when it is not the
+// executable (the Python module), then for that of the running executable, each followed by
+// up to four levels above it (the build tree's tests/ and benchmarks/, the install's bin/).
+// No path is compiled in: the installed static libraries are the build tree's files, and the
+// prefix is chosen at install time.
+std::vector<std::filesystem::path> RunTimeCandidates(const std::filesystem::path& relative, const void* anchor);
 
-// Candidates, in order: <dir>/<libdir>/kneedyn/<file_name> for each of SearchOrigins(anchor)
-// and up to four levels above it (the build tree's tests/ and benchmarks/, the install's
-// bin/). No path is compiled in: the installed static libraries are the build tree's files,
-// and the prefix is chosen at install time.
+// RunTimeCandidates of <libdir>/kneedyn/<file_name>.
 std::vector<std::filesystem::path> PluginCandidates(const char* file_name, const void* anchor);
 
 // dlopen's the first candidate that exists, with `dlopen_flags` (RTLD_NOW | RTLD_LOCAL or
