@@ -8,6 +8,7 @@
 #include <sundials/sundials_config.h>
 #include <unordered_map>
 
+#include "formulations/simulator.hpp"
 #include "scene/internal/json_field.hpp"
 #include "solver/error.hpp"
 #include "solver/observables.hpp"
@@ -62,8 +63,8 @@ const std::vector<std::string>& VariableClasses() {
 
 namespace {
 
-// The solution of `result` at its non-event samples whose time `keep` accepts, plus the end
-// event's state (metrics.hpp).
+// The solution of `result` at the samples `keep` accepts (by index), plus the end event's
+// state (metrics.hpp).
 template <typename Keep>
 Solution Extract(const Scene& scene, ContactForm form, const RunResult& result, Keep keep) {
   const Model& model = scene.model;
@@ -84,14 +85,14 @@ Solution Extract(const Scene& scene, ContactForm form, const RunResult& result, 
   for (const Ligament& lig : model.ligaments) s.names["ligament_forces"].push_back("F_" + lig.name + "_N");
   for (const std::string& c : VariableClasses()) s.values[c];  // present even when empty
 
-  for (size_t k = 0; k < result.samples.size(); ++k) {
-    const MechanicalState& st = result.samples[k];
-    if (result.sample_is_event[k] || !keep(st.t)) continue;
-    s.times.push_back(st.t);
-    AppendRow(scene, form, st, &s);
-  }
   const bool ended_on_event = result.completed && !result.samples.empty() &&
                               result.sample_is_event.back() && result.end_reason != "end_time";
+  const size_t n_sampling = result.samples.size() - (ended_on_event ? 1 : 0);
+  for (size_t k = 0; k < n_sampling; ++k) {
+    if (!keep(k)) continue;
+    s.times.push_back(result.samples[k].t);
+    AppendRow(scene, form, result.samples[k], &s);
+  }
   if (ended_on_event) {
     s.times.push_back(result.samples.back().t);
     AppendRow(scene, form, result.samples.back(), &s);
@@ -108,18 +109,29 @@ Solution ExtractSolution(const Scene& scene, ContactForm form, const RunResult& 
   if (!(interval > 0.0)) {
     Throw<InputError>("ExtractSolution", "comparison interval = ", interval, " s; must be > 0");
   }
-  return Extract(scene, form, result, [interval](double t) {
-    const double n = std::round(t / interval);
-    return std::abs(t - n * interval) <= kTimeMatch;
+  return Extract(scene, form, result, [&result, interval](size_t k) {
+    const double t = result.samples[k].t;
+    return !result.sample_is_event[k] && std::abs(t - std::round(t / interval) * interval) <= kTimeMatch;
   });
 }
 
 Solution ExtractSolutionAt(const Scene& scene, ContactForm form, const RunResult& result,
                            const std::vector<double>& times) {
-  return Extract(scene, form, result, [&times](double t) {
-    const auto it = std::lower_bound(times.begin(), times.end(), t - kTimeMatch);
-    return it != times.end() && std::abs(*it - t) <= kTimeMatch;
-  });
+  // One sample per time: the one at it, or the output or event sample the simulator merged it
+  // with (kOutputTimeMerge), the nearest when two are that close. Not every sample within
+  // kTimeMatch: a time 1e-11 s after a uniform output has a sample of its own beside that one.
+  const std::vector<MechanicalState>& samples = result.samples;
+  std::vector<bool> chosen(samples.size(), false);
+  size_t first = 0;  // the first sample not more than kOutputTimeMerge before t
+  for (const double t : times) {
+    while (first < samples.size() && samples[first].t < t - kOutputTimeMerge) ++first;
+    size_t nearest = samples.size();
+    for (size_t k = first; k < samples.size() && samples[k].t <= t + kOutputTimeMerge; ++k) {
+      if (nearest == samples.size() || std::abs(samples[k].t - t) < std::abs(samples[nearest].t - t)) nearest = k;
+    }
+    if (nearest < samples.size()) chosen[nearest] = true;
+  }
+  return Extract(scene, form, result, [&chosen](size_t k) { return bool(chosen[k]); });
 }
 
 double ScdFromErrors(const std::vector<double>& x, const std::vector<double>& x_ref,
@@ -326,6 +338,8 @@ nlohmann::json MetricsJson(const Metrics& m) {
   j["missing_times"] = m.missing_times;
   j["scd_ceiling"] = Finite(m.scd_ceiling);
   j["scd_above_ceiling"] = m.scd_above_ceiling;
+  // scd is +inf, written null, when every compared position equals the reference's.
+  j["scd_exact"] = m.scd == std::numeric_limits<double>::infinity();
   return j;
 }
 

@@ -66,8 +66,9 @@ struct Solution {
 Solution ExtractSolution(const Scene& scene, ContactForm form, const RunResult& result,
                          double interval = kDefaultComparisonInterval);
 
-// Values of `result` at its non-event samples within 1e-9 s of one of `times` (increasing),
-// plus the end event's state like ExtractSolution.
+// Values of `result` at `times` (increasing), one row each: the sample at that time, or the
+// output or event sample within kOutputTimeMerge (formulations/simulator.hpp) that the
+// simulator gave it; plus the end event's state like ExtractSolution.
 Solution ExtractSolutionAt(const Scene& scene, ContactForm form, const RunResult& result,
                            const std::vector<double>& times);
 

@@ -192,7 +192,7 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
   // dropped when a row follows it. Past kMaxResultRows rows the file is refused before the
   // row is stored.
   Solution& s = out.solution;
-  std::vector<double> v(out.columns.size());
+  std::vector<double> v(out.columns.size()), last_row;
   std::string cell_buffer;
   double last_time = kNaN;
   bool last_is_event = false;  // the last row stored has is_event = 1
@@ -211,7 +211,7 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
                         " data rows (rule: at most kMaxResultRows = 10 x kneedyn's own limit of ",
                         static_cast<size_t>(kMaxOutputRows), " output rows; docs/outputs.md)");
     }
-    std::string_view time_cell;
+    std::string_view time_cell, event_cell;
     ForEachCsvField(row, [&](size_t c, std::string_view cell) {
       if (cell.empty() && always_valued[c]) {
         Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ", column ", out.columns[c],
@@ -219,6 +219,7 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
       }
       v[c] = ParseCell(cell, &cell_buffer, path, line_no, out.columns[c]);
       if (static_cast<int>(c) == time_col) time_cell = cell;
+      if (static_cast<int>(c) == event_col) event_cell = cell;
       return true;
     });
     const double t = v[time_col];
@@ -226,6 +227,24 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
       Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": time ", Echo(std::string(time_cell)),
                         " decreases (the row before: ", last_time, ")");
     }
+    if (event_col >= 0 && !std::isnan(v[event_col]) && v[event_col] != 0.0 && v[event_col] != 1.0) {
+      Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ", column is_event: '",
+                        Echo(std::string(event_cell)), "'; must be 1 (an event row), 0 or empty");
+    }
+    const bool is_event = event_col >= 0 && v[event_col] == 1.0;
+    // Two rows at one time: which one is the solution there? Only the same row again or an
+    // event row (not compared at the sampling times) may share it; before, the second row was
+    // ignored whatever it held.
+    const auto same_cells = [&] {
+      return std::equal(v.begin(), v.end(), last_row.begin(),
+                        [](double a, double b) { return a == b || (std::isnan(a) && std::isnan(b)); });
+    };
+    if (out.rows > 0 && t == last_time && !is_event && !last_is_event && !same_cells()) {
+      Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": time ", Echo(std::string(time_cell)),
+                        " repeats the row before's with other values; rows at one time are refused unless they are "
+                        "the same or one of them is an event row (is_event = 1)");
+    }
+    last_row = v;
     ++out.rows;
     last_time = t;
     if (last_is_event) {  // an event row inside the run
@@ -237,7 +256,7 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
       std::vector<double>& values = cc.rows->emplace_back(cc.index.size());
       for (size_t j = 0; j < cc.index.size(); ++j) values[j] = cc.index[j] < 0 ? kNaN : v[cc.index[j]];
     }
-    last_is_event = event_col >= 0 && v[event_col] == 1.0;
+    last_is_event = is_event;
     // Drift over the rows where the contact is in contact: its contact point exists (or,
     // without point columns, N > 0; without either, every row).
     for (const Drift& d : drift) {
@@ -289,12 +308,12 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
   size_t name_col = n_header, time_col = n_header, angle_col = n_header;  // first of each name
   ForEachCsvField(header, [&](size_t c, std::string_view cell) {
     if (cell == "name" && name_col == n_header) name_col = c;
-    if (cell == "time_s" && time_col == n_header) time_col = c;
+    if ((cell == "time_s" || cell == "time") && time_col == n_header) time_col = c;  // as the result CSV
     if (cell == "flexion_deg" && angle_col == n_header) angle_col = c;
     return true;
   });
   if (name_col == n_header || time_col == n_header) {
-    Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "': a CSV needs the columns name and time_s");
+    Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "': a CSV needs the columns name and time_s (or time)");
   }
   std::string cell_buffer;
   size_t line_no = 1;
@@ -419,6 +438,12 @@ Solution DenseReference(const Scene& scene, const nlohmann::json& reference_json
                       kMaxResultRows);
   }
   settings.output_times = times;
+  // Uniform output only at the stored sampling times: an off-grid time is more than kTimeMatch
+  // from those, so no pair of output times is closer than that (a result row 1e-11 s after
+  // the scene's 5 ms grid made a 1e-11 s step, and the run again lost a digit).
+  const double interval = reference_json.value("comparison_interval_s", kDefaultComparisonInterval);
+  std::string unusable;  // a comparison interval no run can output at keeps the scene's interval
+  if (IsValidOutputInterval(interval, scene.end.time, &unusable)) settings.output_interval = interval;
   const ContactForm form = CreateFormulation(settings.formulation, scene, o)->contact_form();
   Solution at;  // the run's rows at `times`; the run itself is freed once they are taken
   {
@@ -428,7 +453,6 @@ Solution DenseReference(const Scene& scene, const nlohmann::json& reference_json
                          ") failed when run again with output at the result's times: ", run.failure);
     }
     // The run again must be the stored reference: its sampling times against the stored samples.
-    const double interval = reference_json.value("comparison_interval_s", kDefaultComparisonInterval);
     const Metrics check = Compare(ExtractSolution(scene, form, run, interval), reference);
     const double accuracy = extended ? kMinDenseReproductionScd : reference_json.value("accuracy_scd", 0.0);
     *reproduced_scd = check.scd;

@@ -30,6 +30,14 @@ std::string Digits(double v) {
   return buf;
 }
 
+// m as mm with 3 digits; "-" where the result gives no figure (null in the JSON).
+std::string Millis(double m) {
+  if (std::isnan(m)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.3g", 1e3 * m);
+  return buf;
+}
+
 // Counters from a JSON file: an object of numbers, or kneedyn's summary.json ("statistics").
 nlohmann::json ReadCounters(const std::string& path) {
   const std::string text =
@@ -56,7 +64,7 @@ ScoreCommand::ScoreCommand(CLI::App& app) {
   cmd_->add_option("result", result_path_, "CSV: time_s (or time) and any trajectory.csv columns")->required();
   cmd_->add_option("--scene", scene_path_, "scene file (YAML)")->required();
   cmd_->add_option("--reference", reference_path_,
-                   "reference JSON (default: reference-data/references/<scene name>.json)");
+                   "reference JSON (default: references/<scene name>.json in the data directory, which `kneedyn --version` names)");
   cmd_->add_option("--events", events_path_, "the run's events: kneedyn's summary.json, or CSV name,time_s[,flexion_deg]");
   cmd_->add_option("--solver-name", solver_name_, "name of the solver in the record")->capture_default_str();
   cmd_->add_option("--integrator", integrator_, "integrator or method detail, as text");
@@ -108,7 +116,17 @@ int ScoreCommand::Run(int argc, char** argv) {
       Throw<InputError>("kneedyn score", document, " is for scene '", Echo(reference_scene), "', not '", scene.name, "'");
     }
     ScoredResult result = ReadResultCsv(result_path_, scene, reference);
-    if (!events_path_.empty()) result.solution.events = ReadEvents(events_path_);
+    // Events the reference does not have are listed, not scored: a misspelled name would
+    // otherwise only leave that event's score empty.
+    std::vector<std::string> unmatched_events;
+    if (!events_path_.empty()) {
+      result.solution.events = ReadEvents(events_path_);
+      for (const EventRecord& e : result.solution.events) {
+        const bool known = std::any_of(reference.events.begin(), reference.events.end(),
+                                       [&e](const EventRecord& r) { return r.name == e.name; });
+        if (!known) unmatched_events.push_back(e.name);
+      }
+    }
     ScoreInfo info;
     info.solver_name = solver_name_;
     info.integrator = integrator_;
@@ -169,7 +187,8 @@ int ScoreCommand::Run(int argc, char** argv) {
                      {"reference_reproduced_scd", std::isfinite(reproduced_scd) ? nlohmann::json(reproduced_scd)
                                                                                 : nlohmann::json(nullptr)},
                      {"metrics_definition", "benchmarks/metrics.hpp, benchmarks/score.hpp, docs/problem.md"},
-                     {"result_file", result_path_}};
+                     {"result_file", result_path_},
+                     {"events_not_in_reference", unmatched_events}};
     out["results"] = nlohmann::json::array({ScoreRecord(result, score, info)});
     {
       // Formatted before anything is written. A path or argument that is not UTF-8 is
@@ -192,10 +211,21 @@ int ScoreCommand::Run(int argc, char** argv) {
       std::printf("  %-16s %8d %8s\n", c.c_str(), result.given_columns.at(c), Digits(score.mescd.at(c)).c_str());
     }
     for (const auto& [name, err] : m.event_time) {
-      std::printf("  event %-20s |dt| = %.3g s (%s digits)\n", name.c_str(), err, Digits(score.event_digits.at(name)).c_str());
+      if (std::isnan(err)) {
+        std::printf("  event %-20s |dt| = - (not in the result)\n", name.c_str());
+        continue;
+      }
+      const std::string digits = Digits(score.event_digits.at(name));
+      std::printf("  event %-20s |dt| = %.3g s (%s%s)\n", name.c_str(), err, digits.c_str(),
+                  digits == "exact" ? "" : " digits");
     }
-    std::printf("  drift: max |gap| %.3g mm, max |gap rate| %.3g mm/s\n", 1e3 * m.max_position_residual,
-                1e3 * m.max_velocity_residual);
+    for (const std::string& name : unmatched_events) {
+      std::string names;
+      for (const EventRecord& r : reference.events) names += (names.empty() ? "" : ", ") + r.name;
+      std::printf("  event %-20s not scored: the reference's events are %s\n", Echo(name).c_str(), names.c_str());
+    }
+    std::printf("  drift: max |gap| %s mm, max |gap rate| %s mm/s\n", Millis(m.max_position_residual).c_str(),
+                Millis(m.max_velocity_residual).c_str());
     std::printf("  wrote %s\n", out_path.c_str());
     return 0;
   } catch (const InputError& e) {

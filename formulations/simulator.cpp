@@ -187,9 +187,9 @@ void Simulator::Run() {
   long next_index = 1;  // next uniform output time = next_index * dt
   const std::vector<double>& extra = settings_.output_times;
   size_t next_extra = 0;  // next of the extra output times
-  // Drops the extra output times up to t (+1e-12 s): reached, or an output or event there.
+  // Drops the extra output times up to t (+kOutputTimeMerge): reached, or an output or event there.
   const auto pass_extra = [&](double t) {
-    while (next_extra < extra.size() && extra[next_extra] <= t + 1e-12) ++next_extra;
+    while (next_extra < extra.size() && extra[next_extra] <= t + kOutputTimeMerge) ++next_extra;
   };
   pass_extra(state_.t);
   bool done = false;
@@ -217,8 +217,8 @@ void Simulator::Run() {
     first_phase = false;
     for (;;) {
       const double t_uniform = std::min(next_index * dt, t_end);
-      // An extra time less than 1e-12 s before the uniform one is that one.
-      const bool extra_first = next_extra < extra.size() && extra[next_extra] < t_uniform - 1e-12;
+      // An extra time less than kOutputTimeMerge before the uniform one is that one.
+      const bool extra_first = next_extra < extra.size() && extra[next_extra] < t_uniform - kOutputTimeMerge;
       const double t_next = extra_first ? extra[next_extra] : t_uniform;
       const AdvanceResult adv = stepper_->Advance(t_next, &state_);
       if (adv.status == AdvanceStatus::kReachedTime) {
@@ -248,7 +248,7 @@ void Simulator::Run() {
                specs[k].kind == EventKind::kPatellarRecontact;
       });
       if (only_restarts) {
-        if (std::abs(state_.t - next_index * dt) < 1e-12) ++next_index;
+        if (std::abs(state_.t - next_index * dt) < kOutputTimeMerge) ++next_index;
         pass_extra(state_.t);
         Record(true);
         bool kink = false;
@@ -263,7 +263,7 @@ void Simulator::Run() {
         break;
       }
       // Events: record them, then switch mode.
-      if (std::abs(state_.t - next_index * dt) < 1e-12) ++next_index;
+      if (std::abs(state_.t - next_index * dt) < kOutputTimeMerge) ++next_index;
       pass_extra(state_.t);
       Record(true);
       const TransitionOutcome outcome =

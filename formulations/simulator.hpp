@@ -64,6 +64,11 @@ enum class PullingContact {
   kRefuse,    // SolverError: the sensitivities of a simultaneous lift-off are not defined
 };
 
+// Output times closer than this share one sample (s): an extra output time within it of a
+// uniform output time, an earlier output or an event, and a uniform output time within it of
+// an event. A step that short would only add round-off (CVODE stops at each output time).
+inline constexpr double kOutputTimeMerge = 1e-12;
+
 struct SimulatorSettings {
   ConsistentInitOptions init;     // form and chart of the stepper
   double output_interval = 0.0;   // s, > 0 (callers validate it with IsValidOutputInterval)

@@ -576,6 +576,24 @@ TEST_F(HostileInput, ScoreEventNameThatIsNotAsciiIsRefused) {
                 {"--events", "column name", "'flexion_?\?'"});
 }
 
+// An event the reference does not have (a misspelled name) is listed as not scored, in the
+// printout and the JSON's header; before, it only left that event's figure empty. The events
+// CSV takes the header `time` as the result CSV does.
+TEST_F(HostileInput, ScoreListsEventsTheReferenceDoesNotHave) {
+  const std::string result = Input("result.csv", ScoreResultCsv());
+  const std::string events = Input("events.csv", "name,time\nliftof_lateral,0.2163\nflexion_90,0.2992\n");
+  const std::string out = (dir_ / "score.json").string();
+  const CommandResult r = RunKneedyn("score '" + result + "' --scene '" + ChapterScenePath() + "' --events '" + events +
+                                     "' --out '" + out + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("event liftof_lateral       not scored: the reference's events are liftoff_lateral, flexion_90"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("event liftoff_lateral      |dt| = - (not in the result)"), std::string::npos) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(ReadText(out));
+  EXPECT_EQ(j.at("header").at("events_not_in_reference"), nlohmann::json::array({"liftof_lateral"}));
+}
+
 // Where `kneedyn score` writes: a pipe given as RESULT (`kneedyn score <(my_solver) ...`) has
 // no RESULT.score.json beside it (before: '/dev/fd/63.score.json', refused for the
 // directory, and with /dev/stdin a file written into /dev), so --out is asked for; an --out

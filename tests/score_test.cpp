@@ -255,6 +255,22 @@ TEST(Score, RowsOffTheSamplingGridAreComparedWithTheReferenceRunAgain) {
   EXPECT_GT(bad_score.metrics.scd, 5.6);
   EXPECT_LT(bad_score.metrics.scd, 6.1);
 
+  // Result times the run again gets a sample of its own for, one row each: 1e-11 s after the
+  // scene's 5 ms outputs (two rows each and a 1e-11 s step before), and 5e-13 s after the
+  // lift-off (merged with the event's sample, which was not taken: no row).
+  const double liftoff = stored.events.at(0).time;
+  ASSERT_EQ(stored.events.at(0).name, "liftoff_lateral");
+  const std::vector<double> near = {0.005 + 1e-11, 0.01 + 1e-11, liftoff + 5e-13};
+  const bench::Solution near_dense = bench::DenseReference(scene, Reference().json, stored, near, &reproduced);
+  EXPECT_EQ(near_dense.times.size(), stored.times.size() + near.size());
+  EXPECT_GE(reproduced, bench::kMinDenseReproductionScd);
+  for (const double t : near) {
+    EXPECT_EQ(std::count_if(near_dense.times.begin(), near_dense.times.end(),
+                            [t](double s) { return std::abs(s - t) <= 1e-12; }),
+              1)
+        << t;
+  }
+
   // A reference whose recorded configuration is too loose to reproduce its samples.
   nlohmann::json loose = Reference().json;
   loose["primary"] = {{"formulation", "ede"}, {"integrator", "dopri5"}, {"rtol", 1e-5}, {"atol", 1e-7},
@@ -334,6 +350,31 @@ TEST(Score, NonFiniteCellsAndEmptyCoordinatesAreRefusedAndNothingComparedHasNoDi
   for (int k = 0; k < 2; ++k) repeated << mid << ",1,1,1,1,1,1\n";
   const bench::ScoredResult r = bench::ReadResultCsv(write("repeated.csv", repeated.str()), ChapterScene(), ref);
   EXPECT_EQ(bench::OffGridTimes(r, ref), std::vector<double>{mid});
+  // Two rows at one time that differ: which is the solution there? Refused, naming the line
+  // (before, the second was ignored: a 1-degree error in it left the score unchanged), unless
+  // one of them is an event row.
+  std::ostringstream differ;
+  differ.precision(17);
+  differ << header << ref.times[0] << ",1,1,1,1,1,1\n" << mid << ",1,1,1,1,1,1\n" << mid << ",1,1,1,2,1,1\n";
+  EXPECT_NE(refusal(write("differ.csv", differ.str())).find("line 4: time"), std::string::npos)
+      << refusal(write("differ.csv", differ.str()));
+  std::ostringstream event_pair;
+  event_pair.precision(17);
+  event_pair << "time_s,x0_mm,y0_mm,z0_mm,flexion_deg,valgus_deg,external_rotation_deg,is_event\n"
+             << ref.times[0] << ",1,1,1,1,1,1,0\n" << mid << ",1,1,1,1,1,1,1\n" << mid << ",1,1,1,2,1,1,0\n";
+  const bench::ScoredResult left_right = bench::ReadResultCsv(write("pair.csv", event_pair.str()), ChapterScene(), ref);
+  EXPECT_EQ(left_right.rows, 3u);
+  EXPECT_EQ(left_right.solution.values.at("positions").back()[3], 2.0);  // the row after the event row is kept
+  // is_event is 1, 0 or empty: 2 or -1 read as "not an event" before.
+  for (const char* flag : {"2", "-1", "0.5"}) {
+    std::ostringstream flagged;
+    flagged.precision(17);
+    flagged << "time_s,x0_mm,y0_mm,z0_mm,flexion_deg,valgus_deg,external_rotation_deg,is_event\n"
+            << ref.times[0] << ",1,1,1,1,1,1," << flag << "\n";
+    EXPECT_NE(refusal(write("flag.csv", flagged.str())).find(std::string("line 2, column is_event: '") + flag + "'"),
+              std::string::npos)
+        << refusal(write("flag.csv", flagged.str()));
+  }
 
   // Event times: empty or not finite is refused; flexion may be empty.
   for (const char* time : {"", "inf", "nan"}) {
@@ -346,6 +387,8 @@ TEST(Score, NonFiniteCellsAndEmptyCoordinatesAreRefusedAndNothingComparedHasNoDi
     }
   }
   EXPECT_EQ(bench::ReadEvents(write("events.csv", "\xEF\xBB\xBFname,time_s,flexion_deg\nflexion_90,0.3,\n")).size(), 1u);
+  // The header `time`, as the result CSV accepts it.
+  EXPECT_EQ(bench::ReadEvents(write("events.csv", "name,time\nflexion_90,0.3\n")).at(0).time, 0.3);
 
   // A reference's comparison interval must be > 0 (it spaces the reference run again).
   nlohmann::json zero = Reference().json;
