@@ -98,7 +98,8 @@ def table(path, eff=None, cost="cpu"):
     lines.append("")
     lines.append(f"Reference ceiling: scd {ceiling:.1f} (the highest scd the file's scores can measure: the "
                  "reference's accuracy minus one digit); "
-                 + ("* above it: the reference's error, not the method's."
+                 + ("* above it: the limit of the comparison (the reference, or a result CSV's 12 printed "
+                    "digits: the reference's own samples printed so score 11.34 on chapter_impact), not the method's error."
                     if any(r[3].endswith("*") for r in body) else "no best scd above it."))
   return lines
 
