@@ -26,7 +26,8 @@ struct RunRow {
 };
 
 struct SweepTable {
-  std::uint64_t fingerprint = 0;   // of the spec
+  std::uint64_t fingerprint = 0;   // of the spec and its scene's files (SweepSpec::fingerprint)
+  std::string source;              // the part file it was read from (ReadPart), for messages
   long total_runs = 0;             // rows of the whole design
   std::vector<std::string> parameter_columns;
   std::vector<std::string> outcome_columns;

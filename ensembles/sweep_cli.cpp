@@ -79,7 +79,15 @@ int SweepCommand::Run() {
       if (!spec_path_.empty()) Throw<InputError>("kneedyn sweep", "--merge takes part files, not a spec ('", spec_path_, "')");
       SweepIo();  // sweep.h5: a missing plugin is refused before reading or writing
       std::vector<SweepTable> parts;
-      for (const std::string& p : merge_) parts.push_back(ReadPart(p));
+      for (const std::string& p : merge_) {
+        // CLI11 gives --merge its first value whatever it looks like: `--merge --quiet` read
+        // a part file named '--quiet'.
+        std::error_code ec;
+        if (p.size() > 1 && p[0] == '-' && !std::filesystem::exists(p, ec)) {
+          Throw<InputError>("kneedyn sweep", "--merge = '", Echo(p), "': an option, not a part file; give --merge PART...");
+        }
+        parts.push_back(ReadPart(p));
+      }
       const SweepTable all = MergeParts(parts);
       WriteSweepResults(out_dir_, all);
       std::printf("merged %zu parts: %zu runs -> %s/sweep.{csv,h5}\n", parts.size(), all.rows.size(), out_dir_.c_str());

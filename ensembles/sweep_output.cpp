@@ -173,6 +173,7 @@ SweepTable ReadPart(const std::string& path) {
     read.Fail("kind", " = " + read.Brief(j.at("kind")) + ": not a kneedyn sweep part");
   }
   SweepTable t;
+  t.source = path;
   // The spec's 64-bit FNV-1a hash, as decimal digits (WritePart).
   const std::string fingerprint = read.String(j, "", "fingerprint");
   errno = 0;
@@ -215,11 +216,21 @@ SweepTable MergeParts(const std::vector<SweepTable>& parts) {
   all.rows.reserve(total_rows);
   for (size_t p = 0; p < parts.size(); ++p) {
     const SweepTable& t = parts[p];
-    if (t.fingerprint != all.fingerprint || t.total_runs != all.total_runs ||
-        t.parameter_columns != all.parameter_columns || t.outcome_columns != all.outcome_columns) {
-      Throw<InputError>("MergeParts", "part ", p + 1, " comes from a different spec (fingerprint ", t.fingerprint,
-                        " vs ", all.fingerprint, ")");
+    // The first field that differs, with both values and both files.
+    const auto differs = [&](const char* field, const std::string& here, const std::string& first) {
+      Throw<InputError>("MergeParts", "part ", p + 1, " ('", EchoPath(t.source), "') comes from another sweep than part 1 ('",
+                        EchoPath(parts[0].source), "'): field '", field, "' = ", here, " vs ", first,
+                        " (the fingerprint covers the spec, scene and parameter-set files' bytes)");
+    };
+    const auto list = [](const std::vector<std::string>& v) { return nlohmann::json(v).dump(); };
+    if (t.fingerprint != all.fingerprint) {
+      differs("fingerprint", std::to_string(t.fingerprint), std::to_string(all.fingerprint));
     }
+    if (t.total_runs != all.total_runs) differs("total_runs", std::to_string(t.total_runs), std::to_string(all.total_runs));
+    if (t.parameter_columns != all.parameter_columns) {
+      differs("parameter_columns", list(t.parameter_columns), list(all.parameter_columns));
+    }
+    if (t.outcome_columns != all.outcome_columns) differs("outcome_columns", list(t.outcome_columns), list(all.outcome_columns));
     all.rows.insert(all.rows.end(), t.rows.begin(), t.rows.end());
   }
   std::sort(all.rows.begin(), all.rows.end(), [](const RunRow& a, const RunRow& b) { return a.index < b.index; });

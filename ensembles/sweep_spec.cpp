@@ -69,8 +69,7 @@ std::string Sanitize(const std::string& s) {
   return out;
 }
 
-std::uint64_t Fnv1a(const std::string& bytes) {
-  std::uint64_t h = 1469598103934665603ull;
+std::uint64_t Fnv1a(const std::string& bytes, std::uint64_t h = 1469598103934665603ull) {
   for (unsigned char c : bytes) {
     h ^= c;
     h *= 1099511628211ull;
@@ -371,6 +370,10 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
                 : "no such file: " + spec.scene_path);
     }
     spec.base = LoadScene(spec.scene_path);
+    // Shards must run one model: the scene's and its parameter set's bytes join the spec's in
+    // the fingerprint (a scene edited between two shards had merged without a word).
+    spec.fingerprint = Fnv1a(scene_detail::ReadInputFile(spec.scene_path, "scene file"), spec.fingerprint);
+    spec.fingerprint = Fnv1a(scene_detail::ReadInputFile(spec.base.parameter_set_file, "parameter set"), spec.fingerprint);
   }
 
   // Parameters.
@@ -444,7 +447,11 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
         type.Fail(StrCat("the Saltelli design supports at most ", kMaxSobolDimension / 2,
                          " parameters; the spec has ", d));
       }
-      if (spec.design.samples * (d + 2) > kMaxSweepRuns) design.Required("samples").Fail("too many runs");
+      if (spec.design.samples * (d + 2) > kMaxSweepRuns) {
+        design.Required("samples").Fail(StrCat("samples × (parameters + 2) = ", spec.design.samples * (d + 2),
+                                               " runs (Saltelli's A, B and one A_B per parameter); at most ",
+                                               kMaxSweepRuns));
+      }
     }
     if (spec.design.type == DesignType::kSobol && d > kMaxSobolDimension) {
       type.Fail(StrCat("the Sobol' design supports at most ", kMaxSobolDimension, " parameters"));

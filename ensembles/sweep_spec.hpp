@@ -66,7 +66,7 @@ enum class AnalyticModel { kNone, kIshigami };
 
 struct SweepSpec {
   std::string path;          // spec file
-  std::uint64_t fingerprint = 0;  // FNV-1a of the spec file's bytes (shards must agree)
+  std::uint64_t fingerprint = 0;  // FNV-1a of the spec's, scene's and parameter set's bytes (shards must agree)
   std::string scene_path;    // base scene (resolved); empty for an analytic model
   Scene base;
   AnalyticModel analytic = AnalyticModel::kNone;

@@ -99,6 +99,7 @@ ParameterSet LoadParameterSet(const std::string& path) {
   const Field top = ParseYaml(ReadInputFile(path, "parameter set"), path);
   top.Keys(KeysOf("parameter_set"));
   ParameterSet ps;
+  ps.file = path;
   ps.name = top.Required("name").Name();
   if (top.Has("description")) top.Required("description").String();
   const Field body = top.Required("body");

@@ -93,6 +93,7 @@ Scene ParseScene(const std::string& yaml_text, const std::string& label, const s
   scene.description = top.Has("description") ? top.Required("description").String() : "";
   const ParameterSet ps = ReadParameterSet(top, base_dir);
   scene.parameter_set = ps.name;
+  scene.parameter_set_file = ps.file;
   scene.reference_q = ps.reference_q;
 
   ModelDescription model;

@@ -29,6 +29,7 @@ struct Scene {
   std::string name;
   std::string description;
   std::string parameter_set;  // name of the parameter set
+  std::string parameter_set_file;  // the file it was read from, as found (beside the scene or in the data directory)
   Model model;
   Vector6d reference_q = Vector6d::Zero();  // full extension, SI (docs/model.md §6)
   InitialState initial;

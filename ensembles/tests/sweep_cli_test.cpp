@@ -131,6 +131,12 @@ TEST(SweepCli, BadInputExitsTwoNamingFieldAndValueAndWritesNothing) {
                (work / "shard.err").string()), 2);
   EXPECT_NE(ReadText(work / "shard.err").find("--shard = '2/2'"), std::string::npos) << ReadText(work / "shard.err");
   EXPECT_FALSE(fs::exists(out));
+  // CLI11 gives --merge its first value whatever it is: an option there was read as a part file.
+  EXPECT_EQ(Sh(Kneedyn() + " sweep --merge --quiet --out " + out.string() + " > /dev/null 2> " +
+               (work / "merge.err").string()), 2);
+  EXPECT_NE(ReadText(work / "merge.err").find("--merge = '--quiet': an option, not a part file"), std::string::npos)
+      << ReadText(work / "merge.err");
+  EXPECT_FALSE(fs::exists(out));
 }
 
 // An --out that cannot be written is refused before the runs, with exit 2, in all three modes

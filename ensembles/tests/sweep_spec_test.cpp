@@ -5,7 +5,11 @@
 // SciPy's norm.ppf. Does not run sweeps (sweep_test.cpp).
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 
 #include "ensembles/sweep_spec.hpp"
 #include "solver/error.hpp"
@@ -17,6 +21,7 @@ using namespace kneedyn::ensembles;
 
 namespace {
 
+namespace fs = std::filesystem;
 const std::string kScenes = std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes";
 
 std::string Spec(const std::string& parameters, const std::string& design = "{type: sobol, samples: 4}",
@@ -90,6 +95,9 @@ TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
       // A normal's draws reach mean ± 8.2 sd (FromUnit clamps u to [2^-53, 1 - 2^-53]).
       {Spec("  - {name: mass, normal: [4, 0.5]}"), "this normal distribution draws values in [-0.1"},
       {Spec("  - {name: mass, relative: 1.5}"), "parameters[0].relative' = '1.5'"},
+      // The run count it would take, as the grid's refusal gives it (before: "too many runs").
+      {Spec("  - {name: mass, relative: 0.1}", "{type: saltelli, samples: 50000000}"),
+       "design.samples' = '50000000': samples × (parameters + 2) = 150000000 runs"},
       {Spec("  - {name: mass, relative: 0.1, uniform: [1, 2]}"), "exactly one of"},
       {Spec("  - {name: mass, relativ: 0.1}"), "unknown key 'parameters[0].relativ'"},
       {Spec("  - {name: MCL deep.tibial_y, relative: 0.1}"), "nominal value"},
@@ -136,6 +144,26 @@ TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
 
 // A uniform parameter's last grid level is its upper end exactly: a + 1 (b − a) is not b for
 // some pairs (0.03 + (0.3 − 0.03) = 0.30000000000000004), and the lower end is a.
+// Shards must run one model: the fingerprint covers the scene's and the parameter set's bytes,
+// not only the spec's (a scene edited between two shards merged without a word).
+TEST(SweepSpec, FingerprintCoversTheSceneAndItsParameterSet) {
+  const fs::path dir = fs::temp_directory_path() / ("kneedyn_fingerprint_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir / "scenes");
+  fs::copy_file(kScenes + "/../chapter_knee.yaml", dir / "chapter_knee.yaml");
+  fs::copy_file(kScenes + "/chapter_impact.yaml", dir / "scenes" / "chapter_impact.yaml");
+  const std::string spec = Spec("  - {name: mass, relative: 0.1}");
+  const auto fingerprint = [&] { return ParseSweepSpec(spec, "spec.yaml", (dir / "scenes").string()).fingerprint; };
+  const std::uint64_t original = fingerprint();
+  EXPECT_EQ(fingerprint(), original);  // the same files, the same fingerprint
+  std::ofstream(dir / "chapter_knee.yaml", std::ios::app) << "# edited\n";
+  const std::uint64_t edited_parameters = fingerprint();
+  EXPECT_NE(edited_parameters, original);
+  std::ofstream(dir / "scenes" / "chapter_impact.yaml", std::ios::app) << "# edited\n";
+  EXPECT_NE(fingerprint(), edited_parameters);
+  fs::remove_all(dir);
+}
+
 TEST(SweepSpec, UniformEndsAreExact) {
   for (const auto& [a, b] : std::vector<std::pair<double, double>>{{0.03, 0.3}, {0.1, 0.7}, {-5.0, 0.3}, {1.0, 2.0}}) {
     ParameterSpec p;

@@ -207,6 +207,18 @@ TEST(SweepOutput, RowsRoundTripAndMergeRefusesGapsDuplicatesAndForeignParts) {
   SweepTable foreign = b;
   foreign.fingerprint = 43;
   EXPECT_THROW(MergeParts({a, foreign}), InputError);
+  // The refusal names both files and the field (before: only the two fingerprints).
+  WritePart((dir / "foreign.json").string(), foreign, 1, 2);
+  try {
+    MergeParts({ReadPart((dir / "a.json").string()), ReadPart((dir / "foreign.json").string())});
+    ADD_FAILURE() << "a part of another sweep was merged";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    for (const std::string& s : {(dir / "foreign.json").string(), (dir / "a.json").string(),
+                                 std::string("field 'fingerprint' = 43 vs 42")}) {
+      EXPECT_NE(what.find(s), std::string::npos) << s << " in " << what;
+    }
+  }
   std::ofstream((dir / "bad.json").string()) << "{\"kind\": \"something\"}";
   EXPECT_THROW(ReadPart((dir / "bad.json").string()), InputError);
   fs::remove_all(dir);

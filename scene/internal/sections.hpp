@@ -16,6 +16,7 @@ namespace kneedyn::scene_detail {
 // A parameter set file (parameter_set.cpp).
 struct ParameterSet {
   std::string name;
+  std::string file;                    // the file it was read from (LoadParameterSet)
   double mass = 0.0;                   // kg
   Vector3d inertia_T;                  // kg m²
   double g = 0.0;                      // m/s²
