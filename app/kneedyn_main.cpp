@@ -12,6 +12,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <iostream>
 #include <iterator>
 #include <map>
@@ -148,7 +149,10 @@ std::string Clip(const std::string& m) { return m.size() > 4000 ? m.substr(0, 40
 int Main(int argc, char** argv) {
   CLI::App app{"kneedyn: 3D dynamic knee model (Hefzy & Abdel-Rahman) — verification and benchmark suite"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", VersionReport("kneedyn"), "print the version, git commit and library versions");
+  // Formed only when asked for: the data directory is searched for on disk.
+  app.set_version_flag(
+      "--version", std::function<std::string()>([] { return VersionReport("kneedyn") + "\ndata directory: " + ReferenceDataDir(); }),
+      "print the version, git commit, library versions and the data directory (scenes, references)");
 
   std::string scene_path, out_dir = "out/run";
   RunSettings settings;

@@ -375,6 +375,14 @@ TEST_F(CliTest, VersionNamesVersionCommitAndLibraries) {
   EXPECT_NE(r.output.find(std::string("SUNDIALS ") + SUNDIALS_VERSION), std::string::npos) << r.output;
   EXPECT_NE(r.output.find(std::string("Ceres ") + CERES_VERSION_STRING), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("Eigen 3."), std::string::npos) << r.output;
+  // Where `score` finds its default reference and relative parameter sets: the build tree's
+  // share/kneedyn (its link to reference-data/).
+  EXPECT_NE(r.output.find("data directory: "), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(fs::path(r.output.substr(r.output.find("data directory: ") + 16,
+                                                  r.output.find('\n', r.output.find("data directory: ")) -
+                                                      r.output.find("data directory: ") - 16)) /
+                         "references" / "chapter_impact.json"))
+      << r.output;
   const CommandResult git =
       RunShell(std::string("git -C '") + KNEEDYN_SOURCE_DIR + "' rev-parse --short=12 HEAD");
   if (git.exit_code == 0 && fs::exists(fs::path(KNEEDYN_SOURCE_DIR) / ".git")) {
