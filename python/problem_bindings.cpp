@@ -258,6 +258,10 @@ to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
         const Array a = Vector1d(y, "y");
         const std::vector<int> events = EventIndices(*p.problem, event);
         bool ended;
+        if (!p.problem->is_dae() && !yp.is_none()) {  // it was taken and ignored, NaN or not
+          throw ProblemError("kneedyn.Problem.transition: yp = " + Repr(yp) +
+                             ": the ODE forms take none (y, ended = p.transition(t, y, event))");
+        }
         if (yp.is_none()) {
           ended = p.problem->Transition(t, a.data(), nullptr, Length(a), events);
         } else {

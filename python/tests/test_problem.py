@@ -97,6 +97,9 @@ def test_bad_calls_raise_value_error():
         p.transition(p.t0, p.y0, 99)
     with pytest.raises(ValueError, match="not an event"):
         p.transition(p.t0, p.y0, "liftoff_nowhere")
+    # A yp on an ODE form was taken and ignored, NaN or not.
+    with pytest.raises(ValueError, match="yp = .*the ODE forms take none"):
+        p.transition(p.t0, p.y0, 0, np.full(p.size, np.nan))
     with pytest.raises(ValueError):
         kneedyn.Problem(SCENE, form="dae").jacobian(0.0, np.zeros(3), np.zeros(3), 1.0)
 
