@@ -219,10 +219,12 @@ int ScoreCommand::Run(int argc, char** argv) {
       std::printf("  event %-20s |dt| = %.3g s (%s%s)\n", name.c_str(), err, digits.c_str(),
                   digits == "exact" ? "" : " digits");
     }
-    for (const std::string& name : unmatched_events) {
+    if (!unmatched_events.empty()) {
       std::string names;
       for (const EventRecord& r : reference.events) names += (names.empty() ? "" : ", ") + r.name;
-      std::printf("  event %-20s not scored: the reference's events are %s\n", Echo(name).c_str(), names.c_str());
+      for (const std::string& name : unmatched_events) {
+        std::printf("  event %-20s not scored: the reference's events are %s\n", Echo(name).c_str(), names.c_str());
+      }
     }
     std::printf("  drift: max |gap| %s mm, max |gap rate| %s mm/s\n", Millis(m.max_position_residual).c_str(),
                 Millis(m.max_velocity_residual).c_str());
