@@ -29,7 +29,7 @@ import yaml
 sys.dont_write_bytecode = True  # keep the source tree clean
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import tool_input  # noqa: E402
-from family_data import LIGAMENTS, by_family, ligament_column, load_families  # noqa: E402
+from family_data import LIGAMENTS, by_family, contact_changes, ligament_column, load_families  # noqa: E402
 
 CLAIMS_YAML = os.path.join(os.path.dirname(os.path.abspath(__file__)), "claims.yaml")
 
@@ -397,9 +397,15 @@ def check_all(ck):
   # ---------------- Contact
   @claim("C1")
   def c1(s):
-    lo = ck.need_ref().liftoff_deg
+    ref = ck.need_ref()
+    lo = ref.liftoff_deg  # the first lateral lift-off
     s.req("lateral lift-off (66° ±tol)", lo is not None and abs(lo - LIFTOFF_CHAPTER_DEG) <= ANGLE_TOL_DEG,
           f"{fmt(lo, 4)}°")
+    # "Both condyles stay in contact up to [it]; beyond it only the medial one does": the
+    # lateral lift-off is the first change of contact and the last.
+    changes = contact_changes(ref.event_list)
+    s.req("the only change of contact", changes == [("liftoff_lateral", lo)],
+          ", ".join(f"{n} {a:.1f}°" for n, a in changes) or "none")
 
   @claim("C2")
   def c2(s):

@@ -73,7 +73,8 @@ class Member:
     if os.path.exists(js):
       with open(js) as f:
         self.summary = json.load(f)
-    self.events = {e["name"]: e for e in (self.summary or {}).get("events", [])}
+    self.event_list = (self.summary or {}).get("events", [])
+    self.events = first_events(self.event_list)
 
   @property
   def label(self):
@@ -99,6 +100,23 @@ class Member:
 
   def col(self, name):
     return self.traj[name]
+
+
+def first_events(events):
+  """Each event name's first occurrence in a summary.json's `events`. The chapter's lift-off
+  (C1, C2) is where a condyle first separates: a later `liftoff_lateral` after a re-contact is
+  a bounce, not that separation (keeping the last one credited 62.1° to a reading whose
+  lateral condyle first left at 27.2°)."""
+  out = {}
+  for e in events or []:
+    out.setdefault(e["name"], e)
+  return out
+
+
+def contact_changes(events):
+  """The lift-offs and re-contacts of the tibio-femoral compartments, in order: (name, flexion)."""
+  return [(e["name"], e["flexion_deg"]) for e in events or []
+          if e["name"] in ("liftoff_medial", "liftoff_lateral", "recontact_medial", "recontact_lateral")]
 
 
 def load_families(outdir):

@@ -26,7 +26,7 @@ import yaml
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import tool_input  # noqa: E402
-from family_data import load_csv  # noqa: E402  (one CSV reader for all report scripts)
+from family_data import first_events, load_csv  # noqa: E402  (one CSV reader for all report scripts)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -196,7 +196,7 @@ def trajectory_difference(ref_dir, run_dir):
 def event_summary(run_dir):
   with open(os.path.join(run_dir, "summary.json")) as f:
     s = json.load(f)
-  ev = {e["name"]: e for e in s.get("events", [])}
+  ev = first_events(s.get("events"))  # the lateral condyle's first separation, not a later bounce
   lo = ev.get("liftoff_lateral")
   f90 = ev.get("flexion_90")
   init = s.get("initialization", {})
