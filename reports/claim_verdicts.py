@@ -77,6 +77,7 @@ def inverse_evidence(inverse, cid):
   if cid != "C1" or not row or not row.get("reached"):
     return t
   out = {"reached": True, "normalized_change": row["normalized_change"],
+         "max_normalized_change": row["max_normalized_change"],
          "beyond_precision": row["max_normalized_change"] > 1.0,
          "fixes": row.get("fixes_vs_project"), "breaks": row.get("breaks_vs_project"), "method": row.get("method")}
   if row.get("method") == "fit" and t:
@@ -162,7 +163,10 @@ def verdicts(rows, rec, inverse=None):
     if t and t.get("reached") and t.get("beyond_precision"):
       entry["explanation"] = "beyond_precision"
       ev.update({"normalized_change": t.get("normalized_change"), "parameters": t.get("parameters"),
-                 "fixes": t.get("fixes"), "breaks": t.get("breaks"), "source": "reports/recorded/inverse_problem.json"})
+                 "fixes": t.get("fixes"), "breaks": t.get("breaks"), "source": "reports/recorded/inverse_problem.json",
+                 "why": (f"no reading reproduces it; the inverse problem reaches it with a change of Tables "
+                         f"1.1-1.3 of ||x|| = {t.get('normalized_change'):.1f} printed precisions, its largest "
+                         f"|x_i| {t.get('max_normalized_change'):.1f} > 1")})
       continue
     entry["explanation"] = "unexplained"
     if t:

@@ -78,14 +78,14 @@ def synthetic():
   rows = [{"id": c, "verdict": "reproduced" if c == "A" else "not reproduced"} for c in ("A", "B", "C", "D", "S1")]
   rows.append({"id": "S2", "verdict": "not reproduced"})
   rows[4]["verdict"] = "reproduced"
-  inverse = {"targets": {"C": {"reached": True, "normalized_change": 3.5, "beyond_precision": True,
-                               "parameters": {"LCL.k": 3.5}, "fixes": ["C"], "breaks": ["A"]}}}
+  inverse = {"targets": {"C": {"reached": True, "normalized_change": 3.5, "max_normalized_change": 3.5,
+                               "beyond_precision": True, "parameters": {"LCL.k": 3.5}, "fixes": ["C"], "breaks": ["A"]}}}
   out = claim_verdicts.verdicts(rows, rec, inverse)
   check(out["A"]["explanation"] is None, f"A: {out['A']['explanation']}")
   check(out["B"]["explanation"] == "reading" and out["B"]["evidence"]["best_reading"] == "model/x"
         and out["B"]["evidence"]["best_reading_loses"] == ["A"], f"B: {out['B']}")
-  check(out["C"]["explanation"] == "beyond_precision" and out["C"]["evidence"]["normalized_change"] == 3.5,
-        f"C: {out['C']}")
+  check(out["C"]["explanation"] == "beyond_precision" and out["C"]["evidence"]["normalized_change"] == 3.5
+        and "||x|| = 3.5" in out["C"]["evidence"]["why"], f"C: {out['C']}")
   check(out["D"]["explanation"] == "unexplained", f"D: {out['D']}")  # only the incomplete reading has it
   check(out["S2"]["explanation"] == "contradicted" and out["S2"]["evidence"]["other_statement"] == "S1", f"S2: {out['S2']}")
   out = claim_verdicts.verdicts(rows, rec, None)

@@ -264,7 +264,7 @@ INVERSE_TEXTS = [
     ("README.md", "smallest", re.compile(r"lift-off 66° needs a change of Tables 1\.1–1\.3 of ‖x‖ ≤ (\d+\.\d) printed")),
     ("README.md", "within", re.compile(r"within the printed precision it stays below (\d+\.\d)°")),
     ("docs/model.md", "smallest", re.compile(r"\*\*From the project's reading\*\* 66° needs ‖x‖ ≤ (\d+\.\d)")),
-    ("docs/model.md", "fit", re.compile(r"This record's own fit, from the same start, stops at ‖x‖ = (\d+\.\d)"))]
+    ("docs/model.md", "fit", re.compile(r"this record's C1 fit, at ‖x‖ = (\d+\.\d)"))]
 
 
 def inverse_numbers(inverse):
@@ -349,8 +349,8 @@ def self_check():
       problems.append(f"work-precision check misses {what}")
   inv_good = {"README.md": "lift-off 66° needs a change of Tables 1.1–1.3 of ‖x‖ ≤ 22.3 printed precisions (x; within "
               "the printed precision it stays below 53.4°)",
-              "docs/model.md": "**From the project's reading** 66° needs ‖x‖ ≤ 22.3. y. This record's own fit, from "
-              "the same start, stops at ‖x‖ = 40.5 (66.8°"}
+              "docs/model.md": "**From the project's reading** 66° needs ‖x‖ ≤ 22.3. y. this record's C1 fit, at "
+              "‖x‖ = 40.5, reaches 66.8°"}
   inv_numbers = {"smallest": 22.32, "fit": 40.47, "within": 53.37}
   if inverse_errors(inv_good, inv_numbers):
     problems.append(f"inverse check flags the right values: {inverse_errors(inv_good, inv_numbers)}")
