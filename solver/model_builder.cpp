@@ -222,6 +222,12 @@ InitialState BuildInitialState(const Model& model, const Vector6d& reference_q, 
                           MToMm(geo.gap), " mm; more than ", MToMm(kMaxInitialGap), " mm)");
       }
       guess.coordinates = {geo.point_F.x(), geo.point_F.y(), geo.point_T.x(), geo.point_T.y()};
+    } else if (request.pose != PoseSource::kAssemble) {
+      // No contact point at all (the surfaces cannot touch there): before, the scene loaded and
+      // the run failed at its first event check with exit 1 and partial files.
+      Throw<InputError>("BuildInitialState", "the ", CompartmentName(pair.compartment),
+                        " compartment is listed among the contacts, but its surfaces have no contact point at the "
+                        "initial pose (rule: a listed contact touches at the start; see its surfaces' coefficients)");
     }
     init.contact_guesses.push_back(guess);
   }

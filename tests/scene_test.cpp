@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <iterator>
 #include <map>
 #include <string>
 #include <vector>
@@ -378,6 +379,28 @@ TEST(Scene, RefusesContactWhoseSurfacesAreFarApartAtTheInitialPose) {
   ExpectRefused(f, "unused_medial.yaml", {"surfaces.medial", "not a compartment of this scene's contacts"});
   f.erase("surfaces");
   EXPECT_NO_THROW((void)Parse(Text(f)));
+}
+
+// A listed contact whose surfaces have no contact point at all at the start (the lateral
+// plateau of anatomical_surfaces with its slope c10 written c11, a twist; found by fuzz_scene's
+// corpus through the CLI): refused at load. Before, the scene loaded, `run` failed at its
+// first event check with exit 1 and partial files, and `info` printed half its tables.
+TEST(Scene, RefusesContactWithNoContactPointAtTheInitialPose) {
+  std::ifstream in(ScenesDir() + "/anatomical_surfaces.yaml");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string slope = "coefficients_mm: {c10: -0.341";
+  ASSERT_NE(text.find(slope), std::string::npos);
+  EXPECT_NO_THROW((void)ParseScene(text, "anatomical.yaml", ScenesDir()));
+  text.replace(text.find(slope), slope.size(), "coefficients_mm: {c11: -0.341");
+  try {
+    (void)ParseScene(text, "twisted.yaml", ScenesDir());
+    ADD_FAILURE() << "accepted";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("the lateral compartment is listed among the contacts, but its surfaces have no contact point"),
+              std::string::npos)
+        << what;
+  }
 }
 
 TEST(Scene, RefusesFlexionEndBelowInitialFlexion) {
