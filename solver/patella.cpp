@@ -383,7 +383,10 @@ void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, P
                    ratios(2), ": a negative one would pull (the quadriceps line against the facet normals "
                    "patella.facet_*.normal_P and the tendon's line from patella.apex_P_mm to patella.tuberosity_T_mm)");
     }
-    Throw<InputError>("SolvePatellaStart", "no patellar equilibrium at the scene's start: ", e.what(), why);
+    // The tendon's length places the start guess (above); a long one leaves Newton nothing to
+    // find, and the refusal named no key (found by a probe with 400 mm).
+    Throw<InputError>("SolvePatellaStart", "no patellar equilibrium at the scene's start with patella.tendon_length_mm = ",
+                      MToMm(patella->tendon_length), " mm: ", e.what(), why);
   }
   patella->start_q = initial_q;
   patella->start_unknowns = guess.x;

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <unistd.h>
 
@@ -224,6 +225,22 @@ TEST(Patella, TendonThatCannotReachIsRefusedWithTheLengthItNeeds) {
   EXPECT_LT(closest_mm, 42.0) << what;  // the shipped length reaches
   EXPECT_NE(refusal(0.999 * closest_mm).find("cannot reach the tuberosity"), std::string::npos);
   EXPECT_EQ(refusal(1.001 * closest_mm).find("cannot reach the tuberosity"), std::string::npos);
+  // The shipped impact scene with a tendon of 400 mm (42 shipped): no equilibrium, and the
+  // refusal names the key and its value (before: only the tuberosity's position and Newton's
+  // failure).
+  std::ifstream in(dir + "/patellofemoral_impact.yaml");
+  std::string impact((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string key = "tendon_length_mm: 42.0";
+  ASSERT_NE(impact.find(key), std::string::npos);
+  impact.replace(impact.find(key), key.size(), "tendon_length_mm: 400.0");
+  try {
+    ParseScene(impact, "long.yaml", dir);
+    ADD_FAILURE() << "a 400 mm tendon was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no patellar equilibrium at the scene's start with patella.tendon_length_mm = 400 mm"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 // The documented default quadriceps direction [0, 0, 1] has no start equilibrium in the
