@@ -244,15 +244,23 @@ to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
         p.problem->Events(t, a.data(), Length(a), g.data());
         return ToArray(g);
       }, py::arg("t"), py::arg("y"))
-      .def("coordinates", [](const PyProblem& p, const py::object& t_arg, const py::object& y) {
+      .def("coordinates", [](const PyProblem& p, const py::object& t_arg, const py::object& y, const py::object& yp) {
         const double t = RealArgument(t_arg, "kneedyn.Problem.coordinates", "t");
         const Array a = Vector1d(y, "y");
-        const MechanicalState s = p.problem->Coordinates(t, a.data(), nullptr, Length(a));
+        if (!p.problem->is_dae() && !yp.is_none()) {
+          throw ProblemError("kneedyn.Problem.coordinates: yp = " + Repr(yp) + ": the ODE forms take none");
+        }
+        // yp, as the C interface takes it (DAE forms; optional there too).
+        const Array b = yp.is_none() ? Array() : Vector1d(yp, "yp");
+        if (!yp.is_none() && Length(a) != Length(b)) {
+          throw ProblemError("kneedyn.Problem.coordinates: y and yp differ in length");
+        }
+        const MechanicalState s = p.problem->Coordinates(t, a.data(), yp.is_none() ? nullptr : b.data(), Length(a));
         return py::make_tuple(ToArray(std::vector<double>(s.q.data(), s.q.data() + 6)),
                               ToArray(std::vector<double>(s.qd.data(), s.qd.data() + 6)));
-      }, py::arg("t"), py::arg("y"),
-      "(q, qdot) the state y stands for: x0, y0, z0 [m], alpha, beta, gamma [rad] and their rates "
-      "(mde: the eliminated translations computed from s)")
+      }, py::arg("t"), py::arg("y"), py::arg("yp") = py::none(),
+      "(q, qdot) the state y (and yp, DAE forms, optional) stands for: x0, y0, z0 [m], alpha, beta, "
+      "gamma [rad] and their rates (mde: the eliminated translations computed from s)")
       .def("transition", [](PyProblem& p, const py::object& t_arg, const py::object& y, const py::object& event, const py::object& yp) {
         const double t = RealArgument(t_arg, "kneedyn.Problem.transition", "t");
         const Array a = Vector1d(y, "y");

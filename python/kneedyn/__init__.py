@@ -291,7 +291,11 @@ class Scene:
 
     def set_quadriceps(self, **fields):
         """Quadriceps force fields (scene key patella.quadriceps): shape (constant|ramp|
-        half_sine), magnitude_N, baseline_N, duration_s, direction_F."""
+        half_sine), magnitude_N, baseline_N, duration_s, direction_F. shape="constant" drops
+        the baseline_N and duration_s a ramp or half-sine had (the constant shape refuses
+        them) unless they are given."""
+        if fields.get("shape") == "constant":
+            fields = dict({"baseline_N": None, "duration_s": None}, **fields)
         return self.set_patella(quadriceps=fields)
 
     def set_end(self, **fields):

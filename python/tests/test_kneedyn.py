@@ -514,6 +514,20 @@ def test_patella_parameters_set_in_python_equal_the_same_edits_in_a_file():
     assert_same_as_cli(result, header, rows, summary, ignore_path=True)
 
 
+def test_quadriceps_shape_constant_drops_the_ramps_fields():
+    # The extension scene's ramp has baseline_N and duration_s, which the constant shape
+    # refuses: set_quadriceps(shape="constant") raised on them unless they were set to None.
+    scene = kneedyn.load_scene(os.path.join("reference-data", "scenes", "patellofemoral_extension.yaml"))
+    assert "baseline_N" in scene.to_dict()["patella"]["quadriceps"]
+    scene.set_quadriceps(shape="constant", magnitude_N=100.0)
+    q = scene.patella["quadriceps"]
+    assert q["shape"] == "constant" and q["magnitude_N"] == 100.0
+    document = scene.to_dict()["patella"]["quadriceps"]
+    assert "baseline_N" not in document and "duration_s" not in document
+    with pytest.raises(kneedyn.InputError, match="baseline_N"):  # given explicitly: still refused
+        scene.set_quadriceps(shape="constant", magnitude_N=100.0, baseline_N=20.0)
+
+
 def test_patella_setters_refuse_a_scene_without_patella():
     scene = kneedyn.load_scene(CHAPTER)
     assert scene.patella is None

@@ -100,6 +100,16 @@ def test_bad_calls_raise_value_error():
     # A yp on an ODE form was taken and ignored, NaN or not.
     with pytest.raises(ValueError, match="yp = .*the ODE forms take none"):
         p.transition(p.t0, p.y0, 0, np.full(p.size, np.nan))
+    with pytest.raises(ValueError, match="yp = .*the ODE forms take none"):
+        p.coordinates(p.t0, p.y0, p.y0)
+    # coordinates takes the DAE forms' yp, as the C interface does (it took none before).
+    d = kneedyn.Problem(SCENE, form="dae")
+    q, qd = d.coordinates(d.t0, d.y0, d.yp0)
+    q_no_yp, _ = d.coordinates(d.t0, d.y0)
+    assert np.array_equal(q, q_no_yp) and qd.shape == (6,)
+    bad_yp = d.yp0.copy(); bad_yp[0] = np.nan
+    with pytest.raises(ValueError, match=r"yp\[0\] = nan"):
+        d.coordinates(d.t0, d.y0, bad_yp)
     with pytest.raises(ValueError):
         kneedyn.Problem(SCENE, form="dae").jacobian(0.0, np.zeros(3), np.zeros(3), 1.0)
 
