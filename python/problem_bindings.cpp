@@ -9,6 +9,7 @@
 #include <climits>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -103,6 +104,17 @@ std::shared_ptr<Scene> SceneFrom(const py::object& obj) {
     return std::make_shared<Scene>(LoadScene(path));
   }
   throw ProblemError("kneedyn.Problem: scene must be a kneedyn.Scene, a scene file path or a shipped scene name");
+}
+
+// The optional yp of coordinates and transition: refused on the ODE forms (it was taken and
+// ignored, NaN or not), else a 1-D array of y's length; nullopt when not given.
+std::optional<Array> OptionalYp(const Problem& problem, const py::object& yp, const Array& y, const std::string& where,
+                                const char* ode_hint) {
+  if (yp.is_none()) return std::nullopt;
+  if (!problem.is_dae()) throw ProblemError(where + ": yp = " + Repr(yp) + ": the ODE forms take none" + ode_hint);
+  Array b = Vector1d(yp, "yp");
+  if (Length(y) != Length(b)) throw ProblemError(where + ": y and yp differ in length");
+  return b;
 }
 
 // An index (int or NumPy integer, not bool), a name of event_names, or a list of them.
@@ -247,15 +259,9 @@ to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
       .def("coordinates", [](const PyProblem& p, const py::object& t_arg, const py::object& y, const py::object& yp) {
         const double t = RealArgument(t_arg, "kneedyn.Problem.coordinates", "t");
         const Array a = Vector1d(y, "y");
-        if (!p.problem->is_dae() && !yp.is_none()) {
-          throw ProblemError("kneedyn.Problem.coordinates: yp = " + Repr(yp) + ": the ODE forms take none");
-        }
         // yp, as the C interface takes it (DAE forms; optional there too).
-        const Array b = yp.is_none() ? Array() : Vector1d(yp, "yp");
-        if (!yp.is_none() && Length(a) != Length(b)) {
-          throw ProblemError("kneedyn.Problem.coordinates: y and yp differ in length");
-        }
-        const MechanicalState s = p.problem->Coordinates(t, a.data(), yp.is_none() ? nullptr : b.data(), Length(a));
+        const std::optional<Array> b = OptionalYp(*p.problem, yp, a, "kneedyn.Problem.coordinates", "");
+        const MechanicalState s = p.problem->Coordinates(t, a.data(), b ? b->data() : nullptr, Length(a));
         return py::make_tuple(ToArray(std::vector<double>(s.q.data(), s.q.data() + 6)),
                               ToArray(std::vector<double>(s.qd.data(), s.qd.data() + 6)));
       }, py::arg("t"), py::arg("y"), py::arg("yp") = py::none(),
@@ -265,18 +271,9 @@ to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
         const double t = RealArgument(t_arg, "kneedyn.Problem.transition", "t");
         const Array a = Vector1d(y, "y");
         const std::vector<int> events = EventIndices(*p.problem, event);
-        bool ended;
-        if (!p.problem->is_dae() && !yp.is_none()) {  // it was taken and ignored, NaN or not
-          throw ProblemError("kneedyn.Problem.transition: yp = " + Repr(yp) +
-                             ": the ODE forms take none (y, ended = p.transition(t, y, event))");
-        }
-        if (yp.is_none()) {
-          ended = p.problem->Transition(t, a.data(), nullptr, Length(a), events);
-        } else {
-          const Array b = Vector1d(yp, "yp");
-          if (Length(a) != Length(b)) throw ProblemError("kneedyn.Problem.transition: y and yp differ in length");
-          ended = p.problem->Transition(t, a.data(), b.data(), Length(a), events);
-        }
+        const std::optional<Array> b =
+            OptionalYp(*p.problem, yp, a, "kneedyn.Problem.transition", " (y, ended = p.transition(t, y, event))");
+        const bool ended = p.problem->Transition(t, a.data(), b ? b->data() : nullptr, Length(a), events);
         const py::object y_next = ended ? py::object(py::none()) : py::object(ToArray(p.problem->y0()));
         if (!p.problem->is_dae()) return py::make_tuple(y_next, ended);
         const py::object yp_next = ended ? py::object(py::none()) : py::object(ToArray(p.problem->yp0()));
