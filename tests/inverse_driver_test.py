@@ -39,6 +39,7 @@ sys.path.insert(0, os.path.join(ROOT, "reports"))
 sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 import inverse_problem  # noqa: E402
 import record_sweep  # noqa: E402
+from py_test_support import finish  # noqa: E402
 
 failures = []
 SCENE = os.path.join(ROOT, "reference-data", "scenes", "chapter_impact.yaml")
@@ -298,10 +299,7 @@ def main():
     test_smallest_change_among_fit_and_recorded_point()
   finally:
     shutil.rmtree(tmp, ignore_errors=True)
-  for f in failures:
-    print("FAIL:", f)
-  print(f"inverse_driver_test: {len(failures)} failure(s)")
-  return 1 if failures else 0
+  return finish(failures, "FAIL:", f"inverse_driver_test: {len(failures)} failure(s)", stream=sys.stdout)
 
 
 if __name__ == "__main__":

@@ -15,6 +15,9 @@ import re
 import shlex
 import sys
 
+sys.dont_write_bytecode = True  # keep the source tree clean
+from py_test_support import finish  # noqa: E402
+
 DEFAULTS = {"--scalar": "float128"}  # make_reference's defaults, left out of the CMake target
 
 
@@ -78,10 +81,8 @@ def main():
       problems.append(f"{name}: conservative but primary.energy_error is missing")
   for scene in sorted(set(commands) - stored_scenes):
     problems.append(f"the references target makes {scene}'s reference, which is not stored")
-  for p in problems:
-    print("reference_generators_test:", p)
-  print(f"reference_generators_test: {len(files)} references, {len(problems)} disagreements")
-  return 1 if problems else 0
+  return finish(problems, "reference_generators_test:", f"reference_generators_test: {len(files)} references, "
+                f"{len(problems)} disagreements", stream=sys.stdout)
 
 
 if __name__ == "__main__":
