@@ -75,6 +75,22 @@ def claims_errors(readme, counts):
                                   f"reports/recorded/claims.json gives {want}"]
 
 
+README_HEADLINE = re.compile(r"(\d+) of the chapter's (\d+) claims plus its force-guess insensitivity are reproduced")
+
+
+def headline_errors(readme, claims_json):
+  """README's count of claims reproduced under the project's reading (the matrix row whose label
+  says so, with gravity on as the chapter scene has it) against the recorded matrix."""
+  m = claims_json["matrix"]
+  own = [r for r in m["readings"] if "the project's reading" in r.get("label", "") and "gravity on" in r["label"]]
+  found = README_HEADLINE.search(readme)
+  if len(own) != 1 or not found:
+    return [f"README.md sentence 'N of the chapter's M claims ...' found: {bool(found)}; project readings: {len(own)}"]
+  said, want = (int(found[1]), int(found[2])), (sum(c == 1 for c in own[0]["cells"]), len(m["claims"]))
+  return [] if said == want else [f"README.md says {said[0]} of {said[1]} claims reproduced; "
+                                  f"reports/recorded/claims.json gives {want[0]} of {want[1]}"]
+
+
 ACCURACY = [("README.md", re.compile(r"computed in quadruple precision to (\d+\.\d) digits")),
             ("docs/problem.md", re.compile(r"`accuracy_scd` = (\d+\.\d) digits")),
             ("benchmarks/README.md", re.compile(r"quadruple-precision reference: (\d+\.\d) digits"))]
@@ -299,6 +315,11 @@ def self_check():
     problems.append(f"claims check flags the right counts: {claims_errors(good, counts)}")
   if not claims_errors(good.replace("under none (B)", "under none (C1)"), counts):
     problems.append("claims check misses a wrong claim id")
+  matrix["matrix"]["readings"][0]["label"] = "pulse ... (the project's reading); gravity on"
+  if headline_errors("- 1 of the chapter's 3 claims plus its force-guess insensitivity are reproduced", matrix):
+    problems.append("headline check flags the right count")
+  if not headline_errors("- 2 of the chapter's 3 claims plus its force-guess insensitivity are reproduced", matrix):
+    problems.append("headline check misses a wrong count")
   texts = {"README.md": "computed in quadruple precision to 15.7 digits", "docs/problem.md": "`accuracy_scd` = 15.7 "
            "digits", "benchmarks/README.md": "quadruple-precision reference: 15.7 digits"}
   if accuracy_errors(texts, 15.7):
@@ -372,7 +393,8 @@ def main():
       print("doc_numbers_test: self-check:", p, file=sys.stderr)
     return 1
   with open(os.path.join(root, "reports", "recorded", "claims.json"), encoding="utf-8") as f:
-    counts = claim_counts(json.load(f))
+    claims_json = json.load(f)
+  counts = claim_counts(claims_json)
   with open(os.path.join(root, "reference-data", "references", "chapter_impact.json"), encoding="utf-8") as f:
     accuracy = json.load(f)["accuracy_scd"]
   texts = {rel: read(root, rel) for rel, _ in ACCURACY}
@@ -382,7 +404,8 @@ def main():
   with open(os.path.join(root, SIMBODY_RECORDING), encoding="utf-8") as f:
     recording = json.load(f)
   cells, wp_date, wp_commit = cheapest_ms(root, os.path.join(root, WORK_PRECISION_RECORDING))
-  errors = (claims_errors(texts["README.md"], counts) + accuracy_errors(texts, accuracy)
+  errors = (claims_errors(texts["README.md"], counts) + headline_errors(texts["README.md"], claims_json)
+            + accuracy_errors(texts, accuracy)
             + ratio_errors(texts["README.md"], read(root, "crosscheck/simbody/README.md"), recording)
             + work_precision_errors(texts["README.md"], cells, wp_date, wp_commit)
             + inverse_errors(texts, inverse))
