@@ -170,6 +170,10 @@ TEST_F(HostileInput, OptionMessagesEchoTheTextTyped) {
       {"--formulation mde --integrator rk9", {"--integrator = 'rk9'", "cvode-adams"}, ""},
       // Options a formulation would drop were accepted and recorded in summary.json.
       {"--formulation mde --contact-chart height-field", {"--contact-chart = 'height-field'", "does not apply"}, ""},
+      {"--formulation staggered --contact-chart height-field", {"--contact-chart = 'height-field'", "does not apply"}, ""},
+      // Accepted before at ~40x the steps: the restart loop puts BDF back to order 1.
+      {"--formulation ede --integrator cvode-bdf --stabilization projection",
+       {"--stabilization projection with --integrator cvode-bdf", "--stabilization cvode-projection"}, ""},
       {"--formulation mde --integrator rk4 --max-step 0.00005",
        {"--max-step = 0.00005 s: mde with --integrator rk4 takes fixed steps"}, ""},
       {"--formulation generalized-alpha --rho-inf 0.5 --alpha-m 0 --alpha-f 0 --beta 0.25 --gamma 0.5",
