@@ -40,7 +40,7 @@ CASES = [
     ("dae", dict(rtol=1e-8, atol=1e-10)),
     ("newmark", dict(step=2e-4)),
     ("mde", dict(integrator="dopri5", rtol=1e-7, atol=1e-9)),
-    ("ede", dict(integrator="cvode-bdf", stabilization="projection")),
+    ("ede", dict(integrator="cvode-bdf", stabilization="cvode-projection")),
     ("dae-reduced", dict(rtol=1e-8, atol=1e-10, jacobian="jet")),
     ("dae-ggl", dict(rtol=1e-8, atol=1e-10, linear_solver="dense")),
     ("generalized-alpha", dict(step=2e-4, contact_chart="height-field")),
