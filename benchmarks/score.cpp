@@ -279,9 +279,10 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
   return out;
 }
 
-std::vector<EventRecord> ReadEvents(const std::string& path) {
+EventsFile ReadEvents(const std::string& path) {
   const std::string body = scene_detail::ReadInputFile(path, "--events file", scene_detail::TableFileRule("kneedyn score"));
-  std::vector<EventRecord> events;
+  EventsFile file;
+  std::vector<EventRecord>& events = file.events;
   const size_t first = body.find_first_not_of(" \t\r\n");
   if (first != std::string::npos && body[first] == '{') {  // kneedyn's summary.json
     const std::string document = "--events = '" + EchoPath(path) + "'";
@@ -298,7 +299,9 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
       events.push_back({EventName(read.String(list[i], where, "name"), path, 1), read.Number(list[i], where, "time"),
                         DegToRad(read.Number(list[i], where, "flexion_deg"))});
     }
-    return events;
+    if (const nlohmann::json* scene = read.Find(j, "", "scene")) file.scene = read.String(*scene, "scene.", "name");
+    if (read.Find(j, "", "status") != nullptr) file.status = read.String(j, "", "status");
+    return file;
   }
   Lines lines(scene_detail::WithoutByteOrderMark(body));
   std::string_view line;
@@ -342,7 +345,7 @@ std::vector<EventRecord> ReadEvents(const std::string& path) {
     const double event_time = ParseCell(time, &cell_buffer, path, line_no, "time_s");
     events.push_back({std::move(event_name), event_time, DegToRad(flexion)});
   }
-  return events;
+  return file;
 }
 
 Score ScoreResult(const ScoredResult& result, const Solution& reference) {

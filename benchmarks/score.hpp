@@ -69,8 +69,15 @@ struct ScoredResult {
 // are split into views, each row stored once.
 ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const Solution& reference);
 
-// Events a run reports, from kneedyn's summary.json ("events") or a CSV `name,time_s[,flexion_deg]`.
-std::vector<EventRecord> ReadEvents(const std::string& path);
+// Events a run reports, from kneedyn's summary.json ("events") or a CSV `name,time_s[,flexion_deg]`;
+// from a summary.json also the run's scene name and status (empty for a CSV), which the
+// caller checks against the scene scored and the result's failure.
+struct EventsFile {
+  std::vector<EventRecord> events;
+  std::string scene;   // summary.json scene.name
+  std::string status;  // summary.json status: completed, partial, ...
+};
+EventsFile ReadEvents(const std::string& path);
 
 struct Score {
   Metrics metrics;                          // metrics.hpp: scd, scd_compared, mixed, events

@@ -119,8 +119,18 @@ int ScoreCommand::Run(int argc, char** argv) {
     // Events the reference does not have are listed, not scored: a misspelled name would
     // otherwise only leave that event's score empty.
     std::vector<std::string> unmatched_events;
+    std::string run_failure = failure_;
     if (!events_path_.empty()) {
-      result.solution.events = ReadEvents(events_path_);
+      EventsFile events = ReadEvents(events_path_);
+      if (!events.scene.empty() && events.scene != scene.name) {
+        Throw<InputError>("kneedyn score", "--events = '", EchoPath(events_path_), "': the summary of a run of scene '",
+                          Echo(events.scene), "', not of '", scene.name, "' (--scene)");
+      }
+      // A run that ended early scores as the failure it is, unless --failed says why.
+      if (run_failure.empty() && !events.status.empty() && events.status != "completed") {
+        run_failure = StrCat("the run's summary.json (--events) has status '", Echo(events.status), "'");
+      }
+      result.solution.events = std::move(events.events);
       for (const EventRecord& e : result.solution.events) {
         const bool known = std::any_of(reference.events.begin(), reference.events.end(),
                                        [&e](const EventRecord& r) { return r.name == e.name; });
@@ -159,7 +169,7 @@ int ScoreCommand::Run(int argc, char** argv) {
       info.counters[c.substr(0, eq)] = v;  // over the --counters file's value of that name
     }
     info.cpu_time_s = cpu_time_;
-    info.failure = failure_;
+    info.failure = run_failure;
     // Rows off the reference's sampling times: against the reference run again there.
     const ReferenceScore scored =
         ScoreAgainstReference(scene, ref_json, reference, result, OffGridRows::kRunReferenceAgain);
@@ -204,7 +214,7 @@ int ScoreCommand::Run(int argc, char** argv) {
       std::printf(" (%zu of them off its sampling grid: the reference run again there, reproducing the stored "
                   "samples to %s digits)", off_grid.size(), Digits(reproduced_scd).c_str());
     }
-    std::printf("%s\n", failure_.empty() ? "" : (" [failed: " + failure_ + "]").c_str());
+    std::printf("%s\n", run_failure.empty() ? "" : (" [failed: " + run_failure + "]").c_str());
     std::printf("  scd %s (positions; over the compared times %s)\n", Digits(m.scd).c_str(), Digits(m.scd_compared).c_str());
     std::printf("  %-16s %8s %8s\n", "class", "columns", "mescd");
     for (const std::string& c : VariableClasses()) {

@@ -390,7 +390,9 @@ nlohmann::json StateJson(const Scene& scene, const MechanicalState& st) {
   return j;
 }
 
-const char* const kOutputFiles[] = {"trajectory.csv", "trajectory.sto", "summary.json"};
+// The files a run writes, and the score `kneedyn score` writes beside the trajectory by
+// default: it scores the set's trajectory, so it goes when the set is replaced.
+const char* const kOutputFiles[] = {"trajectory.csv", "trajectory.sto", "summary.json", "trajectory.score.json"};
 
 // `path` holds the pieces one after the other (written as they are: a large piece goes to
 // the file without a copy).

@@ -56,7 +56,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (input.second) WriteFile(events_path, *input.second);
   try {
     bench::ScoredResult result = bench::ReadResultCsv(result_path, reference.scene, reference.solution);
-    if (input.second) result.solution.events = bench::ReadEvents(events_path);
+    if (input.second) result.solution.events = bench::ReadEvents(events_path).events;
     const bench::ReferenceScore scored = bench::ScoreAgainstReference(
         reference.scene, reference.document, reference.solution, result, bench::OffGridRows::kNotCompared);
     bench::ScoreInfo info;

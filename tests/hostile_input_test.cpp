@@ -580,6 +580,26 @@ TEST_F(HostileInput, ScoreEventNameThatIsNotAsciiIsRefused) {
                 {"--events", "column name", "'flexion_?\?'"});
 }
 
+// A summary.json given to --events is a run's: of another scene it is refused (before, a
+// patellofemoral run's lift-off scored against the chapter's, |dt| = 0.09 s); a run that did
+// not complete makes the result a failed one (before, status "ok" unless --failed).
+TEST_F(HostileInput, ScoreEventsFromASummaryAreThoseOfTheRunScored) {
+  const std::string result = Input("result.csv", ScoreResultCsv());
+  const std::string out = (dir_ / "score.json").string();
+  const std::string other = Input("other.json", "{\"scene\": {\"name\": \"patellofemoral_impact\"}, \"status\": "
+                                  "\"completed\", \"events\": [{\"name\": \"flexion_90\", \"time\": 0.3, \"flexion_deg\": 90}]}");
+  ExpectRefused("score '" + result + "' --scene '" + ChapterScenePath() + "' --events '" + other + "' --out '" + out + "'",
+                {"--events", "scene 'patellofemoral_impact', not of 'chapter_impact'"});
+  const std::string partial = Input("partial.json", "{\"scene\": {\"name\": \"chapter_impact\"}, \"status\": "
+                                    "\"partial\", \"events\": [{\"name\": \"liftoff_lateral\", \"time\": 0.2, \"flexion_deg\": 50}]}");
+  const CommandResult r = RunKneedyn("score '" + result + "' --scene '" + ChapterScenePath() + "' --events '" + partial +
+                                     "' --out '" + out + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(ReadText(out));
+  EXPECT_EQ(j.at("results").at(0).at("status"), "failed") << j.dump();
+  EXPECT_NE(j.at("results").at(0).at("reason").get<std::string>().find("status 'partial'"), std::string::npos) << j.dump();
+}
+
 // An event the reference does not have (a misspelled name) is listed as not scored, in the
 // printout and the JSON's header; before, it only left that event's figure empty. The events
 // CSV takes the header `time` as the result CSV does.

@@ -102,6 +102,22 @@ TEST_F(OutputPublish, SecondRunReplacesTheSetWholeAndRemovesStaleTemporaries) {
   EXPECT_TRUE(Temporaries(dir_).empty()) << Temporaries(dir_).front();
 }
 
+// `kneedyn score DIR/trajectory.csv` writes DIR/trajectory.score.json by default: the next
+// run into DIR replaces the set and that score, which scored the replaced trajectory, with it
+// (it was refused as a foreign file, so the two documented defaults blocked each other).
+TEST_F(OutputPublish, RunReplacesASetHoldingTheScoreOfItsTrajectory) {
+  ASSERT_EQ(RunKneedyn(RunArgs(ChapterScenePath())).exit_code, 0);
+  const fs::path score = fs::path(Out()) / "trajectory.score.json";
+  const CommandResult scored = RunKneedyn("score '" + (fs::path(Out()) / "trajectory.csv").string() + "' --scene '" +
+                                          ChapterScenePath() + "'");
+  ASSERT_EQ(scored.exit_code, 0) << scored.output;
+  ASSERT_TRUE(fs::exists(score));
+  const CommandResult again = RunKneedyn(RunArgs(ShortScene(*this)));
+  EXPECT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_EQ(SetIn(Out()), "one_ligament");
+  EXPECT_FALSE(fs::exists(score));
+}
+
 TEST_F(OutputPublish, ConcurrentRunsLeaveOneWholeSet) {
   const std::string one = ShortScene(*this);
   for (int trial = 0; trial < 3; ++trial) {

@@ -63,7 +63,7 @@ TEST(Score, OwnTrajectoryGivesTheRunsScd) {
   const BuiltIn run = RunDae(Reference(), "own");
   const fs::path csv = run.dir / "trajectory.csv";
   bench::ScoredResult result = bench::ReadResultCsv(csv.string(), ChapterScene(), Reference().solution);
-  result.solution.events = bench::ReadEvents((run.dir / "summary.json").string());
+  result.solution.events = bench::ReadEvents((run.dir / "summary.json").string()).events;
   const bench::Score score = bench::ScoreResult(result, Reference().solution);
   const bench::Metrics& m = score.metrics;
   std::printf("dae rtol 1e-8: scd built-in %.6f, from trajectory.csv %.6f\n", run.metrics.scd, m.scd);
@@ -386,9 +386,9 @@ TEST(Score, NonFiniteCellsAndEmptyCoordinatesAreRefusedAndNothingComparedHasNoDi
       EXPECT_NE(std::string(e.what()).find("line 2, column time_s"), std::string::npos) << e.what();
     }
   }
-  EXPECT_EQ(bench::ReadEvents(write("events.csv", "\xEF\xBB\xBFname,time_s,flexion_deg\nflexion_90,0.3,\n")).size(), 1u);
+  EXPECT_EQ(bench::ReadEvents(write("events.csv", "\xEF\xBB\xBFname,time_s,flexion_deg\nflexion_90,0.3,\n")).events.size(), 1u);
   // The header `time`, as the result CSV accepts it.
-  EXPECT_EQ(bench::ReadEvents(write("events.csv", "name,time\nflexion_90,0.3\n")).at(0).time, 0.3);
+  EXPECT_EQ(bench::ReadEvents(write("events.csv", "name,time\nflexion_90,0.3\n")).events.at(0).time, 0.3);
 
   // A reference's comparison interval must be > 0 (it spaces the reference run again).
   nlohmann::json zero = Reference().json;
