@@ -143,8 +143,8 @@ int SweepCommand::Run() {
         last = now;
         const double rate = p.elapsed_s > 0 ? p.done / p.elapsed_s : 0.0;
         const double eta = rate > 0 ? (p.total - p.done) / rate : 0.0;
-        std::fprintf(stderr, "\r[sweep] %ld/%ld runs (%ld failed)  %.1f runs/s  time left %s   ", p.done, p.total,
-                     p.failed, rate, Duration(eta).c_str());
+        std::fprintf(stderr, "\r[sweep] %ld/%ld runs (%ld failed)  %.1f runs/s  elapsed %s  time left %s   ", p.done,
+                     p.total, p.failed, rate, Duration(p.elapsed_s).c_str(), Duration(eta).c_str());
       };
     }
     const auto start = std::chrono::steady_clock::now();
