@@ -317,6 +317,37 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
                        result.completed ? ", which the run's own steps reached (" : ", where the run stopped (", why, ")");
     out.push_back(std::move(p));
   }
+  // A fixed-step method cannot resolve a contact phase of a few steps: the undamped or weakly
+  // damped error modes of the index-3 forms (newmark; generalized-alpha at rho_inf near 1)
+  // make the normal force oscillate through zero, so such a lift-off and re-contact is a
+  // numerical artifact until a smaller --step keeps it (README, "Formulations").
+  if (result.fixed_step > 0.0) {
+    for (size_t i = 0; i < result.events.size(); ++i) {
+      const EventRecord& a = result.events[i];
+      const bool liftoff = a.name.compare(0, 8, "liftoff_") == 0;
+      if (!liftoff && a.name.compare(0, 10, "recontact_") != 0) continue;
+      const std::string part = a.name.substr(liftoff ? 8 : 10);
+      const std::string next = (liftoff ? "recontact_" : "liftoff_") + part;
+      const auto b = std::find_if(result.events.begin() + i + 1, result.events.end(),
+                                  [&](const EventRecord& e) { return e.name == next; });
+      if (b == result.events.end() || b->time - a.time >= kMinResolvedSteps * result.fixed_step) continue;
+      OutputWarning p;
+      p.kind = "short_contact_phase";
+      p.contact = part;
+      p.time_s = a.time;
+      p.duration_s = b->time - a.time;
+      char text[256];
+      std::snprintf(text, sizeof(text),
+                    "%s at t = %.6f s and %s %.3g s later: %s of %.1f fixed steps (h = %g s), shorter than %d "
+                    "steps: likely the normal force oscillating through zero, not a resolved %s; check it with a "
+                    "smaller --step",
+                    a.name.c_str(), a.time, next.c_str(), p.duration_s, liftoff ? "a separation" : "a contact phase",
+                    p.duration_s / result.fixed_step, result.fixed_step, kMinResolvedSteps,
+                    liftoff ? "separation" : "contact phase");
+      p.message = text;
+      out.push_back(std::move(p));
+    }
+  }
   return out;
 }
 
@@ -607,6 +638,10 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
       w["contact"] = p.contact;
       w["column"] = p.column;
       w["min_force_N"] = p.min_force_N;
+    }
+    if (p.kind == "short_contact_phase") {
+      w["contact"] = p.contact;
+      w["duration_s"] = p.duration_s;
     }
     w["time_s"] = p.time_s;
     w["message"] = p.message;

@@ -41,15 +41,18 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
 //  - kind "patella_not_followed": a row whose patella columns are empty
 //    (TrajectoryTable::patella_not_followed); `time_s` and `message` only.
 struct OutputWarning {
-  std::string kind;     // "pulling_contact" | "patella_not_followed"
+  std::string kind;     // "pulling_contact" | "patella_not_followed" | "short_contact_phase"
   std::string column;   // the trajectory column, e.g. "N_patella_lateral_N", "N_medial_N"
   std::string contact;  // "patellar facet lateral", "tibial contact medial"
   double min_force_N = 0.0;  // the column's most negative value, N
+  double duration_s = 0.0;   // short_contact_phase: from one change of the contact to the next, s
   double time_s = 0.0;       // its row's time, s (the first row of that value)
   std::string message;  // one line for the CLI and summary.json
 };
 // From the rows of `table` (MakeTrajectoryTable of `result`) and result.events: the pulling
-// contacts in column order, then the rows whose patella was not followed.
+// contacts in column order, then the rows whose patella was not followed, then, for a
+// fixed-step run, each contact phase or separation shorter than kMinResolvedSteps steps.
+constexpr int kMinResolvedSteps = 10;
 std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const RunResult& result);
 
 // summary.json; `warnings` are OutputWarnings of the run's table.
