@@ -131,7 +131,7 @@ std::string ReadRunOptions(const OptionText& typed, RunSettings* settings) {
   const auto it = typed.find("--output-interval");
   if (it == typed.end()) return "";
   if (!ParseReal(it->second, &settings->output_interval)) {
-    return StrCat("--output-interval = '", Echo(it->second), "': must be a finite number (in double's range)");
+    return StrCat("--output-interval = '", Echo(it->second), "': must be a finite number, 0 or of magnitude within double's normal range (2.2e-308 to 1.8e308)");
   }
   if (!(settings->output_interval > 0.0)) {
     return StrCat("--output-interval = '", Echo(it->second), "'; must be > 0 (omit it for the scene's)");
@@ -187,7 +187,8 @@ int Main(int argc, char** argv) {
   const auto accepted = [describe](auto field) { return describe ? AcceptedBy(field) : std::string(); };
   const auto shown = [describe](auto value) { return describe ? StrCat(value) : std::string(); };
   const FormulationOptions defaults;
-  text_option("--rtol", "relative tolerance", shown(defaults.rtol));
+  text_option("--rtol", "relative tolerance (fixed-step methods: their Newton test, if any, and the re-contact threshold)",
+              shown(defaults.rtol));
   text_option("--atol", "absolute tolerance (SI)", shown(defaults.atol));
   text_option("--integrator", "integrator (" + accepted(&FormulationInfo::integrators) + ")");
   text_option("--step", "fixed step in s (" + (describe ? FixedStepMethods() : std::string()) + ")");
