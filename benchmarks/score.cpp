@@ -14,6 +14,8 @@
 #include "scene/internal/json_field.hpp"
 #include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
+#include "solver/observables.hpp"
+#include "solver/pose.hpp"
 #include "solver/units.hpp"
 
 namespace kneedyn {
@@ -507,6 +509,34 @@ Solution ReferenceSolution(const nlohmann::json& reference_json, const std::stri
                           document);
 }
 
+double PrintedEnergyError(const Scene& scene, const Solution& result) {
+  const auto& positions = result.values.at("positions");    // x0, y0, z0 mm; flexion, valgus, rotation deg
+  const auto& velocities = result.values.at("velocities");  // their rates, mm/s and deg/s
+  double e0 = kNaN, worst = 0.0;
+  for (size_t i = 0; i < result.times.size(); ++i) {
+    if (i >= positions.size() || i >= velocities.size()) break;
+    const std::vector<double>& p = positions[i];
+    const std::vector<double>& v = velocities[i];
+    if (p.size() != 6 || v.size() != 6 ||
+        !std::all_of(p.begin(), p.end(), [](double x) { return std::isfinite(x); }) ||
+        !std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); })) {
+      if (i == 0) return kNaN;  // no E(0)
+      continue;
+    }
+    Vector6d q, qd;
+    for (int a = 0; a < 3; ++a) q(kX0 + a) = MmToM(p[a]), qd(kX0 + a) = MmToM(v[a]);
+    q(kAlpha) = DegToRad(p[3]), q(kBeta) = DegToRad(p[4] + 90.0), q(kGamma) = DegToRad(p[5]);  // valgus = β − 90°
+    qd(kAlpha) = DegToRad(v[3]), qd(kBeta) = DegToRad(v[4]), qd(kGamma) = DegToRad(v[5]);
+    const double e = ComputeEnergies(scene.model, q, qd).mechanical;
+    if (i == 0) {
+      if (result.times[0] != 0.0) return kNaN;
+      e0 = e;
+    }
+    worst = std::max(worst, std::abs(e - e0));
+  }
+  return std::isfinite(e0) && e0 != 0.0 ? worst / std::abs(e0) : kNaN;
+}
+
 ReferenceScore ScoreAgainstReference(const Scene& scene, const nlohmann::json& reference_json,
                                      const Solution& reference, const ScoredResult& result, OffGridRows off_grid_rows) {
   ReferenceScore out{{}, OffGridTimes(result, reference), kNaN};
@@ -518,6 +548,12 @@ ReferenceScore ScoreAgainstReference(const Scene& scene, const nlohmann::json& r
   // measured is the reference's own: flagged as in the work-precision sweep.
   const double ceiling_accuracy = ScoreCeilingAccuracy(reference_json, out.reproduced_scd);
   if (std::isfinite(ceiling_accuracy)) ApplyScdCeiling(ceiling_accuracy, &out.score.metrics);
+  // The conservative scene's energy error, as the work-precision sweep records it for kneedyn's
+  // runs (null when the result gives no positions and velocities from t = 0).
+  if (reference_json.value("conservative", false)) {
+    const double energy_error = PrintedEnergyError(scene, result.solution);
+    if (std::isfinite(energy_error)) out.score.metrics.energy_error = energy_error;
+  }
   return out;
 }
 

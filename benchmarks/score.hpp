@@ -126,9 +126,14 @@ enum class OffGridRows {
   kNotCompared,        // compared at the sampling times only (fuzz targets: no integration per input)
 };
 
+// The energy error of a result on a conservative scene (metrics.hpp: max_i |E(t_i) − E(0)| /
+// |E(0)|) from its printed positions and velocities, over the rows that give all twelve;
+// E(0) from its first row, which must be at t = 0 and complete (else NaN).
+double PrintedEnergyError(const Scene& scene, const Solution& result);
+
 // A result scored against a reference the way `kneedyn score` does it: off-grid rows as
 // `off_grid_rows` says, ScoreResult, then the ceiling of ScoreCeilingAccuracy
-// (ApplyScdCeiling). Throws SolverError when the configuration run again fails or does
+// (ApplyScdCeiling), and on a conservative reference the energy error (PrintedEnergyError). Throws SolverError when the configuration run again fails or does
 // not reproduce the stored samples (DenseReference).
 struct ReferenceScore {
   Score score;

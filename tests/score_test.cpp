@@ -82,6 +82,44 @@ TEST(Score, OwnTrajectoryGivesTheRunsScd) {
   fs::remove_all(run.dir);
 }
 
+// On the conservative scene the score records the energy error from the printed positions
+// and velocities: it equals the one the work-precision sweep computes from the run's own
+// states (bench::Evaluate, metrics.cpp EnergyError) to the CSV's 12 digits. Without the
+// velocity columns it is null.
+TEST(Score, ConservativeSceneEnergyErrorFromThePrintedStates) {
+  const Scene scene = LoadScene(ReferenceDataDir() + "/scenes/conservative.yaml");
+  const std::string reference_file = ReferenceDataDir() + "/references/conservative.json";
+  const bench::Reference ref = bench::LoadReference(reference_file);
+  ASSERT_TRUE(ref.conservative);
+  bench::BenchConfig config;
+  config.formulation = "ede";
+  config.integrator = "dopri5";
+  config.rtol = 1e-6;  // an energy error well above the CSV's rounding
+  config.atol = 1e-8;
+  const bench::Outcome outcome = bench::RunConfig(scene, config, ref.comparison_interval);
+  ASSERT_EQ(outcome.status, "ok") << outcome.reason;
+  const double built_in = bench::Evaluate(scene, outcome, ref).energy_error;
+  const fs::path dir = fs::temp_directory_path() / ("kneedyn_score_energy_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  RunSettings settings;
+  settings.formulation = "ede";
+  WriteRunOutputs(dir.string(), scene, settings, outcome.result);
+  const bench::ScoredResult result = bench::ReadResultCsv((dir / "trajectory.csv").string(), scene, ref.solution);
+  const double scored =
+      bench::ScoreAgainstReference(scene, ref.json, ref.solution, result, bench::OffGridRows::kNotCompared)
+          .score.metrics.energy_error;
+  std::printf("conservative, ede dopri5 rtol 1e-6: energy error from the states %.6e, from trajectory.csv %.6e\n",
+              built_in, scored);
+  ASSERT_GT(built_in, 1e-7);
+  // 12 printed digits move a ligament's length by ~1e-13 m, its energy by ~1e-11 J: ~1e-10 of
+  // E(0) here (measured: 3e-10).
+  EXPECT_NEAR(scored, built_in, 1e-9);
+  bench::ScoredResult positions_only = result;
+  for (auto& row : positions_only.solution.values.at("velocities")) std::fill(row.begin(), row.end(), NAN);
+  EXPECT_FALSE(std::isfinite(bench::PrintedEnergyError(scene, positions_only.solution)));
+  fs::remove_all(dir);
+}
+
 // Positions only, at the reference's sampling times only, without is_event: the same scd;
 // the classes not given have no digits.
 TEST(Score, SubsetOfColumnsAndTimes) {
