@@ -4,10 +4,11 @@ programs; the wheel holds what `cmake --install --component runtime` installs
 
   kneedyn/ (the package: __init__.py, _kneedyn*.so)   -> site-packages
   bin/kneedyn, bin/kneedyn_catalog                   -> <prefix>/bin
-  lib/kneedyn/kneedyn_sweep_io.so (sweep.h5, mpirun)  -> <prefix>/lib/kneedyn
+  lib/kneedyn/kneedyn_sweep_io.so (sweep.h5, mpirun),
+  lib/kneedyn/kneedyn_ceres_fallback.so (Ceres)       -> <prefix>/lib/kneedyn
   share/kneedyn/ (scenes, parameter set, references)  -> <prefix>/share/kneedyn
 
-The programs and the module find the data and the plugin relative to themselves, so a venv
+The programs and the module find the data and the plugins relative to themselves, so a venv
 (or ~/.local, or /usr/local) works as an install prefix. Offline with Debian's setuptools:
 `pip install --no-build-isolation .` (docs/python.md, "Install with pip").
 

@@ -81,6 +81,8 @@ endif()
 if(NOT kneedyn_sundials_key_now STREQUAL kneedyn_sundials_key)
   message(STATUS "SUNDIALS: building ${KNEEDYN_SUNDIALS_VERSION} (IDAS, CVODES, ARKODE; static; C flags '${KNEEDYN_SUNDIALS_C_FLAGS}') into ${kneedyn_sundials_prefix}")
   file(REMOVE_RECURSE "${kneedyn_sundials_root}/build" "${kneedyn_sundials_prefix}")
+  # The logs go here; with KNEEDYN_SUNDIALS_SOURCE_DIR pointing elsewhere nothing created it.
+  file(MAKE_DIRECTORY "${kneedyn_sundials_root}")
   include(ProcessorCount)
   ProcessorCount(kneedyn_jobs)
   if(kneedyn_jobs EQUAL 0)

@@ -383,6 +383,19 @@ bool HasErrorControl(const FormulationInfo& info, std::optional<IntegratorKind> 
   return !IsFixedStep(info, integrator);
 }
 
+std::vector<FormulationInfo> WithUniqueNames(std::vector<FormulationInfo> formulations) {
+  for (size_t i = 0; i < formulations.size(); ++i) {
+    for (size_t j = 0; j < i; ++j) {
+      if (formulations[i].name == formulations[j].name) {
+        throw std::logic_error(StrCat("formulations/registry.cpp: formulation '", formulations[i].name,
+                                      "' is registered twice (entries ", j + 1, " and ", i + 1,
+                                      "); each name once"));
+      }
+    }
+  }
+  return formulations;
+}
+
 const FormulationInfo& FindFormulation(const std::string& name) {
   std::string known;
   for (const FormulationInfo& info : RegisteredFormulations()) {

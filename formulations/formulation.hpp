@@ -349,6 +349,9 @@ bool IsFixedStep(const FormulationInfo& info, std::optional<IntegratorKind> inte
 
 // The registry (registry.cpp), in a stable order.
 const std::vector<FormulationInfo>& RegisteredFormulations();
+// `formulations` as given, after checking that no name repeats: throws std::logic_error
+// naming a repeated one (a second registry line would otherwise be listed twice and never run).
+std::vector<FormulationInfo> WithUniqueNames(std::vector<FormulationInfo> formulations);
 const FormulationInfo& FindFormulation(const std::string& name);  // throws InputError
 std::unique_ptr<Formulation> CreateFormulation(const std::string& name, const Scene& scene,
                                                const FormulationOptions& options);

@@ -19,7 +19,7 @@ const std::vector<JacobianKind> kNewtonJacobians = {JacobianKind::kExact, Jacobi
 }  // namespace
 
 const std::vector<FormulationInfo>& RegisteredFormulations() {
-  static const std::vector<FormulationInfo> kRegistry = {
+  static const std::vector<FormulationInfo> kRegistry = WithUniqueNames({
       FormulationInfo("dae", "chapter's index-2 DAE (modified reverse EDE), contact coordinates, IDA", KNEEDYN_FACTORY(ConfigureDae)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).LinearSolvers(kIdaLinearSolvers).Sensitivity(SensitivityForm::kDae),
       FormulationInfo("dae-reduced", "index-2 DAE with closed-form sphere-on-plane contact, IDA", KNEEDYN_FACTORY(ConfigureDaeReduced)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).LinearSolvers(kIdaLinearSolvers).Sensitivity(SensitivityForm::kDae),
       FormulationInfo("dae-ggl", "Gear-Gupta-Leimkuhler stabilized index-2 DAE (position and velocity constraints), contact coordinates, IDA", KNEEDYN_FACTORY(ConfigureDaeGgl)).AlgebraicForces().Jacobians(kIdaJacobians).LinearSolvers(kIdaLinearSolvers).Sensitivity(SensitivityForm::kDaeGgl),
@@ -33,7 +33,7 @@ const std::vector<FormulationInfo>& RegisteredFormulations() {
       FormulationInfo("staggered", "the chapter's staggered tibia-patella procedure (section 1.7): the tendon force lagged one step --step, dopri5 inside a step", KNEEDYN_FACTORY(ConfigureStaggered)).FixedStep().NeedsPatella().NoContactChart(),
       FormulationInfo("monolithic", "the chapter's monolithic tibia-patella DAE (section 1.7): dae's index-2 DAE plus the patella's 17 equilibrium unknowns as algebraic variables, IDA", KNEEDYN_FACTORY(ConfigureMonolithic)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).LinearSolvers(kIdaLinearSolvers).NeedsPatella(),
       FormulationInfo("monolithic-ggl", "the monolithic tibia-patella DAE with the tibia in the Gear-Gupta-Leimkuhler stabilized form (dae-ggl), IDA", KNEEDYN_FACTORY(ConfigureMonolithicGgl)).AlgebraicForces().Jacobians(kIdaJacobians).LinearSolvers(kIdaLinearSolvers).NeedsPatella(),
-  };
+  });
   return kRegistry;
 }
 

@@ -12,7 +12,8 @@
 // the chain rule, so every Jacobian through a surface is exact without the surface knowing
 // about AD. Contact kinematics for any pair of surfaces: contact_kinematics.hpp.
 // Adding a surface type: a file pair deriving from HeightField that declares its scene
-// name and parameters (surface_parameters.hpp), and one line in surface_types.hpp.
+// name and parameters (surface_parameters.hpp), one line in surface_types.hpp, and its name
+// and keys in reference-data/scenes/README.md and fuzz/yaml.dict (README, "Layout").
 #pragma once
 
 #include <cmath>

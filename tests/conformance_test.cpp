@@ -178,6 +178,21 @@ TEST_P(Conformance, MaxStepsIsABudgetPerPhaseOverItsOutputIntervals) {
 INSTANTIATE_TEST_SUITE_P(Registered, Conformance, ::testing::ValuesIn(test_support::RegisteredFormulationNames()),
                          test_support::FormulationParamName());
 
+// A registry line copied under a name already registered is refused at the registry's first
+// use, naming it (before, `kneedyn formulations` listed it twice and --formulation ran the first).
+TEST(Registry, ANameRegisteredTwiceIsRefused) {
+  std::vector<FormulationInfo> twice = RegisteredFormulations();
+  EXPECT_NO_THROW(WithUniqueNames(twice));
+  twice.push_back(twice.front());
+  try {
+    WithUniqueNames(twice);
+    ADD_FAILURE() << "no error for a repeated name";
+  } catch (const std::logic_error& e) {
+    EXPECT_NE(std::string(e.what()).find("'" + twice.front().name + "' is registered twice"), std::string::npos)
+        << e.what();
+  }
+}
+
 // --- The patella part ---------------------------------------------------------------------
 
 // Those that run a scene with a patella: every registry line. The patella enters through the
