@@ -238,15 +238,15 @@ def main():
 
     # 3. The table, from both layouts.
     expected = {
-        "dae": ["4", "1", "7.00", "0.020 (rtol=1e-06)", "0.030 (rtol=1e-08)", "—", "—"],
-        "ede:dopri5": ["3", "1", "6.50", "0.004 (rtol=1e-05)", "0.008 (rtol=1e-07)", "—", "—"],
-        "ede:rk4": ["1", "0", "4.20", "0.012 (h=0.0005)", "—", "—", "—"]}
+        "dae": ["4", "1", "7.00", "20 (rtol=1e-06)", "30 (rtol=1e-08)", "—", "—"],
+        "ede:dopri5": ["3", "1", "6.50", "4 (rtol=1e-05)", "8 (rtol=1e-07)", "—", "—"],
+        "ede:rk4": ["1", "0", "4.20", "12 (h=0.0005)", "—", "—", "—"]}
     rows, text = table_rows(paths["with_components"])
     if rows != expected:
       errors.append(f"table of the full-layout file: {rows} != {expected}\n{text}")
     rows, text = table_rows(paths["merged"])
-    expected_merged = {"simbody:rkm": ["2", "1", "5.50", "0.040 (accuracy=1e-06)", "—", "—", "—"],
-                       "dae": ["1", "0", "5.00", "0.020 (rtol=1e-06)", "—", "—", "—"]}
+    expected_merged = {"simbody:rkm": ["2", "1", "5.50", "40 (accuracy=1e-06)", "—", "—", "—"],
+                       "dae": ["1", "0", "5.00", "20 (rtol=1e-06)", "—", "—", "—"]}
     if rows != expected_merged:
       errors.append(f"table of the merged file: {rows} != {expected_merged}\n{text}")
 
