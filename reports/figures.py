@@ -522,7 +522,10 @@ def reading_claim_matrix(verdicts_json, path):
                                   else " (incomplete)") for r in rows], fontsize=7)
   for i, r in enumerate(rows):
     lo = r.get("liftoff_lateral_deg")
-    ax.text(len(ids) - 0.3, i, f"  {lo:.1f}°  {r.get('reproduced')}✓" if lo is not None else "  none",
+    # An informative reading without a lateral lift-off still has its count (damped_sine/g_off).
+    where = f"  {lo:.1f}°" if lo is not None else "  no lift-off" if r["informative"] else "  —"
+    count = f"  {r.get('reproduced')}✓" if r["informative"] else ""
+    ax.text(len(ids) - 0.3, i, where + count,
             va="center", ha="left", fontsize=7)
   title = ("Reading × claim: green reproduced, red not reproduced, grey not checkable or incomplete; "
            "right: lateral lift-off (chapter ≈ 66°) and claims reproduced")
