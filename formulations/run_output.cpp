@@ -445,7 +445,7 @@ void WriteFile(const std::string& dir_name, const fs::path& path, std::initializ
 fs::path OutputPath(const std::string& dir_name) {
   fs::path out = fs::path(dir_name).lexically_normal();
   if (out.filename().empty()) out = out.parent_path();
-  if (out.empty() || out.filename() == "." || out.filename() == "..") {
+  if (out.empty() || out == out.root_path() || out.filename() == "." || out.filename() == "..") {
     Throw<InputError>("WriteRunOutputs", "--out = '", EchoPath(dir_name),
                       "': must name a directory of its own (not '.', '..' or '/')");
   }

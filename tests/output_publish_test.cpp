@@ -79,6 +79,15 @@ TEST_F(OutputPublish, OutWhoseTrajectoryIsADirectoryIsRefusedAndKept) {
   EXPECT_TRUE(Temporaries(dir_).empty());
 }
 
+// --out naming no directory of its own ('.', '..', the root) is refused with the rule; the
+// root was refused only by its first entry ("holds 'bin', which is not part of an output set").
+TEST_F(OutputPublish, OutThatIsNoDirectoryOfItsOwnIsRefused) {
+  for (const char* out : {".", "..", "/", "//"}) {
+    ExpectRefused("run '" + ChapterScenePath() + "' --quiet --out '" + out + "'",
+                  {std::string("--out = '") + out + "'", "must name a directory of its own"});
+  }
+}
+
 TEST_F(OutputPublish, OutWithForeignFileIsRefused) {
   fs::create_directories(Out());
   WriteText(fs::path(Out()) / "notes.txt", "mine");
