@@ -26,19 +26,27 @@ def load_csv(path):
   return {h: data[:, i] for i, h in enumerate(header)}
 
 
-def add_tibial_frame_columns(t):
-  """The velocity columns in the tibia's own axes, beside the femoral-frame / JCS ones:
-  v_T = R_FT^T v_F (mm/s) with R_FT = Rx(−α) Ry(π/2 − β) Rz(−γ) (solver/rotation.hpp), and
-  the JCS rates' tibial-axis counterparts −ω_T (deg/s; w_T = −α̇ î − β̇ ê2 − γ̇ k̂′, so at the
-  reference pose −ω_T = (α̇, β̇, γ̇)). The chapter does not say which axes its Figs. 1.11–1.15 use."""
-  a = np.radians(t["flexion_deg"])
-  b = np.radians(t["valgus_deg"] + 90.0)
-  g = np.radians(t["external_rotation_deg"])
+def tibial_axes_in_F(flexion_deg, valgus_deg, external_rotation_deg):
+  """The columns of R_FT = Rx(−α) Ry(π/2 − β) Rz(−γ) (solver/rotation.hpp), the tibial axes in
+  femoral components, from the trajectory's angles (valgus = β − 90°): three (x, y, z) tuples.
+  Written again here for the report's columns; tests/claims_checks_test.py checks it against
+  the stored reference, whose contact points satisfy p_F = R0 + R_FT p_T."""
+  a = np.radians(flexion_deg)
+  b = np.radians(np.asarray(valgus_deg) + 90.0)
+  g = np.radians(external_rotation_deg)
   sa, ca, sb, cb, sg, cg = np.sin(a), np.cos(a), np.sin(b), np.cos(b), np.sin(g), np.cos(g)
-  # Columns of R_FT = tibial axes in F components; v_T[i] = column_i · v_F.
-  cols = [(sb * cg, -ca * sg - sa * cb * cg, sa * sg - ca * cb * cg),
+  return [(sb * cg, -ca * sg - sa * cb * cg, sa * sg - ca * cb * cg),
           (sb * sg, ca * cg - sa * cb * sg, -sa * cg - ca * cb * sg),
           (cb, sa * sb, ca * sb)]
+
+
+def add_tibial_frame_columns(t):
+  """The velocity columns in the tibia's own axes, beside the femoral-frame / JCS ones:
+  v_T = R_FT^T v_F (mm/s) with R_FT of tibial_axes_in_F, and the JCS rates' tibial-axis
+  counterparts −ω_T (deg/s; w_T = −α̇ î − β̇ ê2 − γ̇ k̂′, so at the reference pose −ω_T = (α̇, β̇,
+  γ̇)). The chapter does not say which axes its Figs. 1.11–1.15 use."""
+  # v_T[i] = column_i · v_F.
+  cols = tibial_axes_in_F(t["flexion_deg"], t["valgus_deg"], t["external_rotation_deg"])
   v = (t["vx_mm_s"], t["vy_mm_s"], t["vz_mm_s"])
   for name, c in zip(("vx_T_mm_s", "vy_T_mm_s", "vz_T_mm_s"), cols):
     t[name] = c[0] * v[0] + c[1] * v[1] + c[2] * v[2]

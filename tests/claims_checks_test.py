@@ -11,6 +11,7 @@
   - the tibial-frame velocity columns preserve the speed (a rotation) and equal the JCS rates
     at the reference pose.
 """
+import json
 import os
 import sys
 import tempfile
@@ -22,7 +23,7 @@ sys.dont_write_bytecode = True
 sys.path.insert(0, os.path.join(ROOT, "reports"))
 from py_test_support import finish  # noqa: E402
 import claims  # noqa: E402
-from family_data import add_tibial_frame_columns  # noqa: E402
+from family_data import add_tibial_frame_columns, tibial_axes_in_F  # noqa: E402
 
 
 class FakeMember:
@@ -32,6 +33,34 @@ class FakeMember:
 
   def col(self, name):
     return self.cols[name]
+
+
+def rotation_against_reference():
+  """tibial_axes_in_F against kneedyn's own R_FT (solver/rotation.hpp) through the stored
+  reference: an active contact's point in F is R0 + R_FT times its point in T, to the gap
+  (< 1e-9 mm there). A transposed matrix or a flipped angle moves it by millimetres."""
+  with open(os.path.join(ROOT, "reference-data", "references", "chapter_impact.json"), encoding="utf-8") as f:
+    classes = json.load(f)["solution"]["classes"]
+  pos = classes["positions"]
+  points = classes["contact_points"]
+  worst, compared = 0.0, 0
+  for p, c in zip(pos["values"], points["values"]):
+    q = dict(zip(pos["names"], p))
+    cp = dict(zip(points["names"], c))
+    axes = tibial_axes_in_F(q["flexion_deg"], q["valgus_deg"], q["external_rotation_deg"])
+    for side in ("medial", "lateral"):
+      p_T = [cp[f"tibial_{side}_{a}_mm"] for a in "xyz"]
+      p_F = [cp[f"femoral_{side}_{a}_mm"] for a in "xyz"]
+      if any(v is None for v in p_T + p_F):
+        continue  # separated: no contact point
+      for i, r0 in enumerate((q["x0_mm"], q["y0_mm"], q["z0_mm"])):
+        mapped = r0 + sum(float(axes[k][i]) * p_T[k] for k in range(3))
+        worst = max(worst, abs(mapped - p_F[i]))
+      compared += 1
+  if compared < 10:
+    return [f"rotation check: only {compared} contact points in the reference"]
+  return [] if worst < 1e-6 else [f"tibial_axes_in_F: p_F − (R0 + R_FT p_T) up to {worst:.3g} mm "
+                                  f"over {compared} contact points of the stored reference"]
 
 
 def main():
@@ -84,6 +113,7 @@ def main():
   add_tibial_frame_columns(ref)  # reference pose: T parallel to F
   if abs(ref["vx_T_mm_s"][0] - 1.0) + abs(ref["vy_T_mm_s"][0] - 2.0) + abs(ref["vz_T_mm_s"][0] - 3.0) > 1e-12:
     errors.append("tibial-frame velocity differs from the femoral one at the reference pose")
+  errors += rotation_against_reference()
 
   return finish(errors, "claims_checks_test: FAIL:", f"claims_checks_test: {'ok' if not errors else 'FAILED'} "
                 f"(rho {rho:.3f}, output steps decreasing {steps_down:.2f})")
