@@ -375,14 +375,6 @@ bool IsFixedStep(const FormulationInfo& info, const std::string& integrator) {
   return IsFixedStep(info, IntegratorOption(integrator));
 }
 
-bool HasErrorControl(const FormulationInfo& info, const std::string& integrator) {
-  return !IsFixedStep(info, integrator);
-}
-
-bool HasErrorControl(const FormulationInfo& info, std::optional<IntegratorKind> integrator) {
-  return !IsFixedStep(info, integrator);
-}
-
 std::vector<FormulationInfo> WithUniqueNames(std::vector<FormulationInfo> formulations) {
   for (size_t i = 0; i < formulations.size(); ++i) {
     for (size_t j = 0; j < i; ++j) {

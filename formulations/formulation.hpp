@@ -230,11 +230,9 @@ struct FormulationInfo {
   bool algebraic_forces = false;
   std::vector<Stabilization> stabilizations = {Stabilization::kNone};          // --stabilization
   std::vector<ConstraintLevel> constraint_levels = {ConstraintLevel::kVelocity};  // --constraint-level
-  bool general_surfaces = true;  // any surface pair (contact_kinematics.hpp), not only sphere on plane
   // Reads --contact-chart (the chart of its contact coordinates); mde eliminates them in
   // closed form and takes none.
   bool contact_chart = true;
-  bool event_location = true;    // locates event roots inside a step (root finder or event locator)
   std::vector<JacobianKind> jacobians;  // values --jacobian accepts; empty: the option does not apply
   std::vector<LinearSolverKind> linear_solvers;  // values --linear-solver accepts; empty: does not apply
   // Takes the generalized-alpha parameters (--rho-inf, --alpha-m, --alpha-f, --beta, --gamma).
@@ -252,9 +250,7 @@ struct FormulationInfo {
   FormulationInfo& AlgebraicForces() { algebraic_forces = true; return *this; }
   FormulationInfo& Stabilizations(std::vector<Stabilization> v) { stabilizations = std::move(v); return *this; }
   FormulationInfo& ConstraintLevels(std::vector<ConstraintLevel> v) { constraint_levels = std::move(v); return *this; }
-  FormulationInfo& SphereOnPlaneOnly() { general_surfaces = false; return *this; }
   FormulationInfo& NoContactChart() { contact_chart = false; return *this; }
-  FormulationInfo& NoEventLocation() { event_location = false; return *this; }
   FormulationInfo& Jacobians(std::vector<JacobianKind> v) { jacobians = std::move(v); return *this; }
   FormulationInfo& LinearSolvers(std::vector<LinearSolverKind> v) { linear_solvers = std::move(v); return *this; }
   FormulationInfo& SchemeParameters() { scheme_parameters = true; return *this; }
@@ -276,10 +272,6 @@ void CheckOptions(const FormulationInfo& info, const FormulationOptions& options
 // throws InputError with the refusal.
 FormulationMaker Configure(const FormulationInfo& info, const FormulationOptions& options,
                            const OptionText& typed = {});
-
-// Adaptive step size under --rtol/--atol (error control): not IsFixedStep.
-bool HasErrorControl(const FormulationInfo& info, const std::string& integrator);
-bool HasErrorControl(const FormulationInfo& info, std::optional<IntegratorKind> integrator);
 
 // A registry line's factory (registry.cpp): a Configure function defined in the formulation's
 // own file, declared inside the lambda, so that the registry line is all a new formulation

@@ -48,7 +48,7 @@ void MdeChart::Choose(const Vector6d& q) {
     }
   }
   // Keep the chart in use while it stays within a factor 2 of the best one.
-  if (!current.empty() && current.size() == static_cast<size_t>(k) && current_det >= 0.5 * best) {
+  if (!current.empty() && current.size() == static_cast<size_t>(k) && current_det >= kChartKeepFraction * best) {
     elim_ = current;
     best = current_det;
   }

@@ -296,7 +296,7 @@ void Problem::Events(double t, const double* y, int n, double* g) const {
     if (has_chart_event()) {
       double current = 0.0, best = 0.0;
       chart_->Conditioning(kin.q, &current, &best);
-      g[specs_.size()] = current - 0.5 * best;  // the formulation's switch threshold (factor 2)
+      g[specs_.size()] = current - kChartKeepFraction * best;  // the formulation's switch threshold
     }
     return;
   }

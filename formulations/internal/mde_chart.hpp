@@ -38,6 +38,9 @@ namespace kneedyn {
 
 // |det| of the elimination solve below which the pose is treated as degenerate.
 constexpr double kMinEliminationDeterminant = 1.0e-8;
+// The chart in use is kept while its |det| is at least this fraction of the best chart's
+// (a switch at 2x); the Problem interface's chart event is its zero (problem/problem.cpp).
+constexpr double kChartKeepFraction = 0.5;
 // Largest loss of conditioning of the chart in use, best |det| / its |det|, tolerated
 // inside a step (charts are switched at 2x after each step).
 constexpr double kMaxChartDegradation = 1.0e3;

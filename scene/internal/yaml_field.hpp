@@ -71,7 +71,6 @@ class Field {
   bool IsSequence() const { return kind_ == YamlKind::kSequence; }
   bool IsScalar() const { return kind_ == YamlKind::kScalar; }  // not null
   bool IsPlainScalar() const;  // written without quotes
-  bool IsNull() const { return kind_ == YamlKind::kNull; }
   std::vector<std::string> Keys() const;  // of a mapping, in file order
   const std::string& path() const;
 
