@@ -63,7 +63,7 @@ void WriteCsv(const std::string& path, const SweepTable& table) {
       out << ',' << (r.completed ? "completed" : "failed") << ',' << r.end_reason << ',' << r.steps << ','
           << Quoted(r.failure) << '\n';
     }
-    if (!out) Throw<Error>("WriteCsv", "write to '", tmp, "' failed");
+    if (!out) Throw<Error>("WriteCsv", "write to '", tmp, "' failed: ", std::strerror(errno));
   }
   Publish(tmp, path);
 }

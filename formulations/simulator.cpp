@@ -30,7 +30,7 @@ void Simulator::Record(bool is_event) {
   if (!record_->samples.empty()) {
     const MechanicalState& last = record_->samples.back();
     if (std::sin(last.q(kBeta)) * std::sin(state_.q(kBeta)) < 0.0) {
-      Throw<SolverError>("Simulator::Run", "the JCS singularity (sin beta = 0) was crossed between t = ", last.t,
+      Throw<SolverError>("Simulator::Record", "the JCS singularity (sin beta = 0) was crossed between t = ", last.t,
                          " s and t = ", state_.t, " s (beta ", RadToDeg(last.q(kBeta)), " -> ", RadToDeg(state_.q(kBeta)),
                          " deg); the angular-velocity map E is singular there (docs/model.md §2)");
     }

@@ -15,10 +15,14 @@ EllipsoidCap::EllipsoidCap(const Vector3d& centre, const Vector3d& semi_axes,
       Throw<InputError>("EllipsoidCap", "semi-axis ", i, " = ", semi_axes(i), " m; must be finite and > 0");
     }
   }
-  if (!centre.allFinite() || !orientation.allFinite() ||
-      !(std::abs(orientation.determinant() - 1.0) < 1e-9) ||
-      !((orientation.transpose() * orientation - Matrix3d::Identity()).norm() < 1e-9)) {
-    Throw<InputError>("EllipsoidCap", "centre and orientation must be finite and the orientation a rotation");
+  if (!centre.allFinite()) {
+    Throw<InputError>("EllipsoidCap", "centre = (", centre(0), ", ", centre(1), ", ", centre(2), ") m; must be finite");
+  }
+  const double det = orientation.determinant();
+  const double orthogonality = (orientation.transpose() * orientation - Matrix3d::Identity()).norm();
+  if (!orientation.allFinite() || !(std::abs(det - 1.0) < 1e-9) || !(orthogonality < 1e-9)) {
+    Throw<InputError>("EllipsoidCap", "orientation: det = ", det, ", |RᵀR − I| = ", orthogonality,
+                      "; must be a finite rotation (det 1 and |RᵀR − I| < 1e-9)");
   }
   A_ = orientation * semi_axes.asDiagonal();
   A_inv_ = A_.inverse();

@@ -71,7 +71,8 @@ void ChapterGuesses(const Model& model, const SurfacePair& medial_surfaces, cons
   const double xc = medial->femoral_xy[0], yc = medial->femoral_xy[1];
   const double xt = (*medial->tibial_xy)[0], yt = (*medial->tibial_xy)[1];
   if (!medial_surfaces.femoral->Evaluate(xc, yc, &fs) || !medial_surfaces.tibial->Evaluate(xt, yt, &gs)) {
-    Throw<InputError>("BuildInitialState", "chapter guesses lie outside the medial surfaces");
+    Throw<InputError>("BuildInitialState", "the chapter guesses (", MToMm(xc), ", ", MToMm(yc), ") mm on the femur and (",
+                      MToMm(xt), ", ", MToMm(yt), ") mm on the tibia lie outside the medial surfaces");
   }
   const Matrix3d R = RotationFT(init->q(kAlpha), init->q(kBeta), init->q(kGamma));
   const Vector3d R0 = Vector3d(xc, yc, fs.value) - R * Vector3d(xt, yt, gs.value);
@@ -162,8 +163,8 @@ Vector6d SolveReferencePose(const ReferencePoseDescription& d) {
   q(kX0) = xz(0);
   q(kZ0) = xz(1);
   if (!q.allFinite() || q.head<3>().norm() > kMaxReferenceOffset) {
-    Throw<InputError>("SolveReferencePose",
-                      "the contact conditions give no reference pose within 1 m (parallel or degenerate surfaces)");
+    Throw<InputError>("SolveReferencePose", "the contact conditions give x0 = ", q(kX0), " m, z0 = ", q(kZ0),
+                      " m; no reference pose within 1 m (parallel or degenerate surfaces)");
   }
   return q;
 }

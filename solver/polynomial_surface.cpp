@@ -11,7 +11,8 @@ PolynomialSurface::PolynomialSurface(const Vector3d& origin, double rotation_z,
                                      const double (&c)[kMaxDegree + 1][kMaxDegree + 1])
     : origin_(origin), cos_(std::cos(rotation_z)), sin_(std::sin(rotation_z)) {
   if (!origin.allFinite() || !std::isfinite(rotation_z)) {
-    Throw<InputError>("PolynomialSurface", "origin and rotation must be finite");
+    Throw<InputError>("PolynomialSurface", "origin = (", origin(0), ", ", origin(1), ", ", origin(2),
+                      ") m, rotation_z = ", rotation_z, " rad; must be finite");
   }
   for (int i = 0; i <= kMaxDegree; ++i) {
     for (int j = 0; j <= kMaxDegree; ++j) {

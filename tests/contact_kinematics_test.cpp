@@ -271,5 +271,29 @@ TEST(ContactKinematics, RowAndRateTermMatchDifferencesOfTheGap) {
   }
 }
 
+// A surface refused at construction says which input and what value (before: "centre and
+// orientation must be finite and the orientation a rotation", "origin and rotation must be
+// finite", without either).
+TEST(Surfaces, RefusalsNameTheInputAndItsValue) {
+  const auto message = [](const std::function<void()>& make) {
+    try {
+      make();
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no InputError");
+  };
+  Matrix3d sheared = Matrix3d::Identity();
+  sheared(0, 1) = 0.1;
+  const std::string shear = message([&] { EllipsoidCap(Vector3d::Zero(), Vector3d::Ones(), sheared); });
+  EXPECT_NE(shear.find("orientation: det = 1"), std::string::npos) << shear;
+  EXPECT_NE(shear.find("|RᵀR − I| = 0.1"), std::string::npos) << shear;
+  const std::string centre = message([&] { EllipsoidCap(Vector3d(0.0, NAN, 0.0), Vector3d::Ones(), Matrix3d::Identity()); });
+  EXPECT_NE(centre.find("centre = (0, nan, 0) m"), std::string::npos) << centre;
+  const double zero[PolynomialSurface::kMaxDegree + 1][PolynomialSurface::kMaxDegree + 1] = {};
+  const std::string rotation = message([&] { PolynomialSurface(Vector3d::Zero(), INFINITY, zero); });
+  EXPECT_NE(rotation.find("rotation_z = inf rad"), std::string::npos) << rotation;
+}
+
 }  // namespace
 }  // namespace kneedyn
