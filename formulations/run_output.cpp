@@ -320,7 +320,7 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
   // A fixed-step method cannot resolve a contact phase of a few steps: the undamped or weakly
   // damped error modes of the index-3 forms (newmark; generalized-alpha at rho_inf near 1)
   // make the normal force oscillate through zero, so such a lift-off and re-contact is a
-  // numerical artifact until a smaller --step keeps it (README, "Formulations").
+  // numerical artifact until a smaller --step keeps it (README, "Running").
   if (result.fixed_step > 0.0) {
     for (size_t i = 0; i < result.events.size(); ++i) {
       const EventRecord& a = result.events[i];
@@ -336,7 +336,7 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
       p.contact = part;
       p.time_s = a.time;
       p.duration_s = b->time - a.time;
-      char text[256];
+      char text[512];  // the longest, with patellar facet names, is ~330 characters
       std::snprintf(text, sizeof(text),
                     "%s at t = %.6f s and %s %.3g s later: %s of %.1f fixed steps (h = %g s), shorter than %d "
                     "steps: likely the normal force oscillating through zero, not a resolved %s; check it with a "

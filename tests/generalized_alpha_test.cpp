@@ -20,6 +20,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
@@ -185,6 +186,18 @@ TEST(GeneralizedAlpha, UnresolvedSeparationIsWarned) {
   RunResult adaptive = coarse;
   adaptive.fixed_step = 0.0;
   EXPECT_TRUE(OutputWarnings(MakeTrajectoryTable(scene, adaptive), adaptive).empty());
+  // The longest message (a patellar facet's contact phase) is whole (a 256-byte buffer cut it).
+  RunResult facet = coarse;
+  facet.events = {{"recontact_patellar_lateral", 0.123456789, 0.0}, {"liftoff_patellar_lateral", 0.1236, 0.0}};
+  std::vector<OutputWarning> long_one = OutputWarnings(MakeTrajectoryTable(scene, coarse), facet);
+  // (the table's lift-off row is no longer an event of `facet`: its −4e-12 N counts as pulling)
+  long_one.erase(std::remove_if(long_one.begin(), long_one.end(),
+                                [](const OutputWarning& w) { return w.kind != "short_contact_phase"; }),
+                 long_one.end());
+  ASSERT_EQ(long_one.size(), 1u);
+  EXPECT_EQ(long_one[0].contact, "patellar_lateral");
+  const std::string& text = long_one[0].message;
+  EXPECT_EQ(text.substr(text.size() - 14), "smaller --step") << text;
 }
 
 // A pulse of 1e5 N (the documented maximum) unloads the lateral contact while the ligaments
