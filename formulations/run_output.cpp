@@ -317,10 +317,10 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
                        result.completed ? ", which the run's own steps reached (" : ", where the run stopped (", why, ")");
     out.push_back(std::move(p));
   }
-  // A fixed-step method cannot resolve a contact phase of a few steps: the undamped or weakly
-  // damped error modes of the index-3 forms (newmark; generalized-alpha at rho_inf near 1)
-  // make the normal force oscillate through zero, so such a lift-off and re-contact is a
-  // numerical artifact until a smaller --step keeps it (README, "Running").
+  // A fixed-step method cannot resolve a contact phase of a few steps: in the index-3 forms
+  // (newmark undamped, generalized-alpha at rho_inf near 1) the normal force oscillates
+  // through zero, so such a lift-off and re-contact is taken for a numerical artifact until a
+  // smaller --step keeps it (README, "Running").
   if (result.fixed_step > 0.0) {
     for (size_t i = 0; i < result.events.size(); ++i) {
       const EventRecord& a = result.events[i];
