@@ -131,7 +131,7 @@ std::string ReadRunOptions(const OptionText& typed, RunSettings* settings) {
   const auto it = typed.find("--output-interval");
   if (it == typed.end()) return "";
   if (!ParseReal(it->second, &settings->output_interval)) {
-    return StrCat("--output-interval = '", Echo(it->second), "': must be a finite number, 0 or of magnitude within double's normal range (2.2e-308 to 1.8e308)");
+    return StrCat("--output-interval = '", Echo(it->second), "': ", kRealRule);
   }
   if (!(settings->output_interval > 0.0)) {
     return StrCat("--output-interval = '", Echo(it->second), "'; must be > 0 (omit it for the scene's)");

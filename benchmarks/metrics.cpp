@@ -244,15 +244,22 @@ Metrics Compare(const Solution& run, const Solution& reference) {
   return m;
 }
 
-double EnergyError(const Scene& scene, const RunResult& result) {
-  if (result.samples.empty()) return kNaN;
-  const MechanicalState& s0 = result.samples.front();
-  const double e0 = ComputeEnergies(scene.model, s0.q, s0.qd).mechanical;
-  double worst = 0.0;
-  for (const MechanicalState& s : result.samples) {
-    worst = std::max(worst, std::abs(ComputeEnergies(scene.model, s.q, s.qd).mechanical - e0));
+void EnergyDrift::Add(double mechanical_energy_J) {
+  if (!started_) {
+    started_ = true;
+    initial_J_ = mechanical_energy_J;
   }
-  return worst / std::abs(e0);
+  worst_J_ = std::max(worst_J_, std::abs(mechanical_energy_J - initial_J_));
+}
+
+double EnergyDrift::Relative() const {
+  return std::isfinite(initial_J_) && initial_J_ != 0.0 ? worst_J_ / std::abs(initial_J_) : kNaN;
+}
+
+double EnergyError(const Scene& scene, const RunResult& result) {
+  EnergyDrift drift;
+  for (const MechanicalState& s : result.samples) drift.Add(ComputeEnergies(scene.model, s.q, s.qd).mechanical);
+  return drift.Relative();
 }
 
 void AddRunMetrics(const Scene& scene, const RunResult& result, bool conservative, Metrics* m) {

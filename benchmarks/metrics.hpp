@@ -111,7 +111,21 @@ Metrics Compare(const Solution& run, const Solution& reference);
 // Fills the residuals and the energy error from a run.
 void AddRunMetrics(const Scene& scene, const RunResult& result, bool conservative, Metrics* m);
 
-// Maximum relative energy error over a run's samples.
+// The energy error's reduction, max_i |E(t_i) − E(0)| / |E(0)|, over mechanical energies
+// given in time order (the first is E(0)); NaN without a finite, nonzero E(0). Shared by a
+// run's own samples (EnergyError) and a printed result's rows (`kneedyn score`).
+class EnergyDrift {
+ public:
+  void Add(double mechanical_energy_J);
+  double Relative() const;
+
+ private:
+  double initial_J_ = std::numeric_limits<double>::quiet_NaN();
+  double worst_J_ = 0.0;
+  bool started_ = false;
+};
+
+// Maximum relative energy error over a run's samples (EnergyDrift).
 double EnergyError(const Scene& scene, const RunResult& result);
 
 nlohmann::json SolutionJson(const Solution& s);

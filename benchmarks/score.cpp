@@ -512,7 +512,7 @@ Solution ReferenceSolution(const nlohmann::json& reference_json, const std::stri
 double PrintedEnergyError(const Scene& scene, const Solution& result) {
   const auto& positions = result.values.at("positions");    // x0, y0, z0 mm; flexion, valgus, rotation deg
   const auto& velocities = result.values.at("velocities");  // their rates, mm/s and deg/s
-  double e0 = kNaN, worst = 0.0;
+  EnergyDrift drift;
   for (size_t i = 0; i < result.times.size(); ++i) {
     if (i >= positions.size() || i >= velocities.size()) break;
     const std::vector<double>& p = positions[i];
@@ -527,14 +527,10 @@ double PrintedEnergyError(const Scene& scene, const Solution& result) {
     for (int a = 0; a < 3; ++a) q(kX0 + a) = MmToM(p[a]), qd(kX0 + a) = MmToM(v[a]);
     q(kAlpha) = DegToRad(p[3]), q(kBeta) = DegToRad(p[4] + 90.0), q(kGamma) = DegToRad(p[5]);  // valgus = β − 90°
     qd(kAlpha) = DegToRad(v[3]), qd(kBeta) = DegToRad(v[4]), qd(kGamma) = DegToRad(v[5]);
-    const double e = ComputeEnergies(scene.model, q, qd).mechanical;
-    if (i == 0) {
-      if (result.times[0] != 0.0) return kNaN;
-      e0 = e;
-    }
-    worst = std::max(worst, std::abs(e - e0));
+    if (i == 0 && result.times[0] != 0.0) return kNaN;
+    drift.Add(ComputeEnergies(scene.model, q, qd).mechanical);
   }
-  return std::isfinite(e0) && e0 != 0.0 ? worst / std::abs(e0) : kNaN;
+  return drift.Relative();
 }
 
 ReferenceScore ScoreAgainstReference(const Scene& scene, const nlohmann::json& reference_json,

@@ -196,7 +196,7 @@ std::string ReadOptionText(const OptionText& typed, FormulationOptions* options)
     const std::string& flag = entry.first;
     const std::string& text = entry.second;
     const auto number = [&](double* value) {
-      if (!ParseReal(text, value)) why = StrCat(flag, " = '", Echo(text), "': must be a finite number, 0 or of magnitude within double's normal range (2.2e-308 to 1.8e308)");
+      if (!ParseReal(text, value)) why = StrCat(flag, " = '", Echo(text), "': ", kRealRule);
     };
     const auto optional_number = [&](std::optional<double>* value) {
       double v = 0.0;

@@ -140,6 +140,9 @@ using OptionText = std::map<std::string, std::string>;
 // finite and representable (strtod's ERANGE refused, so 1e999 is not taken as inf nor 1e-999
 // as 0). A command-line parser would read "" as 0 and clamp an integer beyond its type's range.
 bool ParseReal(const std::string& text, double* value);
+// ParseReal's rule as the refusals state it.
+inline constexpr char kRealRule[] =
+    "must be a finite number, 0 or of magnitude within double's normal range (2.2e-308 to 1.8e308)";
 // A decimal integer given as text: the whole text, within long's range.
 bool ParseInteger(const std::string& text, long* value);
 

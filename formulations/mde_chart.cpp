@@ -78,7 +78,8 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
   // φ_i(q) = 0 solved for the eliminated translations by Newton (∂φ_i/∂R0 = −n_F,i); one
   // step is exact for a sphere on a plane (φ linear in R0), a few for curved surfaces.
   std::array<ContactGeometry, kMaxMdeContacts> geo;
-  // Closed form where one exists: n_i · R0 = n_i · C_i − d_i − r_i (linear in R0).
+  // Closed form where one exists: n_i · R0 = h_i, the gap being affine in R0
+  // (SphereOnPlaneClosingHeight).
   bool closed_form = k > 0;
   std::array<SphereOnPlane, kMaxMdeContacts> sop;
   for (int r = 0; r < k; ++r) closed_form = closed_form && SphereOnPlaneForm(model_.contacts[active_[r]], &sop[r]);
@@ -88,7 +89,7 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
     VecK rhs(k);
     for (int r = 0; r < k; ++r) {
       const Vector3d n = R * sop[r].normal_T;
-      rhs(r) = n.dot(sop[r].centre_F) - sop[r].offset - sop[r].radius;
+      rhs(r) = SphereOnPlaneClosingHeight(sop[r], n);
       for (int j = 0; j < m; ++j) {
         if (free_[j] < 3) rhs(r) -= n(free_[j]) * kin.q(free_[j]);
       }

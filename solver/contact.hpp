@@ -116,6 +116,15 @@ ContactGeometryTpl<T> SphereOnPlaneContact(const SphereOnPlane& sop, const PoseT
   return out;
 }
 
+// The gap of a sphere on a plane is affine in the tibial origin R0 (F) at a fixed orientation:
+// gap = h − n_F · R0 with n_F = R_FT n̂′ and h = n_F · C − d − r (SphereOnPlaneContact's gap
+// regrouped, docs/model.md §4). h is the value of n_F · R0 that closes the contact, m; the
+// MDE chart solves n_F · R0 = h for the translations it eliminates in one linear solve.
+template <typename T>
+T SphereOnPlaneClosingHeight(const SphereOnPlane& sop, const Vector3<T>& normal_F) {
+  return normal_F.dot(sop.centre_F.template cast<T>()) - sop.offset - sop.radius;
+}
+
 // φ̇ = G ν: the 1×6 velocity-constraint row at a contact (see header comment).
 template <typename T>
 Eigen::Matrix<T, 1, 6> ContactConstraintRow(const PoseTpl<T>& pose,

@@ -188,6 +188,11 @@ TEST(ContactKinematics, ClosedFormEqualsGeneralSolve) {
       const ContactGeometry b = RequireContactKinematics(general, pose, "general");
       const std::string where = StrCat(CompartmentName(pair.compartment), " sample ", s);
       EXPECT_NEAR(a.gap, b.gap, 1e-15) << where;
+      // The MDE chart's affine form of the same gap (h − n_F · R0) against the general solve.
+      SphereOnPlane sop;
+      ASSERT_TRUE(SphereOnPlaneForm(pair, &sop)) << where;
+      const Vector3d n_F = pose.R_FT * sop.normal_T;
+      EXPECT_NEAR(SphereOnPlaneClosingHeight(sop, n_F) - n_F.dot(pose.p_FoTo_F), b.gap, 1e-15) << where;
       EXPECT_LT((a.point_F - b.point_F).norm(), 1e-14) << where;
       EXPECT_LT((a.normal_T - b.normal_T).norm(), 1e-13) << where;
       // The closed form reports the femoral point in T; the general solve the tibial surface
