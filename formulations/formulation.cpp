@@ -246,11 +246,11 @@ bool CheckShared(const OptionRequest& r) {
   const FormulationInfo& info = r.info;
   const FormulationOptions& o = r.options;
   const std::string& name = info.name;
-  if (!(std::isfinite(o.rtol) && o.rtol > 0.0 && o.rtol <= 0.5)) {
-    return r.Fail(StrCat("--rtol = ", r.Shown("--rtol", o.rtol), "; must lie in (0, 0.5]"));
+  if (!(std::isfinite(o.rtol) && o.rtol > 0.0 && o.rtol <= kMaxRtol)) {
+    return r.Fail(StrCat("--rtol = ", r.Shown("--rtol", o.rtol), "; must lie in ", kRtolRange));
   }
-  if (!(std::isfinite(o.atol) && o.atol > 0.0 && o.atol <= 1e-2)) {
-    return r.Fail(StrCat("--atol = ", r.Shown("--atol", o.atol), "; must lie in (0, 1e-2] (SI: m, m/s, rad)"));
+  if (!(std::isfinite(o.atol) && o.atol > 0.0 && o.atol <= kMaxAtol)) {
+    return r.Fail(StrCat("--atol = ", r.Shown("--atol", o.atol), "; must lie in ", kAtolRange, " (SI: m, m/s, rad)"));
   }
   if (!(std::isfinite(o.step) && (o.step == 0.0 || (o.step >= 1e-9 && o.step <= 0.1)))) {
     return r.Fail(StrCat("--step = ", r.Shown("--step", o.step),

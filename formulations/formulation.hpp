@@ -89,6 +89,14 @@ std::vector<std::string> OptionNames(const std::vector<Enum>& values) {
   return names;
 }
 
+// The tolerances' ranges, for every method and the Problem interface: rtol in (0, kMaxRtol],
+// atol in (0, kMaxAtol] (SI: m, m/s, rad). Past them an error test accepts anything and the
+// re-contact threshold, which scales with them, never closes.
+inline constexpr double kMaxRtol = 0.5;
+inline constexpr double kMaxAtol = 1e-2;
+inline constexpr char kRtolRange[] = "(0, 0.5]";   // as the refusals state them
+inline constexpr char kAtolRange[] = "(0, 1e-2]";
+
 // Step control, which every formulation has.
 struct StepControl {
   double rtol = 1.0e-6;    // relative tolerance (adaptive methods; the Newton test of fixed-step ones)

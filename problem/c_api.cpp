@@ -1,9 +1,12 @@
 // The C interface kneedyn/problem.h over kneedyn::Problem (problem.hpp): exceptions become
 // status codes with the message kept per thread; handles are checked against the live set
-// before use. The live set owns the handles: a call holds its handle (shared) and its lock
-// while it runs, so calls on one handle from several threads take turns, and a destroy
-// during a call frees the handle when the call returns.
+// before use. A handle is a token, never an address, and no token is issued twice: a
+// destroyed handle stays refused even when a later problem occupies the same memory. The
+// live set owns the problems: a call holds its problem (shared) and its lock while it runs,
+// so calls on one handle from several threads take turns, and a destroy during a call frees
+// the problem when the call returns.
 #include <cmath>
+#include <cstdint>
 #include <exception>
 #include <map>
 #include <memory>
@@ -27,7 +30,10 @@ namespace {
 
 thread_local std::string g_last_error;
 std::mutex g_handles_mutex;
-std::map<const kneedyn_problem*, std::shared_ptr<kneedyn_problem>> g_handles;
+std::map<std::uintptr_t, std::shared_ptr<kneedyn_problem>> g_handles;  // token -> problem
+std::uintptr_t g_last_token = 0;  // under g_handles_mutex
+
+std::uintptr_t TokenOf(const kneedyn_problem* p) { return reinterpret_cast<std::uintptr_t>(p); }
 
 int Set(int status, const std::string& message) {
   g_last_error = message;
@@ -37,7 +43,7 @@ int Set(int status, const std::string& message) {
 // The live handle p, or null (never dereferenced unless live).
 std::shared_ptr<kneedyn_problem> Live(const kneedyn_problem* p) {
   std::lock_guard<std::mutex> lock(g_handles_mutex);
-  const auto it = g_handles.find(p);
+  const auto it = g_handles.find(TokenOf(p));
   return it == g_handles.end() ? nullptr : it->second;
 }
 
@@ -60,13 +66,14 @@ int Translate(const char* function, Body body) {
   }
 }
 
-// Runs body on a live handle (every entry point but create and destroy), one call at a time.
+// Runs body(problem) on a live handle's problem (every entry point but create and destroy),
+// one call at a time.
 template <typename Body>
 int Call(const char* function, const kneedyn_problem* p, Body body) {
   const std::shared_ptr<kneedyn_problem> held = Live(p);
   if (held == nullptr) return Set(KNEEDYN_BAD_HANDLE, std::string(function) + ": not a live kneedyn_problem handle");
   std::lock_guard<std::mutex> lock(held->mutex);
-  return Translate(function, body);
+  return Translate(function, [&] { body(held.get()); });
 }
 
 void NotNull(const void* ptr, const char* name) {
@@ -105,8 +112,9 @@ int kneedyn_problem_create(const char* scene_path, const char* form, double rtol
                                                          atol > 0.0 ? atol : 1.0e-8);
     RefreshNames(handle.get());
     std::lock_guard<std::mutex> lock(g_handles_mutex);
-    g_handles.emplace(handle.get(), handle);
-    *out = handle.get();
+    const std::uintptr_t token = ++g_last_token;  // 2^64 creations before a repeat
+    g_handles.emplace(token, std::move(handle));
+    *out = reinterpret_cast<kneedyn_problem*>(token);  // opaque, never dereferenced
   });
 }
 
@@ -114,7 +122,7 @@ int kneedyn_problem_destroy(kneedyn_problem* p) {
   if (p == nullptr) return KNEEDYN_OK;
   std::shared_ptr<kneedyn_problem> owned;  // released after the lock: a running call may still hold it
   std::lock_guard<std::mutex> lock(g_handles_mutex);
-  const auto it = g_handles.find(p);
+  const auto it = g_handles.find(TokenOf(p));
   if (it == g_handles.end()) return Set(KNEEDYN_BAD_HANDLE, "kneedyn_problem_destroy: not a live kneedyn_problem handle");
   owned = std::move(it->second);
   g_handles.erase(it);
@@ -122,151 +130,151 @@ int kneedyn_problem_destroy(kneedyn_problem* p) {
 }
 
 int kneedyn_problem_size(const kneedyn_problem* p, int* n) {
-  return Call("kneedyn_problem_size", p, [&] {
+  return Call("kneedyn_problem_size", p, [&](kneedyn_problem* h) {
     NotNull(n, "n");
-    p->problem->CheckOpen("size");
-    *n = p->problem->size();
+    h->problem->CheckOpen("size");
+    *n = h->problem->size();
   });
 }
 int kneedyn_problem_index(const kneedyn_problem* p, int* index) {
-  return Call("kneedyn_problem_index", p, [&] { NotNull(index, "index"); *index = p->problem->index(); });
+  return Call("kneedyn_problem_index", p, [&](kneedyn_problem* h) { NotNull(index, "index"); *index = h->problem->index(); });
 }
 int kneedyn_problem_is_dae(const kneedyn_problem* p, int* is_dae) {
-  return Call("kneedyn_problem_is_dae", p, [&] { NotNull(is_dae, "is_dae"); *is_dae = p->problem->is_dae() ? 1 : 0; });
+  return Call("kneedyn_problem_is_dae", p, [&](kneedyn_problem* h) { NotNull(is_dae, "is_dae"); *is_dae = h->problem->is_dae() ? 1 : 0; });
 }
 int kneedyn_problem_times(const kneedyn_problem* p, double* t0, double* t_end) {
-  return Call("kneedyn_problem_times", p, [&] {
-    if (t0) *t0 = p->problem->t0();
-    if (t_end) *t_end = p->problem->t_end();
+  return Call("kneedyn_problem_times", p, [&](kneedyn_problem* h) {
+    if (t0) *t0 = h->problem->t0();
+    if (t_end) *t_end = h->problem->t_end();
   });
 }
 int kneedyn_problem_phase(const kneedyn_problem* p, int* phase, double* phase_t0) {
-  return Call("kneedyn_problem_phase", p, [&] {
-    if (phase) *phase = p->problem->phase();
-    if (phase_t0) *phase_t0 = p->problem->phase_start_time();
+  return Call("kneedyn_problem_phase", p, [&](kneedyn_problem* h) {
+    if (phase) *phase = h->problem->phase();
+    if (phase_t0) *phase_t0 = h->problem->phase_start_time();
   });
 }
 int kneedyn_problem_tolerances(const kneedyn_problem* p, double* rtol, double* atol) {
-  return Call("kneedyn_problem_tolerances", p, [&] {
-    if (rtol) *rtol = p->problem->rtol();
-    if (atol) *atol = p->problem->atol();
+  return Call("kneedyn_problem_tolerances", p, [&](kneedyn_problem* h) {
+    if (rtol) *rtol = h->problem->rtol();
+    if (atol) *atol = h->problem->atol();
   });
 }
 int kneedyn_problem_initial_values(const kneedyn_problem* p, double* y0, double* yp0, int n) {
-  return Call("kneedyn_problem_initial_values", p, [&] {
+  return Call("kneedyn_problem_initial_values", p, [&](kneedyn_problem* h) {
     NotNull(y0, "y0");
-    p->problem->CheckOpen("initial_values");
-    SizeIs(n, p->problem->size(), "n");
-    std::copy(p->problem->y0().begin(), p->problem->y0().end(), y0);
-    if (yp0) std::copy(p->problem->yp0().begin(), p->problem->yp0().end(), yp0);
+    h->problem->CheckOpen("initial_values");
+    SizeIs(n, h->problem->size(), "n");
+    std::copy(h->problem->y0().begin(), h->problem->y0().end(), y0);
+    if (yp0) std::copy(h->problem->yp0().begin(), h->problem->yp0().end(), yp0);
   });
 }
 int kneedyn_problem_differential_ids(const kneedyn_problem* p, double* ids, int n) {
-  return Call("kneedyn_problem_differential_ids", p, [&] {
+  return Call("kneedyn_problem_differential_ids", p, [&](kneedyn_problem* h) {
     NotNull(ids, "ids");
-    p->problem->CheckOpen("differential_ids");
-    SizeIs(n, p->problem->size(), "n");
-    const std::vector<double> id = p->problem->differential_ids();
+    h->problem->CheckOpen("differential_ids");
+    SizeIs(n, h->problem->size(), "n");
+    const std::vector<double> id = h->problem->differential_ids();
     std::copy(id.begin(), id.end(), ids);
   });
 }
 int kneedyn_problem_rhs(const kneedyn_problem* p, double t, const double* y, int n, double* f) {
-  return Call("kneedyn_problem_rhs", p, [&] {
+  return Call("kneedyn_problem_rhs", p, [&](kneedyn_problem* h) {
     NotNull(f, "f");
-    p->problem->Rhs(t, y, n, f);
+    h->problem->Rhs(t, y, n, f);
   });
 }
 int kneedyn_problem_jacobian(const kneedyn_problem* p, double t, const double* y, int n, double* J) {
-  return Call("kneedyn_problem_jacobian", p, [&] {
+  return Call("kneedyn_problem_jacobian", p, [&](kneedyn_problem* h) {
     NotNull(J, "J");
-    p->problem->Jacobian(t, y, n, J);
+    h->problem->Jacobian(t, y, n, J);
   });
 }
 int kneedyn_problem_residual(const kneedyn_problem* p, double t, const double* y, const double* yp, int n, double* F) {
-  return Call("kneedyn_problem_residual", p, [&] {
+  return Call("kneedyn_problem_residual", p, [&](kneedyn_problem* h) {
     NotNull(F, "F");
-    p->problem->Residual(t, y, yp, n, F);
+    h->problem->Residual(t, y, yp, n, F);
   });
 }
 int kneedyn_problem_dae_jacobian(const kneedyn_problem* p, double t, const double* y, const double* yp, double c, int n,
                                  double* J) {
-  return Call("kneedyn_problem_dae_jacobian", p, [&] {
+  return Call("kneedyn_problem_dae_jacobian", p, [&](kneedyn_problem* h) {
     NotNull(J, "J");
-    p->problem->Jacobian(t, y, yp, c, n, J);
+    h->problem->Jacobian(t, y, yp, c, n, J);
   });
 }
 int kneedyn_problem_event_count(const kneedyn_problem* p, int* m) {
-  return Call("kneedyn_problem_event_count", p, [&] {
+  return Call("kneedyn_problem_event_count", p, [&](kneedyn_problem* h) {
     NotNull(m, "m");
-    p->problem->CheckOpen("event_count");
-    *m = p->problem->event_count();
+    h->problem->CheckOpen("event_count");
+    *m = h->problem->event_count();
   });
 }
 int kneedyn_problem_event_name(const kneedyn_problem* p, int k, const char** name) {
-  return Call("kneedyn_problem_event_name", p, [&] {
+  return Call("kneedyn_problem_event_name", p, [&](kneedyn_problem* h) {
     NotNull(name, "name");
-    p->problem->CheckOpen("event_name");
-    if (k < 0 || k >= p->problem->event_count()) throw kneedyn::ProblemError("k = " + std::to_string(k) + ": out of range");
-    *name = p->event_names[k].c_str();
+    h->problem->CheckOpen("event_name");
+    if (k < 0 || k >= h->problem->event_count()) throw kneedyn::ProblemError("k = " + std::to_string(k) + ": out of range");
+    *name = h->event_names[k].c_str();
   });
 }
 int kneedyn_problem_event_direction(const kneedyn_problem* p, int k, int* direction) {
-  return Call("kneedyn_problem_event_direction", p, [&] {
+  return Call("kneedyn_problem_event_direction", p, [&](kneedyn_problem* h) {
     NotNull(direction, "direction");
-    p->problem->CheckOpen("event_direction");
-    if (k < 0 || k >= p->problem->event_count()) throw kneedyn::ProblemError("k = " + std::to_string(k) + ": out of range");
-    *direction = p->problem->event_directions()[k];
+    h->problem->CheckOpen("event_direction");
+    if (k < 0 || k >= h->problem->event_count()) throw kneedyn::ProblemError("k = " + std::to_string(k) + ": out of range");
+    *direction = h->problem->event_directions()[k];
   });
 }
 int kneedyn_problem_events(const kneedyn_problem* p, double t, const double* y, int n, double* g, int m) {
-  return Call("kneedyn_problem_events", p, [&] {
+  return Call("kneedyn_problem_events", p, [&](kneedyn_problem* h) {
     NotNull(g, "g");
-    p->problem->CheckOpen("events");
-    SizeIs(m, p->problem->event_count(), "m");
-    p->problem->Events(t, y, n, g);
+    h->problem->CheckOpen("events");
+    SizeIs(m, h->problem->event_count(), "m");
+    h->problem->Events(t, y, n, g);
   });
 }
 int kneedyn_problem_coordinates(const kneedyn_problem* p, double t, const double* y, const double* yp, int n,
                                 double* q, double* qd) {
-  return Call("kneedyn_problem_coordinates", p, [&] {
+  return Call("kneedyn_problem_coordinates", p, [&](kneedyn_problem* h) {
     NotNull(q, "q");
     NotNull(qd, "qd");
-    const kneedyn::MechanicalState s = p->problem->Coordinates(t, y, yp, n);
+    const kneedyn::MechanicalState s = h->problem->Coordinates(t, y, yp, n);
     for (int i = 0; i < 6; ++i) q[i] = s.q(i), qd[i] = s.qd(i);
   });
 }
 int kneedyn_problem_transition(kneedyn_problem* p, double t, const double* y, const double* yp, int n,
                                const int* events, int n_events, int* ended) {
-  return Call("kneedyn_problem_transition", p, [&] {
+  return Call("kneedyn_problem_transition", p, [&](kneedyn_problem* h) {
     NotNull(events, "events");
     NotNull(ended, "ended");
-    p->problem->CheckOpen("transition");
-    const int m = p->problem->event_count();
+    h->problem->CheckOpen("transition");
+    const int m = h->problem->event_count();
     if (n_events < 1 || n_events > m) {  // checked before events[] is read
       throw kneedyn::ProblemError("n_events = " + std::to_string(n_events) + ": the phase has " + std::to_string(m) +
                                   " events, each given at most once");
     }
-    *ended = p->problem->Transition(t, y, yp, n, std::vector<int>(events, events + n_events)) ? 1 : 0;
-    if (!*ended) RefreshNames(p);
+    *ended = h->problem->Transition(t, y, yp, n, std::vector<int>(events, events + n_events)) ? 1 : 0;
+    if (!*ended) RefreshNames(h);
   });
 }
 
 int kneedyn_problem_end_reason(const kneedyn_problem* p, const char** reason) {
-  return Call("kneedyn_problem_end_reason", p, [&] {
+  return Call("kneedyn_problem_end_reason", p, [&](kneedyn_problem* h) {
     NotNull(reason, "reason");
-    *reason = p->problem->end_reason().c_str();
+    *reason = h->problem->end_reason().c_str();
   });
 }
 int kneedyn_problem_event_record_count(const kneedyn_problem* p, int* count) {
-  return Call("kneedyn_problem_event_record_count", p, [&] {
+  return Call("kneedyn_problem_event_record_count", p, [&](kneedyn_problem* h) {
     NotNull(count, "count");
-    *count = static_cast<int>(p->problem->events_recorded().size());
+    *count = static_cast<int>(h->problem->events_recorded().size());
   });
 }
 int kneedyn_problem_event_record(const kneedyn_problem* p, int i, const char** name, double* time, double* flexion) {
-  return Call("kneedyn_problem_event_record", p, [&] {
+  return Call("kneedyn_problem_event_record", p, [&](kneedyn_problem* h) {
     NotNull(name, "name");
-    const std::vector<kneedyn::EventRecord>& records = p->problem->events_recorded();
+    const std::vector<kneedyn::EventRecord>& records = h->problem->events_recorded();
     if (i < 0 || i >= static_cast<int>(records.size())) {
       throw kneedyn::ProblemError("i = " + std::to_string(i) + ": " + std::to_string(records.size()) +
                                   " events are recorded");

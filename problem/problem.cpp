@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "formulations/formulation.hpp"
 #include "solver/consistent_init.hpp"
 #include "solver/contact_kinematics.hpp"
 #include "solver/constraint_residuals.hpp"
@@ -12,6 +13,19 @@ namespace kneedyn {
 namespace {
 
 [[noreturn]] void Fail(const std::string& message) { throw ProblemError(message); }
+
+// Outputs computed from finite inputs must be finite: a state far outside the model's range
+// (a velocity of 1e200, say) overflows the dynamics, and a NaN handed back would be carried
+// on by an outside integrator without a word.
+void RequireFinite(const char* call, const char* name, const double* values, size_t count, double t) {
+  for (size_t i = 0; i < count; ++i) {
+    if (!std::isfinite(values[i])) {
+      throw SolverError(StrCat("Problem::", call, ": ", name, "[", i, "] = ", values[i], " at t = ", t,
+                               " s from finite inputs (rule: every output is finite; the state lies outside the range "
+                               "the model evaluates)"));
+    }
+  }
+}
 
 }  // namespace
 
@@ -25,8 +39,9 @@ Problem::Problem(const Scene& scene, const std::string& form, double rtol, doubl
   if (form != "ede" && form != "mde" && form != "dae" && form != "dae-ggl") {
     Fail("Problem: form = '" + Echo(form) + "': one of 'ede', 'mde', 'dae', 'dae-ggl'");
   }
-  if (!(rtol > 0.0) || !(atol > 0.0) || !std::isfinite(rtol) || !std::isfinite(atol)) {
-    Fail(StrCat("Problem: rtol = ", rtol, ", atol = ", atol, ": both must be finite and > 0"));
+  if (!(rtol > 0.0 && rtol <= kMaxRtol) || !(atol > 0.0 && atol <= kMaxAtol)) {
+    Fail(StrCat("Problem: rtol = ", rtol, ", atol = ", atol, ": rtol must lie in ", kRtolRange, " and atol in ", kAtolRange,
+                " (SI: m, m/s, rad), as in kneedyn run"));
   }
   const Model& model = scene.model;
   ConsistentInitOptions init;  // as kneedyn run: every contact active at t0
@@ -155,13 +170,14 @@ void Problem::Rhs(double t, const double* y, int n, double* f) const {
       f[j] = y[m + j];
       f[m + j] = sdd(j);
     }
-    return;
+  } else {
+    AccelerationAt(t, y);
+    for (int i = 0; i < 6; ++i) {
+      f[i] = y[6 + i];
+      f[6 + i] = acc_.qdd(i);
+    }
   }
-  AccelerationAt(t, y);
-  for (int i = 0; i < 6; ++i) {
-    f[i] = y[6 + i];
-    f[6 + i] = acc_.qdd(i);
-  }
+  RequireFinite("Rhs", "f", f, static_cast<size_t>(n_), t);
 }
 
 void Problem::Jacobian(double t, const double* y, int n, double* J) const {
@@ -170,6 +186,7 @@ void Problem::Jacobian(double t, const double* y, int n, double* J) const {
   CheckState("Jacobian", "y", y, n);
   if (is_mde()) {
     MdeJacobian(t, y, J);
+    RequireFinite("Jacobian", "J", J, static_cast<size_t>(n_) * n_, t);
     return;
   }
   AccelerationAt(t, y);
@@ -184,6 +201,7 @@ void Problem::Jacobian(double t, const double* y, int n, double* J) const {
       J[12 * (6 + i) + j] = dqdd_dx[12 * i + j];
     }
   }
+  RequireFinite("Jacobian", "J", J, 144, t);
 }
 
 // mde: f = (ṡ, s̈) with s̈ = q̈_F, the free rows of the constrained acceleration at
@@ -251,6 +269,7 @@ void Problem::Residual(double t, const double* y, const double* yp, int n, doubl
   CheckState("Residual", "y", y, n);
   CheckState("Residual", "yp", yp, n);
   if (!dae_->Residual(t, y, yp, F)) Fail(StrCat("Problem::Residual: at t = ", t, " s a contact surface is evaluated outside its domain"));
+  RequireFinite("Residual", "F", F, static_cast<size_t>(n_), t);
 }
 
 void Problem::Jacobian(double t, const double* y, const double* yp, double c, int n, double* J) const {
@@ -266,6 +285,7 @@ void Problem::Jacobian(double t, const double* y, const double* yp, double c, in
   for (int i = 0; i < n_; ++i) {
     for (int j = 0; j < n_; ++j) J[n_ * i + j] = column_major[static_cast<size_t>(n_) * j + i];
   }
+  RequireFinite("Jacobian", "J", J, static_cast<size_t>(n_) * n_, t);
 }
 
 std::vector<std::string> Problem::event_names() const {
@@ -298,6 +318,7 @@ void Problem::Events(double t, const double* y, int n, double* g) const {
       chart_->Conditioning(kin.q, &current, &best);
       g[specs_.size()] = current - kChartKeepFraction * best;  // the formulation's switch threshold
     }
+    RequireFinite("Events", "g", g, static_cast<size_t>(event_count()), t);
     return;
   }
   const Vector6d q = Eigen::Map<const Vector6d>(y);
@@ -308,6 +329,7 @@ void Problem::Events(double t, const double* y, int n, double* g) const {
     for (size_t c = 0; c < state_.active.size(); ++c) normal_[state_.active[c]] = acc_.normal_force[c];
   }
   EvaluateEvents(scene_.model, specs_, q, normal_, g);
+  RequireFinite("Events", "g", g, static_cast<size_t>(event_count()), t);
 }
 
 MechanicalState Problem::StateAt(double t, const double* y, const double* yp) const {

@@ -501,6 +501,12 @@ TEST(Problem, BadCallsReturnErrorsWithMessages) {
   EXPECT_EQ(kneedyn_problem_create("/nonexistent.yaml", "ede", 0.0, 0.0, &h), KNEEDYN_INPUT_ERROR);
   EXPECT_NE(std::string(kneedyn_last_error()).find("nonexistent"), std::string::npos) << kneedyn_last_error();
   EXPECT_EQ(kneedyn_problem_create(nullptr, "ede", 0.0, 0.0, &h), KNEEDYN_BAD_ARGUMENT);
+  // Tolerances past kneedyn run's ranges would open the re-contact threshold (it scales with
+  // them) beyond any gap: refused as run refuses them.
+  EXPECT_EQ(kneedyn_problem_create(scene.c_str(), "ede", 1e300, 0.0, &h), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("(0, 0.5]"), std::string::npos) << kneedyn_last_error();
+  EXPECT_EQ(kneedyn_problem_create(scene.c_str(), "ede", 0.0, 0.02, &h), KNEEDYN_BAD_ARGUMENT);
+  EXPECT_EQ(h, nullptr);
   EXPECT_EQ(kneedyn_problem_create(scene.c_str(), "ede", 0.0, 0.0, nullptr), KNEEDYN_BAD_ARGUMENT);
   // Bad handles: null, foreign, destroyed.
   EXPECT_EQ(kneedyn_problem_size(nullptr, &n), KNEEDYN_BAD_HANDLE);
@@ -512,6 +518,16 @@ TEST(Problem, BadCallsReturnErrorsWithMessages) {
   ASSERT_EQ(kneedyn_problem_destroy(dead), KNEEDYN_OK);
   EXPECT_EQ(kneedyn_problem_rhs(dead, 0.0, y, 12, f), KNEEDYN_BAD_HANDLE);
   EXPECT_EQ(kneedyn_problem_destroy(dead), KNEEDYN_BAD_HANDLE);
+  // A problem created next may occupy the destroyed one's memory; the old handle stays
+  // refused and cannot reach or free the new problem.
+  kneedyn_problem* reborn = nullptr;
+  ASSERT_EQ(kneedyn_problem_create(scene.c_str(), "dae", 0.0, 0.0, &reborn), KNEEDYN_OK);
+  EXPECT_NE(reborn, dead);
+  EXPECT_EQ(kneedyn_problem_size(dead, &n), KNEEDYN_BAD_HANDLE);
+  EXPECT_EQ(kneedyn_problem_destroy(dead), KNEEDYN_BAD_HANDLE);
+  ASSERT_EQ(kneedyn_problem_size(reborn, &n), KNEEDYN_OK);
+  EXPECT_EQ(n, 22);  // the dae form's first phase: 12 states, 10 multipliers and velocities of the constraints
+  EXPECT_EQ(kneedyn_problem_destroy(reborn), KNEEDYN_OK);
   // Sizes, NaN, null arrays, the other form's calls.
   ASSERT_EQ(kneedyn_problem_initial_values(h, y, nullptr, 12), KNEEDYN_OK);
   EXPECT_EQ(kneedyn_problem_rhs(h, 0.0, y, 11, f), KNEEDYN_BAD_ARGUMENT);
@@ -525,6 +541,16 @@ TEST(Problem, BadCallsReturnErrorsWithMessages) {
   EXPECT_EQ(kneedyn_problem_rhs(h, 0.0, y_nan, 12, f), KNEEDYN_BAD_ARGUMENT);
   EXPECT_NE(std::string(kneedyn_last_error()).find("y[4] = nan"), std::string::npos) << kneedyn_last_error();
   EXPECT_EQ(kneedyn_problem_jacobian(h, 0.0, y_nan, 12, J), KNEEDYN_BAD_ARGUMENT);
+  // A finite state whose dynamics overflow (a flexion rate of 1e200 rad/s) gives no output.
+  double y_huge[12];
+  std::memcpy(y_huge, y, sizeof y_huge);
+  y_huge[9] = 1e200;
+  EXPECT_EQ(kneedyn_problem_rhs(h, 0.0, y_huge, 12, f), KNEEDYN_SOLVER_ERROR);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("every output is finite"), std::string::npos) << kneedyn_last_error();
+  int m_huge = 0;
+  ASSERT_EQ(kneedyn_problem_event_count(h, &m_huge), KNEEDYN_OK);
+  EXPECT_EQ(kneedyn_problem_events(h, 0.0, y_huge, 12, f, m_huge), KNEEDYN_SOLVER_ERROR);
+  EXPECT_NE(std::string(kneedyn_last_error()).find("g["), std::string::npos) << kneedyn_last_error();
   EXPECT_EQ(kneedyn_problem_residual(h, 0.0, y, y, 12, f), KNEEDYN_BAD_ARGUMENT);
   EXPECT_NE(std::string(kneedyn_last_error()).find("ODE"), std::string::npos) << kneedyn_last_error();
   EXPECT_EQ(kneedyn_problem_dae_jacobian(h, 0.0, y, y, 1.0, 12, J), KNEEDYN_BAD_ARGUMENT);
