@@ -127,7 +127,16 @@ class YamlWriter {
   // as the same text, double-quoted where plain would read as null (empty, ~, null) or as a
   // number or boolean ('42', 'yes'), so that the loader refuses a str where a number or a
   // boolean belongs ("not a quoted string") instead of reading it as one.
-  void Scalar(const std::string& text, bool string) {
+  // `where` names the field in a refusal: the scalars' text alone passing the size limit
+  // names the field that passed it (the emitter's buffer lags a few events behind).
+  void Scalar(const std::string& text, bool string, const std::string& where) {
+    scalar_bytes_ += text.size();
+    if (scalar_bytes_ > scene_detail::kMaxInputFileBytes) {
+      Throw<InputError>(function_.c_str(), "the document's YAML text passes ", scene_detail::kMaxInputFileBytes,
+                        " bytes at field '", Echo(where.empty() ? std::string("(top level)") : where, 128), "' (",
+                        text.size(), " bytes of text there); the limit is ", scene_detail::kMaxInputFileBytes,
+                        " bytes (kMaxInputFileBytes, that of a scene file)");
+    }
     const bool null_like = text.empty() || text == "~" || text == "null" || text == "Null" || text == "NULL";
     const bool quote = string && (null_like || scene_detail::PlainReadsAsValue(text));
     const yaml_scalar_style_t style =
@@ -140,13 +149,13 @@ class YamlWriter {
   void Value(const py::handle& obj, const std::string& where, int depth) {
     CheckSize(where);
     yaml_event_t e;
-    if (obj.is_none()) return Scalar("~", false);
+    if (obj.is_none()) return Scalar("~", false, where);
     if (py::isinstance<py::bool_>(obj) || py::isinstance(obj, np_bool_)) {
-      return Scalar(PyObject_IsTrue(obj.ptr()) ? "true" : "false", false);
+      return Scalar(PyObject_IsTrue(obj.ptr()) ? "true" : "false", false, where);
     }
     // A plain value from a file that str() reads (yes, True, .inf): written back plain, as read.
-    if (py::isinstance(obj, file_plain_)) return Scalar(Utf8(obj, where, "the text"), false);
-    if (py::isinstance<py::str>(obj)) return Scalar(Utf8(obj, where, "the text"), true);
+    if (py::isinstance(obj, file_plain_)) return Scalar(Utf8(obj, where, "the text"), false, where);
+    if (py::isinstance<py::str>(obj)) return Scalar(Utf8(obj, where, "the text"), true, where);
     const bool map = py::isinstance<py::dict>(obj);
     if (map || py::isinstance<py::list>(obj) || py::isinstance<py::tuple>(obj)) {
       // The loader's limit; a container that holds itself would otherwise recurse until the
@@ -166,8 +175,9 @@ class YamlWriter {
                             where.empty() ? "<top>" : Echo(where, 128), "' must be a string");
         }
         const std::string key = Utf8(item.first, where.empty() ? "(top level)" : where, "a key");
-        Scalar(key, true);
-        Value(item.second, where.empty() ? key : where + "." + key, depth + 1);
+        const std::string path = where.empty() ? key : where + "." + key;
+        Scalar(key, true, path);
+        Value(item.second, path, depth + 1);
       }
       yaml_mapping_end_event_initialize(&e);
       return Emit(&e);
@@ -198,11 +208,11 @@ class YamlWriter {
       double v = 0.0;
       if (py::isinstance<py::str>(text)) {
         const std::string spelled = Utf8(text, where, "the text");
-        if (scene_detail::PlainDecimal(spelled, &v) && v == obj.cast<double>()) return Scalar(spelled, false);
+        if (scene_detail::PlainDecimal(spelled, &v) && v == obj.cast<double>()) return Scalar(spelled, false, where);
       }
     }
     if (py::isinstance<py::int_>(obj) || py::isinstance(obj, np_integer_)) {
-      return Scalar(std::string(py::str(py::int_(py::reinterpret_borrow<py::object>(obj)))), false);
+      return Scalar(std::string(py::str(py::int_(py::reinterpret_borrow<py::object>(obj)))), false, where);
     }
     if (py::isinstance(obj, real_)) {  // float, NumPy floats, Fraction; not complex
       double v = 0.0;
@@ -211,9 +221,9 @@ class YamlWriter {
       } catch (const py::error_already_set&) {
         Refuse(where, obj, "a real number outside the range of a double");
       }
-      if (std::isnan(v)) return Scalar(".nan", false);  // the loader's "must be finite"
-      if (std::isinf(v)) return Scalar(v > 0 ? ".inf" : "-.inf", false);
-      return Scalar(std::string(py::repr(py::float_(v))), false);
+      if (std::isnan(v)) return Scalar(".nan", false, where);  // the loader's "must be finite"
+      if (std::isinf(v)) return Scalar(v > 0 ? ".inf" : "-.inf", false, where);
+      return Scalar(std::string(py::repr(py::float_(v))), false, where);
     }
     Refuse(where, obj, StrCat("unsupported type ", std::string(py::str(obj.get_type().attr("__name__"))),
                               "; use dict, list, str, a real number (int, float), bool or None"));
@@ -222,6 +232,7 @@ class YamlWriter {
   std::string function_;
   yaml_emitter_t emitter_;
   std::string text_;
+  size_t scalar_bytes_ = 0;  // of every scalar emitted (Scalar)
   py::object np_bool_, np_integer_, np_ndarray_, real_, file_float_, file_int_, file_plain_;
 };
 

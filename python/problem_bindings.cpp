@@ -107,10 +107,16 @@ std::shared_ptr<Scene> SceneFrom(const py::object& obj) {
 }
 
 // The optional yp of coordinates and transition: refused on the ODE forms (it was taken and
-// ignored, NaN or not), else a 1-D array of y's length; nullopt when not given.
+// ignored, NaN or not), else a 1-D array of y's length; nullopt when not given. dae_usage,
+// when given, is the call the DAE forms need: yp is then required there.
 std::optional<Array> OptionalYp(const Problem& problem, const py::object& yp, const Array& y, const std::string& where,
-                                const char* ode_hint) {
-  if (yp.is_none()) return std::nullopt;
+                                const char* ode_hint, const char* dae_usage = nullptr) {
+  if (yp.is_none()) {
+    if (problem.is_dae() && dae_usage != nullptr) {
+      throw ProblemError(where + ": yp is missing: the DAE forms need it" + dae_usage);
+    }
+    return std::nullopt;
+  }
   if (!problem.is_dae()) throw ProblemError(where + ": yp = " + Repr(yp) + ": the ODE forms take none" + ode_hint);
   Array b = Vector1d(yp, "yp");
   if (Length(y) != Length(b)) throw ProblemError(where + ": y and yp differ in length");
@@ -272,7 +278,8 @@ to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
         const Array a = Vector1d(y, "y");
         const std::vector<int> events = EventIndices(*p.problem, event);
         const std::optional<Array> b =
-            OptionalYp(*p.problem, yp, a, "kneedyn.Problem.transition", " (y, ended = p.transition(t, y, event))");
+            OptionalYp(*p.problem, yp, a, "kneedyn.Problem.transition", " (y, ended = p.transition(t, y, event))",
+                       " (y, yp, ended = p.transition(t, y, event, yp))");
         const bool ended = p.problem->Transition(t, a.data(), b ? b->data() : nullptr, Length(a), events);
         const py::object y_next = ended ? py::object(py::none()) : py::object(ToArray(p.problem->y0()));
         if (!p.problem->is_dae()) return py::make_tuple(y_next, ended);

@@ -123,6 +123,7 @@ class Scene:
             raise InputError("Scene.from_dict(): document = %s: must be a dict" % _echo(document))
         label = _text(label, "Scene.from_dict", "label")
         base = _os.path.abspath(_os.getcwd() if base_dir is None else _file_path(base_dir, "Scene.from_dict", "base_dir"))
+        _kneedyn.to_yaml(document, "Scene.from_dict")  # refuses, naming the field, what deepcopy cannot copy
         doc = _copy.deepcopy(document)
         return cls(doc, _kneedyn.parse_document(doc, label, base, "Scene.from_dict"), label, base)
 
@@ -211,7 +212,8 @@ class Scene:
         ps = doc.get("parameter_set")
         if isinstance(ps, str) and not _os.path.isabs(ps):
             near = _os.path.join(self._base_dir, ps)
-            doc["parameter_set"] = near if _os.path.exists(near) else _os.path.join(data_dir(), ps)
+            # data_dir() may be relative (KNEEDYN_DATA_DIR, the ./reference-data fallback).
+            doc["parameter_set"] = near if _os.path.exists(near) else _os.path.abspath(_os.path.join(data_dir(), ps))
         text = _kneedyn.to_yaml(doc, "Scene.write")  # before the file is opened: a refusal writes nothing
         try:
             with open(path, "w", encoding="utf-8") as f:
@@ -227,6 +229,7 @@ class Scene:
         if not isinstance(changes, dict):
             raise InputError("Scene.update(): changes = %s (%s): must be a dict of scene keys (a value None "
                              "deletes the key)" % (_echo(changes), type(changes).__name__))
+        _kneedyn.to_yaml(changes, "Scene.update")  # refuses, naming the field, what deepcopy cannot copy
         doc = _copy.deepcopy(self._doc)
         _merge(doc, changes)
         label = self._label if self._label.endswith("(modified in Python)") \

@@ -620,7 +620,8 @@ def test_a_document_larger_than_a_scene_file_is_refused_naming_the_limit():
     s = kneedyn.load_scene(CHAPTER)
     before = s.to_dict()
     with pytest.raises(kneedyn.InputError, match=r"Scene.update\(\): the document's YAML text passes 1048576 bytes "
-                                                 r"at field 'extra.k\d+'; the limit is 1048576 bytes"):
+                                                 r"at field 'extra.k\d+'( \(\d+ bytes of text there\))?; "
+                                                 r"the limit is 1048576 bytes"):
         s.update({"extra": {"k%d" % i: i for i in range(200000)}})
     assert s.to_dict() == before
     # A list shared at every level (2**40 items written) is stopped by the same limit.
@@ -629,6 +630,46 @@ def test_a_document_larger_than_a_scene_file_is_refused_naming_the_limit():
         shared = [shared, shared]
     with pytest.raises(kneedyn.InputError, match="the limit is 1048576 bytes"):
         s.update({"extra": shared})
+
+
+def test_the_size_refusal_names_the_field_that_passed_the_limit():
+    # Before: a 2 MiB description was blamed on the next key written (parameter_set), or on
+    # no field when it came last: the emitter's buffer lags behind the fields.
+    d = kneedyn.load_scene(CHAPTER).to_dict()
+    big = "x" * (2 << 20)
+    last = {k: v for k, v in d.items() if k != "description"}
+    last["description"] = big
+    for doc in ({**d, "description": big}, last):
+        with pytest.raises(kneedyn.InputError, match=r"at field 'description' \(2097152 bytes of text there\)"):
+            kneedyn.Scene.from_dict(doc, base_dir=os.path.dirname(CHAPTER))
+
+
+def test_values_deepcopy_cannot_copy_are_refused_naming_the_field():
+    # Before: copy.deepcopy's TypeError ("cannot pickle 'generator' object"), naming no field.
+    s = kneedyn.load_scene(CHAPTER)
+    with pytest.raises(kneedyn.InputError, match=r"Scene.update\(\): field 'ligaments' = <generator"):
+        s.copy().update({"ligaments": (n for n in ["LCL"])})
+    with pytest.raises(kneedyn.InputError, match=r"field 'pulse.direction_T' = <generator"):
+        s.copy().set_pulse(direction_T=(x for x in [0, -1, 0]))
+    d = s.to_dict()
+    d["description"] = (c for c in "ab")
+    with pytest.raises(kneedyn.InputError, match=r"Scene.from_dict\(\): field 'description' = <generator"):
+        kneedyn.Scene.from_dict(d, base_dir=os.path.dirname(CHAPTER))
+
+
+def test_write_makes_the_parameter_set_absolute_under_a_relative_data_dir(monkeypatch, tmp_path):
+    # Before: with KNEEDYN_DATA_DIR relative, the file said parameter_set: reference-data/...,
+    # which the CLI could not find from any other directory.
+    d = kneedyn.load_scene(CHAPTER).to_dict()
+    data = os.path.abspath(kneedyn.data_dir())
+    monkeypatch.chdir(os.path.dirname(data))
+    monkeypatch.setenv("KNEEDYN_DATA_DIR", os.path.basename(data))
+    d["parameter_set"] = "chapter_knee.yaml"  # not beside base_dir: found under data_dir()
+    path = tmp_path / "relative_data_dir.yaml"
+    kneedyn.Scene.from_dict(d, base_dir=str(tmp_path)).write(str(path))
+    line = next(l for l in path.read_text().splitlines() if l.startswith("parameter_set:"))
+    written = line.split(":", 1)[1].strip()
+    assert os.path.isabs(written) and os.path.isfile(written), line
 
 
 def test_numpy_values_keep_their_type():

@@ -89,6 +89,9 @@ def test_bad_calls_raise_value_error():
     y = p.y0.copy(); y[2] = np.nan
     with pytest.raises(ValueError, match=r"y\[2\] = nan"):
         p.rhs(p.t0, y)
+    y = p.y0.copy(); y[9] = 1e200  # finite, but the dynamics overflow: no NaN handed back
+    with pytest.raises(kneedyn.SolverError, match=r"f\[\d+\] = .*every output is finite"):
+        p.rhs(p.t0, y)
     with pytest.raises(ValueError, match="1-D"):
         p.rhs(p.t0, np.zeros((3, 4)))
     with pytest.raises(ValueError, match="ODE"):
@@ -110,6 +113,14 @@ def test_bad_calls_raise_value_error():
     bad_yp = d.yp0.copy(); bad_yp[0] = np.nan
     with pytest.raises(ValueError, match=r"yp\[0\] = nan"):
         d.coordinates(d.t0, d.y0, bad_yp)
+    # transition needs yp on the DAE forms: the message shows the call.
+    with pytest.raises(ValueError, match=r"yp is missing.*p.transition\(t, y, event, yp\)"):
+        d.transition(d.t0, d.y0, 0)
+    # Tolerances past kneedyn run's ranges (the re-contact threshold scales with them).
+    with pytest.raises(ValueError, match=r"rtol = 1e\+300.*\(0, 0.5\]"):
+        kneedyn.Problem(SCENE, form="ede", rtol=1e300)
+    with pytest.raises(ValueError, match=r"\(0, 1e-2\]"):
+        kneedyn.Problem(SCENE, form="ede", atol=0.5)
     with pytest.raises(ValueError):
         kneedyn.Problem(SCENE, form="dae").jacobian(0.0, np.zeros(3), np.zeros(3), 1.0)
 
