@@ -109,7 +109,9 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
   const std::string_view header = CsvLine(line);
   ForEachCsvField(header, [&](size_t c, std::string_view name) {
     if (c > max_columns) return false;
-    out.columns.emplace_back(name);
+    // The names as the reference's solution.classes spell them ("F_ACL anterior_N") are the
+    // trajectory.csv columns they stand for.
+    out.columns.push_back(ColumnSafeName(std::string(name)));
     return true;
   });
   int time_col = -1, event_col = -1;
@@ -119,6 +121,10 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
       Throw<InputError>("kneedyn score", EchoPath(path), " header: column '", Echo(name), "' appears twice");
     }
     if (name == "time_s" || name == "time") {
+      if (time_col >= 0) {  // which one holds the times? Before, the last one was used silently.
+        Throw<InputError>("kneedyn score", EchoPath(path), " header: columns '", out.columns[time_col], "' and '", name,
+                          "' both name the time; give one");
+      }
       time_col = static_cast<int>(c);
       continue;
     }
@@ -225,6 +231,10 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
       return true;
     });
     const double t = v[time_col];
+    if (const std::string outside = OutsideSceneSpan(scene, reference, t); !outside.empty()) {
+      Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": time ", Echo(std::string(time_cell)),
+                        outside);
+    }
     if (out.rows > 0 && !(t >= last_time)) {
       Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": time ", Echo(std::string(time_cell)),
                         " decreases (the row before: ", last_time, ")");
@@ -281,6 +291,13 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
   return out;
 }
 
+std::string OutsideSceneSpan(const Scene& scene, const Solution& reference, double t) {
+  const double start = reference.times.empty() ? 0.0 : reference.times.front();
+  if (t >= start - kTimeMatch && t <= scene.end.time + kTimeMatch) return "";
+  return StrCat(" s lies outside the scene's span [", start, ", ", scene.end.time,
+                "] s (its start and end.time_s; times are in seconds)");
+}
+
 EventsFile ReadEvents(const std::string& path) {
   const std::string body = scene_detail::ReadInputFile(path, "--events file", scene_detail::TableFileRule("kneedyn score"));
   EventsFile file;
@@ -310,11 +327,20 @@ EventsFile ReadEvents(const std::string& path) {
   lines.Next(&line);
   const std::string_view header = CsvLine(line);
   const size_t n_header = CsvFieldCount(header);
-  size_t name_col = n_header, time_col = n_header, angle_col = n_header;  // first of each name
+  size_t name_col = n_header, time_col = n_header, angle_col = n_header;
+  // Each column once, and no other: a misspelled flexion column was dropped silently.
   ForEachCsvField(header, [&](size_t c, std::string_view cell) {
-    if (cell == "name" && name_col == n_header) name_col = c;
-    if ((cell == "time_s" || cell == "time") && time_col == n_header) time_col = c;  // as the result CSV
-    if (cell == "flexion_deg" && angle_col == n_header) angle_col = c;
+    const bool time = cell == "time_s" || cell == "time";  // as the result CSV
+    size_t* col = cell == "name" ? &name_col : time ? &time_col : cell == "flexion_deg" ? &angle_col : nullptr;
+    if (col == nullptr) {
+      Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "' header: column '", Echo(std::string(cell)),
+                        "' is not one of name, time_s (or time), flexion_deg");
+    }
+    if (*col != n_header) {
+      Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "' header: column '", Echo(std::string(cell)),
+                        "' repeats ", time ? "the time" : "a column");
+    }
+    *col = c;
     return true;
   });
   if (name_col == n_header || time_col == n_header) {

@@ -87,6 +87,11 @@ struct Score {
 
 Score ScoreResult(const ScoredResult& result, const Solution& reference);
 
+// "" when time t (s) lies in the scene's span, from the reference's start to the scene's
+// end.time_s (within 1e-9 s), else the refusal's text: a result row or event outside it is
+// no state of the run (times in ms, another scene's rows) and was ignored without a word.
+std::string OutsideSceneSpan(const Scene& scene, const Solution& reference, double t);
+
 // The result's non-event row times inside the reference's span (t0 to its last sampling
 // time or end event) that are not sampling times of the reference (within 1e-9 s).
 std::vector<double> OffGridTimes(const ScoredResult& result, const Solution& reference);

@@ -130,6 +130,12 @@ int ScoreCommand::Run(int argc, char** argv) {
       if (run_failure.empty() && !events.status.empty() && events.status != "completed") {
         run_failure = StrCat("the run's summary.json (--events) has status '", Echo(events.status), "'");
       }
+      for (const EventRecord& e : events.events) {  // as the result's rows (ReadResultCsv)
+        if (const std::string outside = OutsideSceneSpan(scene, reference, e.time); !outside.empty()) {
+          Throw<InputError>("kneedyn score", "--events = '", EchoPath(events_path_), "': event ", e.name, " at time ",
+                            e.time, outside);
+        }
+      }
       result.solution.events = std::move(events.events);
       for (const EventRecord& e : result.solution.events) {
         const bool known = std::any_of(reference.events.begin(), reference.events.end(),

@@ -600,6 +600,44 @@ TEST_F(HostileInput, ScoreEventsFromASummaryAreThoseOfTheRunScored) {
   EXPECT_NE(j.at("results").at(0).at("reason").get<std::string>().find("status 'partial'"), std::string::npos) << j.dump();
 }
 
+// What an outside solver's files can get wrong without a word before: two time columns (the
+// last one was used), rows or events outside the scene's span (times in ms were ignored and
+// "2 of 16 compared" printed), an events column that is not one of the three (a misspelled
+// flexion column was dropped).
+TEST_F(HostileInput, ScoreRefusesAmbiguousTimesAndRowsOutsideTheScene) {
+  const std::string out = (dir_ / "score.json").string();
+  const auto score = [&](const std::string& result, const std::string& extra = "") {
+    return "score '" + result + "' --scene '" + ChapterScenePath() + "' --out '" + out + "'" + extra;
+  };
+  ExpectRefused(score(Input("both.csv", "time_s,flexion_deg,time
+0,0,0
+0.02,0,100
+")),
+                {"columns 'time_s' and 'time' both name the time"});
+  ExpectRefused(score(Input("ms.csv", "time_s,flexion_deg
+0,0
+20,0
+")),
+                {"line 3: time 20 s lies outside the scene's span [0, 2] s", "in seconds"});
+  ExpectRefused(score(Input("negative.csv", "time_s,flexion_deg
+-0.01,0
+0,0
+")), {"line 2: time -0.01 s lies outside"});
+  const std::string result = Input("result.csv", ScoreResultCsv());
+  ExpectRefused(score(result, " --events '" + Input("typo.csv", "name,time_s,flexion
+liftoff_lateral,0.2163,52.6
+") + "'"),
+                {"--events", "column 'flexion' is not one of name, time_s (or time), flexion_deg"});
+  ExpectRefused(score(result, " --events '" + Input("twice.csv", "name,time,time_s
+liftoff_lateral,0.2163,0.2
+") + "'"),
+                {"--events", "column 'time_s' repeats the time"});
+  ExpectRefused(score(result, " --events '" + Input("late.csv", "name,time_s
+liftoff_lateral,216.3
+") + "'"),
+                {"--events", "event liftoff_lateral at time 216.3 s lies outside the scene's span [0, 2] s"});
+}
+
 // An event the reference does not have (a misspelled name) is listed as not scored, in the
 // printout and the JSON's header; before, it only left that event's figure empty. The events
 // CSV takes the header `time` as the result CSV does.

@@ -193,6 +193,27 @@ TEST(Score, MissingTimesAndBadColumns) {
   EXPECT_EQ(s.metrics.compared_times, 3);
   EXPECT_EQ(s.metrics.missing_times, static_cast<int>(ref.times.size()) - 3);
 
+  // The same file as R's write.csv or Python's csv.QUOTE_ALL writes it, every field in
+  // double quotes, and with the reference's own spelling of a column ("F_ACL anterior_N" for
+  // trajectory.csv's F_ACL_anterior_N): read as the plain file (before: "column '"time_s"' is
+  // not a trajectory.csv column").
+  {
+    std::ofstream out(dir / "quoted.csv");
+    out.precision(17);
+    out << "\"time_s\",\"x0_mm\",\"y0_mm\",\"z0_mm\",\"flexion_deg\",\"valgus_deg\",\"external_rotation_deg\","
+           "\"F_ACL anterior_N\"\n";
+    for (int i = 0; i < 3; ++i) {
+      out << '"' << ref.times[i] << '"';
+      for (double v : ref.values.at("positions")[i]) out << ",\"" << v << '"';
+      out << ",0\n";
+    }
+  }
+  const bench::ScoredResult quoted = bench::ReadResultCsv((dir / "quoted.csv").string(), ChapterScene(), ref);
+  EXPECT_EQ(quoted.columns.back(), "F_ACL_anterior_N");
+  const bench::Score q = bench::ScoreResult(quoted, ref);
+  EXPECT_TRUE(std::isinf(q.metrics.scd_compared));  // exact at the times it has, as short.csv
+  EXPECT_EQ(q.metrics.compared_times, 3);
+
   {
     std::ofstream out(dir / "typo.csv");
     out << "time_s,flexon_deg\n0,0\n";

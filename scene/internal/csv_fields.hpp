@@ -17,15 +17,26 @@ inline size_t CsvFieldCount(std::string_view line) {
   return line.empty() ? 0 : static_cast<size_t>(std::count(line.begin(), line.end(), ',')) + 1;
 }
 
-// Calls f(index, field) for each field of `line` in order, as views of it (untrimmed). A
-// callable that returns bool ends the walk by returning false.
+// A field without the double quotes around it, as RFC 4180 writers quote every field (R's
+// write.csv, Python's csv.QUOTE_ALL); a field with quotes inside is left as it is (no kneedyn
+// name or number holds a quote or a comma).
+inline std::string_view WithoutCsvQuotes(std::string_view field) {
+  if (field.size() >= 2 && field.front() == '"' && field.back() == '"' &&
+      field.find('"', 1) == field.size() - 1) {
+    return field.substr(1, field.size() - 2);
+  }
+  return field;
+}
+
+// Calls f(index, field) for each field of `line` in order, as views of it (untrimmed,
+// WithoutCsvQuotes). A callable that returns bool ends the walk by returning false.
 template <typename F>
 void ForEachCsvField(std::string_view line, F&& f) {
   if (line.empty()) return;
   for (size_t c = 0, start = 0;; ++c) {
     const size_t comma = line.find(',', start);
-    const std::string_view field =
-        line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start);
+    const std::string_view field = WithoutCsvQuotes(
+        line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start));
     if constexpr (std::is_same_v<std::invoke_result_t<F&, size_t, std::string_view>, bool>) {
       if (!f(c, field)) return;
     } else {
