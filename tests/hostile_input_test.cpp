@@ -609,32 +609,17 @@ TEST_F(HostileInput, ScoreRefusesAmbiguousTimesAndRowsOutsideTheScene) {
   const auto score = [&](const std::string& result, const std::string& extra = "") {
     return "score '" + result + "' --scene '" + ChapterScenePath() + "' --out '" + out + "'" + extra;
   };
-  ExpectRefused(score(Input("both.csv", "time_s,flexion_deg,time
-0,0,0
-0.02,0,100
-")),
+  ExpectRefused(score(Input("both.csv", "time_s,flexion_deg,time\n0,0,0\n0.02,0,100\n")),
                 {"columns 'time_s' and 'time' both name the time"});
-  ExpectRefused(score(Input("ms.csv", "time_s,flexion_deg
-0,0
-20,0
-")),
+  ExpectRefused(score(Input("ms.csv", "time_s,flexion_deg\n0,0\n20,0\n")),
                 {"line 3: time 20 s lies outside the scene's span [0, 2] s", "in seconds"});
-  ExpectRefused(score(Input("negative.csv", "time_s,flexion_deg
--0.01,0
-0,0
-")), {"line 2: time -0.01 s lies outside"});
+  ExpectRefused(score(Input("negative.csv", "time_s,flexion_deg\n-0.01,0\n0,0\n")), {"line 2: time -0.01 s lies outside"});
   const std::string result = Input("result.csv", ScoreResultCsv());
-  ExpectRefused(score(result, " --events '" + Input("typo.csv", "name,time_s,flexion
-liftoff_lateral,0.2163,52.6
-") + "'"),
+  ExpectRefused(score(result, " --events '" + Input("typo.csv", "name,time_s,flexion\nliftoff_lateral,0.2163,52.6\n") + "'"),
                 {"--events", "column 'flexion' is not one of name, time_s (or time), flexion_deg"});
-  ExpectRefused(score(result, " --events '" + Input("twice.csv", "name,time,time_s
-liftoff_lateral,0.2163,0.2
-") + "'"),
+  ExpectRefused(score(result, " --events '" + Input("twice.csv", "name,time,time_s\nliftoff_lateral,0.2163,0.2\n") + "'"),
                 {"--events", "column 'time_s' repeats the time"});
-  ExpectRefused(score(result, " --events '" + Input("late.csv", "name,time_s
-liftoff_lateral,216.3
-") + "'"),
+  ExpectRefused(score(result, " --events '" + Input("late.csv", "name,time_s\nliftoff_lateral,216.3\n") + "'"),
                 {"--events", "event liftoff_lateral at time 216.3 s lies outside the scene's span [0, 2] s"});
 }
 
