@@ -34,6 +34,13 @@ TEST(SensitivityCli, BadNamesExitTwoNamingTheFieldAndNearestNameWritingNothing) 
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("--rtol"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(out));
+  // One element's slack length and extension ratio: the first fixes L0, so every derivative
+  // by the second read an exact 0 (alone it is not: liftoff_time_lateral, 0.034 s).
+  r = RunKneedyn("sensitivity '" + kScene + "' --parameters MCL_deep.slack_length,mass,MCL_deep.extension_ratio "
+                 "--outcomes time_90_s --out '" + out.string() + "'");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("'MCL_deep.slack_length' and 'MCL_deep.extension_ratio'"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST(SensitivityCli, ImpactIsASolverRefusalWithNothingWritten) {
