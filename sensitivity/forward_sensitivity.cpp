@@ -543,9 +543,9 @@ std::vector<ParameterSpec> ResolveParameters(const Scene& scene, const std::vect
   // slack_length after e (ensembles/README.md), so e would move nothing and its derivatives
   // would read an exact 0 (alone, d liftoff_time_lateral / d MCL_deep.extension_ratio is 0.034).
   for (const ParameterSpec& a : out) {
-    if (a.kind != ParameterKind::kLigamentSlackLength) continue;
+    if (a.kind != ensembles::ParameterKind::kLigamentSlackLength) continue;
     for (const ParameterSpec& b : out) {
-      if (b.kind == ParameterKind::kLigamentExtensionRatio && b.ligament == a.ligament) {
+      if (b.kind == ensembles::ParameterKind::kLigamentExtensionRatio && b.ligament == a.ligament) {
         Throw<InputError>("kneedyn sensitivity", field, ": '", Echo(a.name), "' and '", Echo(b.name),
                           "': the slack length fixes L0 = L_ref / e, so the extension ratio would have no effect; "
                           "ask for one of the two per element (two runs)");
