@@ -159,7 +159,8 @@ constexpr size_t kPatellaColumns = 11;  // patella_shift_mm … tendon_quadricep
 // before did not): its trajectory stands, and the warning says the columns are missing.
 void AppendPatellaColumns(const Patella& p, const MechanicalState& st, Vector6d* from_q,
                           PatellaGuess* guess, std::vector<double>* row,
-                          std::vector<std::pair<double, std::string>>* not_followed) {
+                          std::vector<std::pair<double, std::string>>* not_followed,
+                          std::array<TrajectoryTable::OffPatella, 2>* off_patella) {
   const Vector6d& q = st.q;
   try {
     if ((q - *from_q).tail<3>().cwiseAbs().maxCoeff() <= DegToRad(1.0)) {
@@ -174,6 +175,19 @@ void AppendPatellaColumns(const Patella& p, const MechanicalState& st, Vector6d*
   }
   *from_q = q;
   const std::array<double, kPatellaUnknowns>& x = guess->x;
+  // A pressing facet's contact point in P against the patella's extent along z (apex to base).
+  const double z_low = std::min(p.apex_P.z(), p.base_P.z()), z_high = std::max(p.apex_P.z(), p.base_P.z());
+  for (int i = 0; i < 2; ++i) {
+    ChartSample on_patella;
+    if (!(x[kPatellaFacetRatio + i] > 0.0) ||
+        !p.facet[i].tibial_surface->EvaluateChart(x[kPatellaChart + 4 * i + 2], x[kPatellaChart + 4 * i + 3], &on_patella)) {
+      continue;
+    }
+    const double z = on_patella.p.z();
+    const double beyond = std::max(z_low - z, z - z_high);
+    TrajectoryTable::OffPatella& off = (*off_patella)[i];
+    if (beyond > 0.0 && MToMm(beyond) > off.beyond_mm) off = {st.t, MToMm(z), MToMm(beyond)};
+  }
   const double quadriceps = QuadricepsMagnitude(p.quadriceps, st.t);
   const std::array<double, kPatellaColumns> columns = {
       MToMm(x[0]),      MToMm(x[1]),      MToMm(x[2]), RadToDeg(x[3]), RadToDeg(x[4]), RadToDeg(x[5]), quadriceps,
@@ -260,7 +274,7 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
     for (const LigamentObservables& l : obs.ligaments) *out++ = l.strain;
     if (model.patella) {
       AppendPatellaColumns(*model.patella, st, &patella_q, &patella_guess, &row,
-                           &table.patella_not_followed);
+                           &table.patella_not_followed, &table.patella_contact_off);
     }
     table.rows.push_back(std::move(row));
   }
@@ -315,6 +329,19 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
     p.message = StrCat("the patella's columns are empty at t = ", time, " s: its equilibrium, followed from the row "
                        "before, was not reached at this row's tibial pose",
                        result.completed ? ", which the run's own steps reached (" : ", where the run stopped (", why, ")");
+    out.push_back(std::move(p));
+  }
+  for (int i = 0; i < 2; ++i) {
+    const TrajectoryTable::OffPatella& off = table.patella_contact_off[i];
+    if (std::isnan(off.time_s)) continue;
+    OutputWarning p;
+    p.kind = "patella_contact_off";
+    p.contact = StrCat("patellar facet ", i == 0 ? "medial" : "lateral");
+    p.time_s = off.time_s;
+    p.message = StrCat("the ", p.contact, "'s contact lies off the patella: z = ", off.z_P_mm, " mm in P at t = ",
+                       off.time_s, " s, ", off.beyond_mm, " mm beyond its extent from patella.apex_P_mm to base_P_mm "
+                       "(the facets are unbounded planes, docs/model.md §12); check patella.tuberosity_T_mm, "
+                       "tendon_length_mm and the facet planes");
     out.push_back(std::move(p));
   }
   // A fixed-step method cannot resolve a contact phase of a few steps: in the index-3 forms
@@ -643,6 +670,7 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
       w["contact"] = p.contact;
       w["duration_s"] = p.duration_s;
     }
+    if (p.kind == "patella_contact_off") w["contact"] = p.contact;
     w["time_s"] = p.time_s;
     w["message"] = p.message;
     listed.push_back(std::move(w));

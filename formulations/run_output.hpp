@@ -8,6 +8,8 @@
 #pragma once
 
 #include <nlohmann/json.hpp>
+#include <array>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -28,6 +30,15 @@ struct TrajectoryTable {
   // not reach their tibial pose (a failed run's last row, at a fold of the patella's
   // equilibrium, docs/model.md §12): the row's time (s) and the solver's reason.
   std::vector<std::pair<double, std::string>> patella_not_followed;
+  // Per patellar facet (medial, lateral): the row whose pressing contact lies farthest outside
+  // the patella's proximal-distal extent, apex_P to base_P (the facets are unbounded planes,
+  // docs/model.md §12); time_s NaN when every contact lay on it.
+  struct OffPatella {
+    double time_s = std::numeric_limits<double>::quiet_NaN();
+    double z_P_mm = 0.0;  // the contact's z in P, mm
+    double beyond_mm = 0.0;  // how far outside the extent, mm
+  };
+  std::array<OffPatella, 2> patella_contact_off;
 };
 
 TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result);
@@ -40,8 +51,10 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
 //    error (−4e-12 N with dae, −0.015 N with staggered on the patellofemoral impact).
 //  - kind "patella_not_followed": a row whose patella columns are empty
 //    (TrajectoryTable::patella_not_followed); `time_s` and `message` only.
+//  - kind "patella_contact_off": a pressing facet's contact outside the patella's extent
+//    (TrajectoryTable::patella_contact_off); `contact`, `time_s` of its farthest row, `message`.
 struct OutputWarning {
-  std::string kind;     // "pulling_contact" | "patella_not_followed" | "short_contact_phase"
+  std::string kind;     // "pulling_contact" | "patella_not_followed" | "patella_contact_off" | "short_contact_phase"
   std::string column;   // the trajectory column, e.g. "N_patella_lateral_N", "N_medial_N"
   std::string contact;  // "patellar facet lateral", "tibial contact medial"
   double min_force_N = 0.0;  // the column's most negative value, N
@@ -50,7 +63,8 @@ struct OutputWarning {
   std::string message;  // one line for the CLI and summary.json
 };
 // From the rows of `table` (MakeTrajectoryTable of `result`) and result.events: the pulling
-// contacts in column order, then the rows whose patella was not followed, then, for a
+// contacts in column order, then the rows whose patella was not followed, then the facets
+// whose contact left the patella, then, for a
 // fixed-step run, each contact phase or separation shorter than kMinResolvedSteps steps.
 constexpr int kMinResolvedSteps = 10;
 std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const RunResult& result);

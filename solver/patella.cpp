@@ -323,6 +323,14 @@ void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, P
         !patella->facet[i].tibial_surface->PlaneForm(&normal[i], &offset[i])) {
       Throw<InputError>("SolvePatellaStart", "patellar facet ", i, ": the start guess needs a trochlear sphere and a patellar plane");
     }
+    // The patella lies anterior to the trochlea: a facet facing the femur faces posteriorly
+    // (−y in P, which is parallel to F here). A reversed normal put the patella inside the
+    // femur (behind the trochlear centres) with positive facet forces, or asked for a longer tendon.
+    if (!(normal[i].y() < 0.0)) {
+      Throw<InputError>("SolvePatellaStart", "patella.facet_", i == 0 ? "medial" : "lateral", ".normal_P = (",
+                        normal[i].x(), ", ", normal[i].y(), ", ", normal[i].z(),
+                        "): must point from the patella towards the femur, i.e. posteriorly (y < 0; docs/model.md §12)");
+    }
     A.row(i) = normal[i].transpose();
     b(i) = normal[i].dot(centre[i]) - offset[i] - radius[i];
   }

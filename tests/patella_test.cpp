@@ -23,6 +23,8 @@
 #include "solver/contact_kinematics.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/patella.hpp"
+#include "solver/rotation.hpp"
+#include "solver/units.hpp"
 
 namespace kneedyn {
 namespace {
@@ -240,6 +242,24 @@ TEST(Patella, TendonThatCannotReachIsRefusedWithTheLengthItNeeds) {
     EXPECT_NE(std::string(e.what()).find("no patellar equilibrium at the scene's start with patella.tendon_length_mm = 400 mm"),
               std::string::npos)
         << e.what();
+  }
+}
+
+// A facet normal pointing away from the femur (anteriorly) is refused naming it: before, it
+// asked for a longer tendon (65.5 mm) and, given one, put the patella behind the trochlear
+// centres with positive facet forces.
+TEST(Patella, FacetNormalFacingAwayFromTheFemurIsRefused) {
+  std::ifstream in("reference-data/scenes/patellofemoral_impact.yaml");
+  std::string impact((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string key = "facet_lateral: {normal_P: [0.42261826174069944, -0.9063077870366499, 0.0]";
+  ASSERT_NE(impact.find(key), std::string::npos);
+  impact.replace(impact.find(key), key.size(), "facet_lateral: {normal_P: [-0.42261826174069944, 0.9063077870366499, 0.0]");
+  try {
+    ParseScene(impact, "flipped.yaml", "reference-data/scenes");
+    ADD_FAILURE() << "a facet facing away from the femur was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("patella.facet_lateral.normal_P = (-0.42"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("posteriorly (y < 0"), std::string::npos) << e.what();
   }
 }
 
@@ -776,6 +796,68 @@ TEST(PatellaRuns, PullingFacetIsNamedInTheSummaryWarnings) {
   const WrittenRun p = WriteAndRead(shipped, settings, plain, "plain");
   EXPECT_TRUE(p.summary["warnings"].is_array());
   EXPECT_TRUE(p.summary["warnings"].empty()) << p.summary["warnings"].dump();
+}
+
+// The patellar facets are unbounded planes: a tuberosity at the tibial origin (the tendon then
+// pulls the patella 150 mm distal) puts both trochlear contacts far off the patella, and the
+// run completed with no word. The warning's row and z are checked against a second
+// description of the contact, the sphere's: point_F = C − r n_F, with n_F = R_FP n̂ and the
+// pose from the written columns, then z in P. The shipped scene's contacts lie on the patella
+// (its dae run has no warning, above).
+TEST(PatellaRuns, ContactOffThePatellaIsWarned) {
+  Scene scene = ImpactScene();
+  Patella& patella = *scene.model.patella;
+  patella.tuberosity_T = Vector3d::Zero();
+  SolvePatellaStart(scene.reference_q, scene.initial.q, &patella);
+  RunSettings settings;
+  settings.formulation = "ede";
+  const RunResult run = RunScene(scene, settings);
+  ASSERT_TRUE(run.completed) << run.failure;
+  const WrittenRun w = WriteAndRead(scene, settings, run, "off");
+  const auto column = [&](const std::string& name) {
+    const size_t c = static_cast<size_t>(std::find(w.columns.begin(), w.columns.end(), name) - w.columns.begin());
+    EXPECT_LT(c, w.columns.size()) << name;
+    return c;
+  };
+  const double z_low = std::min(patella.apex_P.z(), patella.base_P.z());
+  const double z_high = std::max(patella.apex_P.z(), patella.base_P.z());
+  int warned = 0;
+  for (int i = 0; i < 2; ++i) {
+    const std::string facet = i == 0 ? "medial" : "lateral";
+    Vector3d centre_F, normal_P;
+    double radius = 0.0, offset = 0.0;
+    ASSERT_TRUE(patella.facet[i].femoral_surface->SphereForm(&centre_F, &radius));
+    ASSERT_TRUE(patella.facet[i].tibial_surface->PlaneForm(&normal_P, &offset));
+    double worst_beyond_mm = 0.0, worst_t = 0.0, worst_z_mm = 0.0;
+    for (const auto& row : w.rows) {
+      if (!(std::stod(row.at(column("N_patella_" + facet + "_N"))) > 0.0)) continue;
+      const Vector3d origin_F(MmToM(std::stod(row.at(column("patella_shift_mm")))),
+                              MmToM(std::stod(row.at(column("patella_anterior_mm")))),
+                              MmToM(std::stod(row.at(column("patella_proximal_mm")))));
+      const Matrix3d R_FP = RotationFT(DegToRad(std::stod(row.at(column("patella_flexion_deg")))),
+                                       kPi / 2 + DegToRad(std::stod(row.at(column("patella_tilt_deg")))),
+                                       DegToRad(std::stod(row.at(column("patella_rotation_deg")))));
+      const Vector3d point_F = centre_F - radius * (R_FP * normal_P);
+      const double z_mm = MToMm((R_FP.transpose() * (point_F - origin_F)).z());
+      const double beyond_mm = std::max(MToMm(z_low) - z_mm, z_mm - MToMm(z_high));
+      if (beyond_mm > worst_beyond_mm) worst_beyond_mm = beyond_mm, worst_t = std::stod(row.at(0)), worst_z_mm = z_mm;
+    }
+    ASSERT_GT(worst_beyond_mm, 100.0) << facet << ": the premise, a contact far off the patella";
+    const nlohmann::json* entry = nullptr;
+    for (const nlohmann::json& x : w.summary["warnings"]) {
+      if (x["kind"] == "patella_contact_off" && x["contact"] == "patellar facet " + facet) entry = &x;
+    }
+    ASSERT_NE(entry, nullptr) << w.summary["warnings"].dump();
+    ++warned;
+    EXPECT_NEAR((*entry)["time_s"].get<double>(), worst_t, 1e-11) << facet;
+    const std::string message = (*entry)["message"];
+    const std::string marker = "z = ";
+    ASSERT_NE(message.find(marker), std::string::npos) << message;
+    // The CSV's 12 digits of the pose carry ~1e-9 mm to a point 0.2 m away.
+    EXPECT_NEAR(std::stod(message.substr(message.find(marker) + marker.size())), worst_z_mm, 1e-6) << message;
+    EXPECT_NE(message.find("patella.tuberosity_T_mm"), std::string::npos) << message;
+  }
+  EXPECT_EQ(warned, 2);
 }
 
 // The same warnings for the tibial contacts, from a table built here: a force below 0 in an
