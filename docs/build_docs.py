@@ -5,7 +5,7 @@
      Python module, data), so the reference documents exactly the installed public API
      (BUILD/install_manifest.txt, which the install rewrites, is put back as it was);
   2. Doxygen over the installed headers (XML for Breathe); any warning fails the build
-     (WARN_AS_ERROR); plain // comments become descriptions (docs/doxygen_filter.py);
+     (WARN_AS_ERROR); plain // (and problem.h's /* */) comments become descriptions (docs/doxygen_filter.py);
   3. the pages generated at build time, in a copy of docs/: cli.md (the `--help` of the
      program and of every subcommand it lists), api/cpp.md (one section per header) and
      scenes.md (the scene format, reference-data/scenes/README.md as it is);
@@ -128,8 +128,7 @@ def cpp_page(include_dir):
              "`kneedyn::formulations`, see the README's \"Install and use as a library\"), and "
              "the C interface `problem.h` (`#include \"kneedyn/problem.h\"`; link "
              "`kneedyn::problem_c` or pkg-config's `kneedyn-problem`; [](../problem.md)). "
-             "Descriptions are the headers' own `//` comments; problem.h's are `/* */`, read "
-             "them in the header.\n"]
+             "Descriptions are the headers' own comments (`//`, and problem.h's `/* */`).\n"]
     for header in headers:
         parts.append("\n## %s\n\n```{eval-rst}\n.. doxygenfile:: %s\n   :project: kneedyn\n```\n" % (header, header))
     return "".join(parts), headers

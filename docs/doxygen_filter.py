@@ -9,6 +9,9 @@ plain ones as documentation, escaped so that they read as text, not as Doxygen c
   - a comment block right above a declaration     -> the declaration's description
   - `code;  // text` or `code,  // text` (members, enumerators) -> `///<` after the member
 
+The C header (kneedyn/problem.h, C89) comments in `/* */` blocks; they are read the same way:
+a block at the top, a block right above a declaration, and `code;  /* text */` after a member.
+
 Comments written for Doxygen (`///`, `//!`, `/** */`) pass through unchanged, so their
 commands are checked and their warnings fail the docs build (WARN_AS_ERROR). Line count
 is preserved, so Doxygen's line numbers are the header's.
@@ -19,6 +22,36 @@ import sys
 SPECIAL = re.compile(r"([\\@<>&#%$])")
 PLAIN = re.compile(r"^(\s*)//(?![/!])\s?(.*)$")
 TRAILING = re.compile(r"^(.*?[;,{])(\s*)//(?![/!])\s?(.*)$")
+C_OPEN = re.compile(r"^(\s*)/\*(?![*!])\s?(.*)$")  # a C block comment's first line
+C_TRAILING = re.compile(r"^(.*?[;,{])(\s*)/\*(?![*!])\s?(.*?)\s*\*/\s*$")
+
+
+def c_blocks(lines):
+    """The `/* */` blocks standing on lines of their own, as lists of // lines: the same line
+    count, text without the comment's frame. Other lines are returned as they are."""
+    out = list(lines)
+    i = 0
+    while i < len(lines):
+        m = C_OPEN.match(lines[i])
+        if not m:
+            t = C_TRAILING.match(lines[i])
+            if t and outside_string(t.group(1)):
+                out[i] = "%s%s// %s\n" % (t.group(1), t.group(2), t.group(3))
+            i += 1
+            continue
+        j = i
+        while j < len(lines) and "*/" not in lines[j]:
+            j += 1
+        if j == len(lines) or lines[j].split("*/", 1)[1].strip():
+            i += 1  # unterminated, or code after the comment: left as it is
+            continue
+        indent = m.group(1)
+        for k in range(i, j + 1):
+            text = m.group(2) if k == i else re.sub(r"^\s*\*?(?!/)\s?", "", lines[k].rstrip("\n"))
+            text = text.split("*/", 1)[0].rstrip()
+            out[k] = "%s// %s\n" % (indent, text)
+        i = j + 1
+    return out
 
 
 def escape(text):
@@ -68,6 +101,8 @@ def convert(lines, path):
 def main():
     with open(sys.argv[1], encoding="utf-8") as f:
         lines = f.readlines()
+    if sys.argv[1].endswith(".h"):
+        lines = c_blocks(lines)
     sys.stdout.write("".join(convert(lines, sys.argv[1])))
 
 

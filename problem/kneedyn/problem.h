@@ -14,7 +14,8 @@
  *
  * Every function returns a kneedyn_status; on failure kneedyn_last_error() (per thread)
  * names the function, the value and the rule. A handle that is not a live one returned by
- * kneedyn_problem_create is refused with KNEEDYN_BAD_HANDLE without being dereferenced.
+ * kneedyn_problem_create is refused with KNEEDYN_BAD_HANDLE without being dereferenced;
+ * no handle is issued twice, so a destroyed one stays refused.
  * Matrices are row-major n x n. Sizes change between phases for the DAE forms. Times and
  * states must be finite. Calls on one handle from several threads take turns (each holds the
  * handle while it runs); a destroy during a call frees the handle when that call returns.

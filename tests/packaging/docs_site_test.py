@@ -104,7 +104,7 @@ def main():
         if usage.strip() not in cli or (first_option and first_option.group(1) not in cli):
             problems.append("cli.html lacks `kneedyn %s --help` (%r)" % (sub, usage.strip()))
     headers = sorted(p.relative_to(stage / "include" / "kneedyn").as_posix()
-                     for p in (stage / "include" / "kneedyn").rglob("*.hpp"))
+                     for p in (stage / "include" / "kneedyn").rglob("*") if p.suffix in (".hpp", ".h"))
     cpp = (site / "api" / "cpp.html").read_text(encoding="utf-8")
     missing = [h for h in headers if ">%s<" % h not in cpp]
     if not headers or missing:
