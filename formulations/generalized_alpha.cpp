@@ -8,7 +8,7 @@
 // second order in positions, velocities and multipliers.
 //
 // Options: --rho-inf (default 0.9) gives Chung–Hulbert's αm, αf, β, γ; --alpha-m,
-// --alpha-f, --beta, --gamma (all four) set them explicitly (αm = αf = 0, β = 1/4, γ = 1/2
+// --alpha-f, --beta, --gamma (all four, γ = 1/2 − αm + αf) set them explicitly (αm = αf = 0, β = 1/4, γ = 1/2
 // reproduces `newmark`). Fixed step --step (default 1e-4 s); --rtol/--atol drive the Newton
 // test as for newmark.
 #include "formulations/internal/newmark_scheme.hpp"
@@ -60,6 +60,16 @@ bool ReadGeneralizedAlphaOptions(const OptionRequest& request, NewmarkOptions* o
     return request.Fail(StrCat("generalized-alpha parameters (alpha_m, alpha_f, beta, gamma) = (", scheme.alpha_m,
                                ", ", scheme.alpha_f, ", ", scheme.beta, ", ", scheme.gamma,
                                "); need alpha_m < 1, alpha_f < 1, beta > 0, gamma > 0"));
+  }
+  // Second order needs γ = 1/2 − αm + αf (Chung & Hulbert 1993; Arnold & Brüls 2007 for the
+  // index-3 form). Off it the scheme is first order, which nothing here states or tests (γ
+  // raised by 0.1 did not converge on the conservative scene as h went 4e-4 → 5e-5 s).
+  // 1e-6: parameters typed to six decimals.
+  const double second_order_gamma = 0.5 - scheme.alpha_m + scheme.alpha_f;
+  if (!(std::abs(scheme.gamma - second_order_gamma) <= 1e-6)) {
+    return request.Fail(StrCat("--gamma = ", request.Shown("--gamma", scheme.gamma), " with --alpha-m = ", scheme.alpha_m,
+                               " and --alpha-f = ", scheme.alpha_f, ": must be 1/2 - alpha_m + alpha_f = ",
+                               second_order_gamma, " (within 1e-6) for second order"));
   }
   options->scheme = scheme;
   return true;

@@ -178,6 +178,9 @@ TEST_F(HostileInput, OptionMessagesEchoTheTextTyped) {
        {"--max-step = 0.00005 s: mde with --integrator rk4 takes fixed steps"}, ""},
       {"--formulation generalized-alpha --rho-inf 0.5 --alpha-m 0 --alpha-f 0 --beta 0.25 --gamma 0.5",
        {"--rho-inf = 0.5 and --alpha-m = 0", "not both"}, ""},
+      // A first-order scheme ran without a word (and did not converge on the conservative scene).
+      {"--formulation generalized-alpha --alpha-m 0 --alpha-f 0 --beta 0.25 --gamma 0.6",
+       {"--gamma = 0.6 with --alpha-m = 0 and --alpha-f = 0: must be 1/2 - alpha_m + alpha_f = 0.5", "second order"}, ""},
   };
   for (const Case& c : cases) {
     const CommandResult r = ExpectRefused(RunArgs(ChapterScenePath(), c.extra), c.needles);
