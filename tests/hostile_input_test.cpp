@@ -707,7 +707,7 @@ TEST_F(HostileInput, MessagesNameLongPathsWhole) {
   const std::string deep = std::string(60, 'd') + "/" + std::string(60, 'e');
   fs::create_directories(dir_ / "in" / deep);
   const std::string result = Input(deep + "/result.csv", "time_s,flexion_deg\n0,0\n0.02,0\n");
-  const std::string events = Input(deep + "/events.csv", "event\n");
+  const std::string events = Input(deep + "/events.csv", "flexion_deg\n");
   ASSERT_GT(events.size(), 130u);
   ExpectRefused("score '" + result + "' --scene '" + ChapterScenePath() + "' --events '" + events + "' --out '" +
                     Out() + "'",
