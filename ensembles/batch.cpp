@@ -90,6 +90,9 @@ BatchVariants ParseBatchVariants(const std::string& text, const std::string& lab
         }
         v.parameters.push_back(p);
       });
+      if (const std::string why = ParametersThatCannotVaryTogether(v.parameters); !why.empty()) {
+        Throw<InputError>("LoadBatchVariants", label, ": line ", line_no, ": ", why);
+      }
       continue;
     }
     const size_t fields = CsvFieldCount(t);

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include "ensembles/sweep_cli.hpp"
 
 #include <cerrno>
@@ -90,7 +91,9 @@ int SweepCommand::Run() {
       }
       const SweepTable all = MergeParts(parts);
       WriteSweepResults(out_dir_, all);
-      std::printf("merged %zu parts: %zu runs -> %s/sweep.{csv,h5}\n", parts.size(), all.rows.size(), out_dir_.c_str());
+      const long failed = std::count_if(all.rows.begin(), all.rows.end(), [](const RunRow& r) { return !r.completed; });
+      std::printf("merged %zu parts: %zu runs (%ld failed) -> %s/sweep.{csv,h5}\n", parts.size(), all.rows.size(), failed,
+                  out_dir_.c_str());
       return 0;
     }
     if (spec_path_.empty()) Throw<InputError>("kneedyn sweep", "a spec file is required (or --merge PART...)");

@@ -234,10 +234,24 @@ SweepTable MergeParts(const std::vector<SweepTable>& parts) {
     all.rows.insert(all.rows.end(), t.rows.begin(), t.rows.end());
   }
   std::sort(all.rows.begin(), all.rows.end(), [](const RunRow& a, const RunRow& b) { return a.index < b.index; });
+  // A run given twice, named with the parts that hold it (before: the first index past it,
+  // which was not the duplicate, and no file).
+  for (size_t i = 1; i < all.rows.size(); ++i) {
+    if (all.rows[i].index != all.rows[i - 1].index) continue;
+    const long index = all.rows[i].index;
+    std::string holders;
+    for (size_t p = 0; p < parts.size(); ++p) {
+      for (const RunRow& r : parts[p].rows) {
+        if (r.index != index) continue;
+        holders += StrCat(holders.empty() ? "" : " and ", "part ", p + 1, " ('", EchoPath(parts[p].source), "')");
+      }
+    }
+    Throw<InputError>("MergeParts", "run index ", index, " appears twice: in ", holders, " (", all.total_runs,
+                      " runs expected)");
+  }
   for (long i = 0; i < static_cast<long>(all.rows.size()); ++i) {
     if (all.rows[i].index != i) {
-      Throw<InputError>("MergeParts", "run index ", i, all.rows[i].index < i ? " appears twice" : " is missing",
-                        " (", all.total_runs, " runs expected)");
+      Throw<InputError>("MergeParts", "run index ", i, " is missing (", all.total_runs, " runs expected)");
     }
   }
   if (static_cast<long>(all.rows.size()) != all.total_runs) {

@@ -369,6 +369,7 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
       s.Fail(ec ? "cannot look up " + EchoPath(spec.scene_path) + " (" + ec.message() + ")"
                 : "no such file: " + spec.scene_path);
     }
+    if (!fs::is_regular_file(p, ec)) s.Fail("not a regular file: " + EchoPath(spec.scene_path) + " (a scene file is)");
     spec.base = LoadScene(spec.scene_path);
     // Shards must run one model: the scene's and its parameter set's bytes join the spec's in
     // the fingerprint (a scene edited between two shards had merged without a word).
@@ -422,6 +423,7 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
     }
     spec.parameters.push_back(p);
   }
+  if (const std::string why = ParametersThatCannotVaryTogether(spec.parameters); !why.empty()) params.Fail(why);
   const int d = static_cast<int>(spec.parameters.size());
 
   // Design.
@@ -458,6 +460,11 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
     }
   }
   if (design.Has("seed")) {
+    // Only the Latin hypercube draws at random; a seed elsewhere was accepted and changed
+    // nothing (a user re-seeding a Saltelli design for a replicate got the same design).
+    if (spec.design.type != DesignType::kLhs) {
+      design.Required("seed").Fail("only an lhs design is random; grid, sobol and saltelli are deterministic and take no seed");
+    }
     spec.design.seed = static_cast<std::uint64_t>(design.Required("seed").Integer(0, 1L << 53));
   }
 
@@ -528,6 +535,19 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
     }
   }
   return spec;
+}
+
+std::string ParametersThatCannotVaryTogether(const std::vector<ParameterSpec>& parameters) {
+  for (const ParameterSpec& a : parameters) {
+    if (a.kind != ParameterKind::kLigamentSlackLength) continue;
+    for (const ParameterSpec& b : parameters) {
+      if (b.kind == ParameterKind::kLigamentExtensionRatio && b.ligament == a.ligament) {
+        return StrCat("'", Echo(a.name), "' and '", Echo(b.name), "': the slack length fixes L0 = L_ref / e, so the "
+                      "extension ratio would have no effect; vary one of the two per element");
+      }
+    }
+  }
+  return "";
 }
 
 ParameterSpec ResolveParameterName(const Model& base, const std::string& name, const std::string& where) {

@@ -86,6 +86,12 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
 // range. Throws InputError naming `where`, the name and the rule.
 ParameterSpec ResolveParameterName(const Model& base, const std::string& name, const std::string& where);
 
+// "" when the parameters can vary together, else why not: one element's slack_length and
+// extension_ratio (SceneForRun sets L0 from the slack length after e, so e would move nothing:
+// its sweep column would vary while every outcome stayed the same, and its sensitivities
+// read 0). Sweeps, batches and `kneedyn sensitivity` refuse such a list with this text.
+std::string ParametersThatCannotVaryTogether(const std::vector<ParameterSpec>& parameters);
+
 // The values a parameter may take, in its spec units: the range the scene loader applies to
 // the field the parameter replaces (scene/*.cpp: forces ≤ 1e5 N, lengths ≤ 1000 mm, mass in
 // [1e-3, 1e3] kg, …), and > 0 where a value at or below 0 makes no model. A sweep or a batch

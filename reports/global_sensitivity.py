@@ -187,6 +187,8 @@ def main(argv=None):
   if not isinstance(spec.get("parameters"), (list, dict)) or not spec["parameters"]:
     fail(f"--spec = '{a.spec}': field 'parameters' = {tool_input.echo(spec.get('parameters'))}: must list the parameters")
   samples = design.get("samples")
+  if isinstance(samples, float) and samples.is_integer():
+    samples = int(samples)  # 4096.0, as kneedyn sweep reads it
   if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
     fail(f"--spec = '{a.spec}': field 'design.samples' = {tool_input.echo(samples)}: must be a whole number >= 1")
   if not 1 <= a.bootstrap <= 100000:

@@ -539,18 +539,8 @@ std::vector<ParameterSpec> ResolveParameters(const Scene& scene, const std::vect
     if (!seen.insert(p.column).second) Throw<InputError>("kneedyn sensitivity", field, ": '", Echo(name), "' is listed twice");
     out.push_back(p);
   }
-  // An element's slack length and extension ratio together: a perturbed model sets L0 from
-  // slack_length after e (ensembles/README.md), so e would move nothing and its derivatives
-  // would read an exact 0 (alone, d liftoff_time_lateral / d MCL_deep.extension_ratio is 0.034).
-  for (const ParameterSpec& a : out) {
-    if (a.kind != ensembles::ParameterKind::kLigamentSlackLength) continue;
-    for (const ParameterSpec& b : out) {
-      if (b.kind == ensembles::ParameterKind::kLigamentExtensionRatio && b.ligament == a.ligament) {
-        Throw<InputError>("kneedyn sensitivity", field, ": '", Echo(a.name), "' and '", Echo(b.name),
-                          "': the slack length fixes L0 = L_ref / e, so the extension ratio would have no effect; "
-                          "ask for one of the two per element (two runs)");
-      }
-    }
+  if (const std::string why = ensembles::ParametersThatCannotVaryTogether(out); !why.empty()) {
+    Throw<InputError>("kneedyn sensitivity", field, ": ", why, " (ask for them in two runs)");
   }
   return out;
 }

@@ -90,6 +90,9 @@ TEST(BatchVariants, BadInputNamesLineColumnAndValue) {
   EXPECT_NE(m.find("no element 'XYZ ligament'"), std::string::npos) << m;
   m = ParseError("mass,mass\n1,2\n");
   EXPECT_NE(m.find("listed twice"), std::string::npos) << m;
+  m = ParseError("PCL anterior.slack_length,PCL anterior.extension_ratio\n31,1.1\n");
+  EXPECT_NE(m.find("line 1: 'PCL anterior.slack_length' and 'PCL anterior.extension_ratio': the slack length fixes L0"),
+            std::string::npos) << m;
   EXPECT_NE(ParseError("# nothing\n").find("no header"), std::string::npos);
   EXPECT_NE(ParseError("mass\n").find("no variant rows"), std::string::npos);
 }

@@ -102,6 +102,12 @@ TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
       {Spec("  - {name: mass, relativ: 0.1}"), "unknown key 'parameters[0].relativ'"},
       {Spec("  - {name: MCL deep.tibial_y, relative: 0.1}"), "nominal value"},
       {Spec("  - {name: mass, relative: 0.1}\n  - {name: mass, relative: 0.2}"), "listed twice"},
+      // e moves nothing once the slack length is set: its column varied, its outcomes did not.
+      {Spec("  - {name: PCL anterior.slack_length, relative: 0.1}\n  - {name: PCL anterior.extension_ratio, relative: 0.01}"),
+       "'PCL anterior.slack_length' and 'PCL anterior.extension_ratio': the slack length fixes L0"},
+      // Accepted and ignored before: the Sobol' and Saltelli designs are not random.
+      {Spec("  - {name: mass, relative: 0.1}", "{type: saltelli, samples: 4, seed: 99}"),
+       "design.seed' = '99': only an lhs design is random"},
       {Spec("  - {name: mass, relative: 0.1}", "{type: halton, samples: 4}"), "'halton'"},
       {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 0}"), "design.samples' = '0'"},
       {Spec("  - {name: mass, relative: 0.1}", "{type: sobol, samples: 2.5}"), "'2.5'"},

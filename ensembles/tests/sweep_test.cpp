@@ -204,6 +204,17 @@ TEST(SweepOutput, RowsRoundTripAndMergeRefusesGapsDuplicatesAndForeignParts) {
   EXPECT_EQ(merged.rows[1].failure, r.failure);
   EXPECT_THROW(MergeParts({a}), InputError);     // index 1 missing
   EXPECT_THROW(MergeParts({a, b, b}), InputError);  // index 1 twice
+  // A part given twice: its first run is named, with both parts (before: "run index 1
+  // appears twice", index 1 being the one present once).
+  try {
+    MergeParts({ReadPart((dir / "a.json").string()), ReadPart((dir / "a.json").string()),
+                ReadPart((dir / "b.json").string())});
+    ADD_FAILURE() << "a part given twice was merged";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("run index 0 appears twice: in part 1 ('" + (dir / "a.json").string() + "') and part 2"),
+              std::string::npos) << what;
+  }
   SweepTable foreign = b;
   foreign.fingerprint = 43;
   EXPECT_THROW(MergeParts({a, foreign}), InputError);
