@@ -462,7 +462,7 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
   if (design.Has("seed")) {
     // Only the Latin hypercube draws at random; a seed elsewhere was accepted and changed
     // nothing (a user re-seeding a Saltelli design for a replicate got the same design).
-    if (spec.design.type != DesignType::kLhs) {
+    if (spec.design.type != DesignType::kLatinHypercube) {
       design.Required("seed").Fail("only an lhs design is random; grid, sobol and saltelli are deterministic and take no seed");
     }
     spec.design.seed = static_cast<std::uint64_t>(design.Required("seed").Integer(0, 1L << 53));
