@@ -54,8 +54,11 @@ std::vector<BuildComponent> BuildManifest() {
       {"SUNDIALS", SundialsVersion(), KNEEDYN_SUNDIALS_ORIGIN, KNEEDYN_SUNDIALS_C_FLAGS},
       // Header-only: compiled into kneedyn's objects with kneedyn's flags.
       {"Eigen", EigenVersion(), "Debian 12 package libeigen3-dev (header-only)", kneedyn_flags},
-      // Consistent initialization only; not on any method's time axis.
-      {"Ceres", CeresVersion(), "Debian 12 binary package libceres-dev (static libceres.a)",
+      // Consistent initialization's fallback only; not on any method's time axis (the
+      // programs hold only Ceres' header-only Jet; its solver is in the plugin).
+      {"Ceres", CeresVersion(),
+       "Debian 12 binary package libceres-dev (static libceres.a, in the plugin kneedyn_ceres_fallback, "
+       "loaded only when the direct Newton start at t = 0 fails)",
        "as built by Debian (dpkg-buildflags: -O2)"},
   };
 }

@@ -89,6 +89,37 @@ def ceiling_errors(tmp):
   return errors
 
 
+def exact_errors(tmp):
+  """A planted exact result (scd null, scd_exact true: every compared position equals the
+  reference's) is a result above the ceiling, not a failure: before, it was counted as "no
+  scd" and the table's failed column and the figures' failure counts grew by one."""
+  import importlib
+  errors = []
+  doc = json.loads(json.dumps(RESULTS))
+  doc["header"]["reference_accuracy_scd"] = 7.0
+  doc["results"].append(
+      {"formulation": "ede", "integrator": "verner65", "setting": {"rtol": 1e-7, "atol": 1e-9}, "status": "ok",
+       "metrics": {"scd": None, "scd_exact": True, "event_time_error_s": {"liftoff_lateral": 0.0, "flexion_90": 0.0}},
+       "cpu_time_s": {"median": 0.003}, "counters": {"residual_evaluations": 500}})
+  path = os.path.join(tmp, "exact.json")
+  with open(path, "w") as f:
+    json.dump(doc, f)
+  _, runs = figures.load_bench(path)
+  exact = [r for r in runs if r["integrator"] == "verner65"]
+  if len(exact) != 1 or figures.classify_run(exact[0]) != "ok" or not exact[0].get("above_ceiling") \
+      or exact[0]["scd"] != 6.0:
+    errors.append(f"exact run read as {[(figures.classify_run(r), r.get('scd'), r.get('above_ceiling')) for r in exact]}, "
+                  "expected ok at the ceiling 6.0, flagged")
+  sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
+  table = importlib.import_module("work_precision_table").table(path)
+  if not any(line.startswith("| ede:verner65 | 1 | 0 | 6.00* |") for line in table):
+    errors.append("work_precision_table: the exact run is not a result at the ceiling:\n" + "\n".join(table))
+  _, failed, _ = figures.make_work_precision(os.path.join(tmp, "exact"), path)
+  if len(failed) != 3:  # dae, euler and rk4, as without the exact run
+    errors.append(f"exact: {len(failed)} runs drawn as failures, expected 3: {[f[2] for f in failed]}")
+  return errors
+
+
 def registered_formulations():
   """The names formulations/registry.cpp registers (read from the source: a second list, not
   the report's)."""
@@ -274,6 +305,7 @@ def main():
     if got["results"] != expected:
       errors.append(f"results layout: {got['results']} != {expected}")
     errors += ceiling_errors(tmp)
+    errors += exact_errors(tmp)
     errors += prose_number_errors(tmp)
     errors += colour_errors(tmp)
   return finish(errors, "report_bench_reader_test: FAIL:",
