@@ -84,7 +84,17 @@ class StaggeredFormulation final : public FormulationBase, public OdeProblem {
         // there): a sign change in an event's direction across the update is its root.
         std::vector<double> before(events_.size()), after(events_.size());
         Roots(t_, y_.data(), before.data());
-        UpdateLag();
+        try {
+          UpdateLag();
+        } catch (const SolverError& e) {
+          // Where it stopped: the run's "last state" is this one, not the last output row
+          // (before, a failure 3.3 ms past the row named the row's time and no step).
+          state->t = t_;
+          state->q = y_.head<6>();
+          state->qd = y_.tail<6>();
+          Throw<SolverError>("staggered", "at the coupling step ending at t = ", t_, " s (--step h = ", step_,
+                             " s): ", e.what());
+        }
         Roots(t_, y_.data(), after.data());
         found.assign(events_.size(), 0);
         for (size_t e = 0; e < events_.size(); ++e) {

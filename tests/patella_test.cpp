@@ -935,5 +935,27 @@ TEST(PatellaRuns, RowPastAFoldOfAFailedRunHasEmptyPatellaColumnsAndAWarning) {
   EXPECT_NE(warning->message.find("which the run's own steps reached"), std::string::npos) << warning->message;
 }
 
+// staggered's failure at the fold names the coupling step where the patella's equilibrium was
+// lost, and the "last state" is there, past the last 5 ms row (before: the row's time, no t
+// and no step in the reason, docs/outputs.md's "last state").
+TEST(PatellaRuns, StaggeredFailureNamesTheCouplingStepAndItsState) {
+  const Scene scene = LoadScene("reference-data/scenes/hard/patella_quadriceps_2000N.yaml");
+  RunSettings settings;
+  settings.formulation = "staggered";
+  const RunResult run = RunScene(scene, settings);
+  ASSERT_FALSE(run.completed);
+  const std::string marker = "at the coupling step ending at t = ";
+  const size_t at = run.failure.find(marker);
+  ASSERT_NE(at, std::string::npos) << run.failure;
+  const double t_fail = std::stod(run.failure.substr(at + marker.size()));
+  EXPECT_NE(run.failure.find("no patellar equilibrium found"), std::string::npos) << run.failure;
+  EXPECT_NE(run.failure.find("(--step h = "), std::string::npos) << run.failure;
+  const std::string last = "last state t = ";
+  ASSERT_NE(run.failure.find(last), std::string::npos) << run.failure;
+  EXPECT_EQ(std::stod(run.failure.substr(run.failure.find(last) + last.size())), t_fail) << run.failure;
+  ASSERT_FALSE(run.samples.empty());
+  EXPECT_GT(t_fail, run.samples.back().t) << run.failure;
+}
+
 }  // namespace
 }  // namespace kneedyn
