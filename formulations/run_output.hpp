@@ -48,7 +48,8 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
 //    a patellar facet without patella.facet_liftoff (λ of either sign, docs/model.md §12), or
 //    a tibial contact. The contact's own lift-off event row is not counted: there the force
 //    is 0 by the event's definition (docs/model.md §9) and its value is the event location's
-//    error (−4e-12 N with dae, −0.015 N with staggered on the patellofemoral impact).
+//    error (−4e-12 N with dae, −0.015 N with staggered on the patellofemoral impact), unless
+//    it pulls by more than kLiftoffRowForceFraction of the column's largest |force|.
 //  - kind "patella_not_followed": a row whose patella columns are empty
 //    (TrajectoryTable::patella_not_followed); `time_s` and `message` only.
 //  - kind "patella_contact_off": a pressing facet's contact outside the patella's extent
@@ -67,6 +68,7 @@ struct OutputWarning {
 // whose contact left the patella, then, for a
 // fixed-step run, each contact phase or separation shorter than kMinResolvedSteps steps.
 constexpr int kMinResolvedSteps = 10;
+constexpr double kLiftoffRowForceFraction = 1e-4;
 std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const RunResult& result);
 
 // summary.json; `warnings` are OutputWarnings of the run's table.

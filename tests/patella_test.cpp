@@ -867,7 +867,7 @@ TEST(PatellaRuns, PullingTibialContactIsReportedOutsideItsOwnLiftoffRow) {
   TrajectoryTable table;
   table.columns = {"time_s", "is_event", "N_medial_N", "N_lateral_N", "F_ACL_N"};
   table.rows = {{0.0, 0.0, 10.0, 5.0, -3.0},
-                {0.1, 1.0, -0.02, 2.0, 1.0},   // liftoff_medial's row: not counted
+                {0.1, 1.0, -0.0005, 2.0, 1.0},  // liftoff_medial's row, within 1e-4 of 10 N: not counted
                 {0.2, 0.0, 0.0, -0.25, 1.0},
                 {0.3, 1.0, 0.0, -0.5, 1.0},    // liftoff_medial's again: lateral counts
                 {0.4, 0.0, 0.0, -0.5, 1.0}};
@@ -881,10 +881,19 @@ TEST(PatellaRuns, PullingTibialContactIsReportedOutsideItsOwnLiftoffRow) {
   EXPECT_EQ(pulling[0].time_s, 0.3);  // the first row of the minimum
   result.events = {{"liftoff_lateral", 0.3, 0.0}};  // now 0.3 is the lateral lift-off's row
   const std::vector<OutputWarning> after = OutputWarnings(table, result);
-  ASSERT_EQ(after.size(), 2u);  // medial's -0.02 at 0.1 is no lift-off row any more
+  ASSERT_EQ(after.size(), 2u);  // medial's -0.0005 at 0.1 is no lift-off row any more
   EXPECT_EQ(after[0].column, "N_medial_N");
-  EXPECT_EQ(after[0].min_force_N, -0.02);
+  EXPECT_EQ(after[0].min_force_N, -0.0005);
   EXPECT_EQ(after[1].time_s, 0.4);
+  // A lift-off row that pulls by 5 % of the column's largest force is a lift-off the method
+  // did not locate (newmark halving before a failure: -32.5 N of 2.2 kN): counted.
+  table.rows[1][2] = -0.5;
+  result.events = {{"liftoff_medial", 0.1, 0.0}, {"recontact_medial", 0.3, 0.0}};
+  const std::vector<OutputWarning> unlocated = OutputWarnings(table, result);
+  ASSERT_EQ(unlocated.size(), 2u);
+  EXPECT_EQ(unlocated[0].column, "N_medial_N");
+  EXPECT_EQ(unlocated[0].min_force_N, -0.5);
+  EXPECT_EQ(unlocated[0].time_s, 0.1);
 }
 
 // A failed run that stops at a fold of the patella's equilibrium: the 40-fold quadriceps
