@@ -866,7 +866,7 @@ TEST(PatellaRuns, ContactOffThePatellaIsWarned) {
 TEST(PatellaRuns, PullingTibialContactIsReportedOutsideItsOwnLiftoffRow) {
   TrajectoryTable table;
   table.columns = {"time_s", "is_event", "N_medial_N", "N_lateral_N", "F_ACL_N"};
-  table.rows = {{0.0, 0.0, 10.0, 5.0, -3.0},
+  table.rows = {{0.0, 0.0, 10.0, 5000.0, -3.0},  // lateral: lift-off rows within 0.5 N are located
                 {0.1, 1.0, -0.0005, 2.0, 1.0},  // liftoff_medial's row, within 1e-4 of 10 N: not counted
                 {0.2, 0.0, 0.0, -0.25, 1.0},
                 {0.3, 1.0, 0.0, -0.5, 1.0},    // liftoff_medial's again: lateral counts
