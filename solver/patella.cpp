@@ -5,6 +5,8 @@
 #include <limits>
 
 #include "solver/error.hpp"
+#include "solver/height_field.hpp"
+#include "solver/units.hpp"
 
 namespace kneedyn {
 namespace {
@@ -233,12 +235,25 @@ double PatellaResidualNorm(const Patella& patella, const Vector3d& tuberosity_F,
   return norm;
 }
 
+namespace {
+// Where the trochlear contact points are, for the refusals below: a patellar residual fails
+// only when a sphere's regular chart does (height_field.hpp; the facet planes' chart has no
+// edge).
+std::string TrochlearChartCoordinates(const std::array<double, kPatellaUnknowns>& x) {
+  return StrCat("trochlear chart (u, v) = (", RadToDeg(x[kPatellaChart]), ", ", RadToDeg(x[kPatellaChart + 1]),
+                ") deg medial, (", RadToDeg(x[kPatellaChart + 4]), ", ", RadToDeg(x[kPatellaChart + 5]),
+                ") deg lateral; the chart ends at |u| = ", RadToDeg(kUnitSphereChartMaxLatitude), ", |v| = ",
+                RadToDeg(kUnitSphereChartMaxLongitude), " deg");
+}
+}  // namespace
+
 std::array<double, 2> PatellaFacetGaps(const Patella& patella, const std::array<double, kPatellaUnknowns>& x) {
   // The gap rows do not depend on the tuberosity or on which facets press.
   double r[kPatellaUnknowns];
   std::array<double, 2> gap{{0.0, 0.0}};
   if (!PatellaResiduals(patella, Vector3d(Vector3d::Zero()), x.data(), r, kBothFacetsPress, gap.data())) {
-    Throw<SolverError>("PatellaFacetGaps", "a patellar contact coordinate left its chart (docs/model.md §12)");
+    Throw<SolverError>("PatellaFacetGaps", "a patellar contact coordinate left its chart: ", TrochlearChartCoordinates(x),
+                       " (docs/model.md §12)");
   }
   return gap;
 }
@@ -258,7 +273,8 @@ double PatellarFacetCompliance(const Patella& patella, const Vector3d& tuberosit
   for (int i = 0; i < kPatellaUnknowns; ++i) xj[i] = PatellaJet(x[i], i);
   if (!Linearize(patella, tuberosity_F, x, separated, &r, &J) ||
       !PatellaResiduals(patella, Vector3<PatellaJet>(tuberosity_F.cast<PatellaJet>()), xj, rj, separated, gap)) {
-    Throw<SolverError>("PatellarFacetCompliance", "a patellar contact coordinate left its chart (docs/model.md §12)");
+    Throw<SolverError>("PatellarFacetCompliance", "a patellar contact coordinate left its chart: ",
+                       TrochlearChartCoordinates(x), " (docs/model.md §12)");
   }
   // J dx = e_k dμ: the separated facet's row λ_i = μ moved, the other 16 held.
   Eigen::Matrix<double, kPatellaUnknowns, 1> e = Eigen::Matrix<double, kPatellaUnknowns, 1>::Zero();
