@@ -245,6 +245,23 @@ TEST(Patella, TendonThatCannotReachIsRefusedWithTheLengthItNeeds) {
   }
 }
 
+// A trochlear contact coordinate past its chart's edge is refused with where it is: both
+// facets' (u, v) in degrees and the edges (before: "left its chart" and nothing else).
+TEST(Patella, ContactCoordinateOffItsChartIsRefusedWithItsCoordinates) {
+  const Scene scene = ImpactScene();
+  const Patella& patella = *scene.model.patella;
+  std::array<double, kPatellaUnknowns> x = patella.start_unknowns;
+  x[kPatellaChart] = DegToRad(85.0);  // the medial trochlear chart's u, past |u| < 80°
+  try {
+    PatellaFacetGaps(patella, x);
+    ADD_FAILURE() << "a chart coordinate of 85 deg was evaluated";
+  } catch (const SolverError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("trochlear chart (u, v) = (85, "), std::string::npos) << what;
+    EXPECT_NE(what.find("the chart ends at |u| = 80, |v| = 170 deg"), std::string::npos) << what;
+  }
+}
+
 // A facet normal pointing away from the femur (anteriorly) is refused naming it: before, it
 // asked for a longer tendon (65.5 mm) and, given one, put the patella behind the trochlear
 // centres with positive facet forces.
