@@ -105,24 +105,27 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
   // A valid header names each of `known`, time_s and time at most once: more cells than that
   // hold a name twice or an unknown one, found among the first max_columns + 1 (checked
   // below as for any header), so the rest is not kept.
-  const size_t max_columns = known.size() + 2;
+  const size_t max_columns = known.size() + 3;  // and a row index
   const std::string_view header = CsvLine(line);
+  std::vector<std::string> typed;  // the header as written, for the messages
   ForEachCsvField(header, [&](size_t c, std::string_view name) {
     if (c > max_columns) return false;
+    typed.emplace_back(name);
     // The names as the reference's solution.classes spell them ("F_ACL anterior_N") are the
     // trajectory.csv columns they stand for.
-    out.columns.push_back(ColumnSafeName(std::string(name)));
+    out.columns.push_back(ColumnSafeName(typed.back()));
     return true;
   });
   int time_col = -1, event_col = -1;
   for (size_t c = 0; c < out.columns.size(); ++c) {
     const std::string& name = out.columns[c];
     if (std::count(out.columns.begin(), out.columns.end(), name) > 1) {
-      Throw<InputError>("kneedyn score", EchoPath(path), " header: column '", Echo(name), "' appears twice");
+      Throw<InputError>("kneedyn score", EchoPath(path), " header: column '", Echo(typed[c]), "' appears twice");
     }
+    if (c == 0 && name.empty()) continue;  // a row index without a name (pandas' to_csv, R's write.csv)
     if (name == "time_s" || name == "time") {
       if (time_col >= 0) {  // which one holds the times? Before, the last one was used silently.
-        Throw<InputError>("kneedyn score", EchoPath(path), " header: columns '", out.columns[time_col], "' and '", name,
+        Throw<InputError>("kneedyn score", EchoPath(path), " header: columns '", typed[time_col], "' and '", typed[c],
                           "' both name the time; give one");
       }
       time_col = static_cast<int>(c);
@@ -141,7 +144,7 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
           if (d < best) best = d, nearest = k;
         }
       }
-      Throw<InputError>("kneedyn score", EchoPath(path), " header: column '", Echo(name),
+      Throw<InputError>("kneedyn score", EchoPath(path), " header: column '", Echo(typed[c]),
                         "' is not a trajectory.csv column of this scene (docs/outputs.md)",
                         nearest.empty() ? std::string() : "; nearest: '" + nearest + "'");
     }
@@ -330,6 +333,7 @@ EventsFile ReadEvents(const std::string& path) {
   size_t name_col = n_header, time_col = n_header, angle_col = n_header;
   // Each column once, and no other: a misspelled flexion column was dropped silently.
   ForEachCsvField(header, [&](size_t c, std::string_view cell) {
+    if (c == 0 && cell.empty()) return true;  // a row index without a name (pandas, R), as the result CSV
     const bool time = cell == "time_s" || cell == "time";  // as the result CSV
     size_t* col = cell == "name" ? &name_col : time ? &time_col : cell == "flexion_deg" ? &angle_col : nullptr;
     if (col == nullptr) {

@@ -1,6 +1,6 @@
-#include <algorithm>
 #include "ensembles/sweep_cli.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <unistd.h>
 

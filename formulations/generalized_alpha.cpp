@@ -8,8 +8,8 @@
 // second order in positions, velocities and multipliers.
 //
 // Options: --rho-inf (default 0.9) gives Chung–Hulbert's αm, αf, β, γ; --alpha-m,
-// --alpha-f, --beta, --gamma (all four, γ = 1/2 − αm + αf) set them explicitly (αm = αf = 0, β = 1/4, γ = 1/2
-// reproduces `newmark`). Fixed step --step (default 1e-4 s); --rtol/--atol drive the Newton
+// --alpha-f, --beta, --gamma (all four, γ = 1/2 − αm + αf) set them explicitly
+// (αm = αf = 0, β = 1/4, γ = 1/2 reproduces `newmark`). Fixed step --step (default 1e-4 s); --rtol/--atol drive the Newton
 // test as for newmark.
 #include "formulations/internal/newmark_scheme.hpp"
 
@@ -64,12 +64,13 @@ bool ReadGeneralizedAlphaOptions(const OptionRequest& request, NewmarkOptions* o
   // Second order needs γ = 1/2 − αm + αf (Chung & Hulbert 1993; Arnold & Brüls 2007 for the
   // index-3 form). Off it the scheme is first order, which nothing here states or tests (γ
   // raised by 0.1 did not converge on the conservative scene as h went 4e-4 → 5e-5 s).
-  // 1e-6: parameters typed to six decimals.
+  // 1e-5: three parameters typed to six decimals are off by up to 1.5e-6 (the default
+  // ρ∞ = 0.9 as 0.421053, 0.473684, 0.277008, 0.552632 is accepted).
   const double second_order_gamma = 0.5 - scheme.alpha_m + scheme.alpha_f;
-  if (!(std::abs(scheme.gamma - second_order_gamma) <= 1e-6)) {
+  if (!(std::abs(scheme.gamma - second_order_gamma) <= 1e-5)) {
     return request.Fail(StrCat("--gamma = ", request.Shown("--gamma", scheme.gamma), " with --alpha-m = ", scheme.alpha_m,
                                " and --alpha-f = ", scheme.alpha_f, ": must be 1/2 - alpha_m + alpha_f = ",
-                               second_order_gamma, " (within 1e-6) for second order"));
+                               second_order_gamma, " (within 1e-5) for second order"));
   }
   options->scheme = scheme;
   return true;

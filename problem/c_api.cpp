@@ -112,7 +112,7 @@ int kneedyn_problem_create(const char* scene_path, const char* form, double rtol
                                                          atol > 0.0 ? atol : 1.0e-8);
     RefreshNames(handle.get());
     std::lock_guard<std::mutex> lock(g_handles_mutex);
-    const std::uintptr_t token = ++g_last_token;  // 2^64 creations before a repeat
+    const std::uintptr_t token = ++g_last_token;  // never repeats: 2^64 creations (64-bit uintptr_t)
     g_handles.emplace(token, std::move(handle));
     *out = reinterpret_cast<kneedyn_problem*>(token);  // opaque, never dereferenced
   });

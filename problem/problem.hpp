@@ -39,7 +39,9 @@ class Problem {
  public:
   // form: "ede", "mde", "dae", "dae-ggl". Throws ProblemError for another form and InputError for a
   // scene whose start is inconsistent. rtol, atol: the defaults an adaptive solver is run
-  // with (they also set the re-contact hysteresis, as in kneedyn run).
+  // with (they also set the re-contact hysteresis, as in kneedyn run); in kneedyn run's
+  // ranges (kMaxRtol, kMaxAtol), else ProblemError. Every evaluation throws SolverError when
+  // a value it computes from finite inputs is not finite.
   Problem(const Scene& scene, const std::string& form, double rtol = 1.0e-6, double atol = 1.0e-8);
 
   const std::string& form() const { return form_; }

@@ -178,7 +178,9 @@ void BindProblem(py::module_& m) {
     y, yp, ended = p.transition(t, y, event, yp)  # DAE forms
 
 y0, yp0, size, the events and their names are those of the current phase; transition moves
-to the next one exactly as `kneedyn run` does. See docs/problem.md.)doc")
+to the next one exactly as `kneedyn run` does. rtol in (0, 0.5], atol in (0, 1e-2] as for
+`kneedyn run` (ValueError otherwise). A value computed from a finite state that is not finite
+(the dynamics overflowed) raises kneedyn.SolverError. See docs/problem.md.)doc")
       .def(py::init([](const py::object& scene, const py::object& form, const py::object& rtol,
                        const py::object& atol) {
              // Checked here, not by pybind11's casts: True was taken as rtol 1.0, and None or a

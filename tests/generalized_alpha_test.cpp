@@ -128,6 +128,30 @@ TEST(GeneralizedAlpha, ChungHulbertLimits) {
   EXPECT_NEAR(def.alpha_f, 0.9 / 1.9, 1e-15);
 }
 
+// Explicit parameters must meet the second-order condition γ = 1/2 − αm + αf: the ρ∞ values
+// typed to six decimals (ρ∞ = 0, 0.5, 0.9, 1 as Chung & Hulbert's closed forms give them) are
+// accepted, γ off by 0.05 is refused naming the rule.
+TEST(GeneralizedAlpha, ExplicitParametersMeetTheSecondOrderCondition) {
+  const auto check = [](double alpha_m, double alpha_f, double beta, double gamma, std::string* why) {
+    FormulationOptions o;
+    o.alpha_m = alpha_m;
+    o.alpha_f = alpha_f;
+    o.newmark_beta = beta;
+    o.newmark_gamma = gamma;
+    return ValidateOptions(FindFormulation("generalized-alpha"), o, why);
+  };
+  const auto six = [](double v) { return std::round(v * 1e6) / 1e6; };
+  for (double rho : {0.0, 0.5, 0.9, 1.0}) {
+    // αm = (2ρ − 1)/(ρ + 1), αf = ρ/(ρ + 1), γ = 1/2 − αm + αf, β = (γ + 1/2)²/4.
+    const double am = (2 * rho - 1) / (rho + 1), af = rho / (rho + 1), g = 0.5 - am + af;
+    std::string why;
+    EXPECT_TRUE(check(six(am), six(af), six(0.25 * (g + 0.5) * (g + 0.5)), six(g), &why)) << "rho " << rho << ": " << why;
+  }
+  std::string why;
+  EXPECT_FALSE(check(0.0, 0.0, 0.25, 0.55, &why));
+  EXPECT_NE(why.find("must be 1/2 - alpha_m + alpha_f = 0.5 (within 1e-5) for second order"), std::string::npos) << why;
+}
+
 TEST(GeneralizedAlpha, NoSpuriousLiftoffAndLiftoffTimeConverges) {
   const double t_ref = LiftoffTime(ChapterReference());
   // The closed form only (the chapter form gives the same times to 4e-9 s, measured; 10 s

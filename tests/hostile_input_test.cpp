@@ -626,6 +626,24 @@ TEST_F(HostileInput, ScoreRefusesAmbiguousTimesAndRowsOutsideTheScene) {
                 {"--events", "event liftoff_lateral at time 216.3 s lies outside the scene's span [0, 2] s"});
 }
 
+// pandas' DataFrame.to_csv() and R's write.csv() write a row index first, its header cell
+// empty (R: ""), by default: read past in the result and the events CSV (before: "column ''
+// is not one of ..."). A refusal quotes a column as it was typed, not as it is matched.
+TEST_F(HostileInput, ScoreReadsARowIndexColumnAndQuotesNamesAsTyped) {
+  const std::string out = (dir_ / "score.json").string();
+  const std::string result = Input("pandas.csv", ",time_s,flexion_deg\n0,0,0\n1,0.02,0\n");
+  const std::string events = Input("events.csv", "\"\",\"name\",\"time_s\"\n\"1\",\"liftoff_lateral\",0.2163\n");
+  const CommandResult r = RunKneedyn("score '" + result + "' --scene '" + ChapterScenePath() + "' --events '" + events +
+                                     "' --out '" + out + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(ReadText(out));
+  EXPECT_EQ(j.at("results").at(0).at("status"), "ok") << j.dump();
+  fs::remove(out);
+  ExpectRefused("score '" + Input("typo.csv", "time_s,flex-ion_deg\n0,0\n") + "' --scene '" + ChapterScenePath() +
+                    "' --out '" + out + "'",
+                {"column 'flex-ion_deg' is not a trajectory.csv column"});
+}
+
 // An event the reference does not have (a misspelled name) is listed as not scored, in the
 // printout and the JSON's header; before, it only left that event's figure empty. The events
 // CSV takes the header `time` as the result CSV does.

@@ -61,6 +61,8 @@ def main():
     spec_words = write("spec_words.yaml", "design: {type: saltelli, samples: ten}\nparameters: [a]\n")
     spec_list = write("spec_list.yaml", "- a\n")
     spec = write("spec.yaml", "design: {type: saltelli, samples: 2}\nparameters: [a]\n")
+    # samples: 2.0 is 2, as kneedyn sweep reads it: past the spec, the bad sweep is refused.
+    spec_float = write("spec_float.yaml", "design: {type: saltelli, samples: 2.0}\nparameters: [a]\n")
     sweep_nostatus = write("nostatus.csv", "index,a,y\n0,1,2\n")
     sweep_text = write("text.csv", "index,a,y,status\n0,x,2,completed\n")
     gs = ["reports/global_sensitivity.py", "--out", out]
@@ -69,6 +71,7 @@ def main():
                  refused(gs + ["--spec", tmp, "--sweep", sweep_text], "--spec", out),
                  refused(gs + ["--spec", spec, "--sweep", sweep_nostatus], "'status'", out),
                  refused(gs + ["--spec", spec, "--sweep", sweep_text], "--sweep", out),
+                 refused(gs + ["--spec", spec_float, "--sweep", sweep_text], "--sweep", out),
                  refused(gs + ["--spec", spec, "--sweep", sweep_text, "--bootstrap", "99999999999"], "--bootstrap", out),
                  refused(gs + ["--spec", spec, "--sweep", sweep_text, "--seed", "-1"], "--seed", out)]
     report = os.path.join(tmp, "report")

@@ -79,10 +79,16 @@ TEST(SweepCli, SameBytesWithOneAndTwoThreadsAndFromMergedShards) {
                  (work / "parts").string() + " > /dev/null"), 0);
   }
   ASSERT_EQ(Sh(Kneedyn() + " sweep --merge " + (work / "parts/part-1-of-2.json").string() + " " +
-               (work / "parts/part-0-of-2.json").string() + " --out " + (work / "merged").string() + " > /dev/null"), 0);
+               (work / "parts/part-0-of-2.json").string() + " --out " + (work / "merged").string() + " > " +
+               (work / "merge.out").string()), 0);
   for (const char* f : {"sweep.csv", "sweep.h5"}) {
     EXPECT_EQ(ReadText(work / "t1" / f), ReadText(work / "merged" / f)) << f << " differs after merging shards";
   }
+  // The merge counts the failed runs as every sweep does (before: the total only).
+  size_t failed = 0;
+  for (size_t at = csv.find(",failed,"); at != std::string::npos; at = csv.find(",failed,", at + 1)) ++failed;
+  EXPECT_NE(ReadText(work / "merge.out").find("merged 2 parts: 7 runs (" + std::to_string(failed) + " failed)"),
+            std::string::npos) << ReadText(work / "merge.out");
   // One part alone is refused (runs missing): exit 2, nothing written.
   EXPECT_EQ(Sh(Kneedyn() + " sweep --merge " + (work / "parts/part-1-of-2.json").string() + " --out " +
                (work / "half").string() + " > /dev/null 2>&1"), 2);

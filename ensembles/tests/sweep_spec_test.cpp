@@ -130,6 +130,10 @@ TEST(SweepSpec, RejectionsNameTheFieldAndTheValue) {
       {"scene: nowhere.yaml\nparameters: [{name: mass, relative: 0.1}]\ndesign: {type: sobol, samples: 2}\n"
        "outcomes: [liftoff_time]\n",
        "nowhere.yaml"},
+      // A directory: before, LoadScene's message without the spec's file or field.
+      {"scene: /tmp\nparameters: [{name: mass, relative: 0.1}]\ndesign: {type: sobol, samples: 2}\n"
+       "outcomes: [liftoff_time]\n",
+       "field 'scene' = '/tmp': not a regular file"},
       {"scene: chapter_impact.yaml\nparameters: [{name: mass, relative: 0.1}]\ndesign: {type: sobol, samples: 2}\n"
        "outcomes: [liftoff_angle]\n",
        "'liftoff_angle'"},

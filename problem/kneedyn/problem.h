@@ -17,7 +17,8 @@
  * kneedyn_problem_create is refused with KNEEDYN_BAD_HANDLE without being dereferenced;
  * no handle is issued twice, so a destroyed one stays refused.
  * Matrices are row-major n x n. Sizes change between phases for the DAE forms. Times and
- * states must be finite. Calls on one handle from several threads take turns (each holds the
+ * states must be finite; a value computed from them that is not (the dynamics overflowed, e.g.
+ * at a rate of 1e200) is KNEEDYN_SOLVER_ERROR. Calls on one handle from several threads take turns (each holds the
  * handle while it runs); a destroy during a call frees the handle when that call returns.
  * After the run has ended, what belongs to a phase (size, values, ids, events, f, F, the
  * transition) is refused with KNEEDYN_BAD_ARGUMENT; the times, phase, tolerances, end reason
@@ -40,7 +41,7 @@ typedef enum kneedyn_status {
   KNEEDYN_BAD_HANDLE = 1,   /* null, destroyed or foreign handle */
   KNEEDYN_BAD_ARGUMENT = 2, /* size, NaN, null array, event index, wrong form, after the end */
   KNEEDYN_INPUT_ERROR = 3,  /* the scene file or its start */
-  KNEEDYN_SOLVER_ERROR = 4, /* the physics refused the state (e.g. no contact point) */
+  KNEEDYN_SOLVER_ERROR = 4, /* the physics refused the state (no contact point, overflow) */
   KNEEDYN_INTERNAL_ERROR = 5
 } kneedyn_status;
 
@@ -48,7 +49,8 @@ typedef enum kneedyn_status {
  * leaves it as it was. */
 const char* kneedyn_last_error(void);
 
-/* form: "ede", "mde", "dae" or "dae-ggl"; rtol, atol <= 0: the defaults (1e-6, 1e-8).
+/* form: "ede", "mde", "dae" or "dae-ggl"; rtol, atol <= 0: the defaults (1e-6, 1e-8); else
+ * rtol in (0, 0.5] and atol in (0, 1e-2], as kneedyn run takes them (KNEEDYN_BAD_ARGUMENT).
  * Sizes change between phases for mde (12 - 2k) and the DAE forms. */
 int kneedyn_problem_create(const char* scene_path, const char* form, double rtol, double atol,
                            kneedyn_problem** out);
