@@ -71,7 +71,9 @@ def rows(runs, cost="cpu"):
         cells.append("—")
         continue
       cells.append(cell(min(reach, key=lambda r: cost_of(r, cost)), cost))
-    out.append([m, str(len(mine) + n_failed), str(n_failed), "—" if math.isnan(best) else f"{best:.2f}{best_flag}"]
+    # +inf: an exact result in a file that states no ceiling (bench_data.flag_above_ceiling).
+    shown = "—" if math.isnan(best) else "exact*" if best == math.inf else f"{best:.2f}{best_flag}"
+    out.append([m, str(len(mine) + n_failed), str(n_failed), shown]
                + cells)
   return out
 

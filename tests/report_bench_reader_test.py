@@ -117,6 +117,13 @@ def exact_errors(tmp):
   _, failed, _ = figures.make_work_precision(os.path.join(tmp, "exact"), path)
   if len(failed) != 3:  # dae, euler and rk4, as without the exact run
     errors.append(f"exact: {len(failed)} runs drawn as failures, expected 3: {[f[2] for f in failed]}")
+  # A file that states no ceiling: the table says "exact", not "inf".
+  del doc["header"]["reference_accuracy_scd"]
+  with open(path, "w") as f:
+    json.dump(doc, f)
+  table = importlib.import_module("work_precision_table").table(path)
+  if not any(line.startswith("| ede:verner65 | 1 | 0 | exact* |") for line in table):
+    errors.append("work_precision_table without a ceiling: the exact run is not shown as exact:\n" + "\n".join(table))
   return errors
 
 
