@@ -49,8 +49,7 @@ void CompleteRestartState(const Model& model, RestartProjection restart, Mechani
     CompleteHiddenConstraint(model, state);
     return;
   }
-  const ConstrainedAcceleration a =
-      SolveConstrainedAcceleration(model, state->t, state->q, state->qd, state->active, {}, &state->ligament_branch);
+  const ConstrainedAcceleration a = RestartAcceleration(model, state);
   state->qdd = a.qdd;
   for (size_t c = 0; c < state->active.size(); ++c) state->contact[state->active[c]].normal_force = a.normal_force[c];
   FillContactCoordinates(model, state);

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <exception>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include <Eigen/LU>
@@ -11,6 +12,7 @@
 #include "solver/ceres_fallback.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/contact_kinematics.hpp"
+#include "solver/patella.hpp"
 #include "solver/error.hpp"
 #include "solver/scalar.hpp"
 
@@ -484,11 +486,28 @@ void CompleteHiddenConstraint(const Model& model, MechanicalState* state) {
   // Cheap restarts (benchmarks/README.md, "Restarts"): the hidden level is linear in (ν̇, N);
   // at a restart it is solved directly (the Schur-complement solve of
   // constrained_dynamics.hpp) instead of by Ceres from guesses.
-  const ConstrainedAcceleration a =
-      SolveConstrainedAcceleration(model, state->t, state->q, state->qd, state->active, {}, &state->ligament_branch);
+  const ConstrainedAcceleration a = RestartAcceleration(model, state);
   state->qdd = a.qdd;
   for (size_t c = 0; c < state->active.size(); ++c) state->contact[state->active[c]].normal_force = a.normal_force[c];
   FillContactCoordinates(model, state);
+}
+
+ConstrainedAcceleration RestartAcceleration(const Model& model, MechanicalState* state) {
+  if (!model.patella) {
+    return SolveConstrainedAcceleration(model, state->t, state->q, state->qd, state->active, {}, &state->ligament_branch);
+  }
+  const Patella& patella = *model.patella;
+  auto followed = std::make_shared<PatellaGuess>(state->patella ? *state->patella : PatellaGuess());
+  SolvePatellaAlongTibialPath(patella, state->patella ? state->patella_q : patella.start_q, state->q,
+                              "RestartAcceleration", followed.get());
+  ConstrainedDynamicsWorkspace workspace(model);
+  workspace.data.patella_guess = *followed;
+  ConstrainedAcceleration out;
+  SolveConstrainedAcceleration(model, state->t, state->q, state->qd, state->active, {}, &state->ligament_branch,
+                               &workspace, &out);
+  state->patella = std::move(followed);
+  state->patella_q = state->q;
+  return out;
 }
 
 }  // namespace kneedyn

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "solver/constrained_dynamics.hpp"
 #include "solver/state.hpp"
 
 namespace kneedyn {
@@ -71,6 +72,14 @@ MechanicalState ConsistentInitialize(const Model& model, const InitialState& ini
 // hidden level by the direct saddle-point solve of constrained_dynamics.hpp, not Ceres);
 // fills qdd, normal forces and (from the contact kinematics) contact coordinates.
 void CompleteHiddenConstraint(const Model& model, MechanicalState* state);
+
+// A restart's constrained accelerations and normal forces at state's (t, q, q̇) on its locked
+// ligament branches. With a patella, its equilibrium is first followed from the state's last
+// one (state->patella at patella_q; the model builder's start at first) to q along the tibial
+// path (SolvePatellaAlongTibialPath), and the solve starts from it: a solve from the builder's
+// start could land on another equilibrium than the one the run followed (a 2 kN quadriceps
+// run's DAE restart began 786 N from consistency). Throws SolverError when it cannot follow.
+ConstrainedAcceleration RestartAcceleration(const Model& model, MechanicalState* state);
 
 // Moves state->q onto the active contacts' gaps φ = 0 to round-off (1e-14 m): the pose a
 // restart continues from (CompleteHiddenConstraint's first step; a re-contact's impulse is

@@ -4,6 +4,7 @@
 // Newmark accelerations, IDA vectors) and convert to and from this one.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -11,6 +12,8 @@
 #include "solver/model.hpp"
 
 namespace kneedyn {
+
+struct PatellaGuess;  // patella.hpp
 
 // Which contact description a formulation carries (and so what initialization must solve).
 enum class ContactForm {
@@ -30,6 +33,11 @@ struct MechanicalState {
   // Per model.ligaments entry: the branch locked for the current phase (ligament.hpp);
   // empty = choose by length. Set by the run driver at every phase start.
   std::vector<signed char> ligament_branch;
+  // Patella scenes: the patella's equilibrium at the tibial coordinates patella_q, followed
+  // from one restart to the next (RestartAcceleration, consistent_init.hpp); null before the
+  // first. Replaced, never changed in place: copies of the state may share it.
+  std::shared_ptr<const PatellaGuess> patella;
+  Vector6d patella_q = Vector6d::Zero();
 
   bool IsActive(int contact_index) const;
 };
