@@ -914,13 +914,15 @@ TEST(PatellaRuns, PullingTibialContactIsReportedOutsideItsOwnLiftoffRow) {
 }
 
 // A failed run that stops at a fold of the patella's equilibrium: the 40-fold quadriceps
-// force with newmark at --step 1e-5 holds on with its small steps to t = 0.0984 s, 4.4° past
-// the row before, where the straight path MakeTrajectoryTable follows from that row finds no
-// equilibrium. The run's own failure says the same there (its next step: "no patellar
-// equilibrium found", a second evaluation). The set is written, that row's patella columns
-// empty, its other columns not, and a warning of kind patella_not_followed gives its time.
-// Before, WriteRunOutputs threw: exit 2 and nothing written. The same rows in a run marked
-// completed get the same empty columns, and the warning says the run's own steps got there.
+// force with newmark at --step 1e-5 holds on with its small steps to t = 0.0984 s, past its
+// last row (0.095 s), and fails there with "no patellar equilibrium found". A row at such a
+// pose (written by a method whose output falls there: the last row moved on by 0.7 of the
+// last interval, 4.5° further, past the fold) is one where the straight path
+// MakeTrajectoryTable follows from the row before finds no equilibrium. The set is written,
+// that row's patella columns empty, its other columns not, and a warning of kind
+// patella_not_followed gives its time. Before, WriteRunOutputs threw: exit 2 and nothing
+// written. The same rows in a run marked completed get the same empty columns, and the
+// warning says the run's own steps got there.
 TEST(PatellaRuns, RowPastAFoldOfAFailedRunHasEmptyPatellaColumnsAndAWarning) {
   const Scene scene = LoadScene("reference-data/scenes/hard/patella_quadriceps_2000N.yaml");
   RunSettings settings;
@@ -929,6 +931,13 @@ TEST(PatellaRuns, RowPastAFoldOfAFailedRunHasEmptyPatellaColumnsAndAWarning) {
   RunResult run = RunScene(scene, settings);
   ASSERT_FALSE(run.completed);
   ASSERT_NE(run.failure.find("no patellar equilibrium found"), std::string::npos) << run.failure;
+  ASSERT_GE(run.samples.size(), 2u);
+  MechanicalState past = run.samples.back();
+  const MechanicalState& before = run.samples[run.samples.size() - 2];
+  past.t += 0.7 * (past.t - before.t);
+  past.q += 0.7 * (past.q - before.q);
+  run.samples.push_back(past);
+  run.sample_is_event.push_back(false);
   const WrittenRun w = WriteAndRead(scene, settings, run, "fold");
   ASSERT_EQ(w.rows.size(), run.samples.size());
   const auto column = [&](const std::string& name) {
