@@ -152,8 +152,8 @@ constexpr size_t kPatellaColumns = 11;  // patella_shift_mm … tendon_quadricep
 // solution, or, when the tibia turned by more than 1° since, in steps of at most 1°
 // (SolvePatellaAlongTibialPath, as the events follow it). A failed run can stop at a fold of
 // the equilibrium, where the straight path from the row before leaves it although the run's
-// own small steps held on (hard/patella_quadriceps_2000N with newmark at --step 1e-5: 4.4° in
-// 3.4 ms to the last state): that row's patella columns are empty (NaN) and *not_followed
+// own small steps held on (a row past hard/patella_quadriceps_2000N's fold,
+// tests/patella_test.cpp): that row's patella columns are empty (NaN) and *not_followed
 // records its time and the reason; the next row starts from the last equilibrium reached. A
 // completed run's row is treated alike (its own steps held on where the path from the row
 // before did not): its trajectory stands, and the warning says the columns are missing.
@@ -298,7 +298,7 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
     const std::string liftoff = facet ? "liftoff_patellar_" + part : "liftoff_" + part;
     // The contact's own lift-off row holds the event location's error, a few 1e-12 N (dae) to
     // 0.015 N of 2 kN (staggered); far more is a lift-off the method did not locate (newmark
-    // halving its step before a failure recorded one at -32.5 N of 2.2 kN).
+    // halving its step before a failure recorded one at -3.9 N of 2.2 kN, hard/patella_quadriceps_2000N).
     double largest = 0.0;
     for (const std::vector<double>& row : table.rows) {
       if (c < row.size() && std::isfinite(row[c])) largest = std::max(largest, std::abs(row[c]));

@@ -916,8 +916,8 @@ TEST(PatellaRuns, PullingTibialContactIsReportedOutsideItsOwnLiftoffRow) {
 // A failed run that stops at a fold of the patella's equilibrium: the 40-fold quadriceps
 // force with newmark at --step 1e-5 holds on with its small steps to t = 0.0984 s, past its
 // last row (0.095 s), and fails there with "no patellar equilibrium found". A row at such a
-// pose (written by a method whose output falls there: the last row moved on by 0.7 of the
-// last interval, 4.5° further, past the fold) is one where the straight path
+// pose (written by a method whose output falls there: here the last row moved on along the
+// last interval's direction until it is past the fold) is one where the path
 // MakeTrajectoryTable follows from the row before finds no equilibrium. The set is written,
 // that row's patella columns empty, its other columns not, and a warning of kind
 // patella_not_followed gives its time. Before, WriteRunOutputs threw: exit 2 and nothing
@@ -932,10 +932,30 @@ TEST(PatellaRuns, RowPastAFoldOfAFailedRunHasEmptyPatellaColumnsAndAWarning) {
   ASSERT_FALSE(run.completed);
   ASSERT_NE(run.failure.find("no patellar equilibrium found"), std::string::npos) << run.failure;
   ASSERT_GE(run.samples.size(), 2u);
-  MechanicalState past = run.samples.back();
+  // The last row moved on along the last interval's direction until the patella, followed
+  // from the last row (as the table follows it), has no equilibrium there.
+  const MechanicalState last_row = run.samples.back();
   const MechanicalState& before = run.samples[run.samples.size() - 2];
-  past.t += 0.7 * (past.t - before.t);
-  past.q += 0.7 * (past.q - before.q);
+  const Patella& patella = *scene.model.patella;
+  PatellaGuess at_last;  // followed from row to row as MakeTrajectoryTable does
+  Vector6d from_q = patella.start_q;
+  for (const MechanicalState& row : run.samples) {
+    SolvePatellaAlongTibialPath(patella, from_q, row.q, "test", &at_last);
+    from_q = row.q;
+  }
+  MechanicalState past = last_row;
+  bool beyond = false;
+  for (double f = 0.5; f <= 8.0 && !beyond; f *= 1.25) {
+    past.t = last_row.t + f * (last_row.t - before.t);
+    past.q = last_row.q + f * (last_row.q - before.q);
+    PatellaGuess guess = at_last;
+    try {
+      SolvePatellaAlongTibialPath(patella, last_row.q, past.q, "test", &guess);
+    } catch (const SolverError&) {
+      beyond = true;
+    }
+  }
+  ASSERT_TRUE(beyond) << "no pose past the fold along the last interval's direction";
   run.samples.push_back(past);
   run.sample_is_event.push_back(false);
   const WrittenRun w = WriteAndRead(scene, settings, run, "fold");
