@@ -626,6 +626,23 @@ TEST_F(HostileInput, ScoreRefusesAmbiguousTimesAndRowsOutsideTheScene) {
                 {"--events", "event liftoff_lateral at time 216.3 s lies outside the scene's span [0, 2] s"});
 }
 
+// A copy of the chapter scene with a shorter end keeps its name but is not the scene the
+// reference was made for: refused naming both ends (before: exit 1, "reproduces the stored
+// samples to nan digits").
+TEST_F(HostileInput, ScoreRefusesASceneThatEndsBeforeItsReference) {
+  std::string text = ReadText(ChapterScenePath());
+  const std::string key = "end: {flexion_deg: 90.0, time_s: 2.0}";
+  ASSERT_NE(text.find(key), std::string::npos);
+  text.replace(text.find(key), key.size(), "end: {time_s: 0.05}");
+  const std::string ps = "parameter_set: ../chapter_knee.yaml";
+  ASSERT_NE(text.find(ps), std::string::npos);
+  text.replace(text.find(ps), ps.size(), "parameter_set: " + ReferenceDataDir() + "/chapter_knee.yaml");
+  const std::string scene = Input("short.yaml", text);
+  ExpectRefused("score '" + Input("result.csv", ScoreResultCsv()) + "' --scene '" + scene + "' --out '" +
+                    (dir_ / "score.json").string() + "'",
+                {"scene 'chapter_impact' ends at end.time_s = 0.05 s, before the last time of", "another version"});
+}
+
 // pandas' DataFrame.to_csv() and R's write.csv() write a row index first, its header cell
 // empty (R: ""), by default: read past in the result and the events CSV (before: "column ''
 // is not one of ..."). A refusal quotes a column as it was typed, not as it is matched.
