@@ -359,7 +359,7 @@ int main(int argc, char** argv) {
               reference_name = std::string(candidate) + " rtol 1e-10";
               break;
             }
-            why = "failed at t = " + Fmt(r.samples.empty() ? NAN : r.samples.back().t, "%.4f");
+            why = "failed after its last row at t = " + Fmt(r.samples.empty() ? NAN : r.samples.back().t, "%.4f");
           } catch (const std::exception&) {
             why = "refused";
           }
