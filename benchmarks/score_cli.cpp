@@ -118,7 +118,7 @@ int ScoreCommand::Run(int argc, char** argv) {
     // A scene of the same name that ends before the reference does is another version of it
     // (a copy with a shorter end.time_s): its rows off the reference's grid cannot be run
     // again to compare (before: exit 1, "reproduces the stored samples to nan digits").
-    if (!reference.times.empty() && reference.times.back() > scene.end.time + 1e-9) {
+    if (!reference.times.empty() && !OutsideSceneSpan(scene, reference, reference.times.back()).empty()) {
       Throw<InputError>("kneedyn score", "--scene: scene '", scene.name, "' ends at end.time_s = ", scene.end.time,
                         " s, before the last time of ", document, " (", reference.times.back(),
                         " s): the reference was made for another version of the scene");

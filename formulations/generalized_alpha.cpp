@@ -9,8 +9,8 @@
 //
 // Options: --rho-inf (default 0.9) gives Chung–Hulbert's αm, αf, β, γ; --alpha-m,
 // --alpha-f, --beta, --gamma (all four, γ = 1/2 − αm + αf) set them explicitly
-// (αm = αf = 0, β = 1/4, γ = 1/2 reproduces `newmark`). Fixed step --step (default 1e-4 s); --rtol/--atol drive the Newton
-// test as for newmark.
+// (αm = αf = 0, β = 1/4, γ = 1/2 reproduces `newmark`). Fixed step --step (default
+// 1e-4 s); --rtol/--atol drive the Newton test as for newmark.
 #include "formulations/internal/newmark_scheme.hpp"
 
 #include <cmath>

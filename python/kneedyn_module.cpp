@@ -97,10 +97,14 @@ class YamlWriter {
   // larger document (or a list shared many times over) is refused while it is written.
   void CheckSize(const std::string& where) const {
     if (text_.size() > scene_detail::kMaxInputFileBytes) {
-      Throw<InputError>(function_.c_str(), "the document's YAML text passes ", scene_detail::kMaxInputFileBytes,
-                        " bytes", where.empty() ? std::string() : " at field '" + Echo(where, 128) + "'",
-                        "; the limit is ", scene_detail::kMaxInputFileBytes, " bytes (kMaxInputFileBytes, that of a scene file)");
+      RefuseSize(where.empty() ? std::string() : " at field '" + Echo(where, 128) + "'");
     }
+  }
+  // The size refusal; `at` says where ("" or " at field '...'" and what it held).
+  [[noreturn]] void RefuseSize(const std::string& at) const {
+    Throw<InputError>(function_.c_str(), "the document's YAML text passes ", scene_detail::kMaxInputFileBytes, " bytes",
+                      at, "; the limit is ", scene_detail::kMaxInputFileBytes,
+                      " bytes (kMaxInputFileBytes, that of a scene file)");
   }
   [[noreturn]] void Refuse(const std::string& where, const py::handle& obj, const std::string& rule) const {
     Throw<InputError>(function_.c_str(), "field '", where.empty() ? "(top level)" : Echo(where, 128), "' = ",
@@ -132,10 +136,8 @@ class YamlWriter {
   void Scalar(const std::string& text, bool string, const std::string& where) {
     scalar_bytes_ += text.size();
     if (scalar_bytes_ > scene_detail::kMaxInputFileBytes) {
-      Throw<InputError>(function_.c_str(), "the document's YAML text passes ", scene_detail::kMaxInputFileBytes,
-                        " bytes at field '", Echo(where.empty() ? std::string("(top level)") : where, 128), "' (",
-                        text.size(), " bytes of text there); the limit is ", scene_detail::kMaxInputFileBytes,
-                        " bytes (kMaxInputFileBytes, that of a scene file)");
+      RefuseSize(StrCat(" at field '", Echo(where.empty() ? std::string("(top level)") : where, 128), "' (", text.size(),
+                        " bytes of text there)"));
     }
     const bool null_like = text.empty() || text == "~" || text == "null" || text == "Null" || text == "NULL";
     const bool quote = string && (null_like || scene_detail::PlainReadsAsValue(text));

@@ -12,8 +12,8 @@
 #include "solver/ceres_fallback.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/contact_kinematics.hpp"
-#include "solver/patella.hpp"
 #include "solver/error.hpp"
+#include "solver/patella.hpp"
 #include "solver/scalar.hpp"
 
 namespace kneedyn {

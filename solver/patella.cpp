@@ -17,6 +17,16 @@ constexpr int kMaxNewtonIterations = 30;
 // convergence is quadratic, so that last step reaches round-off.
 constexpr double kNewtonStepTolerance = 1.0e-10;
 
+// Where the trochlear contact points are, for the refusals below: a patellar residual fails
+// only when a sphere's regular chart does (height_field.hpp; the facet planes' chart has no
+// edge).
+std::string TrochlearChartCoordinates(const std::array<double, kPatellaUnknowns>& x) {
+  return StrCat("trochlear chart (u, v) = (", RadToDeg(x[kPatellaChart]), ", ", RadToDeg(x[kPatellaChart + 1]),
+                ") deg medial, (", RadToDeg(x[kPatellaChart + 4]), ", ", RadToDeg(x[kPatellaChart + 5]),
+                ") deg lateral; the chart ends at |u| = ", RadToDeg(kUnitSphereChartMaxLatitude), ", |v| = ",
+                RadToDeg(kUnitSphereChartMaxLongitude), " deg");
+}
+
 // r(x) and ∂r/∂x at x; false outside a chart.
 bool Linearize(const Patella& patella, const Vector3d& tuberosity_F, const std::array<double, kPatellaUnknowns>& x,
                const PatellaFacets& pressing, Eigen::Matrix<double, kPatellaUnknowns, 1>* r, PatellaJacobian* J) {
@@ -234,18 +244,6 @@ double PatellaResidualNorm(const Patella& patella, const Vector3d& tuberosity_F,
   for (double v : r) norm = std::max(norm, std::abs(v));
   return norm;
 }
-
-namespace {
-// Where the trochlear contact points are, for the refusals below: a patellar residual fails
-// only when a sphere's regular chart does (height_field.hpp; the facet planes' chart has no
-// edge).
-std::string TrochlearChartCoordinates(const std::array<double, kPatellaUnknowns>& x) {
-  return StrCat("trochlear chart (u, v) = (", RadToDeg(x[kPatellaChart]), ", ", RadToDeg(x[kPatellaChart + 1]),
-                ") deg medial, (", RadToDeg(x[kPatellaChart + 4]), ", ", RadToDeg(x[kPatellaChart + 5]),
-                ") deg lateral; the chart ends at |u| = ", RadToDeg(kUnitSphereChartMaxLatitude), ", |v| = ",
-                RadToDeg(kUnitSphereChartMaxLongitude), " deg");
-}
-}  // namespace
 
 std::array<double, 2> PatellaFacetGaps(const Patella& patella, const std::array<double, kPatellaUnknowns>& x) {
   // The gap rows do not depend on the tuberosity or on which facets press.

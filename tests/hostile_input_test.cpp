@@ -630,14 +630,8 @@ TEST_F(HostileInput, ScoreRefusesAmbiguousTimesAndRowsOutsideTheScene) {
 // reference was made for: refused naming both ends (before: exit 1, "reproduces the stored
 // samples to nan digits").
 TEST_F(HostileInput, ScoreRefusesASceneThatEndsBeforeItsReference) {
-  std::string text = ReadText(ChapterScenePath());
-  const std::string key = "end: {flexion_deg: 90.0, time_s: 2.0}";
-  ASSERT_NE(text.find(key), std::string::npos);
-  text.replace(text.find(key), key.size(), "end: {time_s: 0.05}");
-  const std::string ps = "parameter_set: ../chapter_knee.yaml";
-  ASSERT_NE(text.find(ps), std::string::npos);
-  text.replace(text.find(ps), ps.size(), "parameter_set: " + ReferenceDataDir() + "/chapter_knee.yaml");
-  const std::string scene = Input("short.yaml", text);
+  const std::string scene =
+      Input("short.yaml", Replaced(ChapterSceneText(), "end: {flexion_deg: 90.0, time_s: 2.0}", "end: {time_s: 0.05}"));
   ExpectRefused("score '" + Input("result.csv", ScoreResultCsv()) + "' --scene '" + scene + "' --out '" +
                     (dir_ / "score.json").string() + "'",
                 {"scene 'chapter_impact' ends at end.time_s = 0.05 s, before the last time of", "another version"});
