@@ -8,7 +8,8 @@
 // second order in positions, velocities and multipliers.
 //
 // Options: --rho-inf (default 0.9) gives Chung–Hulbert's αm, αf, β, γ; --alpha-m,
-// --alpha-f, --beta, --gamma (all four, γ = 1/2 − αm + αf) set them explicitly
+// --alpha-f, --beta, --gamma (all four, γ = 1/2 − αm + αf, αm ≤ αf ≤ 1/2,
+// β ≥ 1/4 + (αf − αm)/2) set them explicitly
 // (αm = αf = 0, β = 1/4, γ = 1/2 reproduces `newmark`). Fixed step --step (default
 // 1e-4 s); --rtol/--atol drive the Newton test as for newmark.
 #include "formulations/internal/newmark_scheme.hpp"
@@ -71,6 +72,18 @@ bool ReadGeneralizedAlphaOptions(const OptionRequest& request, NewmarkOptions* o
     return request.Fail(StrCat("--gamma = ", request.Shown("--gamma", scheme.gamma), " with --alpha-m = ", scheme.alpha_m,
                                " and --alpha-f = ", scheme.alpha_f, ": must be 1/2 - alpha_m + alpha_f = ",
                                second_order_gamma, " (within 1e-5) for second order"));
+  }
+  // Unconditional stability on the linear oscillator needs αm ≤ αf ≤ 1/2 and
+  // β ≥ 1/4 + (αf − αm)/2 (Chung & Hulbert 1993); outside it the spectral radius exceeds 1 as
+  // ω h grows (αm = 0.3, αf = 0.6 on the Chung–Hulbert β: 1.5), so the fixed step would amplify
+  // the stiff ligament and contact modes. Same 1e-5 allowance for typed decimals.
+  const double beta_floor = 0.25 + 0.5 * (scheme.alpha_f - scheme.alpha_m);
+  if (!(scheme.alpha_m <= scheme.alpha_f + 1e-5 && scheme.alpha_f <= 0.5 + 1e-5 && scheme.beta >= beta_floor - 1e-5)) {
+    return request.Fail(StrCat("generalized-alpha parameters (alpha_m, alpha_f, beta) = (", scheme.alpha_m, ", ",
+                               scheme.alpha_f, ", ", scheme.beta,
+                               "): unconditional stability needs alpha_m <= alpha_f <= 1/2 and beta >= 1/4 + "
+                               "(alpha_f - alpha_m)/2 = ",
+                               beta_floor, " (within 1e-5)"));
   }
   options->scheme = scheme;
   return true;

@@ -526,6 +526,56 @@ TEST(GeneralizedAlphaLinearOscillator, MatchesTheScalarMapAndDampsHighFrequencie
   }
 }
 
+// Explicit parameters outside Chung & Hulbert's region of unconditional stability
+// (αm ≤ αf ≤ 1/2, β ≥ 1/4 + (αf − αm)/2) are refused naming the rule. The evidence that the
+// refused schemes are unstable is the independent scalar map: its spectral radius exceeds 1
+// at large ω h; the accepted ones (the region's corners and a point inside) stay at or below 1.
+TEST(GeneralizedAlphaLinearOscillator, ExplicitParametersOutsideTheStableRegionAreRefused) {
+  const auto scheme_on_gamma = [](double am, double af, double beta) {
+    return NewmarkScheme{am, af, beta, 0.5 - am + af};
+  };
+  const auto check = [](const NewmarkScheme& s, std::string* why) {
+    FormulationOptions o;
+    o.alpha_m = s.alpha_m;
+    o.alpha_f = s.alpha_f;
+    o.newmark_beta = s.beta;
+    o.newmark_gamma = s.gamma;
+    return ValidateOptions(FindFormulation("generalized-alpha"), o, why);
+  };
+  const auto worst_radius = [](const NewmarkScheme& s) {
+    double worst = 0.0;
+    for (double omega_h : {0.1, 1.0, 3.0, 10.0, 1e2, 1e4}) {
+      worst = std::max(worst, (ScalarAlphaStep{s, 1.0, omega_h}).SpectralRadius());
+    }
+    return worst;
+  };
+  const NewmarkScheme unstable[] = {
+      scheme_on_gamma(0.3, 0.6, 0.25 * 1.3 * 1.3),  // αf > 1/2
+      scheme_on_gamma(0.5, 0.4, 0.25 * 0.9 * 0.9),  // αm > αf
+      scheme_on_gamma(0.4, 0.45, 0.25),             // β < 1/4 + (αf − αm)/2 = 0.275
+  };
+  for (const NewmarkScheme& s : unstable) {
+    EXPECT_GT(worst_radius(s), 1.1) << s.alpha_m << " " << s.alpha_f << " " << s.beta;
+    std::string why;
+    EXPECT_FALSE(check(s, &why)) << s.alpha_m << " " << s.alpha_f << " " << s.beta;
+    EXPECT_NE(why.find("unconditional stability needs alpha_m <= alpha_f <= 1/2 and beta >= 1/4 + "
+                       "(alpha_f - alpha_m)/2"),
+              std::string::npos)
+        << why;
+  }
+  const NewmarkScheme stable[] = {
+      scheme_on_gamma(0.0, 0.0, 0.25),      // newmark's trapezoidal rule: the corner
+      scheme_on_gamma(0.5, 0.5, 0.25),      // ρ∞ = 1
+      scheme_on_gamma(0.2, 0.4, 0.4),       // inside
+      scheme_on_gamma(-1.0, 0.0, 1.0),      // ρ∞ = 0
+  };
+  for (const NewmarkScheme& s : stable) {
+    EXPECT_LT(worst_radius(s), 1.0 + 1e-9) << s.alpha_m << " " << s.alpha_f << " " << s.beta;
+    std::string why;
+    EXPECT_TRUE(check(s, &why)) << why;
+  }
+}
+
 // No allocation in the hot path: after a phase starts, newmark's and generalized-alpha's
 // steps, Newton solves, residuals (workspace DataTpl members) and event checks allocate
 // nothing over whole Advance calls (tests/zero_allocation_test.cpp counts the hot path of
