@@ -112,7 +112,11 @@ RunRow EvaluateRunAt(const SweepSpec& spec, long index, const std::vector<double
   const EventRecord* liftoff = nullptr;
   const EventRecord* at90 = nullptr;
   for (const EventRecord& e : result.events) {
-    if (!liftoff && e.name.rfind("liftoff_", 0) == 0) liftoff = &e;
+    // A condyle's lift-off, as `kneedyn sensitivity` counts it: liftoff_patellar_* is the
+    // patella leaving a trochlear facet, not the knee's lift-off.
+    const bool condylar = e.name == StrCat("liftoff_", CompartmentName(Compartment::kMedial)) ||
+                          e.name == StrCat("liftoff_", CompartmentName(Compartment::kLateral));
+    if (!liftoff && condylar) liftoff = &e;
     if (e.name == "flexion_90") at90 = &e;
   }
   std::vector<double> peak_F(m.ligaments.size(), 0.0);

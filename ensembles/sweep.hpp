@@ -36,7 +36,7 @@ struct SweepTable {
 
 // Result columns of the spec's outcome groups, with units:
 //   liftoff_time → liftoff_time_s; liftoff_flexion → liftoff_flexion_deg (first lift-off
-//   of either compartment); peak_ligament_force → peak_F_<element>_N; peak_contact_force →
+//   of either tibial compartment; a patellar facet's liftoff_patellar_* is not one); peak_ligament_force → peak_F_<element>_N; peak_contact_force →
 //   peak_N_<compartment>_N; time_at_90 → time_90_s; ligament_force_at_90 → F90_<element>_N;
 //   contact_force_at_90 → N90_<compartment>_N. Peaks are maxima over the output rows
 //   (solver.output_interval_s apart, plus every event).

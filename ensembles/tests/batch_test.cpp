@@ -7,6 +7,7 @@
 
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -111,6 +112,31 @@ TEST(Batch, VariantEqualsTheSceneEditedByHand) {
   EXPECT_EQ(row.steps, direct.stats.steps);
   // And the pulse mattered: the nominal scene's lift-off differs.
   EXPECT_NE(LiftoffTime(RunScene(Chapter(), Settings())), row.outcomes[0]);
+}
+
+// A patellar facet's lift-off is not the knee's: on a scene where the patella leaves its
+// medial facet and the condyles never separate (the direct run's events: no liftoff_medial
+// or liftoff_lateral), the lift-off outcomes are NaN, as `kneedyn sensitivity` gives them.
+// Before, the batch printed the facet's time (0.0587 s) as the knee's lift-off.
+TEST(Batch, PatellarFacetLiftoffIsNotTheKneesLiftoff) {
+  const Scene scene = LoadScene(std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes/hard/patella_medial_liftoff.yaml");
+  RunSettings settings;
+  settings.formulation = "ede";
+  const RunResult direct = RunScene(scene, settings);
+  ASSERT_TRUE(direct.completed) << direct.failure;
+  bool facet_liftoff = false;
+  for (const EventRecord& e : direct.events) {
+    EXPECT_NE(e.name, "liftoff_medial");
+    EXPECT_NE(e.name, "liftoff_lateral");
+    facet_liftoff = facet_liftoff || e.name.rfind("liftoff_patellar_", 0) == 0;
+  }
+  ASSERT_TRUE(facet_liftoff) << "the scene no longer exercises a facet lift-off";
+  Batch batch(scene, settings, {"liftoff_time", "liftoff_flexion"});
+  const std::vector<ParameterSpec> p = {ResolveParameterName(scene.model, "pulse.amplitude", "test")};
+  const RunRow row = batch.Run(p, {scene.model.pulse.amplitude}, 0);
+  ASSERT_TRUE(row.completed) << row.failure;
+  EXPECT_TRUE(std::isnan(row.outcomes[0])) << row.outcomes[0];
+  EXPECT_TRUE(std::isnan(row.outcomes[1])) << row.outcomes[1];
 }
 
 TEST(Batch, RowsDoNotDependOnOrderOrThreads) {
