@@ -66,13 +66,6 @@ std::vector<EventSpec> StartPhase(const Model& model, const EndCondition& end, d
   return specs;
 }
 
-namespace {
-
-// Releases the active contacts whose consistent force would pull (N < 0): the most negative
-// first, then solves again (e.g. a re-contact that bounces off, the second compartment
-// unloading as the first lifts off, or an assembled start whose forces are tensile), each
-// recorded as a lift-off at state->t (docs/model.md §9). `refusal`: kRefuse's reason.
-// Returns whether it released any.
 bool ReleasePullingContacts(const Model& model, RestartProjection restart, PullingContact pulling, const char* refusal,
                             MechanicalState* state, std::vector<EventRecord>* events) {
   bool released = false;
@@ -97,8 +90,6 @@ bool ReleasePullingContacts(const Model& model, RestartProjection restart, Pulli
     released = true;
   }
 }
-
-}  // namespace
 
 TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpec>& specs,
                                   const std::vector<int>& fired, RestartProjection restart,

@@ -110,6 +110,15 @@ TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpe
                                   PullingContact pulling, MechanicalState* state,
                                   std::vector<EventRecord>* events);
 
+// Releases the active contacts whose consistent force would pull (N < 0): the most negative
+// first, then solves again (e.g. a re-contact that bounces off, the second compartment
+// unloading as the first lifts off, or an assembled start whose forces are tensile), each
+// recorded as a lift-off at state->t (docs/model.md §9). `refusal`: kRefuse's reason.
+// Returns whether it released any. The Simulator calls it at the start, after each switch
+// (inside PhaseTransition) and at each restart; the Problem interface likewise.
+bool ReleasePullingContacts(const Model& model, RestartProjection restart, PullingContact pulling, const char* refusal,
+                            MechanicalState* state, std::vector<EventRecord>* events);
+
 // RestartProjection at *state: the hidden level (q̈, N, contact coordinates) on the
 // active contacts, after projecting (q, q̇) for kProject.
 void CompleteRestartState(const Model& model, RestartProjection restart, MechanicalState* state);

@@ -43,6 +43,7 @@ Problem::Problem(const Scene& scene, const std::string& form, double rtol, doubl
     Fail(StrCat("Problem: rtol = ", rtol, ", atol = ", atol, ": rtol must lie in ", kRtolRange, " and atol in ", kAtolRange,
                 " (SI: m, m/s, rad), as in kneedyn run"));
   }
+  const ScopedAngularVelocityMapReading map_reading = MapReading();
   const Model& model = scene.model;
   ConsistentInitOptions init;  // as kneedyn run: every contact active at t0
   init.form = is_dae() ? ContactForm::kChapter : ContactForm::kClosedForm;
@@ -50,6 +51,9 @@ Problem::Problem(const Scene& scene, const std::string& form, double rtol, doubl
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
   InitReport report;
   state_ = ConsistentInitialize(model, scene.initial, active, init, &report);
+  // A start whose consistent forces pull (an assembled pose; docs/model.md §6) starts with
+  // those contacts' lift-offs, as Simulator::Initialize does.
+  ReleasePullingContacts(model, RestartProjection::kProject, PullingContact::kSeparate, "", &state_, &events_);
   SolveConstrainedAcceleration(model, state_.t, state_.q, state_.qd, state_.active);  // dependent rows: refused
   if (is_dae()) {
     dae_ = std::make_unique<DaeSystem>(model, ContactForm::kChapter, ConstraintLevel::kVelocity, form == "dae-ggl");
@@ -65,6 +69,13 @@ Problem::Problem(const Scene& scene, const std::string& form, double rtol, doubl
 void Problem::BeginPhase() {
   const double gap_tolerance = RecontactGapTolerance(max_position_residual_, state_.q, rtol_, atol_);
   specs_ = StartPhase(scene_.model, scene_.end, gap_tolerance, RestartProjection::kProject, &state_);
+  // A restart whose consistent force pulls (after a ligament kink, say) lifts that contact
+  // off at once, and the phase's events follow the new contact set (Simulator::Run).
+  if (phase_ > 0 && ReleasePullingContacts(scene_.model, RestartProjection::kProject, PullingContact::kSeparate, "",
+                                           &state_, &events_)) {
+    specs_ = StartPhase(scene_.model, scene_.end, gap_tolerance, RestartProjection::kProject, &state_,
+                        /*complete=*/false);
+  }
   if (is_dae()) {
     dae_->SetPhase(state_.active, state_.contact, state_.ligament_branch);
     n_ = dae_->size();
@@ -161,6 +172,7 @@ void Problem::AccelerationAt(double t, const double* y) const {
 void Problem::Rhs(double t, const double* y, int n, double* f) const {
   if (is_dae()) Fail(StrCat("Problem::Rhs: the '", form_, "' form is a DAE; call Residual"));
   CheckTime("Rhs", t);
+  const ScopedAngularVelocityMapReading map_reading = MapReading();
   CheckState("Rhs", "y", y, n);
   if (is_mde()) {
     const int m = n_ / 2;
@@ -183,6 +195,7 @@ void Problem::Rhs(double t, const double* y, int n, double* f) const {
 void Problem::Jacobian(double t, const double* y, int n, double* J) const {
   if (is_dae()) Fail(StrCat("Problem::Jacobian: the '", form_, "' form is a DAE; call Jacobian(t, y, yp, c)"));
   CheckTime("Jacobian", t);
+  const ScopedAngularVelocityMapReading map_reading = MapReading();
   CheckState("Jacobian", "y", y, n);
   if (is_mde()) {
     MdeJacobian(t, y, J);
@@ -266,6 +279,7 @@ void Problem::MdeJacobian(double t, const double* y, double* Jf) const {
 void Problem::Residual(double t, const double* y, const double* yp, int n, double* F) const {
   if (!is_dae()) Fail(StrCat("Problem::Residual: the '", form_, "' form is an ODE; call Rhs"));
   CheckTime("Residual", t);
+  const ScopedAngularVelocityMapReading map_reading = MapReading();
   CheckState("Residual", "y", y, n);
   CheckState("Residual", "yp", yp, n);
   if (!dae_->Residual(t, y, yp, F)) Fail(StrCat("Problem::Residual: at t = ", t, " s a contact surface is evaluated outside its domain"));
@@ -275,6 +289,7 @@ void Problem::Residual(double t, const double* y, const double* yp, int n, doubl
 void Problem::Jacobian(double t, const double* y, const double* yp, double c, int n, double* J) const {
   if (!is_dae()) Fail(StrCat("Problem::Jacobian: the '", form_, "' form is an ODE; call Jacobian(t, y)"));
   CheckTime("Jacobian", t);
+  const ScopedAngularVelocityMapReading map_reading = MapReading();
   CheckState("Jacobian", "y", y, n);
   CheckState("Jacobian", "yp", yp, n);
   if (!std::isfinite(c)) Fail(StrCat("Problem::Jacobian: c = ", c, ": must be finite"));
@@ -307,6 +322,7 @@ std::vector<int> Problem::event_directions() const {
 // The formulations' root functions (ede.cpp, dae.cpp: N from the hidden constraint or from y).
 void Problem::Events(double t, const double* y, int n, double* g) const {
   CheckTime("Events", t);
+  const ScopedAngularVelocityMapReading map_reading = MapReading();
   CheckState("Events", "y", y, n);
   std::fill(normal_.begin(), normal_.end(), 0.0);
   if (is_mde()) {  // the mde formulation's Roots, then the chart's conditioning
@@ -333,6 +349,7 @@ void Problem::Events(double t, const double* y, int n, double* g) const {
 }
 
 MechanicalState Problem::StateAt(double t, const double* y, const double* yp) const {
+  const ScopedAngularVelocityMapReading map_reading = MapReading();
   MechanicalState s = state_;
   s.t = t;
   if (!is_mde()) {  // mde's y is (s, ṡ) of the chart's free coordinates, 2m ≤ 12 values
@@ -401,6 +418,7 @@ void Problem::Restore(PhaseSnapshot&& saved) {
 
 bool Problem::Transition(double t, const double* y, const double* yp, int n, const std::vector<int>& events) {
   CheckTime("Transition", t);
+  const ScopedAngularVelocityMapReading map_reading = MapReading();
   CheckState("Transition", "y", y, n);
   if (is_dae()) CheckState("Transition", "yp", yp, n);
   if (t < state_.t || t > scene_.end.time) {

@@ -122,6 +122,12 @@ class Problem {
   bool TransitionUnguarded(double t, const double* y, const double* yp, const std::vector<int>& events);
 
   void BeginPhase();
+  // The scene's reading of the angular-velocity map (docs/model.md §2) on the calling
+  // thread for one call: the solver's functions read it per thread (as a run sets it for its
+  // life), and an outside solver may call from any thread.
+  ScopedAngularVelocityMapReading MapReading() const {
+    return ScopedAngularVelocityMapReading(scene_.model.angular_velocity_map);
+  }
   // `name` ("y" or "yp") is the array the message names.
   void CheckState(const char* call, const char* name, const double* y, int n) const;
   void CheckTime(const char* call, double t) const;
