@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include "ensembles/sweep_spec.hpp"
 #include "solver/error.hpp"
@@ -69,6 +70,26 @@ TEST(SweepSpec, ResolvesParametersWithTheBaseScenesNominalValues) {
 // A normal distribution of a parameter that must stay > 0 is accepted when every draw does
 // (mean − 8.2 sd > 0): the range, not the distribution's kind, is the rule; its draws at the
 // unit cube's ends are the extremes the spec check tested.
+// The spec format's example in ensembles/README.md is a valid spec as printed (its scene path
+// is relative to a spec in ensembles/specs/). Before, its `integrator: ""` was refused.
+TEST(SweepSpec, TheReadmeExampleIsAccepted) {
+  std::ifstream in(std::string(KNEEDYN_SOURCE_DIR) + "/ensembles/README.md");
+  const std::string readme((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const size_t section = readme.find("## Spec format (YAML)");
+  ASSERT_NE(section, std::string::npos);
+  const size_t from = readme.find("```yaml\n", section);
+  ASSERT_NE(from, std::string::npos);
+  const size_t to = readme.find("```", from + 8);
+  ASSERT_NE(to, std::string::npos);
+  const std::string example = readme.substr(from + 8, to - from - 8);
+  try {
+    const SweepSpec spec = ParseSweepSpec(example, "README.md", std::string(KNEEDYN_SOURCE_DIR) + "/ensembles/specs");
+    EXPECT_EQ(spec.parameters.size(), 3u);
+  } catch (const InputError& e) {
+    ADD_FAILURE() << e.what() << "\n" << example;
+  }
+}
+
 TEST(SweepSpec, ANormalWhoseDrawsStayInTheRangeIsAccepted) {
   const SweepSpec s = Parse(Spec("  - {name: mass, normal: [4, 0.1]}"));
   const ParameterSpec& p = s.parameters[0];
