@@ -16,7 +16,9 @@ namespace {
 namespace fs = std::filesystem;
 using namespace scene_detail;
 
-// The parameter set: relative to the scene file, else to the reference-data directory.
+// The parameter set: relative to the scene file, else to the data directory's scenes/ (where
+// the shipped scenes name `../chapter_knee.yaml`, so a copy of one runs from anywhere), else to
+// the data directory itself.
 ParameterSet ReadParameterSet(const Field& top, const std::string& base_dir) {
   const Field psf = top.Required("parameter_set");
   std::string ps_path = psf.String();
@@ -27,9 +29,12 @@ ParameterSet ReadParameterSet(const Field& top, const std::string& base_dir) {
   std::string looked_for;
   if (!fs::path(ps_path).is_absolute()) {
     const fs::path near_scene = fs::path(base_dir) / ps_path;
-    looked_for = "'" + EchoPath(near_scene.string()) + "' (beside the scene), then ";
-    ps_path = fs::exists(near_scene, ec) ? near_scene.string()
-                                         : (fs::path(ReferenceDataDir()) / ps_path).string();
+    const fs::path from_scenes = fs::path(ReferenceDataDir()) / "scenes" / ps_path;
+    looked_for = "'" + EchoPath(near_scene.string()) + "' (beside the scene), then '" +
+                 EchoPath(from_scenes.string()) + "' (as a shipped scene), then ";
+    ps_path = fs::exists(near_scene, ec)    ? near_scene.string()
+              : fs::exists(from_scenes, ec) ? from_scenes.string()
+                                            : (fs::path(ReferenceDataDir()) / ps_path).string();
   }
   if (!fs::exists(ps_path, ec)) {
     psf.Fail("parameter set file not found (looked for " + looked_for + "'" + EchoPath(ps_path) + "'" +

@@ -491,12 +491,34 @@ TEST(Scene, LoadSceneRefusesMissingFile) {
   EXPECT_THROW((void)LoadScene(ScenesDir() + "/does_not_exist.yaml"), InputError);
 }
 
-// A relative parameter set is looked for beside the scene, then in the data directory: a
-// missing one names both places (a scene copied out of the data tree named only the second).
-TEST(Scene, MissingRelativeParameterSetNamesBothPlacesLookedIn) {
+// A relative parameter set is looked for beside the scene, then as a shipped scene would name
+// it (relative to the data directory's scenes/), then in the data directory: a missing one
+// names all three places (a scene copied out of the data tree named only the last).
+TEST(Scene, MissingRelativeParameterSetNamesThePlacesLookedIn) {
   ExpectRefusedWith("parameter_set", "../no_such_knee.yaml", "copied.yaml",
                     {"parameter set file not found", ScenesDir() + "/../no_such_knee.yaml' (beside the scene), then '",
+                     "/scenes/../no_such_knee.yaml' (as a shipped scene), then '",
                      "/../no_such_knee.yaml' (in the data directory)"});
+}
+
+// A shipped scene copied into another directory runs as it is: its `../chapter_knee.yaml` is
+// found relative to the data directory's scenes/, and the model is the shipped scene's.
+// Before, the copy was refused ("parameter set file not found").
+TEST(Scene, ACopiedShippedSceneFindsItsParameterSet) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::path(::testing::TempDir()) / ("kneedyn_copied_scene_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  fs::copy_file(ScenesDir() + "/chapter_impact.yaml", dir / "chapter_impact.yaml", fs::copy_options::overwrite_existing);
+  ASSERT_FALSE(fs::exists(dir / ".." / "chapter_knee.yaml")) << "the copy must not sit beside a parameter set";
+  const Scene copy = LoadScene((dir / "chapter_impact.yaml").string());
+  const Scene shipped = LoadScene(ScenesDir() + "/chapter_impact.yaml");
+  EXPECT_EQ(copy.model.mass, shipped.model.mass);
+  ASSERT_EQ(copy.model.ligaments.size(), shipped.model.ligaments.size());
+  for (size_t i = 0; i < copy.model.ligaments.size(); ++i) {
+    EXPECT_EQ(copy.model.ligaments[i].k_linear, shipped.model.ligaments[i].k_linear) << i;
+    EXPECT_EQ(copy.model.ligaments[i].slack_length, shipped.model.ligaments[i].slack_length) << i;
+  }
+  fs::remove_all(dir);
 }
 
 }  // namespace
