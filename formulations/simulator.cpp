@@ -162,12 +162,13 @@ void Simulator::Initialize() {
   CheckFixedStep(model, state_.t, stepper_->fixed_step(), settings_.output_interval, /*pulses=*/true);
   // A start whose consistent forces pull (an assembled pose; docs/model.md §6) starts with
   // those contacts' lift-offs.
-  ReleasePullingContacts(model, settings_.restart, settings_.pulling,
-                         "at the start: a lift-off there, whose sensitivities are not defined", &state_, &record_->events);
+  const bool released =
+      ReleasePullingContacts(model, settings_.restart, settings_.pulling,
+                             "at the start: a lift-off there, whose sensitivities are not defined", &state_, &record_->events);
   // Refusals the input causes are raised here, before integration (exit code 2): contact
   // rows that are dependent at the start (e.g. two compartments given the same surfaces).
   SolveConstrainedAcceleration(model, state_.t, state_.q, state_.qd, state_.active);
-  Record(false);
+  Record(/*is_event=*/released);  // the first row is the start's lift-offs' row
 }
 
 void Simulator::Run() {
@@ -201,6 +202,13 @@ void Simulator::Run() {
                                "at a restart: a lift-off there, whose sensitivities are not defined", &state_,
                                &record_->events)) {
       specs = StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_, /*complete=*/false);
+      // The lift-off's row (docs/outputs.md: a row per event): after a kink no row was
+      // written; after a patellar event its row, at this time, is the one.
+      if (record_->samples.empty() || record_->samples.back().t != state_.t) {
+        if (std::abs(state_.t - next_index * dt) < kOutputTimeMerge) ++next_index;
+        pass_extra(state_.t);
+        Record(true);
+      }
     }
     stepper_->Start(state_, specs);
     if (first_phase && settings_.first_phase_started) settings_.first_phase_started(state_);

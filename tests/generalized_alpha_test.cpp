@@ -250,6 +250,13 @@ TEST(GeneralizedAlpha, KinkRestartThatPullsLiftsOff) {
     for (const MechanicalState& row : r.samples) {
       for (int i : row.active) EXPECT_GE(row.contact[i].normal_force, -1e-3) << name << " t = " << row.t;
     }
+    // Every event has its row (docs/outputs.md), the restart's lift-off too: before, its row
+    // was missing (contacts_active fell between two output rows).
+    for (const EventRecord& e : r.events) {
+      bool row = false;
+      for (size_t k = 0; k < r.samples.size(); ++k) row = row || (r.sample_is_event[k] && r.samples[k].t == e.time);
+      EXPECT_TRUE(row) << name << ": no event row for " << e.name << " at t = " << e.time;
+    }
   }
 }
 
