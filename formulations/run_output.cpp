@@ -28,6 +28,7 @@
 #include <sundials/sundials_config.h>
 
 #include "formulations/output_file.hpp"
+#include "formulations/internal/newmark_scheme.hpp"
 #include "formulations/version.hpp"
 #include "solver/constrained_dynamics.hpp"
 #include "solver/observables.hpp"
@@ -627,6 +628,20 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
   requested["integrator"] = o.integrator ? OptionName(*o.integrator) : "";
   requested["step_s"] = o.step;
   settings_json["max_step_s"] = o.max_step;
+  settings_json["max_steps"] = o.max_steps;
+  // The scheme a generalized-alpha run used (Chung–Hulbert's from ρ∞, or the four given).
+  if (settings.formulation.rfind("generalized-alpha", 0) == 0) {
+    const bool explicit_scheme = o.alpha_m.has_value();
+    const NewmarkScheme scheme = explicit_scheme ? NewmarkScheme{*o.alpha_m, *o.alpha_f, *o.newmark_beta, *o.newmark_gamma}
+                                                 : ChungHulbertScheme(o.rho_inf);
+    settings_json["generalized_alpha"] = {{"rho_inf", explicit_scheme ? nlohmann::json(nullptr) : nlohmann::json(o.rho_inf)},
+                                          {"alpha_m", scheme.alpha_m},
+                                          {"alpha_f", scheme.alpha_f},
+                                          {"beta", scheme.beta},
+                                          {"gamma", scheme.gamma}};
+  } else {
+    settings_json["generalized_alpha"] = nullptr;
+  }
   settings_json["stabilization"] = OptionName(o.stabilization);
   settings_json["constraint_level"] = OptionName(o.constraint_level);
   settings_json["jacobian"] = JacobianSetting(settings);

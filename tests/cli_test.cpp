@@ -598,6 +598,23 @@ TEST_F(CliTest, SummaryRecordsWhatActuallyRan) {
   const double span = j.at("events").back().at("time").get<double>();  // run starts at t = 0
   const long steps = j.at("statistics").at("steps").get<long>();
   EXPECT_NEAR(s.at("mean_step_s").get<double>() * static_cast<double>(steps), span, 1e-9 * span);
+  EXPECT_EQ(s.at("max_steps").get<long>(), 200000);  // the documented default
+  EXPECT_TRUE(s.at("generalized_alpha").is_null());
+
+  // generalized-alpha records its scheme: ρ∞ = 0.5 gives Chung & Hulbert's αm = (2ρ − 1)/(ρ + 1)
+  // = 0, αf = ρ/(ρ + 1) = 1/3, γ = 1/2 − αm + αf = 5/6, β = (γ + 1/2)²/4 = 4/9. Before, only a
+  // typed --rho-inf was in command_line, and a default run held it nowhere.
+  fs::remove_all(Out());
+  r = RunKneedyn("run '" + ChapterScenePath() + "' --formulation generalized-alpha --rho-inf 0.5 --max-steps 99999 "
+                 "--quiet --out '" + Out() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto ga = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json")).at("settings");
+  EXPECT_EQ(ga.at("max_steps").get<long>(), 99999);
+  EXPECT_EQ(ga.at("generalized_alpha").at("rho_inf").get<double>(), 0.5);
+  EXPECT_NEAR(ga.at("generalized_alpha").at("alpha_m").get<double>(), 0.0, 1e-15);
+  EXPECT_NEAR(ga.at("generalized_alpha").at("alpha_f").get<double>(), 1.0 / 3.0, 1e-15);
+  EXPECT_NEAR(ga.at("generalized_alpha").at("gamma").get<double>(), 5.0 / 6.0, 1e-15);
+  EXPECT_NEAR(ga.at("generalized_alpha").at("beta").get<double>(), 4.0 / 9.0, 1e-15);
 }
 
 }  // namespace
