@@ -12,6 +12,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <functional>
 #include <iostream>
 #include <iterator>
@@ -151,7 +152,14 @@ int Main(int argc, char** argv) {
   app.require_subcommand(1);
   // Formed only when asked for: the data directory is searched for on disk.
   app.set_version_flag(
-      "--version", std::function<std::string()>([] { return VersionReport("kneedyn") + "\ndata directory: " + ReferenceDataDir(); }),
+      "--version", std::function<std::string()>([] {
+        // Named as found; when it has no scenes/ the programs cannot run a shipped scene.
+        std::error_code ec;
+        const std::string dir = ReferenceDataDir();
+        const bool usable = std::filesystem::is_directory(std::filesystem::path(dir) / "scenes", ec);
+        return VersionReport("kneedyn") + "\ndata directory: " + dir +
+               (usable ? "" : " (not found: no scenes/ there; set KNEEDYN_DATA_DIR)");
+      }),
       "print the version, git commit, library versions and the data directory (scenes, references)");
 
   std::string scene_path, out_dir = "out/run";

@@ -383,6 +383,15 @@ TEST_F(CliTest, VersionNamesVersionCommitAndLibraries) {
                                                       r.output.find("data directory: ") - 16)) /
                          "references" / "chapter_impact.json"))
       << r.output;
+  EXPECT_EQ(r.output.find("(not found"), std::string::npos) << r.output;
+  // A data directory without scenes/ is named as not found (before: named as if found).
+  const CommandResult missing =
+      RunShell(std::string("KNEEDYN_DATA_DIR=/nonexistent/kneedyn_data '") + KNEEDYN_EXE + "' --version");
+  EXPECT_EQ(missing.exit_code, 0) << missing.output;
+  EXPECT_NE(missing.output.find("data directory: /nonexistent/kneedyn_data (not found: no scenes/ there; set "
+                                "KNEEDYN_DATA_DIR)"),
+            std::string::npos)
+      << missing.output;
   const CommandResult git =
       RunShell(std::string("git -C '") + KNEEDYN_SOURCE_DIR + "' rev-parse --short=12 HEAD");
   if (git.exit_code == 0 && fs::exists(fs::path(KNEEDYN_SOURCE_DIR) / ".git")) {

@@ -49,9 +49,12 @@ message(STATUS "pkg-config: ${out}")
 find_program(NM nm)
 if(NM)
   run(${NM} -D --defined-only ${lib})
-  string(REGEX MATCHALL "[0-9a-f]+ [TDB] [^\n]+" symbols "${out}")
+  # Every kind nm lists as defined: code, data, bss, read-only, weak (W, V: inline functions,
+  # typeinfo, vtables) and GNU-unique (u: template statics, which also keep dlclose from
+  # unloading the library).
+  string(REGEX MATCHALL "[0-9a-f]+ [TDBRWVu] [^\n]+" symbols "${out}")
   foreach(s ${symbols})
-    string(REGEX REPLACE "^[0-9a-f]+ [TDB] " "" name "${s}")
+    string(REGEX REPLACE "^[0-9a-f]+ [TDBRWVu] " "" name "${s}")
     if(NOT name MATCHES "^kneedyn_" AND NOT name MATCHES "^_(init|fini|edata|end|_bss_start)$")
       message(FATAL_ERROR "libkneedyn_problem_c exports '${name}': only kneedyn_* functions belong to its ABI")
     endif()
