@@ -56,11 +56,17 @@ struct Targets {
 struct Measured {
   double liftoff = 90.0, cross_short = 90.0, cross_long = 90.0, ext_peak = 90.0, varus_max = 90.0;
   int runs = 0, failed_runs = 0;
+  // Runs that ended without reaching the scene's end flexion (the chapter's motion is tracked to
+  // 90°): at a large θ the leg swings back like a pendulum. Largest flexion of the t0 = 0.1 s run.
+  int runs_not_reaching_end_flexion = 0;
+  double max_flexion_deg = 0.0;
 };
 
-// First + → − crossing of β − 90° after 1° of flexion (deg); 90 when none.
+// First + → − crossing of β − 90° after 1° of flexion while the knee flexes (deg); 90 when none.
+size_t FlexingEnd(const RunResult& r);
 double ValgusCrossing(const RunResult& r) {
-  for (size_t i = 1; i < r.samples.size(); ++i) {
+  const size_t end = r.samples.empty() ? 0 : FlexingEnd(r) + 1;
+  for (size_t i = 1; i < end; ++i) {
     const double a0 = RadToDeg(r.samples[i - 1].q(kAlpha)), a1 = RadToDeg(r.samples[i].q(kAlpha));
     const double v0 = RadToDeg(r.samples[i - 1].q(kBeta)) - 90.0, v1 = RadToDeg(r.samples[i].q(kBeta)) - 90.0;
     if (a0 >= 1.0 && v0 > 0.0 && v1 <= 0.0) return a0 + v0 / (v0 - v1) * (a1 - a0);
@@ -68,10 +74,22 @@ double ValgusCrossing(const RunResult& r) {
   return 90.0;
 }
 
-// Flexion angle (deg) at the maximum of sign × column over the run.
+// Index of the first sample of largest flexion: the chapter's statements are about the knee
+// flexing, so a run that swings back is read up to there.
+size_t FlexingEnd(const RunResult& r) {
+  size_t end = 0;
+  for (size_t i = 0; i < r.samples.size(); ++i) {
+    if (r.samples[i].q(kAlpha) > r.samples[end].q(kAlpha)) end = i;
+  }
+  return end;
+}
+
+// Flexion angle (deg) at the maximum of sign × column while the knee flexes (up to FlexingEnd).
 double ArgMaxFlexion(const RunResult& r, int coordinate, double sign) {
   double best = -INFINITY, at = 90.0;
-  for (const MechanicalState& s : r.samples) {
+  const size_t end = r.samples.empty() ? 0 : FlexingEnd(r) + 1;
+  for (size_t i = 0; i < end; ++i) {
+    const MechanicalState& s = r.samples[i];
     const double v = sign * s.q(coordinate);
     if (v > best) {
       best = v;
@@ -102,6 +120,7 @@ class Model2 {
     }
     ++m->runs;
     if (!r.completed) ++m->failed_runs;
+    if (r.completed && r.end_reason == "end_time") ++m->runs_not_reaching_end_flexion;
     return r;
   }
 
@@ -115,6 +134,7 @@ class Model2 {
       }
     }
     if (!mid.completed && m.liftoff == 90.0 && !mid.samples.empty()) m.liftoff = RadToDeg(mid.samples.back().q(kAlpha));
+    if (!mid.samples.empty()) m.max_flexion_deg = RadToDeg(mid.samples[FlexingEnd(mid)].q(kAlpha));
     m.ext_peak = ArgMaxFlexion(mid, kGamma, +1.0);
     m.varus_max = ArgMaxFlexion(mid, kBeta, -1.0);
     m.cross_short = ValgusCrossing(Run(log_scale, theta_deg, 0.05, &m));
@@ -154,7 +174,9 @@ nlohmann::json MeasuredJson(const Measured& m, const Targets& t) {
           {"external_rotation_peak_deg", {{"measured", m.ext_peak}, {"target", t.ext_peak}, {"residual", r[3]}}},
           {"max_varus_deg", {{"measured", m.varus_max}, {"target", t.varus_max}, {"residual", r[4]}}},
           {"cost", 0.5 * (r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3] + r[4] * r[4])},
-          {"failed_runs", m.failed_runs}};
+          {"failed_runs", m.failed_runs},
+          {"runs_not_reaching_end_flexion", m.runs_not_reaching_end_flexion},
+          {"max_flexion_deg_t0_0.1", m.max_flexion_deg}};
 }
 
 }  // namespace

@@ -548,7 +548,11 @@ def calibration_part(outdir):
       f"{res['cost']:.2f} (start {start.get('cost', float('nan')):.2f} at s = {start.get('scale', float('nan')):.2f}, "
       f"θ = {start.get('theta_deg', float('nan')):.0f}°); {verdict}; "
       f"{res.get('failed_runs', 0)} of the three runs at the best fit failed (its angles are then taken up to the "
-      "failure). "
+      "failure)"
+      + (f"; {res['runs_not_reaching_end_flexion']} of them never reach 90° (the t0 = 0.1 s run flexes to "
+         f"{res.get('max_flexion_deg_t0_0.1', float('nan')):.1f}° and swings back; its angles are read while the knee "
+         "flexes)" if res.get("runs_not_reaching_end_flexion") else
+         ("; all three reach 90°" if "runs_not_reaching_end_flexion" in res else "")) + ". "
       + (f"Ceres: {esc(cal['ceres']['brief_report'])}." if cal.get("ceres") else "") + "</p>")
   plaus = []
   if peak is not None and weight:
@@ -561,6 +565,9 @@ def calibration_part(outdir):
       "wording (the weight is part of the 'posterior load', its posterior component falling with flexion) does not "
       "exclude it, but the chapter describes no such posture" if abs(th) > 15 else
       f"θ = {th:.0f}° is close to the project's reading (weight posterior, thigh horizontal)")
+  if res.get("runs_not_reaching_end_flexion"):
+    plaus.insert(0, "the fitted motion is not the chapter's: the chapter follows the knee to 90° of flexion, and at "
+                 "the best fit the leg does not get there, so the fit does not explain the statements it matches")
   parts.append("<p><b>Plausibility:</b> " + "; ".join(plaus) + ".</p>")
   return "\n".join(parts)
 

@@ -228,6 +228,23 @@ def calibration_peak_errors(tmp, scene):
     text = make_report.calibration_part(out)
     if want not in text:
       errors.append(f"calibration_part ({name}): no {want!r} in {text[text.find('Best fit'):][:300]!r}")
+  # A best fit whose motion never reaches 90° (the leg swings back) is said so, and the
+  # plausibility verdict starts there; one whose runs all reach 90° says that.
+  swinging = json.loads(json.dumps(cal))
+  swinging["best"]["result"].update(runs_not_reaching_end_flexion=2, **{"max_flexion_deg_t0_0.1": 70.8})
+  reaching = json.loads(json.dumps(cal))
+  reaching["best"]["result"].update(runs_not_reaching_end_flexion=0, **{"max_flexion_deg_t0_0.1": 90.0})
+  for name, doc, wants in (("swinging", swinging, ["2 of them never reach 90° (the t0 = 0.1 s run flexes to 70.8°",
+                                                   "<b>Plausibility:</b> the fitted motion is not the chapter's"]),
+                           ("reaching", reaching, ["all three reach 90°"])):
+    out = os.path.join(tmp, "cal_" + name)
+    os.makedirs(os.path.join(out, "reconstruction"))
+    with open(os.path.join(out, "reconstruction", "calibration.json"), "w") as f:
+      json.dump(doc, f)
+    text = make_report.calibration_part(out)
+    for want in wants:
+      if want not in text:
+        errors.append(f"calibration_part ({name}): no {want!r} in {text[text.find('Best fit'):][:400]!r}")
   return errors
 
 
