@@ -53,7 +53,7 @@ enum class Expect {
 struct CaseSpec {
   std::string file;              // stem under scenes/hard/
   std::string constraint_level;  // "" = default (velocity)
-  bool dae_only = false;         // the option only exists for the dae formulations
+  bool constraint_level_only = false;  // runs only the formulations that accept constraint_level
   bool conservative = false;     // report energy drift
   Expect expect = Expect::kAny;
   std::string needle;            // for kClearError, kCompleteWithEvent
@@ -93,6 +93,14 @@ bool IsFixedStep(const std::string& name) { return IsFixedStep(FindFormulation(n
 
 // --contact-chart: the chart of the chapter-form contact coordinates in every run.
 ContactChart g_contact_chart = ContactChart::kRegular;
+
+// Whether the case runs `info`: a case that asks for a constraint level runs the formulations
+// whose capability lists it (FormulationInfo::constraint_levels), not those of a name.
+bool RunsFormulation(const CaseSpec& c, const FormulationInfo& info) {
+  if (!c.constraint_level_only) return true;
+  const ConstraintLevel level = ParsedOptionValue<ConstraintLevel>(c.constraint_level);
+  return std::find(info.constraint_levels.begin(), info.constraint_levels.end(), level) != info.constraint_levels.end();
+}
 
 RunSettings DefaultSettings(const std::string& formulation, const CaseSpec& c) {
   RunSettings s;
@@ -317,7 +325,7 @@ int main(int argc, char** argv) {
           std::find(only_formulations.begin(), only_formulations.end(), name) == only_formulations.end()) {
         return false;
       }
-      return !(c.dae_only && name.rfind("dae", 0) != 0);
+      return RunsFormulation(c, FindFormulation(name));
     };
     long total_runs = 0;
     for (const CaseSpec& c : Cases()) {
@@ -325,6 +333,14 @@ int main(int argc, char** argv) {
       for (const FormulationInfo& info : RegisteredFormulations()) {
         total_runs += (c.patella || !info.needs_patella) && selected_formulation(c, info.name);
       }
+    }
+    // A selection with nothing to run is a mistake in the selection (a --check over it would
+    // pass with nothing checked): e.g. index3_position_level with a formulation that has no
+    // position level.
+    if (total_runs == 0) {
+      Throw<InputError>("kneedyn_catalog", "--case/--formulation select no run (rule: a case runs the formulations ",
+                        "that accept its options; index3_position_level those that accept --constraint-level position, ",
+                        "the patella cases also those that need a patella)");
     }
     ProgressCounter progress(total_runs);
     std::vector<Row> rows;
@@ -374,7 +390,7 @@ int main(int argc, char** argv) {
                 only_formulations.end()) {
           continue;
         }
-        if (c.dae_only && info.name.rfind("dae", 0) != 0) continue;
+        if (!RunsFormulation(c, info)) continue;
         if (info.needs_patella && !c.patella) continue;  // e.g. staggered: only the patella cases
         Row row = RunOne(c, scene ? &*scene : nullptr, load_error, info.name,
                          reference ? &*reference : nullptr);

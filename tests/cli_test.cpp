@@ -457,6 +457,15 @@ TEST_F(CliTest, CatalogAndWorkPrecisionKeepTheContract) {
   r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --case");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("--case"), std::string::npos) << r.output;
+  // A selection with no run is refused (before: "wrote … (0 runs)", and --check passed with
+  // nothing checked): index3_position_level runs the formulations that accept
+  // --constraint-level position, which ede does not (its capability, `kneedyn formulations`).
+  const std::string catalog_out = (fs::path(Out()).parent_path() / "catalog_none").string();
+  r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --out '" + catalog_out +
+               "' --case index3_position_level --formulation ede --check");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("select no run"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(catalog_out));
   r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --version");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find(KNEEDYN_PROJECT_VERSION), std::string::npos) << r.output;
