@@ -5,8 +5,8 @@
 // contact switching (lift-off, re-contact, both separated), the end condition and output
 // times; the run driver (run.hpp) writes the files.
 //
-// Adding a formulation: one new file defining a Formulation subclass, its typed options and
-// its Configure function, and one line in registry.cpp (KNEEDYN_FACTORY declares the Configure function there;
+// Adding a formulation: one new file defining a Formulation subclass (with its
+// EvaluateHotPathForTesting), its typed options and its Configure function, and one line in registry.cpp (KNEEDYN_FACTORY declares the Configure function there;
 // CMake globs formulations/*.cpp). It then appears in `kneedyn run --formulation`, the conformance tests,
 // the benchmarks and the reports.
 #pragma once
@@ -194,7 +194,8 @@ class Formulation {
   // Testing hook (tests/zero_allocation_test.cpp): after Start, calls the
   // callbacks the solver calls inside a phase (residual or right-hand side, Jacobian, root
   // functions; Newton step for the steppers) n times at the current state, through the same
-  // code the solver runs. Returns false when the formulation has no such hook.
+  // code the solver runs. Returns false when the formulation has no such hook, which the test
+  // refuses: every registered formulation overrides it.
   virtual bool EvaluateHotPathForTesting(int n) { (void)n; return false; }
 };
 
