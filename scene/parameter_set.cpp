@@ -53,7 +53,7 @@ void ParseReferencePose(const Field& top, const std::string& path, ParameterSet*
   d.beta = DegToRad(ref.Required("beta_deg").Range(-kMaxAngleDeg, kMaxAngleDeg));
   d.gamma = DegToRad(ref.Required("gamma_deg").Range(-kMaxAngleDeg, kMaxAngleDeg));
   d.y0 = MmToM(ref.Required("y0_mm").Range(-kMaxLengthMm, kMaxLengthMm));
-  if (std::abs(std::sin(d.beta)) < kJcsSingularityTolerance) {
+  if (IsAtJcsSingularity(std::sin(d.beta))) {
     ref.Required("beta_deg").Fail("puts the reference pose at the JCS singularity (sin beta = 0)");
   }
   const auto med = ps->compartments.find("medial");

@@ -42,7 +42,7 @@ void InitialPose(const Vector6d& reference_q, const InitialStateRequest& request
     Throw<InputError>("BuildInitialState", "an assembled pose needs at least one coordinate to hold");
   }
   init->qd = request.qd;
-  if (std::abs(std::sin(init->q(kBeta))) < kJcsSingularityTolerance) {
+  if (IsAtJcsSingularity(std::sin(init->q(kBeta)))) {
     Throw<InputError>("BuildInitialState", "initial pose at the JCS singularity: beta = ", RadToDeg(init->q(kBeta)),
                       " deg (|sin beta| < ", kJcsSingularityTolerance,
                       "); the angular-velocity map E is singular there (docs/model.md §2)");
