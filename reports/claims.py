@@ -92,7 +92,11 @@ class Curve:
     a = member.col("flexion_deg")
     y = sign * member.col(col)
     ok = np.isfinite(a) & np.isfinite(y)
-    self.a, self.y = a[ok], y[ok]
+    a, y = a[ok], y[ok]
+    # The chapter's statements are about the knee flexing: a run that swings back (gravity
+    # off, a weak pulse) is read up to its first largest flexion.
+    end = int(np.argmax(a)) + 1 if len(a) else 0
+    self.a, self.y = a[:end], y[:end]
     if len(self.a) < 3:
       raise NotCheckable(f"{member.name}: column {col} has no data")
 
@@ -118,7 +122,7 @@ class Curve:
     return float(below[0]) if len(below) else None
 
   def at(self, alpha):
-    # Flexion increases monotonically in these runs; np.maximum.accumulate guards round-off.
+    # Flexion increases up to the curve's end (__init__); np.maximum.accumulate guards round-off.
     return float(np.interp(alpha, np.maximum.accumulate(self.a), self.y, left=np.nan, right=np.nan))
 
   def crossings(self, direction, lo=-1, hi=1e9):

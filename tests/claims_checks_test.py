@@ -6,6 +6,7 @@
     correlation over flexion is close to −1 and the claim "decreasing" passes, although
     barely two thirds of the output steps decrease (the old time-weighted rule failed it);
   - a monotone curve has angle fraction 1, an increasing one ρ = +1;
+  - a knee that flexes and swings back is read while it flexes (up to its largest flexion);
   - the reason of a failed claim names the failing sub-check and its value;
   - claims.yaml loading refuses a claim without a field, naming the field;
   - the tibial-frame velocity columns preserve the speed (a rotation) and equal the JCS rates
@@ -78,6 +79,18 @@ def main():
   mono = claims.Curve(FakeMember({"flexion_deg": alpha, "y": 5.0 + alpha ** 2}), "y")
   if mono.angle_fraction(0, 90, +1) != 1.0 or abs(mono.rank_correlation(10, 80) - 1.0) > 1e-12:
     errors.append("monotone increasing curve: angle fraction / rho not 1")
+
+  # A knee that swings back (gravity off: flexes to 40°, returns to 10°) is read while it
+  # flexes: y = α on the way up and 100 − α on the way back has its peak over the flexing
+  # part at 40° (y = 40), not at 10° on the way back (y = 90), and its value at 20° is the
+  # flexing one (20).
+  up = np.linspace(0.0, 40.0, 41)
+  back = np.linspace(39.0, 10.0, 30)
+  swing = claims.Curve(FakeMember({"flexion_deg": np.concatenate([up, back]),
+                                   "y": np.concatenate([up, 100.0 - back])}), "y")
+  at_peak, peak = swing.argmax()
+  if abs(at_peak - 40.0) > 1e-12 or abs(peak - 40.0) > 1e-12 or abs(swing.at(20.0) - 20.0) > 1e-12:
+    errors.append(f"swinging curve read on the way back: peak {peak} at {at_peak}°, value at 20° {swing.at(20.0)}")
 
   s = claims.Subs()
   s.req("peak location (15° ±tol)", False, "2.3°")
