@@ -266,7 +266,7 @@ bool CheckShared(const OptionRequest& r) {
   }
   // What the formulation accepts (its registry line).
   const bool scheme_given = o.alpha_m || o.alpha_f || o.newmark_beta || o.newmark_gamma;
-  if (!info.scheme_parameters && (scheme_given || o.rho_inf != FormulationOptions().rho_inf)) {
+  if (!info.scheme_parameters && (scheme_given || r.typed.count("--rho-inf") || o.rho_inf != FormulationOptions().rho_inf)) {
     return r.Fail(StrCat("--rho-inf / --alpha-m / --alpha-f / --beta / --gamma apply to generalized-alpha only, not to ",
                          name, info.fixed_step ? " (its rule is fixed: beta = 1/4, gamma = 1/2)" : ""));
   }

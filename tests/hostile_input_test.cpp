@@ -181,6 +181,9 @@ TEST_F(HostileInput, OptionMessagesEchoTheTextTyped) {
       // A first-order scheme ran without a word (and did not converge on the conservative scene).
       {"--formulation generalized-alpha --alpha-m 0 --alpha-f 0 --beta 0.25 --gamma 0.6",
        {"--gamma = 0.6 with --alpha-m = 0 and --alpha-f = 0: must be 1/2 - alpha_m + alpha_f = 0.5", "second order"}, ""},
+      // A --rho-inf typed as its default value was accepted where it does not apply (dae, ede).
+      {"--formulation dae --rho-inf 0.9", {"apply to generalized-alpha only, not to dae"}, ""},
+      {"--formulation ede --rho-inf 0.9", {"apply to generalized-alpha only, not to ede"}, ""},
   };
   for (const Case& c : cases) {
     const CommandResult r = ExpectRefused(RunArgs(ChapterScenePath(), c.extra), c.needles);
