@@ -19,8 +19,11 @@ Writes OUTDIR/sobol.json and OUTDIR/sobol_<outcome>.png (one chart per outcome w
 were computed; --no-charts draws none, and sobol.json then names no chart). The report shows
 them when they are in REPORT_OUT/global_sensitivity/ (section(), hooked into make_report.py).
 
-Failed runs: a base sample j is used only if all d + 2 runs of its pick-freeze group
-(A_j, B_j, A_j with column k from B_j) gave a value; the number dropped is recorded.
+Dropped groups: a base sample j is used only if all d + 2 runs of its pick-freeze group
+(A_j, B_j, A_j with column k from B_j) gave a value. Two causes are counted apart: a run that
+failed, and a run that completed without the outcome (a lift-off outcome when the knee
+reached its end flexion on both condyles). The indices are then those of the outcome where it
+exists: conditional on it, not of the whole design.
 Exit status: 0 written; 2 bad input (nothing written).
 """
 import argparse
@@ -61,14 +64,18 @@ def read_sweep(csv_path, d):
   X = [[float(v) for v in r[1:1 + d]] for r in rows[1:]]
   Y = {o: [float(r[1 + d + k]) if r[status] == "completed" or r[1 + d + k] != "nan" else float("nan")
            for r in rows[1:]] for k, o in enumerate(outcomes)}
-  return params, outcomes, X, Y
+  completed = [r[status] == "completed" for r in rows[1:]]
+  return params, outcomes, X, Y, completed
 
 
-def sobol_indices(X, y, n, d, bootstrap, confidence, estimator, seed):
-  """Indices of one outcome from the Saltelli layout (rows: A, B, A_B^1 .. A_B^d, each n)."""
+def sobol_indices(X, y, n, d, bootstrap, confidence, estimator, seed, completed=None):
+  """Indices of one outcome from the Saltelli layout (rows: A, B, A_B^1 .. A_B^d, each n).
+  completed: per row, whether the run completed (None: all did)."""
   import openturns as ot
   keep = [j for j in range(n) if all(math.isfinite(y[b * n + j]) for b in range(d + 2))]
   m = len(keep)
+  ran = completed if completed is not None else [True] * len(y)
+  with_failed = sum(1 for j in range(n) if not all(ran[b * n + j] for b in range(d + 2)))
   if m < 8:
     return {"status": f"only {m} complete pick-freeze groups of {n}"}
   xs = [X[b * n + j] for b in range(d + 2) for j in keep]
@@ -86,6 +93,7 @@ def sobol_indices(X, y, n, d, bootstrap, confidence, estimator, seed):
   i1, it = algo.getFirstOrderIndicesInterval(), algo.getTotalOrderIndicesInterval()
   lo1, hi1, lot, hit = i1.getLowerBound(), i1.getUpperBound(), it.getLowerBound(), it.getUpperBound()
   return {"status": "ok", "groups_used": m, "groups_dropped": n - m,
+          "groups_dropped_failed_run": with_failed, "groups_dropped_outcome_undefined": n - m - with_failed,
           "first_order": [s1[k] for k in range(d)], "first_order_ci": [[lo1[k], hi1[k]] for k in range(d)],
           "total": [st[k] for k in range(d)], "total_ci": [[lot[k], hit[k]] for k in range(d)]}
 
@@ -203,7 +211,7 @@ def main(argv=None):
     fail(str(e))
   d, n = len(spec["parameters"]), samples
   try:
-    params, outcomes, X, Y = read_sweep(a.sweep, d)
+    params, outcomes, X, Y, completed = read_sweep(a.sweep, d)
   except (OSError, ValueError, IndexError, UnicodeDecodeError) as e:
     fail(f"--sweep = '{a.sweep}': not a kneedyn sweep.csv ({type(e).__name__}: {tool_input.echo(e)})")
   if len(X) != n * (d + 2):
@@ -219,7 +227,7 @@ def main(argv=None):
             "confidence": a.confidence, "outcomes": {},
             "local": os.path.abspath(a.local) if a.local else None}
   for o in chosen:
-    r = sobol_indices(X, Y[o], n, d, a.bootstrap, a.confidence, a.estimator, a.seed)
+    r = sobol_indices(X, Y[o], n, d, a.bootstrap, a.confidence, a.estimator, a.seed, completed)
     if local is not None and r["status"] == "ok":
       r["local"] = local_beside(local, o, params, X, n)
     result["outcomes"][o] = r
@@ -277,7 +285,12 @@ def section(outdir):
     head = "<tr><th>parameter</th><th>S_T [CI]</th><th>S_1 [CI]</th>"
     head += "<th>local p/y dy/dp</th><th>S_lin</th></tr>" if has_local else "</tr>"
     note = "" if has_local or not loc else f" Local derivatives: {e(loc.get('status', ''))}."
-    parts.append(f"<h3>{e(o)}</h3><p>{r['groups_used']} complete groups ({r['groups_dropped']} dropped). "
+    dropped = f"{r['groups_dropped']} dropped"
+    if "groups_dropped_failed_run" in r and r["groups_dropped"]:
+      dropped += (f": {r['groups_dropped_outcome_undefined']} where a completed run has no value of it (for a "
+                  f"lift-off: no lift-off before the end), {r['groups_dropped_failed_run']} with a failed run; the "
+                  "indices are those of the designs where it exists")
+    parts.append(f"<h3>{e(o)}</h3><p>{r['groups_used']} complete groups ({dropped}). "
                  f"Top three by S_T:{note}</p><table>{head}{rows}</table>")
     if r.get("chart"):
       rel = os.path.join("global_sensitivity", r["chart"])

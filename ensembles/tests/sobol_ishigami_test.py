@@ -5,8 +5,8 @@ Runs `kneedyn sweep ensembles/specs/ishigami.yaml` (Saltelli design, N = 4096) a
 reports/global_sensitivity.py (OpenTURNS), then compares with the closed-form indices of
 f = sin x1 + a sin^2 x2 + b x3^4 sin x1 on [-pi, pi]^3 (Ishigami & Homma 1990; a = 7,
 b = 0.1): each true index must lie in its 95 % bootstrap interval widened by 0.01, and the
-estimate within 0.03 of it. Also checks that pick-freeze groups with a failed run are
-dropped, not used, and that --local (derivatives beside the indices) gives the linearized
+estimate within 0.03 of it. Also checks that pick-freeze groups with a failed run or a
+completed run without the outcome are dropped, not used, and counted by cause, and that --local (derivatives beside the indices) gives the linearized
 first-order indices of the exact gradient at the nominal point x = 0, grad f = (1, 0, 0):
 S_lin = (1, 0, 0), with sigma_k the sample standard deviation, close to pi/sqrt(3) for
 U(-pi, pi). Does not check the chapter model's indices (no closed form).
@@ -75,13 +75,16 @@ def main():
       failures.append("local derivatives beside the indices")
     if not os.path.exists(os.path.join(tmp, "gsl", "sobol_value.png")):
       failures.append("chart with local bars not written")
-    # Failed runs: mark two rows of different groups failed; exactly two groups are dropped.
+    # Failed runs: mark two rows of different groups failed, and a third group's run completed
+    # without the outcome (a lift-off that did not happen); exactly three groups are dropped,
+    # counted by cause.
     with open(os.path.join(tmp, "sweep.csv"), newline="") as f:
       rows = list(csv.reader(f))
     n = 4096
     for row in (1 + 5, 1 + 3 * n + 9):  # group 5 (in A), group 9 (in A_B^1)
       rows[row][4] = "nan"
       rows[row][5] = "failed"
+    rows[1 + n + 17][4] = "nan"  # group 17 (in B): completed, outcome undefined
     with open(os.path.join(tmp, "broken.csv"), "w", newline="") as f:
       csv.writer(f).writerows(rows)
     subprocess.run([sys.executable, script, "--sweep", os.path.join(tmp, "broken.csv"), "--spec", spec,
@@ -89,8 +92,11 @@ def main():
                    stdout=subprocess.DEVNULL)
     with open(os.path.join(tmp, "gs2", "sobol.json")) as f:
       r2 = json.load(f)["outcomes"]["value"]
-    if r2["groups_dropped"] != 2 or r2["groups_used"] != n - 2:
-      failures.append(f"groups dropped {r2['groups_dropped']} (expected 2)")
+    if (r2["groups_dropped"] != 3 or r2["groups_used"] != n - 3 or r2.get("groups_dropped_failed_run") != 2
+        or r2.get("groups_dropped_outcome_undefined") != 1):
+      failures.append(f"groups dropped {r2['groups_dropped']} (expected 3), with a failed run "
+                      f"{r2.get('groups_dropped_failed_run')} (2), outcome undefined "
+                      f"{r2.get('groups_dropped_outcome_undefined')} (1)")
   if failures:
     print("FAILED: " + ", ".join(failures))
     return 1
