@@ -174,9 +174,12 @@ def verdicts(rows, rec, inverse=None):
       ev["why"] = ("no reading reproduces it and the inverse problem "
                    + ("reaches it within the printed precision without a named reading"
                       if t.get("reached") else "does not reach it within its bounds"))
+    elif inverse:
+      targets = sorted((inverse.get("targets") or {}).keys())
+      ev["why"] = ("no reading reproduces it; the inverse problem has no target for this claim (its targets: "
+                   + (", ".join(targets) or "none") + ")")
     else:
-      ev["why"] = ("no reading reproduces it; the inverse problem was not run "
-                   "(reports/recorded/inverse_problem.json absent or without this target)")
+      ev["why"] = "no reading reproduces it; the inverse problem was not run (reports/recorded/inverse_problem.json absent)"
   return out
 
 

@@ -169,7 +169,9 @@ def explanation_cell(v):
     other = ", ".join(other) if isinstance(other, list) else other
     return Raw(f"<b>contradicted</b> by {esc(other)}<div class='why'>{esc(ev.get('why', ''))}</div>")
   if e == "beyond_precision":
-    return Raw(f"<b>beyond precision</b>: normalized change {esc(ev.get('normalized_change'))}")
+    change = ev.get("normalized_change")
+    change = f"{change:.3g}" if isinstance(change, (int, float)) and not isinstance(change, bool) else change
+    return Raw(f"<b>beyond precision</b>: normalized change {esc(change)} printed precisions")
   return Raw(f"<b>unexplained</b><div class='why'>{esc(ev.get('why', ''))}</div>")
 
 

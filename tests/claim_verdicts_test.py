@@ -87,6 +87,8 @@ def synthetic():
   check(out["C"]["explanation"] == "beyond_precision" and out["C"]["evidence"]["normalized_change"] == 3.5
         and "||x|| = 3.5" in out["C"]["evidence"]["why"], f"C: {out['C']}")
   check(out["D"]["explanation"] == "unexplained", f"D: {out['D']}")  # only the incomplete reading has it
+  # The inverse problem ran but has no target for D: said so, not "was not run".
+  check("has no target for this claim (its targets: C)" in out["D"]["evidence"]["why"], f"D why: {out['D']}")
   check(out["S2"]["explanation"] == "contradicted" and out["S2"]["evidence"]["other_statement"] == "S1", f"S2: {out['S2']}")
   out = claim_verdicts.verdicts(rows, rec, None)
   check(out["C"]["explanation"] == "unexplained" and "not run" in out["C"]["evidence"]["why"], f"C without inverse: {out['C']}")
