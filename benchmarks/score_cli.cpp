@@ -255,10 +255,10 @@ int ScoreCommand::Run(int argc, char** argv) {
     std::printf("  wrote %s\n", out_path.c_str());
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "kneedyn score: error: %s\n", e.what());
+    std::fprintf(stderr, "kneedyn score: error: %s\n", MessageUnder("kneedyn score", e.what()).c_str());
     return 2;
   } catch (const Error& e) {
-    std::fprintf(stderr, "kneedyn score: error: %s\n", e.what());
+    std::fprintf(stderr, "kneedyn score: error: %s\n", MessageUnder("kneedyn score", e.what()).c_str());
     return 1;
   }
 }

@@ -73,7 +73,7 @@ int BatchCommand::Run() {
     try {
       WriteOutputFile("kneedyn batch", "--out", out_path_, csv);
     } catch (const InputError& e) {  // checked before the runs: the system failed since
-      std::fprintf(stderr, "kneedyn batch: error: %s\n", e.what());
+      std::fprintf(stderr, "kneedyn batch: error: %s\n", MessageUnder("kneedyn batch", e.what()).c_str());
       return 1;
     }
     long failed = 0;
@@ -84,7 +84,7 @@ int BatchCommand::Run() {
     }
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "kneedyn batch: error: %s\n", e.what());
+    std::fprintf(stderr, "kneedyn batch: error: %s\n", MessageUnder("kneedyn batch", e.what()).c_str());
     return 2;
   }
 }

@@ -184,10 +184,10 @@ int SweepCommand::Run() {
     std::printf("  wrote %s/sweep.{csv,h5}\n", out_dir_.c_str());
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "kneedyn sweep: error: %s\n", e.what());
+    std::fprintf(stderr, "kneedyn sweep: error: %s\n", MessageUnder("kneedyn sweep", e.what()).c_str());
     return 2;
   } catch (const Error& e) {
-    std::fprintf(stderr, "kneedyn sweep: error: %s\n", e.what());
+    std::fprintf(stderr, "kneedyn sweep: error: %s\n", MessageUnder("kneedyn sweep", e.what()).c_str());
     return 1;
   }
 }

@@ -320,10 +320,10 @@ int SensitivityCommand::Run(int argc, char** argv) {
     std::printf("  wrote %s/{sensitivity.csv, sensitivity.json, sensitivity_trajectory.csv}\n", out_dir_.c_str());
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "kneedyn sensitivity: error: %s\n", e.what());
+    std::fprintf(stderr, "kneedyn sensitivity: error: %s\n", MessageUnder("kneedyn sensitivity", e.what()).c_str());
     return 2;
   } catch (const Error& e) {
-    std::fprintf(stderr, "kneedyn sensitivity: error: %s\n", e.what());
+    std::fprintf(stderr, "kneedyn sensitivity: error: %s\n", MessageUnder("kneedyn sensitivity", e.what()).c_str());
     return 1;
   }
 }

@@ -114,4 +114,11 @@ template <typename E = Error, typename... Args>
   throw E(StrCat(function, "(): ", args...));
 }
 
+// An error's message printed under `program`'s own name ("kneedyn score: error: …"): a
+// leading "program(): ", from a subcommand that threw under that name, is not repeated.
+inline std::string MessageUnder(const std::string& program, const std::string& what) {
+  const std::string own = program + "(): ";
+  return what.compare(0, own.size(), own) == 0 ? what.substr(own.size()) : what;
+}
+
 }  // namespace kneedyn
