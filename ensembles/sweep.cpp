@@ -117,7 +117,7 @@ RunRow EvaluateRunAt(const SweepSpec& spec, long index, const std::vector<double
     const bool condylar = e.name == StrCat("liftoff_", CompartmentName(Compartment::kMedial)) ||
                           e.name == StrCat("liftoff_", CompartmentName(Compartment::kLateral));
     if (!liftoff && condylar) liftoff = &e;
-    if (e.name == "flexion_90") at90 = &e;
+    if (e.name == Flexion90EventName()) at90 = &e;
   }
   std::vector<double> peak_F(m.ligaments.size(), 0.0);
   double peak_N[2] = {0.0, 0.0};

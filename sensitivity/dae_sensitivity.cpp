@@ -628,8 +628,9 @@ AdvanceResult DaeSensitivity::Advance(double t_out, MechanicalState* state) {
     std::vector<double> dalpha(np_, kNaN);
     for (int j = 0; j < np_ && with_s_; ++j) dalpha[j] = w_[j][kAlpha];
     const bool done = RecordEvent(mode_, fired, t, y[kAlpha], dtau_, dalpha, with_s_, outcomes, &next_active, result_);
-    // 90° values, in the mode before the end event (left limits).
-    for (size_t k = 0; k < outcomes.size() && done; ++k) {
+    // 90° values, in the mode before the end event (left limits); a scene ending at another
+    // flexion has none.
+    for (size_t k = 0; k < outcomes.size() && done && result_->end_reason == Flexion90EventName(); ++k) {
       const Outcome& o = outcomes[k];
       if (o.kind == OutcomeKind::kLigamentAt90 || o.kind == OutcomeKind::kContactAt90) {
         result_->values[k] = Value(o, t, y);

@@ -389,8 +389,9 @@ AdvanceResult OdeSensitivity::Advance(double t_out, MechanicalState* state) {
     std::vector<double> dalpha(np_, kNaN);
     for (int j = 0; j < np_ && with_s_; ++j) dalpha[j] = w_[j](kAlpha);
     const bool done = RecordEvent(mode_, fired, t_, y_(kAlpha), dtau_, dalpha, with_s_, outcomes_, &next_active, result_);
-    // 90° values, on the mode before the end event (left limits).
-    for (size_t k = 0; k < outcomes_.size() && done; ++k) {
+    // 90° values, on the mode before the end event (left limits); a scene ending at another
+    // flexion has none.
+    for (size_t k = 0; k < outcomes_.size() && done && result_->end_reason == Flexion90EventName(); ++k) {
       const Outcome& o = outcomes_[k];
       if (o.kind == OutcomeKind::kLigamentAt90 || o.kind == OutcomeKind::kContactAt90) {
         result_->values[k] = problem_.Value(mode_, o, t_, y_.data(), p_.data());

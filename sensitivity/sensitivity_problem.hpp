@@ -372,7 +372,7 @@ inline bool RecordEvent(const Mode& mode, const std::vector<int>& fired, double 
       result->values[k] = time ? t : RadToDeg(alpha);
       for (int j = 0; j < np; ++j) result->derivatives[k][j] = time ? dtau[j] : (with_s ? RadToDeg(dalpha[j]) : kNaN);
     }
-    if (end && o.kind == OutcomeKind::kTime90) {
+    if (end && o.kind == OutcomeKind::kTime90 && result->end_reason == Flexion90EventName()) {
       result->values[k] = t;
       result->derivatives[k] = dtau;
     }

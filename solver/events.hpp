@@ -10,6 +10,7 @@
 // definitions live here so that every formulation stops at the same events.
 #pragma once
 
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -141,5 +142,11 @@ void EvaluateEventsTpl(const Model& model, const std::vector<EventSpec>& specs, 
 
 // "flexion_90" for 90°; integer degrees when whole, else one decimal.
 std::string FlexionEventName(double flexion_rad);
+// The end event whose state the "90°" outcomes (time_90_s, F90_*, N90_*) of sweeps, batches and
+// sensitivities read: flexion_90. A scene ending at another flexion has none (they are NaN).
+inline const std::string& Flexion90EventName() {
+  static const std::string name = FlexionEventName(M_PI / 2.0);
+  return name;
+}
 
 }  // namespace kneedyn

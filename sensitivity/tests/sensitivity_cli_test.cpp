@@ -83,6 +83,33 @@ TEST(SensitivityCli, WritesCsvAndJsonAsOneSet) {
   fs::remove_all(out);
 }
 
+// The 90° outcomes are read at the flexion_90 event alone, as sweeps and batches read them: a
+// scene that ends at 60° (anatomical_surfaces: end flexion_deg 60, its summary's end event
+// flexion_60) has none, in both drivers. Before, time_90_s was the time at 60° (0.2431 s) and
+// N90_medial_N the force there.
+TEST(SensitivityCli, NinetyDegreeOutcomesNeedTheNinetyDegreeEnd) {
+  const std::string scene = std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes/anatomical_surfaces.yaml";
+  for (const char* formulation : {"ede", "dae"}) {
+    const fs::path out = FreshDir(std::string("at60_") + formulation);
+    const CommandResult r = RunKneedyn("sensitivity '" + scene + "' --formulation " + formulation +
+                                       " --parameters mass --outcomes time_90_s,N90_medial_N,peak_N_medial_N --out '" +
+                                       out.string() + "'");
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const nlohmann::json j = nlohmann::json::parse(ReadText(out / "sensitivity.json"));
+    EXPECT_EQ(j["end_reason"], "flexion_60") << formulation;
+    ASSERT_EQ(j["rows"].size(), 3u);
+    for (const auto& row : j["rows"]) {
+      if (row["outcome"] == "peak_N_medial_N") {
+        EXPECT_TRUE(row["value"].is_number()) << formulation << ": the peak is defined at any end";
+      } else {
+        EXPECT_TRUE(row["value"].is_null()) << formulation << " " << row["outcome"] << " = " << row["value"];
+        EXPECT_TRUE(row["derivative"].is_null()) << formulation << " " << row["outcome"];
+      }
+    }
+    fs::remove_all(out);
+  }
+}
+
 // --spec takes the scene, parameter names and outcome groups of a sweep spec: the table must
 // be the one the same names give on the command line; refusals exit 2 and write nothing.
 TEST(SensitivityCli, SpecGivesTheSameTableAsExplicitNames) {
@@ -122,6 +149,13 @@ TEST(SensitivityCli, SpecGivesTheSameTableAsExplicitNames) {
             std::string::npos)
       << r.output;
   EXPECT_FALSE(fs::exists(dir / "c"));
+  // The program's name once: "kneedyn sensitivity: error: --parameters: …" (before:
+  // "kneedyn sensitivity: error: kneedyn sensitivity(): --parameters: …").
+  const CommandResult unknown = RunKneedyn("sensitivity '" + kScene + "' --parameters nosuch --outcomes liftoff_time "
+                                           "--out '" + (dir / "c").string() + "'");
+  EXPECT_EQ(unknown.exit_code, 2) << unknown.output;
+  EXPECT_NE(unknown.output.find("kneedyn sensitivity: error: --parameters: 'nosuch'"), std::string::npos)
+      << unknown.output;
   fs::remove_all(dir);
 }
 
