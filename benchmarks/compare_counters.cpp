@@ -211,6 +211,18 @@ double BaselineCount(const nlohmann::json& run, const char* field, const std::st
   return value.get<double>();
 }
 
+// A relative threshold of the baseline (`where` names its field): a number in (0, 1). A
+// negative one turned every entry into a regression, or every counter into an improvement.
+double BaselineThreshold(const nlohmann::json& parent, const char* field, const std::string& where,
+                         const std::string& baseline_path) {
+  const nlohmann::json value = parent.contains(field) ? parent.at(field) : nlohmann::json();
+  if (!value.is_number() || !(value.get<double>() > 0.0 && value.get<double>() < 1.0)) {
+    Throw<InputError>("compare_counters", "--baseline '", baseline_path, "': ", where, " = ", value.dump(),
+                      " (a relative threshold: a number, 0 < threshold < 1)");
+  }
+  return value.get<double>();
+}
+
 int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, const std::string& valgrind_name,
                       const std::string& kneedyn, bool write) {
   const std::string valgrind = FindOnPath(valgrind_name);
@@ -223,7 +235,7 @@ int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, co
     Throw<InputError>("compare_counters", "--kneedyn '", kneedyn, "' is not an executable");
   }
   nlohmann::json& ic = base.at("instruction_counts");
-  const double threshold = ic.at("threshold").get<double>();
+  const double threshold = BaselineThreshold(ic, "threshold", "instruction_counts.threshold", baseline_path);
   const nlohmann::json share_field = ic.value("outside_target_share", nlohmann::json(0.10));
   const double target_share = share_field.is_number() ? share_field.get<double>() : -1.0;
   if (!(target_share > 0.0 && target_share < 1.0)) {
@@ -316,8 +328,13 @@ int main(int argc, char** argv) {
       in >> base;
     }
     if (instructions) return InstructionCounts(base, baseline_path, valgrind, kneedyn, write);
-    const double threshold = base.at("counter_threshold").get<double>();
-    const double scd_drop = base.at("scd_drop").get<double>();
+    const double threshold = BaselineThreshold(base, "counter_threshold", "counter_threshold", baseline_path);
+    const nlohmann::json scd_drop_field = base.contains("scd_drop") ? base.at("scd_drop") : nlohmann::json();
+    if (!scd_drop_field.is_number() || !(scd_drop_field.get<double>() >= 0.0)) {
+      Throw<InputError>("compare_counters", "--baseline '", baseline_path, "': scd_drop = ", scd_drop_field.dump(),
+                        " (digits the scd may fall: a number >= 0)");
+    }
+    const double scd_drop = scd_drop_field.get<double>();
     bool ok = true;
     std::map<std::string, Scene> scenes;
     std::map<std::string, Reference> refs;

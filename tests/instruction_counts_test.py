@@ -62,6 +62,23 @@ for share in (10, 0, -0.1, "ten"):
     expect(code == 2 and "outside_target_share" in out,
            "outside_target_share = %r: exit 2 naming the field" % (share,), out)
 
+# A negative or non-numeric threshold: every entry a regression (exit 1), or a string that
+# nlohmann::json refused without naming the field; now exit 2 naming it, before any run.
+for threshold in (-0.5, 0, 1.5, "five"):
+    code, out, _ = run([ede], threshold=threshold)
+    counted = re.search(r"\d{6,} (instructions|outside)", out)
+    expect(code == 2 and "instruction_counts.threshold" in out and not counted,
+           "threshold = %r: exit 2 naming the field, before any run" % (threshold,), out)
+for field, value in (("counter_threshold", -1), ("counter_threshold", "x"), ("scd_drop", -0.5)):
+    b = dict(base, **{field: value})
+    with tempfile.TemporaryDirectory() as d:
+        path = os.path.join(d, "baseline.json")
+        json.dump(b, open(path, "w"))
+        p = subprocess.run([a.compare_counters, "--baseline", path], capture_output=True, text=True)
+    out = p.stdout + p.stderr
+    expect(p.returncode == 2 and field + " = " + json.dumps(value) in out and "chapter_impact" not in out,
+           "%s = %r: exit 2 naming the field and value, before any run" % (field, value), out)
+
 if shutil.which("valgrind") is None:
     print("SKIPPED: valgrind not found on PATH (Debian package valgrind)")
     sys.exit(77 if not failures else 1)
