@@ -100,8 +100,13 @@ def table(path, eff=None, cost="cpu"):
   ceiling = scd_ceiling(header)
   if ceiling is not None:
     lines.append("")
-    lines.append(f"Reference ceiling: scd {ceiling:.1f} (the highest scd the file's scores can measure: the "
-                 "reference's accuracy minus one digit); "
+    accuracy = header.get("reference_accuracy_scd")
+    from_accuracy = isinstance(accuracy, (int, float)) and abs(ceiling - (accuracy - 1.0)) < 1e-9
+    why = ("the reference's accuracy minus one digit" if from_accuracy else
+           f"the file's own scd_ceiling, below the reference's accuracy minus one digit"
+           + (f" ({accuracy - 1.0:.1f})" if isinstance(accuracy, (int, float)) else "")
+           + ": the limit of how its runs were scored")
+    lines.append(f"Reference ceiling: scd {ceiling:.1f} (the highest scd the file's scores can measure: {why}); "
                  + ("* above it: the limit of the comparison (the reference, or a result CSV's 12 printed "
                     "digits: the reference's own samples printed so score 11.34 on chapter_impact), not the method's error."
                     if any(r[3].endswith("*") for r in body) else "no best scd above it."))
