@@ -53,6 +53,22 @@ class Lines {
   size_t pos_ = 0;
 };
 
+// The significant digits a number cell prints: the digits of its mantissa from the first
+// nonzero one ("-5.74028008286" 12, "0.000123" 3, "1e-05" 1, "0" 0); quotes and blanks around
+// it are not digits.
+int SignificantDigits(std::string_view cell) {
+  int digits = 0;
+  bool leading = true;
+  for (const char ch : cell) {
+    if (ch == 'e' || ch == 'E') break;
+    if (ch < '0' || ch > '9') continue;
+    if (leading && ch == '0') continue;
+    leading = false;
+    ++digits;
+  }
+  return digits;
+}
+
 // A cell as a number: empty = NaN (a value that does not exist). `buffer`: reused storage
 // for the cell's text (strtod reads up to its first NUL, as it did on the cell's string).
 // "nan", "inf" and a number past double's range are refused: a value that exists is finite,
@@ -229,6 +245,9 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
                           ": empty; a time, a generalized coordinate or its rate has a value in every row");
       }
       v[c] = ParseCell(cell, &cell_buffer, path, line_no, out.columns[c]);
+      if (static_cast<int>(c) != time_col && static_cast<int>(c) != event_col) {  // the values' printing
+        out.printed_significant_digits = std::max(out.printed_significant_digits, SignificantDigits(cell));
+      }
       if (static_cast<int>(c) == time_col) time_cell = cell;
       if (static_cast<int>(c) == event_col) event_cell = cell;
       return true;
@@ -441,9 +460,12 @@ void CheckReferenceFields(const nlohmann::json& reference_json, const std::strin
   }
 }
 
-double ScoreCeilingAccuracy(const nlohmann::json& reference_json, double reproduced_scd) {
-  const double stated = reference_json.value("accuracy_scd", kNaN);
-  return std::isfinite(reproduced_scd) ? std::min(stated, reproduced_scd) : stated;
+double ScoreCeilingAccuracy(const nlohmann::json& reference_json, double reproduced_scd,
+                            int printed_significant_digits) {
+  double accuracy = reference_json.value("accuracy_scd", kNaN);
+  if (std::isfinite(reproduced_scd)) accuracy = std::min(accuracy, reproduced_scd);
+  if (printed_significant_digits > 0) accuracy = std::min(accuracy, static_cast<double>(printed_significant_digits));
+  return accuracy;
 }
 
 Solution DenseReference(const Scene& scene, const nlohmann::json& reference_json, const Solution& reference,
@@ -572,7 +594,8 @@ ReferenceScore ScoreAgainstReference(const Scene& scene, const nlohmann::json& r
                         : reference);
   // Above the reference's accuracy (or what the run again reproduced) − 1 digit, the error
   // measured is the reference's own: flagged as in the work-precision sweep.
-  const double ceiling_accuracy = ScoreCeilingAccuracy(reference_json, out.reproduced_scd);
+  const double ceiling_accuracy =
+      ScoreCeilingAccuracy(reference_json, out.reproduced_scd, result.printed_significant_digits);
   if (std::isfinite(ceiling_accuracy)) ApplyScdCeiling(ceiling_accuracy, &out.score.metrics);
   // The conservative scene's energy error, as the work-precision sweep records it for kneedyn's
   // runs (null when the result gives no positions and velocities from t = 0).

@@ -61,6 +61,11 @@ struct ScoredResult {
   size_t rows = 0;
   double max_gap_m = 0.0;       // NaN when no gap column
   double max_gap_rate_m_s = 0.0;
+  // The most significant digits any value cell prints (ReadResultCsv; not the time or
+  // is_event column; 0: not from a file):
+  // the printing's precision, which caps the digits a score can measure (%.12g writes 0.5 as
+  // "0.5", so the most, not the fewest, is the precision).
+  int printed_significant_digits = 0;
 };
 
 // Reads `path` for `reference`'s component names. Throws InputError naming the file, the
@@ -111,8 +116,11 @@ nlohmann::json DenseDoubleConfiguration();
 constexpr double kMinDenseReproductionScd = 10.0;
 // The accuracy a score's ceiling derives from (metrics.hpp ApplyScdCeiling): the reference's
 // stated accuracy_scd, or what the configuration run again for off-grid rows reproduced of
-// the stored samples when that is lower (NaN reproduced_scd: no off-grid rows).
-double ScoreCeilingAccuracy(const nlohmann::json& reference_json, double reproduced_scd);
+// the stored samples when that is lower (NaN reproduced_scd: no off-grid rows), or the
+// result's printed significant digits when fewer (0: not printed): the reference's own
+// samples printed with 12 digits score 11.34 on chapter_impact, the printing's limit.
+double ScoreCeilingAccuracy(const nlohmann::json& reference_json, double reproduced_scd,
+                            int printed_significant_digits = 0);
 // Checks the fields of a reference document that scoring reads besides its solution (scene,
 // accuracy_scd, comparison_interval_s, primary: formulation, integrator, rtol, atol, command)
 // for their types, so that reading them later cannot throw or recurse; InputError names

@@ -210,6 +210,7 @@ int ScoreCommand::Run(int argc, char** argv) {
                      {"off_grid_times", off_grid.size()},
                      {"reference_reproduced_scd", std::isfinite(reproduced_scd) ? nlohmann::json(reproduced_scd)
                                                                                 : nlohmann::json(nullptr)},
+                     {"printed_significant_digits", result.printed_significant_digits},
                      {"metrics_definition", "benchmarks/metrics.hpp, benchmarks/score.hpp, docs/problem.md"},
                      {"result_file", result_path_},
                      {"events_not_in_reference", unmatched_events}};

@@ -239,6 +239,53 @@ TEST(Score, MissingTimesAndBadColumns) {
 // 20 ms grid, compared with the reference configuration run again there; a planted 1e-6 deg
 // error on one off-grid row brings the scd to ~6 (so those rows count); and a reference
 // whose recorded configuration cannot reproduce its samples is refused.
+// A CSV's printing caps what a score can measure: the reference's own samples printed with
+// 12 significant digits score about 11.3 (docs/problem.md), so the ceiling is 12 − 1 = 11 and
+// that score is flagged above it; printed with 16 digits the reference's own ceiling
+// (accuracy_scd 15.7 − 1) applies. Before, rows on the reference's times kept the 14.7 ceiling
+// whatever the printing, and the 12-digit 11.34 read as a measured accuracy.
+TEST(Score, PrintedDigitsCapTheCeiling) {
+  const nlohmann::json& solution = Reference().json.at("solution");
+  const nlohmann::json& positions = solution.at("classes").at("positions");
+  const std::vector<double> times = solution.at("times_s").get<std::vector<double>>();
+  const double stated = Reference().json.at("accuracy_scd").get<double>();
+  for (const int digits : {12, 16}) {
+    const fs::path csv = fs::temp_directory_path() / ("kneedyn_score_printed_" + std::to_string(digits) + "_" +
+                                                      std::to_string(::getpid()) + ".csv");
+    {
+      std::ofstream out(csv);
+      out << "time_s";
+      for (const auto& name : positions.at("names")) out << "," << name.get<std::string>();
+      out << "\n";
+      char buf[64];
+      for (size_t i = 0; i < times.size(); ++i) {
+        std::snprintf(buf, sizeof(buf), "%.17g", times[i]);
+        out << buf;
+        for (const auto& v : positions.at("values").at(i)) {
+          std::snprintf(buf, sizeof(buf), "%.*g", digits, v.get<double>());
+          out << "," << buf;
+        }
+        out << "\n";
+      }
+    }
+    const bench::ScoredResult result = bench::ReadResultCsv(csv.string(), ChapterScene(), Reference().solution);
+    fs::remove(csv);
+    EXPECT_EQ(result.printed_significant_digits, digits == 12 ? 12 : 16);
+    const bench::ReferenceScore scored = bench::ScoreAgainstReference(
+        ChapterScene(), Reference().json, Reference().solution, result, bench::OffGridRows::kNotCompared);
+    const bench::Metrics& m = scored.score.metrics;
+    std::printf("reference printed with %d digits: scd %.2f, ceiling %.2f, above %d\n", digits, m.scd, m.scd_ceiling,
+                m.scd_above_ceiling);
+    if (digits == 12) {
+      EXPECT_NEAR(m.scd, 11.34, 0.05);
+      EXPECT_EQ(m.scd_ceiling, 11.0);
+      EXPECT_TRUE(m.scd_above_ceiling);
+    } else {
+      EXPECT_NEAR(m.scd_ceiling, stated - 1.0, 1e-12);
+    }
+  }
+}
+
 TEST(Score, RowsOffTheSamplingGridAreComparedWithTheReferenceRunAgain) {
   const Scene& scene = ChapterScene();
   RunSettings settings;
