@@ -105,7 +105,17 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
     MatKK ND(k, k);
     VecK phi(k);
     for (int r = 0; r < k; ++r) {
-      geo[r] = RequireContactKinematics(model_.contacts[active_[r]], pose_i, "MdeFormulation::Evaluate");
+      try {
+        geo[r] = RequireContactKinematics(model_.contacts[active_[r]], pose_i, "MdeFormulation::Evaluate");
+      } catch (const SolverError& e) {
+        // The pose in the message is a Newton iterate of the elimination, not a state the run
+        // reached: say so, with where the elimination started.
+        Throw<SolverError>("MdeFormulation::Evaluate", "at Newton step ", iter,
+                           " of eliminating the contact translations at t = ", t,
+                           " s (a trial pose, not a state of the run; the elimination started from R0 = (",
+                           MToMm(last_q_(kX0)), ", ", MToMm(last_q_(kY0)), ", ", MToMm(last_q_(kZ0)), ") mm): ",
+                           e.what());
+      }
       phi(r) = geo[r].gap;
       const Vector3d n = pose_i.R_FT * geo[r].normal_T;
       for (int c = 0; c < k; ++c) ND(r, c) = -n(elim_[c]);
