@@ -1,9 +1,11 @@
 #include "ensembles/batch.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <mutex>
 #include <sstream>
 #include <string_view>
 
@@ -151,15 +153,27 @@ RunRow Batch::Run(const std::vector<ParameterSpec>& parameters, const std::vecto
   return EvaluateRunAt(spec_, index, values);
 }
 
-SweepTable Batch::RunAll(const BatchVariants& variants, int threads) {
+SweepTable Batch::RunAll(const BatchVariants& variants, int threads,
+                         const std::function<void(const SweepProgress&)>& progress) {
   spec_.parameters = variants.parameters;
   SweepTable table;
   table.total_runs = static_cast<long>(variants.rows.size());
   for (const ParameterSpec& p : variants.parameters) table.parameter_columns.push_back(p.column);
   table.outcome_columns = outcome_columns_;
   table.rows.resize(variants.rows.size());
+  std::mutex mutex;
+  SweepProgress state;
+  state.total = static_cast<long>(variants.rows.size());
+  const auto start = std::chrono::steady_clock::now();
   ForEachRunInParallel(variants.rows.size(), threads, [&](size_t k) {
     table.rows[k] = EvaluateRunAt(spec_, static_cast<long>(k), variants.rows[k]);
+    if (progress) {
+      const std::lock_guard<std::mutex> lock(mutex);
+      ++state.done;
+      if (!table.rows[k].completed) ++state.failed;
+      state.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      progress(state);
+    }
   });
   return table;
 }

@@ -39,8 +39,10 @@ class Batch {
   // run: the row says failed and why.
   RunRow Run(const std::vector<ParameterSpec>& parameters, const std::vector<double>& values, long index);
 
-  // Every row of `variants` in order on `threads` workers (1: this thread only).
-  SweepTable RunAll(const BatchVariants& variants, int threads = 1);
+  // Every row of `variants` in order on `threads` workers (1: this thread only). `progress`,
+  // when set, is called (serialised) after every finished run, as RunSweep's.
+  SweepTable RunAll(const BatchVariants& variants, int threads = 1,
+                    const std::function<void(const SweepProgress&)>& progress = {});
 
   const std::vector<std::string>& outcome_columns() const { return outcome_columns_; }
 

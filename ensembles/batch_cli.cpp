@@ -1,5 +1,7 @@
 #include "ensembles/batch_cli.hpp"
 
+#include <unistd.h>
+
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -31,7 +33,7 @@ BatchCommand::BatchCommand(CLI::App& app) {
   text_option("--output-interval", "s between samples the outcomes see (0: scene's)");
   cmd_->add_option("--outcomes", outcomes_, "outcome groups (as in a sweep spec)")->delimiter(',')->capture_default_str();
   text_option("--threads", "worker threads", StrCat(threads_));
-  cmd_->add_flag("--quiet", quiet_, "no summary on stdout");
+  cmd_->add_flag("--quiet", quiet_, "no summary on stdout and no progress on stderr (shown only on a terminal)");
 }
 
 int BatchCommand::Run() {
@@ -67,7 +69,12 @@ int BatchCommand::Run() {
     CheckFixedStepBeforeRuns(scene, settings_, variants.parameters);
     Batch batch(std::move(scene), settings_, outcomes_);
     const auto t0 = std::chrono::steady_clock::now();
-    const SweepTable table = batch.RunAll(variants, threads_);
+    // `\r` progress only on a terminal, as the sweep's.
+    const bool tty = !quiet_ && isatty(STDERR_FILENO) == 1;
+    std::function<void(const SweepProgress&)> progress;
+    if (tty) progress = TerminalProgress("batch");
+    const SweepTable table = batch.RunAll(variants, threads_, progress);
+    if (tty) std::fprintf(stderr, "\n");
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const std::string csv = FormatBatchCsv(table);
     try {

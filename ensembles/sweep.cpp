@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <mutex>
 
 #include "ensembles/parallel_runs.hpp"
+#include "formulations/progress.hpp"
 #include "solver/dynamics.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -162,6 +164,18 @@ std::vector<long> ShardIndices(const SweepSpec& spec, long shard, long shards) {
     if (shards > total - i) break;  // i + shards would pass total (and could overflow a long)
   }
   return out;
+}
+
+std::function<void(const SweepProgress&)> TerminalProgress(const std::string& label) {
+  return [label, last = std::chrono::steady_clock::now() - std::chrono::seconds(1)](const SweepProgress& p) mutable {
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last < std::chrono::milliseconds(200) && p.done < p.total) return;
+    last = now;
+    const double rate = p.elapsed_s > 0 ? p.done / p.elapsed_s : 0.0;
+    const double left = rate > 0 ? (p.total - p.done) / rate : 0.0;
+    std::fprintf(stderr, "\r[%s] %ld/%ld runs (%ld failed)  %.1f runs/s  elapsed %s  time left %s   ", label.c_str(),
+                 p.done, p.total, p.failed, rate, FormatDuration(p.elapsed_s).c_str(), FormatDuration(left).c_str());
+  };
 }
 
 SweepTable RunSweep(const SweepSpec& spec, const std::vector<long>& indices, int threads,

@@ -54,6 +54,10 @@ struct SweepProgress {
   double elapsed_s = 0.0;
 };
 
+// The `\r` progress line of `kneedyn sweep` and `kneedyn batch` on a terminal ("[label] done/total
+// runs (failed)  rate  elapsed  time left"), at most every 0.2 s and at the last run.
+std::function<void(const SweepProgress&)> TerminalProgress(const std::string& label);
+
 // Runs the design rows `indices` (ascending) on `threads` workers. `progress`, when set,
 // is called (serialised) after every finished run.
 SweepTable RunSweep(const SweepSpec& spec, const std::vector<long>& indices, int threads,

@@ -50,14 +50,6 @@ std::string FormatGigabytes(double bytes) {
   return buf;
 }
 
-std::string Duration(double s) {
-  char buf[32];
-  if (s >= 3600) std::snprintf(buf, sizeof buf, "%dh%02dm", static_cast<int>(s / 3600), static_cast<int>(s / 60) % 60);
-  else if (s >= 60) std::snprintf(buf, sizeof buf, "%dm%02ds", static_cast<int>(s / 60), static_cast<int>(s) % 60);
-  else std::snprintf(buf, sizeof buf, "%.0fs", s);
-  return buf;
-}
-
 }  // namespace
 
 SweepCommand::SweepCommand(CLI::App& app) {
@@ -137,19 +129,8 @@ int SweepCommand::Run() {
       refuse_design_size();
     }
     const bool tty = !quiet_ && isatty(STDERR_FILENO) && mpi.rank() == 0;
-    auto last = std::chrono::steady_clock::now() - std::chrono::seconds(1);
     std::function<void(const SweepProgress&)> progress;
-    if (tty) {
-      progress = [&](const SweepProgress& p) {
-        const auto now = std::chrono::steady_clock::now();
-        if (now - last < std::chrono::milliseconds(200) && p.done < p.total) return;
-        last = now;
-        const double rate = p.elapsed_s > 0 ? p.done / p.elapsed_s : 0.0;
-        const double eta = rate > 0 ? (p.total - p.done) / rate : 0.0;
-        std::fprintf(stderr, "\r[sweep] %ld/%ld runs (%ld failed)  %.1f runs/s  elapsed %s  time left %s   ", p.done,
-                     p.total, p.failed, rate, Duration(p.elapsed_s).c_str(), Duration(eta).c_str());
-      };
-    }
+    if (tty) progress = TerminalProgress("sweep");
     const auto start = std::chrono::steady_clock::now();
     try {
       table = RunSweep(spec, indices, threads, progress);

@@ -42,6 +42,7 @@
 // algebraic unknowns re-solved at each restart).
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -65,6 +66,8 @@ struct SensitivityOptions {
   long max_steps = 200000;          // per phase
   double output_interval = 0.0;     // s between trajectory samples; 0: the scene's
   bool derivatives = true;          // false: outcomes only (for finite differences)
+  // Called with (t [s], flexion [rad]) at every output row (progress; unset: nothing).
+  std::function<void(double, double)> progress;
 
   // False with a message naming the option, its value (as typed when `typed` has it: flag ->
   // text) and the rule.

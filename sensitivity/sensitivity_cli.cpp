@@ -227,6 +227,7 @@ SensitivityCommand::SensitivityCommand(CLI::App& app) {
   text_option("--fd-step", "relative step of central finite differences to print beside (0: none)", StrCat(fd_step_));
   cmd_->add_option("--out", out_dir_, "output directory")->capture_default_str();
   cmd_->add_flag("--list", list_, "print the parameter and outcome names of the scene");
+  cmd_->add_flag("--quiet", quiet_, "no progress on stderr (shown only on a terminal)");
 }
 
 int SensitivityCommand::Run(int argc, char** argv) {
@@ -291,7 +292,19 @@ int SensitivityCommand::Run(int argc, char** argv) {
     CheckSensitivityOutputDirectory(out_dir_);
     std::vector<double> values;
     for (const ensembles::ParameterSpec& p : params) values.push_back(p.nominal);
-    const SensitivityResult r = RunSensitivity(scene, params, values, outcomes, options_);
+    // `\r` progress only on a terminal, as kneedyn run's (a run with derivatives of one patella
+    // parameter takes over a minute).
+    const bool show_progress = !quiet_ && isatty(STDERR_FILENO) == 1;
+    SensitivityOptions run_options = options_;
+    if (show_progress) {
+      run_options.progress = [last = -1.0](double t, double alpha) mutable {
+        if (t - last < 0.05 && last >= 0.0) return;
+        last = t;
+        std::fprintf(stderr, "\r[sensitivity] t = %.3f s  flexion = %6.2f deg", t, alpha * 180.0 / M_PI);
+      };
+    }
+    const SensitivityResult r = RunSensitivity(scene, params, values, outcomes, run_options);
+    if (show_progress) std::fprintf(stderr, "\n");
     std::vector<std::vector<double>> fd;
     if (fd_step_ > 0.0) fd = CentralDifferences(scene, params, values, outcomes, options_, fd_step_);
     WriteSensitivityOutputs(out_dir_, scene, options_, r, fd_step_ > 0.0 ? &fd : nullptr, fd_step_,

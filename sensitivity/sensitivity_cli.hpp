@@ -35,6 +35,7 @@ class SensitivityCommand {
   OptionText typed_;  // the numeric options as typed (flag -> text)
   std::string out_dir_ = "out/sensitivity";
   bool list_ = false;
+  bool quiet_ = false;
   std::string spec_path_;  // --spec: scene, parameter names and outcomes of a sweep spec
 };
 

@@ -54,9 +54,11 @@ inline SimulatorSettings TrajectorySettings(const Scene& scene, const Sensitivit
   sim.atol = options.atol;
   sim.pulling = PullingContact::kRefuse;
   sim.first_phase_started = row;
-  sim.sample = [row, t_end, initial_sample = true](const MechanicalState& st, bool is_event) mutable {
+  sim.sample = [row, t_end, progress = options.progress, initial_sample = true](const MechanicalState& st,
+                                                                                bool is_event) mutable {
     if (!initial_sample && !is_event && st.t < t_end) row(st);
     initial_sample = false;
+    if (progress) progress(st.t, st.q(kAlpha));
   };
   return sim;
 }

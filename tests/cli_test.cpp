@@ -564,6 +564,36 @@ TEST_F(CliTest, CatalogPrintsCountedProgress) {
   EXPECT_NE(r.output.find("elapsed, ~0.0s left]"), std::string::npos) << r.output;  // nothing left after 2/2
 }
 
+// On a terminal (a pseudo-terminal from script(1)) `kneedyn batch` and `kneedyn sensitivity`
+// show `\r` progress on stderr, as run and sweep do, and --quiet silences it; through a pipe
+// nothing (before: neither had progress, and sensitivity had no --quiet).
+TEST_F(CliTest, BatchAndSensitivityShowProgressOnATerminal) {
+  if (RunShell("command -v script").exit_code != 0) GTEST_SKIP() << "script(1) (bsdutils) not installed";
+  const fs::path dir(Out());
+  fs::create_directories(dir);
+  std::ofstream(dir / "v.csv") << "pulse.amplitude\n90\n110\n";
+  const auto on_terminal = [](const std::string& command) {
+    return RunShell("script -qec \"" + command + "\" /dev/null");
+  };
+  const std::string exe = std::string("'") + KNEEDYN_EXE + "'";
+  const std::string batch = exe + " batch '" + ChapterScenePath() + "' --variants '" + (dir / "v.csv").string() + "'";
+  CommandResult r = on_terminal(batch + " --out '" + (dir / "b1.csv").string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("\r[batch] 2/2 runs (0 failed)"), std::string::npos) << r.output;
+  r = on_terminal(batch + " --quiet --out '" + (dir / "b2.csv").string() + "'");
+  EXPECT_EQ(r.output.find("[batch]"), std::string::npos) << r.output;
+  r = RunShell(batch + " --out '" + (dir / "b3.csv").string() + "' 2>&1");
+  EXPECT_EQ(r.output.find("[batch]"), std::string::npos) << r.output;  // not a terminal
+  const std::string sensitivity =
+      exe + " sensitivity '" + ChapterScenePath() + "' --parameters mass --outcomes time_90_s --out '";
+  r = on_terminal(sensitivity + (dir / "s1").string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("\r[sensitivity] t = 0.050 s"), std::string::npos) << r.output;
+  r = on_terminal(sensitivity + (dir / "s2").string() + "' --quiet");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("[sensitivity]"), std::string::npos) << r.output;
+}
+
 // The catalog refuses what it cannot use before its runs, with exit 2 and its own prefix:
 // a --cases-dir that is not a directory or lacks a selected case's file (before: 233 rows
 // 'error', exit 0), an --out that cannot be created (before: every case run, then an
