@@ -52,6 +52,8 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
 //    it pulls by more than kLiftoffRowForceFraction of the column's largest |force|.
 //  - kind "patella_not_followed": a row whose patella columns are empty
 //    (TrajectoryTable::patella_not_followed); `time_s` and `message` only.
+//  - kind "start_not_at_nearest_points": a tibial contact whose gap column (the nearest-point
+//    distance) at the first row exceeds kStartGapToleranceMm after a consistent start.
 //  - kind "patella_contact_off": a pressing facet's contact outside the patella's extent
 //    (TrajectoryTable::patella_contact_off); `contact`, `time_s` of its farthest row, `message`.
 struct OutputWarning {
@@ -68,6 +70,9 @@ struct OutputWarning {
 // whose contact left the patella, then, for a
 // fixed-step run, each contact phase or separation shorter than kMinResolvedSteps steps.
 constexpr int kMinResolvedSteps = 10;
+// A start row's gap (mm) beyond which the consistent start is not at the surfaces' nearest
+// points ("start_not_at_nearest_points"); a consistent start closes it to ~1e-13 mm.
+constexpr double kStartGapToleranceMm = 1e-6;
 constexpr double kLiftoffRowForceFraction = 1e-4;
 std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const RunResult& result);
 
