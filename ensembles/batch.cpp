@@ -1,15 +1,12 @@
 #include "ensembles/batch.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <charconv>
 #include <cmath>
 #include <fstream>
-#include <mutex>
 #include <sstream>
 #include <string_view>
 
-#include "ensembles/parallel_runs.hpp"
 #include "scene/internal/csv_fields.hpp"
 #include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
@@ -161,20 +158,9 @@ SweepTable Batch::RunAll(const BatchVariants& variants, int threads,
   for (const ParameterSpec& p : variants.parameters) table.parameter_columns.push_back(p.column);
   table.outcome_columns = outcome_columns_;
   table.rows.resize(variants.rows.size());
-  std::mutex mutex;
-  SweepProgress state;
-  state.total = static_cast<long>(variants.rows.size());
-  const auto start = std::chrono::steady_clock::now();
-  ForEachRunInParallel(variants.rows.size(), threads, [&](size_t k) {
-    table.rows[k] = EvaluateRunAt(spec_, static_cast<long>(k), variants.rows[k]);
-    if (progress) {
-      const std::lock_guard<std::mutex> lock(mutex);
-      ++state.done;
-      if (!table.rows[k].completed) ++state.failed;
-      state.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      progress(state);
-    }
-  });
+  EvaluateRowsInParallel(
+      threads, [&](size_t k) { return EvaluateRunAt(spec_, static_cast<long>(k), variants.rows[k]); }, progress,
+      &table.rows);
   return table;
 }
 

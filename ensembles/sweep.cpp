@@ -189,23 +189,33 @@ SweepTable RunSweep(const SweepSpec& spec, const std::vector<long>& indices, int
   const std::vector<double> unit = DesignMatrix(spec.design, d);
   table.rows.resize(indices.size());
 
+  EvaluateRowsInParallel(
+      threads,
+      [&](size_t k) {
+        const long i = indices[k];
+        const std::vector<double> u(unit.begin() + i * d, unit.begin() + (i + 1) * d);
+        return EvaluateRun(spec, i, u);
+      },
+      progress, &table.rows);
+  return table;
+}
+
+void EvaluateRowsInParallel(int threads, const std::function<RunRow(size_t)>& run_one,
+                            const std::function<void(const SweepProgress&)>& progress, std::vector<RunRow>* rows) {
   std::mutex mutex;
   SweepProgress state;
-  state.total = static_cast<long>(indices.size());
+  state.total = static_cast<long>(rows->size());
   const auto start = std::chrono::steady_clock::now();
-  ForEachRunInParallel(indices.size(), threads, [&](size_t k) {
-    const long i = indices[k];
-    const std::vector<double> u(unit.begin() + i * d, unit.begin() + (i + 1) * d);
-    table.rows[k] = EvaluateRun(spec, i, u);
+  ForEachRunInParallel(rows->size(), threads, [&](size_t k) {
+    (*rows)[k] = run_one(k);
     if (progress) {
       const std::lock_guard<std::mutex> lock(mutex);
       ++state.done;
-      if (!table.rows[k].completed) ++state.failed;
+      if (!(*rows)[k].completed) ++state.failed;
       state.elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       progress(state);
     }
   });
-  return table;
 }
 
 }  // namespace kneedyn::ensembles

@@ -58,6 +58,12 @@ struct SweepProgress {
 // runs (failed)  rate  elapsed  time left"), at most every 0.2 s and at the last run.
 std::function<void(const SweepProgress&)> TerminalProgress(const std::string& label);
 
+// rows->at(k) = run_one(k) for k < rows->size() on `threads` workers (ForEachRunInParallel),
+// calling `progress` (when set, serialised) after every finished run: the loop of RunSweep and
+// Batch::RunAll.
+void EvaluateRowsInParallel(int threads, const std::function<RunRow(size_t)>& run_one,
+                            const std::function<void(const SweepProgress&)>& progress, std::vector<RunRow>* rows);
+
 // Runs the design rows `indices` (ascending) on `threads` workers. `progress`, when set,
 // is called (serialised) after every finished run.
 SweepTable RunSweep(const SweepSpec& spec, const std::vector<long>& indices, int threads,
