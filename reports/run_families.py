@@ -11,7 +11,8 @@ Runs go through the kneedyn Python module when it is importable (PYTHONPATH, or
 KNEEDYN_REPORT_RUNNER=subprocess, one `kneedyn run` process each. Both write the same files.
 
 Writes OUTDIR/scenes/<member>.yaml, OUTDIR/runs/<member>/{trajectory.csv, summary.json},
-OUTDIR/families.json (members, status) and OUTDIR/sensitivity.json.
+OUTDIR/families.json (members, status, and no_pulse: the reference member at A = 0 N, for the
+report's Summary) and OUTDIR/sensitivity.json.
 Exit status 1 if any run failed (all runs are attempted).
 """
 import argparse
@@ -229,6 +230,9 @@ def main(argv=None):
   ref_name = "reference"
   jobs[ref_name] = (write_scene(outdir, ref_name, BASE_AMPLITUDE_N, BASE_DURATION_S),
                     {"kind": "sensitivity_reference"})
+  # The reference member without its pulse (A = 0 N): how much of the motion the pulse makes
+  # (the report's Summary; the leg's weight moves the knee too, docs/model.md §7).
+  jobs["no_pulse"] = (write_scene(outdir, "no_pulse", 0.0, BASE_DURATION_S), {"kind": "pulse_off"})
   for med, lat in (QUICK_FORCE_GUESSES_N if args.quick else FORCE_GUESSES_N):
     name = f"force_guess_{med:g}_{lat:g}"
     jobs[name] = (write_scene(outdir, name, BASE_AMPLITUDE_N, BASE_DURATION_S,
@@ -263,9 +267,15 @@ def main(argv=None):
                     "ok": results[name]["ok"], "status": results[name]["status"],
                     "command": results[name]["command"], "stderr": results[name]["stderr"],
                     "fallback": results[name]["fallback"]})
+  no_pulse = {"name": "no_pulse", "amplitude_N": 0.0, "duration_s": BASE_DURATION_S,
+              "run_dir": os.path.join("runs", "no_pulse"), "ok": results["no_pulse"]["ok"],
+              "status": results["no_pulse"]["status"]}
+  if results["no_pulse"]["ok"]:
+    no_pulse.update(event_summary(os.path.join(outdir, "runs", "no_pulse")))
   with open(os.path.join(outdir, "families.json"), "w") as f:
     json.dump({"solver_args": SOLVER_ARGS, "output_interval_s": OUTPUT_INTERVAL_S,
-               "quick": args.quick, "runner": runner_description(args.kneedyn), "members": members}, f, indent=2)
+               "quick": args.quick, "runner": runner_description(args.kneedyn), "members": members,
+               "no_pulse": no_pulse}, f, indent=2)
 
   # Sensitivity studies: differences vs the unperturbed run.
   sens = {"reference": ref_name, "force_guess": [], "contact_offset": []}

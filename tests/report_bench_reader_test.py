@@ -303,6 +303,24 @@ def prose_number_errors(tmp):
   return errors
 
 
+def no_pulse_errors():
+  """The Summary's A = 0 N row states the pulse's share of the motion from the runs: planted
+  lift-offs 52.6° (member) and 52.0° (no pulse), t(90°) 0.299 s and 0.302 s, a family spanning
+  50.0–54.0° and 0.290–0.302 s: +0.60°, −0.99 %, 4.00°, 4.0 %; without the run it says so."""
+  import types
+  import make_report
+  errors = []
+  ref = types.SimpleNamespace(liftoff_deg=52.6, time_to_90_s=0.299)
+  members = [types.SimpleNamespace(liftoff_deg=lo, time_to_90_s=t) for lo, t in ((50.0, 0.302), (54.0, 0.290), (52.6, 0.299))]
+  text = make_report.no_pulse_text({"ok": True, "liftoff_lateral_deg": 52.0, "time_to_90_s": 0.302}, ref, members)
+  for want in ("lift-off by +0.60°", "time to 90° by -0.99 %", "lift-off spans 4.00°", "time to 90° 4.0 %"):
+    if want not in text:
+      errors.append(f"no_pulse_text: no {want!r} in {text!r}")
+  if "not run" not in make_report.no_pulse_text(None, ref, members):
+    errors.append("no_pulse_text without the run does not say it was not run")
+  return errors
+
+
 def main():
   errors = []
   with tempfile.TemporaryDirectory(prefix="kneedyn_bench_reader_") as tmp:
@@ -328,6 +346,7 @@ def main():
                 ("mde", "dopri5", 0.02, "ok"), ("mde", "euler", 0.01, "wrong event time")]
     if got["results"] != expected:
       errors.append(f"results layout: {got['results']} != {expected}")
+    errors += no_pulse_errors()
     errors += ceiling_errors(tmp)
     errors += exact_errors(tmp)
     errors += prose_number_errors(tmp)
