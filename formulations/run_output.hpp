@@ -52,6 +52,7 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
 //    it pulls by more than kLiftoffRowForceFraction of the column's largest |force|.
 //  - kind "patella_not_followed": a row whose patella columns are empty
 //    (TrajectoryTable::patella_not_followed); `time_s` and `message` only.
+//  - kind "sparse_output": fewer than kMinOutputRows rows besides the start and the events.
 //  - kind "start_not_at_nearest_points": a tibial contact whose gap column (the nearest-point
 //    distance) at the first row exceeds kStartGapToleranceMm after a consistent start.
 //  - kind "patella_contact_off": a pressing facet's contact outside the patella's extent
@@ -70,6 +71,8 @@ struct OutputWarning {
 // whose contact left the patella, then, for a
 // fixed-step run, each contact phase or separation shorter than kMinResolvedSteps steps.
 constexpr int kMinResolvedSteps = 10;
+// Fewer output rows than this besides the start and the events: "sparse_output".
+constexpr size_t kMinOutputRows = 3;
 // A start row's gap (mm) beyond which the consistent start is not at the surfaces' nearest
 // points ("start_not_at_nearest_points"); a consistent start closes it to ~1e-13 mm.
 constexpr double kStartGapToleranceMm = 1e-6;

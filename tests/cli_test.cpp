@@ -564,6 +564,26 @@ TEST_F(CliTest, CatalogPrintsCountedProgress) {
   EXPECT_NE(r.output.find("elapsed, ~0.0s left]"), std::string::npos) << r.output;  // nothing left after 2/2
 }
 
+// An output interval longer than the run writes the start and the event rows alone: the
+// summary warns (sparse_output), since its constraint_residuals and the peaks come from the
+// rows; the scene's own 5 ms rows give no such warning. Before, nothing was said.
+TEST_F(CliTest, AnOutputIntervalLongerThanTheRunIsWarned) {
+  const auto kinds = [this](const std::string& extra) {
+    fs::remove_all(Out());
+    const CommandResult r = RunKneedyn("run '" + ChapterScenePath() + "'" + extra + " --quiet --out '" + Out() + "'");
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    std::vector<std::string> found;
+    for (const auto& w : nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json")).at("warnings")) {
+      found.push_back(w.at("kind").get<std::string>());
+    }
+    return found;
+  };
+  const std::vector<std::string> sparse = kinds(" --output-interval 10");
+  EXPECT_NE(std::find(sparse.begin(), sparse.end(), "sparse_output"), sparse.end());
+  const std::vector<std::string> dense = kinds("");
+  EXPECT_EQ(std::find(dense.begin(), dense.end(), "sparse_output"), dense.end());
+}
+
 // On a terminal (a pseudo-terminal from script(1)) `kneedyn batch` and `kneedyn sensitivity`
 // show `\r` progress on stderr, as run and sweep do, and --quiet silences it; through a pipe
 // nothing (before: neither had progress, and sensitivity had no --quiet).
