@@ -338,7 +338,10 @@ int main(int argc, char** argv) {
     // pass with nothing checked): e.g. index3_position_level with a formulation that has no
     // position level.
     if (total_runs == 0) {
-      Throw<InputError>("kneedyn_catalog", "--case/--formulation select no run (rule: a case runs the formulations ",
+      std::string given;
+      for (const std::string& n : only_cases) given += StrCat(given.empty() ? "" : ", ", "--case ", n);
+      for (const std::string& n : only_formulations) given += StrCat(given.empty() ? "" : ", ", "--formulation ", n);
+      Throw<InputError>("kneedyn_catalog", given, ": the selection has no run (rule: a case runs the formulations ",
                         "that accept its options; index3_position_level those that accept --constraint-level position, ",
                         "the patella cases also those that need a patella)");
     }

@@ -114,7 +114,7 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
                            " of eliminating the contact translations at t = ", t,
                            " s (a trial pose, not a state of the run; the elimination started from R0 = (",
                            MToMm(last_q_(kX0)), ", ", MToMm(last_q_(kY0)), ", ", MToMm(last_q_(kZ0)), ") mm): ",
-                           e.what());
+                           MessageUnder("MdeFormulation::Evaluate", e.what()));
       }
       phi(r) = geo[r].gap;
       const Vector3d n = pose_i.R_FT * geo[r].normal_T;

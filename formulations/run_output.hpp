@@ -52,13 +52,15 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
 //    it pulls by more than kLiftoffRowForceFraction of the column's largest |force|.
 //  - kind "patella_not_followed": a row whose patella columns are empty
 //    (TrajectoryTable::patella_not_followed); `time_s` and `message` only.
+//  - kind "patella_contact_off": a pressing facet's contact outside the patella's extent
+//    (TrajectoryTable::patella_contact_off); `contact`, `time_s` of its farthest row, `message`.
 //  - kind "sparse_output": fewer than kMinOutputRows rows besides the start and the events.
 //  - kind "start_not_at_nearest_points": a tibial contact whose gap column (the nearest-point
 //    distance) at the first row exceeds kStartGapToleranceMm after a consistent start.
-//  - kind "patella_contact_off": a pressing facet's contact outside the patella's extent
-//    (TrajectoryTable::patella_contact_off); `contact`, `time_s` of its farthest row, `message`.
+//  - kind "short_contact_phase": OutputWarnings, below.
 struct OutputWarning {
-  std::string kind;     // "pulling_contact" | "patella_not_followed" | "patella_contact_off" | "short_contact_phase"
+  std::string kind;     // "pulling_contact" | "patella_not_followed" | "patella_contact_off" | "sparse_output" |
+                        // "start_not_at_nearest_points" | "short_contact_phase"
   std::string column;   // the trajectory column, e.g. "N_patella_lateral_N", "N_medial_N"
   std::string contact;  // "patellar facet lateral", "tibial contact medial"
   double min_force_N = 0.0;  // the column's most negative value, N
@@ -68,8 +70,9 @@ struct OutputWarning {
 };
 // From the rows of `table` (MakeTrajectoryTable of `result`) and result.events: the pulling
 // contacts in column order, then the rows whose patella was not followed, then the facets
-// whose contact left the patella, then, for a
-// fixed-step run, each contact phase or separation shorter than kMinResolvedSteps steps.
+// whose contact left the patella, then a sparse output, then the contacts whose start is not
+// at the nearest points, then, for a fixed-step run, each contact phase or separation shorter
+// than kMinResolvedSteps steps.
 constexpr int kMinResolvedSteps = 10;
 // Fewer output rows than this besides the start and the events: "sparse_output".
 constexpr size_t kMinOutputRows = 3;

@@ -162,13 +162,14 @@ void Simulator::Initialize() {
   CheckFixedStep(model, state_.t, stepper_->fixed_step(), settings_.output_interval, /*pulses=*/true);
   // A start whose consistent forces pull (an assembled pose; docs/model.md §6) starts with
   // those contacts' lift-offs.
-  const bool released =
-      ReleasePullingContacts(model, settings_.restart, settings_.pulling,
-                             "at the start: a lift-off there, whose sensitivities are not defined", &state_, &record_->events);
+  ReleasePullingContacts(model, settings_.restart, settings_.pulling,
+                         "at the start: a lift-off there, whose sensitivities are not defined", &state_, &record_->events);
   // Refusals the input causes are raised here, before integration (exit code 2): contact
   // rows that are dependent at the start (e.g. two compartments given the same surfaces).
   SolveConstrainedAcceleration(model, state_.t, state_.q, state_.qd, state_.active);
-  Record(/*is_event=*/released);  // the first row is the start's lift-offs' row
+  // The start's lift-offs share the first row, a sampling row (is_event 0): scoring drops an
+  // event row that another row follows, and the t0 row is compared with the reference.
+  Record(false);
 }
 
 void Simulator::Run() {

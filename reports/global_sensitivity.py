@@ -75,7 +75,8 @@ def sobol_indices(X, y, n, d, bootstrap, confidence, estimator, seed, completed=
   keep = [j for j in range(n) if all(math.isfinite(y[b * n + j]) for b in range(d + 2))]
   m = len(keep)
   ran = completed if completed is not None else [True] * len(y)
-  with_failed = sum(1 for j in range(n) if not all(ran[b * n + j] for b in range(d + 2)))
+  kept = set(keep)  # a failed run keeps what it reached (a lift-off before the failure): its group may stay
+  with_failed = sum(1 for j in range(n) if j not in kept and not all(ran[b * n + j] for b in range(d + 2)))
   if m < 8:
     return {"status": f"only {m} complete pick-freeze groups of {n}"}
   xs = [X[b * n + j] for b in range(d + 2) for j in keep]

@@ -577,9 +577,9 @@ def calibration_part(outdir):
       f"θ = {start.get('theta_deg', float('nan')):.0f}°); {verdict}; "
       f"{res.get('failed_runs', 0)} of the three runs at the best fit failed (its angles are then taken up to the "
       "failure)"
-      + (f"; {res['runs_not_reaching_end_flexion']} of them never reach 90° (the t0 = 0.1 s run flexes to "
-         f"{res.get('max_flexion_deg_t0_0.1', float('nan')):.1f}° and swings back; its angles are read while the knee "
-         "flexes)" if res.get("runs_not_reaching_end_flexion") else
+      + (f"; {res['runs_not_reaching_end_flexion']} of them never reach 90° (the t0 = 0.1 s run's largest flexion: "
+         f"{res.get('max_flexion_deg_t0_0.1', float('nan')):.1f}°; angles are read while the knee flexes)"
+         if res.get("runs_not_reaching_end_flexion") else
          ("; all three reach 90°" if "runs_not_reaching_end_flexion" in res else "")) + ". "
       + (f"Ceres: {esc(cal['ceres']['brief_report'])}." if cal.get("ceres") else "") + "</p>")
   plaus = []

@@ -13,6 +13,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <random>
 #include <sstream>
 
@@ -303,8 +304,19 @@ int SensitivityCommand::Run(int argc, char** argv) {
         std::fprintf(stderr, "\r[sensitivity] t = %.3f s  flexion = %6.2f deg", t, alpha * 180.0 / M_PI);
       };
     }
-    const SensitivityResult r = RunSensitivity(scene, params, values, outcomes, run_options);
-    if (show_progress) std::fprintf(stderr, "\n");
+    // The progress line ends before anything else is printed, an error included.
+    struct EndProgressLine {
+      bool shown;
+      ~EndProgressLine() {
+        if (shown) std::fputc('\n', stderr);
+      }
+    };
+    std::optional<SensitivityResult> result;
+    {
+      const EndProgressLine end_line{show_progress};
+      result = RunSensitivity(scene, params, values, outcomes, run_options);
+    }
+    const SensitivityResult& r = *result;
     std::vector<std::vector<double>> fd;
     if (fd_step_ > 0.0) fd = CentralDifferences(scene, params, values, outcomes, options_, fd_step_);
     WriteSensitivityOutputs(out_dir_, scene, options_, r, fd_step_ > 0.0 ? &fd : nullptr, fd_step_,

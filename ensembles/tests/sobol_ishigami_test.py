@@ -77,7 +77,8 @@ def main():
       failures.append("chart with local bars not written")
     # Failed runs: mark two rows of different groups failed, and a third group's run completed
     # without the outcome (a lift-off that did not happen); exactly three groups are dropped,
-    # counted by cause.
+    # counted by cause. A fourth group's failed run keeps its value (what it reached before the
+    # failure): that group is used, and not counted as dropped.
     with open(os.path.join(tmp, "sweep.csv"), newline="") as f:
       rows = list(csv.reader(f))
     n = 4096
@@ -85,6 +86,7 @@ def main():
       rows[row][4] = "nan"
       rows[row][5] = "failed"
     rows[1 + n + 17][4] = "nan"  # group 17 (in B): completed, outcome undefined
+    rows[1 + 2 * n + 23][5] = "failed"  # group 23 (in A_B^0): failed with a value it reached: kept
     with open(os.path.join(tmp, "broken.csv"), "w", newline="") as f:
       csv.writer(f).writerows(rows)
     subprocess.run([sys.executable, script, "--sweep", os.path.join(tmp, "broken.csv"), "--spec", spec,

@@ -67,9 +67,6 @@ TEST(SweepSpec, ResolvesParametersWithTheBaseScenesNominalValues) {
   EXPECT_EQ(s.run.formulation, "dae");
 }
 
-// A normal distribution of a parameter that must stay > 0 is accepted when every draw does
-// (mean − 8.2 sd > 0): the range, not the distribution's kind, is the rule; its draws at the
-// unit cube's ends are the extremes the spec check tested.
 // The spec format's example in ensembles/README.md is a valid spec as printed (its scene path
 // is relative to a spec in ensembles/specs/). Before, its `integrator: ""` was refused.
 TEST(SweepSpec, TheReadmeExampleIsAccepted) {
@@ -90,6 +87,9 @@ TEST(SweepSpec, TheReadmeExampleIsAccepted) {
   }
 }
 
+// A normal distribution of a parameter that must stay > 0 is accepted when every draw does
+// (mean − 8.2 sd > 0): the range, not the distribution's kind, is the rule; its draws at the
+// unit cube's ends are the extremes the spec check tested.
 TEST(SweepSpec, ANormalWhoseDrawsStayInTheRangeIsAccepted) {
   const SweepSpec s = Parse(Spec("  - {name: mass, normal: [4, 0.1]}"));
   const ParameterSpec& p = s.parameters[0];
