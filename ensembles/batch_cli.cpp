@@ -1,7 +1,5 @@
 #include "ensembles/batch_cli.hpp"
 
-#include <unistd.h>
-
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -10,6 +8,7 @@
 
 #include "ensembles/batch.hpp"
 #include "formulations/output_file.hpp"
+#include "formulations/progress.hpp"
 #include "solver/error.hpp"
 
 namespace kneedyn::ensembles {
@@ -70,7 +69,7 @@ int BatchCommand::Run() {
     Batch batch(std::move(scene), settings_, outcomes_);
     const auto t0 = std::chrono::steady_clock::now();
     // `\r` progress only on a terminal, as the sweep's.
-    const bool tty = !quiet_ && isatty(STDERR_FILENO) == 1;
+    const bool tty = !quiet_ && StderrIsTerminal();
     std::function<void(const SweepProgress&)> progress;
     if (tty) progress = TerminalProgress("batch");
     const SweepTable table = batch.RunAll(variants, threads_, progress);

@@ -13,10 +13,10 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <optional>
 #include <random>
 #include <sstream>
 
+#include "formulations/progress.hpp"
 #include "formulations/version.hpp"
 #include "solver/error.hpp"
 
@@ -295,7 +295,7 @@ int SensitivityCommand::Run(int argc, char** argv) {
     for (const ensembles::ParameterSpec& p : params) values.push_back(p.nominal);
     // `\r` progress only on a terminal, as kneedyn run's (a run with derivatives of one patella
     // parameter takes over a minute).
-    const bool show_progress = !quiet_ && isatty(STDERR_FILENO) == 1;
+    const bool show_progress = !quiet_ && StderrIsTerminal();
     SensitivityOptions run_options = options_;
     if (show_progress) {
       run_options.progress = [last = -1.0](double t, double alpha) mutable {
@@ -305,18 +305,14 @@ int SensitivityCommand::Run(int argc, char** argv) {
       };
     }
     // The progress line ends before anything else is printed, an error included.
-    struct EndProgressLine {
-      bool shown;
-      ~EndProgressLine() {
-        if (shown) std::fputc('\n', stderr);
-      }
-    };
-    std::optional<SensitivityResult> result;
-    {
-      const EndProgressLine end_line{show_progress};
-      result = RunSensitivity(scene, params, values, outcomes, run_options);
+    SensitivityResult r;
+    try {
+      r = RunSensitivity(scene, params, values, outcomes, run_options);
+    } catch (...) {
+      if (show_progress) std::fputc('\n', stderr);
+      throw;
     }
-    const SensitivityResult& r = *result;
+    if (show_progress) std::fputc('\n', stderr);
     std::vector<std::vector<double>> fd;
     if (fd_step_ > 0.0) fd = CentralDifferences(scene, params, values, outcomes, options_, fd_step_);
     WriteSensitivityOutputs(out_dir_, scene, options_, r, fd_step_ > 0.0 ? &fd : nullptr, fd_step_,
