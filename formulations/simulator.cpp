@@ -66,6 +66,16 @@ std::vector<EventSpec> StartPhase(const Model& model, const EndCondition& end, d
   return specs;
 }
 
+std::vector<EventSpec> StartRestartedPhase(const Model& model, const EndCondition& end, double gap_tolerance,
+                                           RestartProjection restart, PullingContact pulling, MechanicalState* state,
+                                           std::vector<EventRecord>* events, bool* released) {
+  std::vector<EventSpec> specs = StartPhase(model, end, gap_tolerance, restart, state);
+  *released = ReleasePullingContacts(model, restart, pulling,
+                                     "at a restart: a lift-off there, whose sensitivities are not defined", state, events);
+  if (*released) specs = StartPhase(model, end, gap_tolerance, restart, state, /*complete=*/false);
+  return specs;
+}
+
 bool ReleasePullingContacts(const Model& model, RestartProjection restart, PullingContact pulling, const char* refusal,
                             MechanicalState* state, std::vector<EventRecord>* events) {
   bool released = false;
@@ -83,7 +93,7 @@ bool ReleasePullingContacts(const Model& model, RestartProjection restart, Pulli
       Throw<SolverError>("Simulator::Run", "at t = ", state->t, " s the ", compartment, " contact would pull (N = ",
                          state->contact[worst].normal_force, " N) ", refusal);
     }
-    events->push_back({"liftoff_" + compartment, state->t, state->q(kAlpha)});
+    events->push_back({LiftoffEventName(model.contacts[worst].compartment), state->t, state->q(kAlpha)});
     state->active.erase(std::remove(state->active.begin(), state->active.end(), worst), state->active.end());
     state->contact[worst].normal_force = 0.0;
     CompleteRestartState(model, restart, state);
@@ -190,19 +200,14 @@ void Simulator::Run() {
     const double gap_tolerance =
         RecontactGapTolerance(record_->max_position_residual, state_.q, settings_.rtol, settings_.atol);
     // The chapter's DASSL start hands its first phase to the stepper unprojected.
+    bool released = false;
     std::vector<EventSpec> specs =
-        first_phase && scene_.initial.unprojected
+        !first_phase ? StartRestartedPhase(model, scene_.end, gap_tolerance, settings_.restart, settings_.pulling,
+                                           &state_, &record_->events, &released)
+        : scene_.initial.unprojected
             ? StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_, /*complete=*/false)
             : StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_);
-    // A restart without a switch (a ligament kink, a patellar event) whose consistent force
-    // pulls lifts that contact off at once, as after a switch: its root starts negative and
-    // would never cross zero (generalized-alpha at A = 1e5 N kept a lateral contact at
-    // -1.4 kN for 6 ms). The phase's events then follow the new contact set.
-    if (!first_phase &&
-        ReleasePullingContacts(model, settings_.restart, settings_.pulling,
-                               "at a restart: a lift-off there, whose sensitivities are not defined", &state_,
-                               &record_->events)) {
-      specs = StartPhase(model, scene_.end, gap_tolerance, settings_.restart, &state_, /*complete=*/false);
+    if (released) {
       // The lift-off's row (docs/outputs.md: a row per event): after a kink no row was
       // written; after a patellar event its row, at this time, is the one.
       if (record_->samples.empty() || record_->samples.back().t != state_.t) {

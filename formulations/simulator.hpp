@@ -119,6 +119,16 @@ TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpe
 bool ReleasePullingContacts(const Model& model, RestartProjection restart, PullingContact pulling, const char* refusal,
                             MechanicalState* state, std::vector<EventRecord>* events);
 
+// The start of every phase after the first (a restart after a switch, a ligament kink or a
+// patellar event), as Simulator::Run and the Problem interface do it: StartPhase, then the
+// contacts whose consistent force pulls there lift off at once (ReleasePullingContacts; their
+// roots would start negative and never cross zero: generalized-alpha at A = 1e5 N kept a
+// lateral contact at -1.4 kN for 6 ms), and the phase starts again on the new contact set.
+// *released: whether any lifted off (recorded in *events).
+std::vector<EventSpec> StartRestartedPhase(const Model& model, const EndCondition& end, double gap_tolerance,
+                                           RestartProjection restart, PullingContact pulling, MechanicalState* state,
+                                           std::vector<EventRecord>* events, bool* released);
+
 // RestartProjection at *state: the hidden level (q̈, N, contact coordinates) on the
 // active contacts, after projecting (q, q̇) for kProject.
 void CompleteRestartState(const Model& model, RestartProjection restart, MechanicalState* state);

@@ -68,14 +68,10 @@ Problem::Problem(const Scene& scene, const std::string& form, double rtol, doubl
 
 void Problem::BeginPhase() {
   const double gap_tolerance = RecontactGapTolerance(max_position_residual_, state_.q, rtol_, atol_);
-  specs_ = StartPhase(scene_.model, scene_.end, gap_tolerance, RestartProjection::kProject, &state_);
-  // A restart whose consistent force pulls (after a ligament kink, say) lifts that contact
-  // off at once, and the phase's events follow the new contact set (Simulator::Run).
-  if (phase_ > 0 && ReleasePullingContacts(scene_.model, RestartProjection::kProject, PullingContact::kSeparate, "",
-                                           &state_, &events_)) {
-    specs_ = StartPhase(scene_.model, scene_.end, gap_tolerance, RestartProjection::kProject, &state_,
-                        /*complete=*/false);
-  }
+  bool released = false;  // recorded in events_
+  specs_ = phase_ > 0 ? StartRestartedPhase(scene_.model, scene_.end, gap_tolerance, RestartProjection::kProject,
+                                            PullingContact::kSeparate, &state_, &events_, &released)
+                      : StartPhase(scene_.model, scene_.end, gap_tolerance, RestartProjection::kProject, &state_);
   if (is_dae()) {
     dae_->SetPhase(state_.active, state_.contact, state_.ligament_branch);
     n_ = dae_->size();
