@@ -116,8 +116,8 @@ RunRow EvaluateRunAt(const SweepSpec& spec, long index, const std::vector<double
   for (const EventRecord& e : result.events) {
     // A condyle's lift-off, as `kneedyn sensitivity` counts it: liftoff_patellar_* is the
     // patella leaving a trochlear facet, not the knee's lift-off.
-    const bool condylar = e.name == StrCat("liftoff_", CompartmentName(Compartment::kMedial)) ||
-                          e.name == StrCat("liftoff_", CompartmentName(Compartment::kLateral));
+    const bool condylar =
+        e.name == LiftoffEventName(Compartment::kMedial) || e.name == LiftoffEventName(Compartment::kLateral);
     if (!liftoff && condylar) liftoff = &e;
     if (e.name == Flexion90EventName()) at90 = &e;
   }

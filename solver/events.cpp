@@ -30,7 +30,7 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) {
     const std::string comp = CompartmentName(model.contacts[i].compartment);
     if (state.IsActive(i)) {
-      specs.push_back({EventKind::kLiftoff, i, -1, -1, 0.0, "liftoff_" + comp, nullptr});
+      specs.push_back({EventKind::kLiftoff, i, -1, -1, 0.0, LiftoffEventName(model.contacts[i].compartment), nullptr});
     } else {
       const double gap = RequireContactKinematics(model.contacts[i], pose, "EventsForPhase").gap;
       specs.push_back({EventKind::kRecontact, i, -1, -1,

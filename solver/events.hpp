@@ -142,6 +142,10 @@ void EvaluateEventsTpl(const Model& model, const std::vector<EventSpec>& specs, 
 
 // "flexion_90" for 90°; integer degrees when whole, else one decimal.
 std::string FlexionEventName(double flexion_rad);
+// "liftoff_medial" / "liftoff_lateral": a condyle's lift-off (a patellar facet's is
+// liftoff_patellar_<facet>).
+inline std::string LiftoffEventName(Compartment c) { return std::string("liftoff_") + CompartmentName(c); }
+
 // The end event whose state the "90°" outcomes (time_90_s, F90_*, N90_*) of sweeps, batches and
 // sensitivities read: flexion_90. A scene ending at another flexion has none (they are NaN).
 inline const std::string& Flexion90EventName() {
