@@ -211,17 +211,21 @@ double BaselineCount(const nlohmann::json& run, const char* field, const std::st
   return value.get<double>();
 }
 
-// A relative threshold of the baseline (`where` names its field): a number in (0, 1). A
-// negative one turned every entry into a regression, or every counter into an improvement.
-double BaselineThreshold(const nlohmann::json& parent, const char* field, const std::string& where,
-                         const std::string& baseline_path) {
-  const nlohmann::json value = parent.contains(field) ? parent.at(field) : nlohmann::json();
-  if (!value.is_number() || !(value.get<double>() > 0.0 && value.get<double>() < 1.0)) {
-    Throw<InputError>("compare_counters", "--baseline '", baseline_path, "': ", where, " = ", value.dump(),
-                      " (a relative threshold: a number, 0 < threshold < 1)");
+// A number of the baseline (`where` names its field; `fallback` when absent, null: required)
+// that `valid` accepts, else InputError with `rule`. A negative threshold had turned every
+// entry into a regression, or every counter into an improvement.
+double BaselineNumber(const nlohmann::json& parent, const char* field, const std::string& where,
+                      const std::string& baseline_path, bool (*valid)(double), const char* rule,
+                      const nlohmann::json& fallback = nlohmann::json()) {
+  const nlohmann::json value = parent.contains(field) ? parent.at(field) : fallback;
+  if (!value.is_number() || !valid(value.get<double>())) {
+    Throw<InputError>("compare_counters", "--baseline '", baseline_path, "': ", where, " = ", value.dump(), " (", rule,
+                      ")");
   }
   return value.get<double>();
 }
+bool IsFraction(double v) { return v > 0.0 && v < 1.0; }
+constexpr char kThresholdRule[] = "a relative threshold: a number, 0 < threshold < 1";
 
 int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, const std::string& valgrind_name,
                       const std::string& kneedyn, bool write) {
@@ -235,13 +239,11 @@ int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, co
     Throw<InputError>("compare_counters", "--kneedyn '", kneedyn, "' is not an executable");
   }
   nlohmann::json& ic = base.at("instruction_counts");
-  const double threshold = BaselineThreshold(ic, "threshold", "instruction_counts.threshold", baseline_path);
-  const nlohmann::json share_field = ic.value("outside_target_share", nlohmann::json(0.10));
-  const double target_share = share_field.is_number() ? share_field.get<double>() : -1.0;
-  if (!(target_share > 0.0 && target_share < 1.0)) {
-    Throw<InputError>("compare_counters", "--baseline '", baseline_path, "': instruction_counts.outside_target_share = ",
-                      share_field.dump(), " (a share of the run: a number, 0 < share < 1)");
-  }
+  const double threshold =
+      BaselineNumber(ic, "threshold", "instruction_counts.threshold", baseline_path, IsFraction, kThresholdRule);
+  const double target_share = BaselineNumber(ic, "outside_target_share", "instruction_counts.outside_target_share",
+                                             baseline_path, IsFraction, "a share of the run: a number, 0 < share < 1",
+                                             0.10);
   if (!write) {
     for (const nlohmann::json& r : ic.at("runs")) {
       BaselineCount(r, "instructions", baseline_path);
@@ -328,13 +330,11 @@ int main(int argc, char** argv) {
       in >> base;
     }
     if (instructions) return InstructionCounts(base, baseline_path, valgrind, kneedyn, write);
-    const double threshold = BaselineThreshold(base, "counter_threshold", "counter_threshold", baseline_path);
-    const nlohmann::json scd_drop_field = base.contains("scd_drop") ? base.at("scd_drop") : nlohmann::json();
-    if (!scd_drop_field.is_number() || !(scd_drop_field.get<double>() >= 0.0)) {
-      Throw<InputError>("compare_counters", "--baseline '", baseline_path, "': scd_drop = ", scd_drop_field.dump(),
-                        " (digits the scd may fall: a number >= 0)");
-    }
-    const double scd_drop = scd_drop_field.get<double>();
+    const double threshold =
+        BaselineNumber(base, "counter_threshold", "counter_threshold", baseline_path, IsFraction, kThresholdRule);
+    const double scd_drop = BaselineNumber(
+        base, "scd_drop", "scd_drop", baseline_path, [](double v) { return v >= 0.0; },
+        "digits the scd may fall: a number >= 0");
     bool ok = true;
     std::map<std::string, Scene> scenes;
     std::map<std::string, Reference> refs;
