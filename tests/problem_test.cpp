@@ -33,6 +33,7 @@ namespace kneedyn {
 namespace {
 
 using test_support::ChapterScene;
+using test_support::ChapterSceneWith;
 using test_support::ScenesDir;
 using test_support::SpyStepper;
 
@@ -172,18 +173,6 @@ TEST(Problem, TransitionEqualsSimulator) {
 std::vector<double> Perturbed(const Problem& p);
 
 // The chapter scene with its initial_state and end replaced, and `extra` keys added.
-Scene ChapterVariant(const std::string& initial_state, const std::string& end, const std::string& extra) {
-  std::ifstream file(ScenesDir() + "/chapter_impact.yaml");
-  std::stringstream buffer;
-  buffer << file.rdbuf();
-  std::string text = buffer.str();
-  const size_t from = text.find("initial_state:"), to = text.find("\noutput:");
-  EXPECT_NE(from, std::string::npos);
-  EXPECT_NE(to, std::string::npos);
-  text.replace(from, to - from, "initial_state: " + initial_state + "\nend: " + end + "\n" + extra);
-  return ParseScene(text, "variant.yaml", ScenesDir());
-}
-
 // The scene's reading of the angular-velocity map (docs/model.md §2: "every formulation uses
 // it") holds in every Problem call, as in a run: the chapter's printed Eq. 1.20b, to 0.05 s.
 // The simulator sets it for its run; the Problem's phase starts and transitions equal the
@@ -191,9 +180,9 @@ Scene ChapterVariant(const std::string& initial_state, const std::string& end, c
 // reading's f differs from the exact map's (the test discriminates). Before, Problem ignored
 // the key: it answered with the exact map.
 TEST(Problem, FollowsTheScenesAngularVelocityMapReading) {
-  const Scene printed = ChapterVariant("{pose: reference, guesses: chapter}", "{time_s: 0.05}",
+  const Scene printed = ChapterSceneWith("{pose: reference, guesses: chapter}", "{time_s: 0.05}",
                                        "angular_velocity_map: printed_eq_1_20b\n");
-  const Scene exact = ChapterVariant("{pose: reference, guesses: chapter}", "{time_s: 0.05}", "");
+  const Scene exact = ChapterSceneWith("{pose: reference, guesses: chapter}", "{time_s: 0.05}", "");
   ASSERT_EQ(printed.model.angular_velocity_map, AngularVelocityMapReading::kPrintedEq1_20b);
   for (const std::string form : {"ede", "mde", "dae", "dae-ggl"}) {
     SCOPED_TRACE(form);
@@ -226,7 +215,7 @@ TEST(Problem, FollowsTheScenesAngularVelocityMapReading) {
 // run: the same events recorded, the same first phase (no contact), bitwise. Before, the
 // Problem kept both contacts pulling, whose falling lift-off roots start negative and never fire.
 TEST(Problem, PullingStartLiftsOffAtOnceAsInARun) {
-  const Scene scene = ChapterVariant("{pose: assemble, coordinates: {alpha_deg: 30}}", "{time_s: 0.02}", "");
+  const Scene scene = ChapterSceneWith("{pose: assemble, coordinates: {alpha_deg: 30}}", "{time_s: 0.02}", "");
   for (const std::string form : {"ede", "mde", "dae", "dae-ggl"}) {
     SCOPED_TRACE(form);
     ExpectProblemFollowsSimulator(scene, form);

@@ -25,6 +25,7 @@ namespace kneedyn {
 namespace {
 
 using test_support::ChapterScene;
+using test_support::ChapterSceneWith;
 using test_support::ScenesDir;
 using test_support::SpyStepper;
 
@@ -124,16 +125,7 @@ TEST(Simulator, PullingContact) {
 // row of the run has an active contact that pulls (N ≥ 0, docs/model.md §4). kRefuse stops
 // there, naming the start.
 TEST(Simulator, PullingStartLiftsOffAtOnce) {
-  std::ifstream file(ScenesDir() + "/chapter_impact.yaml");
-  std::stringstream buffer;
-  buffer << file.rdbuf();
-  std::string text = buffer.str();
-  const size_t from = text.find("initial_state:"), to = text.find("end:");
-  ASSERT_NE(from, std::string::npos);
-  ASSERT_NE(to, std::string::npos);
-  text.replace(from, to - from, "initial_state:\n  pose: assemble\n  coordinates: {alpha_deg: 30}\n");
-  text.replace(text.find("time_s: 2.0"), 11, "time_s: 0.02");
-  const Scene scene = ParseScene(text, "assembled.yaml", ScenesDir());
+  const Scene scene = ChapterSceneWith("{pose: assemble, coordinates: {alpha_deg: 30}}", "{time_s: 0.02}");
   for (const char* formulation : {"dae", "ede"}) {
     SpyStepper spy(formulation, scene);
     RunResult record;

@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <cctype>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -29,6 +31,23 @@ inline std::string ScenesDir() { return ReferenceDataDir() + "/scenes"; }
 inline const Scene& ChapterScene() {
   static const Scene scene = LoadScene(ScenesDir() + "/chapter_impact.yaml");
   return scene;
+}
+
+// chapter_impact.yaml with its initial_state and end replaced (YAML flow text, e.g.
+// "{pose: assemble, coordinates: {alpha_deg: 30}}" and "{time_s: 0.02}") and `extra` top-level
+// lines added before its output block.
+inline Scene ChapterSceneWith(const std::string& initial_state, const std::string& end,
+                              const std::string& extra = "") {
+  std::ifstream file(ScenesDir() + "/chapter_impact.yaml");
+  std::stringstream buffer;
+  buffer << file.rdbuf();
+  std::string text = buffer.str();
+  const size_t from = text.find("initial_state:"), to = text.find("\noutput:");
+  EXPECT_NE(from, std::string::npos);
+  EXPECT_NE(to, std::string::npos);
+  if (from == std::string::npos || to == std::string::npos) return ChapterScene();
+  text.replace(from, to - from, "initial_state: " + initial_state + "\nend: " + end + "\n" + extra);
+  return ParseScene(text, "chapter_variant.yaml", ScenesDir());
 }
 
 // Run settings for `formulation` at the tolerances rtol, atol (defaults otherwise).
