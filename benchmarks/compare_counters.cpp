@@ -15,7 +15,9 @@
 //     process, alternately, min of `repeats` thread CPU times each) exceeds the baseline ratio by more than the
 //     factor ratio_tolerance. Absolute times are never compared (machines differ).
 // Counters that fall are reported (update the baseline with --write) but do not fail.
-// --write reruns everything and rewrites the baseline file (keeping its thresholds).
+// --write reruns everything and rewrites the baseline file (keeping its thresholds), with a
+// `provenance` {command, commit, date} of the recording (for --instructions, inside
+// instruction_counts, with the measured kneedyn's `--version`).
 //
 //   compare_counters --instructions --kneedyn PATH [--valgrind PATH] [--write]
 //
@@ -39,7 +41,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -49,6 +53,7 @@
 
 #include "benchmarks/bench_run.hpp"
 #include "formulations/output_file.hpp"
+#include "formulations/version.hpp"
 #include "solver/error.hpp"
 
 using namespace kneedyn;
@@ -224,11 +229,38 @@ double BaselineNumber(const nlohmann::json& parent, const char* field, const std
   }
   return value.get<double>();
 }
+// What recorded a baseline section (its --write): the command line, the commit this program
+// was built from (formulations/version.hpp, "-dirty" for uncommitted changes) and the UTC date.
+nlohmann::json Provenance(int argc, char** argv) {
+  std::string command = "compare_counters";
+  for (int i = 1; i < argc; ++i) command += std::string(" ") + argv[i];
+  char date[32];
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  std::strftime(date, sizeof date, "%Y-%m-%dT%H:%M:%SZ", &utc);
+  const std::string commit = KneedynGitCommit();
+  return {{"command", command}, {"commit", commit.empty() ? "unknown (not built from git)" : commit}, {"date", date}};
+}
+
+// The first line of `kneedyn --version` (its version and commit), or why it is not known.
+std::string VersionLineOf(const std::string& kneedyn) {
+  const std::string cmd = "'" + kneedyn + "' --version 2>/dev/null";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (pipe == nullptr) return "unknown (could not run --version)";
+  char line[256] = {0};
+  const bool read = std::fgets(line, sizeof line, pipe) != nullptr;
+  pclose(pipe);
+  std::string text = read ? line : "unknown (no --version output)";
+  while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
+  return text;
+}
+
 bool IsFraction(double v) { return v > 0.0 && v < 1.0; }
 constexpr char kThresholdRule[] = "a relative threshold: a number, 0 < threshold < 1";
 
 int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, const std::string& valgrind_name,
-                      const std::string& kneedyn, bool write) {
+                      const std::string& kneedyn, bool write, const nlohmann::json& provenance) {
   const std::string valgrind = FindOnPath(valgrind_name);
   if (valgrind.empty()) {
     std::printf("SKIPPED: valgrind ('%s') not found on PATH; instruction counts need it "
@@ -300,6 +332,8 @@ int InstructionCounts(nlohmann::json& base, const std::string& baseline_path, co
       std::printf("not written: a run failed\n");
       return 1;
     }
+    ic["provenance"] = provenance;
+    ic["provenance"]["kneedyn"] = VersionLineOf(kneedyn);
     WriteOutputFile("compare_counters", "--baseline", baseline_path, base.dump(1) + "\n");
     std::printf("wrote instruction_counts of %s\n", baseline_path.c_str());
     return 0;
@@ -329,7 +363,7 @@ int main(int argc, char** argv) {
       if (!in) Throw<InputError>("compare_counters", "--baseline '", baseline_path, "' cannot be read");
       in >> base;
     }
-    if (instructions) return InstructionCounts(base, baseline_path, valgrind, kneedyn, write);
+    if (instructions) return InstructionCounts(base, baseline_path, valgrind, kneedyn, write, Provenance(argc, argv));
     const double threshold =
         BaselineNumber(base, "counter_threshold", "counter_threshold", baseline_path, IsFraction, kThresholdRule);
     const double scd_drop = BaselineNumber(
@@ -389,6 +423,7 @@ int main(int argc, char** argv) {
     if (write) {
       ratio["value"] = value;
       std::printf("\n");
+      base["provenance"] = Provenance(argc, argv);
       WriteOutputFile("compare_counters", "--baseline", baseline_path, base.dump(1) + "\n");
       std::printf("wrote %s\n", baseline_path.c_str());
       return 0;

@@ -47,7 +47,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "reports"))
 sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 from bench_data import load_bench, method_of, split_runs  # noqa: E402
-from record_sweep import git_commit  # noqa: E402  the recorded files' commit rule (+dirty), one copy
+from record_sweep import provenance as recorded_provenance  # noqa: E402  the recorded files' rule, one copy
 import tool_input  # noqa: E402
 from tool_input import BadInput  # noqa: E402
 
@@ -191,11 +191,10 @@ def main(argv=None):
   if a.json:
     with open(a.json, "w") as f:
       # Provenance as the recorded sweeps carry it (record_sweep.py): what made the file, from
-      # which commit (+dirty), when, and which kneedyn ran.
+      # which commit (-dirty), when, and which kneedyn ran.
       version = subprocess.run([os.path.abspath(a.kneedyn), "--version"], capture_output=True, text=True).stdout
-      provenance = {"command": " ".join([os.path.relpath(__file__, ROOT)] + list(sys.argv[1:] if argv is None else argv)),
-                    "commit": git_commit(), "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-                    "kneedyn": version.splitlines()[0] if version else "unknown"}
+      provenance = dict(recorded_provenance(__file__, sys.argv[1:] if argv is None else argv),
+                        kneedyn=version.splitlines()[0] if version else "unknown")
       json.dump({"scd": a.scd, "cost": a.cost, "sweep": os.path.relpath(a.sweep, ROOT), "methods": result,
                  "provenance": provenance}, f, indent=1)
   return 0

@@ -6,7 +6,7 @@ report's work-precision section (the main job reads the recorded file instead of
   record_sweep.py --from SWEEP.json --command "the command that wrote it" [--commit SHA] --out FILE
 
 Writes FILE = the sweep's JSON unchanged plus a top-level "provenance": {command, commit
-(git HEAD, "+dirty" when the tree had changes), date (UTC), recorded_by}. Works with either
+(git HEAD, "-dirty" when the tree had changes), date (UTC), recorded_by}. Works with either
 benchmark JSON layout (work_precision's {header, results} or Google Benchmark's
 {context, benchmarks}). Regenerate with `cmake --build build --target bench_record`.
 Exit 2 on bad input (nothing written).
@@ -32,9 +32,17 @@ def git_commit():
                           check=True).stdout.strip()
     dirty = subprocess.run(["git", "-C", ROOT, "status", "--porcelain", "--untracked-files=no"],
                            capture_output=True, text=True, check=True).stdout.strip()
-    return head + ("+dirty" if dirty else "")
+    return head + ("-dirty" if dirty else "")
   except (OSError, subprocess.CalledProcessError):
     return "unknown (not a git checkout)"
+
+
+def provenance(script, argv):
+  """What made a recorded file: the command (the script relative to the repository, then its
+  arguments), the commit (git_commit) and the UTC date, as the recorded sweeps carry them."""
+  return {"command": " ".join([os.path.relpath(os.path.abspath(script), ROOT)] + list(argv)),
+          "commit": git_commit(),
+          "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")}
 
 
 def relative_paths(x):

@@ -44,6 +44,9 @@ from scipy.integrate import solve_ivp
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
+sys.dont_write_bytecode = True  # keep the source tree clean
+sys.path.insert(0, HERE)
+from record_sweep import provenance as recorded_provenance  # noqa: E402  the recorded files' rule, one copy
 MM = 1e-3
 EPS1 = 0.03
 
@@ -240,10 +243,12 @@ def components(kn):
     return list(kn.build_manifest()) + [scipy_component()]
 
 
-def side_by_side_json(kn, rows, t_ref, repeats):
+def side_by_side_json(kn, rows, t_ref, repeats, provenance=None):
     """The --json document: the fairness manifest in context.components (as work_precision's
-    and simbody_work_precision's files have it) and one result per timed run."""
-    return {"context": {"components": components(kn), "scene": "chapter_impact",
+    and simbody_work_precision's files have it), one result per timed run, and the
+    provenance {command, commit, date} the recorded files carry (record_sweep.provenance)."""
+    return {"provenance": provenance or {},
+            "context": {"components": components(kn), "scene": "chapter_impact",
                         "reference_liftoff_lateral_s": t_ref, "repeats": repeats},
             "results": [{"run": who, "tolerance": tol, "liftoff_lateral_s": t, "digits": d, "cpu_time_s": sec}
                         for who, tol, t, d, sec in rows]}
@@ -336,7 +341,8 @@ def main():
             print("  %d digits: not reached by %s" % (need, " and ".join(x for x in ("scipy", "kneedyn") if x not in best)))
     if a.json:
         with open(a.json, "w") as f:
-            json.dump(side_by_side_json(kn, rows, t_ref, repeats), f, indent=1)
+            json.dump(side_by_side_json(kn, rows, t_ref, repeats, recorded_provenance(__file__, sys.argv[1:])), f,
+                      indent=1)
         print("wrote %s" % a.json)
     print("\ncomponents:")
     for c in components(kn):

@@ -41,7 +41,7 @@ ROOT = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 sys.path.insert(0, HERE)
 import tool_input  # noqa: E402
-from record_sweep import git_commit  # noqa: E402  the recorded files' commit rule (+dirty), one copy
+from record_sweep import git_commit  # noqa: E402  the recorded files' commit rule (-dirty), one copy
 EXPLANATIONS = ("reading", "beyond_precision", "contradicted", "unexplained")
 REPRODUCED = "reproduced"
 LIFTOFF_CHAPTER_DEG = 66.0  # claims.yaml liftoff_chapter_deg

@@ -62,7 +62,7 @@ import claims  # noqa: E402
 import reconstruction  # noqa: E402
 import run_families  # noqa: E402
 import tool_input  # noqa: E402
-from record_sweep import git_commit  # noqa: E402  the recorded files' commit rule (+dirty), one copy
+from record_sweep import git_commit  # noqa: E402  the recorded files' commit rule (-dirty), one copy
 
 SPEC = os.path.join(ROOT, "inverse", "inverse_problem.yaml")
 SENSITIVITY_IDS = {"S1", "S2"}

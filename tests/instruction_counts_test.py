@@ -92,6 +92,15 @@ expect(code == 0 and "improved" in out, "count far below baseline: exit 0, repor
 code, out, written = run([dict(ede, instructions=1)], ["--write"])
 n = written["instruction_counts"]["runs"][0]["instructions"]
 expect(code == 0 and 1_000_000 < n < 10**12, "--write records the measured count (got %s)" % n, out)
+# ... and what recorded it: the command, the commit compare_counters was built from, the UTC
+# date, and the measured kneedyn's --version line (which names its own commit).
+prov = written["instruction_counts"].get("provenance", {})
+version = subprocess.run([a.kneedyn, "--version"], capture_output=True, text=True).stdout.splitlines()
+expect(prov.get("command", "").startswith("compare_counters --instructions") and "--write" in prov.get("command", "")
+       and re.fullmatch(r"[0-9a-f]{7,40}(-dirty)?|unknown \(not built from git\)", prov.get("commit", ""))
+       and re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ", prov.get("date", ""))
+       and version and prov.get("kneedyn") == version[0],
+       "--write records its provenance (got %r)" % (prov,), out)
 
 # The same run twice in one baseline counts the same, to path lengths and dates (a few
 # hundred): the second may not pay for replacing the first one's output files (~30 k).

@@ -9,6 +9,7 @@ compile flags name every compiler SciPy's own build config records.
 With --module-required (ctest) the real module's manifest is checked too: kneedyn, SUNDIALS,
 Ceres, Eigen first, SciPy appended last."""
 import json
+import re
 import os
 import subprocess
 import sys
@@ -56,6 +57,12 @@ check([c["name"] for c in comps] == ["kneedyn", "SUNDIALS", "SciPy"], "component
 check(comps[:2] == FakeModule.build_manifest(), "kneedyn's entries changed")
 check(comps[-1] == entry, "SciPy entry %r" % comps[-1])
 check(len(doc["results"]) == 2 and doc["results"][0]["run"] == "scipy DOP853", "results %r" % doc["results"])
+# The file says what made it, as the recorded sweeps do: the command, commit and date.
+prov = sbs.recorded_provenance(sbs.__file__, ["--quick", "--json", "X.json"])
+doc = sbs.side_by_side_json(FakeModule, rows, 0.216294134086, 1, prov)
+check(doc["provenance"]["command"] == "benchmarks/scipy_side_by_side.py --quick --json X.json"
+      and doc["provenance"]["commit"] and re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ", doc["provenance"]["date"]),
+      "provenance %r" % doc["provenance"])
 
 if "--module-required" in sys.argv:
     import kneedyn as kn
