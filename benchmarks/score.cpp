@@ -303,6 +303,10 @@ ScoredResult ReadResultCsv(const std::string& path, const Scene& scene, const So
     }
   }
   if (out.rows == 0) Throw<InputError>("kneedyn score", EchoPath(path), ": no data rows");
+  if (reference.end_is_event) {  // rows past the reference's end (the result's end row aside)
+    const size_t n = s.times.size() - 1;
+    for (size_t i = 0; i < n; ++i) out.rows_after_reference_end += s.times[i] > reference.times.back() + kTimeMatch;
+  }
 
   // The last row is the end-event state when it is an event row, or, without is_event, when
   // the reference ended on an event and the row lies past its last sampling time.
@@ -404,7 +408,9 @@ Score ScoreResult(const ScoredResult& result, const Solution& reference) {
   score.metrics = Compare(result.solution, reference);
   score.metrics.max_position_residual = result.max_gap_m;
   score.metrics.max_velocity_residual = result.max_gap_rate_m_s;
-  if (result.given_columns.at("positions") == 0) score.metrics.scd = score.metrics.scd_compared = kNaN;
+  if (result.given_columns.at("positions") < static_cast<int>(reference.names.at("positions").size())) {
+    score.metrics.scd = score.metrics.scd_compared = kNaN;
+  }
   for (const std::string& c : VariableClasses()) {
     score.mescd[c] = result.given_columns.at(c) > 0 ? -std::log10(score.metrics.mixed.at(c)) : kNaN;
   }
@@ -414,6 +420,33 @@ Score ScoreResult(const ScoredResult& result, const Solution& reference) {
     score.event_digits[e.name] = -std::log10(it->second / std::abs(e.time));
   }
   return score;
+}
+
+std::string ReferenceEndEventName(const Solution& reference) {
+  if (!reference.end_is_event || reference.times.empty()) return "";
+  for (const EventRecord& e : reference.events) {
+    if (std::abs(e.time - reference.times.back()) <= kTimeMatch) return e.name;
+  }
+  return "";
+}
+
+void ReconcileEndEvent(const Solution& reference, const std::string& events_source, ScoredResult* result) {
+  Solution& r = result->solution;
+  const std::string name = ReferenceEndEventName(reference);
+  if (name.empty() || !r.end_is_event || r.times.empty()) return;
+  const double t_end = r.times.back();
+  for (const EventRecord& e : r.events) {
+    if (e.name != name) continue;
+    if (std::abs(e.time - t_end) > kTimeMatch) {
+      Throw<InputError>("kneedyn score", events_source, ": event ", name, " at time ", e.time,
+                        " s, but the result's end row (the state at its end event) is at ", t_end,
+                        " s; they must agree within 1e-9 s");
+    }
+    return;  // its first occurrence is the one scored (Compare)
+  }
+  const std::vector<double>& end_positions = r.values.at("positions").back();
+  const double flexion_deg = end_positions.size() > 3 ? end_positions[3] : kNaN;  // α, deg (docs/outputs.md)
+  r.events.push_back({name, t_end, DegToRad(flexion_deg)});
 }
 
 std::vector<double> OffGridTimes(const ScoredResult& result, const Solution& reference) {
@@ -632,6 +665,7 @@ nlohmann::json ScoreRecord(const ScoredResult& result, const Score& score, const
   }
   r["columns_given"] = result.given_columns;
   r["rows"] = result.rows;
+  r["rows_after_reference_end"] = result.rows_after_reference_end;
   return r;
 }
 

@@ -66,6 +66,10 @@ struct ScoredResult {
   // the printing's precision, which caps the digits a score can measure (%.12g writes 0.5 as
   // "0.5", so the most, not the fewest, is the precision).
   int printed_significant_digits = 0;
+  // Rows after the reference's end event (its time + 1e-9 s) other than the result's own end
+  // row: no reference state exists there to compare (a result that reaches the end later
+  // than the reference has some; they are counted and reported, never scored).
+  size_t rows_after_reference_end = 0;
 };
 
 // Reads `path` for `reference`'s component names. Throws InputError naming the file, the
@@ -90,7 +94,18 @@ struct Score {
   std::map<std::string, double> event_digits;  // −log10(|t − t_ref| / t_ref)
 };
 
+// scd is over the six generalized coordinates: NaN (no figure) unless the result gives all
+// of them (a result of one coordinate would otherwise score that coordinate's digits).
 Score ScoreResult(const ScoredResult& result, const Solution& reference);
+
+// The reference's end event (its name, e.g. flexion_90) is the result's end row: its time is
+// scored as that event's. When `result` already has that event (from --events), the end row
+// must be at its time (within 1e-9 s), else InputError naming both times and `events_source`;
+// otherwise the end row's time and flexion are added as the event. Nothing when either does
+// not end on an event.
+void ReconcileEndEvent(const Solution& reference, const std::string& events_source, ScoredResult* result);
+// The reference's end-event name ("" when it does not end on an event).
+std::string ReferenceEndEventName(const Solution& reference);
 
 // "" when time t (s) lies in the scene's span, from the reference's start to the scene's
 // end.time_s (within 1e-9 s), else the refusal's text: a result row or event outside it is

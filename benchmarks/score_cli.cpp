@@ -182,6 +182,9 @@ int ScoreCommand::Run(int argc, char** argv) {
       }
       info.counters[c.substr(0, eq)] = v;  // over the --counters file's value of that name
     }
+    ReconcileEndEvent(reference, events_path_.empty() ? std::string("the result")
+                                                       : "--events = '" + EchoPath(events_path_) + "'",
+                      &result);
     info.cpu_time_s = cpu_time_;
     info.failure = run_failure;
     // Rows off the reference's sampling times: against the reference run again there.
@@ -230,7 +233,18 @@ int ScoreCommand::Run(int argc, char** argv) {
                   "samples to %s digits)", off_grid.size(), Digits(reproduced_scd).c_str());
     }
     std::printf("%s\n", run_failure.empty() ? "" : (" [failed: " + run_failure + "]").c_str());
-    std::printf("  scd %s (positions; over the compared times %s)\n", Digits(m.scd).c_str(), Digits(m.scd_compared).c_str());
+    const int n_positions = static_cast<int>(reference.names.at("positions").size());
+    if (result.given_columns.at("positions") < n_positions) {
+      std::printf("  scd - (it needs all %d generalized coordinates; the result gives %d)\n", n_positions,
+                  result.given_columns.at("positions"));
+    } else {
+      std::printf("  scd %s (positions; over the compared times %s)%s\n", Digits(m.scd).c_str(),
+                  Digits(m.scd_compared).c_str(),
+                  m.scd_above_ceiling ? StrCat(" -- above the ceiling ", Digits(m.scd_ceiling),
+                                               ": the reference or the result's printing cannot measure it")
+                                            .c_str()
+                                      : "");
+    }
     std::printf("  %-16s %8s %8s\n", "class", "columns", "mescd");
     for (const std::string& c : VariableClasses()) {
       std::printf("  %-16s %8d %8s\n", c.c_str(), result.given_columns.at(c), Digits(score.mescd.at(c)).c_str());
@@ -241,8 +255,12 @@ int ScoreCommand::Run(int argc, char** argv) {
         continue;
       }
       const std::string digits = Digits(score.event_digits.at(name));
-      std::printf("  event %-20s |dt| = %.3g s (%s%s)\n", name.c_str(), err, digits.c_str(),
-                  digits == "exact" ? "" : " digits");
+      const double angle_deg = m.event_angle.at(name);
+      char angle[32];
+      std::snprintf(angle, sizeof angle, "%.3g deg", angle_deg);
+      std::printf("  event %-20s |dt| = %.3g s (%s%s), |d flexion| = %s\n", name.c_str(), err, digits.c_str(),
+                  digits == "exact" ? "" : " digits",
+                  std::isnan(angle_deg) ? "- (no flexion given)" : angle);
     }
     if (!unmatched_events.empty()) {
       std::string names;
@@ -250,6 +268,10 @@ int ScoreCommand::Run(int argc, char** argv) {
       for (const std::string& name : unmatched_events) {
         std::printf("  event %-20s not scored: the reference's events are %s\n", Echo(name).c_str(), names.c_str());
       }
+    }
+    if (result.rows_after_reference_end > 0) {
+      std::printf("  %zu rows after the reference's end (%s at %.10g s) not compared: no reference state there\n",
+                  result.rows_after_reference_end, ReferenceEndEventName(reference).c_str(), reference.times.back());
     }
     std::printf("  drift: max |gap| %s mm, max |gap rate| %s mm/s\n", Millis(m.max_position_residual).c_str(),
                 Millis(m.max_velocity_residual).c_str());

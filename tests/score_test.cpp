@@ -508,5 +508,63 @@ TEST(Score, NonFiniteCellsAndEmptyCoordinatesAreRefusedAndNothingComparedHasNoDi
   fs::remove_all(dir);
 }
 
+// The scd is over the six generalized coordinates (docs/problem.md): the reference's own rows
+// with one coordinate column have no scd, though that column is exact (before: scd 11.28 for
+// x0 alone, above the 10.08 of the complete result it came from). The end row is the state
+// at the reference's end event (flexion_90): its time is scored as that event's, so an end row
+// 1 ms late gives the event −log10(1e-3 / t_end) digits (before: never compared), rows past the
+// reference's end are counted, and an events file that puts the end event elsewhere than the
+// end row is refused.
+TEST(Score, ScdNeedsEveryCoordinateAndTheEndRowsTimeIsTheEndEvents) {
+  const fs::path dir = fs::temp_directory_path() / ("kneedyn_score_end_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const bench::Solution& ref = Reference().solution;
+  ASSERT_TRUE(ref.end_is_event);
+  ASSERT_EQ(bench::ReferenceEndEventName(ref), "flexion_90");
+  const size_t n = ref.times.size();
+  const double t_end = ref.times.back();
+  // The reference's own rows (17 digits: exact), the last one as the end row at `end_time`,
+  // with `extra_rows` copies of the end state at times between the reference's end and it.
+  const auto write = [&](const std::string& name, bool only_x0, double end_time, int extra_rows) {
+    std::ofstream out(dir / name);
+    out.precision(17);
+    out << (only_x0 ? "time_s,x0_mm,is_event\n" : "time_s,x0_mm,y0_mm,z0_mm,flexion_deg,valgus_deg,external_rotation_deg,is_event\n");
+    const auto row = [&](double t, size_t i, int event) {
+      out << t;
+      const std::vector<double>& p = ref.values.at("positions")[i];
+      for (size_t j = 0; j < (only_x0 ? 1 : p.size()); ++j) out << "," << p[j];
+      out << "," << event << "\n";
+    };
+    for (size_t i = 0; i + 1 < n; ++i) row(ref.times[i], i, 0);
+    for (int k = 1; k <= extra_rows; ++k) row(t_end + k * (end_time - t_end) / (extra_rows + 1), n - 1, 0);
+    row(end_time, n - 1, 1);
+    return (dir / name).string();
+  };
+  const bench::Score whole = bench::ScoreResult(
+      bench::ReadResultCsv(write("whole.csv", false, t_end, 0), ChapterScene(), ref), ref);
+  EXPECT_TRUE(std::isinf(whole.metrics.scd)) << whole.metrics.scd;  // the reference's own rows
+  const bench::Score x0 = bench::ScoreResult(
+      bench::ReadResultCsv(write("x0.csv", true, t_end, 0), ChapterScene(), ref), ref);
+  EXPECT_TRUE(std::isnan(x0.metrics.scd)) << x0.metrics.scd;
+  EXPECT_TRUE(std::isnan(x0.metrics.scd_compared)) << x0.metrics.scd_compared;
+  EXPECT_TRUE(std::isinf(x0.mescd.at("positions")));  // the column given is still compared
+
+  bench::ScoredResult late = bench::ReadResultCsv(write("late.csv", false, t_end + 1e-3, 2), ChapterScene(), ref);
+  EXPECT_EQ(late.rows_after_reference_end, 2u);
+  bench::ReconcileEndEvent(ref, "the result", &late);
+  const bench::Score scored = bench::ScoreResult(late, ref);
+  EXPECT_NEAR(scored.event_digits.at("flexion_90"), -std::log10(1e-3 / t_end), 1e-6);
+
+  bench::ScoredResult contradicted = bench::ReadResultCsv(write("late2.csv", false, t_end + 1e-3, 0), ChapterScene(), ref);
+  contradicted.solution.events.push_back({"flexion_90", t_end, DegToRad(90.0)});
+  try {
+    bench::ReconcileEndEvent(ref, "--events = 'e.csv'", &contradicted);
+    FAIL() << "an end event away from the end row was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--events = 'e.csv': event flexion_90"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace kneedyn
