@@ -45,6 +45,11 @@ struct RunResult {
   double wall_time_s = 0.0;
   double max_position_residual = 0.0;  // max |φ_i| over active contacts and samples, m
   double max_velocity_residual = 0.0;  // max |φ̇_i|, m/s
+  // The re-contact hysteresis over the run's phases (simulator.hpp, m): its largest value,
+  // and the largest part of it the tolerances alone give, 10 (rtol |x0| + atol). The first
+  // exceeds the second when the observed drift set it.
+  double max_recontact_gap_tolerance = 0.0;
+  double max_recontact_gap_tolerance_of_tolerances = 0.0;
   long ligament_kink_crossings = 0;    // restarts at the published law's jump
 };
 

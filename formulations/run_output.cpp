@@ -396,6 +396,35 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
       out.push_back(std::move(p));
     }
   }
+  // A separated condyle re-contacts when its gap falls below the hysteresis (docs/model.md §9),
+  // 10 × max(drift, tolerances). A drift-set hysteresis can let it sink into its plateau,
+  // silently, by more than the tolerances allow (ede euler at its default step: 0.34 mm with a
+  // 0.49 mm hysteresis from a 0.049 mm drift): the penetration is the drift's, not the knee's.
+  if (result.max_recontact_gap_tolerance > result.max_recontact_gap_tolerance_of_tolerances) {
+    for (size_t c = 0; c < cols.size(); ++c) {
+      const std::string& name = cols[c];
+      if (name.compare(0, 4, "gap_") != 0 || name.compare(0, 9, "gap_rate_") == 0) continue;
+      const std::string part = name.substr(4, name.size() - 7);
+      const size_t point = column(("tibial_" + part + "_x_mm").c_str());
+      if (point == cols.size()) continue;
+      double deepest_mm = 0.0, at_s = 0.0;
+      for (const std::vector<double>& row : table.rows) {  // separated rows: no contact point
+        if (std::isnan(row[point]) && row[c] < deepest_mm) deepest_mm = row[c], at_s = row[time_col];
+      }
+      const double allowed_mm = MToMm(result.max_recontact_gap_tolerance_of_tolerances);
+      if (!(-deepest_mm > allowed_mm)) continue;
+      OutputWarning p;
+      p.kind = "separated_contact_penetrates";
+      p.contact = StrCat("tibial contact ", part);
+      p.column = name;
+      p.time_s = at_s;
+      p.message = StrCat("the ", p.contact, ", separated, penetrates its plateau by ", -deepest_mm, " mm at t = ", at_s,
+                         " s without re-contacting: the re-contact hysteresis (docs/model.md §9) grew to ",
+                         MToMm(result.max_recontact_gap_tolerance), " mm with the run's constraint drift, past the ",
+                         allowed_mm, " mm its tolerances give; a smaller --step or tighter tolerances shrink the drift");
+      out.push_back(std::move(p));
+    }
+  }
   // A fixed-step method cannot resolve a contact phase of a few steps: in the index-3 forms
   // (newmark undamped, generalized-alpha at rho_inf near 1) the normal force oscillates
   // through zero, so such a lift-off and re-contact is taken for a numerical artifact until a
@@ -737,6 +766,10 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
       w["duration_s"] = p.duration_s;
     }
     if (p.kind == "patella_contact_off") w["contact"] = p.contact;
+    if (p.kind == "separated_contact_penetrates") {
+      w["contact"] = p.contact;
+      w["column"] = p.column;
+    }
     w["time_s"] = p.time_s;
     w["message"] = p.message;
     listed.push_back(std::move(w));

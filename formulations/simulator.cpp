@@ -199,6 +199,9 @@ void Simulator::Run() {
   while (!done) {
     const double gap_tolerance =
         RecontactGapTolerance(record_->max_position_residual, state_.q, settings_.rtol, settings_.atol);
+    record_->max_recontact_gap_tolerance = std::max(record_->max_recontact_gap_tolerance, gap_tolerance);
+    record_->max_recontact_gap_tolerance_of_tolerances = std::max(
+        record_->max_recontact_gap_tolerance_of_tolerances, RecontactGapTolerance(0.0, state_.q, settings_.rtol, settings_.atol));
     // The chapter's DASSL start hands its first phase to the stepper unprojected.
     bool released = false;
     std::vector<EventSpec> specs =

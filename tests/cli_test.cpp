@@ -586,6 +586,50 @@ TEST_F(CliTest, AnOutputIntervalLongerThanTheRunIsWarned) {
   EXPECT_EQ(std::find(dense.begin(), dense.end(), "sparse_output"), dense.end());
 }
 
+// A separated condyle re-contacts when its gap falls below the hysteresis, 10 × max(drift,
+// rtol |x0| + atol) (docs/model.md §9). ede euler at its default step drifts 0.049 mm, so the
+// hysteresis reaches ~0.5 mm and the separated lateral condyle sinks 0.34 mm into its plateau
+// (the gap column, read here from the rows without a contact point) with no re-contact: the
+// run warns, naming the row of deepest penetration. dae's separated rows stay within the
+// tolerances' hysteresis (rtol 1e-6, atol 1e-8 at |x0| ≈ 0.215 m: 2.2e-3 mm), and it does
+// not warn. Before, neither said anything.
+TEST_F(CliTest, ASeparatedCondyleSinkingIntoItsPlateauIsWarned) {
+  const auto deepest = [this](const std::string& args, nlohmann::json* warnings) {
+    fs::remove_all(Out());
+    const CommandResult r = RunKneedyn("run '" + ChapterScenePath() + "' " + args + " --quiet --out '" + Out() + "'");
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    *warnings = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json")).at("warnings");
+    std::ifstream in(fs::path(Out()) / "trajectory.csv");
+    std::string line, cell;
+    std::getline(in, line);
+    std::vector<std::string> cols;
+    for (std::istringstream h(line); std::getline(h, cell, ',');) cols.push_back(cell);
+    const auto at = [&](const char* n) { return std::find(cols.begin(), cols.end(), n) - cols.begin(); };
+    const auto t_col = at("time_s"), gap_col = at("gap_lateral_mm"), point_col = at("tibial_lateral_x_mm");
+    std::pair<double, double> min_gap{0.0, -1.0};  // mm, s
+    while (std::getline(in, line)) {
+      std::vector<std::string> row;
+      for (std::istringstream r(line); std::getline(r, cell, ',');) row.push_back(cell);
+      row.resize(cols.size());
+      if (!row[point_col].empty()) continue;  // in contact
+      const double gap = std::stod(row[gap_col]);
+      if (gap < min_gap.first) min_gap = {gap, std::stod(row[t_col])};
+    }
+    return min_gap;
+  };
+  nlohmann::json warnings;
+  const auto [euler_gap_mm, euler_t] = deepest("--formulation ede --integrator euler --output-interval 0.001", &warnings);
+  EXPECT_LT(euler_gap_mm, -0.1);
+  const auto it = std::find_if(warnings.begin(), warnings.end(),
+                               [](const nlohmann::json& w) { return w.at("kind") == "separated_contact_penetrates"; });
+  ASSERT_NE(it, warnings.end()) << warnings.dump();
+  EXPECT_EQ((*it).at("column"), "gap_lateral_mm");
+  EXPECT_EQ((*it).at("time_s").get<double>(), euler_t);
+  const auto [dae_gap_mm, dae_t] = deepest("--formulation dae --output-interval 0.001", &warnings);
+  EXPECT_GT(dae_gap_mm, -2.2e-3) << "at t = " << dae_t;
+  for (const auto& w : warnings) EXPECT_NE(w.at("kind"), "separated_contact_penetrates") << w.dump();
+}
+
 // On a terminal (a pseudo-terminal from script(1)) `kneedyn batch` and `kneedyn sensitivity`
 // show `\r` progress on stderr, as run and sweep do, and --quiet silences it; through a pipe
 // nothing (before: neither had progress, and sensitivity had no --quiet).
