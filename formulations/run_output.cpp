@@ -151,9 +151,10 @@ constexpr size_t kPatellaColumns = 11;  // patella_shift_mm … tendon_quadricep
 // Appends the patella's columns of a row (docs/model.md §12) to *row: its equilibrium at the
 // sample's tibial coordinates, followed from the last row's (*from_q, *guess): from its
 // solution, or, when the tibia turned by more than 1° since, in steps of at most 1°
-// (SolvePatellaAlongTibialPath, as the events follow it). A failed run can stop at a fold of
-// the equilibrium, where the straight path from the row before leaves it although the run's
-// own small steps held on (a row past hard/patella_quadriceps_2000N's fold,
+// (SolvePatellaAlongTibialPath, as the events follow it). A failed run can stop where the
+// equilibrium leaves the trochlear chart, where the straight path from the row before cannot
+// follow it although the run's own small steps held on (a row past
+// hard/patella_quadriceps_2000N's chart edge,
 // tests/patella_test.cpp): that row's patella columns are empty (NaN) and *not_followed
 // records its time and the reason; the next row starts from the last equilibrium reached. A
 // completed run's row is treated alike (its own steps held on where the path from the row

@@ -27,6 +27,25 @@ std::string TrochlearChartCoordinates(const std::array<double, kPatellaUnknowns>
                 RadToDeg(kUnitSphereChartMaxLongitude), " deg");
 }
 
+// The trochlear chart coordinate nearest its edge, as "medial"/"lateral" and its distance to
+// the edge (rad), for the diagnosis of a failed continuation.
+std::pair<const char*, double> TrochlearChartMargin(const std::array<double, kPatellaUnknowns>& x) {
+  std::pair<const char*, double> nearest{"", std::numeric_limits<double>::infinity()};
+  for (int sphere = 0; sphere < 2; ++sphere) {
+    const int u = kPatellaChart + 4 * sphere;
+    const double margin = std::min(kUnitSphereChartMaxLatitude - std::abs(x[u]),
+                                   kUnitSphereChartMaxLongitude - std::abs(x[u + 1]));
+    if (margin < nearest.second) nearest = {sphere == 0 ? "medial" : "lateral", margin};
+  }
+  return nearest;
+}
+
+// A contact point this close to its chart's edge (rad) when the continuation fails names the
+// edge as the reason: the equilibrium goes on past it (an independent solve followed it 50 %
+// further on hard/patella_quadriceps_2000N, its Jacobian regular), on a sphere the chart,
+// and so the model, no longer describes.
+constexpr double kChartEdgeMargin = 2.0 * 3.14159265358979323846 / 180.0;
+
 // r(x) and ∂r/∂x at x; false outside a chart.
 bool Linearize(const Patella& patella, const Vector3d& tuberosity_F, const std::array<double, kPatellaUnknowns>& x,
                const PatellaFacets& pressing, Eigen::Matrix<double, kPatellaUnknowns, 1>* r, PatellaJacobian* J) {
@@ -209,6 +228,7 @@ void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const ch
   bool ok = SolveComplementarity(patella, tuberosity_F, &x, &pressing, jacobian_lu, &failure);
   // Continuation: R_a moved from the guess's to the target in 2, 4, ..., 256 equal steps, the
   // facets chosen again at each.
+  std::array<double, kPatellaUnknowns> last_solved = guess->x;  // the finest continuation's last solution
   for (int steps = 2; !ok && steps <= 256; steps *= 2) {
     x = guess->x;
     pressing = guess->pressing;
@@ -216,6 +236,7 @@ void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const ch
     for (int k = 1; k <= steps && ok; ++k) {
       const double s = static_cast<double>(k) / steps;
       const Vector3d target = (1.0 - s) * guess->tuberosity_F + s * tuberosity_F;
+      last_solved = x;
       ok = SolveComplementarity(patella, target, &x, &pressing, k == steps ? jacobian_lu : nullptr, &failure);
     }
   }
@@ -225,10 +246,17 @@ void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const ch
     guess->pressing = pressing;
     return;
   }
+  const auto [sphere, margin] = TrochlearChartMargin(last_solved);
+  const std::string why =
+      margin < kChartEdgeMargin
+          ? StrCat("the ", sphere, " trochlear contact point reached the edge of its sphere's chart (",
+                   TrochlearChartCoordinates(last_solved), "): the model's trochlear geometry ends there, not the "
+                   "equilibrium (no fold); ", failure)
+          : StrCat(failure, " (", TrochlearChartCoordinates(last_solved), ")");
   Throw<SolverError>(caller, "no patellar equilibrium found at the tuberosity position (", MToMm(tuberosity_F.x()), ", ",
                      MToMm(tuberosity_F.y()), ", ", MToMm(tuberosity_F.z()), ") mm in F (from the last solution at (",
                      MToMm(guess->tuberosity_F.x()), ", ", MToMm(guess->tuberosity_F.y()), ", ",
-                     MToMm(guess->tuberosity_F.z()), ") mm: ", failure, "; docs/model.md §12)");
+                     MToMm(guess->tuberosity_F.z()), ") mm: ", why, "; docs/model.md §12)");
 }
 
 bool SolvePatellaWithFacets(const Patella& patella, const Vector3d& tuberosity_F, const PatellaFacets& pressing,
