@@ -32,6 +32,7 @@ struct SweepTable {
   std::vector<std::string> parameter_columns;
   std::vector<std::string> outcome_columns;
   std::vector<RunRow> rows;        // ascending index
+  long shard = 0, shards = 1;      // a part's --shard i/n (ReadPart); the whole table: 0/1
 };
 
 // Result columns of the spec's outcome groups, with units:

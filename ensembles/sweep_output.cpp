@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cerrno>
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
@@ -45,10 +46,8 @@ void Publish(const std::string& tmp, const std::string& path) {
   if (ec) Throw<Error>("WriteSweepResults", "cannot rename '", tmp, "' to '", path, "': ", ec.message());
 }
 
-}  // namespace
-
-void WriteCsv(const std::string& path, const SweepTable& table) {
-  const std::string tmp = path + ".tmp";
+// The table as CSV into `tmp` (not published).
+void WriteCsvUnpublished(const std::string& tmp, const SweepTable& table) {
   {
     std::ofstream out(tmp, std::ios::binary);
     if (!out) Throw<Error>("WriteCsv", "cannot write '", tmp, "'");
@@ -65,14 +64,12 @@ void WriteCsv(const std::string& path, const SweepTable& table) {
     }
     if (!out) Throw<Error>("WriteCsv", "write to '", tmp, "' failed: ", std::strerror(errno));
   }
-  Publish(tmp, path);
 }
 
 // The HDF5 library is in the sweep I/O plugin (sweep_io_plugin.hpp): the table goes there as
-// plain columns.
-void WriteHdf5(const std::string& path, const SweepTable& table) {
+// plain columns, into `tmp` (not published).
+void WriteHdf5Unpublished(const std::string& tmp, const SweepTable& table) {
   const KneedynSweepIo& io = SweepIo();  // throws InputError when the plugin is missing
-  const std::string tmp = path + ".tmp";
   const size_t n = table.rows.size();
   std::vector<long long> index(n), steps(n);
   std::vector<const char*> status(n), end_reason(n), failure(n);
@@ -109,7 +106,18 @@ void WriteHdf5(const std::string& path, const SweepTable& table) {
                            failure.data()};
   char error[1024] = "";
   if (io.write_hdf5(tmp.c_str(), &t, error, sizeof error) != 0) Throw<Error>("WriteHdf5", error);
-  Publish(tmp, path);
+}
+
+}  // namespace
+
+void WriteCsv(const std::string& path, const SweepTable& table) {
+  WriteCsvUnpublished(path + ".tmp", table);
+  Publish(path + ".tmp", path);
+}
+
+void WriteHdf5(const std::string& path, const SweepTable& table) {
+  WriteHdf5Unpublished(path + ".tmp", table);
+  Publish(path + ".tmp", path);
 }
 
 void WriteSweepResults(const std::string& dir, const SweepTable& table) {
@@ -117,8 +125,21 @@ void WriteSweepResults(const std::string& dir, const SweepTable& table) {
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (ec) Throw<Error>("WriteSweepResults", "cannot create directory '", dir, "': ", ec.message());
-  WriteCsv((fs::path(dir) / "sweep.csv").string(), table);
-  WriteHdf5((fs::path(dir) / "sweep.h5").string(), table);
+  // Both files are written before either replaces an earlier sweep's: a failed write (a full
+  // disk during sweep.h5) leaves the earlier pair as it was, never a new sweep.csv beside an
+  // old sweep.h5.
+  const std::string csv = (fs::path(dir) / "sweep.csv").string(), h5 = (fs::path(dir) / "sweep.h5").string();
+  try {
+    WriteCsvUnpublished(csv + ".tmp", table);
+    WriteHdf5Unpublished(h5 + ".tmp", table);
+  } catch (...) {
+    for (const std::string& tmp : {csv + ".tmp", h5 + ".tmp"}) {
+      if (fs::is_regular_file(tmp, ec)) fs::remove(tmp, ec);  // ours; not whatever else has the name
+    }
+    throw;
+  }
+  Publish(csv + ".tmp", csv);
+  Publish(h5 + ".tmp", h5);
 }
 
 namespace {
@@ -172,6 +193,18 @@ SweepTable ReadPart(const std::string& path) {
   if (read.String(j, "", "kind") != "kneedyn_sweep_part") {
     read.Fail("kind", " = " + read.Brief(j.at("kind")) + ": not a kneedyn sweep part");
   }
+  // Only WritePart's fields: a hand-edited or foreign field is refused, not ignored.
+  const auto only_fields = [&read](const nlohmann::json& object, const std::string& where,
+                                   std::initializer_list<const char*> fields) {
+    for (const auto& item : object.items()) {
+      if (std::none_of(fields.begin(), fields.end(), [&](const char* f) { return item.key() == f; })) {
+        std::string names;
+        for (const char* f : fields) names += (names.empty() ? "" : ", ") + std::string(f);
+        read.Fail(where + Echo(item.key()), ": not a field of a sweep part (its fields: " + names + ")");
+      }
+    }
+  };
+  only_fields(j, "", {"kind", "fingerprint", "total_runs", "shard", "shards", "parameter_columns", "outcome_columns", "rows"});
   SweepTable t;
   t.source = path;
   // The spec's 64-bit FNV-1a hash, as decimal digits (WritePart).
@@ -184,14 +217,26 @@ SweepTable ReadPart(const std::string& path) {
   }
   t.fingerprint = value;
   t.total_runs = read.Integer(j, "", "total_runs", 1, kMaxSweepRuns);
+  t.shards = read.Integer(j, "", "shards", 1, kMaxSweepRuns);  // may exceed the runs: empty shards
+  t.shard = read.Integer(j, "", "shard", 0, t.shards - 1);
   t.parameter_columns = read.Strings(read.List(j, "", "parameter_columns"), "parameter_columns");
   t.outcome_columns = read.Strings(read.List(j, "", "outcome_columns"), "outcome_columns");
   const nlohmann::json& rows = read.List(j, "", "rows");
   for (size_t i = 0; i < rows.size(); ++i) {
     const std::string where = StrCat("rows[", i, "].");
     RunRow row;
+    only_fields(rows[i], where, {"index", "parameters", "outcomes", "completed", "end_reason", "steps", "failure"});
     row.index = read.Integer(rows[i], where, "index", 0, t.total_runs - 1);
+    if (row.index % t.shards != t.shard) {  // ShardIndices: shard i of n holds i, i + n, i + 2n, ...
+      read.Fail(where + "index", StrCat(" = ", row.index, ": not a run of shard ", t.shard, " of ", t.shards,
+                                        " (it holds the indices i with i mod ", t.shards, " = ", t.shard, ")"));
+    }
     row.parameters = read.Numbers(read.At(rows[i], where, "parameters"), where + "parameters", t.parameter_columns.size());
+    for (size_t k = 0; k < row.parameters.size(); ++k) {  // null is an unreached outcome's, never a parameter's
+      if (std::isnan(row.parameters[k])) {
+        read.Fail(StrCat(where, "parameters[", k, "]"), " = null: every run has a value of each parameter");
+      }
+    }
     row.outcomes = read.Numbers(read.At(rows[i], where, "outcomes"), where + "outcomes", t.outcome_columns.size());
     row.completed = read.Boolean(rows[i], where, "completed");
     row.end_reason = read.String(rows[i], where, "end_reason");
@@ -249,13 +294,31 @@ SweepTable MergeParts(const std::vector<SweepTable>& parts) {
     Throw<InputError>("MergeParts", "run index ", index, " appears twice: in ", holders, " (", all.total_runs,
                       " runs expected)");
   }
-  for (long i = 0; i < static_cast<long>(all.rows.size()); ++i) {
-    if (all.rows[i].index != i) {
-      Throw<InputError>("MergeParts", "run index ", i, " is missing (", all.total_runs, " runs expected)");
-    }
-  }
   if (static_cast<long>(all.rows.size()) != all.total_runs) {
-    Throw<InputError>("MergeParts", "runs ", all.rows.size(), " to ", all.total_runs - 1, " are missing");
+    // How many, the first few, and the shards to run again when every part is of one split.
+    std::vector<long> missing;
+    size_t k = 0;
+    for (long i = 0; i < all.total_runs && missing.size() < 5; ++i) {
+      if (k < all.rows.size() && all.rows[k].index == i) {
+        ++k;
+      } else {
+        missing.push_back(i);
+      }
+    }
+    std::string first;
+    for (long i : missing) first += (first.empty() ? "" : ", ") + std::to_string(i);
+    std::string shards;
+    const bool one_split = std::all_of(parts.begin(), parts.end(), [&](const SweepTable& t) { return t.shards == parts[0].shards; });
+    if (one_split && parts[0].shards > 1) {
+      for (long s = 0; s < parts[0].shards; ++s) {
+        if (std::none_of(parts.begin(), parts.end(), [s](const SweepTable& t) { return t.shard == s; })) {
+          shards += StrCat(shards.empty() ? "" : ", ", "part-", s, "-of-", parts[0].shards, ".json");
+        }
+      }
+    }
+    Throw<InputError>("MergeParts", all.total_runs - static_cast<long>(all.rows.size()), " of ", all.total_runs,
+                      " runs are missing (indices ", first, all.total_runs - static_cast<long>(all.rows.size()) > 5 ? ", ..." : "",
+                      ")", shards.empty() ? "" : "; not given: " + shards + " (kneedyn sweep SPEC --shard i/n)");
   }
   return all;
 }

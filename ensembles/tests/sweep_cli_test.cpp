@@ -89,10 +89,52 @@ TEST(SweepCli, SameBytesWithOneAndTwoThreadsAndFromMergedShards) {
   for (size_t at = csv.find(",failed,"); at != std::string::npos; at = csv.find(",failed,", at + 1)) ++failed;
   EXPECT_NE(ReadText(work / "merge.out").find("merged 2 parts: 7 runs (" + std::to_string(failed) + " failed)"),
             std::string::npos) << ReadText(work / "merge.out");
-  // One part alone is refused (runs missing): exit 2, nothing written.
+  // One part alone is refused (runs missing): exit 2, nothing written, and the message names
+  // how many runs are missing and the part to run (before: "run index 0 is missing").
   EXPECT_EQ(Sh(Kneedyn() + " sweep --merge " + (work / "parts/part-1-of-2.json").string() + " --out " +
-               (work / "half").string() + " > /dev/null 2>&1"), 2);
+               (work / "half").string() + " > /dev/null 2> " + (work / "half.err").string()), 2);
   EXPECT_FALSE(fs::exists(work / "half"));
+  EXPECT_NE(ReadText(work / "half.err").find("4 of 7 runs are missing (indices 0, 2, 4, 6); not given: part-0-of-2.json"),
+            std::string::npos) << ReadText(work / "half.err");
+
+  // A part's fields are WritePart's: an unknown field, a row of another shard or a null
+  // parameter (a parameter has a value in every run) is refused naming the field (before:
+  // merged, the null as a `nan` parameter).
+  const std::string part1 = ReadText(work / "parts/part-1-of-2.json");
+  const auto refused = [&](const std::string& name, const std::string& text, const std::string& field) {
+    std::ofstream(work / name) << text;
+    const int code = Sh(Kneedyn() + " sweep --merge " + (work / "parts/part-0-of-2.json").string() + " " +
+                        (work / name).string() + " --out " + (work / "bad").string() + " > /dev/null 2> " +
+                        (work / "bad.err").string());
+    EXPECT_EQ(code, 2) << name;
+    EXPECT_NE(ReadText(work / "bad.err").find("field '" + field + "'"), std::string::npos) << ReadText(work / "bad.err");
+    EXPECT_FALSE(fs::exists(work / "bad"));
+  };
+  ASSERT_EQ(part1.rfind("{", 0), 0u);
+  refused("extra.json", "{\"extra\":1," + part1.substr(1), "extra");
+  const size_t first_index = part1.find("\"index\":1,");
+  ASSERT_NE(first_index, std::string::npos) << part1;
+  refused("shifted.json", part1.substr(0, first_index) + "\"index\":2," + part1.substr(first_index + 10), "rows[0].index");
+  const size_t params = part1.find("\"parameters\":[");
+  ASSERT_NE(params, std::string::npos);
+  refused("null.json", part1.substr(0, params + 14) + "null" + part1.substr(part1.find(',', params + 14)),
+          "rows[0].parameters[0]");
+
+  // sweep.csv and sweep.h5 are published together: when sweep.h5 cannot be written (here a
+  // directory in the way of its temporary file), the earlier pair stays as it was (before: a
+  // new sweep.csv beside the old sweep.h5).
+  const fs::path again = work / "again";
+  fs::create_directories(again / "sweep.h5.tmp");
+  fs::copy_file(work / "t1" / "sweep.csv", again / "sweep.csv");
+  fs::copy_file(work / "t1" / "sweep.h5", again / "sweep.h5");
+  const fs::path other = WriteChapterSpec(work, "other.yaml",
+                                          "parameters:\n  - {name: pulse.amplitude, uniform: [90, 110]}\n"
+                                          "design: {type: grid, levels: 2}\noutcomes: [liftoff_time]\n"
+                                          "solver: {formulation: dae-reduced}\n");
+  EXPECT_EQ(Sh(Kneedyn() + " sweep " + other.string() + " --threads 1 --out " + again.string() + " > /dev/null 2>&1"), 1);
+  EXPECT_EQ(ReadText(again / "sweep.csv"), ReadText(work / "t1" / "sweep.csv"));
+  EXPECT_EQ(ReadText(again / "sweep.h5"), ReadText(work / "t1" / "sweep.h5"));
+  EXPECT_FALSE(fs::exists(again / "sweep.csv.tmp"));
 }
 
 TEST(SweepCli, TwoMpiRanksGiveTheSameBytes) {
