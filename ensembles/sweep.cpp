@@ -9,6 +9,7 @@
 
 #include "ensembles/parallel_runs.hpp"
 #include "formulations/progress.hpp"
+#include "formulations/run_output.hpp"  // ColumnSafeName: the trajectory's spelling of an element
 #include "solver/dynamics.hpp"
 #include "solver/error.hpp"
 #include "solver/units.hpp"
@@ -18,14 +19,6 @@ namespace kneedyn::ensembles {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-std::string Sanitize(const std::string& s) {
-  std::string out = s;
-  for (char& c : out) {
-    if (c == ' ' || c == '/') c = '_';
-  }
-  return out;
-}
 
 bool Wants(const SweepSpec& spec, const char* group) {
   return std::find(spec.outcome_groups.begin(), spec.outcome_groups.end(), group) != spec.outcome_groups.end();
@@ -56,7 +49,7 @@ std::vector<std::string> OutcomeColumns(const SweepSpec& spec) {
   if (spec.analytic != AnalyticModel::kNone) return {"value"};
   const Model& m = spec.base.model;
   auto per_element = [&](const std::string& prefix) {
-    for (const Ligament& l : m.ligaments) cols.push_back(prefix + Sanitize(l.name) + "_N");
+    for (const Ligament& l : m.ligaments) cols.push_back(prefix + ColumnSafeName(l.name) + "_N");
   };
   auto per_contact = [&](const std::string& prefix) {
     for (const char* c : {"medial", "lateral"}) cols.push_back(prefix + c + "_N");

@@ -8,6 +8,7 @@
 #include <set>
 #include <sstream>
 
+#include "formulations/run_output.hpp"  // ColumnSafeName: the trajectory's spelling of an element
 #include "formulations/simulator.hpp"
 #include "scene/internal/yaml_field.hpp"
 #include "solver/error.hpp"
@@ -62,12 +63,6 @@ class Node {
  private:
   scene_detail::Field f_;
 };
-
-std::string Sanitize(const std::string& s) {
-  std::string out = s;
-  std::replace(out.begin(), out.end(), ' ', '_');
-  return out;
-}
 
 std::uint64_t Fnv1a(const std::string& bytes, std::uint64_t h = 1469598103934665603ull) {
   for (unsigned char c : bytes) {
@@ -199,9 +194,15 @@ void ResolveParameter(const Where& where, AnalyticModel analytic, const Model& m
                "inertia_x|y|z, quadriceps.magnitude, patella.tendon_length or '<element>.<property>'");
   }
   const std::string element = p->name.substr(0, dot), prop = p->name.substr(dot + 1);
+  if (element == "pulse") {  // pulse.amplitude and pulse.duration are taken above
+    const char* nearest = EditDistance(p->name, "pulse.amplitude") <= EditDistance(p->name, "pulse.duration")
+                              ? "pulse.amplitude" : "pulse.duration";
+    where.Fail(StrCat("no pulse parameter '", Echo(prop), "'; the pulse's are pulse.amplitude and pulse.duration ",
+                      "(nearest: ", nearest, ")"));
+  }
   int idx = -1;
   for (size_t j = 0; j < m.ligaments.size(); ++j) {
-    if (m.ligaments[j].name == element || Sanitize(m.ligaments[j].name) == element) idx = static_cast<int>(j);
+    if (m.ligaments[j].name == element || ColumnSafeName(m.ligaments[j].name) == element) idx = static_cast<int>(j);
   }
   if (idx < 0) {
     std::string names;
@@ -210,7 +211,7 @@ void ResolveParameter(const Where& where, AnalyticModel analytic, const Model& m
   }
   const Ligament& l = m.ligaments[idx];
   p->ligament = idx;
-  const std::string base = Sanitize(l.name) + "." + prop;
+  const std::string base = ColumnSafeName(l.name) + "." + prop;
   if (prop == "k_linear") {
     p->kind = ParameterKind::kLigamentLinearStiffness;
     p->nominal = l.k_linear / 1e3;  // N/m → N/mm

@@ -94,8 +94,28 @@ TEST(BatchVariants, BadInputNamesLineColumnAndValue) {
   m = ParseError("PCL anterior.slack_length,PCL anterior.extension_ratio\n31,1.1\n");
   EXPECT_NE(m.find("line 1: 'PCL anterior.slack_length' and 'PCL anterior.extension_ratio': the slack length fixes L0"),
             std::string::npos) << m;
+  // A misspelt pulse parameter is named with the pulse's two (before: "no element 'pulse'").
+  m = ParseError("pulse.amplitud\n100\n");
+  EXPECT_NE(m.find("the pulse's are pulse.amplitude and pulse.duration (nearest: pulse.amplitude)"), std::string::npos)
+      << m;
   EXPECT_NE(ParseError("# nothing\n").find("no header"), std::string::npos);
   EXPECT_NE(ParseError("mass\n").find("no variant rows"), std::string::npos);
+}
+
+// An element's name in a parameter or outcome column is spelt as in trajectory.csv: spaces,
+// '-' and '/' written '_' (docs/outputs.md, <element>), so the column families match by name.
+// Before, sweep and batch columns kept the '-' of "MCL-deep" (trajectory: F_MCL_deep_N).
+TEST(BatchVariants, ElementNamesAreSpeltAsTheTrajectorysColumns) {
+  Model model = Chapter().model;
+  int renamed = -1;
+  for (size_t j = 0; j < model.ligaments.size(); ++j) {
+    if (model.ligaments[j].name == "MCL deep") model.ligaments[j].name = "MCL-deep", renamed = static_cast<int>(j);
+  }
+  ASSERT_GE(renamed, 0);
+  const ParameterSpec p = ResolveParameterName(model, "MCL_deep.k_linear", "test");
+  EXPECT_EQ(p.ligament, renamed);
+  EXPECT_EQ(p.column, "MCL_deep.k_linear_N_mm");
+  EXPECT_EQ(ResolveParameterName(model, "MCL-deep.k_linear", "test").column, "MCL_deep.k_linear_N_mm");
 }
 
 TEST(Batch, VariantEqualsTheSceneEditedByHand) {
