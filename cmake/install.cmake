@@ -28,6 +28,9 @@ foreach(dir solver scene formulations)
 endforeach()
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/reference-data/ DESTINATION ${CMAKE_INSTALL_DATADIR}/kneedyn
         COMPONENT runtime)
+# The two outside solvers docs/problem.md points to, beside the installed header and module.
+install(FILES ${PROJECT_SOURCE_DIR}/examples/c/rk4_on_the_knee.c ${PROJECT_SOURCE_DIR}/examples/python/scipy_on_the_knee.py
+        DESTINATION ${CMAKE_INSTALL_DOCDIR}/examples COMPONENT development)
 
 # The optimized SUNDIALS the libraries were linked against (cmake/sundials.cmake): its
 # archives, headers and CMake package, private to kneedyn (lib/kneedyn/sundials); a

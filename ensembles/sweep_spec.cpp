@@ -218,8 +218,8 @@ void ResolveParameter(const Where& where, AnalyticModel analytic, const Model& m
     p->column = base + "_N_mm";
   } else if (prop == "k_parabolic") {
     if (m.ligament_law != LigamentLaw::kPublished) {
-      where.Fail("k_parabolic is derived from k_linear under ligament_law c1_continuous; "
-                 "vary k_linear or use the published law");
+      where.Fail(StrCat("k_parabolic is derived from k_linear under ligament_law ", LigamentLawName(m.ligament_law),
+                        "; vary k_linear or use the published law"));
     }
     p->kind = ParameterKind::kLigamentParabolicStiffness;
     p->nominal = l.k_parabolic_published / 1e6;  // N/m² → N/mm²

@@ -5,7 +5,8 @@
 // φ = 0, φ̇ = 0 are not enforced and drift; summary.json's constraint_residuals (max |φ|,
 // |φ̇| over the output rows) is the drift report. --stabilization:
 //   none        a = b = 0 (pure index reduction);
-//   baumgarte   a = --baumgarte-alpha, b = --baumgarte-beta (1/s);
+//   baumgarte   a = b = 20 1/s (SolverOptions::baumgarte_alpha, baumgarte_beta; no command-line
+//               option sets them: summary.json's settings record them);
 //   projection  after every accepted step: positions onto φ(q) = 0 by Gauss–Newton with
 //               the minimum-norm correction in q (Eigen CompleteOrthogonalDecomposition of
 //               J = ∂φ/∂q = G B), then velocities onto J q̇ = 0 (minimum norm); the

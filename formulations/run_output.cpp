@@ -274,6 +274,13 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
     for (const ContactObservables& c : obs.contacts) *out++ = MToMm(c.gap_rate);
     for (const LigamentObservables& l : obs.ligaments) *out++ = MToMm(l.length);
     for (const LigamentObservables& l : obs.ligaments) *out++ = l.strain;
+    // The values above and the names above are two lists in one order: a column added to one
+    // and not the other would shift every later value under the wrong name (a test of a new
+    // column found its strain written under V_ and 0 under strain_); caught here, every row.
+    if (out != row.data() + row.size()) {
+      Throw<Error>("MakeTrajectoryTable", "wrote ", out - row.data(), " values for ", row.size(),
+                   " columns before the patella's: the column names and the row's values must be added together");
+    }
     if (model.patella) {
       AppendPatellaColumns(*model.patella, st, &patella_q, &patella_guess, &row,
                            &table.patella_not_followed, &table.patella_contact_off);
@@ -679,7 +686,7 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
   pulse["amplitude_N"] = scene.model.pulse.amplitude;
   pulse["duration_s"] = scene.model.pulse.duration;
   pulse["peak_factor"] = PulsePeakFactor(scene.model.pulse.shape);  // max Fe / A (solver/loads.hpp)
-  scene_json["ligament_law"] = scene.model.ligament_law == LigamentLaw::kPublished ? "published" : "c1_continuous";
+  scene_json["ligament_law"] = LigamentLawName(scene.model.ligament_law);
   // Named only when it is not the default, so that default runs keep their summary.
   if (scene.model.angular_velocity_map == AngularVelocityMapReading::kPrintedEq1_20b) {
     j["scene"]["angular_velocity_map"] = "printed_eq_1_20b";
@@ -716,6 +723,9 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
     settings_json["generalized_alpha"] = nullptr;
   }
   settings_json["stabilization"] = OptionName(o.stabilization);
+  settings_json["baumgarte_gains_1_s"] = o.stabilization == Stabilization::kBaumgarte
+                                             ? nlohmann::json{{"alpha", o.baumgarte_alpha}, {"beta", o.baumgarte_beta}}
+                                             : nlohmann::json(nullptr);
   settings_json["constraint_level"] = OptionName(o.constraint_level);
   settings_json["jacobian"] = JacobianSetting(settings);
   settings_json["linear_solver"] = LinearSolverSetting(settings);

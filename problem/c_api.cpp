@@ -102,8 +102,9 @@ int kneedyn_problem_create(const char* scene_path, const char* form, double rtol
   if (scene_path == nullptr || form == nullptr) {
     return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": scene_path and form must not be null");
   }
-  if (std::isnan(rtol) || std::isnan(atol)) {
-    return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": rtol and atol must not be NaN");
+  if (!std::isfinite(rtol) || !std::isfinite(atol)) {  // -inf had passed as "<= 0: the defaults"
+    return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": rtol = " + std::to_string(rtol) + ", atol = " +
+                                         std::to_string(atol) + ": must be finite numbers (<= 0: the defaults)");
   }
   return Translate(function, [&] {
     auto handle = std::make_shared<kneedyn_problem>();

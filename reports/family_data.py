@@ -73,7 +73,7 @@ class Member:
     csv = os.path.join(run_dir, "trajectory.csv")
     if os.path.exists(csv):
       t = load_csv(csv)
-      # Drop event rows that duplicate a time (keep the event row itself: it is on the curve).
+      # Every row, event rows included: an event row is a state on the curve.
       self.traj = t
     if self.traj is not None and "omega_x_T_deg_s" in self.traj:
       add_tibial_frame_columns(self.traj)

@@ -46,7 +46,9 @@ void ApplyLigamentParameters(const Field& p, Ligament* lig) {
 void ParseLigaments(const Field& top, const ParameterSet& ps, ModelDescription* model) {
   if (top.Has("ligament_law")) {
     const std::string law = top.Required("ligament_law").OneOf(ValuesOf("scene.ligament_law"), "ligament law");
-    model->ligament_law = law == "c1_continuous" ? LigamentLaw::kC1Continuous : LigamentLaw::kPublished;
+    for (const LigamentLaw l : kLigamentLaws) {
+      if (law == LigamentLawName(l)) model->ligament_law = l;
+    }
   }
   const Field f = top.Required("ligaments");
   const std::vector<std::string> names = SelectedNames(f, ps);

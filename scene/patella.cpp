@@ -32,6 +32,13 @@ void ParsePatella(const Field& top, ModelDescription* model) {
   }
   patella.apex_P = f.Required("apex_P_mm").Vec3() * kMPerMm;
   patella.base_P = f.Required("base_P_mm").Vec3() * kMPerMm;
+  // The patella's extent is along P's z, from the apex to the base (the off-patella check of
+  // its facet contacts, docs/model.md §12): a patella without one (apex = base) is no patella.
+  if (!(std::abs(MToMm(patella.base_P.z() - patella.apex_P.z())) >= 1.0)) {
+    f.Required("base_P_mm").Fail(StrCat("z = ", MToMm(patella.base_P.z()), " mm lies within 1 mm of apex_P_mm's z = ",
+                                        MToMm(patella.apex_P.z()), " mm: the patella's extent runs along P's z from "
+                                        "its apex to its base, at least 1 mm long"));
+  }
   patella.tuberosity_T = f.Required("tuberosity_T_mm").Vec3() * kMPerMm;
   patella.tendon_length = MmToM(f.Required("tendon_length_mm").Positive(kMaxLengthMm));
   if (f.Has("facet_liftoff")) patella.facet_liftoff = f.Required("facet_liftoff").Bool();

@@ -15,7 +15,8 @@
 
 namespace kneedyn {
 
-// Chapter-form unknowns of one contact: c = (xc, yc, x′c, y′c) in m, and N in newtons.
+// Chapter-form unknowns of one contact: c in `chart` (height field: (xc, yc, x′c, y′c) in m;
+// regular: angles in rad, contact.hpp), and N in newtons.
 struct ContactGuess {
   std::array<double, 4> coordinates = {0.0, 0.0, 0.0, 0.0};
   // The chart the coordinates are given in (contact.hpp); scenes give height-field (x, y)

@@ -22,6 +22,16 @@ enum class LigamentLaw {
   kPublished,     // Table 1.2 values as printed: small jump at ε = 2ε1
   kC1Continuous,  // k_par recomputed as k_lin / (4 ε1 L0): C¹ at ε = 2ε1
 };
+inline constexpr LigamentLaw kLigamentLaws[] = {LigamentLaw::kPublished, LigamentLaw::kC1Continuous};
+// The scene's and summary.json's name of a law (scene key ligament_law). A switch without a
+// default, so that a new law that is not named here is a compiler warning.
+inline const char* LigamentLawName(LigamentLaw law) {
+  switch (law) {
+    case LigamentLaw::kPublished: return "published";
+    case LigamentLaw::kC1Continuous: return "c1_continuous";
+  }
+  return "?";
+}
 
 // Strain where the parabolic toe region ends is 2 ε1 (chapter Eq. 1.14).
 constexpr double kLigamentToeStrain = 0.03;  // ε1

@@ -27,8 +27,9 @@ struct MechanicalState {
   Vector6d qd = Vector6d::Zero();   // q̇
   Vector6d qdd = Vector6d::Zero();  // q̈
   std::vector<int> active;          // indices into model.contacts in contact, ascending
-  // Per model.contacts entry (index-aligned): chapter coordinates c = (xc, yc, x′c, y′c) [m]
-  // and normal force N [N]; meaningful for active contacts only.
+  // Per model.contacts entry (index-aligned): the contact coordinates c in its chart
+  // (ContactGuess::chart: height-field (xc, yc, x′c, y′c) [m], or the regular charts' angles
+  // (uf, vf, ut, vt) [rad], contact.hpp) and normal force N [N]; active contacts only.
   std::vector<ContactGuess> contact;
   // Per model.ligaments entry: the branch locked for the current phase (ligament.hpp);
   // empty = choose by length. Set by the run driver at every phase start.

@@ -729,6 +729,17 @@ TEST_F(CliTest, SummaryRecordsWhatActuallyRan) {
   EXPECT_NEAR(ga.at("generalized_alpha").at("alpha_f").get<double>(), 1.0 / 3.0, 1e-15);
   EXPECT_NEAR(ga.at("generalized_alpha").at("gamma").get<double>(), 5.0 / 6.0, 1e-15);
   EXPECT_NEAR(ga.at("generalized_alpha").at("beta").get<double>(), 4.0 / 9.0, 1e-15);
+  EXPECT_TRUE(ga.at("baumgarte_gains_1_s").is_null());
+
+  // ede with Baumgarte's stabilization records the gains it ran with (no option sets them;
+  // before, no file said what they were): docs/outputs.md's 20 and 20 1/s.
+  fs::remove_all(Out());
+  r = RunKneedyn("run '" + ChapterScenePath() + "' --formulation ede --stabilization baumgarte --quiet --out '" + Out() +
+                 "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto bg = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json")).at("settings");
+  EXPECT_EQ(bg.at("baumgarte_gains_1_s").at("alpha").get<double>(), 20.0);
+  EXPECT_EQ(bg.at("baumgarte_gains_1_s").at("beta").get<double>(), 20.0);
 }
 
 }  // namespace

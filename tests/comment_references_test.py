@@ -52,7 +52,10 @@ def offences(line):
 def scanned_files(root):
   files = []
   for d, dirs, names in os.walk(root):
-    dirs[:] = sorted(x for x in dirs if x != ".git" and not x.startswith("build"))
+    # Not .git, nor a build tree inside the source (any name: KNEEDYN_BUILD_DIR; a CMakeCache.txt
+    # marks it), whose _deps hold other projects' sources.
+    dirs[:] = sorted(x for x in dirs if x != ".git" and not x.startswith("build")
+                     and not os.path.exists(os.path.join(d, x, "CMakeCache.txt")))
     for n in sorted(names):
       rel = os.path.relpath(os.path.join(d, n), root)
       if n.endswith(EXTENSIONS) or rel in EXTRA_FILES:

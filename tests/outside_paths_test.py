@@ -42,7 +42,7 @@ def tracked_files(root):
     files = []
     for d, dirs, names in os.walk(root):
       dirs[:] = [x for x in dirs if not x.startswith(".") or x == ".ci"]
-      dirs[:] = [x for x in dirs if x not in ("build", "out")]
+      dirs[:] = [x for x in dirs if x not in ("build", "out") and not os.path.exists(os.path.join(d, x, "CMakeCache.txt"))]
       files += [os.path.relpath(os.path.join(d, n), root) for n in names]
   return [f for f in files if f.endswith(SOURCE_EXT) or os.path.basename(f) in SOURCE_NAMES]
 

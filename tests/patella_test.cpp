@@ -196,6 +196,23 @@ TEST(Patella, QuadricepsKeysTheShapeDoesNotUseAreRefused) {
   }
 }
 
+// A patella without an extent along P's z (apex and base at one height) is refused naming
+// base_P_mm (before: it ran, and its facet contacts were reported off the patella by
+// 4e-14 mm, the round-off of a zero-length extent).
+TEST(Patella, PatellaWithoutExtentIsRefusedNamingTheBase) {
+  std::string text = SceneWithQuadriceps("{shape: constant, magnitude_N: 50.0}");
+  const std::string base = "base_P_mm: [0.0, 12.0, 20.0]";
+  text.replace(text.find(base), base.size(), "base_P_mm: [0.0, 8.0, -21.5]");
+  try {
+    ParseScene(text, "q.yaml", "reference-data/scenes");
+    ADD_FAILURE() << "a patella 0.5 mm long was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("field 'patella.base_P_mm': z = -21.5 mm lies within 1 mm of apex_P_mm's z = -22 mm"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 // Start geometry the builder cannot solve is refused naming the keys that decide it.
 // A tendon too short for the two-facet positions of the apex: the refusal names
 // patella.tendon_length_mm and the apex's closest distance D from the tuberosity. D is a

@@ -569,6 +569,15 @@ TEST(Problem, BadCallsReturnErrorsWithMessages) {
   EXPECT_EQ(kneedyn_problem_create("/nonexistent.yaml", "ede", 0.0, 0.0, &h), KNEEDYN_INPUT_ERROR);
   EXPECT_NE(std::string(kneedyn_last_error()).find("nonexistent"), std::string::npos) << kneedyn_last_error();
   EXPECT_EQ(kneedyn_problem_create(nullptr, "ede", 0.0, 0.0, &h), KNEEDYN_BAD_ARGUMENT);
+  // A tolerance that is not a number is refused, -inf too (it had passed as "<= 0: the
+  // defaults"; Python refuses it as well).
+  for (const double bad : {-std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+                           std::numeric_limits<double>::quiet_NaN()}) {
+    EXPECT_EQ(kneedyn_problem_create(scene.c_str(), "ede", bad, 0.0, &h), KNEEDYN_BAD_ARGUMENT) << bad;
+    EXPECT_EQ(kneedyn_problem_create(scene.c_str(), "ede", 0.0, bad, &h), KNEEDYN_BAD_ARGUMENT) << bad;
+    EXPECT_NE(std::string(kneedyn_last_error()).find("must be finite"), std::string::npos) << kneedyn_last_error();
+    EXPECT_EQ(h, nullptr);
+  }
   // Tolerances past kneedyn run's ranges would open the re-contact threshold (it scales with
   // them) beyond any gap: refused as run refuses them.
   EXPECT_EQ(kneedyn_problem_create(scene.c_str(), "ede", 1e300, 0.0, &h), KNEEDYN_BAD_ARGUMENT);

@@ -876,7 +876,7 @@ void WriteOutputs(const std::string& dir_name, const Scene& scene, const Options
                 {"pulse", {{"shape", PulseShapeName(model.pulse.shape)},
                            {"amplitude_N", model.pulse.amplitude}, {"duration_s", model.pulse.duration},
                            {"peak_factor", PulsePeakFactor(model.pulse.shape)}}},
-                {"ligament_law", model.ligament_law == LigamentLaw::kPublished ? "published" : "c1_continuous"}};
+                {"ligament_law", LigamentLawName(model.ligament_law)}};
   const double cons_tol = options.constraint_tolerance > 0 ? options.constraint_tolerance : options.accuracy;
   j["formulation"] = "simbody";
   j["settings"] = {{"rtol", options.accuracy}, {"atol", cons_tol}, {"integrator", options.integrator},

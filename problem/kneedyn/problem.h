@@ -49,7 +49,7 @@ typedef enum kneedyn_status {
  * leaves it as it was. */
 const char* kneedyn_last_error(void);
 
-/* form: "ede", "mde", "dae" or "dae-ggl"; rtol, atol <= 0: the defaults (1e-6, 1e-8); else
+/* form: "ede", "mde", "dae" or "dae-ggl"; rtol, atol finite; <= 0: the defaults (1e-6, 1e-8); else
  * rtol in (0, 0.5] and atol in (0, 1e-2], as kneedyn run takes them (KNEEDYN_BAD_ARGUMENT).
  * Sizes change between phases for mde (12 - 2k) and the DAE forms. */
 int kneedyn_problem_create(const char* scene_path, const char* form, double rtol, double atol,
@@ -98,8 +98,9 @@ int kneedyn_problem_transition(kneedyn_problem* p, double t, const double* y, co
 
 /* Why the run ended: the end event's name (e.g. "flexion_90"); "" while a phase is open. (API version 2.) */
 int kneedyn_problem_end_reason(const kneedyn_problem* p, const char** reason);
-/* The events recorded so far, in order: every transition's events, and contacts whose force
- * would pull after a switch and lift off at once (only here). time [s], flexion [rad] may be
+/* The events recorded so far, in order: the lift-offs, re-contacts and end events of every
+ * transition (not a transition at a ligament kink alone, which is a restart, not an event of
+ * the knee), and contacts whose force would pull after a switch and lift off at once (only here). time [s], flexion [rad] may be
  * null; name stays valid until the next transition or destroy. (API version 2.) */
 int kneedyn_problem_event_record_count(const kneedyn_problem* p, int* count);
 int kneedyn_problem_event_record(const kneedyn_problem* p, int i, const char** name, double* time, double* flexion);

@@ -445,6 +445,8 @@ def _unit(column):
         return "flag (1: event row)"
     if column.startswith("strain_"):
         return "1 (strain)"
+    if column == "tendon_quadriceps_ratio":
+        return "1 (ratio)"
     for suffix, unit in (("_deg_s", "deg/s"), ("_mm_s", "mm/s"), ("_deg", "deg"), ("_mm", "mm"),
                          ("_N", "N"), ("_s", "s")):
         if column.endswith(suffix):
