@@ -196,6 +196,7 @@ SweepTable ReadPart(const std::string& path) {
   // Only WritePart's fields: a hand-edited or foreign field is refused, not ignored.
   const auto only_fields = [&read](const nlohmann::json& object, const std::string& where,
                                    std::initializer_list<const char*> fields) {
+    if (!object.is_object()) return;  // refused by the field reads below, naming it
     for (const auto& item : object.items()) {
       if (std::none_of(fields.begin(), fields.end(), [&](const char* f) { return item.key() == f; })) {
         std::string names;
@@ -217,8 +218,10 @@ SweepTable ReadPart(const std::string& path) {
   }
   t.fingerprint = value;
   t.total_runs = read.Integer(j, "", "total_runs", 1, kMaxSweepRuns);
-  t.shards = read.Integer(j, "", "shards", 1, kMaxSweepRuns);  // may exceed the runs: empty shards
-  t.shard = read.Integer(j, "", "shard", 0, t.shards - 1);
+  // --shard i/n (WritePart writes both; a part without them is one of a single split, 0/1).
+  // n may exceed the runs: some shards are empty.
+  if (read.Find(j, "", "shards") != nullptr) t.shards = read.Integer(j, "", "shards", 1, kMaxSweepRuns);
+  if (read.Find(j, "", "shard") != nullptr || t.shards > 1) t.shard = read.Integer(j, "", "shard", 0, t.shards - 1);
   t.parameter_columns = read.Strings(read.List(j, "", "parameter_columns"), "parameter_columns");
   t.outcome_columns = read.Strings(read.List(j, "", "outcome_columns"), "outcome_columns");
   const nlohmann::json& rows = read.List(j, "", "rows");

@@ -26,6 +26,7 @@
 
 #include "benchmarks/bench_run.hpp"
 #include "crosscheck/simbody/simbody_solution.hpp"
+#include "formulations/run_output.hpp"
 #include "solver/loads.hpp"
 #include "scene/scene.hpp"
 
@@ -254,6 +255,28 @@ TEST(SimbodyCli, RunWritesTheThreeFiles) {
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   for (const char* f : {"trajectory.csv", "trajectory.sto", "summary.json"}) {
     EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(out) / f)) << f;
+  }
+}
+
+// trajectory.csv has kneedyn's columns for the scene (MakeTrajectoryTable's, one group per
+// contact pair of the model): no_contact has no contact columns. Before, it always wrote both
+// compartments' (73 columns against kneedyn's 55), empty or 0, from its own copy of the list.
+TEST(SimbodyCli, TrajectoryColumnsAreKneedynsForTheScene) {
+  for (const char* name : {"no_contact", "conservative"}) {
+    SCOPED_TRACE(name);
+    const std::string out = (std::filesystem::temp_directory_path() / "kneedyn_simbody_cli_columns").string();
+    std::filesystem::remove_all(out);
+    const std::string cmd = std::string(KNEEDYN_SIMBODY_EXE) + " run " + ScenePath(name) +
+                            " --accuracy 1e-6 --quiet --out " + out + " > /dev/null 2>&1";
+    ASSERT_EQ(std::system(cmd.c_str()), 0);
+    std::ifstream in(std::filesystem::path(out) / "trajectory.csv");
+    std::string header;
+    std::getline(in, header);
+    const TrajectoryTable kneedyn = MakeTrajectoryTable(LoadScene(ScenePath(name)), RunResult{});
+    std::string expected;
+    for (const std::string& c : kneedyn.columns) expected += (expected.empty() ? "" : ",") + c;
+    EXPECT_EQ(header, expected);
+    std::filesystem::remove_all(out);
   }
 }
 

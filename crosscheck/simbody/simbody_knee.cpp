@@ -792,15 +792,17 @@ void WriteOutputs(const std::string& dir_name, const Scene& scene, const Options
       "vx_mm_s", "vy_mm_s", "vz_mm_s", "flexion_rate_deg_s", "valgus_rate_deg_s",
       "external_rotation_rate_deg_s", "omega_x_T_deg_s", "omega_y_T_deg_s", "omega_z_T_deg_s",
       "pulse_N", "contacts_active", "is_event"};
-  const char* comps[2] = {"medial", "lateral"};
-  for (const char* c : comps)
+  // One group per contact pair of the model, in model order, as kneedyn's trajectory.csv
+  // (formulations/run_output.cpp, MakeTrajectoryTable): a scene without contacts has none.
+  std::vector<std::string> comps;
+  for (const ContactPair& pair : model.contacts) comps.push_back(CompartmentName(pair.compartment));
+  for (const std::string& c : comps)
     for (const char* frame : {"femoral", "tibial"})
       for (const char* axis : {"x", "y", "z"}) cols.push_back(StrCat(frame, "_", c, "_", axis, "_mm"));
-  cols.push_back("N_medial_N");
-  cols.push_back("N_lateral_N");
+  for (const std::string& c : comps) cols.push_back(StrCat("N_", c, "_N"));
   for (const Ligament& lig : model.ligaments) cols.push_back("F_" + ColumnSafeName(lig.name) + "_N");
-  for (const char* c : comps) cols.push_back(StrCat("gap_", c, "_mm"));
-  for (const char* c : comps) cols.push_back(StrCat("gap_rate_", c, "_mm_s"));
+  for (const std::string& c : comps) cols.push_back(StrCat("gap_", c, "_mm"));
+  for (const std::string& c : comps) cols.push_back(StrCat("gap_rate_", c, "_mm_s"));
   for (const Ligament& lig : model.ligaments) cols.push_back("L_" + ColumnSafeName(lig.name) + "_mm");
   for (const Ligament& lig : model.ligaments) cols.push_back("strain_" + ColumnSafeName(lig.name));
 
@@ -817,28 +819,19 @@ void WriteOutputs(const std::string& dir_name, const Scene& scene, const Options
     row.push_back(smp.pulse_N);
     row.push_back(static_cast<double>(st.active.size()));
     row.push_back(smp.is_event ? 1.0 : 0.0);
-    double N[2] = {0.0, 0.0};
-    for (int ci = 0; ci < 2; ++ci) {
-      const int idx = model.ContactIndex(static_cast<Compartment>(ci));
-      if (idx >= 0 && st.IsActive(idx)) {
+    const int n_contacts = static_cast<int>(model.contacts.size());
+    for (int idx = 0; idx < n_contacts; ++idx) {
+      if (st.IsActive(idx)) {
         for (int a = 0; a < 3; ++a) row.push_back(MToMm(smp.point_F[idx](a)));
         for (int a = 0; a < 3; ++a) row.push_back(MToMm(smp.point_T[idx](a)));
-        N[ci] = st.contact[idx].normal_force;
       } else {
         row.insert(row.end(), 6, kNaN);
       }
     }
-    row.push_back(N[0]);
-    row.push_back(N[1]);
+    for (int idx = 0; idx < n_contacts; ++idx) row.push_back(st.IsActive(idx) ? st.contact[idx].normal_force : 0.0);
     for (double f : smp.ligament_tension) row.push_back(f);
-    for (int ci = 0; ci < 2; ++ci) {
-      const int idx = model.ContactIndex(static_cast<Compartment>(ci));
-      row.push_back(idx >= 0 ? MToMm(smp.gap[idx]) : kNaN);
-    }
-    for (int ci = 0; ci < 2; ++ci) {
-      const int idx = model.ContactIndex(static_cast<Compartment>(ci));
-      row.push_back(idx >= 0 ? MToMm(smp.gap_rate[idx]) : kNaN);
-    }
+    for (int idx = 0; idx < n_contacts; ++idx) row.push_back(MToMm(smp.gap[idx]));
+    for (int idx = 0; idx < n_contacts; ++idx) row.push_back(MToMm(smp.gap_rate[idx]));
     for (double L : smp.ligament_length) row.push_back(MToMm(L));
     for (size_t j = 0; j < model.ligaments.size(); ++j) {
       row.push_back((smp.ligament_length[j] - model.ligaments[j].slack_length) / model.ligaments[j].slack_length);
