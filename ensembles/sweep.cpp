@@ -51,8 +51,8 @@ std::vector<std::string> OutcomeColumns(const SweepSpec& spec) {
   auto per_element = [&](const std::string& prefix) {
     for (const Ligament& l : m.ligaments) cols.push_back(prefix + ColumnSafeName(l.name) + "_N");
   };
-  auto per_contact = [&](const std::string& prefix) {
-    for (const char* c : {"medial", "lateral"}) cols.push_back(prefix + c + "_N");
+  auto per_contact = [&](const std::string& prefix) {  // the model's contact pairs, as trajectory.csv's N_<c>_N
+    for (const ContactPair& pair : m.contacts) cols.push_back(prefix + CompartmentName(pair.compartment) + "_N");
   };
   // Fixed order, whatever the order in the spec.
   if (Wants(spec, "liftoff_time")) cols.push_back("liftoff_time_s");
@@ -100,7 +100,7 @@ RunRow EvaluateRunAt(const SweepSpec& spec, long index, const std::vector<double
   row.end_reason = result.end_reason;
   row.steps = result.stats.steps;
   const Model& m = scene.model;
-  const int medial = m.ContactIndex(Compartment::kMedial), lateral = m.ContactIndex(Compartment::kLateral);
+  const int n_contacts = static_cast<int>(m.contacts.size());
 
   // Outcomes from what was computed (a failed run still gives what it reached: a lift-off
   // before the failure is kept; peaks and 90° values of a failed run are NaN).
@@ -115,12 +115,11 @@ RunRow EvaluateRunAt(const SweepSpec& spec, long index, const std::vector<double
     if (e.name == Flexion90EventName()) at90 = &e;
   }
   std::vector<double> peak_F(m.ligaments.size(), 0.0);
-  double peak_N[2] = {0.0, 0.0};
+  std::vector<double> peak_N(m.contacts.size(), 0.0);
   for (const MechanicalState& s : result.samples) {
     const std::vector<double> F = TensionsAt(m, s);
     for (size_t j = 0; j < F.size(); ++j) peak_F[j] = std::max(peak_F[j], F[j]);
-    peak_N[0] = std::max(peak_N[0], NormalForce(s, medial));
-    peak_N[1] = std::max(peak_N[1], NormalForce(s, lateral));
+    for (int i = 0; i < n_contacts; ++i) peak_N[i] = std::max(peak_N[i], NormalForce(s, i));
   }
   size_t c = 0;
   auto put = [&](double v) { row.outcomes[c++] = v; };
@@ -143,8 +142,7 @@ RunRow EvaluateRunAt(const SweepSpec& spec, long index, const std::vector<double
     }
   }
   if (Wants(spec, "contact_force_at_90")) {
-    put(s90 ? NormalForce(*s90, medial) : kNaN);
-    put(s90 ? NormalForce(*s90, lateral) : kNaN);
+    for (int i = 0; i < n_contacts; ++i) put(s90 ? NormalForce(*s90, i) : kNaN);
   }
   return row;
 }

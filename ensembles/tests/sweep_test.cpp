@@ -96,6 +96,25 @@ TEST(Sweep, NominalRunAgreesWithTheRunDriverAndItsTrajectoryFile) {
   fs::remove_all(dir);
 }
 
+// A scene's contact outcomes are its contact pairs', as trajectory.csv's N_<compartment>_N:
+// no_contact.yaml has none (before: peak_N_medial_N and _lateral_N of 0 N, which no run of
+// it computes), one_ligament.yaml both.
+TEST(Sweep, ContactOutcomesAreTheScenesContactPairs) {
+  for (const auto& [scene, expected] : std::vector<std::pair<std::string, std::vector<std::string>>>{
+           {"no_contact.yaml", {}},
+           {"chapter_impact.yaml", {"peak_N_medial_N", "peak_N_lateral_N", "N90_medial_N", "N90_lateral_N"}}}) {
+    const SweepSpec spec = Parse("scene: " + scene +
+                                 "\nparameters: [{name: mass, uniform: [4, 5]}]\ndesign: {type: grid, levels: 1}\n"
+                                 "outcomes: [peak_contact_force, contact_force_at_90]\n");
+    EXPECT_EQ(OutcomeColumns(spec), expected) << scene;
+    const std::vector<std::string> trajectory = MakeTrajectoryTable(spec.base, RunResult{}).columns;
+    for (const std::string& c : expected) {  // peak_N_medial_N and N90_medial_N → N_medial_N
+      const std::string compartment_force = "N_" + c.substr(c.rfind("N90_", 0) == 0 ? 4 : 7);
+      EXPECT_NE(std::find(trajectory.begin(), trajectory.end(), compartment_force), trajectory.end()) << c;
+    }
+  }
+}
+
 TEST(Sweep, RowsDoNotDependOnTheThreadCount) {
   const SweepSpec spec = Parse(
       "scene: chapter_impact.yaml\n"
