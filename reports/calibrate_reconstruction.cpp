@@ -35,6 +35,7 @@
 #include "solver/internal/command_line.hpp"
 #include "formulations/output_file.hpp"
 #include "formulations/run.hpp"
+#include "reports/calibration_measures.hpp"
 #include "solver/error.hpp"
 #include "solver/internal/ceres_logging.hpp"
 #include "solver/loads.hpp"
@@ -43,6 +44,9 @@
 #include "solver/units.hpp"
 
 using namespace kneedyn;
+using calibration::ArgMaxFlexion;
+using calibration::FlexingEnd;
+using calibration::ValgusCrossing;
 
 namespace {
 
@@ -61,43 +65,6 @@ struct Measured {
   int runs_not_reaching_end_flexion = 0;
   double max_flexion_deg = 0.0;
 };
-
-// First + → − crossing of β − 90° after 1° of flexion while the knee flexes (deg); 90 when none.
-size_t FlexingEnd(const RunResult& r);
-double ValgusCrossing(const RunResult& r) {
-  const size_t end = r.samples.empty() ? 0 : FlexingEnd(r) + 1;
-  for (size_t i = 1; i < end; ++i) {
-    const double a0 = RadToDeg(r.samples[i - 1].q(kAlpha)), a1 = RadToDeg(r.samples[i].q(kAlpha));
-    const double v0 = RadToDeg(r.samples[i - 1].q(kBeta)) - 90.0, v1 = RadToDeg(r.samples[i].q(kBeta)) - 90.0;
-    if (a0 >= 1.0 && v0 > 0.0 && v1 <= 0.0) return a0 + v0 / (v0 - v1) * (a1 - a0);
-  }
-  return 90.0;
-}
-
-// Index of the first sample of largest flexion: the chapter's statements are about the knee
-// flexing, so a run that swings back is read up to there.
-size_t FlexingEnd(const RunResult& r) {
-  size_t end = 0;
-  for (size_t i = 0; i < r.samples.size(); ++i) {
-    if (r.samples[i].q(kAlpha) > r.samples[end].q(kAlpha)) end = i;
-  }
-  return end;
-}
-
-// Flexion angle (deg) at the maximum of sign × column while the knee flexes (up to FlexingEnd).
-double ArgMaxFlexion(const RunResult& r, int coordinate, double sign) {
-  double best = -INFINITY, at = 90.0;
-  const size_t end = r.samples.empty() ? 0 : FlexingEnd(r) + 1;
-  for (size_t i = 0; i < end; ++i) {
-    const MechanicalState& s = r.samples[i];
-    const double v = sign * s.q(coordinate);
-    if (v > best) {
-      best = v;
-      at = RadToDeg(s.q(kAlpha));
-    }
-  }
-  return at;
-}
 
 class Model2 {
  public:
