@@ -433,6 +433,26 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
       out.push_back(std::move(p));
     }
   }
+  // An element stretched to twice its slack length or more: the pose is none a knee takes (an
+  // assembled start far from the chapter's, a diverged run), whatever the solver met.
+  for (size_t c = 0; c < cols.size(); ++c) {
+    const std::string& name = cols[c];
+    if (name.compare(0, 7, "strain_") != 0) continue;
+    double largest = kMaxPlausibleStrain, at_s = 0.0;
+    for (const std::vector<double>& row : table.rows) {
+      if (row[c] > largest) largest = row[c], at_s = row[time_col];
+    }
+    if (!(largest > kMaxPlausibleStrain)) continue;
+    OutputWarning p;
+    p.kind = "ligament_overstretched";
+    p.column = name;
+    p.contact = name.substr(7);
+    p.time_s = at_s;
+    p.message = StrCat("element ", p.contact, " reaches a strain of ", largest, " at t = ", at_s, " s (its length ",
+                       largest + 1.0, " times its slack length), past ", kMaxPlausibleStrain,
+                       ": no ligament stretches so far; check the scene's initial_state and geometry");
+    out.push_back(std::move(p));
+  }
   // A fixed-step method cannot resolve a contact phase of a few steps: in the index-3 forms
   // (newmark undamped, generalized-alpha at rho_inf near 1) the normal force oscillates
   // through zero, so such a lift-off and re-contact is taken for a numerical artifact until a
@@ -779,6 +799,10 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
     if (p.kind == "patella_contact_off") w["contact"] = p.contact;
     if (p.kind == "separated_contact_penetrates") {
       w["contact"] = p.contact;
+      w["column"] = p.column;
+    }
+    if (p.kind == "ligament_overstretched") {
+      w["element"] = p.contact;
       w["column"] = p.column;
     }
     w["time_s"] = p.time_s;

@@ -57,10 +57,14 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
 //  - kind "sparse_output": fewer than kMinOutputRows rows besides the start and the events.
 //  - kind "start_not_at_nearest_points": a tibial contact whose gap column (the nearest-point
 //    distance) at the first row exceeds kStartGapToleranceMm after a consistent start.
+//  - kind "separated_contact_penetrates": a separated tibial contact whose gap fell below
+//    the tolerances' re-contact hysteresis while the drift had widened it (docs/model.md §9).
+//  - kind "ligament_overstretched": an element whose strain passed kMaxPlausibleStrain in a row.
 //  - kind "short_contact_phase": OutputWarnings, below.
 struct OutputWarning {
   std::string kind;     // "pulling_contact" | "patella_not_followed" | "patella_contact_off" | "sparse_output" |
-                        // "start_not_at_nearest_points" | "short_contact_phase"
+                        // "start_not_at_nearest_points" | "separated_contact_penetrates" |
+                        // "ligament_overstretched" | "short_contact_phase"
   std::string column;   // the trajectory column, e.g. "N_patella_lateral_N", "N_medial_N"
   std::string contact;  // "patellar facet lateral", "tibial contact medial"
   double min_force_N = 0.0;  // the column's most negative value, N
@@ -71,8 +75,9 @@ struct OutputWarning {
 // From the rows of `table` (MakeTrajectoryTable of `result`) and result.events: the pulling
 // contacts in column order, then the rows whose patella was not followed, then the facets
 // whose contact left the patella, then a sparse output, then the contacts whose start is not
-// at the nearest points, then, for a fixed-step run, each contact phase or separation shorter
-// than kMinResolvedSteps steps.
+// at the nearest points, then the separated contacts that sank into their plateaus, then the
+// overstretched elements, then, for a fixed-step run, each contact phase or separation
+// shorter than kMinResolvedSteps steps.
 constexpr int kMinResolvedSteps = 10;
 // Fewer output rows than this besides the start and the events: "sparse_output".
 constexpr size_t kMinOutputRows = 3;
@@ -80,6 +85,11 @@ constexpr size_t kMinOutputRows = 3;
 // points ("start_not_at_nearest_points"); a consistent start closes it to ~1e-13 mm.
 constexpr double kStartGapToleranceMm = 1e-6;
 constexpr double kLiftoffRowForceFraction = 1e-4;
+// A strain (L − L0)/L0 beyond which an element is no ligament ("ligament_overstretched"):
+// ligaments tear at strains of a few tenths, and every shipped scene stays below 0.61 (the
+// hard case patella_quadriceps_2000N; the chapter scene 0.20); twice its slack length is a
+// pose the knee cannot take (an assembled start at 80° of flexion: 28, i.e. 2,825 %).
+constexpr double kMaxPlausibleStrain = 1.0;
 std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const RunResult& result);
 
 // summary.json; `warnings` are OutputWarnings of the run's table.
