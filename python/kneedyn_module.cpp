@@ -477,7 +477,8 @@ PYBIND11_MODULE(_kneedyn, m) {
                   const std::string& integrator, double step, double max_step, long max_steps,
                   const std::string& stabilization, const std::string& constraint_level,
                   const std::string& jacobian, double output_interval, const std::string& out_dir,
-                  const std::string& linear_solver, const std::string& contact_chart) {
+                  const std::string& linear_solver, const std::string& contact_chart,
+                  const std::map<std::string, double>& scheme) {
     if (!scene) Throw<InputError>("kneedyn.run", "scene = None: must be a compiled scene (kneedyn.Scene.compiled)");
     RunSettings settings;
     settings.formulation = formulation;
@@ -493,7 +494,21 @@ PYBIND11_MODULE(_kneedyn, m) {
     if (!jacobian.empty()) settings.options.jacobian = ParsedOptionValue<JacobianKind>(jacobian);
     if (!linear_solver.empty()) settings.options.linear_solver = ParsedOptionValue<LinearSolverKind>(linear_solver);
     settings.options.contact_chart = ParsedOptionValue<ContactChart>(contact_chart);
-    CheckOptions(FindFormulation(formulation), settings.options);
+    // generalized-alpha's scheme, as the CLI's --rho-inf, --alpha-m, --alpha-f, --beta, --gamma
+    // (given ones only: the same rules, a typed ρ∞ refused by the other formulations).
+    OptionText typed;
+    for (const auto& [name, value] : scheme) {
+      if (name == "rho_inf") settings.options.rho_inf = value;
+      else if (name == "alpha_m") settings.options.alpha_m = value;
+      else if (name == "alpha_f") settings.options.alpha_f = value;
+      else if (name == "beta") settings.options.newmark_beta = value;
+      else if (name == "gamma") settings.options.newmark_gamma = value;
+      else Throw<InputError>("kneedyn.run", "scheme parameter '", name, "': not one of rho_inf, alpha_m, alpha_f, beta, gamma");
+      std::string flag = "--" + name;
+      std::replace(flag.begin(), flag.end(), '_', '-');
+      typed[flag] = StrCat(value);
+    }
+    CheckOptions(FindFormulation(formulation), settings.options, typed);
     settings.output_interval = output_interval;
     if (!out_dir.empty()) CheckOutputDirectory(out_dir);  // before the run, as the CLI does
     auto out = std::make_shared<RunOutput>();
@@ -523,6 +538,7 @@ PYBIND11_MODULE(_kneedyn, m) {
      py::arg("step"), py::arg("max_step"), py::arg("max_steps"), py::arg("stabilization"),
      py::arg("constraint_level"), py::arg("jacobian"), py::arg("output_interval"), py::arg("out_dir") = "",
      py::arg("linear_solver") = "", py::arg("contact_chart") = "regular",
+     py::arg("scheme") = std::map<std::string, double>(),
      "RunScene + MakeTrajectoryTable + SummaryJson (+ WriteRunOutputs into out_dir) without the GIL");
 
   // The sweep API of ensembles/: the same spec, design, runs and result files as

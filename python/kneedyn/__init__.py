@@ -211,9 +211,13 @@ class Scene:
         doc = _copy.deepcopy(self._doc)
         ps = doc.get("parameter_set")
         if isinstance(ps, str) and not _os.path.isabs(ps):
-            near = _os.path.join(self._base_dir, ps)
+            # The loader's order (scene/scene.cpp): beside the scene, then as a shipped scene's
+            # (<data>/scenes/ps: a copied shipped scene's ../chapter_knee.yaml), then <data>/ps.
             # data_dir() may be relative (KNEEDYN_DATA_DIR, the ./reference-data fallback).
-            doc["parameter_set"] = near if _os.path.exists(near) else _os.path.abspath(_os.path.join(data_dir(), ps))
+            candidates = [_os.path.join(self._base_dir, ps), _os.path.join(data_dir(), "scenes", ps),
+                          _os.path.join(data_dir(), ps)]
+            found = [c for c in candidates if _os.path.exists(c)]
+            doc["parameter_set"] = _os.path.abspath(found[0] if found else candidates[-1])
         text = _kneedyn.to_yaml(doc, "Scene.write")  # before the file is opened: a refusal writes nothing
         try:
             with open(path, "w", encoding="utf-8") as f:
@@ -537,11 +541,15 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
         max_steps=_DEFAULTS["max_steps"], stabilization=_DEFAULTS["stabilization"],
         constraint_level=_DEFAULTS["constraint_level"], jacobian=_DEFAULTS["jacobian"],
         output_interval=0.0, out=None, linear_solver=_DEFAULTS["linear_solver"],
-        contact_chart=_DEFAULTS["contact_chart"]):
+        contact_chart=_DEFAULTS["contact_chart"], rho_inf=None, alpha_m=None, alpha_f=None, beta=None,
+        gamma=None):
     """Runs a scene (a Scene, or a path to a scene file) like `kneedyn run` with the
     options of the same names (output_interval 0: the scene's; jacobian and linear_solver
-    '' : the formulation's default; contact_chart "regular" or "height-field"). Bad options raise
-    InputError before anything runs; a solver failure returns a Result with
+    '' : the formulation's default; contact_chart "regular" or "height-field";
+    generalized-alpha's rho_inf, or alpha_m, alpha_f, beta and gamma together, as the CLI's
+    --rho-inf ...; None: not given). Bad options raise
+    InputError before anything runs; a start the consistent initialization cannot close
+    raises SolverError (the CLI: exit 2); a solver failure returns a Result with
     status 'partial' and the reason in `failure`, as the CLI does. With out=DIR the
     CLI's files (trajectory.csv, trajectory.sto, summary.json) are written there by the
     CLI's writer. The fields of `Result.summary` are those of summary.json, listed in
@@ -553,7 +561,10 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
                        _text(stabilization, "run", "stabilization"), _text(constraint_level, "run", "constraint_level"),
                        _text(jacobian, "run", "jacobian"), _real(output_interval, "run", "output_interval"),
                        "" if out is None else _file_path(out, "run", "out"),
-                       _text(linear_solver, "run", "linear_solver"), _text(contact_chart, "run", "contact_chart"))
+                       _text(linear_solver, "run", "linear_solver"), _text(contact_chart, "run", "contact_chart"),
+                       {k: _real(v, "run", k) for k, v in (("rho_inf", rho_inf), ("alpha_m", alpha_m),
+                                                           ("alpha_f", alpha_f), ("beta", beta), ("gamma", gamma))
+                        if v is not None})
     return Result(_json.loads(out["summary_json"]), Trajectory(out["columns"], out["data"]))
 
 

@@ -44,6 +44,8 @@ CASES = [
     ("dae-reduced", dict(rtol=1e-8, atol=1e-10, jacobian="jet")),
     ("dae-ggl", dict(rtol=1e-8, atol=1e-10, linear_solver="dense")),
     ("generalized-alpha", dict(step=2e-4, contact_chart="height-field")),
+    # The scheme's parameters, as the CLI's --rho-inf (before: no keyword, only the default 0.9).
+    ("generalized-alpha", dict(step=2e-4, rho_inf=0.5)),
 ]
 
 
@@ -88,9 +90,10 @@ def assert_same_as_cli(result, header, rows, summary, ignore_path=False):
     assert a == b
 
 
-@pytest.mark.parametrize("formulation,options", CASES, ids=[c[0] for c in CASES])
+@pytest.mark.parametrize("formulation,options", CASES, ids=["%s-%d" % (c[0], i) for i, c in enumerate(CASES)])
 def test_run_equals_cli(formulation, options):
-    header, rows, summary = run_cli(CHAPTER, formulation, options, "cli_" + formulation)
+    case = "%s_%d" % (formulation, CASES.index((formulation, options)))
+    header, rows, summary = run_cli(CHAPTER, formulation, options, "cli_" + case)
     result = kneedyn.run(kneedyn.load_scene(CHAPTER), formulation, **options)
     assert result.completed and result.end_reason == "flexion_90"
     assert_same_as_cli(result, header, rows, summary)
@@ -99,10 +102,10 @@ def test_run_equals_cli(formulation, options):
     flex = np.array([float(r[header.index("flexion_deg")]) for r in rows])
     assert np.allclose(result.trajectory["flexion_deg"], flex, rtol=1e-11, atol=0)
     # out=DIR writes the CLI's files: the same bytes (summary.json up to its wall time).
-    mine = os.path.join(OUT, "py_" + formulation)
+    mine = os.path.join(OUT, "py_" + case)
     kneedyn.run(kneedyn.load_scene(CHAPTER), formulation, out=mine, **options)
     for name in ("trajectory.csv", "trajectory.sto"):
-        with open(os.path.join(mine, name)) as f1, open(os.path.join(OUT, "cli_" + formulation, name)) as f2:
+        with open(os.path.join(mine, name)) as f1, open(os.path.join(OUT, "cli_" + case, name)) as f2:
             assert f1.read() == f2.read(), name
     with open(os.path.join(mine, "summary.json")) as f:
         written = json.load(f)
@@ -168,6 +171,24 @@ def test_from_dict_equals_load_scene():
     scene = kneedyn.load_scene(CHAPTER)
     doc = scene.to_dict()
     again = kneedyn.Scene.from_dict(doc, base_dir=os.path.dirname(CHAPTER))
+    a = kneedyn.run(scene, "dae-reduced")
+    b = kneedyn.run(again, "dae-reduced")
+    assert np.array_equal(a.trajectory.array, b.trajectory.array, equal_nan=True)
+
+
+def test_written_copy_of_a_shipped_scene_runs_from_anywhere(tmp_path):
+    """A shipped scene copied elsewhere finds its ../chapter_knee.yaml as a shipped scene's
+    (the loader looks in <data>/scenes/); Scene.write must write that file's path. Before, it
+    wrote <data>/chapter_knee.yaml, which does not exist, and the CLI refused the file."""
+    os.makedirs(tmp_path / "sub")
+    copy_path = tmp_path / "sub" / "s.yaml"
+    shutil.copy(CHAPTER, copy_path)
+    scene = kneedyn.load_scene(str(copy_path))
+    scene.set_pulse(amplitude_N=90.0)
+    written = tmp_path / "w.yaml"
+    scene.write(str(written))
+    again = kneedyn.load_scene(str(written))  # the loader's own reading of the written path
+    assert os.path.samefile(again.to_dict()["parameter_set"], os.path.join(kneedyn.data_dir(), "chapter_knee.yaml"))
     a = kneedyn.run(scene, "dae-reduced")
     b = kneedyn.run(again, "dae-reduced")
     assert np.array_equal(a.trajectory.array, b.trajectory.array, equal_nan=True)
@@ -271,6 +292,14 @@ def test_bad_options_raise_before_running():
         kneedyn.run(scene, "mde", integrator="rk9")
     with pytest.raises(kneedyn.InputError, match="--linear-solver = 'lu'"):
         kneedyn.run(scene, "dae", linear_solver="lu")
+    # generalized-alpha's scheme: its rules as the CLI's (only generalized-alpha takes it; the
+    # explicit parameters in Chung and Hulbert's stable region).
+    with pytest.raises(kneedyn.InputError, match="apply to generalized-alpha only, not to dae"):
+        kneedyn.run(scene, "dae", rho_inf=0.9)
+    with pytest.raises(kneedyn.InputError, match="--rho-inf"):
+        kneedyn.run(scene, "generalized-alpha", step=2e-4, rho_inf=1.5)
+    with pytest.raises(kneedyn.InputError, match=r"run\(\): gamma = 'x'"):
+        kneedyn.run(scene, "generalized-alpha", gamma="x")
 
 
 def test_solver_failure_is_a_partial_result():
