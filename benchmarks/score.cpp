@@ -430,10 +430,19 @@ std::string ReferenceEndEventName(const Solution& reference) {
   return "";
 }
 
-void ReconcileEndEvent(const Solution& reference, const std::string& events_source, ScoredResult* result) {
+void ReconcileEndEvent(const Solution& reference, const std::string& events_source, bool failed,
+                       ScoredResult* result) {
   Solution& r = result->solution;
   const std::string name = ReferenceEndEventName(reference);
-  if (name.empty() || !r.end_is_event || r.times.empty()) return;
+  if (failed || name.empty() || !r.end_is_event || r.times.empty()) return;
+  // The end state's flexion (α, deg; the positions' fourth component): a last event row at
+  // another flexion (a lift-off) is not the end event.
+  const std::vector<double>& end_positions = r.values.at("positions").back();
+  const std::vector<double>& reference_end = reference.values.at("positions").back();
+  if (end_positions.size() > 3 && reference_end.size() > 3 && !std::isnan(end_positions[3]) &&
+      !(std::abs(end_positions[3] - reference_end[3]) <= 1e-3)) {
+    return;
+  }
   const double t_end = r.times.back();
   for (const EventRecord& e : r.events) {
     if (e.name != name) continue;
@@ -444,7 +453,6 @@ void ReconcileEndEvent(const Solution& reference, const std::string& events_sour
     }
     return;  // its first occurrence is the one scored (Compare)
   }
-  const std::vector<double>& end_positions = r.values.at("positions").back();
   const double flexion_deg = end_positions.size() > 3 ? end_positions[3] : kNaN;  // α, deg (docs/outputs.md)
   r.events.push_back({name, t_end, DegToRad(flexion_deg)});
 }

@@ -102,8 +102,11 @@ Score ScoreResult(const ScoredResult& result, const Solution& reference);
 // scored as that event's. When `result` already has that event (from --events), the end row
 // must be at its time (within 1e-9 s), else InputError naming both times and `events_source`;
 // otherwise the end row's time and flexion are added as the event. Nothing when either does
-// not end on an event.
-void ReconcileEndEvent(const Solution& reference, const std::string& events_source, ScoredResult* result);
+// not end on an event, when the result failed (`failed`: its last event row is where it
+// stopped), or when the end row's flexion is not the reference end state's (within 1e-3°:
+// another event's row).
+void ReconcileEndEvent(const Solution& reference, const std::string& events_source, bool failed,
+                       ScoredResult* result);
 // The reference's end-event name ("" when it does not end on an event).
 std::string ReferenceEndEventName(const Solution& reference);
 

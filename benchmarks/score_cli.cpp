@@ -182,9 +182,9 @@ int ScoreCommand::Run(int argc, char** argv) {
       }
       info.counters[c.substr(0, eq)] = v;  // over the --counters file's value of that name
     }
-    ReconcileEndEvent(reference, events_path_.empty() ? std::string("the result")
-                                                       : "--events = '" + EchoPath(events_path_) + "'",
-                      &result);
+    ReconcileEndEvent(reference,
+                      events_path_.empty() ? std::string("the result") : "--events = '" + EchoPath(events_path_) + "'",
+                      !run_failure.empty(), &result);
     info.cpu_time_s = cpu_time_;
     info.failure = run_failure;
     // Rows off the reference's sampling times: against the reference run again there.

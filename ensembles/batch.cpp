@@ -135,6 +135,9 @@ Batch::Batch(Scene base, RunSettings run, std::vector<std::string> outcome_group
     if (std::count(outcome_groups.begin(), outcome_groups.end(), g) > 1) {  // as a sweep spec refuses it
       Throw<InputError>("kneedyn batch", "--outcomes: outcome '", g, "' listed twice");
     }
+    if (const std::string why = OutcomeGroupEmptyFor(base.model, g); !why.empty()) {
+      Throw<InputError>("kneedyn batch", "--outcomes: outcome '", g, "': ", why);
+    }
   }
   CreateFormulation(run.formulation, base, run.options);  // checks the options (ValidateOptions)
   spec_.path = "kneedyn batch";

@@ -220,6 +220,9 @@ SweepTable ReadPart(const std::string& path) {
   t.total_runs = read.Integer(j, "", "total_runs", 1, kMaxSweepRuns);
   // --shard i/n (WritePart writes both; a part without them is one of a single split, 0/1).
   // n may exceed the runs: some shards are empty.
+  if (read.Find(j, "", "shard") != nullptr && read.Find(j, "", "shards") == nullptr) {
+    read.Fail("shards", ": missing; a part that gives its shard gives the shard count too (--shard i/n)");
+  }
   if (read.Find(j, "", "shards") != nullptr) t.shards = read.Integer(j, "", "shards", 1, kMaxSweepRuns);
   if (read.Find(j, "", "shard") != nullptr || t.shards > 1) t.shard = read.Integer(j, "", "shard", 0, t.shards - 1);
   t.parameter_columns = read.Strings(read.List(j, "", "parameter_columns"), "parameter_columns");

@@ -289,6 +289,13 @@ void CheckFixedStepBeforeRuns(const Scene& base, const RunSettings& settings,
 
 std::string ParameterRange::Describe() const { return StrCat(lo_open ? "(" : "[", lo, ", ", hi, "]"); }
 
+std::string OutcomeGroupEmptyFor(const Model& model, const std::string& group) {
+  if ((group == "peak_contact_force" || group == "contact_force_at_90") && model.contacts.empty()) {
+    return "the scene has no contact pairs (contacts: none), so this outcome would give no column";
+  }
+  return "";
+}
+
 const std::set<std::string>& OutcomeGroups() {
   static const std::set<std::string> kGroups = {
       "liftoff_time", "liftoff_flexion", "peak_ligament_force", "peak_contact_force",
@@ -489,6 +496,7 @@ SweepSpec ParseSweepSpec(const std::string& yaml_text, const std::string& label,
       if (std::find(spec.outcome_groups.begin(), spec.outcome_groups.end(), g) != spec.outcome_groups.end()) {
         o.Fail("outcome listed twice");
       }
+      if (const std::string why = OutcomeGroupEmptyFor(spec.base.model, g); !why.empty()) o.Fail(why);
       spec.outcome_groups.push_back(g);
     }
   }

@@ -112,6 +112,9 @@ void CheckFixedStepBeforeRuns(const Scene& base, const RunSettings& settings,
                               const std::vector<ParameterSpec>& parameters);
 // The outcome groups a spec's `outcomes` (and `kneedyn batch --outcomes`) may name.
 const std::set<std::string>& OutcomeGroups();
+// Why outcome `group` gives no column for `model` ("" when it gives some): the contact force
+// groups on a scene without contact pairs. Sweep specs and batches refuse such a group.
+std::string OutcomeGroupEmptyFor(const Model& model, const std::string& group);
 
 // The base scene with the parameter values of one run (spec units) applied. Attachments
 // and slack lengths keep the chapter's definition L0 = L_ref / e at the reference pose

@@ -49,6 +49,13 @@ std::string ColumnSafeName(const std::string& name) {
 }
 
 namespace {
+// A length in a warning's message, to 4 significant digits (0.3359 mm, not 0.33594237911370106).
+std::string Rounded(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.4g", v);
+  return text;
+}
+
 // printf's %.12g through std::to_chars(general, 12) (C++17 [charconv.to.chars]: exactly
 // %.*g in the "C" locale; libstdc++'s Ryu printf, ~700 instructions a number).
 size_t FormatGeneral12(double v, char (&out)[kTrajectoryNumberChars]) {
@@ -254,32 +261,38 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
     std::vector<double> row;
     row.reserve(cols.size());
     row.resize(cols.size() - (model.patella ? kPatellaColumns : 0));
+    // The values and the names above are two lists in one order: a value without its name
+    // would shift every later value under the wrong name (a test of a new column found its
+    // strain written under V_ and 0 under strain_). `put` refuses a value past the row's
+    // columns, and the count is checked at the end: either way the run stops, naming both.
     double* out = row.data();
+    double* const end = row.data() + row.size();
+    const auto put = [&out, end](double v) {
+      if (out == end) Throw<Error>("MakeTrajectoryTable", "more values than columns: the names and the values must be added together");
+      *out++ = v;
+    };
     for (double v : {obs.t, j.flexion_deg, j.valgus_deg, j.external_rotation_deg, MToMm(q(kX0)), MToMm(q(kY0)),
                      MToMm(q(kZ0)), MToMm(qd(kX0)), MToMm(qd(kY0)), MToMm(qd(kZ0)), j.flexion_rate_deg_s,
                      j.valgus_rate_deg_s, j.external_rotation_rate_deg_s}) {
-      *out++ = v;
+      put(v);
     }
-    for (int i = 0; i < 3; ++i) *out++ = RadToDeg(j.omega_T(i));
-    *out++ = obs.pulse;
-    *out++ = static_cast<double>(obs.contacts_active);
-    *out++ = result.sample_is_event[s] ? 1.0 : 0.0;
+    for (int i = 0; i < 3; ++i) put(RadToDeg(j.omega_T(i)));
+    put(obs.pulse);
+    put(static_cast<double>(obs.contacts_active));
+    put(result.sample_is_event[s] ? 1.0 : 0.0);
     for (const ContactObservables& c : obs.contacts) {  // NaN = empty when separated
-      for (int a = 0; a < 3; ++a) *out++ = MToMm(c.point_F(a));
-      for (int a = 0; a < 3; ++a) *out++ = MToMm(c.point_T(a));
+      for (int a = 0; a < 3; ++a) put(MToMm(c.point_F(a)));
+      for (int a = 0; a < 3; ++a) put(MToMm(c.point_T(a)));
     }
-    for (const ContactObservables& c : obs.contacts) *out++ = c.normal_force;
-    for (const LigamentObservables& l : obs.ligaments) *out++ = l.tension;
-    for (const ContactObservables& c : obs.contacts) *out++ = MToMm(c.gap);
-    for (const ContactObservables& c : obs.contacts) *out++ = MToMm(c.gap_rate);
-    for (const LigamentObservables& l : obs.ligaments) *out++ = MToMm(l.length);
-    for (const LigamentObservables& l : obs.ligaments) *out++ = l.strain;
-    // The values above and the names above are two lists in one order: a column added to one
-    // and not the other would shift every later value under the wrong name (a test of a new
-    // column found its strain written under V_ and 0 under strain_); caught here, every row.
-    if (out != row.data() + row.size()) {
+    for (const ContactObservables& c : obs.contacts) put(c.normal_force);
+    for (const LigamentObservables& l : obs.ligaments) put(l.tension);
+    for (const ContactObservables& c : obs.contacts) put(MToMm(c.gap));
+    for (const ContactObservables& c : obs.contacts) put(MToMm(c.gap_rate));
+    for (const LigamentObservables& l : obs.ligaments) put(MToMm(l.length));
+    for (const LigamentObservables& l : obs.ligaments) put(l.strain);
+    if (out != end) {
       Throw<Error>("MakeTrajectoryTable", "wrote ", out - row.data(), " values for ", row.size(),
-                   " columns before the patella's: the column names and the row's values must be added together");
+                   " columns before the patella's: the names and the values must be added together");
     }
     if (model.patella) {
       AppendPatellaColumns(*model.patella, st, &patella_q, &patella_guess, &row,
@@ -407,7 +420,7 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
   // A separated condyle re-contacts when its gap falls below the hysteresis (docs/model.md §9),
   // 10 × max(drift, tolerances). A drift-set hysteresis can let it sink into its plateau,
   // silently, by more than the tolerances allow (ede euler at its default step: 0.34 mm with a
-  // 0.49 mm hysteresis from a 0.049 mm drift): the penetration is the drift's, not the knee's.
+  // 0.48 mm hysteresis from a 0.048 mm drift): the penetration is the drift's, not the knee's.
   if (result.max_recontact_gap_tolerance > result.max_recontact_gap_tolerance_of_tolerances) {
     for (size_t c = 0; c < cols.size(); ++c) {
       const std::string& name = cols[c];
@@ -426,10 +439,10 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
       p.contact = StrCat("tibial contact ", part);
       p.column = name;
       p.time_s = at_s;
-      p.message = StrCat("the ", p.contact, ", separated, penetrates its plateau by ", -deepest_mm, " mm at t = ", at_s,
+      p.message = StrCat("the ", p.contact, ", separated, penetrates its plateau by ", Rounded(-deepest_mm), " mm at t = ", at_s,
                          " s without re-contacting: the re-contact hysteresis (docs/model.md §9) grew to ",
-                         MToMm(result.max_recontact_gap_tolerance), " mm with the run's constraint drift, past the ",
-                         allowed_mm, " mm its tolerances give; a smaller --step or tighter tolerances shrink the drift");
+                         Rounded(MToMm(result.max_recontact_gap_tolerance)), " mm with the run's constraint drift, past the ",
+                         Rounded(allowed_mm), " mm its tolerances give; a smaller --step or tighter tolerances shrink the drift");
       out.push_back(std::move(p));
     }
   }
@@ -448,8 +461,8 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
     p.column = name;
     p.contact = name.substr(7);
     p.time_s = at_s;
-    p.message = StrCat("element ", p.contact, " reaches a strain of ", largest, " at t = ", at_s, " s (its length ",
-                       largest + 1.0, " times its slack length), past ", kMaxPlausibleStrain,
+    p.message = StrCat("element ", p.contact, " reaches a strain of ", Rounded(largest), " at t = ", at_s,
+                       " s (its length ", Rounded(largest + 1.0), " times its slack length), past ", kMaxPlausibleStrain,
                        ": no ligament stretches so far; check the scene's initial_state and geometry");
     out.push_back(std::move(p));
   }

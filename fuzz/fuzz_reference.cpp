@@ -53,7 +53,8 @@ void ScoreAgainst(const std::string& result_path, const kneedyn::bench::Solution
                   const nlohmann::json& document, bool rerun) {
   namespace bench = kneedyn::bench;
   const kneedyn::Scene& scene = ChapterScene();
-  const bench::ScoredResult result = bench::ReadResultCsv(result_path, scene, reference);
+  bench::ScoredResult result = bench::ReadResultCsv(result_path, scene, reference);
+  bench::ReconcileEndEvent(reference, "the result", /*failed=*/false, &result);
   const bench::ReferenceScore scored = bench::ScoreAgainstReference(
       scene, document, reference, result,
       rerun ? bench::OffGridRows::kRunReferenceAgain : bench::OffGridRows::kNotCompared);

@@ -57,6 +57,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     bench::ScoredResult result = bench::ReadResultCsv(result_path, reference.scene, reference.solution);
     if (input.second) result.solution.events = bench::ReadEvents(events_path).events;
+    bench::ReconcileEndEvent(reference.solution, "--events", /*failed=*/false, &result);
     const bench::ReferenceScore scored = bench::ScoreAgainstReference(
         reference.scene, reference.document, reference.solution, result, bench::OffGridRows::kNotCompared);
     bench::ScoreInfo info;

@@ -103,8 +103,8 @@ int kneedyn_problem_create(const char* scene_path, const char* form, double rtol
     return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": scene_path and form must not be null");
   }
   if (!std::isfinite(rtol) || !std::isfinite(atol)) {  // -inf had passed as "<= 0: the defaults"
-    return Set(KNEEDYN_BAD_ARGUMENT, std::string(function) + ": rtol = " + std::to_string(rtol) + ", atol = " +
-                                         std::to_string(atol) + ": must be finite numbers (<= 0: the defaults)");
+    return Set(KNEEDYN_BAD_ARGUMENT, kneedyn::StrCat(function, ": rtol = ", rtol, ", atol = ", atol,
+                                                    ": must be finite numbers (<= 0: the defaults)"));
   }
   return Translate(function, [&] {
     auto handle = std::make_shared<kneedyn_problem>();

@@ -487,7 +487,7 @@ std::vector<std::string> ParameterNames(const Scene& scene) {
   std::vector<std::string> names = {"mass"};
   if (scene.model.pulse.shape != PulseShape::kNone) names.insert(names.begin(), {"pulse.amplitude", "pulse.duration"});
   for (const Ligament& l : scene.model.ligaments) {
-    const std::string e = Sanitize(l.name) + ".";
+    const std::string e = ColumnSafeName(l.name) + ".";
     names.push_back(e + "k_linear");
     if (scene.model.ligament_law == LigamentLaw::kPublished) names.push_back(e + "k_parabolic");
     names.push_back(e + "slack_length");
@@ -517,8 +517,8 @@ std::vector<ParameterSpec> ResolveParameters(const Scene& scene, const std::vect
   std::set<std::string> seen;
   if (names.empty()) Throw<InputError>("kneedyn sensitivity", field, ": give at least one parameter");
   for (const std::string& name : names) {
-    // Names as the sweep writes them, with spaces or with '_' for spaces.
-    const std::string key = Sanitize(name);
+    // Names as the sweep writes them: spaces, '-' and '/' as '_' (ColumnSafeName), or as given.
+    const std::string key = ColumnSafeName(name);
     // A pulse parameter of a scene without a pulse: ResolveParameterName says why it is refused.
     const bool pulse_parameter = key == "pulse.amplitude" || key == "pulse.duration";
     if (!pulse_parameter && std::find(valid.begin(), valid.end(), key) == valid.end()) {

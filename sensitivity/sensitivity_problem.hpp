@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "ensembles/sweep.hpp"
+#include "formulations/run_output.hpp"  // ColumnSafeName: the columns' spelling of an element
 #include "formulations/simulator.hpp"
 #include "sensitivity/forward_sensitivity.hpp"
 #include "solver/constrained_dynamics.hpp"
@@ -79,14 +80,6 @@ struct Outcome {
   int index = -1;  // ligament (model.ligaments) or contact (model.contacts)
 };
 
-inline std::string Sanitize(const std::string& s) {
-  std::string out = s;
-  for (char& c : out) {
-    if (c == ' ' || c == '/') c = '_';
-  }
-  return out;
-}
-
 inline const std::vector<std::string>& AllGroups() {
   static const std::vector<std::string> kGroups = {"liftoff_time", "liftoff_flexion", "peak_ligament_force",
                                                    "peak_contact_force", "time_at_90", "ligament_force_at_90",
@@ -127,7 +120,7 @@ inline Outcome ParseOutcome(const Model& m, const std::string& column) {
     const std::string name = column.substr(prefix.size(), column.size() - prefix.size() - 2);
     if (p.ligament) {
       for (size_t j = 0; j < m.ligaments.size(); ++j) {
-        if (Sanitize(m.ligaments[j].name) == name) return {column, p.kind, static_cast<int>(j)};
+        if (ColumnSafeName(m.ligaments[j].name) == name) return {column, p.kind, static_cast<int>(j)};
       }
     } else {
       const Compartment c = name == "medial" ? Compartment::kMedial : Compartment::kLateral;

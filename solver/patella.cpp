@@ -41,10 +41,10 @@ std::pair<const char*, double> TrochlearChartMargin(const std::array<double, kPa
 }
 
 // A contact point this close to its chart's edge (rad) when the continuation fails names the
-// edge as the reason: the equilibrium goes on past it (an independent solve followed it 50 %
-// further on hard/patella_quadriceps_2000N, its Jacobian regular), on a sphere the chart,
-// and so the model, no longer describes.
-constexpr double kChartEdgeMargin = 2.0 * 3.14159265358979323846 / 180.0;
+// edge as the reason: there the model's geometry ends, whatever the equilibrium does past it
+// (on hard/patella_quadriceps_2000N an independent solve followed it 50 % further, its
+// Jacobian regular: no fold).
+constexpr double kChartEdgeMargin = DegToRad(2.0);
 
 // r(x) and ∂r/∂x at x; false outside a chart.
 bool Linearize(const Patella& patella, const Vector3d& tuberosity_F, const std::array<double, kPatellaUnknowns>& x,
@@ -250,8 +250,7 @@ void SolvePatella(const Patella& patella, const Vector3d& tuberosity_F, const ch
   const std::string why =
       margin < kChartEdgeMargin
           ? StrCat("the ", sphere, " trochlear contact point reached the edge of its sphere's chart (",
-                   TrochlearChartCoordinates(last_solved), "): the model's trochlear geometry ends there, not the "
-                   "equilibrium (no fold); ", failure)
+                   TrochlearChartCoordinates(last_solved), "): the model's trochlear geometry ends there; ", failure)
           : StrCat(failure, " (", TrochlearChartCoordinates(last_solved), ")");
   Throw<SolverError>(caller, "no patellar equilibrium found at the tuberosity position (", MToMm(tuberosity_F.x()), ", ",
                      MToMm(tuberosity_F.y()), ", ", MToMm(tuberosity_F.z()), ") mm in F (from the last solution at (",

@@ -587,7 +587,7 @@ TEST_F(CliTest, AnOutputIntervalLongerThanTheRunIsWarned) {
 }
 
 // A separated condyle re-contacts when its gap falls below the hysteresis, 10 × max(drift,
-// rtol |x0| + atol) (docs/model.md §9). ede euler at its default step drifts 0.049 mm, so the
+// rtol |x0| + atol) (docs/model.md §9). ede euler at its default step drifts 0.048 mm, so the
 // hysteresis reaches ~0.5 mm and the separated lateral condyle sinks 0.34 mm into its plateau
 // (the gap column, read here from the rows without a contact point) with no re-contact: the
 // run warns, naming the row of deepest penetration. dae's separated rows stay within the

@@ -943,15 +943,15 @@ TEST(PatellaRuns, PullingTibialContactIsReportedOutsideItsOwnLiftoffRow) {
 // t = 0.0984 s, past its last row (0.095 s), and fails there with "no patellar equilibrium
 // found": the lateral trochlear contact point has reached the edge of its sphere's chart
 // (|u| < 80°, |v| < 170°, solver/height_field.hpp), where the equilibrium goes on, its
-// Jacobian regular, on a sphere the chart no longer describes (not a fold; the message says
-// so). A row at such a pose (written by a method whose output falls there: here the last row
+// Jacobian regular, on a sphere the chart no longer describes (not a fold: an independent
+// solve followed it 50 % further; the message names the edge). A row at such a pose (written by a method whose output falls there: here the last row
 // moved on along the last interval's direction until it is past the edge) is one where the path
 // MakeTrajectoryTable follows from the row before finds no equilibrium. The set is written,
 // that row's patella columns empty, its other columns not, and a warning of kind
 // patella_not_followed gives its time. Before, WriteRunOutputs threw: exit 2 and nothing
 // written. The same rows in a run marked completed get the same empty columns, and the
 // warning says the run's own steps got there.
-TEST(PatellaRuns, RowPastAFoldOfAFailedRunHasEmptyPatellaColumnsAndAWarning) {
+TEST(PatellaRuns, RowPastTheChartEdgeOfAFailedRunHasEmptyPatellaColumnsAndAWarning) {
   const Scene scene = LoadScene("reference-data/scenes/hard/patella_quadriceps_2000N.yaml");
   RunSettings settings;
   settings.formulation = "newmark";
@@ -986,7 +986,7 @@ TEST(PatellaRuns, RowPastAFoldOfAFailedRunHasEmptyPatellaColumnsAndAWarning) {
       beyond = true;
     }
   }
-  ASSERT_TRUE(beyond) << "no pose past the fold along the last interval's direction";
+  ASSERT_TRUE(beyond) << "no pose past the chart's edge along the last interval's direction";
   run.samples.push_back(past);
   run.sample_is_event.push_back(false);
   const WrittenRun w = WriteAndRead(scene, settings, run, "fold");

@@ -551,18 +551,29 @@ TEST(Score, ScdNeedsEveryCoordinateAndTheEndRowsTimeIsTheEndEvents) {
 
   bench::ScoredResult late = bench::ReadResultCsv(write("late.csv", false, t_end + 1e-3, 2), ChapterScene(), ref);
   EXPECT_EQ(late.rows_after_reference_end, 2u);
-  bench::ReconcileEndEvent(ref, "the result", &late);
+  bench::ReconcileEndEvent(ref, "the result", false, &late);
   const bench::Score scored = bench::ScoreResult(late, ref);
   EXPECT_NEAR(scored.event_digits.at("flexion_90"), -std::log10(1e-3 / t_end), 1e-6);
 
   bench::ScoredResult contradicted = bench::ReadResultCsv(write("late2.csv", false, t_end + 1e-3, 0), ChapterScene(), ref);
   contradicted.solution.events.push_back({"flexion_90", t_end, DegToRad(90.0)});
   try {
-    bench::ReconcileEndEvent(ref, "--events = 'e.csv'", &contradicted);
+    bench::ReconcileEndEvent(ref, "--events = 'e.csv'", false, &contradicted);
     FAIL() << "an end event away from the end row was accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("--events = 'e.csv': event flexion_90"), std::string::npos) << e.what();
   }
+
+  // A failed result's last event row is where it stopped, not the end event: none is added
+  // (before the rule: a flexion_90 at the lift-off's 52.6°). Nor is one for a completed
+  // result whose last event row is at another flexion than the reference's end.
+  bench::ScoredResult failed = bench::ReadResultCsv(write("failed.csv", false, t_end + 1e-3, 0), ChapterScene(), ref);
+  bench::ReconcileEndEvent(ref, "the result", true, &failed);
+  EXPECT_TRUE(failed.solution.events.empty());
+  bench::ScoredResult elsewhere = bench::ReadResultCsv(write("elsewhere.csv", false, t_end, 0), ChapterScene(), ref);
+  elsewhere.solution.values.at("positions").back()[3] -= 37.4;  // the end row at the lift-off's 52.6°
+  bench::ReconcileEndEvent(ref, "the result", false, &elsewhere);
+  EXPECT_TRUE(elsewhere.solution.events.empty());
   fs::remove_all(dir);
 }
 

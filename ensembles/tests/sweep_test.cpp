@@ -97,11 +97,19 @@ TEST(Sweep, NominalRunAgreesWithTheRunDriverAndItsTrajectoryFile) {
 }
 
 // A scene's contact outcomes are its contact pairs', as trajectory.csv's N_<compartment>_N:
-// no_contact.yaml has none (before: peak_N_medial_N and _lateral_N of 0 N, which no run of
-// it computes), one_ligament.yaml both.
+// chapter_impact.yaml has both; no_contact.yaml has none, so a spec that asks for them is
+// refused, naming the outcome (before: peak_N_medial_N and _lateral_N of 0 N, which no run
+// of it computes).
 TEST(Sweep, ContactOutcomesAreTheScenesContactPairs) {
+  try {
+    Parse("scene: no_contact.yaml\nparameters: [{name: mass, uniform: [4, 5]}]\ndesign: {type: grid, levels: 1}\n"
+          "outcomes: [liftoff_time, peak_contact_force]\n");
+    ADD_FAILURE() << "a contact outcome of a scene without contacts was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("the scene has no contact pairs"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("outcomes"), std::string::npos) << e.what();
+  }
   for (const auto& [scene, expected] : std::vector<std::pair<std::string, std::vector<std::string>>>{
-           {"no_contact.yaml", {}},
            {"chapter_impact.yaml", {"peak_N_medial_N", "peak_N_lateral_N", "N90_medial_N", "N90_lateral_N"}}}) {
     const SweepSpec spec = Parse("scene: " + scene +
                                  "\nparameters: [{name: mass, uniform: [4, 5]}]\ndesign: {type: grid, levels: 1}\n"

@@ -14,11 +14,13 @@
 // Not validated here: IDAS/DAE sensitivities (dae_sensitivity_test.cpp); impacts (refused).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "formulations/run.hpp"
 #include "sensitivity/forward_sensitivity.hpp"
 #include "sensitivity/sensitivity_cli.hpp"
+#include "sensitivity/sensitivity_problem.hpp"
 #include "sensitivity/tests/sensitivity_test_support.hpp"
 #include "solver/error.hpp"
 
@@ -215,6 +217,25 @@ TEST(ForwardSensitivity, UnknownNamesNameTheNearestValidOne) {
     good.formulation = ok;
     EXPECT_TRUE(good.IsValid(&why)) << ok << ": " << why;
   }
+}
+
+// An element whose name has a '-' is named as trajectory.csv and the sweep name it (its
+// '-' as '_', docs/outputs.md) in parameters and outcomes alike. Before, the sweep's outcome
+// column peak_F_MCL_deep_N was "not known" to the sensitivity, which kept the '-'.
+TEST(ForwardSensitivity, ElementNamesWithADashAreSpeltAsTheColumns) {
+  Scene scene = Chapter();
+  int renamed = -1;
+  for (size_t j = 0; j < scene.model.ligaments.size(); ++j) {
+    if (scene.model.ligaments[j].name == "MCL deep") scene.model.ligaments[j].name = "MCL-deep", renamed = static_cast<int>(j);
+  }
+  ASSERT_GE(renamed, 0);
+  const detail::Outcome o = detail::ParseOutcome(scene.model, "peak_F_MCL_deep_N");
+  EXPECT_EQ(o.kind, detail::OutcomeKind::kPeakLigament);
+  EXPECT_EQ(o.index, renamed);
+  const std::vector<std::string> names = ParameterNames(scene);
+  EXPECT_NE(std::find(names.begin(), names.end(), "MCL_deep.k_linear"), names.end());
+  EXPECT_EQ(ResolveParameters(scene, {"MCL_deep.k_linear"}).size(), 1u);
+  EXPECT_EQ(ResolveParameters(scene, {"MCL-deep.k_linear"}).size(), 1u);
 }
 
 // A scene without a tibial pulse (shape none) has no pulse parameters: listed names leave
