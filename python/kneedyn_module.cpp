@@ -595,13 +595,16 @@ PYBIND11_MODULE(_kneedyn, m) {
   // as `kneedyn sensitivity SCENE --parameters ... --outcomes ... [--fd-step H] --out DIR`.
   m.def("sensitivity", [](std::shared_ptr<Scene> scene, const std::vector<std::string>& parameters,
                           const std::vector<std::string>& outcomes, double rtol, double atol, double fd_step,
-                          const std::string& out_dir, const std::string& formulation) {
+                          const std::string& out_dir, const std::string& formulation, long max_steps,
+                          double output_interval) {
     if (!scene) Throw<InputError>("kneedyn.sensitivity", "scene = None: must be a compiled scene (kneedyn.Scene.compiled)");
     using namespace sensitivity;
     SensitivityOptions options;
     options.formulation = formulation;
     options.rtol = rtol;
     options.atol = atol;
+    options.max_steps = max_steps;  // checked with the others (IsValid), as --max-steps
+    options.output_interval = output_interval;  // 0: the scene's; checked against its end by the run
     std::string why;
     if (!options.IsValid(&why)) Throw<InputError>("kneedyn.sensitivity", why);
     if (!(fd_step >= 0.0 && fd_step < 0.5)) Throw<InputError>("kneedyn.sensitivity", "fd_step = ", fd_step, ": must be in [0, 0.5)");
@@ -630,6 +633,7 @@ PYBIND11_MODULE(_kneedyn, m) {
     return d;
   }, py::arg("scene"), py::arg("parameters"), py::arg("outcomes"), py::arg("rtol"), py::arg("atol"),
      py::arg("fd_step") = 0.0, py::arg("out_dir") = "", py::arg("formulation") = "ede",
+     py::arg("max_steps") = 200000L, py::arg("output_interval") = 0.0,
      "RunSensitivity (+ CentralDifferences, + WriteSensitivityOutputs into out_dir) without the GIL");
   BindProblem(m);
 }

@@ -244,7 +244,8 @@ class Scene:
 
     def remove_ligaments(self, *patterns):
         """Removes every element whose name contains one of the patterns (e.g. 'ACL'; a list
-        of patterns counts as its items); returns the removed names. A pattern that matches
+        of patterns counts as its items), with its ligament_parameters entry if the scene
+        has one; returns the removed names. A pattern that matches
         nothing, an empty pattern (it would match every element) or one that is not a str
         raises InputError."""
         flat = []
@@ -263,7 +264,15 @@ class Scene:
                 raise InputError("Scene.remove_ligaments(): pattern %s matches no element; the "
                                  "scene has: %s" % (_echo(p), ", ".join(names)))
             removed += [n for n in hit if n not in removed]
-        self.update({"ligaments": [n for n in names if n not in removed]})
+        changes = {"ligaments": [n for n in names if n not in removed]}
+        # An override of a removed element would be refused ("not a ligament element selected
+        # by this scene"): it goes with the element (None deletes a key in update()).
+        overrides = self._doc.get("ligament_parameters")
+        if isinstance(overrides, dict):
+            gone = {k: None for k in overrides if k in removed}
+            if gone:
+                changes["ligament_parameters"] = gone
+        self.update(changes)
         return removed
 
     def set_ligament_parameters(self, name, **values):
@@ -599,18 +608,23 @@ def sweep(spec_path, threads=0, out=None):
                                       "" if out is None else _file_path(out, "sweep", "out")))
 
 
-def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0.0, out=None, formulation="ede"):
+def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0.0, out=None, formulation="ede",
+                max_steps=200000, output_interval=0.0):
     """Forward sensitivities like `kneedyn sensitivity` (docs/outputs.md): `parameters` and
     `outcomes` are the sweep's names (e.g. "PCL_anterior.k_linear", "peak_F_PCL_anterior_N"
     or a group such as "contact_force_at_90"); `formulation` "ede" (CVODES) or a DAE form
     "dae", "dae-reduced", "dae-ggl", "dae-ggl-reduced" (IDAS). Returns a dict with `parameters`,
     `parameter_values`, `outcomes`, `values`, `derivatives` ([outcome][parameter]),
     `end_reason`, `steps`, and with fd_step > 0 `fd_derivatives` (central differences with
-    that relative step). `out` also writes sensitivity.csv and sensitivity.json. Unknown
+    that relative step). `out` also writes sensitivity.csv and sensitivity.json; max_steps
+    (per phase) and output_interval (s between the rows peaks are read from; 0: the
+    scene's) as the CLI's --max-steps and --output-interval. Unknown
     names raise InputError naming the nearest valid name; a run with an impact SolverError."""
     scene = _scene(scene, "sensitivity")
     return _kneedyn.sensitivity(scene.compiled, _names(parameters, "parameters"), _names(outcomes, "outcomes"),
                                 _real(rtol, "sensitivity", "rtol"), _real(atol, "sensitivity", "atol"),
                                 _real(fd_step, "sensitivity", "fd_step"),
                                 "" if out is None else _file_path(out, "sensitivity", "out"),
-                                _text(formulation, "sensitivity", "formulation"))
+                                _text(formulation, "sensitivity", "formulation"),
+                                _integer(max_steps, "sensitivity", "max_steps"),
+                                _real(output_interval, "sensitivity", "output_interval"))

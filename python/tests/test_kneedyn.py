@@ -167,6 +167,19 @@ def test_ligament_parameters_equal_the_stiffness_scale():
         s.set_ligament_parameters("ACL anterior", k_linear_N_mm=10)
 
 
+def test_removing_an_element_removes_its_override():
+    """An element removed with its ligament_parameters entry: the scene is the one without
+    that element (before: InputError, the override naming an element no longer selected)."""
+    scene = kneedyn.load_scene(CHAPTER)
+    scene.set_ligament_parameters("LCL", k_linear_N_mm=10)
+    assert scene.remove_ligaments("LCL") == ["LCL"]
+    plain = kneedyn.load_scene(CHAPTER)
+    plain.remove_ligaments("LCL")
+    a = kneedyn.run(scene, "dae-reduced")
+    b = kneedyn.run(plain, "dae-reduced")
+    assert np.array_equal(a.trajectory.array, b.trajectory.array, equal_nan=True)
+
+
 def test_from_dict_equals_load_scene():
     scene = kneedyn.load_scene(CHAPTER)
     doc = scene.to_dict()
@@ -512,6 +525,24 @@ def test_sensitivity_formulation_dae_matches_the_cli():
     assert math.isclose(float(rows[0]["derivative"]), r["derivatives"][0][0], rel_tol=1e-11)
     with pytest.raises(kneedyn.InputError, match="--formulation = 'newmark'"):
         kneedyn.sensitivity(CHAPTER, ["mass"], ["liftoff_time_s"], formulation="newmark")
+
+
+def test_sensitivity_takes_the_clis_max_steps_and_output_interval():
+    """max_steps and output_interval are --max-steps and --output-interval (before: no keyword):
+    a peak read from 1 ms rows equals the CLI's, and differs from the scene's 5 ms rows'."""
+    cli_out = os.path.join(OUT, "sensitivity_cli_rows")
+    p = subprocess.run([CLI, "sensitivity", CHAPTER, "--parameters", "mass", "--outcomes", "peak_F_PCL_anterior_N",
+                        "--output-interval", "0.001", "--max-steps", "50000", "--out", cli_out],
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    r = kneedyn.sensitivity(CHAPTER, ["mass"], ["peak_F_PCL_anterior_N"], output_interval=0.001, max_steps=50000)
+    coarse = kneedyn.sensitivity(CHAPTER, ["mass"], ["peak_F_PCL_anterior_N"])
+    with open(os.path.join(cli_out, "sensitivity.csv")) as f:
+        rows = list(csv.DictReader(f))
+    assert math.isclose(float(rows[0]["derivative"]), r["derivatives"][0][0], rel_tol=1e-11)
+    assert r["values"][0] != coarse["values"][0]
+    with pytest.raises(kneedyn.InputError, match="max-steps"):
+        kneedyn.sensitivity(CHAPTER, ["mass"], ["peak_F_PCL_anterior_N"], max_steps=0)
 
 
 PATELLA = os.path.join("reference-data", "scenes", "patellofemoral_impact.yaml")
