@@ -220,8 +220,9 @@ int Main(int argc, char** argv) {
                                  "u - q' = 0 first) | dense (SUNDIALS' LU of the whole matrix) (" +
                                      accepted(&FormulationInfo::linear_solvers) + ")");
   text_option("--contact-chart",
-              "chart of the contact coordinates of the consistent initialization and the chapter-form "
-              "formulations: regular | height-field (the chapter's, singular at the condyle rim)",
+              "chart of the contact coordinates of the consistent initialization and of every formulation "
+              "that has them (not mde, staggered): regular | height-field (the chapter's, singular at the "
+              "condyle rim)",
               shown(OptionName(defaults.contact_chart)));
   text_option("--output-interval", "s between output rows (> 0; omit it for the scene's)");
   run->add_option("--out", out_dir, "output directory")->capture_default_str();
@@ -272,8 +273,10 @@ int Main(int argc, char** argv) {
   try {
     if (info && *info) return Info(info_scene);
     if (list && *list) {
+      int width = 0;  // the longest name's: the summaries start in one column
+      for (const FormulationInfo& f : RegisteredFormulations()) width = std::max(width, static_cast<int>(f.name.size()));
       for (const FormulationInfo& f : RegisteredFormulations()) {
-        std::printf("%-16s %s", f.name.c_str(), f.summary.c_str());
+        std::printf("%-*s  %s", width, f.name.c_str(), f.summary.c_str());
         if (!f.integrators.empty()) {
           std::printf(" [--integrator");
           for (IntegratorKind i : f.integrators) std::printf(" %s", OptionName(i));

@@ -215,7 +215,7 @@ std::string ReadOptionText(const OptionText& typed, FormulationOptions* options)
     else if (flag == "--gamma") optional_number(&o.newmark_gamma);
     else if (flag == "--max-steps") {
       if (!ParseInteger(text, &o.max_steps)) {
-        why = StrCat("--max-steps = '", Echo(text), "': not an integer in [1, 1e8]");
+        why = StrCat("--max-steps = '", Echo(text), "': not an integer in [1, 100000000]");
       }
     } else if (flag == "--integrator") name(&o.integrator);
     else if (flag == "--stabilization") name(&o.stabilization);
@@ -262,7 +262,7 @@ bool CheckShared(const OptionRequest& r) {
   if (o.max_steps < 1 || o.max_steps > 100000000) {
     const auto it = r.typed.find("--max-steps");
     return r.Fail(StrCat("--max-steps = ", it != r.typed.end() ? Echo(it->second) : StrCat(o.max_steps),
-                         "; must lie in [1, 1e8]"));
+                         "; must lie in [1, 100000000]"));
   }
   // What the formulation accepts (its registry line).
   const bool scheme_given = o.alpha_m || o.alpha_f || o.newmark_beta || o.newmark_gamma;

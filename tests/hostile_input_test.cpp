@@ -218,7 +218,7 @@ TEST_F(HostileInput, BatchAndSensitivityMessagesEchoTheTextTyped) {
       {sensitivity + "--rtol 0.0", {"--rtol = 0.0;", "(0, 0.5]"}, "--rtol = 0;"},  // run's rule and message
       {sensitivity + "--rtol 0.9", {"--rtol = 0.9;", "(0, 0.5]"}, ""},
       {sensitivity + "--atol 0.5", {"--atol = 0.5;", "(0, 1e-2]"}, ""},
-      {sensitivity + "--max-steps 999999999", {"--max-steps = 999999999;", "[1, 1e8]"}, ""},
+      {sensitivity + "--max-steps 999999999", {"--max-steps = 999999999;", "[1, 100000000]"}, ""},
       {sensitivity + "--max-steps 99999999999999999999", {"--max-steps = '99999999999999999999'"}, "9223372036854775807"},
       {sensitivity + "--max-steps 1e3", {"--max-steps = '1e3'"}, ""},
       {sensitivity + "--atol 1e-999", {"--atol = '1e-999'"}, "--atol = 0"},

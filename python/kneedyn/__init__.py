@@ -387,7 +387,7 @@ def _integer(value, function, argument):
     """A whole number that fits the C++ side's int64, else InputError naming it (before,
     max_steps=1e20 reached pybind11, whose TypeError listed the signature, not the argument).
     bool, str and arrays are refused (True was taken as 1). The C++ side then applies its own
-    range (e.g. max_steps in [1, 1e8])."""
+    range (e.g. max_steps in [1, 100000000])."""
     whole = False
     if isinstance(value, _numbers.Real) and not isinstance(value, (bool, _np.bool_)):
         try:

@@ -1,4 +1,4 @@
-// Ten lines against the installed kneedyn: load a scene (the installed chapter scene, or the
+// A few lines against the installed kneedyn: load a scene (the installed chapter scene, or the
 // one named), run dae, check it completed.
 #include <cstdio>
 #include "formulations/run.hpp"
