@@ -680,6 +680,30 @@ TEST_F(CliTest, CatalogRefusesAnUnusableCasesDirOrOutBeforeRunning) {
       "[1/1", Out());
 }
 
+// The catalog's "refused" expectation is the README's "must be refused": a jcs_singular_pose
+// that the loader accepts (β = 0.1°, moving towards the singularity) fails during
+// integration with a JCS message, which --check now counts as not met (exit 1); before,
+// any failure naming the JCS passed. The shipped case is refused and passes.
+TEST_F(CliTest, CatalogRefusedExpectationNeedsARefusal) {
+  const fs::path cases = fs::path(Out()).parent_path() / "jcs_cases";
+  fs::create_directories(cases);
+  std::string text = ReadText(fs::path(KNEEDYN_SOURCE_DIR) / "reference-data/scenes/hard/jcs_singular_pose.yaml");
+  const std::string pose = "beta_deg: 0.01, gamma_deg: 0.0}";
+  ASSERT_NE(text.find(pose), std::string::npos);
+  text.replace(text.find(pose), pose.size(), "beta_deg: 0.1, gamma_deg: 0.0}\n  velocities: {beta_deg_s: -57.29578}");
+  const std::string hold = "hold: [x0, y0, z0, alpha, beta, gamma, velocities]";
+  ASSERT_NE(text.find(hold), std::string::npos);
+  text.replace(text.find("parameter_set: ../../chapter_knee.yaml"), 38,
+               "parameter_set: " + (fs::path(KNEEDYN_SOURCE_DIR) / "reference-data/chapter_knee.yaml").string());
+  std::ofstream(cases / "jcs_singular_pose.yaml") << text;
+  const std::string catalog = std::string("'") + KNEEDYN_CATALOG_EXE + "' --check --case jcs_singular_pose --formulation dae --no-reference";
+  const CommandResult moving = RunShell(catalog + " --cases-dir '" + cases.string() + "' --out '" + Out() + "'");
+  EXPECT_EQ(moving.exit_code, 1) << moving.output;
+  fs::remove_all(Out());
+  const CommandResult shipped = RunShell(catalog + " --out '" + Out() + "'");
+  EXPECT_EQ(shipped.exit_code, 0) << shipped.output;
+}
+
 // summary.json describes the run: schema version, command line, version and
 // commit, and the integrator and step actually used (rk4 with the default step: the
 // registry's documented kDefaultFixedStep; dae: IDA, adaptive, with a mean step that
