@@ -693,7 +693,9 @@ TEST_F(CliTest, CatalogRefusedExpectationNeedsARefusal) {
   text.replace(text.find(pose), pose.size(), "beta_deg: 0.1, gamma_deg: 0.0}\n  velocities: {beta_deg_s: -57.29578}");
   const std::string hold = "hold: [x0, y0, z0, alpha, beta, gamma, velocities]";
   ASSERT_NE(text.find(hold), std::string::npos);
-  text.replace(text.find("parameter_set: ../../chapter_knee.yaml"), 38,
+  const size_t set_line = text.find("parameter_set: ");  // the case's relative path, made absolute
+  ASSERT_NE(set_line, std::string::npos);
+  text.replace(set_line, text.find('\n', set_line) - set_line,
                "parameter_set: " + (fs::path(KNEEDYN_SOURCE_DIR) / "reference-data/chapter_knee.yaml").string());
   std::ofstream(cases / "jcs_singular_pose.yaml") << text;
   const std::string catalog = std::string("'") + KNEEDYN_CATALOG_EXE + "' --check --case jcs_singular_pose --formulation dae --no-reference";
