@@ -48,7 +48,7 @@ enum class Expect {
   kClearError,   // be refused or stop with an error naming the cause (message contains `needle`)
   kRefused,      // be refused before integration (status "error"), the message containing `needle`
   kCompleteWithEvent,  // reach its end condition, and record the event named `needle`
-  kCompleteOrClearError,  // reach its end, or stop with an error containing `needle`; not garbage
+  kCompleteOrClearError,  // reach its end, or stop with an error containing `needle` (accuracy not checked)
   kAny,          // exploratory: any outcome is recorded, none is asserted
 };
 
@@ -95,7 +95,7 @@ const std::vector<CaseSpec>& Cases() {
 
 bool IsFixedStep(const std::string& name) { return IsFixedStep(FindFormulation(name), ""); }
 
-// --contact-chart: the chart of the chapter-form contact coordinates in every run.
+// --contact-chart: the chart of the contact coordinates in every run that accepts it.
 ContactChart g_contact_chart = ContactChart::kRegular;
 
 // Whether the case runs `info`: a case that asks for a constraint level runs the formulations
@@ -314,8 +314,8 @@ int main(int argc, char** argv) {
   app.add_flag("--no-reference", no_reference, "skip the tight-tolerance dae reference runs");
   std::string chart_text = OptionName(g_contact_chart);
   app.add_option("--contact-chart", chart_text,
-                 "chart of the chapter-form contact coordinates: regular | height-field (the "
-                 "chapter's; reproduces its failure at the condyle rim)")
+                 "chart of the contact coordinates, for the formulations that accept it: regular | height-field "
+                 "(the chapter's; reproduces its failure at the condyle rim)")
       ->capture_default_str();
   app.set_version_flag("--version", VersionReport("kneedyn_catalog"));
   if (const int code = ParseCommandLine(app, argc, argv, "kneedyn_catalog"); code >= 0) return code;

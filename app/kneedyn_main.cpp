@@ -220,8 +220,8 @@ int Main(int argc, char** argv) {
                                  "u - q' = 0 first) | dense (SUNDIALS' LU of the whole matrix) (" +
                                      accepted(&FormulationInfo::linear_solvers) + ")");
   text_option("--contact-chart",
-              "chart of the contact coordinates of the consistent initialization and of every formulation "
-              "that has them (not mde, staggered): regular | height-field (the chapter's, singular at the "
+              "chart of the contact coordinates of the consistent initialization and of the formulations "
+              "that accept it (not mde, staggered): regular | height-field (the chapter's, singular at the "
               "condyle rim)",
               shown(OptionName(defaults.contact_chart)));
   text_option("--output-interval", "s between output rows (> 0; omit it for the scene's)");

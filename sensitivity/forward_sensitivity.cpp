@@ -475,7 +475,7 @@ bool SensitivityOptions::IsValid(std::string* error, const OptionText& typed) co
   }
   // The tolerances and the step budget under the rules `kneedyn run` applies to the same
   // formulation (ValidateOptions): one rule per option. Before, sensitivity took --rtol up
-  // to 1 (run: 0.5), any --atol (run: 1e-2) and any --max-steps (run: 1e8).
+  // to 1 (run: 0.5), any --atol (run: 1e-2) and any --max-steps (run: 100000000).
   FormulationOptions shared;
   shared.rtol = rtol;
   shared.atol = atol;

@@ -162,7 +162,19 @@ class Scene:
 
     @ligaments.setter
     def ligaments(self, names):
-        self.update({"ligaments": _names(names, "ligaments", "Scene.ligaments")})
+        """Selects the elements (a list of names; [] for none). An element left out loses its
+        ligament_parameters entry, which would name an element no longer selected."""
+        self.update(self._selection_changes(_names(names, "ligaments", "Scene.ligaments")))
+
+    def _selection_changes(self, selected):
+        """The update() that selects `selected` and drops the overrides of the others."""
+        changes = {"ligaments": selected}
+        overrides = self._doc.get("ligament_parameters")
+        if isinstance(overrides, dict):
+            gone = {k: None for k in overrides if k not in selected}
+            if gone:
+                changes["ligament_parameters"] = gone
+        return changes
 
     @property
     def ligament_parameters(self):
@@ -264,15 +276,9 @@ class Scene:
                 raise InputError("Scene.remove_ligaments(): pattern %s matches no element; the "
                                  "scene has: %s" % (_echo(p), ", ".join(names)))
             removed += [n for n in hit if n not in removed]
-        changes = {"ligaments": [n for n in names if n not in removed]}
         # An override of a removed element would be refused ("not a ligament element selected
         # by this scene"): it goes with the element (None deletes a key in update()).
-        overrides = self._doc.get("ligament_parameters")
-        if isinstance(overrides, dict):
-            gone = {k: None for k in overrides if k in removed}
-            if gone:
-                changes["ligament_parameters"] = gone
-        self.update(changes)
+        self.update(self._selection_changes([n for n in names if n not in removed]))
         return removed
 
     def set_ligament_parameters(self, name, **values):

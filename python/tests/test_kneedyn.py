@@ -178,6 +178,14 @@ def test_removing_an_element_removes_its_override():
     a = kneedyn.run(scene, "dae-reduced")
     b = kneedyn.run(plain, "dae-reduced")
     assert np.array_equal(a.trajectory.array, b.trajectory.array, equal_nan=True)
+    # The same through the selection itself, down to no element at all.
+    selected = kneedyn.load_scene(CHAPTER)
+    selected.set_ligament_parameters("LCL", k_linear_N_mm=10)
+    selected.ligaments = [n for n in selected.ligaments if n != "LCL"]
+    c = kneedyn.run(selected, "dae-reduced")
+    assert np.array_equal(c.trajectory.array, b.trajectory.array, equal_nan=True)
+    selected.ligaments = []
+    assert selected.ligaments == [] and not selected.to_dict().get("ligament_parameters")
 
 
 def test_from_dict_equals_load_scene():
@@ -543,6 +551,8 @@ def test_sensitivity_takes_the_clis_max_steps_and_output_interval():
     assert r["values"][0] != coarse["values"][0]
     with pytest.raises(kneedyn.InputError, match="max-steps"):
         kneedyn.sensitivity(CHAPTER, ["mass"], ["peak_F_PCL_anterior_N"], max_steps=0)
+    with pytest.raises(kneedyn.SolverError, match="max-steps = 10"):  # the budget reaches the run
+        kneedyn.sensitivity(CHAPTER, ["mass"], ["peak_F_PCL_anterior_N"], max_steps=10)
 
 
 PATELLA = os.path.join("reference-data", "scenes", "patellofemoral_impact.yaml")
