@@ -60,7 +60,7 @@ struct CaseSpec {
   Expect expect = Expect::kAny;
   std::string needle;            // for kClearError, kRefused, kCompleteWithEvent, kCompleteOrClearError
   bool patella = false;          // has a patella: section (also runs the formulations that need one)
-  std::string event;             // an event the run must also record (e.g. before its error); "": none
+  std::string event = "";        // an event the run must also record (e.g. before its error); "": none
 };
 
 const std::vector<CaseSpec>& Cases() {
