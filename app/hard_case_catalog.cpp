@@ -100,10 +100,14 @@ ContactChart g_contact_chart = ContactChart::kRegular;
 
 // Whether the case runs `info`: a case that asks for a constraint level runs the formulations
 // whose capability lists it (FormulationInfo::constraint_levels), not those of a name.
+// Whether `info` runs under --contact-chart: any chart but the default needs the capability
+// (FormulationInfo::contact_chart); the others would only be error rows.
+bool TakesContactChart(const FormulationInfo& info) {
+  return g_contact_chart == FormulationOptions().contact_chart || info.contact_chart;
+}
+
 bool RunsFormulation(const CaseSpec& c, const FormulationInfo& info) {
-  // --contact-chart height-field: the formulations that have chapter-form contact coordinates
-  // (FormulationInfo::contact_chart); the others would only be error rows.
-  if (g_contact_chart != FormulationOptions().contact_chart && !info.contact_chart) return false;
+  if (!TakesContactChart(info)) return false;
   if (!c.constraint_level_only) return true;
   const ConstraintLevel level = ParsedOptionValue<ConstraintLevel>(c.constraint_level);
   return std::find(info.constraint_levels.begin(), info.constraint_levels.end(), level) != info.constraint_levels.end();
@@ -384,7 +388,7 @@ int main(int argc, char** argv) {
       if (scene && !no_reference) {
         std::string failures;  // candidates that did not complete, "; "-separated
         for (const char* candidate : {"dae", "mde", "ede"}) {
-          if (g_contact_chart != FormulationOptions().contact_chart && !FindFormulation(candidate).contact_chart) continue;
+          if (!TakesContactChart(FindFormulation(candidate))) continue;
           RunSettings ref;
           ref.formulation = candidate;
           ref.options.rtol = 1.0e-10;

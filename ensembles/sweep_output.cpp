@@ -47,7 +47,7 @@ void Publish(const std::string& tmp, const std::string& path) {
 }
 
 // The table as CSV into `tmp` (not published).
-void WriteCsvUnpublished(const std::string& tmp, const SweepTable& table) {
+void WriteCsv(const std::string& tmp, const SweepTable& table) {
   {
     std::ofstream out(tmp, std::ios::binary);
     if (!out) Throw<Error>("WriteCsv", "cannot write '", tmp, "'");
@@ -68,7 +68,7 @@ void WriteCsvUnpublished(const std::string& tmp, const SweepTable& table) {
 
 // The HDF5 library is in the sweep I/O plugin (sweep_io_plugin.hpp): the table goes there as
 // plain columns, into `tmp` (not published).
-void WriteHdf5Unpublished(const std::string& tmp, const SweepTable& table) {
+void WriteHdf5(const std::string& tmp, const SweepTable& table) {
   const KneedynSweepIo& io = SweepIo();  // throws InputError when the plugin is missing
   const size_t n = table.rows.size();
   std::vector<long long> index(n), steps(n);
@@ -110,16 +110,6 @@ void WriteHdf5Unpublished(const std::string& tmp, const SweepTable& table) {
 
 }  // namespace
 
-void WriteCsv(const std::string& path, const SweepTable& table) {
-  WriteCsvUnpublished(path + ".tmp", table);
-  Publish(path + ".tmp", path);
-}
-
-void WriteHdf5(const std::string& path, const SweepTable& table) {
-  WriteHdf5Unpublished(path + ".tmp", table);
-  Publish(path + ".tmp", path);
-}
-
 void WriteSweepResults(const std::string& dir, const SweepTable& table) {
   SweepIo();  // a missing plugin (sweep.h5) is refused before anything is written
   std::error_code ec;
@@ -130,8 +120,8 @@ void WriteSweepResults(const std::string& dir, const SweepTable& table) {
   // old sweep.h5.
   const std::string csv = (fs::path(dir) / "sweep.csv").string(), h5 = (fs::path(dir) / "sweep.h5").string();
   try {
-    WriteCsvUnpublished(csv + ".tmp", table);
-    WriteHdf5Unpublished(h5 + ".tmp", table);
+    WriteCsv(csv + ".tmp", table);
+    WriteHdf5(h5 + ".tmp", table);
   } catch (...) {
     for (const std::string& tmp : {csv + ".tmp", h5 + ".tmp"}) {
       if (fs::is_regular_file(tmp, ec)) fs::remove(tmp, ec);  // ours; not whatever else has the name

@@ -6,8 +6,8 @@
 //              equal tables give equal bytes
 //   part-<i>-of-<n>.json  one shard's rows (--shard i/n), for `kneedyn sweep --merge`
 // Every file is written to a temporary name and renamed: complete or absent.
-// sweep.h5 is written by the sweep I/O plugin (HDF5; sweep_io.hpp): WriteHdf5 and
-// WriteSweepResults throw InputError, before writing anything, when it is missing.
+// sweep.h5 is written by the sweep I/O plugin (HDF5; sweep_io.hpp): WriteSweepResults
+// throws InputError, before writing anything, when it is missing.
 #pragma once
 
 #include <string>
@@ -17,9 +17,8 @@
 
 namespace kneedyn::ensembles {
 
-void WriteCsv(const std::string& path, const SweepTable& table);
-void WriteHdf5(const std::string& path, const SweepTable& table);
-// Both of the above into dir (created if needed): dir/sweep.csv, dir/sweep.h5.
+// dir/sweep.csv and dir/sweep.h5 (dir created if needed), both written under temporary
+// names before either is renamed into place.
 void WriteSweepResults(const std::string& dir, const SweepTable& table);
 
 void WritePart(const std::string& path, const SweepTable& table, long shard, long shards);
