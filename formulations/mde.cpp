@@ -28,7 +28,6 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
     BeginPhase(state, events);
     phase_steps_ = 0;
     chart_.Begin(active_, state.q);
-    chart_.Choose(state.q);
     StartIntegrator(state);
   }
 

@@ -20,6 +20,34 @@ double MdeChart::BlockDeterminant(const MatK3& normals, const std::vector<int>& 
   return std::abs(block.determinant());
 }
 
+void MdeChart::ConstraintJacobian(const Pose& pose, const Matrix3d& E, const ContactGeometry* geo, MatK6* G,
+                                  MatK6* J) const {
+  for (int r = 0; r < G->rows(); ++r) {
+    G->row(r) = ContactConstraintRow(pose, geo[r]);
+    J->block(r, 0, 1, 3) = G->block(r, 0, 1, 3);
+    J->block(r, 3, 1, 3) = G->block(r, 3, 1, 3) * E;
+  }
+}
+
+void MdeChart::SetStartPose(const Vector6d& q) {
+  start_q_ = q;
+  const int k = static_cast<int>(elim_.size());
+  const int m = static_cast<int>(free_.size());
+  start_tangent_.resize(0, 0);
+  if (k == 0) return;
+  const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
+  const Pose pose = PoseFromCoordinates(q, trig);
+  std::array<ContactGeometry, kMaxMdeContacts> geo;
+  for (int r = 0; r < k; ++r) geo[r] = RequireContactKinematics(model_.contacts[active_[r]], pose, "MdeFormulation");
+  MatK6 G(k, 6), J(k, 6);
+  ConstraintJacobian(pose, AngularVelocityMap(q(kBeta), trig), geo.data(), &G, &J);
+  MatKK JD(k, k);
+  MatKM JF(k, m);
+  for (int c = 0; c < k; ++c) JD.col(c) = J.col(elim_[c]);
+  for (int j = 0; j < m; ++j) JF.col(j) = J.col(free_[j]);
+  start_tangent_ = -JD.partialPivLu().solve(JF);
+}
+
 MatK3 MdeChart::ContactNormals(const Vector6d& q) const {
   const int k = static_cast<int>(active_.size());
   const Pose pose = PoseFromCoordinates(q);
@@ -73,8 +101,13 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
   const int m = static_cast<int>(free_.size());
   const int k = static_cast<int>(elim_.size());
   MdeKinematics kin;
-  kin.q = last_q_;
+  kin.q = start_q_;
   for (int j = 0; j < m; ++j) kin.q(free_[j]) = y[j];
+  if (start_tangent_.rows() == k && start_tangent_.cols() == m) {
+    for (int c = 0; c < k; ++c) {
+      for (int j = 0; j < m; ++j) kin.q(elim_[c]) += start_tangent_(c, j) * (y[j] - start_q_(free_[j]));
+    }
+  }
   // φ_i(q) = 0 solved for the eliminated translations by Newton (∂φ_i/∂R0 = −n_F,i); one
   // step is exact for a sphere on a plane (φ linear in R0), a few for curved surfaces.
   std::array<ContactGeometry, kMaxMdeContacts> geo;
@@ -113,14 +146,14 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
         Throw<SolverError>("MdeFormulation::Evaluate", "at Newton step ", iter,
                            " of eliminating the contact translations at t = ", t,
                            " s (a trial pose, not a state of the run; the elimination started from R0 = (",
-                           MToMm(last_q_(kX0)), ", ", MToMm(last_q_(kY0)), ", ", MToMm(last_q_(kZ0)), ") mm): ",
+                           MToMm(start_q_(kX0)), ", ", MToMm(start_q_(kY0)), ", ", MToMm(start_q_(kZ0)), ") mm): ",
                            MessageUnder("MdeFormulation::Evaluate", e.what()));
       }
       phi(r) = geo[r].gap;
       const Vector3d n = pose_i.R_FT * geo[r].normal_T;
       for (int c = 0; c < k; ++c) ND(r, c) = -n(elim_[c]);
     }
-    // At least one step: the result must not depend on the start (last_q_).
+    // At least one step: the result must not depend on the start (start_q_).
     if (iter > 0 && phi.cwiseAbs().maxCoeff() <= kEliminationTolerance) break;
     if (iter == kMaxEliminationIterations) {
       Throw<SolverError>("MdeFormulation::Evaluate", "eliminating the contact translations did not converge at t = ", t,
@@ -154,11 +187,7 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
   const Matrix3d E = AngularVelocityMap(kin.q(kBeta), trig);
   // J = ∂φ/∂q = G B, and P = ∂q/∂s.
   MatK6 J(k, 6), G(k, 6);
-  for (int r = 0; r < k; ++r) {
-    G.row(r) = ContactConstraintRow(pose, geo[r]);
-    J.block(r, 0, 1, 3) = G.block(r, 0, 1, 3);
-    J.block(r, 3, 1, 3) = G.block(r, 3, 1, 3) * E;
-  }
+  ConstraintJacobian(pose, E, geo.data(), &G, &J);
   Mat6M P = Mat6M::Zero(6, m);
   for (int j = 0; j < m; ++j) P(free_[j], j) = 1.0;
   Eigen::PartialPivLU<MatKK> JD_lu;

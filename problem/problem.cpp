@@ -81,7 +81,6 @@ void Problem::BeginPhase() {
   } else if (is_mde()) {
     // As the mde formulation's Start: a fresh chart at the phase start.
     chart_->Begin(state_.active, state_.q);
-    chart_->Choose(state_.q);
     BeginChart();
   } else {
     n_ = 12;

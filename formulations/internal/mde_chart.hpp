@@ -74,14 +74,19 @@ class MdeChart {
   explicit MdeChart(const Model& model) : model_(model), data_(model) {}
 
   // A new phase with these active contacts (indices into model.contacts) from the pose q:
-  // the eliminated translations start Newton from q's values, and no chart is in use.
+  // a fresh chart (Choose) whose Newton starts from q (SetStartPose).
   void Begin(const std::vector<int>& active, const Vector6d& q) {
     active_ = active;
     elim_.clear();
-    last_q_ = q;
+    Choose(q);
+    SetStartPose(q);
   }
-  // The Newton start of the eliminated translations (a chart switch sets it to the pose).
-  void SetStartPose(const Vector6d& q) { last_q_ = q; }
+  // The Newton start of the eliminated translations, a consistent pose q in the chart in use
+  // (a chart switch sets it to the pose): Evaluate starts from q's eliminated translations
+  // moved along the constraint manifold's tangent at q, x_D = x_D(q) + ∂x_D/∂s (s − s(q)).
+  // Without the tangent term a start a few degrees of flexion back can put the first Newton
+  // iterate off the surfaces (anatomical caps); with it the start is off by second order.
+  void SetStartPose(const Vector6d& q);
 
   // Picks the k translations to eliminate: the best-conditioned k×k block of the normals;
   // the chart in use is kept while it stays within a factor 2 of the best one. Throws
@@ -136,9 +141,14 @@ class MdeChart {
   std::vector<int> active_;
   std::vector<int> free_;  // indices into q of s, ascending
   std::vector<int> elim_;  // eliminated translations (one per active contact)
-  // The eliminated translations start Newton from the phase start's values, so that the
-  // right-hand side is a function of (t, y) alone (no dependence on the call history).
-  Vector6d last_q_ = Vector6d::Zero();
+  // J = ∂φ/∂q = G B of the active contacts at `pose` (geometry geo[r]), and G.
+  void ConstraintJacobian(const Pose& pose, const Matrix3d& E, const ContactGeometry* geo, MatK6* G, MatK6* J) const;
+
+  // The eliminated translations start Newton from the start pose's values moved along its
+  // tangent, so that the right-hand side is a function of (t, y) alone (no dependence on the
+  // call history). start_tangent_ = ∂x_D/∂s = −J_D⁻¹ J_F at start_q_ (k × m).
+  Vector6d start_q_ = Vector6d::Zero();
+  MatKM start_tangent_;
   mutable Data data_;  // applied-load workspace of Evaluate
   mutable Pose pose_;  // pose of the last Evaluate
 };
