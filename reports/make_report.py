@@ -16,6 +16,7 @@ import html
 import json
 import math
 import os
+import re
 import shlex
 import sys
 
@@ -65,6 +66,12 @@ div.why { color: #666; font-size: 0.9em; margin-top: 3px; }
 """
 
 
+
+def short_message(text):
+  """An error message for a table cell: whole (a cut had turned "1.06 mm" into "1.06 m"), one
+  line, its long numbers rounded to 4 significant digits."""
+  return re.sub(r"-?\d+\.\d{5,}(?:e[-+]?\d+)?", lambda m: f"{float(m.group()):.4g}", " ".join(text.split()))
+
 def esc(x):
   return html.escape(str(x))
 
@@ -106,8 +113,9 @@ def no_pulse_text(no_pulse, ref, members=()):
   if los and ts:
     text += (f"; across the pulse families the lift-off spans {max(los) - min(los):.2f}° and the time to 90° "
              f"{100 * (max(ts) - min(ts)) / t90:.1f} %. The knee falls under its own weight (docs/model.md §7): the "
-             "orderings the chapter draws across its pulse families (claims K9, C9, V1, V3, L1, L6 among them) are "
-             "differences of this size here")
+             "orderings the chapter draws across its pulse families (claims K1, K2, K6, K9 and C9 among them) compare "
+             "members this close here. Their closeness is not the whole story: K9 and C9 are reproduced under none of "
+             "the readings below, including those without gravity, where the pulse dominates")
   return text
 
 
@@ -286,8 +294,8 @@ def inverse_section(path=RECORDED_INVERSE, recorded_claims=None):
       if r.get("C1_fit_normalized_change") is not None:
         return f"not reached ({r['C1_fit_normalized_change']:.1f})"
       if "not run" in str(r.get("error") or ""):
-        return "not run: " + str(r["error"]).split("not run", 1)[1].strip().strip("()").replace("\n", " ")[:90]
-      return "does not run" + (f": {str(r.get('C1_fit_error'))[:90]}" if r.get("C1_fit_error") else "")
+        return "not run: " + short_message(str(r["error"]).split("not run", 1)[1].strip().strip("()"))
+      return "does not run" + (f": {short_message(str(r.get('C1_fit_error')))}" if r.get("C1_fit_error") else "")
     now = {m["key"]: m.get("liftoff_lateral_deg")
            for m in ((recorded_claims or {}).get("matrix") or {}).get("readings", [])}
     now["chapter_impact"] = now.get("reconstructed/g_on")
