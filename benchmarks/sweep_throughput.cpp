@@ -4,7 +4,7 @@
 // (in process, ensembles/sweep.hpp) vs 2 MPI ranks (`mpirun -n 2 kneedyn sweep`, wall time
 // of the whole command including MPI start-up).
 //
-//   sweep_throughput --spec ensembles/specs/throughput.yaml --kneedyn build/formulations/kneedyn
+//   sweep_throughput --spec reference-data/specs/throughput.yaml --kneedyn build/formulations/kneedyn
 //                    [--mpiexec mpirun] [--json OUT.json]
 //
 // The fixture owns its inputs, so that a figure can be reproduced: the spec fixes design,
@@ -74,7 +74,7 @@ Timing InProcess(const SweepSpec& spec, int threads) {
 
 int main(int argc, char** argv) {
   CLI::App app{"kneedyn sweep throughput on the chapter scene"};
-  std::string spec_path = "ensembles/specs/throughput.yaml", kneedyn_exe, mpiexec = "mpirun", json_path;
+  std::string spec_path = "reference-data/specs/throughput.yaml", kneedyn_exe, mpiexec = "mpirun", json_path;
   double min_scd = 6.0;
   app.add_option("--spec", spec_path, "sweep spec (its base scene, solver settings and design)")->capture_default_str();
   app.add_option("--kneedyn", kneedyn_exe, "kneedyn executable for the MPI figure (empty: skip)");

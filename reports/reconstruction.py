@@ -78,7 +78,7 @@ MODEL_READINGS = [
     ("insertions_b", "the same with the signs of seed 2", {"parameter_set": "variant:insertions_b"}, "§5"),
 ]
 # Combinations, in the order the Sobol' indices rank what the readings touch: in the
-# 20-parameter Saltelli study of the chapter scene (ensembles/specs/chapter_saltelli20.yaml,
+# 20-parameter Saltelli study of the chapter scene (reference-data/specs/chapter_saltelli20.yaml,
 # 446 groups) the total indices of the lateral lift-off angle are largest for the reference
 # strains (PCL anterior e 0.60, ACL anterior e 0.35), then the stiffnesses (MCL deep k_lin
 # 0.20, PCL anterior k_lin 0.19); pulse and mass are below 0.1. So the strain readings come

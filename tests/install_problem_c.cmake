@@ -1,6 +1,7 @@
 # ctest install_problem_c: installs the build into a fresh prefix, then builds and runs the C
 # program tests/consumer_c/c_consumer.c against the installed C interface kneedyn/problem.h
-# twice: as a CMake project with find_package(kneedyn) (target kneedyn::problem_c), and by
+# twice: as a CMake project with find_package(kneedyn COMPONENTS problem_c) (target
+# kneedyn::problem_c; the C++ libraries' dependencies hidden), and by
 # hand with `pkg-config --cflags --libs kneedyn-problem` and the C compiler alone. Also checks
 # that the installed library exports only kneedyn_* functions.
 #   cmake -DBUILD=<build dir> -DSOURCE=<source dir> -DWORK=<scratch dir> -DCC=<C compiler> [-DSANITIZE=ON]
@@ -23,9 +24,12 @@ if(SANITIZE)
   set(consumer_flags "-DCMAKE_C_FLAGS=${sanitizer_flags}" "-DCMAKE_EXE_LINKER_FLAGS=${sanitizer_flags}")
 endif()
 
-# 1. find_package(kneedyn) in a C-only project.
+# 1. find_package(kneedyn COMPONENTS problem_c) in a C-only project, with the C++ libraries'
+# dependencies hidden (as on a machine without libceres-dev, libeigen3-dev, ...).
 run(${CMAKE_COMMAND} -S ${SOURCE}/tests/consumer_c -B ${WORK}/find_package-build -DCMAKE_BUILD_TYPE=Release
-    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_C_COMPILER=${CC} ${consumer_flags})
+    -DCMAKE_PREFIX_PATH=${prefix} -DCMAKE_C_COMPILER=${CC} ${consumer_flags}
+    -DCMAKE_DISABLE_FIND_PACKAGE_Eigen3=TRUE -DCMAKE_DISABLE_FIND_PACKAGE_SUNDIALS=TRUE
+    -DCMAKE_DISABLE_FIND_PACKAGE_Ceres=TRUE -DCMAKE_DISABLE_FIND_PACKAGE_nlohmann_json=TRUE)
 run(${CMAKE_COMMAND} --build ${WORK}/find_package-build)
 run(${WORK}/find_package-build/c_consumer)
 message(STATUS "find_package: ${out}")

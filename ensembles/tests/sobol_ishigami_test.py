@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """The sensitivity pipeline recovers the Ishigami function's known Sobol' indices.
 
-Runs `kneedyn sweep ensembles/specs/ishigami.yaml` (Saltelli design, N = 4096) and
+Runs `kneedyn sweep reference-data/specs/ishigami.yaml` (Saltelli design, N = 4096) and
 reports/global_sensitivity.py (OpenTURNS), then compares with the closed-form indices of
 f = sin x1 + a sin^2 x2 + b x3^4 sin x1 on [-pi, pi]^3 (Ishigami & Homma 1990; a = 7,
 b = 0.1): each true index must lie in its 95 % bootstrap interval widened by 0.01, and the

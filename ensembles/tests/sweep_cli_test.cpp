@@ -195,7 +195,7 @@ TEST(SweepCli, UnwritableOutIsRefusedBeforeTheRuns) {
   fs::create_directories(work);
   std::ofstream(work / "a_file") << "x";
   const fs::path out = work / "a_file" / "out";
-  const std::string spec = KNEEDYN_SOURCE_DIR "/ensembles/specs/ishigami.yaml";
+  const std::string spec = KNEEDYN_SOURCE_DIR "/reference-data/specs/ishigami.yaml";
   for (const std::string& mode : {spec, spec + " --shard 0/2", "--merge " + (work / "part.json").string()}) {
     EXPECT_EQ(Sh(Kneedyn() + " sweep " + mode + " --quiet --out " + out.string() + " > " + (work / "out.txt").string() +
                  " 2> " + (work / "err").string()), 2) << mode;
@@ -215,7 +215,7 @@ TEST(SweepCli, ShardCountPastTheRunLimitIsRefused) {
   fs::create_directories(work);
   const fs::path out = work / "out";
   for (const std::string shard : {"1/99999999999999999999", "0/100000001", "9223372036854775806/9223372036854775807"}) {
-    EXPECT_EQ(Sh(Kneedyn() + " sweep " KNEEDYN_SOURCE_DIR "/ensembles/specs/ishigami.yaml --shard " + shard +
+    EXPECT_EQ(Sh(Kneedyn() + " sweep " KNEEDYN_SOURCE_DIR "/reference-data/specs/ishigami.yaml --shard " + shard +
                  " --out " + out.string() + " > /dev/null 2> " + (work / "err").string()), 2) << shard;
     const std::string err = ReadText(work / "err");
     EXPECT_NE(err.find("--shard = '" + shard + "'"), std::string::npos) << err;

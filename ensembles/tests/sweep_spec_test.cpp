@@ -68,7 +68,7 @@ TEST(SweepSpec, ResolvesParametersWithTheBaseScenesNominalValues) {
 }
 
 // The spec format's example in ensembles/README.md is a valid spec as printed (its scene path
-// is relative to a spec in ensembles/specs/). Before, its `integrator: ""` was refused.
+// is relative to a spec in reference-data/specs/). Before, its `integrator: ""` was refused.
 TEST(SweepSpec, TheReadmeExampleIsAccepted) {
   std::ifstream in(std::string(KNEEDYN_SOURCE_DIR) + "/ensembles/README.md");
   const std::string readme((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -80,7 +80,7 @@ TEST(SweepSpec, TheReadmeExampleIsAccepted) {
   ASSERT_NE(to, std::string::npos);
   const std::string example = readme.substr(from + 8, to - from - 8);
   try {
-    const SweepSpec spec = ParseSweepSpec(example, "README.md", std::string(KNEEDYN_SOURCE_DIR) + "/ensembles/specs");
+    const SweepSpec spec = ParseSweepSpec(example, "README.md", std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/specs");
     EXPECT_EQ(spec.parameters.size(), 3u);
   } catch (const InputError& e) {
     ADD_FAILURE() << e.what() << "\n" << example;
