@@ -98,13 +98,17 @@ class MdeFormulation final : public FormulationBase, public OdeProblem {
   }
 
  private:
-  // After an accepted step: restart in a better chart when the one in use lost a factor 2.
+  // After an accepted step: restart in a better chart when the one in use lost a factor 2,
+  // else re-seed the elimination's Newton start at the accepted point.
   void SwitchChartIfBetter() {
     const std::vector<int> before = chart_.eliminated();
     // The new chart's state from the full q, q̇ of the old one (exact: same point).
     const MdeKinematics kin = Evaluate(t_, y_.data(), nullptr);
     chart_.Choose(kin.q);
-    if (chart_.eliminated() == before) return;
+    if (chart_.eliminated() == before) {
+      chart_.SetStartPose(kin);  // the next step's Newton starts from this accepted point
+      return;
+    }
     chart_.SetStartPose(kin.q);
     MechanicalState at;
     at.t = t_;

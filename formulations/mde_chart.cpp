@@ -197,8 +197,8 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
     for (int c = 0; c < k; ++c) JD.col(c) = J.col(elim_[c]);
     for (int j = 0; j < m; ++j) JF.col(j) = J.col(free_[j]);
     JD_lu.compute(JD);
-    const MatKM PD = -JD_lu.solve(JF);
-    for (int c = 0; c < k; ++c) P.row(elim_[c]) = PD.row(c);
+    kin.elimination_tangent = -JD_lu.solve(JF);
+    for (int c = 0; c < k; ++c) P.row(elim_[c]) = kin.elimination_tangent.row(c);
   }
   const VecM sd = Eigen::Map<const VectorXd>(y + m, m);
   kin.qd = P * sd;

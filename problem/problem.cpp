@@ -172,7 +172,7 @@ void Problem::Rhs(double t, const double* y, int n, double* f) const {
   if (is_mde()) {
     const int m = n_ / 2;
     VecM sdd(m);
-    chart_->Evaluate(t, y, &state_.ligament_branch, &sdd);
+    MdeEvaluate(t, y, &sdd);
     for (int j = 0; j < m; ++j) {
       f[j] = y[m + j];
       f[m + j] = sdd(j);
@@ -218,12 +218,18 @@ void Problem::Jacobian(double t, const double* y, int n, double* J) const {
 //   ∂q̇/∂s: F rows 0, D rows −J_D⁻¹ (∂φ̇/∂q) P (from φ̇(q(s), q̇(s, ṡ)) ≡ 0, ∂φ̇/∂q̇ = J),
 //   ∂s̈/∂(s, ṡ) = A_F [P 0; ∂q̇/∂s P],  A = ∂q̈/∂(q, q̇) (ConstrainedAccelerationJacobian);
 // J and ∂φ̇/∂q by forward AD (ceres::Jet over q) through the contact kinematics of any pair.
+MdeKinematics Problem::MdeEvaluate(double t, const double* y, VecM* sdd) const {
+  const MdeKinematics kin = chart_->Evaluate(t, y, &state_.ligament_branch, sdd);
+  chart_->SetStartPose(kin);
+  return kin;
+}
+
 void Problem::MdeJacobian(double t, const double* y, double* Jf) const {
   const Model& model = scene_.model;
   const std::vector<int>& active = state_.active;
   const int k = static_cast<int>(active.size());
   VecM sdd(n_ / 2);
-  const MdeKinematics kin = chart_->Evaluate(t, y, &state_.ligament_branch, &sdd);
+  const MdeKinematics kin = MdeEvaluate(t, y, &sdd);
   std::vector<double> normal_force(kin.normal_force.begin(), kin.normal_force.begin() + k);
   double A[72];
   if (!ConstrainedAccelerationJacobian(model, t, kin.q, kin.qd, kin.qdd, active, normal_force, &state_.ligament_branch,
@@ -321,7 +327,7 @@ void Problem::Events(double t, const double* y, int n, double* g) const {
   CheckState("Events", "y", y, n);
   std::fill(normal_.begin(), normal_.end(), 0.0);
   if (is_mde()) {  // the mde formulation's Roots, then the chart's conditioning
-    const MdeKinematics kin = chart_->Evaluate(t, y, &state_.ligament_branch, nullptr);
+    const MdeKinematics kin = MdeEvaluate(t, y, nullptr);
     for (size_t c = 0; c < state_.active.size(); ++c) normal_[state_.active[c]] = kin.normal_force[c];
     EvaluateEvents(scene_.model, specs_, kin.q, normal_, g);
     if (has_chart_event()) {
@@ -362,7 +368,7 @@ MechanicalState Problem::StateAt(double t, const double* y, const double* yp) co
     }
   } else if (is_mde()) {
     VecM sdd(n_ / 2);
-    const MdeKinematics kin = chart_->Evaluate(t, y, &state_.ligament_branch, &sdd);
+    const MdeKinematics kin = MdeEvaluate(t, y, &sdd);
     s.q = kin.q;
     s.qd = kin.qd;
     s.qdd = kin.qdd;

@@ -134,6 +134,10 @@ class Problem {
   void AccelerationAt(double t, const double* y) const;
   void BeginChart();  // mde: y0, yp0 in the chart in use
   void MdeJacobian(double t, const double* y, double* J) const;
+  // mde: the chart's evaluation at (t, y), then its Newton start re-seeded there (as the mde
+  // formulation after each step), so f depends on the calls before it at round-off level on
+  // surfaces without a closed form.
+  MdeKinematics MdeEvaluate(double t, const double* y, VecM* sdd) const;
   bool has_chart_event() const { return is_mde() && !state_.active.empty(); }
 
   const Scene& scene_;

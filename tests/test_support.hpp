@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "formulations/formulation.hpp"
@@ -48,6 +49,34 @@ inline Scene ChapterSceneWith(const std::string& initial_state, const std::strin
   if (from == std::string::npos || to == std::string::npos) return ChapterScene();
   text.replace(from, to - from, "initial_state: " + initial_state + "\nend: " + end + "\n" + extra);
   return ParseScene(text, "chapter_variant.yaml", ScenesDir());
+}
+
+// A shipped scene (e.g. "anatomical_surfaces.yaml") with lines of its text replaced: each
+// edit's first string must occur in the file (a failure names it).
+inline Scene ShippedSceneWith(const std::string& file_name,
+                              const std::vector<std::pair<std::string, std::string>>& edits) {
+  std::ifstream file(ScenesDir() + "/" + file_name);
+  std::stringstream buffer;
+  buffer << file.rdbuf();
+  std::string text = buffer.str();
+  for (const auto& [from, to] : edits) {
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << "not in " << file_name << ": " << from;
+    if (at != std::string::npos) text.replace(at, from.size(), to);
+  }
+  return ParseScene(text, "edited_" + file_name, ScenesDir());
+}
+
+// anatomical_surfaces.yaml edited into one contact phase of 1 s (to 40.6 degrees of flexion and
+// back; the 45-degree end is not reached): gravity off, a damped sine of 250 N, the C1 law (no
+// kink restarts).
+inline Scene AnatomicalSinglePhaseScene() {
+  return ShippedSceneWith("anatomical_surfaces.yaml",
+                          {{"gravity: {enabled: true}", "gravity: {enabled: false}"},
+                           {"ligament_law: published", "ligament_law: c1_continuous"},
+                           {"pulse: {shape: reconstructed, amplitude_N: 100.0, duration_s: 0.1}",
+                            "pulse: {shape: damped_sine, amplitude_N: 250.0, duration_s: 0.1}"},
+                           {"end: {flexion_deg: 60.0, time_s: 2.0}", "end: {flexion_deg: 45.0, time_s: 1.0}"}});
 }
 
 // Run settings for `formulation` at the tolerances rtol, atol (defaults otherwise).

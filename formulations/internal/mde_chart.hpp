@@ -64,6 +64,7 @@ using VecM = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1>;
 struct MdeKinematics {
   Vector6d q, qd, qdd;
   std::array<double, kMaxMdeContacts> normal_force{};  // per active contact, N
+  MatKM elimination_tangent;  // ∂x_D/∂s = −J_D⁻¹ J_F at q (k × m): a Newton start's predictor
 };
 
 // The elimination of one contact phase: which translations are eliminated (the chart), and
@@ -87,6 +88,14 @@ class MdeChart {
   // Without the tangent term a start a few degrees of flexion back can put the first Newton
   // iterate off the surfaces (anatomical caps); with it the start is off by second order.
   void SetStartPose(const Vector6d& q);
+  // The same from a point Evaluate returned in the chart in use (its tangent already computed):
+  // the mde formulation re-seeds after every accepted step, the open problem's mde form after
+  // every evaluation, so that the start stays near however far a contact phase runs (from the
+  // phase start alone, 38 deg into one phase, the first Newton iterate fell off the surfaces).
+  void SetStartPose(const MdeKinematics& at) {
+    start_q_ = at.q;
+    start_tangent_ = at.elimination_tangent;
+  }
 
   // Picks the k translations to eliminate: the best-conditioned k×k block of the normals;
   // the chart in use is kept while it stays within a factor 2 of the best one. Throws
@@ -145,8 +154,9 @@ class MdeChart {
   void ConstraintJacobian(const Pose& pose, const Matrix3d& E, const ContactGeometry* geo, MatK6* G, MatK6* J) const;
 
   // The eliminated translations start Newton from the start pose's values moved along its
-  // tangent, so that the right-hand side is a function of (t, y) alone (no dependence on the
-  // call history). start_tangent_ = ∂x_D/∂s = −J_D⁻¹ J_F at start_q_ (k × m).
+  // tangent; the result depends on the start only at round-off (Newton to
+  // kEliminationTolerance, at least one step). start_tangent_ = ∂x_D/∂s = −J_D⁻¹ J_F at
+  // start_q_ (k × m).
   Vector6d start_q_ = Vector6d::Zero();
   MatKM start_tangent_;
   mutable Data data_;  // applied-load workspace of Evaluate
