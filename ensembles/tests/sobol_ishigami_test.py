@@ -5,7 +5,9 @@ Runs `kneedyn sweep reference-data/specs/ishigami.yaml` (Saltelli design, N = 40
 reports/global_sensitivity.py (OpenTURNS), then compares with the closed-form indices of
 f = sin x1 + a sin^2 x2 + b x3^4 sin x1 on [-pi, pi]^3 (Ishigami & Homma 1990; a = 7,
 b = 0.1): each true index must lie in its 95 % bootstrap interval widened by 0.01, and the
-estimate within 0.03 of it. Also checks that pick-freeze groups with a failed run or a
+estimate within 0.03 of it. Also checks that an outcome with one value in every run is
+reported as "no variance" (not an error), that a sensitivity.json with null `normalized`
+entries is read, that pick-freeze groups with a failed run or a
 completed run without the outcome are dropped, not used, and counted by cause, and that --local (derivatives beside the indices) gives the linearized
 first-order indices of the exact gradient at the nominal point x = 0, grad f = (1, 0, 0):
 S_lin = (1, 0, 0), with sigma_k the sample standard deviation, close to pi/sqrt(3) for
@@ -38,7 +40,7 @@ def main():
   ap = argparse.ArgumentParser()
   ap.add_argument("--kneedyn", required=True)
   a = ap.parse_args()
-  spec = os.path.join(ROOT, "ensembles", "specs", "ishigami.yaml")
+  spec = os.path.join(ROOT, "reference-data", "specs", "ishigami.yaml")
   script = os.path.join(ROOT, "reports", "global_sensitivity.py")
   failures = []
   with tempfile.TemporaryDirectory() as tmp:
@@ -57,8 +59,9 @@ def main():
     # Local derivatives beside the indices: the exact gradient at x = 0 as a sensitivity.json.
     with open(os.path.join(tmp, "sweep.csv"), newline="") as f:
       names = next(csv.reader(f))[1:4]
+    # `normalized` is null where the value is 0 (docs/outputs.md), as kneedyn sensitivity writes it.
     rows = [{"outcome": "value", "parameter": p, "parameter_value": 0.0, "value": 0.0, "derivative": g,
-             "normalized": 0.0} for p, g in zip(names, (1.0, 0.0, 0.0))]
+             "normalized": None} for p, g in zip(names, (1.0, 0.0, 0.0))]
     with open(os.path.join(tmp, "local.json"), "w") as f:
       json.dump({"rows": rows}, f)
     subprocess.run([sys.executable, script, "--sweep", os.path.join(tmp, "sweep.csv"), "--spec", spec,
@@ -94,6 +97,25 @@ def main():
                    stdout=subprocess.DEVNULL)
     with open(os.path.join(tmp, "gs2", "sobol.json")) as f:
       r2 = json.load(f)["outcomes"]["value"]
+    # An outcome with one value in every run whose float mean is not that value (98.36654237141033
+    # 1,536 times: the summed mean is off in its last digits, the sum of squares 5e-22, not 0):
+    # "no variance", not OpenTURNS' zero-bandwidth error.
+    with open(os.path.join(tmp, "sweep.csv"), newline="") as f:
+      rows = list(csv.reader(f))
+    for row in rows[1:]:
+      row[4] = "98.36654237141033"
+    with open(os.path.join(tmp, "constant.csv"), "w", newline="") as f:
+      csv.writer(f).writerows(rows)
+    done = subprocess.run([sys.executable, script, "--sweep", os.path.join(tmp, "constant.csv"), "--spec", spec,
+                           "--out", os.path.join(tmp, "gs3"), "--bootstrap", "10", "--no-charts"],
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    status = None
+    if done.returncode == 0:
+      with open(os.path.join(tmp, "gs3", "sobol.json")) as f:
+        status = json.load(f)["outcomes"]["value"].get("status")
+    print(f"constant outcome: exit {done.returncode}, status {status!r}")
+    if done.returncode != 0 or status != "no variance":
+      failures.append(f"constant outcome: exit {done.returncode}, status {status!r} {done.stderr[-300:]}")
     if (r2["groups_dropped"] != 3 or r2["groups_used"] != n - 3 or r2.get("groups_dropped_failed_run") != 2
         or r2.get("groups_dropped_outcome_undefined") != 1):
       failures.append(f"groups dropped {r2['groups_dropped']} (expected 3), with a failed run "

@@ -623,8 +623,9 @@ def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0
     `parameter_values`, `outcomes`, `values`, `derivatives` ([outcome][parameter]),
     `end_reason`, `steps`, and with fd_step > 0 `fd_derivatives` (central differences with
     that relative step). `out` also writes sensitivity.csv and sensitivity.json; max_steps
-    (per phase) and output_interval (s between the rows peaks are read from; 0: the
-    scene's) as the CLI's --max-steps and --output-interval. Unknown
+    (per phase) and output_interval (s between the rows of sensitivity_trajectory.csv; 0: the
+    scene's; the peaks are the continuous solution's maxima, not the rows') as the CLI's
+    --max-steps and --output-interval. Unknown
     names raise InputError naming the nearest valid name; a run with an impact SolverError."""
     scene = _scene(scene, "sensitivity")
     return _kneedyn.sensitivity(scene.compiled, _names(parameters, "parameters"), _names(outcomes, "outcomes"),
