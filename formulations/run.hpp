@@ -5,6 +5,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,11 @@ struct EventRecord {
   std::string name;    // liftoff_medial, recontact_lateral, flexion_90, ...
   double time = 0.0;   // s
   double flexion = 0.0;  // rad
+  // A located tibial lift-off only: the contact's normal force (N) of the hidden-constraint
+  // solve at the event state with the contact kept (RestartAcceleration). About 0 where the
+  // method's own force crossed zero accurately; far from 0 where it crossed on an error mode
+  // (warning `liftoff_force_not_zero`, run_output.hpp). NaN otherwise.
+  double consistent_normal_force = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct RunResult {

@@ -501,6 +501,33 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
       out.push_back(std::move(p));
     }
   }
+  // A lift-off is the knee's when its contact force, solved with the contact kept at the event
+  // state, is zero there; a method whose own force N oscillates from step to step (newmark's
+  // undamped index-3 modes) crosses zero early, and the events after it follow from that.
+  for (const EventRecord& e : result.events) {
+    if (e.name.compare(0, 8, "liftoff_") != 0 || !std::isfinite(e.consistent_normal_force)) continue;
+    const std::string part = e.name.substr(8);
+    const std::string name = "N_" + part + "_N";
+    const size_t c = column(name.c_str());
+    double largest = 0.0;
+    for (const std::vector<double>& row : table.rows) {
+      if (c < row.size() && std::isfinite(row[c])) largest = std::max(largest, std::abs(row[c]));
+    }
+    if (!(std::abs(e.consistent_normal_force) > kLiftoffConsistentForceFraction * largest)) continue;
+    OutputWarning p;
+    p.kind = "liftoff_force_not_zero";
+    p.contact = "tibial contact " + part;
+    p.column = name;
+    p.force_N = e.consistent_normal_force;
+    p.time_s = e.time;
+    p.message = StrCat(e.name, " at t = ", Rounded(e.time), " s: with the contact kept, its consistent normal force there is ",
+                       Rounded(e.consistent_normal_force), " N, ",
+                       Rounded(100.0 * std::abs(e.consistent_normal_force) / largest), " % of its largest (",
+                       Rounded(largest), " N), not 0: the method's own force crossed zero, the knee's did not (likely "
+                       "an oscillating multiplier); this lift-off and the events after it are not the knee's. Check it "
+                       "with another formulation (dae); for newmark a smaller --step does not help (docs/outputs.md)");
+    out.push_back(std::move(p));
+  }
   return out;
 }
 
@@ -812,6 +839,11 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
     if (p.kind == "short_contact_phase") {
       w["contact"] = p.contact;
       w["duration_s"] = p.duration_s;
+    }
+    if (p.kind == "liftoff_force_not_zero") {
+      w["contact"] = p.contact;
+      w["column"] = p.column;
+      w["force_N"] = p.force_N;
     }
     if (p.kind == "patella_contact_off") w["contact"] = p.contact;
     if (p.kind == "separated_contact_penetrates") {

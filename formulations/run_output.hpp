@@ -61,14 +61,18 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
 //    the tolerances' re-contact hysteresis while the drift had widened it (docs/model.md §9).
 //  - kind "ligament_overstretched": an element whose strain passed kMaxPlausibleStrain in a row.
 //  - kind "short_contact_phase": OutputWarnings, below.
+//  - kind "liftoff_force_not_zero": a tibial lift-off whose consistent normal force at the
+//    event state (EventRecord::consistent_normal_force) exceeds kLiftoffConsistentForceFraction
+//    of the contact's largest force over the rows; `contact`, `column`, `force_N`, `time_s`.
 struct OutputWarning {
   std::string kind;     // "pulling_contact" | "patella_not_followed" | "patella_contact_off" | "sparse_output" |
                         // "start_not_at_nearest_points" | "separated_contact_penetrates" |
-                        // "ligament_overstretched" | "short_contact_phase"
+                        // "ligament_overstretched" | "short_contact_phase" | "liftoff_force_not_zero"
   std::string column;   // the trajectory column, e.g. "N_patella_lateral_N", "N_medial_N"
   std::string contact;  // "patellar facet lateral", "tibial contact medial"
   double min_force_N = 0.0;  // the column's most negative value, N
   double duration_s = 0.0;   // short_contact_phase: from one change of the contact to the next, s
+  double force_N = 0.0;      // liftoff_force_not_zero: the consistent normal force at the lift-off, N
   double time_s = 0.0;       // its row's time, s (the first row of that value)
   std::string message;  // one line for the CLI and summary.json
 };
@@ -77,7 +81,7 @@ struct OutputWarning {
 // whose contact left the patella, then a sparse output, then the contacts whose start is not
 // at the nearest points, then the separated contacts that sank into their plateaus, then the
 // overstretched elements, then, for a fixed-step run, each contact phase or separation
-// shorter than kMinResolvedSteps steps.
+// shorter than kMinResolvedSteps steps, then the lift-offs whose force was not zero.
 constexpr int kMinResolvedSteps = 10;
 // Fewer output rows than this besides the start and the events: "sparse_output".
 constexpr size_t kMinOutputRows = 3;
@@ -90,6 +94,13 @@ constexpr double kLiftoffRowForceFraction = 1e-4;
 // hard case patella_quadriceps_2000N; the chapter scene 0.20); twice its slack length is a
 // pose the knee cannot take (an assembled start at 80° of flexion: 28, i.e. 2,825 %).
 constexpr double kMaxPlausibleStrain = 1.0;
+// A lift-off whose consistent normal force at the event state (the contact kept) exceeds this
+// fraction of the contact's largest force over the rows ("liftoff_force_not_zero"): the
+// method's own N crossed zero, the knee's did not. Measured on the chapter scene: dae, mde,
+// ede, generalized-alpha at their defaults 2e-12 to 2.4e-3 N of ~240 N (dae at rtol 1e-3:
+// 0.018 N); newmark's early lift-offs on user scenes 2.6 to 22.6 N (1.05 % to 9 % of the
+// peak), its lift-offs within 0.1 ms of dae's 0.2 to 0.4 N (< 0.2 %).
+constexpr double kLiftoffConsistentForceFraction = 5e-3;
 std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const RunResult& result);
 
 // summary.json; `warnings` are OutputWarnings of the run's table.

@@ -108,10 +108,28 @@ TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpe
   TransitionOutcome out;
   std::vector<int> new_active = state->active;
   bool impact = false;
+  // The lift-offs' forces as the knee's dynamics give them at the event state, the contacts
+  // kept (docs/outputs.md, liftoff_force_not_zero); one solve, on a copy of the state.
+  ConstrainedAcceleration kept;
+  if (std::any_of(fired.begin(), fired.end(), [&](int k) { return specs[k].kind == EventKind::kLiftoff; })) {
+    MechanicalState with_contacts = *state;
+    try {
+      kept = RestartAcceleration(model, &with_contacts);
+    } catch (const SolverError&) {
+      kept.normal_force.clear();  // no number: no check
+    }
+  }
   for (int k : fired) {
     const EventSpec& e = specs[k];
     // Kinks restart the stepper but are not events of the knee (docs/outputs.md).
     if (e.kind != EventKind::kLigamentKink) events->push_back({e.name, state->t, state->q(kAlpha)});
+    if (e.kind == EventKind::kLiftoff) {
+      const auto at = std::find(state->active.begin(), state->active.end(), e.contact);
+      const size_t c = static_cast<size_t>(at - state->active.begin());
+      if (at != state->active.end() && c < kept.normal_force.size()) {
+        events->back().consistent_normal_force = kept.normal_force[c];
+      }
+    }
     switch (e.kind) {
       case EventKind::kFlexionEnd:
         out.end_reason = e.name;

@@ -195,21 +195,30 @@ TEST(GeneralizedAlpha, UnresolvedSeparationIsWarned) {
   ASSERT_TRUE(coarse.completed) << coarse.failure;
   ASSERT_GT(coarse.events.size(), exact.events.size()) << "no spurious lift-off to warn of any more";
   const std::vector<OutputWarning> warned = OutputWarnings(MakeTrajectoryTable(scene, coarse), coarse);
-  ASSERT_EQ(warned.size(), 1u);
+  ASSERT_EQ(warned.size(), 2u);
   EXPECT_EQ(warned[0].kind, "short_contact_phase");
   EXPECT_EQ(warned[0].contact, "lateral");
   EXPECT_LT(warned[0].duration_s, kMinResolvedSteps * 1e-4);
   EXPECT_NE(warned[0].message.find("smaller --step"), std::string::npos) << warned[0].message;
+  // The early lift-off is not the knee's: at its state, the contact kept, the consistent force
+  // is far from 0 (liftoff_force_not_zero); dae's own lift-off is 19 ms later.
+  EXPECT_EQ(warned[1].kind, "liftoff_force_not_zero");
+  EXPECT_EQ(warned[1].time_s, coarse.events[0].time);
+  EXPECT_GT(std::abs(warned[1].force_N), 1.0);
+  EXPECT_LT(coarse.events[0].time, exact.events[0].time - 0.01);
   ga.options.step = 5e-5;
   const RunResult fine = RunScene(scene, ga);
   ASSERT_TRUE(fine.completed) << fine.failure;
   ASSERT_EQ(fine.events.size(), 2u);
   EXPECT_NEAR(fine.events[0].time, exact.events[0].time, 1e-5);
   EXPECT_TRUE(OutputWarnings(MakeTrajectoryTable(scene, fine), fine).empty());
-  // An adaptive run is not judged by steps: the same events without a fixed step warn of nothing.
+  // An adaptive run is not judged by steps: the same events without a fixed step warn of no
+  // short phase (only of the lift-off's force, which is no step count).
   RunResult adaptive = coarse;
   adaptive.fixed_step = 0.0;
-  EXPECT_TRUE(OutputWarnings(MakeTrajectoryTable(scene, adaptive), adaptive).empty());
+  const std::vector<OutputWarning> unstepped = OutputWarnings(MakeTrajectoryTable(scene, adaptive), adaptive);
+  ASSERT_EQ(unstepped.size(), 1u);
+  EXPECT_EQ(unstepped[0].kind, "liftoff_force_not_zero");
   // The longest message (a patellar facet's contact phase) is whole (a 256-byte buffer cut it).
   RunResult facet = coarse;
   facet.events = {{"recontact_patellar_lateral", 0.123456789, 0.0}, {"liftoff_patellar_lateral", 0.1236, 0.0}};
