@@ -17,9 +17,11 @@ summary.json holds. The GIL is released during a run, so a ThreadPoolExecutor ru
 several scenes at once. See docs/python.md.
 """
 import copy as _copy
+import inspect as _inspect
 import json as _json
 import numbers as _numbers
 import os as _os
+import re as _re
 
 import numpy as _np
 
@@ -439,6 +441,28 @@ def _names(value, argument, function="sensitivity"):
     return names
 
 
+class _KeywordNames:
+    """Within it, an InputError from the C++ checks, which name the CLI's flags (--max-steps),
+    is raised again naming the keyword arguments of `function` (max_steps) a Python caller
+    gave instead."""
+
+    def __init__(self, function):
+        self.keywords = set(_inspect.signature(function).parameters)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, error, trace):
+        if kind is None or not issubclass(kind, InputError):
+            return False
+        text = _re.sub(r"--([a-z][a-z-]*)",
+                       lambda m: m.group(1).replace("-", "_") if m.group(1).replace("-", "_") in self.keywords
+                       else m.group(0), str(error))
+        if text == str(error):
+            return False
+        raise InputError(text) from None
+
+
 def _scene(scene, function):
     """A kneedyn.Scene, or one loaded from a scene file's path."""
     if isinstance(scene, Scene):
@@ -559,7 +583,7 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
         contact_chart=_DEFAULTS["contact_chart"], rho_inf=None, alpha_m=None, alpha_f=None, beta=None,
         gamma=None):
     """Runs a scene (a Scene, or a path to a scene file) like `kneedyn run` with the
-    options of the same names (output_interval 0: the scene's; jacobian and linear_solver
+    options of the same names (errors name these keywords, not the CLI's flags) (output_interval 0: the scene's; jacobian and linear_solver
     '' : the formulation's default; contact_chart "regular" or "height-field";
     generalized-alpha's rho_inf, or alpha_m, alpha_f, beta and gamma together, as the CLI's
     --rho-inf ...; None: not given). Bad options raise
@@ -570,16 +594,17 @@ def run(scene, formulation="dae", *, rtol=_DEFAULTS["rtol"], atol=_DEFAULTS["ato
     CLI's writer. The fields of `Result.summary` are those of summary.json, listed in
     docs/outputs.md (:ref:`summary.json <outputs.md#summaryjson-schema_version-2>`)."""
     scene = _scene(scene, "run")
-    out = _kneedyn.run(scene.compiled, _text(formulation, "run", "formulation"), _real(rtol, "run", "rtol"),
-                       _real(atol, "run", "atol"), _text(integrator, "run", "integrator"), _real(step, "run", "step"),
-                       _real(max_step, "run", "max_step"), _integer(max_steps, "run", "max_steps"),
-                       _text(stabilization, "run", "stabilization"), _text(constraint_level, "run", "constraint_level"),
-                       _text(jacobian, "run", "jacobian"), _real(output_interval, "run", "output_interval"),
-                       "" if out is None else _file_path(out, "run", "out"),
-                       _text(linear_solver, "run", "linear_solver"), _text(contact_chart, "run", "contact_chart"),
-                       {k: _real(v, "run", k) for k, v in (("rho_inf", rho_inf), ("alpha_m", alpha_m),
-                                                           ("alpha_f", alpha_f), ("beta", beta), ("gamma", gamma))
-                        if v is not None})
+    with _KeywordNames(run):
+        out = _kneedyn.run(scene.compiled, _text(formulation, "run", "formulation"), _real(rtol, "run", "rtol"),
+                           _real(atol, "run", "atol"), _text(integrator, "run", "integrator"), _real(step, "run", "step"),
+                           _real(max_step, "run", "max_step"), _integer(max_steps, "run", "max_steps"),
+                           _text(stabilization, "run", "stabilization"), _text(constraint_level, "run", "constraint_level"),
+                           _text(jacobian, "run", "jacobian"), _real(output_interval, "run", "output_interval"),
+                           "" if out is None else _file_path(out, "run", "out"),
+                           _text(linear_solver, "run", "linear_solver"), _text(contact_chart, "run", "contact_chart"),
+                           {k: _real(v, "run", k) for k, v in (("rho_inf", rho_inf), ("alpha_m", alpha_m),
+                                                               ("alpha_f", alpha_f), ("beta", beta), ("gamma", gamma))
+                            if v is not None})
     return Result(_json.loads(out["summary_json"]), Trajectory(out["columns"], out["data"]))
 
 
@@ -628,10 +653,11 @@ def sensitivity(scene, parameters, outcomes, *, rtol=1e-8, atol=1e-10, fd_step=0
     --max-steps and --output-interval. Unknown
     names raise InputError naming the nearest valid name; a run with an impact SolverError."""
     scene = _scene(scene, "sensitivity")
-    return _kneedyn.sensitivity(scene.compiled, _names(parameters, "parameters"), _names(outcomes, "outcomes"),
-                                _real(rtol, "sensitivity", "rtol"), _real(atol, "sensitivity", "atol"),
-                                _real(fd_step, "sensitivity", "fd_step"),
-                                "" if out is None else _file_path(out, "sensitivity", "out"),
-                                _text(formulation, "sensitivity", "formulation"),
-                                _integer(max_steps, "sensitivity", "max_steps"),
-                                _real(output_interval, "sensitivity", "output_interval"))
+    with _KeywordNames(sensitivity):
+        return _kneedyn.sensitivity(scene.compiled, _names(parameters, "parameters"), _names(outcomes, "outcomes"),
+                                    _real(rtol, "sensitivity", "rtol"), _real(atol, "sensitivity", "atol"),
+                                    _real(fd_step, "sensitivity", "fd_step"),
+                                    "" if out is None else _file_path(out, "sensitivity", "out"),
+                                    _text(formulation, "sensitivity", "formulation"),
+                                    _integer(max_steps, "sensitivity", "max_steps"),
+                                    _real(output_interval, "sensitivity", "output_interval"))
