@@ -170,6 +170,22 @@ TEST(Problem, TransitionEqualsSimulator) {
   }
 }
 
+// The simulator's phases through a violent run, many kinks and both lift-offs within 25 ms
+// (a pulse of 1e5 N, the documented maximum): Problem, handed the simulator's event states,
+// starts every next phase as the simulator did and records its events, for every form.
+TEST(Problem, FollowsTheSimulatorThroughTheLargestPulse) {
+  Scene scene = ChapterScene();
+  scene.model.pulse.amplitude = 1.0e5;
+  scene.end.time = 0.025;
+  for (const std::string form : {"ede", "mde", "dae", "dae-ggl"}) {
+    const RunResult record = SimulatorRun(form, scene).record;
+    int liftoffs = 0;
+    for (const EventRecord& e : record.events) liftoffs += e.name.compare(0, 8, "liftoff_") == 0;
+    EXPECT_EQ(liftoffs, 2) << form;
+    EXPECT_GE(ExpectProblemFollowsSimulator(scene, form), 5) << form;
+  }
+}
+
 std::vector<double> Perturbed(const Problem& p);
 
 // The chapter scene with its initial_state and end replaced, and `extra` keys added.
