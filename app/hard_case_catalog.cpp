@@ -10,7 +10,7 @@
 // rtol 1e-10, atol 1e-12 that completes,
 // on the same scene, over the common uniform output times), energy drift for conservative
 // cases, the largest |∇f| of the femoral surface at an active contact point (conditioning
-// near the condyle's edge), solver counters and wall time.
+// near the condyle's edge), the run's output warnings (their kinds), solver counters and wall time.
 // Default options per formulation: adaptive methods rtol 1e-8, atol 1e-10 (mde/ede with
 // their default integrator); fixed-step methods (newmark*) h = 1e-4 s. Nothing is loosened
 // per case. Exit: 0 when the catalog ran (and, with --check, every run met its case's
@@ -32,6 +32,7 @@
 #include "formulations/output_file.hpp"
 #include "formulations/progress.hpp"
 #include "formulations/run.hpp"
+#include "formulations/run_output.hpp"
 #include "formulations/version.hpp"
 #include "solver/observables.hpp"
 #include "solver/error.hpp"
@@ -126,6 +127,7 @@ RunSettings DefaultSettings(const std::string& formulation, const CaseSpec& c) {
 
 struct Row {
   std::string case_name, formulation, status, reason, end_reason, events, expectation;
+  std::string warnings;  // the kinds of the run's output warnings (docs/outputs.md), "kind×n" when repeated
   bool met = true;
   double t_reached = NAN, flexion_deg = NAN;
   double err_alpha_deg = NAN, err_R0_mm = NAN, err_alpha_1s_deg = NAN, err_R0_1s_mm = NAN;
@@ -259,6 +261,13 @@ Row RunOne(const CaseSpec& c, const Scene* scene, const std::string& load_error,
       if (!scene->model.contacts.empty()) row.max_gap_mm = MToMm(r.max_position_residual);
       for (const EventRecord& e : r.events) {
         row.events += (row.events.empty() ? "" : " ") + e.name + "@" + Fmt(e.time, "%.4f");
+      }
+      // What the run says of itself beyond its status, as summary.json's warnings: a completed
+      // run that warns (an early lift-off on an oscillating force) is no clean completion.
+      std::map<std::string, int> kinds;
+      for (const OutputWarning& w : OutputWarnings(MakeTrajectoryTable(*scene, r), r)) ++kinds[w.kind];
+      for (const auto& [kind, n] : kinds) {
+        row.warnings += (row.warnings.empty() ? "" : " ") + kind + (n > 1 ? "×" + std::to_string(n) : "");
       }
       if (reference != nullptr) {
         CompareToReference(r, *reference, INFINITY, &row.err_alpha_deg, &row.err_R0_mm);
@@ -435,7 +444,7 @@ int main(int argc, char** argv) {
            "err_alpha_deg,err_R0_mm,err_alpha_1s_deg,err_R0_1s_mm,reference,max_gap_mm,"
            "energy_drift_J,energy_window_s,max_grad_f,steps,"
            "residual_evaluations,jacobian_evaluations,nonlinear_iterations,rejected_steps,"
-           "restarts,wall_s,events,reason\n";
+           "restarts,wall_s,events,warnings,reason\n";
     for (const Row& r : rows) {
       csv << r.case_name << ',' << r.formulation << ',' << r.status << ',' << r.expectation << ','
           << (r.expectation == "(recorded)" ? "n/a" : r.met ? "yes" : "no") << ',' << r.end_reason << ',' << Fmt(r.t_reached, "%.6f") << ','
@@ -446,7 +455,7 @@ int main(int argc, char** argv) {
           << r.stats.steps << ',' << r.stats.residual_evaluations << ','
           << r.stats.jacobian_evaluations << ',' << r.stats.nonlinear_iterations << ','
           << r.stats.rejected_steps() << ',' << r.stats.restarts << ',' << Fmt(r.wall_s, "%.4f")
-          << ',' << CsvQuote(r.events) << ',' << CsvQuote(OneLine(r.reason)) << '\n';
+          << ',' << CsvQuote(r.events) << ',' << CsvQuote(r.warnings) << ',' << CsvQuote(OneLine(r.reason)) << '\n';
     }
     // Markdown.
     std::ostringstream md;
@@ -459,8 +468,8 @@ int main(int argc, char** argv) {
           "chart goes on past it).\n\n"
        << "| case | formulation | status | expect | met | end | t (s) | flexion (deg) | "
           "err α (deg) | err R0 (mm) | err α t≤1 s (deg) | reference | max gap (mm) | energy drift (J) on [0, t] | max abs grad f | steps | "
-          "res evals | rejected | wall (s) | events | reason |\n"
-       << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+          "res evals | rejected | wall (s) | events | warnings | reason |\n"
+       << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const Row& r : rows) {
       md << "| " << r.case_name << " | " << r.formulation << " | " << r.status << " | "
          << r.expectation << " | " << (r.expectation == "(recorded)" ? "n/a" : r.met ? "yes" : "**no**") << " | " << r.end_reason << " | "
@@ -472,7 +481,7 @@ int main(int argc, char** argv) {
          << " | "
          << Fmt(r.max_grad_f, "%.3g") << " | " << r.stats.steps << " | "
          << r.stats.residual_evaluations << " | " << r.stats.rejected_steps() << " | "
-         << Fmt(r.wall_s, "%.3f") << " | " << OneLine(r.events) << " | "
+         << Fmt(r.wall_s, "%.3f") << " | " << OneLine(r.events) << " | " << r.warnings << " | "
          << OneLine(r.reason).substr(0, 300) << " |\n";
     }
     WriteOutputFile("kneedyn_catalog", "--out", (fs::path(out_dir) / "hard_cases.csv").string(), csv.str());

@@ -34,6 +34,21 @@ std::string FailureSituation(const Model& model, const MechanicalState& s) {
   return out;
 }
 
+// For a failed run: the non-default options known to fail where the defaults go on, named
+// with what to change (empty when none was given).
+std::string OptionHints(const FormulationOptions& options) {
+  std::string out;
+  if (options.contact_chart == ContactChart::kHeightField) {
+    out += "; --contact-chart height-field was given: the chapter's chart z = f(x, y) of the condyle is singular "
+           "at its rim (reference-data/scenes/hard/README.md), where the default regular chart goes on";
+  }
+  if (options.constraint_level == ConstraintLevel::kPosition) {
+    out += "; --constraint-level position was given: the printed index-3 form, which IDA is not expected to solve "
+           "(docs/model.md §8); the default velocity level is the chapter's index-2 form";
+  }
+  return out;
+}
+
 }  // namespace
 
 RunResult RunScene(const Scene& scene, const RunSettings& settings) {
@@ -71,7 +86,7 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
     result.completed = true;
   } catch (const Error& e) {
     result.completed = false;
-    result.failure = e.what() + FailureSituation(model, simulator.state());
+    result.failure = e.what() + FailureSituation(model, simulator.state()) + OptionHints(settings.options);
   } catch (const std::exception& e) {  // any other failure while integrating: still partial
     result.completed = false;
     result.failure = StrCat("RunScene(): ", e.what());

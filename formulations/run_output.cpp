@@ -463,7 +463,8 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
     p.time_s = at_s;
     p.message = StrCat("element ", p.contact, " reaches a strain of ", Rounded(largest), " at t = ", at_s,
                        " s (its length ", Rounded(largest + 1.0), " times its slack length), past ", kMaxPlausibleStrain,
-                       ": no ligament stretches so far; check the scene's initial_state and geometry");
+                       ": no ligament stretches so far; check the scene's initial_state and geometry, or, if the "
+                       "integration diverged (a fixed step too long for the scene), a smaller --step");
     out.push_back(std::move(p));
   }
   // A fixed-step method cannot resolve a contact phase of a few steps: in the index-3 forms
@@ -489,11 +490,11 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
       p.contact = part;
       p.time_s = a.time;
       p.duration_s = b->time - a.time;
-      char text[512];  // the longest, with patellar facet names, is ~330 characters
+      char text[512];  // the longest, with patellar facet names, is ~390 characters
       std::snprintf(text, sizeof(text),
                     "%s at t = %.6f s and %s %.3g s later: %s of %.1f fixed steps (h = %g s), shorter than %d "
-                    "steps: likely the normal force oscillating through zero, not a resolved %s; check it with a "
-                    "smaller --step",
+                    "steps: likely the normal force oscillating through zero, not a resolved %s; check it with "
+                    "another formulation (dae) or, for generalized-alpha, a smaller --step",
                     a.name.c_str(), a.time, next.c_str(), p.duration_s, liftoff ? "a separation" : "a contact phase",
                     p.duration_s / result.fixed_step, result.fixed_step, kMinResolvedSteps,
                     liftoff ? "separation" : "contact phase");
@@ -520,12 +521,13 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
     p.column = name;
     p.force_N = e.consistent_normal_force;
     p.time_s = e.time;
-    p.message = StrCat(e.name, " at t = ", Rounded(e.time), " s: with the contact kept, its consistent normal force there is ",
-                       Rounded(e.consistent_normal_force), " N, ",
-                       Rounded(100.0 * std::abs(e.consistent_normal_force) / largest), " % of its largest (",
-                       Rounded(largest), " N), not 0: the method's own force crossed zero, the knee's did not (likely "
-                       "an oscillating multiplier); this lift-off and the events after it are not the knee's. Check it "
-                       "with another formulation (dae); for newmark a smaller --step does not help (docs/outputs.md)");
+    p.message = StrCat(e.name, " at t = ", Rounded(e.time), " s: the knee's normal force there, solved again with the "
+                       "contact kept, is ", Rounded(e.consistent_normal_force), " N, ",
+                       Rounded(100.0 * std::abs(e.consistent_normal_force) / largest), " % of the contact's largest (",
+                       Rounded(largest), " N), not 0: the method's own force crossed zero before the knee's (likely an "
+                       "oscillating multiplier), so this lift-off is early or spurious (a later one may be the knee's). "
+                       "Compare with another formulation (dae); a smaller --step helps generalized-alpha, not newmark "
+                       "(docs/outputs.md)");
     out.push_back(std::move(p));
   }
   return out;

@@ -815,7 +815,9 @@ def hard_cases_section(hard_cases):
                "(✓ completed, ✗ solver failure, ⊘ refused / error), time reached [s], and the largest flexion "
                "error |Δα| [deg] against the case's reference over the output times both reached. The reference of "
                "each case is the first of dae, mde, ede at rtol 1e-10 that <i>completed</i> (stated per case; a "
-               "failed run is never a reference). Open a case for its events, failure reasons and counters.</p>")
+               "failed run is never a reference). ⚠: the run's own warnings (summary.json's <code>warnings</code>, "
+               "docs/outputs.md), e.g. <code>liftoff_force_not_zero</code>, a lift-off where the knee's force is "
+               "not zero. Open a case for its events, failure reasons and counters.</p>")
   head = "<tr><th>case</th><th>reference</th>" + "".join(f"<th>{esc(f)}</th>" for f in forms) + "</tr>"
   body = []
   for c in cases:
@@ -840,8 +842,11 @@ def hard_cases_section(hard_cases):
         err = ""
       cls = {"ok": "ok", "solver_failure": "fail", "error": "err"}.get(r["status"], "")
       met = " <b>expectation not met</b>" if r.get("met") == "no" else ""
+      # The run's own warnings (docs/outputs.md; a catalog older than the column has none).
+      warned = r.get("warnings") or ""
+      flag = f"<br>⚠ {esc(warned)}" if warned else ""
       cells.append(f"<td class='hc {cls}' title='{esc(r['reason'][:300])}'>{mark} {esc(t)}"
-                   f"{'<br>' + esc(err) if err else ''}{met}</td>")
+                   f"{'<br>' + esc(err) if err else ''}{flag}{met}</td>")
     body.append(f"<tr><td class='id'>{esc(c)}</td><td class='ref'>{esc(ref)}</td>" + "".join(cells) + "</tr>")
   parts.append("<div class='scroll'><table class='hard'><thead>" + head + "</thead><tbody>" + "\n".join(body)
                + "</tbody></table></div>")
@@ -857,12 +862,13 @@ def hard_cases_section(hard_cases):
       ev_short = " ".join(ev.split()[:6]) + (f" … ({n_ev} events)" if n_ev > 6 else "")
       detail_rows.append([f, r["status"], r.get("end_reason", ""), r["t_reached_s"], r["flexion_deg"],
                           r["err_alpha_deg"], r["err_R0_mm"], r["max_gap_mm"], r["energy_drift_J"], r["steps"],
-                          r["residual_evaluations"], r["wall_s"], ev_short, r["reason"][:400]])
+                          r["residual_evaluations"], r["wall_s"], ev_short, r.get("warnings") or "",
+                          r["reason"][:400]])
     parts.append(f"<details><summary>{esc(c)} — reference: {esc(by.get((c, forms[0]), {}).get('reference', ''))}"
                  "</summary><div class='scroll'>"
                  + table(["formulation", "status", "end", "t [s]", "flexion [deg]", "err α [deg]", "err R0 [mm]",
                           "max gap [mm]", "energy drift [J]", "steps", "res. evals", "wall [s]", "events",
-                          "reason"], detail_rows) + "</div></details>")
+                          "warnings", "reason"], detail_rows) + "</div></details>")
   parts.append(f"<p>Source: <code>{esc(os.path.basename(path))}</code> (full table: hard_cases.md / .csv "
                "beside it).</p>")
   return "\n".join(parts)

@@ -566,6 +566,48 @@ TEST_F(CliTest, CatalogPrintsCountedProgress) {
   EXPECT_NE(r.output.find("elapsed, ~0.0s left]"), std::string::npos) << r.output;  // nothing left after 2/2
 }
 
+// The catalog's `warnings` column lists what each run says of itself (summary.json's
+// warnings): the same kinds, with counts, as `kneedyn run` of that case and formulation at the
+// catalog's options writes. The chapter scene's guess_offset_1e-6mm with newmark lifts off
+// 0.7 ms early on its oscillating force (liftoff_force_not_zero) and chatters
+// (short_contact_phase); dae warns of nothing. Before, the catalog had no such column and
+// listed the newmark run as a plain completion.
+TEST_F(CliTest, CatalogListsEachRunsWarnings) {
+  const std::string scene = std::string(KNEEDYN_SOURCE_DIR) + "/reference-data/scenes/hard/guess_offset_1e-6mm.yaml";
+  const CommandResult r = RunShell(std::string("'") + KNEEDYN_CATALOG_EXE + "' --case guess_offset_1e-6mm" +
+                                   " --formulation newmark --formulation dae --no-reference --out '" + Out() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::istringstream csv(ReadText(fs::path(Out()) / "hard_cases.csv"));
+  std::string header, line;
+  std::getline(csv, header);
+  ASSERT_NE(header.find(",events,warnings,reason"), std::string::npos) << header;
+  std::map<std::string, std::string> listed;  // formulation -> warnings cell
+  while (std::getline(csv, line)) {
+    // ...,"events","warnings","reason": the second-last quoted cell.
+    const size_t reason = line.rfind(",\"");
+    const size_t warnings = line.rfind(",\"", reason - 1);
+    ASSERT_NE(warnings, std::string::npos) << line;
+    const std::string formulation = line.substr(line.find(',') + 1, line.find(',', line.find(',') + 1) - line.find(',') - 1);
+    listed[formulation] = line.substr(warnings + 2, reason - warnings - 3);
+  }
+  for (const std::string formulation : {"newmark", "dae"}) {
+    const std::string out = Out() + "_" + formulation;
+    // The catalog's options (app/hard_case_catalog.cpp): rtol 1e-8, atol 1e-10; h = 1e-4 s fixed.
+    const std::string options = std::string(" --rtol 1e-8 --atol 1e-10") + (formulation == "dae" ? "" : " --step 1e-4");
+    const CommandResult run = RunKneedyn("run '" + scene + "' --formulation " + formulation + options + " --quiet --out '" + out + "'");
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    std::map<std::string, int> kinds;
+    const nlohmann::json summary = nlohmann::json::parse(ReadText(fs::path(out) / "summary.json"));
+    for (const auto& w : summary.at("warnings")) ++kinds[w.at("kind").get<std::string>()];
+    std::string expected;
+    for (const auto& [kind, n] : kinds) expected += (expected.empty() ? "" : " ") + kind + (n > 1 ? "×" + std::to_string(n) : "");
+    EXPECT_EQ(listed[formulation], expected) << formulation;
+    fs::remove_all(out);
+  }
+  EXPECT_NE(listed["newmark"].find("liftoff_force_not_zero"), std::string::npos) << listed["newmark"];
+  EXPECT_EQ(listed["dae"], "");
+}
+
 // An output interval longer than the run writes the start and the event rows alone: the
 // summary warns (sparse_output), since its constraint_residuals and the peaks come from the
 // rows; the scene's own 5 ms rows give no such warning. Before, nothing was said.

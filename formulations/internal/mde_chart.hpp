@@ -91,7 +91,7 @@ class MdeChart {
   // The same from a point Evaluate returned in the chart in use (its tangent already computed):
   // the mde formulation re-seeds after every accepted step, the open problem's mde form after
   // every evaluation, so that the start stays near however far a contact phase runs (from the
-  // phase start alone, 38 deg into one phase, the first Newton iterate fell off the surfaces).
+  // phase start alone, 36 deg into one phase, the first Newton iterate fell off the surfaces).
   void SetStartPose(const MdeKinematics& at) {
     start_q_ = at.q;
     start_tangent_ = at.elimination_tangent;
