@@ -103,6 +103,8 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
   MdeKinematics kin;
   kin.q = start_q_;
   for (int j = 0; j < m; ++j) kin.q(free_[j]) = y[j];
+  bool at_start = true;  // y holds the start pose's free coordinates, bitwise
+  for (int j = 0; j < m; ++j) at_start = at_start && y[j] == start_q_(free_[j]);
   if (start_tangent_.rows() == k && start_tangent_.cols() == m) {
     for (int c = 0; c < k; ++c) {
       for (int j = 0; j < m; ++j) kin.q(elim_[c]) += start_tangent_(c, j) * (y[j] - start_q_(free_[j]));
@@ -153,8 +155,14 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
       const Vector3d n = pose_i.R_FT * geo[r].normal_T;
       for (int c = 0; c < k; ++c) ND(r, c) = -n(elim_[c]);
     }
-    // At least one step: the result must not depend on the start (start_q_).
-    if (iter > 0 && phi.cwiseAbs().maxCoeff() <= kEliminationTolerance) break;
+    // At least one step (the result must not depend on the start, start_q_), except at the
+    // start's own free coordinates: there the start pose itself is the answer when it closes
+    // the contacts, so that the phase's first evaluation sees bitwise the pose the simulator
+    // started from. (One step from it moved q by ~3e-17 m, enough to put a ligament that sat
+    // 1.4e-17 m short of its kink past it: the kink root fired at the phase start again and
+    // again, 514 times at one instant with fehlberg78 on anatomical_surfaces.) It also makes
+    // an evaluation at a seeded point repeat bitwise.
+    if ((iter > 0 || at_start) && phi.cwiseAbs().maxCoeff() <= kEliminationTolerance) break;
     if (iter == kMaxEliminationIterations) {
       Throw<SolverError>("MdeFormulation::Evaluate", "eliminating the contact translations did not converge at t = ", t,
                          " s: max |gap| = ", phi.cwiseAbs().maxCoeff(), " m after ", iter,

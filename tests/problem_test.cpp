@@ -552,6 +552,15 @@ TEST(Problem, MdeRhsFollowsALongPhaseOnGeneralSurfaces) {
   }
   EXPECT_GT(evaluated, 150);
   EXPECT_GT(max_flexion_deg, 40.0) << "through the flexion where f had failed";
+  // An evaluation re-seeds the elimination at its own point, so the same call again gives the
+  // same f bitwise (the start pose is the answer at its own coordinates; a Newton step from it
+  // had moved f by ~2e-14 relative).
+  std::vector<double> y, yp, f1(n), f2(n);
+  FormValues("mde", scene.model, dae.samples[dae.samples.size() / 2], &y, &yp, free);
+  const double t = dae.samples[dae.samples.size() / 2].t;
+  p.Rhs(t, y.data(), n, f1.data());
+  p.Rhs(t, y.data(), n, f2.data());
+  ExpectBitwise(f2.data(), f1.data(), n, "f at the same point twice");
 }
 
 TEST(Problem, DaeResidualAndJacobianEqualDaeSystem) {
