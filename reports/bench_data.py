@@ -49,7 +49,9 @@ def load_bench(path):
         aggregate_name, cpu_time, time_unit, <counters>, ...}]}: one run per run_name (the
         median aggregate if present, else the mean of the iterations); formulation, integrator
         and setting from the fields of the same name, else from the benchmark name; scd and
-        event errors from fields `scd`, `metrics` or `event_time_error_s[.<event>]`.
+        event errors from fields `scd`, `metrics` or `event_time_error_s[.<event>]`; failures from
+        `error_occurred` or `status`. Not work_precision's own entries alone (its context has
+        `kneedyn_mode`): they mark no failure and carry no events, and are refused.
   A top-level "provenance" {command, commit, date} is passed through in the header, and
   `context.components` (the fairness manifest) as header["components"].
   Every field read is checked: a wrong type raises BadInput (a ValueError) naming the file
@@ -75,6 +77,13 @@ def load_bench(path):
     if not isinstance(data.get("results"), list) and isinstance(data.get("benchmarks"), list):
       if not data["benchmarks"]:
         raise BadInput(f"{where}: no results (its 'benchmarks' array is empty)")
+      # work_precision's own Google Benchmark entries mark no failure (a failed run's scd
+      # counter is 0) and carry no events: without its `results`, every failed and wrong-event
+      # run would be drawn as a result. Such a file (its context names kneedyn_mode) is refused.
+      if isinstance(context, dict) and "kneedyn_mode" in context:
+        raise BadInput(f"{where}: work_precision's 'benchmarks' entries without its 'results': they mark no failed "
+                       "run and carry no events, so failures and wrong events could not be counted; use the file "
+                       "work_precision --json wrote, whole")
       return header, flag_above_ceiling(_from_google_benchmark(data["benchmarks"], where), scd_ceiling(header))
     key = "results" if "results" in data else "runs" if "runs" in data else None
     if key is None:

@@ -342,6 +342,22 @@ def main():
         errors.append(f"{name}: failures classified as {whys}")
     if got["results"] != got["google"]:
       errors.append(f"layouts disagree:\n  {got['results']}\n  {got['google']}")
+    # work_precision's own file with its `results` removed: its Google Benchmark entries mark
+    # no failure (scd 0) and carry no events, so it is refused rather than read as 0 failures
+    # (it was: a probe's copy of the recorded sweep read "780 runs are results; 0 failed").
+    recorded = os.path.join(ROOT, "benchmarks", "recorded", "work_precision_chapter_impact.json")
+    with open(recorded, encoding="utf-8") as f:
+      stripped = json.load(f)
+    stripped.pop("results")
+    path = os.path.join(tmp, "benchmarks_only.json")
+    with open(path, "w") as f:
+      json.dump(stripped, f)
+    try:
+      figures.load_bench(path)
+      errors.append("work_precision's entries without its results were read")
+    except ValueError as e:
+      if "without its 'results'" not in str(e):
+        errors.append(f"work_precision's entries without its results: {e}")
     expected = [("dae", "", 0.5, "failed"), ("ede", "rk4", 0.004, "wrong events"),
                 ("mde", "dopri5", 0.02, "ok"), ("mde", "euler", 0.01, "wrong event time")]
     if got["results"] != expected:
