@@ -27,7 +27,9 @@
 // file named score.json or *.score.json under DIR, join the results as they are (status,
 // reason, metrics, their own CPU time and counters; "origin": "outside", "source": the file):
 // not run or timed here, and a failed outside run stays a failed result. Each file must be
-// scored against this sweep's scene and reference, else exit 2 naming the file.
+// scored against this sweep's scene and reference, else exit 2 naming the file. The fairness
+// manifest (context.components) gets one entry per outside formulation name, its version and
+// flags "not recorded".
 //
 // Output: one JSON per sweep {header: {machine, scene, reference, mode, date, ...},
 // results: [{formulation, integrator, setting, status, reason, metrics, cpu_time_s
@@ -403,6 +405,18 @@ int main(int argc, char** argv) {
     for (const BuildComponent& c : BuildManifest()) {
       components.push_back({{"name", c.name}, {"version", c.version}, {"origin", c.origin},
                             {"compile_flags", c.compile_flags}});
+    }
+    // Outside solvers (--include) were built and timed elsewhere: one entry per formulation
+    // name, saying so, so that the manifest never implies they were built alike.
+    std::map<std::string, std::string> outside;  // formulation -> its first score file
+    for (const nlohmann::json& r : included) {
+      outside.emplace(r.value("formulation", std::string("?")), r.value("source", std::string()));
+    }
+    for (const auto& [name, source] : outside) {
+      components.push_back({{"name", name},
+                            {"version", "not recorded"},
+                            {"origin", "outside solver, scored by kneedyn score (" + source + "); built and timed outside kneedyn"},
+                            {"compile_flags", "not recorded"}});
     }
     out["context"]["components"] = components;
     nlohmann::json& h = out["header"];

@@ -86,6 +86,11 @@ def main():
       errors.append(f"the included failed run's reason: {failed[0].get('reason')!r}")
     if len((data["header"].get("included") or {}).get("files", [])) != 2:
       errors.append(f"header.included: {data['header'].get('included')}")
+    # The fairness manifest names the outside solver as built and timed outside kneedyn (it had
+    # listed kneedyn's own components alone, as if every curve were built alike).
+    manifest = {c.get("name"): c for c in (data.get("context") or {}).get("components", [])}
+    if SOLVER not in manifest or "outside" not in manifest[SOLVER].get("origin", ""):
+      errors.append(f"context.components lacks the outside solver {SOLVER}: {sorted(manifest)}")
     if os.path.exists(wp[:-5] + ".csv"):
       with open(wp[:-5] + ".csv") as f:
         rows = [line for line in f.read().splitlines()[1:] if line.startswith(f'"{SOLVER}"')]
