@@ -103,13 +103,6 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
   MdeKinematics kin;
   kin.q = start_q_;
   for (int j = 0; j < m; ++j) kin.q(free_[j]) = y[j];
-  bool at_start = true;  // y holds the start pose's free coordinates, bitwise
-  for (int j = 0; j < m; ++j) at_start = at_start && y[j] == start_q_(free_[j]);
-  if (start_tangent_.rows() == k && start_tangent_.cols() == m) {
-    for (int c = 0; c < k; ++c) {
-      for (int j = 0; j < m; ++j) kin.q(elim_[c]) += start_tangent_(c, j) * (y[j] - start_q_(free_[j]));
-    }
-  }
   // φ_i(q) = 0 solved for the eliminated translations by Newton (∂φ_i/∂R0 = −n_F,i); one
   // step is exact for a sphere on a plane (φ linear in R0), a few for curved surfaces.
   std::array<ContactGeometry, kMaxMdeContacts> geo;
@@ -134,6 +127,16 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
     for (int c = 0; c < k; ++c) kin.q(elim_[c]) = x(c);
     const Pose pose_c = PoseFromCoordinates(kin.q);
     for (int r = 0; r < k; ++r) geo[r] = SphereOnPlaneContact(sop[r], pose_c);
+  }
+  // Newton's start for a general pair: the start pose moved along its tangent (SetStartPose).
+  bool at_start = true;  // y holds the start pose's free coordinates, bitwise
+  if (k > 0 && !closed_form) {
+    for (int j = 0; j < m; ++j) at_start = at_start && y[j] == start_q_(free_[j]);
+    if (start_tangent_.rows() == k && start_tangent_.cols() == m) {
+      for (int c = 0; c < k; ++c) {
+        for (int j = 0; j < m; ++j) kin.q(elim_[c]) += start_tangent_(c, j) * (y[j] - start_q_(free_[j]));
+      }
+    }
   }
   for (int iter = 0; k > 0 && !closed_form; ++iter) {
     const Pose pose_i = PoseFromCoordinates(kin.q);

@@ -35,8 +35,10 @@ std::string FailureSituation(const Model& model, const MechanicalState& s) {
 }
 
 // For a failed run: the non-default options known to fail where the defaults go on, named
-// with what to change (empty when none was given).
-std::string OptionHints(const FormulationOptions& options) {
+// with what to change (empty when none was given, or when the step budget ran out: that
+// failure is the budget's, whatever the options).
+std::string OptionHints(const FormulationOptions& options, const std::string& failure) {
+  if (failure.find("--max-steps") != std::string::npos) return "";
   std::string out;
   if (options.contact_chart == ContactChart::kHeightField) {
     out += "; --contact-chart height-field was given: the chapter's chart z = f(x, y) of the condyle is singular "
@@ -86,7 +88,7 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
     result.completed = true;
   } catch (const Error& e) {
     result.completed = false;
-    result.failure = e.what() + FailureSituation(model, simulator.state()) + OptionHints(settings.options);
+    result.failure = e.what() + FailureSituation(model, simulator.state()) + OptionHints(settings.options, e.what());
   } catch (const std::exception& e) {  // any other failure while integrating: still partial
     result.completed = false;
     result.failure = StrCat("RunScene(): ", e.what());

@@ -515,6 +515,15 @@ TEST(DaeOptions, AFailureNamesTheNonDefaultOptionGiven) {
   const RunResult index2 = RunScene(scene, test_support::SettingsAt("dae", 1e-8, 1e-10));
   ASSERT_TRUE(index2.completed) << index2.failure;
   EXPECT_EQ(index2.failure.find("was given"), std::string::npos);
+  // A spent step budget is the budget's failure, whatever the options: no hint (the height-field
+  // chart, which completes this scene, with 10 steps a phase).
+  RunSettings height_field = test_support::SettingsAt("dae", 1e-8, 1e-10);
+  height_field.options.contact_chart = ContactChart::kHeightField;
+  height_field.options.max_steps = 10;
+  const RunResult budget = RunScene(scene, height_field);
+  ASSERT_FALSE(budget.completed);
+  EXPECT_NE(budget.failure.find("--max-steps"), std::string::npos) << budget.failure;
+  EXPECT_EQ(budget.failure.find("was given"), std::string::npos) << budget.failure;
 }
 
 }  // namespace

@@ -455,12 +455,17 @@ class _KeywordNames:
     def __exit__(self, kind, error, trace):
         if kind is None or not issubclass(kind, InputError):
             return False
-        text = _re.sub(r"--([a-z][a-z-]*)",
-                       lambda m: m.group(1).replace("-", "_") if m.group(1).replace("-", "_") in self.keywords
-                       else m.group(0), str(error))
+        # Flags only: a whole word starting "--" outside the message's quoted values (a path
+        # or a value the caller gave, '.../a--out/f', stays as given).
+        flag = _re.compile(r"(?<![\w/.'-])--([a-z][a-z-]*)(?![\w-])")
+        parts = _re.split(r"('[^']*')", str(error))
+        for i in range(0, len(parts), 2):
+            parts[i] = flag.sub(lambda m: m.group(1).replace("-", "_") if m.group(1).replace("-", "_") in self.keywords
+                                else m.group(0), parts[i])
+        text = "".join(parts)
         if text == str(error):
             return False
-        raise InputError(text) from None
+        raise InputError(text) from error
 
 
 def _scene(scene, function):

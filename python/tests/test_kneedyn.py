@@ -316,6 +316,9 @@ def test_bad_options_raise_before_running():
     assert "--output-interval" not in str(e.value)
     with pytest.raises(kneedyn.InputError, match=r"max_steps = 0") as e:
         kneedyn.sensitivity(scene, ["pulse.amplitude"], ["liftoff_time"], max_steps=0)
+    # Only flags are renamed: a quoted value the caller gave stays as given.
+    with pytest.raises(kneedyn.InputError, match=r"integrator = '--rtol'"):
+        kneedyn.run(scene, "mde", integrator="--rtol")
     with pytest.raises(kneedyn.InputError, match="unknown formulation 'nope'; registered: dae"):
         kneedyn.run(scene, "nope")
     with pytest.raises(kneedyn.InputError, match="integrator = 'rk9' is not available"):
