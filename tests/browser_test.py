@@ -73,7 +73,8 @@ PLANTED = """<!DOCTYPE html><html><head><meta charset='utf-8'></head><body>
 
 
 def run_chromium(html_path, user_dir, screenshot=None):
-  args = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+  # --disable-dev-shm-usage: a container's small /dev/shm (64 MB) can crash the renderer.
+  args = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--disable-background-networking",
           "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={user_dir}",
           "--allow-file-access-from-files", f"--window-size={WIDTH},{HEIGHT}", "--virtual-time-budget=10000"]
   if screenshot:

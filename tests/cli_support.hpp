@@ -50,6 +50,9 @@ inline std::string ReadText(const fs::path& p) {
 inline void WriteText(const fs::path& p, const std::string& text) {
   std::ofstream out(p, std::ios::binary);
   out << text;
+  out.close();
+  // A short write (a full disk) would pass a different input to the test; say so instead.
+  if (!out) ADD_FAILURE() << "could not write " << text.size() << " bytes to " << p << " (a full disk?)";
 }
 
 // `text` with the first occurrence of `from` replaced by `to` (the test fails if absent).

@@ -6,10 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <string>
 
 #include "tests/cli_support.hpp"
 
@@ -21,11 +23,23 @@ namespace {
 using kneedyn::cli_test::ReadText;
 using kneedyn::cli_test::RunShell;
 
-// Each test has its own directory: ctest -j runs them concurrently.
-fs::path WorkDir() {
-  return fs::temp_directory_path() / "kneedyn_sweep_cli_test" /
-         ::testing::UnitTest::GetInstance()->current_test_info()->name();
+// Each test has its own directory (ctest -j runs them concurrently), under one per process
+// (two checkouts' runs on one machine do not meet), removed at exit when every test passed
+// (kept to look at otherwise).
+fs::path ProcessDir() {
+  return fs::temp_directory_path() / ("kneedyn_sweep_cli_test_" + std::to_string(::getpid()));
 }
+class RemoveProcessDirWhenPassed : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    std::error_code ignored;
+    if (::testing::UnitTest::GetInstance()->Passed()) fs::remove_all(ProcessDir(), ignored);
+  }
+};
+::testing::Environment* const g_remove_process_dir =
+    ::testing::AddGlobalTestEnvironment(new RemoveProcessDirWhenPassed);
+
+fs::path WorkDir() { return ProcessDir() / ::testing::UnitTest::GetInstance()->current_test_info()->name(); }
 
 int Sh(const std::string& command) {
   const int status = std::system(command.c_str());
@@ -152,7 +166,8 @@ TEST(SweepCli, TwoMpiRanksGiveTheSameBytes) {
   const std::string env =
       "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 "
       "ASAN_OPTIONS=detect_leaks=0 ";
-  ASSERT_EQ(Sh(env + mpiexec + " -n 2 --oversubscribe " + Kneedyn() + " sweep " + spec.string() +
+  // timeout: a hung launcher fails the test in 5 minutes instead of holding a ctest slot.
+  ASSERT_EQ(Sh(env + "timeout 300 " + mpiexec + " -n 2 --oversubscribe " + Kneedyn() + " sweep " + spec.string() +
                " --threads 1 --out " + (work / "mpi").string() + " > " + (work / "mpi.log").string() + " 2>&1"), 0)
       << ReadText(work / "mpi.log");
   for (const char* f : {"sweep.csv", "sweep.h5"}) {

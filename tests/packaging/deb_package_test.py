@@ -121,7 +121,7 @@ def main():
     print("needed packages: %s" % ", ".join(sorted(required)))
 
     return verdict(problems, "OK: %s holds what the install rules install, and Depends covers its %d runtime packages"
-                   % (deb.name, len(required)))
+                   % (deb.name, len(required)), work=work)
 
 
 if __name__ == "__main__":

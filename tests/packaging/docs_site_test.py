@@ -122,7 +122,7 @@ def main():
     if "frobnicate" not in warnings:
         problems.append("Doxygen did not report the planted bad command in %s: %r" % (headers[0], warnings[:300]))
 
-    return verdict(problems)
+    return verdict(problems, work=work)
 
 
 if __name__ == "__main__":

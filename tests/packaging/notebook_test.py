@@ -48,7 +48,7 @@ def main():
             problems.append("%d cells hold errors" % len(errors))
         if figures < 2:
             problems.append("the executed notebook has %d figures, expected 2" % figures)
-    return verdict(problems)
+    return verdict(problems, work=work)
 
 
 if __name__ == "__main__":

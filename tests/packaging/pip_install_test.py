@@ -135,7 +135,7 @@ def main():
     for what, seconds in timings.items():
         print("%-22s %.1f s" % (what, seconds))
     return verdict(problems, "OK: %s and the venvs of both paths hold the %d files of the runtime component"
-                   % (found[0].name, len(expected)))
+                   % (found[0].name, len(expected)), work=work)
 
 
 if __name__ == "__main__":
