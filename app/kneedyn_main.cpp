@@ -91,15 +91,6 @@ std::string AcceptedBy(std::vector<Enum> FormulationInfo::*field) {
   return out;
 }
 
-// "a, b": the formulations whose registry line sets `field`.
-std::string FormulationsWith(bool FormulationInfo::*field) {
-  std::string out;
-  for (const FormulationInfo& f : RegisteredFormulations()) {
-    if (f.*field) out += (out.empty() ? "" : ", ") + f.name;
-  }
-  return out;
-}
-
 // The methods that take --step: fixed-step formulations and fixed-step integrators.
 std::string FixedStepMethods() {
   std::string out;
@@ -221,8 +212,8 @@ int Main(int argc, char** argv) {
                                      accepted(&FormulationInfo::linear_solvers) + ")");
   text_option("--contact-chart",
               "chart of the contact coordinates of the consistent initialization and of the formulations "
-              "that accept it (not mde, staggered): regular | height-field (the chapter's, singular at the "
-              "condyle rim)",
+              "that accept it (not " + (describe ? FormulationsWith(&FormulationInfo::contact_chart, false) : "") +
+                  "): regular | height-field (the chapter's, singular at the condyle rim)",
               shown(OptionName(defaults.contact_chart)));
   text_option("--output-interval", "s between output rows (> 0; omit it for the scene's)");
   run->add_option("--out", out_dir, "output directory")->capture_default_str();

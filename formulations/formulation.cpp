@@ -267,8 +267,9 @@ bool CheckShared(const OptionRequest& r) {
   // What the formulation accepts (its registry line).
   const bool scheme_given = o.alpha_m || o.alpha_f || o.newmark_beta || o.newmark_gamma;
   if (!info.scheme_parameters && (scheme_given || r.typed.count("--rho-inf") || o.rho_inf != FormulationOptions().rho_inf)) {
-    return r.Fail(StrCat("--rho-inf / --alpha-m / --alpha-f / --beta / --gamma apply to generalized-alpha only, not to ",
-                         name, info.fixed_step ? " (its rule is fixed: beta = 1/4, gamma = 1/2)" : ""));
+    return r.Fail(StrCat("--rho-inf / --alpha-m / --alpha-f / --beta / --gamma apply only to ",
+                         FormulationsWith(&FormulationInfo::scheme_parameters), ", not to ", name,
+                         info.fixed_step ? " (its rule is fixed: beta = 1/4, gamma = 1/2)" : ""));
   }
   if (o.integrator && info.integrators.empty()) {
     return r.Fail(StrCat("--integrator = '", OptionName(*o.integrator), "': formulation '", name,
@@ -386,6 +387,21 @@ std::vector<FormulationInfo> WithUniqueNames(std::vector<FormulationInfo> formul
     }
   }
   return formulations;
+}
+
+const FormulationInfo* RegisteredFormulation(const std::string& name) {
+  for (const FormulationInfo& info : RegisteredFormulations()) {
+    if (info.name == name) return &info;
+  }
+  return nullptr;
+}
+
+std::string FormulationsWith(bool FormulationInfo::*field, bool value) {
+  std::string out;
+  for (const FormulationInfo& f : RegisteredFormulations()) {
+    if (f.*field == value) out += (out.empty() ? "" : ", ") + f.name;
+  }
+  return out;
 }
 
 const FormulationInfo& FindFormulation(const std::string& name) {

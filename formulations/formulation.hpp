@@ -254,6 +254,9 @@ struct FormulationInfo {
   // Runs only scenes with a patella (scene section patella; docs/model.md §12): refused
   // with InputError on others.
   bool needs_patella = false;
+  // Starts from the scene's pose unprojected (initial_state.start: unprojected, the chapter's
+  // DASSL start, docs/model.md §6): its own integrator corrects the first step.
+  bool unprojected_start = false;
 
   FormulationInfo(std::string name_, std::string summary_, FormulationFactory create_)
       : name(std::move(name_)), summary(std::move(summary_)), create(std::move(create_)) {}
@@ -268,6 +271,7 @@ struct FormulationInfo {
   FormulationInfo& SchemeParameters() { scheme_parameters = true; return *this; }
   FormulationInfo& Sensitivity(SensitivityForm form) { sensitivity = form; return *this; }
   FormulationInfo& NeedsPatella() { needs_patella = true; return *this; }
+  FormulationInfo& UnprojectedStart() { unprojected_start = true; return *this; }
 };
 
 // The one check of FormulationOptions for a formulation: the rules every formulation shares
@@ -357,6 +361,11 @@ const std::vector<FormulationInfo>& RegisteredFormulations();
 // naming a repeated one (a second registry line would otherwise be listed twice and never run).
 std::vector<FormulationInfo> WithUniqueNames(std::vector<FormulationInfo> formulations);
 const FormulationInfo& FindFormulation(const std::string& name);  // throws InputError
+// The registry line of `name`, or null (a name outside the registry: Simbody's, say).
+const FormulationInfo* RegisteredFormulation(const std::string& name);
+// "a, b": the registered formulations whose `field` is `value`, for messages and help texts
+// (derived from the registry, never a hand-kept list).
+std::string FormulationsWith(bool FormulationInfo::*field, bool value = true);
 std::unique_ptr<Formulation> CreateFormulation(const std::string& name, const Scene& scene,
                                                const FormulationOptions& options);
 

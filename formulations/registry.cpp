@@ -20,7 +20,7 @@ const std::vector<JacobianKind> kNewtonJacobians = {JacobianKind::kExact, Jacobi
 
 const std::vector<FormulationInfo>& RegisteredFormulations() {
   static const std::vector<FormulationInfo> kRegistry = WithUniqueNames({
-      FormulationInfo("dae", "chapter's index-2 DAE (modified reverse EDE), contact coordinates, IDA", KNEEDYN_FACTORY(ConfigureDae)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).LinearSolvers(kIdaLinearSolvers).Sensitivity(SensitivityForm::kDae),
+      FormulationInfo("dae", "chapter's index-2 DAE (modified reverse EDE), contact coordinates, IDA", KNEEDYN_FACTORY(ConfigureDae)).UnprojectedStart().AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).LinearSolvers(kIdaLinearSolvers).Sensitivity(SensitivityForm::kDae),
       FormulationInfo("dae-reduced", "index-2 DAE with closed-form sphere-on-plane contact, IDA", KNEEDYN_FACTORY(ConfigureDaeReduced)).AlgebraicForces().ConstraintLevels(kBothLevels).Jacobians(kIdaJacobians).LinearSolvers(kIdaLinearSolvers).Sensitivity(SensitivityForm::kDae),
       FormulationInfo("dae-ggl", "Gear-Gupta-Leimkuhler stabilized index-2 DAE (position and velocity constraints), contact coordinates, IDA", KNEEDYN_FACTORY(ConfigureDaeGgl)).AlgebraicForces().Jacobians(kIdaJacobians).LinearSolvers(kIdaLinearSolvers).Sensitivity(SensitivityForm::kDaeGgl),
       FormulationInfo("dae-ggl-reduced", "GGL stabilized index-2 DAE with closed-form sphere-on-plane contact, IDA", KNEEDYN_FACTORY(ConfigureDaeGglReduced)).AlgebraicForces().Jacobians(kIdaJacobians).LinearSolvers(kIdaLinearSolvers).Sensitivity(SensitivityForm::kDaeGgl),

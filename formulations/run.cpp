@@ -66,9 +66,9 @@ RunResult RunScene(const Scene& scene, const RunSettings& settings) {
     Throw<InputError>("RunScene", settings.output_interval == 0.0 ? "scene output.interval_s: " : "--output-interval: ", why);
   }
 
-  if (scene.initial.unprojected && settings.formulation != "dae") {
-    Throw<InputError>("RunScene", "initial_state.start = 'unprojected' (the chapter's DASSL start) is a start for the ",
-                      "formulation dae only (IDA), not '", settings.formulation, "'");
+  if (scene.initial.unprojected && !FindFormulation(settings.formulation).unprojected_start) {
+    Throw<InputError>("RunScene", "initial_state.start = 'unprojected' (the chapter's DASSL start) is a start for ",
+                      FormulationsWith(&FormulationInfo::unprojected_start), " only, not '", settings.formulation, "'");
   }
   SimulatorSettings sim;
   sim.init = settings.init;

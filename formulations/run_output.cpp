@@ -303,6 +303,17 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
   return table;
 }
 
+namespace {
+// The largest finite |value| of column c over the table's rows; 0 for a column it lacks.
+double LargestMagnitude(const TrajectoryTable& table, size_t c) {
+  double largest = 0.0;
+  for (const std::vector<double>& row : table.rows) {
+    if (c < row.size() && std::isfinite(row[c])) largest = std::max(largest, std::abs(row[c]));
+  }
+  return largest;
+}
+}  // namespace
+
 std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const RunResult& result) {
   std::vector<OutputWarning> out;
   const auto& cols = table.columns;
@@ -321,10 +332,7 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
     // The contact's own lift-off row holds the event location's error, a few 1e-12 N (dae) to
     // 0.015 N of 2 kN (staggered); far more is a lift-off the method did not locate (newmark
     // halving its step before a failure recorded one at -3.9 N of 2.2 kN, hard/patella_quadriceps_2000N).
-    double largest = 0.0;
-    for (const std::vector<double>& row : table.rows) {
-      if (c < row.size() && std::isfinite(row[c])) largest = std::max(largest, std::abs(row[c]));
-    }
+    const double largest = LargestMagnitude(table, c);
     const double located = kLiftoffRowForceFraction * largest;
     double min_force = 0.0, at = 0.0;
     for (const std::vector<double>& row : table.rows) {
@@ -510,11 +518,8 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
     const std::string part = e.name.substr(8);
     const std::string name = "N_" + part + "_N";
     const size_t c = column(name.c_str());
-    double largest = 0.0;
-    for (const std::vector<double>& row : table.rows) {
-      if (c < row.size() && std::isfinite(row[c])) largest = std::max(largest, std::abs(row[c]));
-    }
-    if (!(std::abs(e.consistent_normal_force) > kLiftoffConsistentForceFraction * largest)) continue;
+    const double largest = LargestMagnitude(table, c);
+    if (!(largest > 0.0 && std::abs(e.consistent_normal_force) > kLiftoffConsistentForceFraction * largest)) continue;
     OutputWarning p;
     p.kind = "liftoff_force_not_zero";
     p.contact = "tibial contact " + part;
@@ -776,7 +781,8 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
   settings_json["max_step_s"] = o.max_step;
   settings_json["max_steps"] = o.max_steps;
   // The scheme a generalized-alpha run used (Chung–Hulbert's from ρ∞, or the four given).
-  if (settings.formulation.rfind("generalized-alpha", 0) == 0) {
+  const FormulationInfo* info = RegisteredFormulation(settings.formulation);
+  if (info != nullptr && info->scheme_parameters) {
     const bool explicit_scheme = o.alpha_m.has_value();
     const NewmarkScheme scheme = explicit_scheme ? NewmarkScheme{*o.alpha_m, *o.alpha_f, *o.newmark_beta, *o.newmark_gamma}
                                                  : ChungHulbertScheme(o.rho_inf);

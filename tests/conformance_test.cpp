@@ -23,6 +23,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -190,6 +191,34 @@ TEST(Registry, ANameRegisteredTwiceIsRefused) {
   } catch (const std::logic_error& e) {
     EXPECT_NE(std::string(e.what()).find("'" + twice.front().name + "' is registered twice"), std::string::npos)
         << e.what();
+  }
+}
+
+// The two hand-kept lists a registry line joins (README.md, "Layout": adding a formulation): the
+// README's table of formulations, and the counter and instruction gates' baselines
+// (benchmarks/baseline_counters.json), which run each formulation that needs no patella.
+TEST(Registry, EveryFormulationIsInTheReadmesTableAndTheBaselines) {
+  const std::string root = ReferenceDataDir() + "/..";
+  std::ifstream readme_file(root + "/README.md");
+  ASSERT_TRUE(readme_file) << root << "/README.md";
+  const std::string readme((std::istreambuf_iterator<char>(readme_file)), std::istreambuf_iterator<char>());
+  const size_t begin = readme.find("\n## Formulations\n");
+  ASSERT_NE(begin, std::string::npos) << "README.md has no section '## Formulations'";
+  const std::string table = readme.substr(begin, readme.find("\n## ", begin + 1) - begin);
+  std::ifstream baseline_file(root + "/benchmarks/baseline_counters.json");
+  ASSERT_TRUE(baseline_file);
+  const nlohmann::json baseline = nlohmann::json::parse(baseline_file);
+  const auto has_run = [](const nlohmann::json& runs, const std::string& name) {
+    return std::any_of(runs.begin(), runs.end(), [&](const nlohmann::json& r) { return r.value("formulation", "") == name; });
+  };
+  for (const FormulationInfo& f : RegisteredFormulations()) {
+    // A row's first cell names one formulation or several ("`dae-ggl`, `dae-ggl-reduced`").
+    const bool listed = table.find("| `" + f.name + "`") != std::string::npos ||
+                        table.find(", `" + f.name + "`") != std::string::npos;
+    EXPECT_TRUE(listed) << f.name << " is not in README.md's table of formulations";
+    if (f.needs_patella) continue;
+    EXPECT_TRUE(has_run(baseline.at("runs"), f.name)) << f.name << ": no counter baseline";
+    EXPECT_TRUE(has_run(baseline.at("instruction_counts").at("runs"), f.name)) << f.name << ": no instruction baseline";
   }
 }
 

@@ -676,7 +676,7 @@ TEST(GeneralizedAlpha, RefusesBadParameters) {
   EXPECT_NE(message(partial, "generalized-alpha").find("give all four"), std::string::npos);
   FormulationOptions for_newmark;
   for_newmark.rho_inf = 0.5;
-  EXPECT_NE(message(for_newmark, "newmark").find("generalized-alpha only"), std::string::npos);
+  EXPECT_NE(message(for_newmark, "newmark").find("apply only to generalized-alpha, generalized-alpha-reduced, not to newmark"), std::string::npos);
 }
 
 }  // namespace
