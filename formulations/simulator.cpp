@@ -57,6 +57,7 @@ void CompleteRestartState(const Model& model, RestartProjection restart, Mechani
 
 std::vector<EventSpec> StartPhase(const Model& model, const EndCondition& end, double gap_tolerance,
                                   RestartProjection restart, MechanicalState* state, bool complete) {
+  RecordSeparationGaps(model, state);
   std::vector<EventSpec> specs = EventsForPhase(model, end, *state, gap_tolerance);
   if (model.ligament_law == LigamentLaw::kPublished) {
     state->ligament_branch = LigamentBranchesAt(model, state->q, state->qd);

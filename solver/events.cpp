@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "solver/contact_kinematics.hpp"
 #include "solver/ligament.hpp"
@@ -32,9 +33,12 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
     if (state.IsActive(i)) {
       specs.push_back({EventKind::kLiftoff, i, -1, -1, 0.0, LiftoffEventName(model.contacts[i].compartment), nullptr});
     } else {
-      const double gap = RequireContactKinematics(model.contacts[i], pose, "EventsForPhase").gap;
-      specs.push_back({EventKind::kRecontact, i, -1, -1,
-                       std::min(gap, 0.0) - std::max(gap_tolerance, kMinRecontactHysteresis), "recontact_" + comp, nullptr});
+      const double gap = RequireContactKinematics(model.contacts[i], pose, "EventsForPhase").gap;  // m
+      const bool recorded = static_cast<size_t>(i) < state.separation_gap.size() && std::isfinite(state.separation_gap[i]);
+      const double at_separation = recorded ? state.separation_gap[i] : gap;
+      const double offset = std::min(std::min(at_separation, 0.0) - std::max(gap_tolerance, kMinRecontactHysteresis),
+                                     gap - kMinRecontactHysteresis);
+      specs.push_back({EventKind::kRecontact, i, -1, -1, offset, "recontact_" + comp, nullptr});
     }
   }
   if (end.flexion) {
@@ -72,6 +76,20 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
     CheckPatellarFacetSwitch(patella, TuberosityInF(patella, pose), *guess, state.t, "EventsForPhase");
   }
   return specs;
+}
+
+void RecordSeparationGaps(const Model& model, MechanicalState* state) {
+  const double kNone = std::numeric_limits<double>::quiet_NaN();
+  state->separation_gap.resize(model.contacts.size(), kNone);
+  const Pose pose = PoseFromCoordinates(state->q);
+  for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) {
+    double& at_separation = state->separation_gap[i];
+    if (state->IsActive(i)) {
+      at_separation = kNone;
+    } else if (!std::isfinite(at_separation)) {
+      at_separation = RequireContactKinematics(model.contacts[i], pose, "RecordSeparationGaps").gap;
+    }
+  }
 }
 
 void MeasureKinkRootsFromPhaseStart(const Model& model, const MechanicalState& state, std::vector<EventSpec>* specs) {

@@ -48,10 +48,21 @@ constexpr double kPatellarRecontactRatio = 1.0e-9;
 // has just lifted off. The driver sets it from the drift it has observed (≥ 1 nm).
 constexpr double kMinRecontactHysteresis = 1.0e-9;  // m
 
-// The events watched during a phase starting at `state` (its active contacts).
+// The events watched during a phase starting at `state` (its active contacts). A separated
+// contact's re-contact root is gap − (min(g_sep, 0) − gap_tolerance), g_sep its
+// state.separation_gap (the gap now when there is none); should the gap already lie below
+// that (a tolerance smaller than the last phase's), the root starts kMinRecontactHysteresis
+// above zero instead of below it, where it could never cross.
 std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& end,
                                       const MechanicalState& state,
                                       double gap_tolerance = kMinRecontactHysteresis);
+
+// Keeps state->separation_gap at every phase start: the gap now for a separated contact that
+// has none yet (it has just separated, or the run starts with it separated), NaN for an
+// active one. A restart while a compartment stays separated (a ligament kink) thus measures
+// its re-contact from the gap at separation, not from the restart's: from the restart's,
+// each restart on a sinking condyle widened the sinking allowed by another hysteresis.
+void RecordSeparationGaps(const Model& model, MechanicalState* state);
 
 // m: how far on the side its locked branch has left (LigamentBranchesAt) a ligament's length
 // may start a phase and count as round-off of the restart (a millionth of the kink lengths'

@@ -1,5 +1,5 @@
-// Perfectly plastic impact at re-contact (docs/model.md §4; the chapter treats re-contact as an
-// impact without rebound). The contacts in `active` receive impulses P_i along their
+// Perfectly plastic impact at re-contact (docs/model.md §4; a kneedyn addition: the chapter
+// never re-contacts). The contacts in `active` receive impulses P_i along their
 // normals that zero their normal approach velocity; the pose does not change:
 //
 //   M Δν = Σ_i G_iᵀ P_i,     G_i (ν + Δν) = 0        (ν = (v_F, w_T), M = diag(m 1, I))

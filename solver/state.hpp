@@ -34,6 +34,11 @@ struct MechanicalState {
   // Per model.ligaments entry: the branch locked for the current phase (ligament.hpp);
   // empty = choose by length. Set by the run driver at every phase start.
   std::vector<signed char> ligament_branch;
+  // Per model.contacts entry: a separated contact's gap (m) when it separated (for one that
+  // starts separated, at the run's first phase); its re-contact is measured from min(gap, 0)
+  // at every phase while it stays separated (RecordSeparationGaps, EventsForPhase). NaN while
+  // in contact; empty before the first phase.
+  std::vector<double> separation_gap;
   // Patella scenes: the patella's equilibrium at the tibial coordinates patella_q, followed
   // from one restart to the next (RestartAcceleration, consistent_init.hpp); null before the
   // first. Replaced, never changed in place: copies of the state may share it.

@@ -15,8 +15,11 @@
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
 #include "scene/scene.hpp"
+#include "solver/consistent_init.hpp"
 #include "solver/constraint_residuals.hpp"
+#include "solver/contact_kinematics.hpp"
 #include "solver/error.hpp"
+#include "solver/events.hpp"
 #include "solver/ligament.hpp"
 #include "solver/pose.hpp"
 #include "spy_stepper.hpp"
@@ -164,6 +167,60 @@ TEST(Simulator, RecontactGapTolerance) {
   q.head<3>() << 3e-3, 0.0, 4e-3;  // |x0| = 5 mm
   EXPECT_DOUBLE_EQ(RecontactGapTolerance(0.0, q, 1e-6, 1e-8), 10.0 * (1e-6 * 5e-3 + 1e-8));
   EXPECT_DOUBLE_EQ(RecontactGapTolerance(1e-6, q, 1e-6, 1e-8), 1e-5);
+}
+
+// A separated compartment re-contacts when its gap falls below min(its gap at separation, 0)
+// by the hysteresis (docs/model.md §9), whatever restarts come between: a restart while the
+// condyle sinks (a ligament kink) keeps the line. Before, every phase measured it from the
+// gap at its own start, so each restart on a sinking condyle lowered the line by another
+// hysteresis.
+TEST(PhaseStart, RecontactLineStaysAtTheGapOfSeparationAcrossRestarts) {
+  const Scene& scene = ChapterScene();
+  const Model& model = scene.model;
+  ConsistentInitOptions init;
+  InitReport report;
+  MechanicalState state = ConsistentInitialize(model, scene.initial, {0, 1}, init, &report);
+  const auto lateral_gap = [&](const Vector6d& q) {
+    return RequireContactKinematics(model.contacts[1], PoseFromCoordinates(q), "test").gap;
+  };
+  const auto recontact_offset = [&](double gap_tolerance) {
+    for (const EventSpec& e : EventsForPhase(model, scene.end, state, gap_tolerance)) {
+      if (e.kind == EventKind::kRecontact && e.contact == 1) return e.offset;
+    }
+    ADD_FAILURE() << "no re-contact root for the lateral contact";
+    return 0.0;
+  };
+  state.active = {0};  // the lateral compartment separates here
+  const double at_separation = lateral_gap(state.q);
+  RecordSeparationGaps(model, &state);
+  ASSERT_EQ(state.separation_gap.size(), 2u);
+  EXPECT_TRUE(std::isnan(state.separation_gap[0]));  // in contact
+  EXPECT_EQ(state.separation_gap[1], at_separation);
+  const double tolerance = 5e-9;  // m
+  EXPECT_DOUBLE_EQ(recontact_offset(tolerance), std::min(at_separation, 0.0) - tolerance);
+
+  // The condyle sinks 3 nm (z0 moved along the gap's slope), then a restart.
+  Vector6d dz = Vector6d::Zero();
+  dz(2) = 1e-6;
+  const double slope = (lateral_gap(state.q + dz) - lateral_gap(state.q - dz)) / 2e-6;  // m per m
+  ASSERT_GT(std::abs(slope), 0.1);
+  state.q(2) -= 3e-9 / slope;
+  const double sunk = lateral_gap(state.q);
+  ASSERT_NEAR(sunk, at_separation - 3e-9, 1e-11);
+  RecordSeparationGaps(model, &state);
+  EXPECT_EQ(state.separation_gap[1], at_separation);
+  EXPECT_DOUBLE_EQ(recontact_offset(tolerance), std::min(at_separation, 0.0) - tolerance);
+  // A hysteresis smaller than the sinking (a smaller tolerance at this phase): the root starts
+  // 1 nm above zero, not below it where it could never cross.
+  EXPECT_DOUBLE_EQ(recontact_offset(1e-9), sunk - kMinRecontactHysteresis);
+
+  // In contact again, then separated anew: measured from the new separation.
+  state.active = {0, 1};
+  RecordSeparationGaps(model, &state);
+  EXPECT_TRUE(std::isnan(state.separation_gap[1]));
+  state.active = {0};
+  RecordSeparationGaps(model, &state);
+  EXPECT_EQ(state.separation_gap[1], sunk);
 }
 
 // Each crossing of a ligament's kink length (1 + 2ε1) L0 (docs/model.md §5 and §9, the
