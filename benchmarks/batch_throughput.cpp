@@ -116,5 +116,8 @@ int main(int argc, char** argv) {
   } catch (const InputError& e) {
     std::fprintf(stderr, "batch_throughput: error: %s\n", e.what());
     return 2;
+  } catch (const std::exception& e) {  // any other failure: a message and exit 1, no abort
+    std::fprintf(stderr, "batch_throughput: error: %s\n", e.what());
+    return 1;
   }
 }

@@ -152,8 +152,52 @@ std::string RunCommand(const std::string& scene_path, const BenchConfig& c) {
                 c.integrator.empty() ? "" : " --integrator " + c.integrator, tol, " --quiet");
 }
 
+// Every field --verify reads, checked before the (long) regeneration: a malformed file is
+// refused naming it and the field (exit 2), not minutes later with a bare JSON message (exit 1).
+void CheckStoredFields(const Scene& scene, const Reference& ref, const std::string& path) {
+  const std::string where = StrCat("--verify = '", EchoPath(path), "'");
+  std::string formulation;
+  BenchConfig c;
+  try {
+    const nlohmann::json& primary = ref.json.at("primary");
+    formulation = primary.at("formulation").get<std::string>();
+    c.integrator = primary.value("integrator", "");
+    if (formulation == "extended-precision") {
+      (void)primary.at("stages").get<int>();
+      (void)primary.at("step_s").get<double>();
+      const std::string scalar = primary.value("scalar", "long-double");
+      if (scalar != "float128" && scalar != "double" && scalar != "long-double") {
+        Throw<InputError>("make_reference", where, ": primary.scalar = '", Echo(scalar),
+                          "': one of float128, double, long-double");
+      }
+    } else {
+      c.formulation = formulation;
+      c.rtol = primary.at("rtol").get<double>();
+      c.atol = primary.at("atol").get<double>();
+    }
+    (void)ref.json.at("accuracy_scd").get<double>();
+    const nlohmann::json& agreement = ref.json.at("agreement");
+    for (const auto& [cls, names] : ref.solution.names) {
+      const nlohmann::json& d = agreement.at("digits").at(cls);
+      if (!d.is_null()) (void)d.get<double>();
+    }
+    for (const EventRecord& e : ref.solution.events) {
+      (void)agreement.at("event_time_difference_s").at(e.name).get<double>();
+    }
+  } catch (const nlohmann::json::exception& e) {
+    Throw<InputError>("make_reference", where, ": ", e.what(), " (rule: a reference as make_reference writes it, whole)");
+  }
+  if (formulation == "extended-precision") return;
+  try {
+    (void)CreateFormulation(c.formulation, scene, c.Options());
+  } catch (const InputError& e) {
+    Throw<InputError>("make_reference", where, ": its primary run: ", e.what());
+  }
+}
+
 int Verify(const Scene& scene, const std::string& stored_path) {
   const Reference ref = LoadReference(stored_path);
+  CheckStoredFields(scene, ref, stored_path);
   const nlohmann::json& primary = ref.json.at("primary");
   Solution regenerated;
   std::string name;

@@ -379,7 +379,10 @@ EventsFile ReadEvents(const std::string& path) {
     ++line_no;
     if (line.empty() || line == "\r") continue;
     const std::string_view row = CsvLine(line);
-    if (CsvFieldCount(row) != n_header) Throw<InputError>("kneedyn score", EchoPath(path), " line ", line_no, ": wrong number of cells");
+    if (CsvFieldCount(row) != n_header) {
+      Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "' line ", line_no, ": ", CsvFieldCount(row),
+                        " cells for ", n_header, " columns (rule: one cell per header column)");
+    }
     if (events.size() == kMaxResultRows) {
       Throw<InputError>("kneedyn score", "--events = '", EchoPath(path), "' line ", line_no, ": more than ", kMaxResultRows,
                         " events (rule: at most kMaxResultRows, as result rows)");

@@ -14,6 +14,14 @@ namespace {
 
 [[noreturn]] void Fail(const std::string& message) { throw ProblemError(message); }
 
+// The physics refused the state an outside solver handed in (KNEEDYN_SOLVER_ERROR, not a bad
+// argument): an integrator may shorten its step and try again.
+[[noreturn]] void RefuseState(const char* call, double t, const std::string& what) {
+  throw SolverError(StrCat("Problem::", call, ": at t = ", t, " s ", what,
+                           " (rule: the state keeps every active contact on its surfaces' charts; a shorter step "
+                           "stays closer to the last accepted state)"));
+}
+
 // Outputs computed from finite inputs must be finite: a state far outside the model's range
 // (a velocity of 1e200, say) overflows the dynamics, and a NaN handed back would be carried
 // on by an outside integrator without a word.
@@ -50,11 +58,17 @@ Problem::Problem(const Scene& scene, const std::string& form, double rtol, doubl
   std::vector<int> active;
   for (int i = 0; i < static_cast<int>(model.contacts.size()); ++i) active.push_back(i);
   InitReport report;
-  state_ = ConsistentInitialize(model, scene.initial, active, init, &report);
-  // A start whose consistent forces pull (an assembled pose; docs/model.md §6) starts with
-  // those contacts' lift-offs, as Simulator::Initialize does.
-  ReleasePullingContacts(model, RestartProjection::kProject, PullingContact::kSeparate, "", &state_, &events_);
-  SolveConstrainedAcceleration(model, state_.t, state_.q, state_.qd, state_.active);  // dependent rows: refused
+  try {
+    state_ = ConsistentInitialize(model, scene.initial, active, init, &report);
+    // A start whose consistent forces pull (an assembled pose; docs/model.md §6) starts with
+    // those contacts' lift-offs, as Simulator::Initialize does.
+    ReleasePullingContacts(model, RestartProjection::kProject, PullingContact::kSeparate, "", &state_, &events_);
+    SolveConstrainedAcceleration(model, state_.t, state_.q, state_.qd, state_.active);  // dependent rows: refused
+  } catch (const SolverError& e) {
+    // The scene's start, refused before any call: the scene's fault (KNEEDYN_INPUT_ERROR, as
+    // kneedyn run's exit code 2), not a state an integrator could retry.
+    Throw<InputError>("Problem", "the scene's start is refused: ", e.what());
+  }
   if (is_dae()) {
     dae_ = std::make_unique<DaeSystem>(model, ContactForm::kChapter, ConstraintLevel::kVelocity, form == "dae-ggl");
   }
@@ -201,7 +215,7 @@ void Problem::Jacobian(double t, const double* y, int n, double* J) const {
   double dqdd_dx[72];
   if (!ConstrainedAccelerationJacobian(scene_.model, t, Eigen::Map<const Vector6d>(y), Eigen::Map<const Vector6d>(y + 6),
                                        acc_.qdd, state_.active, acc_.normal_force, &state_.ligament_branch, dqdd_dx)) {
-    Fail(StrCat("Problem::Jacobian: at t = ", t, " s a contact surface is evaluated outside its domain"));
+    RefuseState("Jacobian", t, "a contact surface is evaluated outside its domain");
   }
   for (int i = 0; i < 6; ++i) {
     for (int j = 0; j < 12; ++j) {
@@ -234,7 +248,7 @@ void Problem::MdeJacobian(double t, const double* y, double* Jf) const {
   double A[72];
   if (!ConstrainedAccelerationJacobian(model, t, kin.q, kin.qd, kin.qdd, active, normal_force, &state_.ligament_branch,
                                        A)) {
-    Fail(StrCat("Problem::Jacobian: at t = ", t, " s a contact surface is evaluated outside its domain"));
+    RefuseState("Jacobian", t, "a contact surface is evaluated outside its domain");
   }
   using Jet6 = ceres::Jet<double, 6>;
   Vector6<Jet6> qj, qdj;
@@ -245,7 +259,8 @@ void Problem::MdeJacobian(double t, const double* y, double* Jf) const {
   for (int c = 0; c < k; ++c) {
     ContactGeometryTpl<Jet6> geo;
     if (!ContactKinematics(model.contacts[active[c]], pose, &geo)) {
-      Fail(StrCat("Problem::Jacobian: at t = ", t, " s no contact point for contact ", c));
+      RefuseState("Jacobian", t, StrCat("the ", CompartmentName(model.contacts[active[c]].compartment),
+                                        " contact has no contact point"));
     }
     const Jet6 phidot = ContactConstraintRow(pose, geo).dot(nu);
     for (int i = 0; i < 6; ++i) phi_q(c, i) = geo.gap.v(i), phidot_q(c, i) = phidot.v(i);
@@ -283,7 +298,7 @@ void Problem::Residual(double t, const double* y, const double* yp, int n, doubl
   const ScopedAngularVelocityMapReading map_reading = MapReading();
   CheckState("Residual", "y", y, n);
   CheckState("Residual", "yp", yp, n);
-  if (!dae_->Residual(t, y, yp, F)) Fail(StrCat("Problem::Residual: at t = ", t, " s a contact surface is evaluated outside its domain"));
+  if (!dae_->Residual(t, y, yp, F)) RefuseState("Residual", t, "a contact surface is evaluated outside its domain");
   RequireFinite("Residual", "F", F, static_cast<size_t>(n_), t);
 }
 
@@ -296,7 +311,7 @@ void Problem::Jacobian(double t, const double* y, const double* yp, double c, in
   if (!std::isfinite(c)) Fail(StrCat("Problem::Jacobian: c = ", c, ": must be finite"));
   std::vector<double> column_major(static_cast<size_t>(n_) * n_);
   if (!dae_->Jacobian(t, c, y, yp, column_major.data())) {
-    Fail(StrCat("Problem::Jacobian: at t = ", t, " s a contact surface is evaluated outside its domain"));
+    RefuseState("Jacobian", t, "a contact surface is evaluated outside its domain");
   }
   for (int i = 0; i < n_; ++i) {
     for (int j = 0; j < n_; ++j) J[n_ * i + j] = column_major[static_cast<size_t>(n_) * j + i];

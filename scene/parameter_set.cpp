@@ -59,9 +59,9 @@ void ParseReferencePose(const Field& top, const std::string& path, ParameterSet*
   const auto med = ps->compartments.find("medial");
   const auto lat = ps->compartments.find("lateral");
   if (med == ps->compartments.end() || lat == ps->compartments.end()) {
-    Throw<InputError>("LoadScene", path,
-                      ": parameter set needs both 'compartments.medial' and "
-                      "'compartments.lateral' to define the reference pose");
+    Throw<InputError>("LoadScene", EchoPath(path), ": parameter set lacks 'compartments.",
+                      med == ps->compartments.end() ? "medial" : "lateral",
+                      "': the reference pose is defined from both 'compartments.medial' and 'compartments.lateral'");
   }
   d.medial = med->second;
   d.lateral = lat->second;

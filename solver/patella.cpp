@@ -377,7 +377,11 @@ void SolvePatellaStart(const Vector6d& reference_q, const Vector6d& initial_q, P
   }
   Vector3d origin = A.completeOrthogonalDecomposition().solve(b);
   Vector3d free_direction = normal[0].cross(normal[1]);
-  if (free_direction.norm() < 1e-9) Throw<InputError>("SolvePatellaStart", "the two patellar facets are parallel");
+  if (free_direction.norm() < 1e-9) {
+    Throw<InputError>("SolvePatellaStart", "the two patellar facets' normals (", normal[0].transpose(), ") and (",
+                      normal[1].transpose(), ") are parallel (|n_medial x n_lateral| = ", free_direction.norm(),
+                      "): the facets must be inclined to each other for the patella's start to be defined");
+  }
   free_direction.normalize();
   if (free_direction.z() < 0.0) free_direction = -free_direction;
   // |o + s e + apex − R_a| = L, largest root s.

@@ -17,6 +17,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -498,6 +499,36 @@ TEST_F(CliTest, MakeReferenceRefusesBadSettingsBeforeRunning) {
        {" --out '" + out + "' --formulation nope", "--formulation applies to --method formulations only"},
        {" --out '" + out + "' --method formulations --stages 4", "--stages applies to --method extended only"}},
       "wrote ", out);
+}
+
+// make_reference --verify reads a stored reference's every field before regenerating it:
+// a malformed or foreign file is refused naming it and the field (exit 2). Before, a missing
+// 'primary' ended in a bare JSON message (exit 1), a missing 'agreement' only after the
+// run, and an unknown formulation was reported as a failed run (exit 1).
+TEST_F(CliTest, MakeReferenceVerifyRefusesAMalformedReferenceBeforeRunning) {
+  const fs::path stored = fs::path(KNEEDYN_SOURCE_DIR) / "reference-data" / "references" / "chapter_impact.json";
+  std::ifstream in(stored);
+  ASSERT_TRUE(in) << stored;
+  const nlohmann::json reference = nlohmann::json::parse(in);
+  const auto variant = [&](const std::string& name, const std::function<void(nlohmann::json*)>& change) {
+    nlohmann::json j = reference;
+    change(&j);
+    const fs::path p = dir_ / name;
+    std::ofstream(p) << j.dump();
+    return p.string();
+  };
+  const std::string no_primary = variant("no_primary.json", [](nlohmann::json* j) { j->erase("primary"); });
+  const std::string no_agreement = variant("no_agreement.json", [](nlohmann::json* j) { j->erase("agreement"); });
+  const std::string unknown = variant("unknown.json", [](nlohmann::json* j) {
+    (*j)["primary"] = {{"formulation", "nope"}, {"rtol", 1e-10}, {"atol", 1e-12}};
+  });
+  const std::string make_reference = std::string("timeout 60 '") + KNEEDYN_MAKE_REFERENCE_EXE + "' --scene '" +
+                                     ChapterScenePath() + "' --verify ";
+  ExpectRefusedBeforeRunning(make_reference, "make_reference",
+                             {{"'" + no_primary + "'", "--verify = '" + no_primary + "': [json.exception.out_of_range.403] key 'primary' not found"},
+                              {"'" + no_agreement + "'", "--verify = '" + no_agreement + "': [json.exception.out_of_range.403] key 'agreement' not found"},
+                              {"'" + unknown + "'", "its primary run: FindFormulation(): unknown formulation 'nope'"}},
+                             "regenerated");
 }
 
 // batch_throughput, the batch target's benchmark, refuses what no measurement can use

@@ -252,6 +252,50 @@ std::vector<double> Perturbed(const Problem& p) {
   return y;
 }
 
+// A start the physics refuses is the scene's fault (problem.h: KNEEDYN_INPUT_ERROR covers
+// "the scene file or its start"; kneedyn run exits 2 for it), not a solver error an
+// integrator could retry. Here both contacts are one and the same pair: dependent rows.
+TEST(Problem, AStartThePhysicsRefusesIsAnInputError) {
+  Scene scene = ChapterScene();
+  scene.model.contacts[1] = scene.model.contacts[0];
+  for (const char* form : {"ede", "dae"}) {
+    try {
+      Problem problem(scene, form, 1e-8, 1e-10);
+      ADD_FAILURE() << form << ": a start with dependent contact rows was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("the scene's start is refused"), std::string::npos) << e.what();
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << form << ": not an InputError: " << e.what();
+    }
+  }
+}
+
+// The physics refusing a state an outside solver hands in is a solver error (the integrator
+// may shorten its step), as for Rhs: also where the DAE forms' Residual and Jacobian are
+// handed contact coordinates outside the surfaces' charts (before: KNEEDYN_BAD_ARGUMENT).
+// The ODE forms of the chapter scene cannot meet it: their sphere-on-plane contact is closed
+// form, defined at every pose.
+TEST(Problem, ContactCoordinatesOffTheChartsAreASolverErrorInTheDaeCalls) {
+  const std::string scene = ScenesDir() + "/chapter_impact.yaml";
+  for (const char* form : {"dae", "dae-ggl"}) {
+    kneedyn_problem* h = nullptr;
+    ASSERT_EQ(kneedyn_problem_create(scene.c_str(), form, 0.0, 0.0, &h), KNEEDYN_OK) << form;
+    int n = 0;
+    ASSERT_EQ(kneedyn_problem_size(h, &n), KNEEDYN_OK);
+    std::vector<double> y(n), yp(n, 0.0), out(n), J(static_cast<size_t>(n) * n);
+    ASSERT_EQ(kneedyn_problem_initial_values(h, y.data(), yp.data(), n), KNEEDYN_OK) << form;
+    // The first contact coordinate (y[12], an angle of the regular chart) 3 rad on: outside
+    // every chart's domain (|u| < 80°, |v| < 170°).
+    y[12] += 3.0;
+    EXPECT_EQ(kneedyn_problem_residual(h, 0.0, y.data(), yp.data(), n, out.data()), KNEEDYN_SOLVER_ERROR)
+        << form << ": " << kneedyn_last_error();
+    EXPECT_NE(std::string(kneedyn_last_error()).find("outside its domain"), std::string::npos) << kneedyn_last_error();
+    EXPECT_EQ(kneedyn_problem_dae_jacobian(h, 0.0, y.data(), yp.data(), 1.0, n, J.data()), KNEEDYN_SOLVER_ERROR)
+        << form << ": " << kneedyn_last_error();
+    kneedyn_problem_destroy(h);
+  }
+}
+
 TEST(Problem, EdeRhsEqualsHiddenConstraintSolve) {
   const Scene& scene = ChapterScene();
   Problem p(scene, "ede");
