@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <ceres/version.h>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <set>
 #include <sundials/sundials_config.h>
 #include <unordered_map>
 
@@ -329,6 +331,34 @@ Solution SolutionFromJson(const nlohmann::json& j, const std::string& document) 
 void ApplyScdCeiling(double reference_accuracy_scd, Metrics* m) {
   m->scd_ceiling = reference_accuracy_scd - kScdCeilingMargin;
   m->scd_above_ceiling = std::isfinite(m->scd_ceiling) && !std::isnan(m->scd) && m->scd > m->scd_ceiling;
+}
+
+std::string WrongEventReason(const Metrics& m, const std::vector<EventRecord>& run_events) {
+  std::string missing, late;
+  double late_by = 0.0;
+  for (const auto& [name, error_s] : m.event_time) {
+    if (!std::isfinite(error_s)) {
+      missing += (missing.empty() ? "" : ", ") + name;
+    } else if (error_s > kWrongEventTimeS && error_s > late_by) {
+      late = name;
+      late_by = error_s;
+    }
+  }
+  if (!missing.empty()) return "wrong events: reference event(s) " + missing + " missing";
+  if (!late.empty()) {
+    char ms[32];
+    std::snprintf(ms, sizeof(ms), "%.1f", late_by * 1e3);
+    return "wrong event time: " + late + " off by " + ms + " ms";
+  }
+  if (m.event_time.empty()) return "";
+  std::set<std::string> extra;  // sorted, each once
+  for (const EventRecord& e : run_events) {
+    if (e.name.compare(0, 5, "kink_") != 0 && e.name != "flexion_90" && !m.event_time.count(e.name)) extra.insert(e.name);
+  }
+  if (extra.empty()) return "";
+  std::string names;
+  for (const std::string& n : extra) names += (names.empty() ? "" : ", ") + n;
+  return "wrong events: " + names + " not in the reference";
 }
 
 nlohmann::json MetricsJson(const Metrics& m) {

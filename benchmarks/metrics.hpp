@@ -95,6 +95,17 @@ constexpr double kScdCeilingMargin = 1.0;
 // Sets m->scd_ceiling = reference_accuracy_scd − kScdCeilingMargin and flags m->scd above it.
 void ApplyScdCeiling(double reference_accuracy_scd, Metrics* m);
 
+// The farthest a run's event may lie from the reference's and the run still be drawn as a
+// result on the work-precision diagrams (reports/bench_data.py, WRONG_EVENT_TIME_S): 1 ms is
+// 0.5° of flexion at the end of the chapter run, so any run whose positions carry 2 or more
+// digits places its events closer.
+constexpr double kWrongEventTimeS = 1e-3;
+// Why a completed run's events make it a failure on the diagrams, "" when they do not: a
+// reference event missing or off by more than kWrongEventTimeS, or a contact event the
+// reference lacks (kink_* and flexion_90 are not contact events). The rule of
+// reports/bench_data.py classify_run, for the C++ sweeps' own summaries.
+std::string WrongEventReason(const Metrics& m, const std::vector<EventRecord>& run_events);
+
 // scd of positions: −log10 max |e| / (|ref| + floor). Exposed for tests.
 double ScdFromErrors(const std::vector<double>& x, const std::vector<double>& x_ref,
                      const std::vector<double>& floors);

@@ -216,6 +216,29 @@ TEST(ScdCeiling, FlagsAScoreAboveTheReferenceAccuracyMinusOneDigit) {
   EXPECT_TRUE(MetricsJson(unstated).at("scd_ceiling").is_null());
 }
 
+// The diagrams' rule (reports/bench_data.py classify_run, docs: benchmarks/README.md):
+// every reference event, each within 1 ms, and no contact event the reference lacks.
+TEST(WrongEventReason, MissingLateExtraEventsAndNoneOfTheOthers) {
+  Metrics m;
+  m.event_time = {{"liftoff_lateral", 0.9e-3}, {"flexion_90", 1e-6}};
+  const std::vector<EventRecord> own = {{"liftoff_lateral", 0.2, 0.9}, {"flexion_90", 0.3, 1.57}};
+  EXPECT_EQ(WrongEventReason(m, own), "");
+  std::vector<EventRecord> with_kink = own;  // a branch switch is no contact event
+  with_kink.push_back({"kink_ACL", 0.1, 0.2});
+  EXPECT_EQ(WrongEventReason(m, with_kink), "");
+  std::vector<EventRecord> with_recontact = own;
+  with_recontact.push_back({"recontact_lateral", 0.25, 1.2});
+  with_recontact.push_back({"recontact_lateral", 0.26, 1.3});
+  EXPECT_EQ(WrongEventReason(m, with_recontact), "wrong events: recontact_lateral not in the reference");
+  Metrics late = m;
+  late.event_time["liftoff_lateral"] = 1.2e-3;
+  EXPECT_EQ(WrongEventReason(late, own), "wrong event time: liftoff_lateral off by 1.2 ms");
+  Metrics missing = m;
+  missing.event_time["liftoff_lateral"] = kNaN;
+  EXPECT_EQ(WrongEventReason(missing, own), "wrong events: reference event(s) liftoff_lateral missing");
+  EXPECT_EQ(WrongEventReason(Metrics{}, with_recontact), "");  // a reference without events judges none
+}
+
 TEST(Solution, JsonRoundTripKeepsNaN) {
   Solution s = Synthetic({0.0, 0.02}, false, 0.5);
   s.values["contact_points"][1][2] = kNaN;

@@ -22,8 +22,9 @@
 //
 // Output: {header, results: [...] (work_precision.cpp's entry layout; formulation
 // "simbody" with integrator = Simbody's), time_to_accuracy: per method the CPU time at
-// scd 6 and 8 (log-linear interpolation between the bracketing settings; null when the
-// method does not reach it), ratio_kneedyn_over_simbody at scd 6 and 8 (fastest kneedyn
+// scd 6 and 8 (log-linear interpolation between the bracketing settings of the runs the
+// diagrams count: completed, with the reference's events; null when the method does not
+// reach it), ratio_kneedyn_over_simbody at scd 6 and 8 (fastest kneedyn
 // method / fastest Simbody method)}. --merge copies the results of a work_precision.cpp
 // JSON except the methods measured here, so one file feeds the report; they were timed in
 // that sweep's process, not this one: header.merged_from keeps its header and its context
@@ -388,7 +389,8 @@ int main(int argc, char** argv) {
       }
       std::sort(e.cpu.begin(), e.cpu.end());
       std::fprintf(stderr, "%-44s %-6s scd %6.2f  cpu %8.4f s  %s\n", c.Name().c_str(), e.status.c_str(),
-                   e.metrics.scd, e.cpu.empty() ? std::nan("") : e.cpu[e.cpu.size() / 2], e.reason.c_str());
+                   e.metrics.scd, e.cpu.empty() ? std::nan("") : e.cpu[e.cpu.size() / 2],
+                   (e.status == "ok" ? WrongEventReason(e.metrics, e.events) : e.reason).c_str());
       entries.push_back(std::move(e));
     }
 
@@ -443,7 +445,10 @@ int main(int argc, char** argv) {
       results.push_back(r);
       const std::string key = c.formulation + " / " + (c.integrator.empty() ? "-" : c.integrator);
       measured_keys[key + " / none"] = true;  // this program runs no stabilization
-      if (e.status == "ok" && std::isfinite(e.metrics.scd) && !e.cpu.empty()) {
+      // A run with the wrong events is drawn as a failure (reports/bench_data.py), so it is
+      // no point of the curve its time to accuracy is read from either.
+      if (e.status == "ok" && std::isfinite(e.metrics.scd) && !e.cpu.empty() &&
+          WrongEventReason(e.metrics, e.events).empty()) {
         curves[key].push_back({e.metrics.scd, e.cpu[e.cpu.size() / 2]});
       }
     }
