@@ -32,7 +32,6 @@ void MdeChart::ConstraintJacobian(const Pose& pose, const Matrix3d& E, const Con
 void MdeChart::SetStartPose(const Vector6d& q) {
   start_q_ = q;
   const int k = static_cast<int>(elim_.size());
-  const int m = static_cast<int>(free_.size());
   start_tangent_.resize(0, 0);
   if (k == 0) return;
   const EulerAngleTrig<double> trig = EulerAngleTrigOf(q);
@@ -41,11 +40,19 @@ void MdeChart::SetStartPose(const Vector6d& q) {
   for (int r = 0; r < k; ++r) geo[r] = RequireContactKinematics(model_.contacts[active_[r]], pose, "MdeFormulation");
   MatK6 G(k, 6), J(k, 6);
   ConstraintJacobian(pose, AngularVelocityMap(q(kBeta), trig), geo.data(), &G, &J);
+  Eigen::PartialPivLU<MatKK> JD_lu;
+  start_tangent_ = EliminationTangent(J, &JD_lu);
+}
+
+MatKM MdeChart::EliminationTangent(const MatK6& J, Eigen::PartialPivLU<MatKK>* JD_lu) const {
+  const int k = static_cast<int>(elim_.size());
+  const int m = static_cast<int>(free_.size());
   MatKK JD(k, k);
   MatKM JF(k, m);
   for (int c = 0; c < k; ++c) JD.col(c) = J.col(elim_[c]);
   for (int j = 0; j < m; ++j) JF.col(j) = J.col(free_[j]);
-  start_tangent_ = -JD.partialPivLu().solve(JF);
+  JD_lu->compute(JD);
+  return -JD_lu->solve(JF);
 }
 
 MatK3 MdeChart::ContactNormals(const Vector6d& q) const {
@@ -203,12 +210,7 @@ MdeKinematics MdeChart::Evaluate(double t, const double* y, const std::vector<si
   for (int j = 0; j < m; ++j) P(free_[j], j) = 1.0;
   Eigen::PartialPivLU<MatKK> JD_lu;
   if (k > 0) {
-    MatKK JD(k, k);
-    MatKM JF(k, m);
-    for (int c = 0; c < k; ++c) JD.col(c) = J.col(elim_[c]);
-    for (int j = 0; j < m; ++j) JF.col(j) = J.col(free_[j]);
-    JD_lu.compute(JD);
-    kin.elimination_tangent = -JD_lu.solve(JF);
+    kin.elimination_tangent = EliminationTangent(J, &JD_lu);
     for (int c = 0; c < k; ++c) P.row(elim_[c]) = kin.elimination_tangent.row(c);
   }
   const VecM sd = Eigen::Map<const VectorXd>(y + m, m);

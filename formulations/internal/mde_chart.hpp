@@ -152,6 +152,9 @@ class MdeChart {
   std::vector<int> elim_;  // eliminated translations (one per active contact)
   // J = ∂φ/∂q = G B of the active contacts at `pose` (geometry geo[r]), and G.
   void ConstraintJacobian(const Pose& pose, const Matrix3d& E, const ContactGeometry* geo, MatK6* G, MatK6* J) const;
+  // J's eliminated columns factored (J_D, k × k, into *JD_lu) and the elimination's tangent
+  // ∂x_D/∂s = −J_D⁻¹ J_F (k × m): shared by the start pose and every evaluation.
+  MatKM EliminationTangent(const MatK6& J, Eigen::PartialPivLU<MatKK>* JD_lu) const;
 
   // The eliminated translations start Newton from the start pose's values moved along its
   // tangent; the result depends on the start only at round-off (Newton to
