@@ -152,28 +152,38 @@ std::string RunCommand(const std::string& scene_path, const BenchConfig& c) {
                 c.integrator.empty() ? "" : " --integrator " + c.integrator, tol, " --quiet");
 }
 
-// Every field --verify reads, checked before the (long) regeneration: a malformed file is
-// refused naming it and the field (exit 2), not minutes later with a bare JSON message (exit 1).
-void CheckStoredFields(const Scene& scene, const Reference& ref, const std::string& path) {
+// The run --verify repeats, as the stored reference's `primary` records it.
+struct StoredPrimary {
+  bool extended = false;
+  ExtendedReferenceSettings extended_settings;  // extended: stages, step
+  std::string scalar;                           // extended: float128, double, long-double
+  BenchConfig config;                           // otherwise: formulation, integrator, rtol, atol
+};
+
+// Reads `primary` and checks every other field --verify reads, before the (long)
+// regeneration: a malformed file is refused naming it and the field (exit 2), not minutes
+// later with a bare JSON message (exit 1).
+StoredPrimary ReadStoredPrimary(const Scene& scene, const Reference& ref, const std::string& path) {
   const std::string where = StrCat("--verify = '", EchoPath(path), "'");
-  std::string formulation;
-  BenchConfig c;
+  StoredPrimary p;
   try {
     const nlohmann::json& primary = ref.json.at("primary");
-    formulation = primary.at("formulation").get<std::string>();
-    c.integrator = primary.value("integrator", "");
-    if (formulation == "extended-precision") {
-      (void)primary.at("stages").get<int>();
-      (void)primary.at("step_s").get<double>();
-      const std::string scalar = primary.value("scalar", "long-double");
-      if (scalar != "float128" && scalar != "double" && scalar != "long-double") {
-        Throw<InputError>("make_reference", where, ": primary.scalar = '", Echo(scalar),
+    const std::string formulation = primary.at("formulation").get<std::string>();
+    p.config.integrator = primary.value("integrator", "");
+    p.extended = formulation == "extended-precision";
+    if (p.extended) {
+      p.extended_settings.stages = primary.at("stages").get<int>();
+      p.extended_settings.step = primary.at("step_s").get<double>();
+      p.extended_settings.output_interval = ref.comparison_interval;
+      p.scalar = primary.value("scalar", "long-double");
+      if (p.scalar != "float128" && p.scalar != "double" && p.scalar != "long-double") {
+        Throw<InputError>("make_reference", where, ": primary.scalar = '", Echo(p.scalar),
                           "': one of float128, double, long-double");
       }
     } else {
-      c.formulation = formulation;
-      c.rtol = primary.at("rtol").get<double>();
-      c.atol = primary.at("atol").get<double>();
+      p.config.formulation = formulation;
+      p.config.rtol = primary.at("rtol").get<double>();
+      p.config.atol = primary.at("atol").get<double>();
     }
     (void)ref.json.at("accuracy_scd").get<double>();
     const nlohmann::json& agreement = ref.json.at("agreement");
@@ -187,27 +197,25 @@ void CheckStoredFields(const Scene& scene, const Reference& ref, const std::stri
   } catch (const nlohmann::json::exception& e) {
     Throw<InputError>("make_reference", where, ": ", e.what(), " (rule: a reference as make_reference writes it, whole)");
   }
-  if (formulation == "extended-precision") return;
-  try {
-    (void)CreateFormulation(c.formulation, scene, c.Options());
-  } catch (const InputError& e) {
-    Throw<InputError>("make_reference", where, ": its primary run: ", e.what());
+  if (!p.extended) {
+    try {
+      (void)CreateFormulation(p.config.formulation, scene, p.config.Options());
+    } catch (const InputError& e) {
+      Throw<InputError>("make_reference", where, ": its primary run: ", e.what());
+    }
   }
+  return p;
 }
 
 int Verify(const Scene& scene, const std::string& stored_path) {
   const Reference ref = LoadReference(stored_path);
-  CheckStoredFields(scene, ref, stored_path);
-  const nlohmann::json& primary = ref.json.at("primary");
+  const StoredPrimary primary = ReadStoredPrimary(scene, ref, stored_path);
   Solution regenerated;
   std::string name;
-  if (primary.at("formulation").get<std::string>() == "extended-precision") {
-    ExtendedReferenceSettings x;
-    x.stages = primary.at("stages").get<int>();
-    x.step = primary.at("step_s").get<double>();
-    x.output_interval = ref.comparison_interval;
-    const std::string scalar = primary.value("scalar", "long-double");
-    name = StrCat("extended-precision ", scalar, " ", primary.value("integrator", ""), " step ", x.step, " s");
+  if (primary.extended) {
+    const ExtendedReferenceSettings& x = primary.extended_settings;
+    const std::string& scalar = primary.scalar;
+    name = StrCat("extended-precision ", scalar, " ", primary.config.integrator, " step ", x.step, " s");
     try {
       regenerated = scalar == "float128" ? RunExtendedReference<Float128>(scene, x, ref.comparison_interval).solution
                     : scalar == "double" ? RunExtendedReference<double>(scene, x, ref.comparison_interval).solution
@@ -219,11 +227,7 @@ int Verify(const Scene& scene, const std::string& stored_path) {
       return 1;
     }
   } else {
-    BenchConfig c;
-    c.formulation = primary.at("formulation").get<std::string>();
-    c.integrator = primary.value("integrator", "");
-    c.rtol = primary.at("rtol").get<double>();
-    c.atol = primary.at("atol").get<double>();
+    const BenchConfig& c = primary.config;
     name = c.Name();
     const Outcome out = RunConfig(scene, c, ref.comparison_interval);
     if (out.status != "ok") {
