@@ -1,6 +1,7 @@
 #include "formulations/simulator.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <string>
 
@@ -143,6 +144,11 @@ TransitionOutcome PhaseTransition(const Model& model, const std::vector<EventSpe
       case EventKind::kRecontact:
         new_active.push_back(e.contact);
         impact = true;
+        // In contact again: a bounce that lifts it off at this instant (ReleasePullingContacts,
+        // no phase start between) separates anew, measured from the gap then.
+        if (static_cast<size_t>(e.contact) < state->separation_gap.size()) {
+          state->separation_gap[e.contact] = std::numeric_limits<double>::quiet_NaN();
+        }
         break;
       case EventKind::kLigamentKink:
         ++out.ligament_kink_crossings;

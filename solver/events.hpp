@@ -49,10 +49,10 @@ constexpr double kPatellarRecontactRatio = 1.0e-9;
 constexpr double kMinRecontactHysteresis = 1.0e-9;  // m
 
 // The events watched during a phase starting at `state` (its active contacts). A separated
-// contact's re-contact root is gap − (min(g_sep, 0) − gap_tolerance), g_sep its
-// state.separation_gap (the gap now when there is none); should the gap already lie below
-// that (a tolerance smaller than the last phase's), the root starts kMinRecontactHysteresis
-// above zero instead of below it, where it could never cross.
+// contact's re-contact root is gap − (min(g_sep, 0) − h), h = max(gap_tolerance,
+// kMinRecontactHysteresis), g_sep its state.separation_gap (the gap now when there is none);
+// should the gap already lie below that line (a tolerance smaller than the last phase's), the
+// root starts kMinRecontactHysteresis above zero instead of below it, where it could never cross.
 std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& end,
                                       const MechanicalState& state,
                                       double gap_tolerance = kMinRecontactHysteresis);
