@@ -40,14 +40,6 @@
 namespace kneedyn {
 namespace fs = std::filesystem;
 
-std::string ColumnSafeName(const std::string& name) {
-  std::string out = name;
-  for (char& c : out) {
-    if (c == ' ' || c == '-' || c == '/') c = '_';
-  }
-  return out;
-}
-
 namespace {
 // A length in a warning's message, to 4 significant digits (0.3359 mm, not 0.33594237911370106).
 std::string Rounded(double v) {
@@ -329,8 +321,8 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
     const bool facet = which.compare(0, 8, "patella_") == 0;
     const std::string part = facet ? which.substr(8) : which;
     const std::string liftoff = facet ? "liftoff_patellar_" + part : "liftoff_" + part;
-    // The contact's own lift-off row holds the event location's error, a few 1e-12 N (dae) to
-    // 0.015 N of 2 kN (staggered); far more is a lift-off the method did not locate (newmark
+    // The contact's own lift-off row holds the event location's error, −1e-15 to −2e-11 N
+    // (dae, staggered); far more is a lift-off the method did not locate (newmark
     // halving its step before a failure recorded one at -3.9 N of 2.2 kN, hard/patella_quadriceps_2000N).
     const double largest = LargestMagnitude(table, c);
     const double located = kLiftoffRowForceFraction * largest;
@@ -346,7 +338,7 @@ std::vector<OutputWarning> OutputWarnings(const TrajectoryTable& table, const Ru
       min_force = row[c];
       at = row[time_col];
     }
-    if (!(min_force < 0.0)) continue;
+    if (!(min_force < -kPullingForceFloorN)) continue;
     OutputWarning p;
     p.kind = "pulling_contact";
     p.column = name;
@@ -750,6 +742,11 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
   scene_json["name"] = scene.name;
   scene_json["path"] = scene.path;
   scene_json["parameter_set"] = scene.parameter_set;
+  // The file read, absolute: a copy of a set keeps its name, and a relative path that misses
+  // the copy beside the scene falls back to the shipped set (scene/scene.cpp).
+  scene_json["parameter_set_file"] =
+      scene.parameter_set_file.empty() ? nlohmann::json(nullptr)
+                                       : nlohmann::json(fs::absolute(scene.parameter_set_file).lexically_normal().string());
   scene_json["ligaments"] = scene.model.ligaments.size();
   scene_json["contacts"] = scene.model.contacts.size();
   nlohmann::json& pulse = scene_json["pulse"];
@@ -854,7 +851,7 @@ nlohmann::json SummaryJson(const Scene& scene, const RunSettings& settings, cons
       w["force_N"] = p.force_N;
     }
     if (p.kind == "patella_contact_off") w["contact"] = p.contact;
-    if (p.kind == "separated_contact_penetrates") {
+    if (p.kind == "separated_contact_penetrates" || p.kind == "start_not_at_nearest_points") {
       w["contact"] = p.contact;
       w["column"] = p.column;
     }

@@ -48,8 +48,9 @@ TrajectoryTable MakeTrajectoryTable(const Scene& scene, const RunResult& result)
 //    a patellar facet without patella.facet_liftoff (λ of either sign, docs/model.md §12), or
 //    a tibial contact. The contact's own lift-off event row is not counted: there the force
 //    is 0 by the event's definition (docs/model.md §9) and its value is the event location's
-//    error (−4e-12 N with dae, −0.015 N with staggered on the patellofemoral impact), unless
-//    it pulls by more than kLiftoffRowForceFraction of the column's largest |force|.
+//    error (−4e-12 N with dae, −1.8e-11 N with staggered on the patellofemoral impact), unless
+//    it pulls by more than kLiftoffRowForceFraction of the column's largest |force|. A force
+//    above −kPullingForceFloorN is round-off, not a pull.
 //  - kind "patella_not_followed": a row whose patella columns are empty
 //    (TrajectoryTable::patella_not_followed); `time_s` and `message` only.
 //  - kind "patella_contact_off": a pressing facet's contact outside the patella's extent
@@ -89,6 +90,10 @@ constexpr size_t kMinOutputRows = 3;
 // points ("start_not_at_nearest_points"); a consistent start closes it to ~1e-13 mm.
 constexpr double kStartGapToleranceMm = 1e-6;
 constexpr double kLiftoffRowForceFraction = 1e-4;
+// N: a normal force above −this is round-off, not a pull (a scene without ligaments, the
+// tibia falling off its plateau, wrote N = −2.4e-34 N and was warned); far below any force
+// the model resolves (the tibia's weight is 39 N).
+constexpr double kPullingForceFloorN = 1e-9;
 // A strain (L − L0)/L0 beyond which an element is no ligament ("ligament_overstretched"):
 // ligaments tear at strains of a few tenths, and every shipped scene stays below 0.61 (the
 // hard case patella_quadriceps_2000N; the chapter scene 0.20); twice its slack length is a
@@ -131,7 +136,6 @@ std::vector<OutputWarning> WriteRunOutputs(const std::string& dir, const Scene& 
 constexpr size_t kTrajectoryNumberChars = 32;  // "-1.23456789012e-308": 19
 size_t FormatTrajectoryNumber(double v, char (&out)[kTrajectoryNumberChars]);
 
-// "ACL anterior" -> "ACL_anterior".
-std::string ColumnSafeName(const std::string& name);
+// ColumnSafeName ("ACL anterior" -> "ACL_anterior"): solver/model.hpp.
 
 }  // namespace kneedyn

@@ -35,6 +35,12 @@ void ParseGravity(const Field& top, const ParameterSet& ps, ModelDescription* mo
   const Field f = top.Required("gravity");
   f.Keys(KeysOf("scene.gravity"));
   const bool enabled = f.Required("enabled").Bool();
+  // A key gravity does not use would be ignored: refused, as the pulse's (below).
+  if (!enabled) {
+    for (const char* unused : {"magnitude_m_s2", "direction_F"}) {
+      if (f.Has(unused)) f.Required(unused).Fail("is not used: gravity.enabled is false (rule: give it only with gravity on)");
+    }
+  }
   Vector3d dir = ps.gravity_direction_F;
   double g = ps.g;
   if (f.Has("direction_F")) {

@@ -8,17 +8,9 @@
 namespace kneedyn::scene_detail {
 namespace {
 
-// Output column spelling of an element name (as ColumnSafeName in run_output.cpp).
-std::string ColumnName(std::string name) {
-  for (char& c : name) {
-    if (c == ' ' || c == '-' || c == '/') c = '_';
-  }
-  return name;
-}
-
 void ParseLigamentTable(const Field& ligs, ParameterSet* ps) {
   const std::vector<const char*>& keys = KeysOf("parameter_set.ligaments[]");
-  std::vector<std::string> columns;  // ColumnName of each ligament read so far
+  std::vector<std::string> columns;  // ColumnSafeName of each ligament read so far
   for (size_t i = 0; i < ligs.Size(); ++i) {
     const Field f = ligs.Item(i);
     f.Keys(keys);
@@ -30,7 +22,7 @@ void ParseLigamentTable(const Field& ligs, ParameterSet* ps) {
     lig.k_parabolic_published =
         f.Required("k_parabolic_N_mm2").Positive() * kMmPerM * kMmPerM;  // N/mm² -> N/m²
     lig.extension_ratio = f.Required("extension_ratio").Range(0.5, 2.0);
-    const std::string column = ColumnName(lig.name);
+    const std::string column = ColumnSafeName(lig.name);
     for (size_t j = 0; j < ps->ligaments.size(); ++j) {
       const Ligament& other = ps->ligaments[j];
       if (other.name == lig.name) f.Required("name").Fail("duplicate ligament name");

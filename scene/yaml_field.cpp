@@ -394,7 +394,19 @@ std::string Compose(yaml_parser_t* parser, const std::string& text, YamlNodes* d
     }
     yaml_event_delete(&event);
     if (!problem.empty()) return problem;
-    if (type == YAML_DOCUMENT_END_EVENT || type == YAML_STREAM_END_EVENT) return "";
+    if (type == YAML_STREAM_END_EVENT) return "";
+    if (type == YAML_DOCUMENT_END_EVENT) {
+      // A file holds one document: what follows a '---' or '...' (a second scene pasted, an
+      // override appended) would be ignored without a word.
+      yaml_event_t next;
+      if (!yaml_parser_parse(parser, &next)) return StrCat(" not valid YAML: ", Echo(ParserProblem(*parser, text)));
+      const yaml_event_type_t next_type = next.type;
+      const size_t next_line = next.start_mark.line + 1;
+      yaml_event_delete(&next);
+      if (next_type == YAML_STREAM_END_EVENT) return "";
+      return StrCat(":", next_line, ": a second YAML document starts here; a file holds one (rule: nothing after "
+                    "the first document's end, '---' or '...', would be read)");
+    }
   }
 }
 

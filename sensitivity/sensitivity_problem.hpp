@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "ensembles/sweep.hpp"
-#include "formulations/run_output.hpp"  // ColumnSafeName: the columns' spelling of an element
+#include "solver/model.hpp"  // ColumnSafeName: the columns' spelling of an element
 #include "formulations/simulator.hpp"
 #include "sensitivity/forward_sensitivity.hpp"
 #include "solver/constrained_dynamics.hpp"

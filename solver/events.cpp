@@ -48,7 +48,7 @@ std::vector<EventSpec> EventsForPhase(const Model& model, const EndCondition& en
     for (int j = 0; j < static_cast<int>(model.ligaments.size()); ++j) {
       const Ligament& lig = model.ligaments[j];
       specs.push_back({EventKind::kLigamentKink, -1, j, 0,
-                       LigamentKinkLength(lig), "kink_" + lig.name, nullptr});
+                       LigamentKinkLength(lig), "kink_" + ColumnSafeName(lig.name), nullptr});
     }
   }
   if (model.patella && model.patella->facet_liftoff) {  // after the tibio-femoral events: their indices stay

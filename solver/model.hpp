@@ -52,6 +52,9 @@ struct Ligament {
 enum class Compartment { kMedial = 0, kLateral = 1 };
 constexpr int kMaxContacts = 2;
 const char* CompartmentName(Compartment c);  // "medial" / "lateral"
+// An element's name as output columns and event names spell it (spaces, '-', '/' as '_'):
+// "ACL anterior" -> "ACL_anterior" (strain_ACL_anterior, kink_ACL_anterior).
+std::string ColumnSafeName(const std::string& name);
 
 struct ContactPair {
   Compartment compartment = Compartment::kMedial;

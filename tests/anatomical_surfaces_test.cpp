@@ -18,6 +18,8 @@
 #include <utility>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "formulations/run.hpp"
 #include "formulations/run_output.hpp"
 #include "tests/test_support.hpp"
@@ -90,6 +92,19 @@ TEST(AnatomicalSurfacesStart, NotAtTheNearestPointsIsWarned) {
   EXPECT_EQ(start_warnings(flat, dae), 1);
   EXPECT_EQ(start_warnings(flat, ede), 0);
   EXPECT_EQ(start_warnings(AnatomicalScene(), Reference()), 0);
+  // summary.json's entry has the fields docs/outputs.md gives it: kind, contact, column,
+  // time_s, message (contact and column had been left out).
+  const nlohmann::json summary =
+      SummaryJson(flat, TightSettings("dae"), dae, OutputWarnings(MakeTrajectoryTable(flat, dae), dae));
+  int entries = 0;
+  for (const nlohmann::json& w : summary.at("warnings")) {
+    if (w.at("kind") != "start_not_at_nearest_points") continue;
+    ++entries;
+    EXPECT_EQ(w.value("contact", ""), "tibial contact medial") << w.dump();
+    EXPECT_EQ(w.value("column", ""), "gap_medial_mm") << w.dump();
+    EXPECT_TRUE(w.contains("time_s") && w.contains("message")) << w.dump();
+  }
+  EXPECT_EQ(entries, 1);
 }
 
 // Contact phases that run on for many degrees of flexion, both condyles closed. mde's

@@ -185,6 +185,11 @@ TEST_F(CliTest, ChapterRunWritesTrajectoryStorageAndSummary) {
   // summary.json.
   const nlohmann::json j = nlohmann::json::parse(ReadText(fs::path(Out()) / "summary.json"));
   EXPECT_EQ(j.at("status"), "completed");
+  // The parameter set's file as read, absolute (a copy of a set keeps the set's name).
+  EXPECT_TRUE(fs::equivalent(j.at("scene").at("parameter_set_file").get<std::string>(),
+                             fs::path(KNEEDYN_SOURCE_DIR) / "reference-data" / "chapter_knee.yaml"))
+      << j.at("scene").dump();
+  EXPECT_TRUE(fs::path(j.at("scene").at("parameter_set_file").get<std::string>()).is_absolute());
   const auto& events = j.at("events");
   ASSERT_GE(events.size(), 2u);
   std::vector<std::string> names;

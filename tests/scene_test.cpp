@@ -309,7 +309,7 @@ TEST(Scene, RefusesSurfacePairWithOneSurface) {
 
 // What a compartment left out of `contacts` would not use was not read at all (a negative
 // radius, an unknown key, a guess 'abc': exit 0); it is refused, as ligament_parameters of an
-// element not selected. Zero gravity directions are refused wherever they are written, and a
+// element not selected (gravity's keys with gravity off too). Zero gravity directions are refused, and a
 // polynomial coefficient that overflows in SI units is named in the file's terms.
 TEST(Scene, RefusesWhatNothingWouldUseAndValuesPastTheirRange) {
   SceneFields fields = ValidFields();
@@ -323,8 +323,11 @@ TEST(Scene, RefusesWhatNothingWouldUseAndValuesPastTheirRange) {
   fields["initial_state"] = "{pose: reference, normal_force_guesses_N: {lateral: abc}}";
   ExpectRefused(fields, "unused_guess.yaml",
                 {"initial_state.normal_force_guesses_N.lateral", "not a compartment of this scene's contacts"});
-  ExpectRefusedWith("gravity", "{enabled: false, direction_F: [0, 0, 0]}", "zero_gravity_direction.yaml",
+  ExpectRefusedWith("gravity", "{enabled: true, direction_F: [0, 0, 0]}", "zero_gravity_direction.yaml",
                     {"gravity.direction_F", "must be a non-zero vector"});
+  // With gravity off, a direction (zero or not) is not used at all: refused as unused.
+  ExpectRefusedWith("gravity", "{enabled: false, direction_F: [0, 0, 0]}", "unused_gravity_direction.yaml",
+                    {"gravity.direction_F", "is not used: gravity.enabled is false"});
   ExpectRefusedWith("surfaces",
                     "{medial: {femoral_surface: {type: sphere_cap, radius_mm: 21.0, centre_mm: [-23.75, -18.0, 12.0]}, "
                     "tibial_surface: {type: polynomial, origin_mm: [-16.836176, -12.259720, 206.972649], "

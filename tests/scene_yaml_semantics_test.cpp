@@ -130,5 +130,36 @@ TEST(SceneYamlSemantics, AliasesAreTheirAnchorsValue) {
   EXPECT_EQ(scene.model.constant_load.force_F.x(), 120.0);
 }
 
+// A file holds one YAML document: what follows '---' or '...' had been ignored without a
+// word (a second scene pasted, an override appended, even a broken one), the first scene run.
+TEST(SceneYamlSemantics, ASecondDocumentIsRefused) {
+  Scene scene;
+  const std::string one = SceneText("first", "true", "1.0");
+  ASSERT_EQ(Verdict(one, &scene), "");
+  ASSERT_EQ(Verdict("---\n" + one + "...\n", &scene), "");  // one document, marked
+  for (const std::string& after : {"---\n" + SceneText("second", "true", "1.0"), std::string("---\ngarbage: 1\n"),
+                                   std::string("...\npulse: {shape: none}\n")}) {
+    const std::string v = Verdict(one + after, &scene);
+    // After '...' a document must start with '---': libyaml refuses the text itself.
+    const std::string needle = after[0] == '.' ? "line 11, column 1: did not find expected <document start>"
+                                               : "semantics.yaml:10: a second YAML document starts here";
+    EXPECT_NE(v.find(needle), std::string::npos) << after << "\n" << v;
+  }
+}
+
+// Gravity's magnitude and direction are not used when it is off: refused, as a pulse's unused
+// keys are (they had been accepted and ignored).
+TEST(SceneYamlSemantics, GravityKeysUnusedWhenOffAreRefused) {
+  Scene scene;
+  const std::string off = SceneText("off", "false", "1.0");
+  ASSERT_EQ(Verdict(off, &scene), "");
+  for (const char* key : {"magnitude_m_s2: 9.81", "direction_F: [0, -1, 0]"}) {
+    std::string text = off;
+    text.replace(text.find("{enabled: false}"), 16, std::string("{enabled: false, ") + key + "}");
+    const std::string v = Verdict(text, &scene);
+    EXPECT_NE(v.find("is not used: gravity.enabled is false"), std::string::npos) << key << ": " << v;
+  }
+}
+
 }  // namespace
 }  // namespace kneedyn

@@ -169,6 +169,44 @@ TEST(Simulator, RecontactGapTolerance) {
   EXPECT_DOUBLE_EQ(RecontactGapTolerance(1e-6, q, 1e-6, 1e-8), 1e-5);
 }
 
+// kink_<element> names an element as its trajectory columns do (docs/outputs.md: spaces as
+// '_'); sensitivity.json had written "kink_MCL deep" beside the column strain_MCL_deep.
+TEST(PhaseStart, KinkEventsNameTheirElementsAsTheColumns) {
+  const Scene& scene = ChapterScene();
+  ConsistentInitOptions init;
+  InitReport report;
+  const MechanicalState state = ConsistentInitialize(scene.model, scene.initial, {0, 1}, init, &report);
+  RunResult none;
+  const std::vector<std::string> columns = MakeTrajectoryTable(scene, none).columns;
+  int kinks = 0;
+  for (const EventSpec& e : EventsForPhase(scene.model, scene.end, state)) {
+    if (e.kind != EventKind::kLigamentKink) continue;
+    ++kinks;
+    const std::string column = "strain_" + e.name.substr(5);
+    EXPECT_NE(std::find(columns.begin(), columns.end(), column), columns.end()) << e.name << ": no column " << column;
+  }
+  EXPECT_EQ(kinks, 12);
+}
+
+// pulling_contact flags a normal force below −1e-9 N (kPullingForceFloorN, docs/outputs.md);
+// above it the value is round-off: a scene without ligaments, its tibia falling off the
+// plateau, wrote N = −2.4e-34 N and was warned of a pull past an unlocated lift-off.
+TEST(OutputWarnings, PullingContactIsAForceBeyondRoundOff) {
+  RunResult run;
+  const auto pulls = [&](double force_N) {
+    TrajectoryTable table;
+    table.columns = {"time_s", "is_event", "N_medial_N"};
+    table.rows = {{0.0, 0.0, 240.0}, {0.005, 0.0, force_N}, {0.01, 0.0, 10.0}};
+    int n = 0;
+    for (const OutputWarning& w : OutputWarnings(table, run)) n += w.kind == "pulling_contact";
+    return n;
+  };
+  EXPECT_EQ(pulls(-2.4e-34), 0);
+  EXPECT_EQ(pulls(-0.5e-9), 0);
+  EXPECT_EQ(pulls(-2e-9), 1);
+  EXPECT_EQ(pulls(-3.9), 1);
+}
+
 // A separated compartment re-contacts when its gap falls below min(its gap at separation, 0)
 // by the hysteresis (docs/model.md §9), whatever restarts come between: a restart while the
 // condyle sinks (a ligament kink) keeps the line. Before, every phase measured it from the
@@ -221,6 +259,19 @@ TEST(PhaseStart, RecontactLineStaysAtTheGapOfSeparationAcrossRestarts) {
   state.active = {0};
   RecordSeparationGaps(model, &state);
   EXPECT_EQ(state.separation_gap[1], sunk);
+
+  // The re-contact event itself forgets the old separation, whether the contact stays closed
+  // or bounces off at once (ReleasePullingContacts, no phase start between): the next phase
+  // measures from the gap after the impact, not from the separation before it.
+  const std::vector<EventSpec> specs = EventsForPhase(model, scene.end, state, tolerance);
+  std::vector<int> fired;
+  for (int k = 0; k < static_cast<int>(specs.size()); ++k) {
+    if (specs[k].kind == EventKind::kRecontact && specs[k].contact == 1) fired.push_back(k);
+  }
+  ASSERT_EQ(fired.size(), 1u);
+  std::vector<EventRecord> events;
+  PhaseTransition(model, specs, fired, RestartProjection::kProject, PullingContact::kSeparate, &state, &events);
+  EXPECT_TRUE(std::isnan(state.separation_gap[1])) << state.separation_gap[1];
 }
 
 // Each crossing of a ligament's kink length (1 + 2ε1) L0 (docs/model.md §5 and §9, the
